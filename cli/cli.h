@@ -1,0 +1,115 @@
+/* The command-line tool: shared pieces. cli/ uses only the public header. */
+#ifndef BSURF_CLI_H
+#define BSURF_CLI_H
+
+#include "bootsurf.h"
+
+#include <stdio.h>
+
+/* ---- options ---- */
+typedef enum { ARG_FLAG, ARG_INT, ARG_DOUBLE, ARG_STRING, ARG_U64, ARG_SIZE } cli_arg_kind;
+
+typedef struct cli_option {
+  char short_name;       /* 0: none */
+  const char *long_name; /* without the dashes */
+  cli_arg_kind kind;
+  void *target; /* int* (FLAG, INT), double*, const char**, uint64_t*, size_t* */
+  const char *metavar;
+  const char *help;
+  double min, max; /* accepted range of numbers (ignored when min > max) */
+} cli_option;
+
+typedef struct cli_command {
+  const char *name;
+  const char *summary;
+  const char *usage; /* after "bootsurf NAME " */
+  const char *description;
+  int (*run)(const struct cli_command *cmd, int argc, char **argv);
+} cli_command;
+
+#define CLI_PARSED 0
+#define CLI_HELP_SHOWN (-1)
+#define CLI_USAGE 2
+
+/* Parses argv[1..] (argv[0] is the command name). Positional arguments go to
+ * pos (at most maxpos). Returns CLI_PARSED, CLI_HELP_SHOWN or CLI_USAGE (the
+ * message was printed). */
+int cli_parse(const cli_command *cmd, const cli_option *opts, int nopts, int argc, char **argv,
+              char **pos, int maxpos, int *npos);
+void cli_print_help(FILE *f, const cli_command *cmd, const cli_option *opts, int nopts);
+/* Prints "bootsurf CMD: message" and a hint to --help; returns CLI_USAGE. */
+int cli_usage_error(const cli_command *cmd, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+/* Prints "bootsurf: error: message"; returns 1. */
+int cli_error(const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 1, 2)))
+#endif
+    ;
+void cli_warn(const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 1, 2)))
+#endif
+    ;
+
+/* Picks `value` from a list of names; returns its index or -1. */
+int cli_choice(const char *value, const char *const *names, int count);
+
+/* ---- files ---- */
+/* Reads a cloud; on failure prints "error: PATH:LINE: message" and returns 1.
+ * Rejects NaN/Inf coordinates naming the point. */
+int cli_read_cloud(const char *path, bsurf_cloud *cloud);
+/* Checks before any work that OUTPUT can be written and is not the input
+ * (unless force). Returns 0 or prints and returns 1 (or 2 for usage). */
+int cli_check_output(const char *output, const char *input, int force);
+/* Writes atomically; warns about fields the format cannot carry. 0 or 1. */
+int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
+
+/* ---- progress, signals, time ---- */
+typedef struct cli_progress {
+  const char *label;
+  int enabled;
+  int last_permille;
+} cli_progress;
+void cli_progress_init(cli_progress *p, const char *label, int quiet);
+int cli_progress_cb(void *user, size_t done, size_t total);
+void cli_progress_done(cli_progress *p);
+void cli_install_signals(void);
+int cli_interrupted(void);
+double cli_now(void);
+
+/* ---- JSON on stdout ---- */
+typedef struct cli_json {
+  FILE *f;
+  int depth;
+  int count[16];
+} cli_json;
+void json_begin(cli_json *j, FILE *f);
+void json_end(cli_json *j);
+void json_obj(cli_json *j, const char *key);
+void json_arr(cli_json *j, const char *key);
+void json_close_obj(cli_json *j);
+void json_close_arr(cli_json *j);
+void json_str(cli_json *j, const char *key, const char *v);
+void json_num(cli_json *j, const char *key, double v);
+void json_int(cli_json *j, const char *key, long long v);
+void json_bool(cli_json *j, const char *key, int v);
+
+/* "mean": {field: mean} and "mean_h": {field: mean / h} of the named fields. */
+void json_field_means(cli_json *j, const bsurf_cloud *cloud, const char *const *names, int count,
+                      double h);
+/* The same as a table on `f` for people. */
+void print_field_means(FILE *f, const bsurf_cloud *cloud, const char *const *names, int count,
+                       double h);
+double cli_field_mean(const bsurf_field *field, size_t n);
+
+/* ---- commands ---- */
+int cmd_info(const cli_command *cmd, int argc, char **argv);
+int cmd_generate(const cli_command *cmd, int argc, char **argv);
+int cmd_noise(const cli_command *cmd, int argc, char **argv);
+int cmd_error(const cli_command *cmd, int argc, char **argv);
+
+#endif

@@ -1,0 +1,156 @@
+/* bootsurf error: bootstrap test-error estimates (thesis chapter 4). */
+#include "cli.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+static const char *const error_fields[] = {"err_train", "err_boot",    "err_loo",
+                                           "err_loo_center", "err_632", "err_632plus",
+                                           "gamma",     "overfit_rate", "err_test",
+                                           "err_test_center"};
+#define ERROR_FIELD_COUNT 10
+
+int cmd_error(const cli_command *cmd, int argc, char **argv) {
+  bsurf_error_options eo = bsurf_error_options_default();
+  const char *gamma = "fit", *center = "centroid", *output = NULL, *test_path = NULL;
+  int ascii = 0, json = 0, quiet = 0, force = 0;
+  cli_option opts[] = {
+      {'k', "neighbors", ARG_INT, &eo.k, "K", "neighbourhood size K, the point included", 2, 65535},
+      {'d', "degree", ARG_INT, &eo.degree, "M", "degree of the height polynomial, 1..4", 1, 4},
+      {'B', "bootstrap", ARG_INT, &eo.bootstrap, "B", "bootstrap replicates per point", 0, 100000},
+      {0, "gamma", ARG_STRING, &gamma, "MODE",
+       "no-information rate: fit (Eq. 4.10), mean or max over replicates (4.2.1)", 1, 0},
+      {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point", 1, 0},
+      {0, "seed", ARG_U64, &eo.seed, "S", "random seed", 1, 0},
+      {'j', "threads", ARG_INT, &eo.threads, "N", "threads, 0 = all cores", 0, 4096},
+      {0, "test-sample", ARG_STRING, &test_path, "FILE",
+       "same points with independent noise: also write err_test (validation)", 1, 0},
+      {'o', "output", ARG_STRING, &output, "FILE", "output file with the estimates (.ply keeps them)", 1, 0},
+      {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
+      {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
+      {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
+      {'q', "quiet", ARG_FLAG, &quiet, "", "no progress bar or summary", 1, 0},
+  };
+  char *pos[1];
+  int npos;
+  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
+  if (rc != CLI_PARSED) return rc;
+  if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
+  static const char *const gammas[] = {"fit", "mean", "max"};
+  static const char *const centers[] = {"centroid", "point"};
+  int g = cli_choice(gamma, gammas, 3), pc = cli_choice(center, centers, 2);
+  if (g < 0) return cli_usage_error(cmd, "--gamma must be fit, mean or max, not '%s'", gamma);
+  if (pc < 0) return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", center);
+  eo.gamma = (bsurf_gamma_mode)g;
+  eo.pca_center = (bsurf_pca_center)pc;
+  int terms = (eo.degree + 1) * (eo.degree + 2) / 2;
+  if (eo.k < terms)
+    return cli_usage_error(cmd, "K = %d is too small for degree %d: a fit needs at least %d points", eo.k,
+                           eo.degree, terms);
+  if (output && cli_check_output(output, pos[0], force)) return 1;
+
+  double t0 = cli_now();
+  bsurf_cloud c, test;
+  bsurf_cloud_init(&c);
+  bsurf_cloud_init(&test);
+  if (cli_read_cloud(pos[0], &c)) return 1;
+  if (test_path) {
+    if (cli_read_cloud(test_path, &test)) {
+      bsurf_cloud_free(&c);
+      return 1;
+    }
+    if (test.point_count != c.point_count) {
+      rc = cli_error("%s: has %zu points but %s has %zu; the test sample must list the same points",
+                     test_path, test.point_count, pos[0], c.point_count);
+      goto done;
+    }
+  }
+  if (c.point_count < (size_t)eo.k) {
+    rc = cli_error("%s: has %zu points, fewer than K = %d", pos[0], c.point_count, eo.k);
+    goto done;
+  }
+
+  cli_progress prog;
+  cli_progress_init(&prog, "neighbours", quiet);
+  bsurf_neighbors nb;
+  memset(&nb, 0, sizeof nb);
+  bsurf_status st =
+      bsurf_neighbors_build(&nb, c.xyz, c.point_count, eo.k, eo.threads, cli_progress_cb, &prog);
+  cli_progress_done(&prog);
+  if (st != BSURF_OK) {
+    rc = cli_error("%s: neighbourhoods: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
+    goto done;
+  }
+
+  bsurf_error_fields out;
+  memset(&out, 0, sizeof out);
+  double **slots[ERROR_FIELD_COUNT] = {&out.err_train, &out.err_boot,  &out.err_loo,
+                                       &out.err_loo_center, &out.err_632, &out.err_632plus,
+                                       &out.gamma,     &out.overfit_rate, &out.err_test,
+                                       &out.err_test_center};
+  int nfields = test_path ? ERROR_FIELD_COUNT : ERROR_FIELD_COUNT - 2;
+  for (int f = 0; f < nfields; f++) {
+    bsurf_field *fl = bsurf_cloud_add_field(&c, error_fields[f], BSURF_FLOAT32);
+    if (!fl) {
+      bsurf_neighbors_free(&nb);
+      rc = cli_error("out of memory");
+      goto done;
+    }
+  }
+  for (int f = 0; f < nfields; f++) *slots[f] = bsurf_cloud_field(&c, error_fields[f])->values;
+
+  eo.progress = cli_progress_cb;
+  eo.progress_user = &prog;
+  cli_progress_init(&prog, "error", quiet);
+  bsurf_error_report rep;
+  st = bsurf_estimate_error(c.xyz, &nb, test_path ? test.xyz : NULL, &eo, &out, &rep);
+  cli_progress_done(&prog);
+  double h = nb.h;
+  bsurf_neighbors_free(&nb);
+  if (st != BSURF_OK) {
+    rc = cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
+    goto done;
+  }
+  if (output && cli_write_cloud(output, &c, ascii)) {
+    rc = 1;
+    goto done;
+  }
+  double secs = cli_now() - t0;
+  if (json) {
+    cli_json j;
+    json_begin(&j, stdout);
+    json_str(&j, "command", "error");
+    json_str(&j, "input", pos[0]);
+    if (output) json_str(&j, "output", output);
+    json_int(&j, "points", (long long)c.point_count);
+    json_num(&j, "h", h);
+    json_int(&j, "k", eo.k);
+    json_int(&j, "degree", eo.degree);
+    json_int(&j, "bootstrap", eo.bootstrap);
+    json_str(&j, "gamma_mode", gamma);
+    json_str(&j, "pca_center", center);
+    json_int(&j, "seed", (long long)eo.seed);
+    json_int(&j, "threads", bsurf_threads_resolve(eo.threads));
+    json_int(&j, "replicates_total", (long long)rep.replicates_total);
+    json_int(&j, "replicates_skipped", (long long)rep.replicates_skipped);
+    json_int(&j, "degree_reduced", (long long)rep.degree_reduced);
+    json_int(&j, "center_unestimated", (long long)rep.center_unestimated);
+    json_field_means(&j, &c, error_fields, nfields, h);
+    json_num(&j, "seconds", secs);
+    json_end(&j);
+  } else if (!quiet) {
+    printf("error: %zu points, h = %.6g, K = %d, degree %d, B = %d, gamma %s, %.2f s\n", c.point_count, h,
+           eo.k, eo.degree, eo.bootstrap, gamma, secs);
+    print_field_means(stdout, &c, error_fields, nfields, h);
+    if (rep.replicates_skipped)
+      printf("  %zu of %zu replicate fits were rank-deficient and skipped\n", rep.replicates_skipped,
+             rep.replicates_total);
+    if (rep.degree_reduced)
+      printf("  %zu points had degenerate neighbourhoods and used a lower degree\n", rep.degree_reduced);
+    if (output) printf("  -> %s\n", output);
+  }
+done:
+  bsurf_cloud_free(&c);
+  bsurf_cloud_free(&test);
+  return rc;
+}

@@ -1,0 +1,81 @@
+/* bootsurf info: what is in a file. */
+#include "cli.h"
+
+#include <math.h>
+
+static const char *type_name(bsurf_type t) {
+  static const char *names[] = {"int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"};
+  return (unsigned)t < 8 ? names[t] : "?";
+}
+
+int cmd_info(const cli_command *cmd, int argc, char **argv) {
+  int threads = 0, json = 0, quiet = 0;
+  cli_option opts[] = {
+      {'j', "threads", ARG_INT, &threads, "N", "threads, 0 = all cores", 0, 4096},
+      {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
+      {'q', "quiet", ARG_FLAG, &quiet, "", "no progress output", 1, 0},
+  };
+  char *pos[1];
+  int npos;
+  int rc = cli_parse(cmd, opts, 3, argc, argv, pos, 1, &npos);
+  if (rc != CLI_PARSED) return rc;
+  if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
+  double t0 = cli_now();
+  bsurf_cloud c;
+  bsurf_cloud_init(&c);
+  if (cli_read_cloud(pos[0], &c)) return 1;
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < c.point_count; i++)
+    for (int t = 0; t < 3; t++) {
+      double v = c.xyz[3 * i + t];
+      if (v < lo[t]) lo[t] = v;
+      if (v > hi[t]) hi[t] = v;
+    }
+  double diag = c.point_count ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                                     (hi[2] - lo[2]) * (hi[2] - lo[2]))
+                              : 0;
+  double h = NAN;
+  if (c.point_count >= 2 && bsurf_mean_spacing(c.xyz, c.point_count, threads, &h) != BSURF_OK) h = NAN;
+  double secs = cli_now() - t0;
+  if (json) {
+    cli_json j;
+    json_begin(&j, stdout);
+    json_str(&j, "command", "info");
+    json_str(&j, "input", pos[0]);
+    json_int(&j, "points", (long long)c.point_count);
+    json_int(&j, "faces", (long long)c.face_count);
+    json_bool(&j, "normals", c.normals != NULL);
+    json_arr(&j, "fields");
+    for (size_t f = 0; f < c.field_count; f++) json_str(&j, NULL, c.fields[f].name);
+    json_close_arr(&j);
+    if (c.point_count) {
+      json_obj(&j, "bbox");
+      json_arr(&j, "min");
+      for (int t = 0; t < 3; t++) json_num(&j, NULL, lo[t]);
+      json_close_arr(&j);
+      json_arr(&j, "max");
+      for (int t = 0; t < 3; t++) json_num(&j, NULL, hi[t]);
+      json_close_arr(&j);
+      json_num(&j, "diagonal", diag);
+      json_close_obj(&j);
+    }
+    json_num(&j, "h", h);
+    json_int(&j, "threads", bsurf_threads_resolve(threads));
+    json_num(&j, "seconds", secs);
+    json_end(&j);
+  } else {
+    printf("%s\n", pos[0]);
+    printf("  points     %zu\n", c.point_count);
+    printf("  faces      %zu\n", c.face_count);
+    printf("  normals    %s\n", c.normals ? "yes" : "no");
+    printf("  fields    ");
+    for (size_t f = 0; f < c.field_count; f++) printf(" %s(%s)", c.fields[f].name, type_name(c.fields[f].type));
+    printf("%s\n", c.field_count ? "" : " none");
+    if (c.point_count)
+      printf("  bbox       [%g %g %g] .. [%g %g %g], diagonal %g\n", lo[0], lo[1], lo[2], hi[0], hi[1],
+             hi[2], diag);
+    printf("  h          %.6g (mean nearest-neighbour distance)\n", h);
+  }
+  bsurf_cloud_free(&c);
+  return 0;
+}

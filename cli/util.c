@@ -1,0 +1,247 @@
+/* Command-line plumbing: reading and writing with messages that name the
+ * file and the place, progress bar, signals, JSON summaries. */
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <signal.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+/* ---- files ---- */
+
+int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
+  bsurf_error err = {0, -1, ""};
+  if (bsurf_format_from_path(path) == BSURF_FORMAT_UNKNOWN)
+    return cli_error("%s: unknown file type (use .ply, .off, .obj, .xyz or .txt)", path);
+  bsurf_status st = bsurf_read(path, cloud, &err);
+  if (st != BSURF_OK) {
+    const char *msg = err.message[0] ? err.message : bsurf_strerror(st);
+    if (err.line > 0) return cli_error("%s:%ld: %s", path, err.line, msg);
+    if (err.byte >= 0) return cli_error("%s: byte %lld: %s", path, err.byte, msg);
+    return cli_error("%s: %s", path, msg);
+  }
+  size_t bad = 0;
+  if (bsurf_cloud_check_finite(cloud, &bad) != BSURF_OK) {
+    bsurf_cloud_free(cloud);
+    return cli_error("%s: point %zu (0-based) has a NaN or infinite coordinate or normal", path, bad);
+  }
+  return 0;
+}
+
+int cli_check_output(const char *output, const char *input, int force) {
+  if (bsurf_format_from_path(output) == BSURF_FORMAT_UNKNOWN)
+    return cli_error("%s: unknown output file type (use .ply, .off, .obj, .xyz or .txt)", output);
+  struct stat so, si;
+  if (input && !force && stat(output, &so) == 0 && stat(input, &si) == 0 &&
+      so.st_dev == si.st_dev && so.st_ino == si.st_ino)
+    return cli_error("%s: the output is the input file; refusing to overwrite it (use --force)",
+                     output);
+  struct stat sd;
+  if (stat(output, &sd) == 0 && S_ISDIR(sd.st_mode))
+    return cli_error("%s: is a directory", output);
+  /* the directory must exist and be writable (the file goes to a temporary
+   * name there first) */
+  char dir[4096];
+  const char *slash = strrchr(output, '/');
+  if (!slash) {
+    strcpy(dir, ".");
+  } else if (slash == output) {
+    strcpy(dir, "/");
+  } else {
+    size_t n = (size_t)(slash - output);
+    if (n >= sizeof dir) return cli_error("%s: path too long", output);
+    memcpy(dir, output, n);
+    dir[n] = 0;
+  }
+  if (access(dir, W_OK) != 0)
+    return cli_error("%s: cannot write in directory '%s': %s", output, dir, strerror(errno));
+  return 0;
+}
+
+int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii) {
+  bsurf_format fmt = bsurf_format_from_path(path);
+  if (!bsurf_format_keeps_fields(fmt) && cloud->field_count > 0) {
+    cli_warn("%s: this format cannot store the %zu scalar field(s) (first: %s); write .ply to keep them",
+             path, cloud->field_count, cloud->fields[0].name);
+  }
+  bsurf_write_options wo = {ascii};
+  bsurf_error err = {0, -1, ""};
+  bsurf_status st = bsurf_write(path, cloud, &wo, &err);
+  if (st != BSURF_OK)
+    return cli_error("%s: %s", path, err.message[0] ? err.message : bsurf_strerror(st));
+  return 0;
+}
+
+/* ---- progress and signals ---- */
+
+static volatile sig_atomic_t interrupted = 0;
+
+static void on_signal(int sig) {
+  (void)sig;
+  interrupted = 1;
+}
+
+void cli_install_signals(void) {
+  struct sigaction sa;
+  memset(&sa, 0, sizeof sa);
+  sa.sa_handler = on_signal;
+  sigemptyset(&sa.sa_mask);
+  sigaction(SIGINT, &sa, NULL);
+  sigaction(SIGTERM, &sa, NULL);
+}
+
+int cli_interrupted(void) { return interrupted != 0; }
+
+void cli_progress_init(cli_progress *p, const char *label, int quiet) {
+  p->label = label;
+  p->enabled = !quiet && isatty(STDERR_FILENO);
+  p->last_permille = -1;
+}
+
+int cli_progress_cb(void *user, size_t done, size_t total) {
+  cli_progress *p = user;
+  if (p && p->enabled && total > 0) {
+    int permille = (int)(1000.0 * (double)done / (double)total);
+    if (permille != p->last_permille) {
+      p->last_permille = permille;
+      int width = 30, filled = permille * width / 1000;
+      fprintf(stderr, "\r%-10s [", p->label);
+      for (int i = 0; i < width; i++) fputc(i < filled ? '#' : '.', stderr);
+      fprintf(stderr, "] %5.1f%%", permille / 10.0);
+      fflush(stderr);
+    }
+  }
+  return interrupted ? 1 : 0;
+}
+
+void cli_progress_done(cli_progress *p) {
+  if (p->enabled && p->last_permille >= 0) fprintf(stderr, "\n");
+  p->last_permille = -1;
+}
+
+double cli_now(void) {
+  struct timespec ts;
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* ---- JSON ---- */
+
+static void json_sep(cli_json *j, const char *key) {
+  if (j->count[j->depth]++) fputc(',', j->f);
+  if (key) {
+    fputc('"', j->f);
+    for (const char *c = key; *c; c++) {
+      if (*c == '"' || *c == '\\') fputc('\\', j->f);
+      fputc(*c, j->f);
+    }
+    fputs("\":", j->f);
+  }
+}
+
+void json_begin(cli_json *j, FILE *f) {
+  memset(j, 0, sizeof *j);
+  j->f = f;
+  fputc('{', f);
+}
+
+void json_end(cli_json *j) {
+  fputs("}\n", j->f);
+  fflush(j->f);
+}
+
+void json_obj(cli_json *j, const char *key) {
+  json_sep(j, key);
+  fputc('{', j->f);
+  j->count[++j->depth] = 0;
+}
+
+void json_arr(cli_json *j, const char *key) {
+  json_sep(j, key);
+  fputc('[', j->f);
+  j->count[++j->depth] = 0;
+}
+
+void json_close_obj(cli_json *j) {
+  fputc('}', j->f);
+  j->depth--;
+}
+
+void json_close_arr(cli_json *j) {
+  fputc(']', j->f);
+  j->depth--;
+}
+
+void json_str(cli_json *j, const char *key, const char *v) {
+  json_sep(j, key);
+  fputc('"', j->f);
+  for (const unsigned char *c = (const unsigned char *)v; *c; c++) {
+    if (*c == '"' || *c == '\\') {
+      fputc('\\', j->f);
+      fputc(*c, j->f);
+    } else if (*c < 0x20) {
+      fprintf(j->f, "\\u%04x", *c);
+    } else {
+      fputc(*c, j->f);
+    }
+  }
+  fputc('"', j->f);
+}
+
+void json_num(cli_json *j, const char *key, double v) {
+  json_sep(j, key);
+  if (isfinite(v))
+    fprintf(j->f, "%.10g", v);
+  else
+    fputs("null", j->f);
+}
+
+void json_int(cli_json *j, const char *key, long long v) {
+  json_sep(j, key);
+  fprintf(j->f, "%lld", v);
+}
+
+void json_bool(cli_json *j, const char *key, int v) {
+  json_sep(j, key);
+  fputs(v ? "true" : "false", j->f);
+}
+
+double cli_field_mean(const bsurf_field *field, size_t n) {
+  double s = 0;
+  for (size_t i = 0; i < n; i++) s += field->values[i];
+  return n ? s / (double)n : 0.0;
+}
+
+void json_field_means(cli_json *j, const bsurf_cloud *cloud, const char *const *names, int count,
+                      double h) {
+  double means[64];
+  int have[64];
+  for (int t = 0; t < count && t < 64; t++) {
+    const bsurf_field *f = bsurf_cloud_field(cloud, names[t]);
+    have[t] = f != NULL;
+    means[t] = f ? cli_field_mean(f, cloud->point_count) : 0;
+  }
+  json_obj(j, "mean");
+  for (int t = 0; t < count && t < 64; t++)
+    if (have[t]) json_num(j, names[t], means[t]);
+  json_close_obj(j);
+  json_obj(j, "mean_h");
+  for (int t = 0; t < count && t < 64; t++)
+    if (have[t]) json_num(j, names[t], h > 0 ? means[t] / h : NAN);
+  json_close_obj(j);
+}
+
+void print_field_means(FILE *f, const bsurf_cloud *cloud, const char *const *names, int count,
+                       double h) {
+  fprintf(f, "  %-16s %14s %12s\n", "field", "mean", "mean / h");
+  for (int t = 0; t < count; t++) {
+    const bsurf_field *fl = bsurf_cloud_field(cloud, names[t]);
+    if (!fl) continue;
+    double m = cli_field_mean(fl, cloud->point_count);
+    fprintf(f, "  %-16s %14.6g %12.4f\n", names[t], m, h > 0 ? m / h : NAN);
+  }
+}

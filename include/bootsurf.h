@@ -1,0 +1,377 @@
+/*
+ * bootsurf.h — the public API of libbootsurf.
+ *
+ * bootsurf brings statistics to point-cloud processing: bootstrap test-error
+ * estimates of local polynomial fits (thesis "Bootstrap Based Surface
+ * Reconstruction", chapters 3-4), normals with a confidence value (chapter 5),
+ * denoising (chapter 6) and feature detection (chapter 7).
+ *
+ * Conventions (see docs/architecture.md):
+ *  - every fallible call returns a bsurf_status; bsurf_strerror() names it;
+ *  - arrays are owned by the caller and come with explicit counts; shapes are
+ *    written libigl-style, e.g. `xyz  in: point_count x 3` (row-major);
+ *  - optional outputs may be NULL;
+ *  - the library never prints and never exits; progress is reported through a
+ *    callback that may also cancel the computation;
+ *  - results depend only on the inputs and the seed, never on the thread count.
+ */
+#ifndef BOOTSURF_H
+#define BOOTSURF_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define BSURF_VERSION_MAJOR 0
+#define BSURF_VERSION_MINOR 1
+#define BSURF_VERSION_PATCH 0
+#define BSURF_VERSION_STRING "0.1.0"
+
+/* ------------------------------------------------------------------------ */
+/* Status codes                                                              */
+/* ------------------------------------------------------------------------ */
+
+typedef enum bsurf_status {
+  BSURF_OK = 0,
+  BSURF_ERR_NOMEM,          /* an allocation failed */
+  BSURF_ERR_IO,             /* a file could not be opened, read or written */
+  BSURF_ERR_PARSE,          /* a file's content is malformed */
+  BSURF_ERR_UNSUPPORTED,    /* a valid file uses a feature we do not read */
+  BSURF_ERR_INVALID_ARG,    /* a parameter is out of range */
+  BSURF_ERR_TOO_FEW_POINTS, /* fewer points than the computation needs */
+  BSURF_ERR_NO_NORMALS,     /* the input has no normals but they are needed */
+  BSURF_ERR_INVALID_VALUE,  /* NaN or infinite coordinates */
+  BSURF_ERR_RANK_DEFICIENT, /* a least-squares system is singular */
+  BSURF_ERR_CANCELLED       /* the progress callback asked to stop */
+} bsurf_status;
+
+/* A static, human-readable name of a status code. */
+const char *bsurf_strerror(bsurf_status status);
+
+/* Where a reader or writer failed. `line` is 1-based (0 when unknown or for
+ * binary data), `byte` the offset from the start of the file (-1 when unknown).
+ * `message` says what is wrong in words a user understands. */
+typedef struct bsurf_error {
+  long line;
+  long long byte;
+  char message[256];
+} bsurf_error;
+
+/* Progress callback: `done` of `total` work items are finished. Called from
+ * the calling thread only. Return non-zero to cancel (the call then returns
+ * BSURF_ERR_CANCELLED and its outputs are unspecified). */
+typedef int (*bsurf_progress_fn)(void *user, size_t done, size_t total);
+
+/* ------------------------------------------------------------------------ */
+/* Point clouds                                                              */
+/* ------------------------------------------------------------------------ */
+
+/* Storage type of a value in a file (PLY property types). In memory every
+ * value is a double, which represents all of them exactly. */
+typedef enum bsurf_type {
+  BSURF_INT8 = 0,
+  BSURF_UINT8,
+  BSURF_INT16,
+  BSURF_UINT16,
+  BSURF_INT32,
+  BSURF_UINT32,
+  BSURF_FLOAT32,
+  BSURF_FLOAT64
+} bsurf_type;
+
+#define BSURF_FIELD_NAME_MAX 64
+
+/* A named per-point scalar (a PLY vertex property other than x y z nx ny nz). */
+typedef struct bsurf_field {
+  char name[BSURF_FIELD_NAME_MAX];
+  bsurf_type type; /* type used when written to a file */
+  double *values;  /* point_count */
+} bsurf_field;
+
+/* A point cloud, optionally with triangles (a mesh). All arrays are owned by
+ * the cloud and released by bsurf_cloud_free(). */
+typedef struct bsurf_cloud {
+  size_t point_count;
+  double *xyz;           /* point_count x 3 */
+  double *normals;       /* point_count x 3, or NULL */
+  bsurf_type xyz_type;   /* how x y z are written (default FLOAT64) */
+  bsurf_type normal_type; /* how nx ny nz are written (default FLOAT32) */
+  size_t field_count;
+  bsurf_field *fields;   /* field_count */
+  size_t face_count;
+  uint32_t *faces;       /* face_count x 3 (polygons are fan-triangulated) */
+} bsurf_cloud;
+
+/* An empty cloud (all zero / NULL). */
+void bsurf_cloud_init(bsurf_cloud *cloud);
+/* Allocates xyz for n points (zeroed); normals when with_normals. */
+bsurf_status bsurf_cloud_alloc(bsurf_cloud *cloud, size_t n, int with_normals);
+void bsurf_cloud_free(bsurf_cloud *cloud);
+/* Deep copy. */
+bsurf_status bsurf_cloud_copy(bsurf_cloud *dst, const bsurf_cloud *src);
+/* The field called `name`, or NULL. */
+bsurf_field *bsurf_cloud_field(const bsurf_cloud *cloud, const char *name);
+/* The field called `name`, created (zero-filled, with `type`) if missing; an
+ * existing field keeps its values and takes `type`. NULL on allocation failure. */
+bsurf_field *bsurf_cloud_add_field(bsurf_cloud *cloud, const char *name,
+                                   bsurf_type type);
+/* Removes the field called `name` if present. */
+void bsurf_cloud_remove_field(bsurf_cloud *cloud, const char *name);
+/* BSURF_OK if every coordinate (and normal) is finite; otherwise
+ * BSURF_ERR_INVALID_VALUE and *bad_index (if not NULL) is the first bad point. */
+bsurf_status bsurf_cloud_check_finite(const bsurf_cloud *cloud, size_t *bad_index);
+
+/* ------------------------------------------------------------------------ */
+/* Files                                                                     */
+/* ------------------------------------------------------------------------ */
+
+typedef enum bsurf_format {
+  BSURF_FORMAT_UNKNOWN = 0,
+  BSURF_FORMAT_PLY,
+  BSURF_FORMAT_OFF,
+  BSURF_FORMAT_OBJ,
+  BSURF_FORMAT_XYZ /* .xyz, .txt, .pts: x y z [nx ny nz] per line */
+} bsurf_format;
+
+/* The format named by a path's extension (case-insensitive). */
+bsurf_format bsurf_format_from_path(const char *path);
+
+/* Reads a cloud or mesh; the format comes from the extension. On failure the
+ * cloud is left empty and `err` (optional) says where and why. */
+bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err);
+/* The same from a buffer already in memory (used by the fuzzers). */
+bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format format,
+                               bsurf_cloud *cloud, bsurf_error *err);
+
+typedef struct bsurf_write_options {
+  int ascii; /* PLY: write ascii instead of binary little-endian */
+} bsurf_write_options;
+
+/* Writes a cloud; the format comes from the extension. The data go to a
+ * temporary file in the same directory which is renamed to `path` only when
+ * everything was written: a failed write leaves no partial file. `opts` may be
+ * NULL (binary PLY). Formats that cannot carry every field (OFF, OBJ, XYZ)
+ * write what they can; see bsurf_format_keeps_fields(). */
+bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
+                         const bsurf_write_options *opts, bsurf_error *err);
+/* 1 if the format stores named scalar fields (PLY only). */
+int bsurf_format_keeps_fields(bsurf_format format);
+
+/* ------------------------------------------------------------------------ */
+/* Neighbourhoods                                                            */
+/* ------------------------------------------------------------------------ */
+
+/* An exact k-d tree over a set of points (for the K-nearest-neighbour search). */
+typedef struct bsurf_knn_index bsurf_knn_index;
+
+/* Builds the index over `xyz` (point_count x 3), which must outlive it. */
+bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz,
+                             size_t point_count);
+void bsurf_knn_free(bsurf_knn_index *index);
+
+/* The k nearest indexed points of one query point, sorted by (squared
+ * distance, index). `idx` out: k; `dist2` out: k, may be NULL. k must not
+ * exceed the number of indexed points. */
+bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3],
+                             int k, uint32_t *idx, double *dist2);
+
+/* All-K-nearest neighbours of the indexed points themselves: row i lists point
+ * i first, then the k-1 nearest other points sorted by (squared distance,
+ * index) — so duplicates of a point never displace the point itself.
+ * `idx` out: point_count x k; `dist2` out: point_count x k (may be NULL).
+ * threads: 0 = all cores. Parallel, deterministic for any thread count. */
+bsurf_status bsurf_knn_all(const bsurf_knn_index *index, int k, int threads,
+                           uint32_t *idx, double *dist2,
+                           bsurf_progress_fn progress, void *progress_user);
+
+/* Reference O(N^2 K) implementation of bsurf_knn_all (same order and ties),
+ * used by the tests; only for small inputs. */
+bsurf_status bsurf_knn_all_brute(const double *xyz, size_t point_count, int k,
+                                 uint32_t *idx, double *dist2);
+
+/* Neighbourhoods of every point, computed once and shared by every stage. */
+typedef struct bsurf_neighbors {
+  size_t point_count;
+  int k;         /* neighbours per point, the point itself first */
+  uint32_t *idx; /* point_count x k */
+  double h;      /* mean nearest-neighbour distance (the thesis's unit) */
+} bsurf_neighbors;
+
+/* Builds the neighbourhoods (kd-tree + all-kNN) and h. k >= 2. */
+bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz,
+                                   size_t point_count, int k, int threads,
+                                   bsurf_progress_fn progress, void *progress_user);
+void bsurf_neighbors_free(bsurf_neighbors *nb);
+
+/* Mean distance from each point to its nearest other point (h). Builds its own
+ * index; threads: 0 = all cores. Needs at least 2 points. */
+bsurf_status bsurf_mean_spacing(const double *xyz, size_t point_count, int threads,
+                                double *h);
+
+/* ------------------------------------------------------------------------ */
+/* Local analysis (thesis 3.3)                                               */
+/* ------------------------------------------------------------------------ */
+
+/* The local frame of a neighbourhood: rows of `rot` are X', Y', n (Eq. 3.4),
+ * `origin` is the neighbourhood's point d_i; a point p has local coordinates
+ * p' = rot (p - origin). eigenvalues are ascending (lambda0 <= lambda1 <= lambda2);
+ * n is the eigenvector of lambda0, X' that of lambda2. */
+typedef struct bsurf_frame {
+  double origin[3];
+  double rot[3][3];
+  double eigenvalues[3];
+} bsurf_frame;
+
+typedef enum bsurf_pca_center {
+  BSURF_PCA_CENTROID = 0, /* second moments about the centroid */
+  BSURF_PCA_POINT         /* about the point itself (thesis Eq. 2.1) */
+} bsurf_pca_center;
+
+/* PCA frame of the k points xyz[idx[0..k-1]] centred at xyz[idx[0]]. */
+void bsurf_local_frame(const double *xyz, const uint32_t *idx, int k,
+                       bsurf_pca_center center, bsurf_frame *frame);
+
+/* Number of coefficients of a bivariate polynomial of total degree `degree`:
+ * (degree+1)(degree+2)/2. */
+int bsurf_poly_terms(int degree);
+
+/* ------------------------------------------------------------------------ */
+/* Bootstrap test-error estimation (thesis chapter 4)                         */
+/* ------------------------------------------------------------------------ */
+
+typedef enum bsurf_gamma_mode {
+  BSURF_GAMMA_FIT = 0, /* gamma of the fit to the whole neighbourhood (Eq. 4.10) */
+  BSURF_GAMMA_MEAN,    /* mean of the replicates' gammas (section 4.2.1) */
+  BSURF_GAMMA_MAX      /* maximum of the replicates' gammas (section 4.2.1) */
+} bsurf_gamma_mode;
+
+typedef struct bsurf_error_options {
+  int k;                  /* neighbourhood size K, the point included (50) */
+  int degree;             /* polynomial degree M, 1..4 (3) */
+  int bootstrap;          /* replicates B (50) */
+  uint64_t seed;          /* random seed (1) */
+  bsurf_gamma_mode gamma; /* no-information rate (FIT) */
+  bsurf_pca_center pca_center; /* frame's PCA centre (CENTROID) */
+  int threads;            /* 0 = all cores */
+  bsurf_progress_fn progress;
+  void *progress_user;
+} bsurf_error_options;
+
+bsurf_error_options bsurf_error_options_default(void);
+
+/* Per-point outputs, each point_count long or NULL when not wanted. */
+typedef struct bsurf_error_fields {
+  double *err_train;      /* Eq. 4.6 */
+  double *err_boot;       /* Eq. 4.3 */
+  double *err_loo;        /* Eq. 4.4 */
+  double *err_loo_center; /* Eq. 4.11 */
+  double *err_632;        /* Eq. 4.5 */
+  double *err_632plus;    /* Eqs. 4.7-4.10 */
+  double *gamma;          /* Eq. 4.10, or its mean/max over replicates */
+  double *overfit_rate;   /* R of Eq. 4.9, clipped to [0, 1] */
+  /* Filled only when a test sample is given to bsurf_estimate_error: the
+   * mean |f(x_j) - y_j| of the full fit over the test sample's copy of the
+   * neighbourhood, and the same at the centre point only. */
+  double *err_test;
+  double *err_test_center;
+} bsurf_error_fields;
+
+typedef struct bsurf_error_report {
+  size_t replicates_total;   /* point_count x B */
+  size_t replicates_skipped; /* rank-deficient replicate fits, not used */
+  size_t degree_reduced;     /* points whose full fit was rank-deficient at
+                                the asked degree and used a lower one */
+  size_t center_unestimated; /* points whose centre was in every replicate:
+                                err_loo_center falls back to err_loo */
+} bsurf_error_report;
+
+/* Bootstrap test-error estimates of the local polynomial fits (Algorithm 1).
+ * xyz in: point_count x 3; nb: neighbourhoods with nb->k >= opts->k (the first
+ * opts->k of each row are used); test_xyz in: point_count x 3 or NULL — an
+ * independent sample of the same surface points (same order) on which the
+ * full fits are evaluated (err_test). Deterministic for a given seed. */
+bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
+                                  const double *test_xyz,
+                                  const bsurf_error_options *opts,
+                                  bsurf_error_fields *out,
+                                  bsurf_error_report *report);
+
+/* ------------------------------------------------------------------------ */
+/* Generated shapes and noise                                                 */
+/* ------------------------------------------------------------------------ */
+
+typedef enum bsurf_shape {
+  BSURF_SHAPE_SPHERE = 0, /* radius 1, centred at 0 */
+  BSURF_SHAPE_CUBE,       /* edge 2, centred at 0; sharp edges */
+  BSURF_SHAPE_TORUS,      /* radii 1 and 0.35 around the z axis */
+  BSURF_SHAPE_PLANE       /* the square [-1,1]^2 at z = 0 */
+} bsurf_shape;
+
+typedef enum bsurf_sampling {
+  BSURF_SAMPLING_REGULAR = 0, /* even, deterministic (Fibonacci / grids) */
+  BSURF_SAMPLING_RANDOM       /* uniform by area, from the seed */
+} bsurf_sampling;
+
+/* Parses "sphere", "cube", ... Returns 0 on success. */
+int bsurf_shape_from_name(const char *name, bsurf_shape *shape);
+const char *bsurf_shape_name(bsurf_shape shape);
+
+/* Generates about `n` points on a shape with exact normals and, for shapes
+ * with sharp edges, the fields `feature_dist` (distance to the nearest sharp
+ * edge) and `feature` (1 where feature_dist <= feature_width * s, with s =
+ * sqrt(area / point count) the nominal point spacing). Regular sampling
+ * rounds n to the nearest count its pattern allows. */
+bsurf_status bsurf_generate(bsurf_cloud *cloud, bsurf_shape shape, size_t n,
+                            bsurf_sampling sampling, uint64_t seed,
+                            double feature_width);
+
+/* Exact distance from a point to a generated shape's surface. */
+double bsurf_shape_distance(bsurf_shape shape, const double p[3]);
+
+typedef enum bsurf_noise_model {
+  BSURF_NOISE_GAUSSIAN = 0, /* t ~ N(0, level^2) */
+  BSURF_NOISE_UNIFORM       /* t ~ U[-level, level] (thesis 4.2's text) */
+} bsurf_noise_model;
+
+/* Displaces every point along its (unit) normal by t * scale: xyz is updated
+ * in place. t is drawn from the model with the given level, from a generator
+ * keyed by (seed, point index). normals in: point_count x 3. */
+bsurf_status bsurf_add_noise(double *xyz, const double *normals,
+                             size_t point_count, bsurf_noise_model model,
+                             double level, double scale, uint64_t seed);
+
+/* ------------------------------------------------------------------------ */
+/* Random numbers                                                            */
+/* ------------------------------------------------------------------------ */
+
+/* A counter-based generator: the stream is a pure function of (seed, a, b),
+ * so draws never depend on thread scheduling. */
+typedef struct bsurf_rng {
+  uint64_t s[4];
+} bsurf_rng;
+
+void bsurf_rng_init(bsurf_rng *rng, uint64_t seed, uint64_t a, uint64_t b);
+uint64_t bsurf_rng_next(bsurf_rng *rng);
+/* Uniform in [0, 1) with 53 random bits. */
+double bsurf_rng_uniform(bsurf_rng *rng);
+/* Uniform integer in [0, n), unbiased (n > 0). */
+uint32_t bsurf_rng_below(bsurf_rng *rng, uint32_t n);
+/* Standard normal (Box-Muller, both values drawn from this stream). */
+double bsurf_rng_normal(bsurf_rng *rng);
+
+/* ------------------------------------------------------------------------ */
+/* Threads                                                                   */
+/* ------------------------------------------------------------------------ */
+
+/* The number of threads a call with `threads` will use (0 = all cores); 1
+ * when built without OpenMP. */
+int bsurf_threads_resolve(int threads);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* BOOTSURF_H */

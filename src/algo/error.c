@@ -1,0 +1,212 @@
+/* Bootstrap test-error estimation of local polynomial fits (thesis chapter 4,
+ * Algorithm 1; localisation of 3.3).
+ *
+ * For every point d_i with neighbourhood P_i (K points, d_i first):
+ *   1. PCA frame of P_i and local coordinates (x_j, y_j) (3.3, Eqs. 3.4-3.5);
+ *   2. the degree-M least-squares fit f on P_i: err_train (Eq. 4.6) and the
+ *      no-information rate gamma (Eq. 4.10);
+ *   3. B bootstrap samples S_b (4.1.1), drawn from the stream keyed by
+ *      (seed, i, b), a fit f*b on each, and its predictions on all of P_i;
+ *   4. the estimators err_boot, err_loo, err_loo_center, .632, .632+ (Eqs.
+ *      4.3-4.5, 4.7-4.9, 4.11), in src/bootstrap/estimators.c.
+ * A replicate whose fit is rank-deficient is skipped and counted. If the fit
+ * to the whole neighbourhood is rank-deficient at degree M (degenerate
+ * neighbourhood: collinear or repeated points) the highest lower degree that
+ * is full rank is used for that point, down to a constant, and the point is
+ * counted in degree_reduced, so no output is ever NaN.
+ *
+ * The normal equations of every fit are sums of per-neighbour products that
+ * are computed once per point (src/local/poly.c); those of all B replicates
+ * are one B x K by K x (p + m) matrix product, then a Cholesky solve each. Points are
+ * independent, so the loop is parallel; results do not depend on threads. */
+#include "bootstrap/bootstrap.h"
+#include "common/common.h"
+#include "local/local.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+bsurf_error_options bsurf_error_options_default(void) {
+  bsurf_error_options o;
+  memset(&o, 0, sizeof o);
+  o.k = 50;
+  o.degree = 3;
+  o.bootstrap = 50;
+  o.seed = 1;
+  o.gamma = BSURF_GAMMA_FIT;
+  o.pca_center = BSURF_PCA_CENTROID;
+  o.threads = 0;
+  return o;
+}
+
+typedef struct error_scratch {
+  bsurf_localfit lf;
+  double *pred_full; /* k */
+  double *pred_boot; /* B x k */
+  uint16_t *counts;  /* B x k */
+  double *weights;   /* B x k: counts as doubles */
+  double *rows;      /* B x ncols: normal equations of the replicates */
+  double *coefs;     /* B x terms */
+  unsigned char *valid; /* B */
+  double *est_scratch;  /* 5k + 1 */
+  size_t skipped, reduced, center_unestimated;
+} error_scratch;
+
+static void scratch_free(error_scratch *s) {
+  bsurf_localfit_free(&s->lf);
+  free(s->pred_full);
+  free(s->pred_boot);
+  free(s->counts);
+  free(s->weights);
+  free(s->rows);
+  free(s->coefs);
+  free(s->valid);
+  free(s->est_scratch);
+  memset(s, 0, sizeof *s);
+}
+
+static bsurf_status scratch_alloc(error_scratch *s, int k, int B, int degree) {
+  memset(s, 0, sizeof *s);
+  bsurf_status st = bsurf_localfit_alloc(&s->lf, k, degree);
+  if (st != BSURF_OK) return st;
+  size_t nb = B > 0 ? (size_t)B : 1;
+  s->pred_full = bsurf_alloc_array((size_t)k, sizeof(double));
+  s->pred_boot = bsurf_alloc_array(nb * k, sizeof(double));
+  s->counts = bsurf_alloc_array(nb * k, sizeof(uint16_t));
+  s->weights = bsurf_alloc_array(nb * k, sizeof(double));
+  s->rows = bsurf_alloc_array(nb * BSURF_NCOLS_MAX, sizeof(double));
+  s->coefs = bsurf_alloc_array(nb * BSURF_TERMS_MAX, sizeof(double));
+  s->valid = bsurf_alloc_array(nb, 1);
+  s->est_scratch = bsurf_alloc_array(5 * (size_t)k + 1, sizeof(double));
+  if (!s->pred_full || !s->pred_boot || !s->counts || !s->weights || !s->rows || !s->coefs ||
+      !s->valid || !s->est_scratch) {
+    scratch_free(s);
+    return BSURF_ERR_NOMEM;
+  }
+  return BSURF_OK;
+}
+
+static void put(double *field, size_t i, double v) {
+  if (field) field[i] = v;
+}
+
+static void error_point(const double *xyz, const bsurf_neighbors *nb, const double *test_xyz,
+                        const bsurf_error_options *o, size_t i, error_scratch *s,
+                        bsurf_error_fields *out) {
+  const int k = o->k, B = o->bootstrap;
+  const uint32_t *idx = &nb->idx[i * (size_t)nb->k];
+  bsurf_frame frame;
+  bsurf_local_frame(xyz, idx, k, o->pca_center, &frame);
+  bsurf_localfit *lf = &s->lf;
+  bsurf_localfit_setup(lf, xyz, idx, k, &frame, o->degree);
+
+  double coef[BSURF_TERMS_MAX];
+  int degree = o->degree;
+  while (degree > 0 && bsurf_localfit_solve(lf, degree, NULL, coef) != 0) degree--;
+  if (degree == 0) bsurf_localfit_solve(lf, 0, NULL, coef); /* constant: never singular */
+  if (degree != o->degree) s->reduced++;
+  bsurf_localfit_predict(lf, degree, 1, coef, NULL, s->pred_full);
+
+  /* B resamples (4.1.1) and their fits: the normal equations of all
+   * replicates are one matrix product, then one small solve each. */
+  const int m = bsurf_poly_terms(degree);
+  for (int b = 0; b < B; b++) {
+    uint16_t *cnt = &s->counts[(size_t)b * k];
+    double *w = &s->weights[(size_t)b * k];
+    bsurf_boot_counts(o->seed, i, (uint32_t)b, k, cnt);
+    int distinct = 0;
+    for (int j = 0; j < k; j++) {
+      w[j] = cnt[j];
+      distinct += cnt[j] != 0;
+    }
+    s->valid[b] = distinct >= m; /* fewer distinct points than terms: singular */
+  }
+  bsurf_localfit_normal_eq(lf, B, s->weights, s->rows);
+  for (int b = 0; b < B; b++) {
+    if (s->valid[b] &&
+        bsurf_localfit_solve_row(lf, degree, &s->rows[(size_t)b * lf->ncols], &s->coefs[(size_t)b * m]) != 0)
+      s->valid[b] = 0;
+    if (!s->valid[b]) s->skipped++;
+  }
+  bsurf_localfit_predict(lf, degree, B, s->coefs, s->valid, s->pred_boot);
+
+  bsurf_boot_result r;
+  bsurf_boot_estimate(k, B, lf->z, s->pred_full, s->pred_boot, s->counts, s->valid, o->gamma,
+                      s->est_scratch, &r);
+  if (r.center_unestimated) s->center_unestimated++;
+  put(out->err_train, i, r.err_train);
+  put(out->err_boot, i, r.err_boot);
+  put(out->err_loo, i, r.err_loo);
+  put(out->err_loo_center, i, r.err_loo_center);
+  put(out->err_632, i, r.err_632);
+  put(out->err_632plus, i, r.err_632plus);
+  put(out->gamma, i, r.gamma);
+  put(out->overfit_rate, i, r.overfit_rate);
+
+  if (test_xyz && (out->err_test || out->err_test_center)) {
+    /* The true test error of this fit: the same surface points with
+     * independent noise, localised in the same frame (validation only). */
+    double sum = 0, center = 0;
+    for (int j = 0; j < k; j++) {
+      double q[3];
+      bsurf_frame_to_local(&frame, &test_xyz[3 * (size_t)idx[j]], q);
+      double e = fabs(bsurf_localfit_eval(lf, degree, coef, q[0], q[1]) - q[2]);
+      sum += e;
+      if (j == 0) center = e;
+    }
+    put(out->err_test, i, sum / k);
+    put(out->err_test_center, i, center);
+  }
+}
+
+bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
+                                  const double *test_xyz, const bsurf_error_options *opts,
+                                  bsurf_error_fields *out, bsurf_error_report *report) {
+  bsurf_error_options o = opts ? *opts : bsurf_error_options_default();
+  if (report) memset(report, 0, sizeof *report);
+  if (!xyz || !nb || !nb->idx || !out) return BSURF_ERR_INVALID_ARG;
+  if (o.degree < 1 || o.degree > BSURF_DEGREE_MAX) return BSURF_ERR_INVALID_ARG;
+  if (o.bootstrap < 0 || o.bootstrap > 100000) return BSURF_ERR_INVALID_ARG;
+  if (o.k < 2 || o.k > 65535) return BSURF_ERR_INVALID_ARG;
+  if (o.k > nb->k) return BSURF_ERR_INVALID_ARG;
+  if ((size_t)o.k > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
+  if (o.k < bsurf_poly_terms(o.degree)) return BSURF_ERR_TOO_FEW_POINTS;
+
+  const size_t n = nb->point_count;
+  const int T = bsurf_threads_resolve(o.threads);
+  error_scratch *scr = calloc((size_t)T, sizeof *scr);
+  if (!scr) return BSURF_ERR_NOMEM;
+  bsurf_status st = BSURF_OK;
+  for (int t = 0; t < T && st == BSURF_OK; t++)
+    st = scratch_alloc(&scr[t], o.k, o.bootstrap, o.degree);
+
+  for (size_t start = 0; start < n && st == BSURF_OK; start += BSURF_PROGRESS_CHUNK) {
+    size_t end = start + BSURF_PROGRESS_CHUNK < n ? start + BSURF_PROGRESS_CHUNK : n;
+    long long s0 = (long long)start, s1 = (long long)end;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(T) schedule(dynamic, 32)
+#endif
+    for (long long i = s0; i < s1; i++) {
+#ifdef _OPENMP
+      error_scratch *s = &scr[omp_get_thread_num()];
+#else
+      error_scratch *s = &scr[0];
+#endif
+      error_point(xyz, nb, test_xyz, &o, (size_t)i, s, out);
+    }
+    if (o.progress && o.progress(o.progress_user, end, n)) st = BSURF_ERR_CANCELLED;
+  }
+
+  if (report && st == BSURF_OK) {
+    report->replicates_total = n * (size_t)o.bootstrap;
+    for (int t = 0; t < T; t++) {
+      report->replicates_skipped += scr[t].skipped;
+      report->degree_reduced += scr[t].reduced;
+      report->center_unestimated += scr[t].center_unestimated;
+    }
+  }
+  for (int t = 0; t < T; t++) scratch_free(&scr[t]);
+  free(scr);
+  return st;
+}

@@ -1,0 +1,47 @@
+/* The bootstrap engine (thesis chapter 4): resampling and the estimators. */
+#ifndef BSURF_BOOTSTRAP_H
+#define BSURF_BOOTSTRAP_H
+
+#include "bootsurf.h"
+
+/* Multinomial counts of one bootstrap sample S_b (4.1.1): k draws with
+ * replacement from k points; counts out: k. The draws come from the stream
+ * keyed by (seed, point, replicate), so they do not depend on threads. */
+void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
+                       uint16_t *counts);
+
+/* gamma = 1/k^2 sum_j sum_l |pred_j - y_l| (Eq. 4.10), in O(k log k) by
+ * sorting. y_sorted: the k observed heights in ascending order; y_prefix:
+ * k+1 prefix sums of y_sorted; scratch: k doubles. */
+double bsurf_boot_gamma(int k, const double *pred, const double *y_sorted,
+                        const double *y_prefix, double *scratch);
+
+/* Reference O(k^2) version of Eq. 4.10 for the tests. */
+double bsurf_boot_gamma_naive(int k, const double *pred, const double *y);
+
+/* Sorts ascending (insertion sort for small n, otherwise qsort). */
+void bsurf_sort_doubles(double *a, int n);
+
+typedef struct bsurf_boot_result {
+  double err_train, err_boot, err_loo, err_loo_center, err_632, err_632plus;
+  double gamma, overfit_rate;
+  int valid_replicates;   /* replicates with a full-rank fit */
+  int center_unestimated; /* no valid replicate missed the centre */
+} bsurf_boot_result;
+
+/* The estimators of chapter 4 for one neighbourhood of k points, the centre
+ * being point 0:
+ *   y          in: k observed heights y_j
+ *   pred_full  in: k predictions of the fit to the whole neighbourhood f(x_j)
+ *   pred_boot  in: B x k predictions of the replicates' fits f*b(x_j)
+ *   counts     in: B x k multiplicities of point j in S_b
+ *   valid      in: B, 0 for a replicate whose fit failed (skipped)
+ *   scratch    5k + 1 doubles
+ * gamma follows `mode` (Eq. 4.10 on the full fit, or the mean or maximum over
+ * the replicates of the same formula with f*b, 4.2.1). */
+void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
+                         const double *pred_boot, const uint16_t *counts,
+                         const unsigned char *valid, bsurf_gamma_mode mode,
+                         double *scratch, bsurf_boot_result *out);
+
+#endif

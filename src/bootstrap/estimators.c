@@ -1,0 +1,166 @@
+/* Bootstrap test-error estimators (thesis 4.1.2 and 4.2).
+ *
+ *  err_train       Eq. 4.6   (1/K) sum_j |f(x_j) - y_j|
+ *  err_boot        Eq. 4.3   (1/(B K)) sum_b sum_j |f*b(x_j) - y_j|
+ *  err_loo         Eq. 4.4   (1/K) sum_j (1/|C_j|) sum_{b in C_j} |f*b(x_j) - y_j|
+ *  err_loo_center  Eq. 4.11  the same for the centre point only
+ *  err_632         Eq. 4.5   .368 err_train + .632 err_loo
+ *  err_632plus     Eqs. 4.7-4.10 (1 - w) err_train + w err_loo,
+ *                  w = .632 / (1 - .368 R), R = (err_loo - err)/(gamma - err)
+ *
+ * Conventions where the thesis is silent:
+ *  - B counts only the replicates whose fit is full rank (the others are
+ *    skipped and counted by the caller);
+ *  - in Eq. 4.4, points that are in every valid replicate (|C_j| = 0) are left
+ *    out of the average over j (Efron 1983); if every point is, err_loo falls
+ *    back to err_boot;
+ *  - R is clipped to [0, 1] (4.2.1) and is 0 when gamma <= err_train or
+ *    err_loo <= err_train (no measurable overfitting), so w is in [.632, 1];
+ *  - with no valid replicate at all, every bootstrap estimate equals
+ *    err_train and R = 0 (nothing is known beyond the training error). */
+#include "bootstrap/bootstrap.h"
+
+#include <math.h>
+#include <stdlib.h>
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+void bsurf_sort_doubles(double *a, int n) {
+  if (n > 64) {
+    qsort(a, (size_t)n, sizeof *a, cmp_double);
+    return;
+  }
+  for (int i = 1; i < n; i++) {
+    double x = a[i];
+    int j = i - 1;
+    while (j >= 0 && a[j] > x) {
+      a[j + 1] = a[j];
+      j--;
+    }
+    a[j + 1] = x;
+  }
+}
+
+double bsurf_boot_gamma(int k, const double *pred, const double *y_sorted,
+                        const double *y_prefix, double *scratch) {
+  /* For sorted predictions a and sorted observations y,
+   *   sum_l |a_j - y_l| = (c a_j - S_c) + ((S_k - S_c) - (k - c) a_j)
+   * where c = #{y_l <= a_j} and S_c the sum of the first c values; c only
+   * grows with j, so one merge pass does all of them. */
+  for (int j = 0; j < k; j++) scratch[j] = pred[j];
+  bsurf_sort_doubles(scratch, k);
+  double total = 0;
+  int c = 0;
+  for (int j = 0; j < k; j++) {
+    double a = scratch[j];
+    while (c < k && y_sorted[c] <= a) c++;
+    total += (c * a - y_prefix[c]) + ((y_prefix[k] - y_prefix[c]) - (k - c) * a);
+  }
+  return total / ((double)k * (double)k);
+}
+
+double bsurf_boot_gamma_naive(int k, const double *pred, const double *y) {
+  double total = 0;
+  for (int j = 0; j < k; j++)
+    for (int l = 0; l < k; l++) total += fabs(pred[j] - y[l]);
+  return total / ((double)k * (double)k);
+}
+
+void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
+                         const double *pred_boot, const uint16_t *counts,
+                         const unsigned char *valid, bsurf_gamma_mode mode,
+                         double *scratch, bsurf_boot_result *out) {
+  double *y_sorted = scratch;                      /* k */
+  double *y_prefix = scratch + k;                  /* k + 1 */
+  double *gscratch = scratch + 2 * (size_t)k + 1;  /* k */
+  double *loo_sum = scratch + 3 * (size_t)k + 1;   /* k */
+  double *loo_cnt = scratch + 4 * (size_t)k + 1;   /* k */
+  for (int j = 0; j < k; j++) y_sorted[j] = y[j];
+  bsurf_sort_doubles(y_sorted, k);
+  y_prefix[0] = 0;
+  for (int j = 0; j < k; j++) y_prefix[j + 1] = y_prefix[j] + y_sorted[j];
+
+  double err = 0; /* Eq. 4.6 */
+  for (int j = 0; j < k; j++) err += fabs(pred_full[j] - y[j]);
+  err /= k;
+  double gamma_fit = bsurf_boot_gamma(k, pred_full, y_sorted, y_prefix, gscratch);
+
+  double boot_sum = 0, gamma_sum = 0, gamma_max = 0;
+  int nvalid = 0;
+  for (int b = 0; b < B; b++) { /* Eq. 4.3 and the replicates' gammas */
+    if (!valid[b]) continue;
+    nvalid++;
+    const double *pb = &pred_boot[(size_t)b * k];
+    double s = 0;
+    for (int j = 0; j < k; j++) s += fabs(pb[j] - y[j]);
+    boot_sum += s;
+    if (mode != BSURF_GAMMA_FIT) {
+      /* the replicate's fit evaluated on the original neighbourhood */
+      double g = bsurf_boot_gamma(k, pb, y_sorted, y_prefix, gscratch);
+      gamma_sum += g;
+      if (g > gamma_max) gamma_max = g;
+    }
+  }
+
+  /* Eqs. 4.4 and 4.11: for each point j, the replicates b in C_j (those
+   * that do not contain j), summed in the order b = 0, 1, ... */
+  for (int j = 0; j < k; j++) loo_sum[j] = loo_cnt[j] = 0;
+  for (int b = 0; b < B; b++) {
+    if (!valid[b]) continue;
+    const double *pb = &pred_boot[(size_t)b * k];
+    const uint16_t *cb = &counts[(size_t)b * k];
+    for (int j = 0; j < k; j++) {
+      const int miss = cb[j] == 0;
+      loo_sum[j] += miss ? fabs(pb[j] - y[j]) : 0.0;
+      loo_cnt[j] += miss ? 1.0 : 0.0;
+    }
+  }
+  double loo = 0, loo_center = 0;
+  int loo_points = 0, center_ok = 0;
+  for (int j = 0; j < k; j++) {
+    if (loo_cnt[j] > 0) {
+      loo += loo_sum[j] / loo_cnt[j];
+      loo_points++;
+      if (j == 0) {
+        loo_center = loo_sum[j] / loo_cnt[j];
+        center_ok = 1;
+      }
+    }
+  }
+
+  out->err_train = err;
+  out->valid_replicates = nvalid;
+  out->center_unestimated = 0;
+  if (nvalid == 0) {
+    out->err_boot = out->err_loo = out->err_loo_center = err;
+    out->err_632 = out->err_632plus = err;
+    out->gamma = gamma_fit;
+    out->overfit_rate = 0;
+    out->center_unestimated = 1;
+    return;
+  }
+  out->err_boot = boot_sum / ((double)nvalid * k);
+  out->err_loo = loo_points > 0 ? loo / loo_points : out->err_boot;
+  if (center_ok) {
+    out->err_loo_center = loo_center;
+  } else {
+    out->err_loo_center = out->err_loo;
+    out->center_unestimated = 1;
+  }
+  double gamma = gamma_fit;
+  if (mode == BSURF_GAMMA_MEAN) gamma = gamma_sum / nvalid;
+  if (mode == BSURF_GAMMA_MAX) gamma = gamma_max;
+  out->gamma = gamma;
+  out->err_632 = 0.368 * err + 0.632 * out->err_loo; /* Eq. 4.5 */
+  double R = 0;                                        /* Eq. 4.9, clipped */
+  if (gamma > err && out->err_loo > err) {
+    R = (out->err_loo - err) / (gamma - err);
+    if (R > 1) R = 1;
+  }
+  double w = 0.632 / (1.0 - 0.368 * R); /* Eq. 4.8 */
+  out->overfit_rate = R;
+  out->err_632plus = (1.0 - w) * err + w * out->err_loo; /* Eq. 4.7 */
+}

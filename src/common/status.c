@@ -1,0 +1,56 @@
+/* Status codes, their messages and error records. */
+#include "common/common.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char *bsurf_strerror(bsurf_status status) {
+  switch (status) {
+  case BSURF_OK: return "success";
+  case BSURF_ERR_NOMEM: return "out of memory";
+  case BSURF_ERR_IO: return "input/output error";
+  case BSURF_ERR_PARSE: return "malformed file";
+  case BSURF_ERR_UNSUPPORTED: return "unsupported file feature";
+  case BSURF_ERR_INVALID_ARG: return "invalid argument";
+  case BSURF_ERR_TOO_FEW_POINTS: return "too few points";
+  case BSURF_ERR_NO_NORMALS: return "the input has no normals";
+  case BSURF_ERR_INVALID_VALUE: return "NaN or infinite value";
+  case BSURF_ERR_RANK_DEFICIENT: return "rank-deficient least-squares system";
+  case BSURF_ERR_CANCELLED: return "cancelled";
+  }
+  return "unknown status";
+}
+
+bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line,
+                        long long byte, const char *fmt, ...) {
+  if (err) {
+    va_list ap;
+    err->line = line;
+    err->byte = byte;
+    va_start(ap, fmt);
+    vsnprintf(err->message, sizeof err->message, fmt, ap);
+    va_end(ap);
+  }
+  return status;
+}
+
+void *bsurf_alloc_array(size_t n, size_t size) {
+  if (n == 0 || size == 0 || n > (size_t)-1 / size) return NULL;
+  return malloc(n * size);
+}
+
+void *bsurf_calloc_array(size_t n, size_t size) {
+  if (n == 0 || size == 0 || n > (size_t)-1 / size) return NULL;
+  return calloc(n, size);
+}
+
+int bsurf_threads_resolve(int threads) {
+#ifdef _OPENMP
+  if (threads <= 0) return omp_get_num_procs();
+  return threads;
+#else
+  (void)threads;
+  return 1;
+#endif
+}

@@ -1,0 +1,167 @@
+/* Internal interface of the file layer: the per-format readers and writers
+ * and the helpers they share (bounded text scanning, number parsing, type
+ * conversion, triangle lists, checked output). Nothing here is public API.
+ *
+ * Every reader works on a buffer that is NOT NUL-terminated (fuzzers pass
+ * arbitrary bytes): nothing may read past data + size. */
+#ifndef BSURF_IO_H
+#define BSURF_IO_H
+
+#include "common/common.h"
+
+#include <stdio.h>
+
+/* ---- bounded text scanning ---------------------------------------------- */
+
+typedef struct io_text {
+  const char *data;
+  size_t size;
+  size_t pos;  /* offset of the next unread byte */
+  long line;   /* 1-based number of the line last returned (0 before any) */
+} io_text;
+
+void io_text_init(io_text *t, const char *data, size_t size);
+/* The next line without its '\n' (and without a trailing '\r'). Returns 0 at
+ * the end of the data. */
+int io_text_next_line(io_text *t, const char **line, size_t *len);
+
+typedef struct io_token {
+  const char *s;
+  size_t len;
+} io_token;
+
+/* Token separators. */
+enum { IO_SEP_SPACE = 0, IO_SEP_XYZ = 1 /* whitespace, ',' and ';' */ };
+
+typedef struct io_cursor {
+  const char *p;
+  const char *end;
+  int seps;
+} io_cursor;
+
+void io_cursor_init(io_cursor *c, const char *s, size_t len, int seps);
+/* The next token; 0 when the line has no more. */
+int io_next_token(io_cursor *c, io_token *tok);
+/* Number of tokens left (does not move the cursor). */
+size_t io_count_tokens(const io_cursor *c);
+/* 1 if the token equals the NUL-terminated word. */
+int io_token_is(io_token tok, const char *word);
+/* A printable, shortened copy of a token for messages (out: 48 bytes). */
+const char *io_token_repr(io_token tok, char out[48]);
+/* Removes a '#' comment: returns the length of the part before it. */
+size_t io_strip_comment(const char *line, size_t len);
+
+/* ---- numbers ---------------------------------------------------------------- */
+
+/* Parses a whole token as a double (decimal, exponent, inf, nan; correctly
+ * rounded, independent of the C locale). Returns 1 on success. */
+int io_parse_double(const char *s, size_t len, double *out);
+/* Parses a whole token as an unsigned decimal integer. Returns 1 on success. */
+int io_parse_u64(const char *s, size_t len, unsigned long long *out);
+
+/* ---- value types ------------------------------------------------------------ */
+
+size_t io_type_size(bsurf_type type);
+/* The PLY 1.0 name (char uchar short ushort int uint float double). */
+const char *io_type_name(bsurf_type type);
+/* Accepts the PLY 1.0 names and the int8 ... float64 aliases. */
+int io_type_parse(const char *s, size_t len, bsurf_type *type);
+int io_type_is_integer(bsurf_type type);
+/* The value a file of `type` stores for v: integers are rounded to nearest
+ * (halves away from zero) and clamped to the type's range (NaN -> 0);
+ * FLOAT32 is converted to float. */
+double io_type_convert(double v, bsurf_type type);
+/* Formats v as stored in `type`: FLOAT64 %.17g, FLOAT32 %.9g of the float,
+ * integers exactly. Always uses '.' as decimal point. Returns the length. */
+size_t io_format_value(char *buf, size_t cap, double v, bsurf_type type);
+
+/* ---- triangle lists ------------------------------------------------------- */
+
+typedef struct io_faces {
+  uint32_t *tri; /* count x 3 */
+  size_t count;
+  size_t cap;
+  /* streaming fan triangulation of the current polygon */
+  uint32_t first, prev;
+  size_t corners;
+} io_faces;
+
+void io_faces_init(io_faces *f);
+void io_faces_free(io_faces *f);
+/* Starts a polygon; then every io_faces_corner() adds one corner, emitting
+ * the triangle (first, previous, this) from the third corner on. Polygons
+ * with fewer than 3 corners thus add nothing. */
+void io_faces_begin(io_faces *f);
+bsurf_status io_faces_corner(io_faces *f, uint32_t index);
+/* Moves the triangles into the cloud (shrinking the array). */
+void io_faces_move(io_faces *f, bsurf_cloud *cloud);
+
+/* ---- growable arrays of doubles ---------------------------------------------- */
+
+typedef struct io_dvec {
+  double *v;
+  size_t n, cap;
+} io_dvec;
+
+bsurf_status io_dvec_push(io_dvec *d, const double *values, size_t count);
+/* Shrinks to n and hands the array over (NULL when empty). */
+double *io_dvec_take(io_dvec *d);
+
+/* ---- checked output ------------------------------------------------------- */
+
+typedef struct io_writer {
+  FILE *f;
+  int failed;  /* set by the first failed write */
+  int err_no;  /* errno of that failure */
+} io_writer;
+
+void io_write_bytes(io_writer *w, const void *p, size_t n);
+void io_write_str(io_writer *w, const char *s);
+void io_write_fmt(io_writer *w, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+/* Buffered text output on top of an io_writer (text writers format values
+ * straight into it; one fwrite per ~64 KiB). */
+typedef struct io_obuf {
+  io_writer *w;
+  char *buf;
+  size_t n, cap;
+} io_obuf;
+
+bsurf_status io_obuf_init(io_obuf *b, io_writer *w);
+void io_obuf_flush(io_obuf *b);
+/* Flushes and frees the buffer. */
+void io_obuf_done(io_obuf *b);
+void io_obuf_str(io_obuf *b, const char *s);
+void io_obuf_char(io_obuf *b, char c);
+/* One value formatted as io_format_value does. */
+void io_obuf_value(io_obuf *b, double v, bsurf_type type);
+void io_obuf_uint(io_obuf *b, unsigned long long v);
+
+/* ---- readers: fill an initialised cloud; on failure may leave it partly
+ * filled (the caller frees it) and fill err -------------------------------- */
+
+bsurf_status bsurf_io_read_ply(const char *data, size_t size, bsurf_cloud *cloud,
+                               bsurf_error *err);
+bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud,
+                               bsurf_error *err);
+bsurf_status bsurf_io_read_obj(const char *data, size_t size, bsurf_cloud *cloud,
+                               bsurf_error *err);
+bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud,
+                               bsurf_error *err);
+
+/* ---- writers: the cloud has been validated (faces in range, arrays present);
+ * write errors are recorded in w and reported by the caller ---------------- */
+
+/* Checks that the fields can be named in a PLY header. */
+bsurf_status bsurf_io_ply_check(const bsurf_cloud *cloud, bsurf_error *err);
+bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int ascii,
+                                bsurf_error *err);
+bsurf_status bsurf_io_write_off(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
+bsurf_status bsurf_io_write_obj(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
+bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
+
+#endif

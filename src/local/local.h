@@ -1,0 +1,94 @@
+/* Local analysis (thesis 3.3): PCA, frames, polynomial height functions and
+ * the small least-squares solver they need. Internal to the library. */
+#ifndef BSURF_LOCAL_H
+#define BSURF_LOCAL_H
+
+#include "bootsurf.h"
+
+#define BSURF_DEGREE_MAX 4
+#define BSURF_TERMS_MAX 15 /* bsurf_poly_terms(BSURF_DEGREE_MAX) */
+#define BSURF_PACKED_MAX (BSURF_TERMS_MAX * (BSURF_TERMS_MAX + 1) / 2)
+#define BSURF_NCOLS_MAX (BSURF_PACKED_MAX + BSURF_TERMS_MAX)
+
+/* Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations (a is not modified).
+ * evals ascending; evecs[i] is the unit eigenvector of evals[i]. */
+void bsurf_eigen_sym3(double a[3][3], double evals[3], double evecs[3][3]);
+
+/* p' = rot (p - origin) (Eq. 3.4 rows X', Y', n; see frame.c on Eq. 3.5). */
+void bsurf_frame_to_local(const bsurf_frame *f, const double p[3], double out[3]);
+/* p = rot^T p' + origin: the inverse rotation (Eq. 3.6). */
+void bsurf_frame_to_global(const bsurf_frame *f, const double local[3], double out[3]);
+/* A direction (no translation) from local to global coordinates. */
+void bsurf_frame_dir_to_global(const bsurf_frame *f, const double local[3], double out[3]);
+
+/* Monomials of total degree <= degree in graded order
+ * 1, u, v, u^2, uv, v^2, u^3, u^2 v, u v^2, v^3, ...
+ * so the basis of a lower degree is a prefix of the basis of a higher one. */
+void bsurf_poly_basis(int degree, double u, double v, double *phi);
+
+/* Index in column-packed upper-triangular storage: (i, j), i <= j. */
+static inline int bsurf_packed_index(int i, int j) { return j * (j + 1) / 2 + i; }
+
+/* Solves G c = r for a symmetric positive definite m x m system by Cholesky
+ * (G in column-packed upper storage; its leading m(m+1)/2 entries are used).
+ * A pivot that falls below rel_tol times its original diagonal entry means
+ * the columns of the design are (numerically) dependent: returns -1 and
+ * leaves c undefined; 0 on success. */
+int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_tol,
+                            double *c);
+
+/* Default relative pivot tolerance for rank detection. */
+#define BSURF_RANK_TOL 1e-10
+
+/* A neighbourhood prepared for (weighted) polynomial height fits: local
+ * coordinates scaled to the unit disc, the basis at every point and the
+ * per-point products phi phi^T (packed) and phi z, so that the normal
+ * equations of any integer-weighted (bootstrap) fit are sums of precomputed
+ * terms (thesis 4.1.2: a fit on each resample S_b). */
+typedef struct bsurf_localfit {
+  int kmax, degree_max;
+  int k, degree, m, p; /* current neighbourhood size, degree, terms, packed size */
+  int ncols;           /* p + m: the width of a row of `op` */
+  double scale;        /* local coordinates are divided by this */
+  double *u, *v, *z;   /* k: scaled x', y' and unscaled height z' */
+  double *phit;        /* m x k: basis, transposed (term-major) */
+  double *op;          /* k x ncols: packed phi phi^T, then phi z */
+} bsurf_localfit;
+
+bsurf_status bsurf_localfit_alloc(bsurf_localfit *lf, int kmax, int degree_max);
+void bsurf_localfit_free(bsurf_localfit *lf);
+
+/* Localises the k points xyz[idx[j]] in `frame` and prepares fits of degree
+ * <= `degree`. */
+void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t *idx,
+                          int k, const bsurf_frame *frame, int degree);
+
+/* Normal equations of B weighted fits at once (a B x k by k x ncols matrix
+ * product): row b of `rows` (B x lf->ncols) receives the packed G followed by
+ * r for the weights W[b] (W: B x k, row-major). The sum over the points runs
+ * in index order, so a row equals what a point-by-point sum gives. */
+void bsurf_localfit_normal_eq(const bsurf_localfit *lf, int B, const double *W, double *rows);
+
+/* Solves one row of bsurf_localfit_normal_eq for a fit of degree `degree`
+ * (<= the setup degree; the lower degree's system is a leading block).
+ * Returns 0, or -1 when the system is rank-deficient. */
+int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row,
+                             double *coef);
+
+/* Least-squares fit of degree `degree` (<= the setup degree) with integer
+ * weights `counts` (k; NULL = every point once). coef out: terms(degree).
+ * Returns 0, or -1 when the system is rank-deficient. */
+int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *counts,
+                         double *coef);
+
+/* Predicted heights at the k neighbourhood points of B fits (coef: B x
+ * terms(degree)), skipping rows whose valid[b] is 0 (valid may be NULL).
+ * pred out: B x k. */
+void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const double *coef,
+                            const unsigned char *valid, double *pred);
+
+/* The fit's height at a point given in unscaled local coordinates. */
+double bsurf_localfit_eval(const bsurf_localfit *lf, int degree, const double *coef,
+                           double x, double y);
+
+#endif

@@ -1,0 +1,87 @@
+/*
+ * neighbors.c — the K-nearest neighbourhoods of a whole cloud, computed once
+ * and shared by every stage, and the cloud's unit length h.
+ *
+ * Thesis 3.3: each point d_i is analysed within its neighbourhood P_i of the
+ * K nearest points (here d_i itself first). The thesis measures noise levels,
+ * displacements and filter widths in units of h, "the average, throughout the
+ * model, of the distance between a point and its nearest neighbour" (4.2, 5.x,
+ * 6.x), which is what bsurf_neighbors_build and bsurf_mean_spacing return.
+ *
+ * h is summed in point-index order with a fixed pairwise (cascade) summation
+ * after the parallel search, so it is bit-identical for any thread count.
+ */
+#include "search/search.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* sum_i sqrt(v[i]) in a fixed binary-tree order (accurate and deterministic). */
+static double sum_sqrt(const double *v, size_t n) {
+  if (n <= 64) {
+    double s = 0.0;
+    for (size_t i = 0; i < n; i++)
+      s += sqrt(v[i]);
+    return s;
+  }
+  return sum_sqrt(v, n / 2) + sum_sqrt(v + n / 2, n - n / 2);
+}
+
+/* Builds a temporary index and runs the all-kNN; idx may be NULL. */
+static bsurf_status knn_with_spacing(const double *xyz, size_t point_count, int k, int threads,
+                                     uint32_t *idx, double *h, bsurf_progress_fn progress,
+                                     void *user) {
+  bsurf_knn_index *index = NULL;
+  double *nn;
+  bsurf_status st;
+
+  nn = bsurf_alloc_array(point_count, sizeof *nn);
+  if (!nn) return BSURF_ERR_NOMEM;
+  st = bsurf_knn_build(&index, xyz, point_count);
+  if (st == BSURF_OK) {
+    st = bsurf_knn_all_ex(index, k, threads, idx, NULL, nn, progress, user);
+    bsurf_knn_free(index);
+  }
+  if (st == BSURF_OK) *h = sum_sqrt(nn, point_count) / (double)point_count;
+  free(nn);
+  return st;
+}
+
+bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz, size_t point_count,
+                                   int k, int threads, bsurf_progress_fn progress,
+                                   void *progress_user) {
+  bsurf_status st;
+  uint32_t *idx;
+  double h = 0.0;
+
+  if (!nb) return BSURF_ERR_INVALID_ARG;
+  memset(nb, 0, sizeof *nb);
+  if (!xyz || k < 2 || point_count > UINT32_MAX) return BSURF_ERR_INVALID_ARG;
+  if (point_count == 0 || (size_t)k > point_count) return BSURF_ERR_TOO_FEW_POINTS;
+
+  idx = bsurf_alloc_array(point_count, (size_t)k * sizeof *idx);
+  if (!idx) return BSURF_ERR_NOMEM;
+  st = knn_with_spacing(xyz, point_count, k, threads, idx, &h, progress, progress_user);
+  if (st != BSURF_OK) {
+    free(idx);
+    return st;
+  }
+  nb->point_count = point_count;
+  nb->k = k;
+  nb->idx = idx;
+  nb->h = h;
+  return BSURF_OK;
+}
+
+void bsurf_neighbors_free(bsurf_neighbors *nb) {
+  if (!nb) return;
+  free(nb->idx);
+  memset(nb, 0, sizeof *nb);
+}
+
+bsurf_status bsurf_mean_spacing(const double *xyz, size_t point_count, int threads, double *h) {
+  if (!h || !xyz || point_count > UINT32_MAX) return BSURF_ERR_INVALID_ARG;
+  if (point_count < 2) return BSURF_ERR_TOO_FEW_POINTS;
+  return knn_with_spacing(xyz, point_count, 2, threads, NULL, h, NULL, NULL);
+}

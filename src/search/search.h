@@ -1,0 +1,26 @@
+/* Internal interface of the neighbourhood search (src/search/), for the other
+ * files of the library. The public part is the "Neighbourhoods" section of
+ * bootsurf.h. */
+#ifndef BSURF_SEARCH_H
+#define BSURF_SEARCH_H
+
+#include "common/common.h"
+
+#include <stddef.h>
+#include <stdint.h>
+
+/* Number of points in an index. */
+size_t bsurf_knn_point_count(const bsurf_knn_index *index);
+
+/* bsurf_knn_all with two internal extras:
+ *  - idx may be NULL (only distances wanted);
+ *  - nn_dist2 out: point_count, may be NULL: the squared distance from each
+ *    point to its nearest other point (column 1 of dist2); needs k >= 2.
+ * Used by bsurf_neighbors_build and bsurf_mean_spacing to get h without a
+ * point_count x k distance array. Same validation, order, determinism and
+ * progress/cancellation as bsurf_knn_all. */
+bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,
+                              double *dist2, double *nn_dist2, bsurf_progress_fn progress,
+                              void *progress_user);
+
+#endif

@@ -1,0 +1,261 @@
+/* Local analysis (thesis 3.3): eigen-decomposition, frames, exact polynomial
+ * recovery, rank-deficiency detection, PCA normal of a noisy plane. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bootsurf.h"
+#include "local/local.h"
+
+static void test_eigen_known(void **state) {
+  (void)state;
+  /* A = R diag(1, 2, 5) R^T with R a rotation about z by 30 degrees */
+  double c = cos((3.14159265358979323846 / 6)), s = sin((3.14159265358979323846 / 6));
+  double R[3][3] = {{c, -s, 0}, {s, c, 0}, {0, 0, 1}};
+  double d[3] = {2, 5, 1};
+  double A[3][3] = {{0}};
+  for (int i = 0; i < 3; i++)
+    for (int j = 0; j < 3; j++)
+      for (int k = 0; k < 3; k++) A[i][j] += R[i][k] * d[k] * R[j][k];
+  double ev[3], V[3][3];
+  bsurf_eigen_sym3(A, ev, V);
+  assert_true(fabs(ev[0] - 1) < 1e-12 && fabs(ev[1] - 2) < 1e-12 && fabs(ev[2] - 5) < 1e-12);
+  /* eigenvector of 1 is z, of 5 is R's second column */
+  assert_true(fabs(fabs(V[0][2]) - 1) < 1e-12);
+  assert_true(fabs(fabs(V[2][0] * R[0][1] + V[2][1] * R[1][1]) - 1) < 1e-12);
+  /* A v = lambda v for all */
+  for (int e = 0; e < 3; e++)
+    for (int i = 0; i < 3; i++) {
+      double av = A[i][0] * V[e][0] + A[i][1] * V[e][1] + A[i][2] * V[e][2];
+      assert_true(fabs(av - ev[e] * V[e][i]) < 1e-12);
+    }
+}
+
+static void test_eigen_degenerate(void **state) {
+  (void)state;
+  double Z[3][3] = {{0}}, ev[3], V[3][3];
+  bsurf_eigen_sym3(Z, ev, V);
+  for (int i = 0; i < 3; i++) assert_true(ev[i] == 0);
+  double I[3][3] = {{2, 0, 0}, {0, 2, 0}, {0, 0, 2}};
+  bsurf_eigen_sym3(I, ev, V);
+  for (int i = 0; i < 3; i++) assert_true(ev[i] == 2);
+}
+
+/* Points of a tilted plane through d: the frame's normal is the plane's
+ * normal and every point has local height 0 (this fails if M^T of Eq. 3.5
+ * is applied instead of M). */
+static void test_frame_tangent_plane_height_zero(void **state) {
+  (void)state;
+  double n[3] = {1, 2, 2}; /* |n| = 3 */
+  double u[3] = {2, -1, 0}, w[3];
+  w[0] = n[1] * u[2] - n[2] * u[1];
+  w[1] = n[2] * u[0] - n[0] * u[2];
+  w[2] = n[0] * u[1] - n[1] * u[0];
+  double d[3] = {10, -5, 3};
+  enum { K = 40 };
+  double xyz[3 * K];
+  uint32_t idx[K];
+  bsurf_rng rng;
+  bsurf_rng_init(&rng, 7, 0, 0);
+  for (int j = 0; j < K; j++) {
+    double a = j == 0 ? 0 : bsurf_rng_uniform(&rng) * 2 - 1, b = j == 0 ? 0 : bsurf_rng_uniform(&rng) * 2 - 1;
+    for (int t = 0; t < 3; t++) xyz[3 * j + t] = d[t] + a * u[t] / sqrt(5) + b * w[t] / sqrt(45);
+    idx[j] = (uint32_t)j;
+  }
+  for (int center = 0; center < 2; center++) {
+    bsurf_frame f;
+    bsurf_local_frame(xyz, idx, K, (bsurf_pca_center)center, &f);
+    double dot = (f.rot[2][0] * n[0] + f.rot[2][1] * n[1] + f.rot[2][2] * n[2]) / 3.0;
+    assert_true(fabs(fabs(dot) - 1) < 1e-12);
+    for (int j = 0; j < K; j++) {
+      double q[3], back[3];
+      bsurf_frame_to_local(&f, &xyz[3 * j], q);
+      assert_true(fabs(q[2]) < 1e-12);
+      bsurf_frame_to_global(&f, q, back); /* Eq. 3.6 inverts Eq. 3.5 */
+      for (int t = 0; t < 3; t++) assert_true(fabs(back[t] - xyz[3 * j + t]) < 1e-12);
+    }
+    /* rows orthonormal and right-handed */
+    for (int a = 0; a < 3; a++)
+      for (int b = 0; b < 3; b++) {
+        double s = 0;
+        for (int t = 0; t < 3; t++) s += f.rot[a][t] * f.rot[b][t];
+        assert_true(fabs(s - (a == b)) < 1e-12);
+      }
+    double cx = f.rot[0][1] * f.rot[1][2] - f.rot[0][2] * f.rot[1][1];
+    assert_true(fabs(cx - f.rot[2][0]) < 1e-12);
+    /* the origin is the point itself: local coordinates of d are 0 */
+    double q0[3];
+    bsurf_frame_to_local(&f, d, q0);
+    assert_true(fabs(q0[0]) < 1e-12 && fabs(q0[1]) < 1e-12 && fabs(q0[2]) < 1e-12);
+  }
+}
+
+static void test_poly_basis_order(void **state) {
+  (void)state;
+  double phi[15];
+  bsurf_poly_basis(4, 2.0, 3.0, phi);
+  double expect[15] = {1, 2, 3, 4, 6, 9, 8, 12, 18, 27, 16, 24, 36, 54, 81};
+  for (int i = 0; i < 15; i++) assert_true(phi[i] == expect[i]);
+  assert_int_equal(bsurf_poly_terms(1), 3);
+  assert_int_equal(bsurf_poly_terms(2), 6);
+  assert_int_equal(bsurf_poly_terms(3), 10);
+  assert_int_equal(bsurf_poly_terms(4), 15);
+}
+
+/* Identity frame at the origin: local coordinates are the coordinates. */
+static void identity_frame(bsurf_frame *f) {
+  memset(f, 0, sizeof *f);
+  for (int t = 0; t < 3; t++) f->rot[t][t] = 1;
+}
+
+/* A polynomial of degree M is recovered exactly by a degree-M fit (and
+ * predicted exactly everywhere), for M = 1..4, with or without weights. */
+static void test_poly_exact_recovery(void **state) {
+  (void)state;
+  enum { K = 60 };
+  double xyz[3 * K];
+  uint32_t idx[K];
+  bsurf_rng rng;
+  bsurf_rng_init(&rng, 3, 1, 2);
+  /* true coefficients in unscaled coordinates, graded order */
+  double c_true[15];
+  for (int i = 0; i < 15; i++) c_true[i] = bsurf_rng_uniform(&rng) * 2 - 1;
+  for (int M = 1; M <= 4; M++) {
+    int m = bsurf_poly_terms(M);
+    for (int j = 0; j < K; j++) {
+      double x = j == 0 ? 0 : 3 * (bsurf_rng_uniform(&rng) * 2 - 1);
+      double y = j == 0 ? 0 : 3 * (bsurf_rng_uniform(&rng) * 2 - 1);
+      double phi[15];
+      bsurf_poly_basis(M, x, y, phi);
+      double z = 0;
+      for (int a = 0; a < m; a++) z += c_true[a] * phi[a];
+      xyz[3 * j] = x;
+      xyz[3 * j + 1] = y;
+      xyz[3 * j + 2] = z;
+      idx[j] = (uint32_t)j;
+    }
+    bsurf_frame f;
+    identity_frame(&f);
+    bsurf_localfit lf;
+    assert_int_equal(bsurf_localfit_alloc(&lf, K, 4), BSURF_OK);
+    bsurf_localfit_setup(&lf, xyz, idx, K, &f, 4);
+    double coef[15], pred[K];
+    assert_int_equal(bsurf_localfit_solve(&lf, M, NULL, coef), 0);
+    bsurf_localfit_predict(&lf, M, 1, coef, NULL, pred);
+    for (int j = 0; j < K; j++) assert_true(fabs(pred[j] - xyz[3 * j + 2]) < 1e-9);
+    /* a higher-degree fit of a lower-degree polynomial is exact too */
+    if (M < 4) {
+      assert_int_equal(bsurf_localfit_solve(&lf, 4, NULL, coef), 0);
+      bsurf_localfit_predict(&lf, 4, 1, coef, NULL, pred);
+      for (int j = 0; j < K; j++) assert_true(fabs(pred[j] - xyz[3 * j + 2]) < 1e-9);
+    }
+    /* weighted (bootstrap-like) fit, and evaluation off the sample points */
+    uint16_t counts[K];
+    for (int j = 0; j < K; j++) counts[j] = (uint16_t)(j % 3);
+    assert_int_equal(bsurf_localfit_solve(&lf, M, counts, coef), 0);
+    double phi[15], z = 0;
+    bsurf_poly_basis(M, 0.7, -1.3, phi);
+    for (int a = 0; a < m; a++) z += c_true[a] * phi[a];
+    assert_true(fabs(bsurf_localfit_eval(&lf, M, coef, 0.7, -1.3) - z) < 1e-9);
+    bsurf_localfit_free(&lf);
+  }
+}
+
+/* Collinear points (all on the x axis) cannot determine a surface: every
+ * degree >= 1 is reported rank-deficient, never silently solved. */
+static void test_rank_deficient_detected(void **state) {
+  (void)state;
+  enum { K = 30 };
+  double xyz[3 * K];
+  uint32_t idx[K];
+  for (int j = 0; j < K; j++) {
+    xyz[3 * j] = j * 0.1;
+    xyz[3 * j + 1] = 0;
+    xyz[3 * j + 2] = 0.5 * j;
+    idx[j] = (uint32_t)j;
+  }
+  bsurf_frame f;
+  identity_frame(&f);
+  bsurf_localfit lf;
+  assert_int_equal(bsurf_localfit_alloc(&lf, K, 4), BSURF_OK);
+  bsurf_localfit_setup(&lf, xyz, idx, K, &f, 4);
+  double coef[15];
+  for (int M = 1; M <= 4; M++) assert_int_equal(bsurf_localfit_solve(&lf, M, NULL, coef), -1);
+  assert_int_equal(bsurf_localfit_solve(&lf, 0, NULL, coef), 0);
+  /* a weighted sample with fewer distinct points than terms */
+  uint16_t counts[K] = {0};
+  counts[0] = 10;
+  counts[5] = 10;
+  counts[9] = 10;
+  bsurf_localfit_setup(&lf, xyz, idx, K, &f, 4);
+  assert_int_equal(bsurf_localfit_solve(&lf, 1, counts, coef), -1);
+  /* 9 points on a 3x3 grid determine a quadratic's 6 terms but not a
+   * cubic's 10 */
+  for (int j = 0; j < 9; j++) {
+    xyz[3 * j] = j % 3;
+    xyz[3 * j + 1] = j / 3;
+    xyz[3 * j + 2] = 0;
+  }
+  bsurf_localfit_setup(&lf, xyz, idx, 9, &f, 4);
+  assert_int_equal(bsurf_localfit_solve(&lf, 2, NULL, coef), 0);
+  assert_int_equal(bsurf_localfit_solve(&lf, 3, NULL, coef), -1);
+  bsurf_localfit_free(&lf);
+}
+
+/* PCA normal of a noisy plane: the angle to the true normal is small and
+ * shrinks with K. Theory: each tilt component has standard deviation about
+ * sigma / sqrt(K var(x)), var(x) = r^2/4 over a disc holding K points
+ * (r^2 = K h^2 / pi), and the mean angle is 1.25 times that: with
+ * sigma = 0.3 h, 0.088 rad at K = 15 and 0.022 rad at K = 60. */
+static void test_pca_noisy_plane(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 10000, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 1, &h), BSURF_OK);
+  assert_true(fabs(h - 0.02) < 1e-9);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, h, 5),
+                   BSURF_OK);
+  double prev = 1e9;
+  int ks[2] = {15, 60};
+  for (int t = 0; t < 2; t++) {
+    bsurf_neighbors nb;
+    assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, ks[t], 2, NULL, NULL), BSURF_OK);
+    double sum = 0;
+    size_t count = 0;
+    for (size_t i = 0; i < c.point_count; i++) {
+      const double *p = &c.xyz[3 * i];
+      if (fabs(p[0]) > 0.8 || fabs(p[1]) > 0.8) continue; /* away from the border */
+      bsurf_frame f;
+      bsurf_local_frame(c.xyz, &nb.idx[i * nb.k], nb.k, BSURF_PCA_CENTROID, &f);
+      double cosang = fabs(f.rot[2][2]);
+      sum += acos(cosang > 1 ? 1 : cosang);
+      count++;
+    }
+    double mean = sum / count;
+    assert_true(mean < (ks[t] == 15 ? 0.11 : 0.03));
+    assert_true(mean < prev);
+    prev = mean;
+    bsurf_neighbors_free(&nb);
+  }
+  bsurf_cloud_free(&c);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_eigen_known),
+      cmocka_unit_test(test_eigen_degenerate),
+      cmocka_unit_test(test_frame_tangent_plane_height_zero),
+      cmocka_unit_test(test_poly_basis_order),
+      cmocka_unit_test(test_poly_exact_recovery),
+      cmocka_unit_test(test_rank_deficient_detected),
+      cmocka_unit_test(test_pca_noisy_plane),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
