@@ -216,6 +216,16 @@ double cli_field_mean(const bsurf_field *field, size_t n) {
   return n ? s / (double)n : 0.0;
 }
 
+/* Fields that are not lengths (rates, angles, labels, counts) have no
+ * meaning in units of h and are left out of "mean_h". */
+static int is_length_field(const char *name) {
+  static const char *const not_lengths[] = {"overfit_rate", "normal_var", "normal_err", "feature",
+                                            "k_selected"};
+  for (size_t i = 0; i < sizeof not_lengths / sizeof not_lengths[0]; i++)
+    if (strcmp(name, not_lengths[i]) == 0) return 0;
+  return 1;
+}
+
 void json_field_means(cli_json *j, const bsurf_cloud *cloud, const char *const *names, int count,
                       double h) {
   double means[64];
@@ -231,7 +241,7 @@ void json_field_means(cli_json *j, const bsurf_cloud *cloud, const char *const *
   json_close_obj(j);
   json_obj(j, "mean_h");
   for (int t = 0; t < count && t < 64; t++)
-    if (have[t]) json_num(j, names[t], h > 0 ? means[t] / h : NAN);
+    if (have[t] && is_length_field(names[t])) json_num(j, names[t], h > 0 ? means[t] / h : NAN);
   json_close_obj(j);
 }
 
@@ -242,6 +252,9 @@ void print_field_means(FILE *f, const bsurf_cloud *cloud, const char *const *nam
     const bsurf_field *fl = bsurf_cloud_field(cloud, names[t]);
     if (!fl) continue;
     double m = cli_field_mean(fl, cloud->point_count);
-    fprintf(f, "  %-16s %14.6g %12.4f\n", names[t], m, h > 0 ? m / h : NAN);
+    if (is_length_field(names[t]))
+      fprintf(f, "  %-16s %14.6g %12.4f\n", names[t], m, h > 0 ? m / h : NAN);
+    else
+      fprintf(f, "  %-16s %14.6g %12s\n", names[t], m, "-");
   }
 }

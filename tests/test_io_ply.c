@@ -362,6 +362,26 @@ static void test_ply_binary_data_errors(void **state) {
   assert_int_equal(e.byte, (long long)(body + 5 * 12));
   assert_empty(&c);
 
+  /* data after the last element: a line break is tolerated, anything else
+   * means the header does not describe the data */
+  for (int variant = 0; variant < 2; variant++) {
+    buf t = {{0}, 0};
+    put_str(&t, "ply\nformat binary_little_endian 1.0\nelement vertex 2\n" HDR3 "end_header\n");
+    for (int i = 0; i < 6; i++) put_f32(&t, (float)i, 0);
+    size_t end = t.n;
+    put_str(&t, variant ? "\n" : "\x01\x02\x03");
+    bsurf_status st = bsurf_read_buffer(t.d, t.n, BSURF_FORMAT_PLY, &c, &e);
+    if (variant) {
+      assert_int_equal(st, BSURF_OK);
+      bsurf_cloud_free(&c);
+    } else {
+      assert_int_equal(st, BSURF_ERR_PARSE);
+      assert_non_null(strstr(e.message, "3 bytes of data follow the last element"));
+      assert_int_equal(e.byte, (long long)end);
+      assert_empty(&c);
+    }
+  }
+
   /* a face index out of range, and a face list longer than the data */
   const char *fh = "ply\nformat binary_big_endian 1.0\nelement vertex 3\n" HDR3
                    "element face 1\nproperty list uchar int vertex_indices\nend_header\n";

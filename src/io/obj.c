@@ -97,7 +97,7 @@ static bsurf_status add_face(obj_reader *r, io_cursor *c, long line) {
   io_faces_begin(&r->faces);
   while (io_next_token(c, &tok)) {
     /* i, i/t, i//n or i/t/n */
-    io_token part[3];
+    io_token part[3] = {{NULL, 0}, {NULL, 0}, {NULL, 0}};
     size_t np = 0;
     const char *s = tok.s, *end = tok.s + tok.len;
     for (;;) {

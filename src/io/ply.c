@@ -525,7 +525,17 @@ static bsurf_status read_binary(ply_reader *r) {
       }
     }
   }
-  /* Trailing bytes after the last element are ignored (padding). */
+  /* Bytes after the last element mean the header does not describe the
+   * data (e.g. a writer that declares uchar and writes float): only a
+   * trailing line break or spaces are tolerated. */
+  for (size_t i = pos; i < r->size; i++) {
+    char ch = r->data[i];
+    if (ch != '\n' && ch != '\r' && ch != ' ' && ch != '\t')
+      return bsurf_fail(r->err, BSURF_ERR_PARSE, 0, (long long)pos,
+                        "%zu bytes of data follow the last element declared in the header: "
+                        "the header does not describe the data",
+                        r->size - pos);
+  }
   return BSURF_OK;
 }
 
