@@ -111,5 +111,8 @@ int cmd_info(const cli_command *cmd, int argc, char **argv);
 int cmd_generate(const cli_command *cmd, int argc, char **argv);
 int cmd_noise(const cli_command *cmd, int argc, char **argv);
 int cmd_error(const cli_command *cmd, int argc, char **argv);
+int cmd_normals(const cli_command *cmd, int argc, char **argv);
+int cmd_sample(const cli_command *cmd, int argc, char **argv);
+int cmd_eval(const cli_command *cmd, int argc, char **argv);
 
 #endif

@@ -1,15 +1,46 @@
-/* bootsurf noise: synthetic normal-direction noise of the thesis (4.2). */
+/* bootsurf noise: synthetic normal-direction noise of the thesis (4.2), or
+ * PCPNet's protocol (--sigma-diag: Gaussian with sigma = s x the bounding-box
+ * diagonal; PCPNet uses s = 0.00125, 0.006 and 0.012). */
 #include "cli.h"
 
 #include <math.h>
+#include <string.h>
+
+/* 1 if option --NAME was given (as "--NAME V" or "--NAME=V"), up to a "--". */
+static int option_given(int argc, char **argv, const char *name) {
+  size_t len = strlen(name);
+  for (int i = 1; i < argc; i++) {
+    const char *a = argv[i];
+    if (strcmp(a, "--") == 0) return 0;
+    if (a[0] == '-' && a[1] == '-' && strncmp(a + 2, name, len) == 0 && (a[2 + len] == 0 || a[2 + len] == '='))
+      return 1;
+  }
+  return 0;
+}
+
+static double bbox_diagonal(const bsurf_cloud *c) {
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < c->point_count; i++)
+    for (int k = 0; k < 3; k++) {
+      double v = c->xyz[3 * i + k];
+      if (v < lo[k]) lo[k] = v;
+      if (v > hi[k]) hi[k] = v;
+    }
+  double s = 0;
+  for (int k = 0; k < 3; k++) s += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+  return c->point_count ? sqrt(s) : 0.0;
+}
 
 int cmd_noise(const cli_command *cmd, int argc, char **argv) {
-  double level = 0.5;
+  double level = 0.5, sigma_diag = 0;
   uint64_t seed = 1;
   const char *model = "gaussian", *output = NULL;
   int threads = 0, ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
       {0, "level", ARG_DOUBLE, &level, "XI", "noise level xi in units of h", 0, 1e300},
+      {0, "sigma-diag", ARG_DOUBLE, &sigma_diag, "S",
+       "instead of --level: gaussian, sigma = S x bounding-box diagonal (PCPNet: 0.00125 0.006 0.012)", 0,
+       1e300},
       {0, "model", ARG_STRING, &model, "M", "gaussian: t ~ N(0, xi^2); uniform: t ~ U[-xi, xi]", 1, 0},
       {0, "seed", ARG_U64, &seed, "S", "random seed", 1, 0},
       {'j', "threads", ARG_INT, &threads, "N", "threads for measuring h, 0 = all cores", 0, 4096},
@@ -27,6 +58,11 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   static const char *const models[] = {"gaussian", "uniform"};
   int m = cli_choice(model, models, 2);
   if (m < 0) return cli_usage_error(cmd, "--model must be gaussian or uniform, not '%s'", model);
+  int by_diag = option_given(argc, argv, "sigma-diag");
+  if (by_diag && option_given(argc, argv, "level"))
+    return cli_usage_error(cmd, "--level and --sigma-diag are exclusive (noise in units of h or of the diagonal)");
+  if (by_diag && m != BSURF_NOISE_GAUSSIAN)
+    return cli_usage_error(cmd, "--sigma-diag is gaussian noise; it cannot be used with --model %s", model);
   if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   if (cli_check_output(output, pos[0], force)) return 1;
   double t0 = cli_now();
@@ -41,10 +77,12 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
     bsurf_cloud_free(&c);
     return cli_error("%s: needs at least 2 points to measure the spacing h", pos[0]);
   }
-  double h = 0;
+  double h = 0, diag = bbox_diagonal(&c);
+  /* --sigma-diag s: t ~ N(0, 1) scaled by s x diagonal, i.e. level 1 */
   bsurf_status st = bsurf_mean_spacing(c.xyz, c.point_count, threads, &h);
+  double use_level = by_diag ? 1.0 : level, scale = by_diag ? sigma_diag * diag : h;
   if (st == BSURF_OK)
-    st = bsurf_add_noise(c.xyz, c.normals, c.point_count, (bsurf_noise_model)m, level, h, seed);
+    st = bsurf_add_noise(c.xyz, c.normals, c.point_count, (bsurf_noise_model)m, use_level, scale, seed);
   if (st == BSURF_ERR_INVALID_VALUE) {
     bsurf_cloud_free(&c);
     return cli_error("%s: some normals have zero length", pos[0]);
@@ -64,14 +102,24 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
       json_str(&j, "output", output);
       json_int(&j, "points", (long long)c.point_count);
       json_num(&j, "h", h);
-      json_num(&j, "level", level);
+      if (by_diag) {
+        json_num(&j, "sigma_diag", sigma_diag);
+        json_num(&j, "diagonal", diag);
+      } else {
+        json_num(&j, "level", level);
+      }
+      if (m == BSURF_NOISE_GAUSSIAN) json_num(&j, "sigma", use_level * scale);
       json_str(&j, "model", model);
       json_int(&j, "seed", (long long)seed);
       json_int(&j, "threads", bsurf_threads_resolve(threads));
       json_num(&j, "seconds", secs);
       json_end(&j);
     } else {
-      printf("noise %s level %g (x h = %.6g) on %zu points -> %s\n", model, level, h, c.point_count, output);
+      if (by_diag)
+        printf("noise gaussian sigma %g x diagonal %.6g = %.6g (%.4g h) on %zu points -> %s\n", sigma_diag, diag,
+               scale, h > 0 ? scale / h : NAN, c.point_count, output);
+      else
+        printf("noise %s level %g (x h = %.6g) on %zu points -> %s\n", model, level, h, c.point_count, output);
     }
   }
   bsurf_cloud_free(&c);

@@ -29,6 +29,34 @@ static const cli_command commands[] = {
      "All are written per point (model units); the summary gives their means in\n"
      "model units and in units of h.",
      cmd_error},
+    {"normals", "Normals with bootstrap confidence and test error (thesis ch. 5).",
+     "INPUT -o OUTPUT [options]",
+     "PCA or polynomial normals from the K nearest neighbours; with -B > 0 the\n"
+     "normalised mean of B bootstrap normals (Eq. 5.4) and normal_var, the variance\n"
+     "of their angles (Eq. 5.5), a confidence value: lower is more reliable. Optional:\n"
+     "normal_err, the bootstrap test error of the normal (Eq. 5.10, Algorithm 3);\n"
+     "per-point choice of K (and degree) by smallest normal_err; bilateral smoothing\n"
+     "of the normals (Eqs. 5.6-5.8); consistent orientation (minimum spanning tree).",
+     cmd_normals},
+    {"sample", "Points from a triangle mesh with ground-truth normals and feature labels.",
+     "MESH -o OUTPUT [options]",
+     "By default the mesh's vertices with area-weighted vertex normals (thesis 5.2.2:\n"
+     "normals from the mesh connectivity); with -n N, N points uniform by area with\n"
+     "their face's normal. An edge is sharp when its two faces' normals differ by more\n"
+     "than --sharp-angle degrees (mesh borders are not sharp). Every point gets\n"
+     "feature_dist, the exact distance to the nearest sharp edge (the bounding-box\n"
+     "diagonal when there is none), and feature, 1 within --feature-width nominal\n"
+     "spacings sqrt(area / points) of one. MESH needs faces (.off, .obj, .ply).",
+     cmd_sample},
+    {"eval", "Compare a result with ground truth (normal angles, ...).", "RESULT --truth TRUTH [options]",
+     "RESULT and TRUTH list the same points in the same order (e.g. the output of\n"
+     "normals and the sample or generate file it came from). normals: unoriented\n"
+     "angle errors, mean, median and rms in radians, mean in degrees, and the\n"
+     "fractions under 5 and 10 degrees (PCPNet's PGP5/PGP10). --split FIELD:Q also\n"
+     "reports the points whose FIELD (from RESULT, else TRUTH) is above its\n"
+     "Q-quantile and the rest, e.g. normal_var:0.85 for the highest 15% of the\n"
+     "bootstrap variance (thesis Table 5.2).",
+     cmd_eval},
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
 

@@ -300,6 +300,77 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
                                   bsurf_error_report *report);
 
 /* ------------------------------------------------------------------------ */
+/* Normals with bootstrap confidence (thesis chapter 5)                       */
+/* ------------------------------------------------------------------------ */
+
+typedef enum bsurf_normal_fit {
+  BSURF_NORMAL_PCA = 0, /* plane of the principal components (2.2, 5.2) */
+  BSURF_NORMAL_POLY     /* gradient of a height polynomial at the point (Eq. 5.9) */
+} bsurf_normal_fit;
+
+typedef struct bsurf_normal_options {
+  bsurf_normal_fit fit;        /* PCA */
+  bsurf_pca_center pca_center; /* CENTROID (PCA about the point: Eq. 2.1) */
+  int k;                       /* neighbourhood size, the point included (30) */
+  int degree;                  /* polynomial degree for POLY, 1..4 (2) */
+  int bootstrap;               /* B; 0 = a single fit (50) */
+  uint64_t seed;               /* (1) */
+  int threads;                 /* 0 = all cores */
+  bsurf_progress_fn progress;
+  void *progress_user;
+} bsurf_normal_options;
+
+bsurf_normal_options bsurf_normal_options_default(void);
+
+/* Per-point outputs, point_count long (x 3 for vectors) or NULL. */
+typedef struct bsurf_normal_fields {
+  double *normals;    /* unit, unoriented (Eq. 5.4: normalised mean of the
+                         bootstrap normals, each oriented to the whole
+                         neighbourhood's normal; the single fit when B = 0) */
+  double *normal_var; /* Eq. 5.5: variance of the angles (rad) between the
+                         first bootstrap normal and the others; 0 when B < 2 */
+  double *normal_err; /* Eq. 5.10: bootstrap test error of the normal (rad);
+                         needs reference normals */
+} bsurf_normal_fields;
+
+typedef struct bsurf_normal_report {
+  size_t replicates_total;
+  size_t replicates_skipped; /* degenerate resamples (rank-deficient fits) */
+  size_t degree_reduced;     /* POLY points that used a lower degree */
+  size_t degenerate;         /* points whose neighbourhood is collinear or
+                                repeated: the plane, hence the normal, is not
+                                determined (a perpendicular is returned) */
+} bsurf_normal_report;
+
+/* Normals (and their confidence and test error) of every point from its
+ * first opts->k neighbours (nb->k >= opts->k). ref_normals in: point_count x 3
+ * or NULL — the reference normals n_j of Eq. 5.10 (Algorithm 3), e.g. PCA
+ * normals of a fixed neighbourhood size; normal_err is computed only when
+ * they are given. Deterministic for a given seed, any thread count. */
+bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb,
+                                    const double *ref_normals,
+                                    const bsurf_normal_options *opts,
+                                    bsurf_normal_fields *out, bsurf_normal_report *report);
+
+/* Bilateral normal smoothing (5.3, Eqs. 5.6-5.8), `iterations` Jacobi-style
+ * passes (every point from the previous pass's normals, so order-free):
+ *   n_i <- (1 - alpha) n_i + alpha / c_i sum_{p in N_i} G(nu_p, sigma_nu)
+ *          G(|d_i - p|, sigma_d) n_p,   G(a, b) = exp(-a^2 / b^2),
+ * then normalised; neighbours' normals are flipped to agree with n_i first.
+ * normals in/out: point_count x 3; normal_var in: point_count (NULL or
+ * sigma_nu = INFINITY: the single Gaussian filter). */
+bsurf_status bsurf_smooth_normals(const double *xyz, const bsurf_neighbors *nb, int k,
+                                  double *normals, const double *normal_var, int iterations,
+                                  double alpha, double sigma_d, double sigma_nu, int threads);
+
+/* Consistent orientation by propagation along a minimum spanning tree of the
+ * neighbour graph with weights 1 - |n_i . n_j| (Hoppe et al. 1992). Each
+ * connected component starts at its highest point (largest z), whose normal
+ * is turned to +z. normals in/out: point_count x 3. */
+bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, int k,
+                                  double *normals);
+
+/* ------------------------------------------------------------------------ */
 /* Generated shapes and noise                                                 */
 /* ------------------------------------------------------------------------ */
 
@@ -342,6 +413,123 @@ typedef enum bsurf_noise_model {
 bsurf_status bsurf_add_noise(double *xyz, const double *normals,
                              size_t point_count, bsurf_noise_model model,
                              double level, double scale, uint64_t seed);
+
+/* ------------------------------------------------------------------------ */
+/* Meshes and evaluation against ground truth                                */
+/* ------------------------------------------------------------------------ */
+
+/* Ground truth from a triangle mesh (thesis 5.2.2: normals "from the
+ * connectivity" of smooth meshes; 7.1.2 and 5.3.2: feature areas near the
+ * sharp edges of the Fandisk and the Cube). A mesh is a bsurf_cloud with
+ * faces (triangles; the readers fan-triangulate polygons) whose vertices are
+ * shared between faces: a triangle soup has only boundary edges, hence no
+ * sharp edge and face normals at its vertices. */
+
+/* Area-weighted vertex normals: at each vertex the sum of the unnormalised
+ * cross products (b - a) x (c - a) of its faces (twice their area times their
+ * unit normal), normalised. Faces are taken in file order, so the result does
+ * not depend on threads. normals out: point_count x 3. A vertex whose sum is
+ * zero (no face, only zero-area faces, or faces that cancel) gets (0, 0, 0)
+ * and is counted in *without_normal (may be NULL). BSURF_ERR_INVALID_ARG when
+ * the mesh has no face or a face index is out of range. */
+bsurf_status bsurf_mesh_vertex_normals(const bsurf_cloud *mesh, double *normals,
+                                       size_t *without_normal);
+
+typedef struct bsurf_sample_options {
+  size_t points;          /* 0 = the mesh's vertices (the thesis's protocol,
+                             5.2.2); n > 0 = n points uniform by area (0) */
+  uint64_t seed;          /* random seed of area sampling (1) */
+  double sharp_angle_deg; /* an edge is sharp when the angle between its two
+                             faces' normals exceeds this, in degrees (30) */
+  double feature_width;   /* feature = 1 within feature_width x s of a sharp
+                             edge, s = sqrt(area / output points), the nominal
+                             spacing, as in bsurf_generate (2) */
+  int threads;            /* 0 = all cores */
+} bsurf_sample_options;
+
+bsurf_sample_options bsurf_sample_options_default(void);
+
+typedef struct bsurf_sample_report {
+  size_t edges;             /* distinct undirected edges */
+  size_t sharp_edges;       /* interior edges whose dihedral angle (between
+                               the faces' normals) exceeds sharp_angle_deg */
+  size_t boundary_edges;    /* edges of one face: mesh borders, never sharp */
+  size_t nonmanifold_edges; /* edges of 3+ faces: sharp when any two of their
+                               faces differ by more than the angle */
+  size_t inconsistent_edges; /* edges walked the same way by two faces (their
+                               orientations disagree; the angle is measured
+                               with one of them flipped) */
+  size_t degenerate_faces;  /* zero area: never sampled, ignored for angles */
+  size_t vertices_dropped;  /* vertex sampling: vertices without a normal
+                               (see bsurf_mesh_vertex_normals), left out */
+  size_t feature_points;    /* output points with feature = 1 */
+  double area;              /* total surface area */
+  double mean_edge_length;
+  double spacing;           /* s = sqrt(area / output points) */
+  double feature_width;     /* the absolute width: opts feature_width x s */
+  double no_feature_dist;   /* feature_dist when there is no sharp edge: the
+                               mesh's bounding-box diagonal */
+} bsurf_sample_report;
+
+/* Points on a triangle mesh with ground truth (thesis 5.2.2, 7.x).
+ *  - opts->points == 0: the mesh's vertices, each with its area-weighted
+ *    vertex normal; vertices without one are dropped (counted in the
+ *    report). The mesh's other vertex fields are kept, its normals replaced.
+ *  - opts->points == n > 0: n points uniform by area. Point i picks a face by
+ *    a binary search of the cumulative areas and uniform barycentric
+ *    coordinates, all from the generator keyed by (seed, i), so the sample
+ *    does not depend on threads; its normal is the face's unit normal.
+ * Both write `feature_dist`, the exact distance from the point to the nearest
+ * sharp edge segment (the mesh's bounding-box diagonal if it has none), and
+ * `feature` (1 where feature_dist <= the absolute feature width). `out` gets
+ * no faces: it is a point set. On failure `out` is left empty. `report` may
+ * be NULL. */
+bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
+                               const bsurf_sample_options *opts,
+                               bsurf_sample_report *report);
+
+/* The unoriented angle in radians, in [0, pi/2], between two directions of
+ * any non-zero length: atan2(|a x b|, |a . b|) of the normalised vectors,
+ * accurate near 0 and pi/2 (acos is not). NAN when either is zero. */
+double bsurf_normal_angle(const double a[3], const double b[3]);
+
+/* Statistics of a set of angle errors (radians). PGP5/PGP10 of PCPNet are
+ * under5deg/under10deg (fractions, in [0, 1]). An empty set has count 0 and
+ * NAN everywhere else. */
+typedef struct bsurf_angle_stats {
+  size_t count;
+  double mean_rad;
+  double median_rad; /* the middle value, or the mean of the two middle ones */
+  double rms_rad;    /* sqrt(mean of squares) */
+  double mean_deg;
+  double under5deg;  /* fraction of angles < 5 degrees */
+  double under10deg; /* fraction of angles < 10 degrees */
+} bsurf_angle_stats;
+
+/* Statistics of angles[i] over the points with mask[i] == keep (mask NULL:
+ * all points). Sums run in point order (deterministic). angles in: count. */
+bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask, uint8_t keep,
+                                       size_t count, bsurf_angle_stats *stats);
+
+/* Angle errors of estimated normals against ground-truth normals of the same
+ * points in the same order (unoriented: a flipped normal has error 0).
+ * result, truth in: count x 3; angles out: count (may be NULL); stats out
+ * (may be NULL). BSURF_ERR_INVALID_VALUE if a normal has zero length or is
+ * not finite; *bad_index (may be NULL) is then the first such point. */
+bsurf_status bsurf_eval_normals(const double *result, const double *truth, size_t count,
+                                double *angles, bsurf_angle_stats *stats, size_t *bad_index);
+
+/* Splits points at the q-quantile of a per-point value (thesis 5.2.2, Table
+ * 5.2: "the highest 15%" is q = 0.85). With the values sorted ascending as
+ * v[0..count-1] and m = ceil(q count) (q count rounded first when within 1e-9
+ * of a whole number), threshold = v[m-1] (-INFINITY when m = 0); high points
+ * are those with value > threshold, the others are low. On distinct values
+ * exactly count - m points are high (3 of 20 at q = 0.85); values tied with
+ * the threshold are all low. high out: count, 1 = high, 0 = low (may be
+ * NULL); threshold and high_count out (may be NULL). q in [0, 1];
+ * BSURF_ERR_INVALID_VALUE (and *bad_index) for a NaN value. */
+bsurf_status bsurf_quantile_split(const double *values, size_t count, double q, uint8_t *high,
+                                  double *threshold, size_t *high_count, size_t *bad_index);
 
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */

@@ -160,6 +160,20 @@ static void error_point(const double *xyz, const bsurf_neighbors *nb, const doub
   }
 }
 
+typedef struct error_ctx {
+  const double *xyz;
+  const bsurf_neighbors *nb;
+  const double *test_xyz;
+  const bsurf_error_options *o;
+  error_scratch *scr;
+  bsurf_error_fields *out;
+} error_ctx;
+
+static void error_point_task(void *vctx, int thread, size_t i) {
+  error_ctx *c = vctx;
+  error_point(c->xyz, c->nb, c->test_xyz, c->o, i, &c->scr[thread], c->out);
+}
+
 bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
                                   const double *test_xyz, const bsurf_error_options *opts,
                                   bsurf_error_fields *out, bsurf_error_report *report) {
@@ -181,21 +195,9 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = scratch_alloc(&scr[t], o.k, o.bootstrap, o.degree);
 
-  for (size_t start = 0; start < n && st == BSURF_OK; start += BSURF_PROGRESS_CHUNK) {
-    size_t end = start + BSURF_PROGRESS_CHUNK < n ? start + BSURF_PROGRESS_CHUNK : n;
-    long long s0 = (long long)start, s1 = (long long)end;
-#ifdef _OPENMP
-#pragma omp parallel for num_threads(T) schedule(dynamic, 32)
-#endif
-    for (long long i = s0; i < s1; i++) {
-#ifdef _OPENMP
-      error_scratch *s = &scr[omp_get_thread_num()];
-#else
-      error_scratch *s = &scr[0];
-#endif
-      error_point(xyz, nb, test_xyz, &o, (size_t)i, s, out);
-    }
-    if (o.progress && o.progress(o.progress_user, end, n)) st = BSURF_ERR_CANCELLED;
+  if (st == BSURF_OK) {
+    error_ctx ctx = {xyz, nb, test_xyz, &o, scr, out};
+    st = bsurf_parallel_points(n, T, error_point_task, &ctx, o.progress, o.progress_user);
   }
 
   if (report && st == BSURF_OK) {

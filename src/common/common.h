@@ -1,4 +1,5 @@
-/* Internal helpers shared by every layer: allocation, error records, OpenMP. */
+/* Internal helpers shared by every layer: allocation, error records, OpenMP,
+ * the parallel loop over points. */
 #ifndef BSURF_COMMON_H
 #define BSURF_COMMON_H
 
@@ -11,20 +12,30 @@
 #include <omp.h>
 #endif
 
+#if defined(__GNUC__)
+#define BSURF_PRINTF(a, b) __attribute__((format(printf, a, b)))
+#else
+#define BSURF_PRINTF(a, b)
+#endif
+
 /* malloc of n * size bytes with an overflow check; NULL on failure or n == 0. */
 void *bsurf_alloc_array(size_t n, size_t size);
 void *bsurf_calloc_array(size_t n, size_t size);
 
 /* Fills an optional error record (printf-style message). Returns `status`. */
-bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line,
-                        long long byte, const char *fmt, ...)
-#if defined(__GNUC__)
-    __attribute__((format(printf, 5, 6)))
-#endif
-    ;
+bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line, long long byte,
+                        const char *fmt, ...) BSURF_PRINTF(5, 6);
 
 /* Number of points processed between two progress callbacks; also the unit
  * of cancellation. */
 #define BSURF_PROGRESS_CHUNK 16384
+
+/* Work on point i by thread `thread` (0 .. threads-1). */
+typedef void (*bsurf_point_fn)(void *ctx, int thread, size_t i);
+
+/* Runs fn for every point 0..n-1 with bsurf_threads_resolve(threads) threads
+ * (see parallel.c). */
+bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, void *ctx,
+                                   bsurf_progress_fn progress, void *progress_user);
 
 #endif

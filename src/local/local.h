@@ -26,6 +26,10 @@ void bsurf_frame_dir_to_global(const bsurf_frame *f, const double local[3], doub
  * so the basis of a lower degree is a prefix of the basis of a higher one. */
 void bsurf_poly_basis(int degree, double u, double v, double *phi);
 
+/* Partial derivatives of the basis: du[a] = d phi_a / du, dv[a] = d phi_a / dv
+ * (appendix A lists them for M = 2, 3, 4). */
+void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *dv);
+
 /* Index in column-packed upper-triangular storage: (i, j), i <= j. */
 static inline int bsurf_packed_index(int i, int j) { return j * (j + 1) / 2 + i; }
 
@@ -39,6 +43,11 @@ int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_
 
 /* Default relative pivot tolerance for rank detection. */
 #define BSURF_RANK_TOL 1e-10
+
+/* out (B x nc) = W (B x k) * A (k x nc), all row-major: the sums of
+ * weighted per-neighbour terms of B resamples at once. Each entry is summed
+ * in the order j = 0..k-1 (same bits on every code path). */
+void bsurf_gemm_rows(int B, int k, int nc, const double *W, const double *A, double *out);
 
 /* A neighbourhood prepared for (weighted) polynomial height fits: local
  * coordinates scaled to the unit disc, the basis at every point and the
@@ -86,6 +95,12 @@ int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *c
  * pred out: B x k. */
 void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const double *coef,
                             const unsigned char *valid, double *pred);
+
+/* The unit normal (global coordinates, Eq. 5.9 rotated back by Eq. 3.6) of
+ * the fitted height function at the neighbourhood point with scaled local
+ * coordinates (u, v): (-f_x, -f_y, 1) / |.|, f_x = (df/du) / scale. */
+void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, int degree,
+                           const double *coef, double u, double v, double n[3]);
 
 /* The fit's height at a point given in unscaled local coordinates. */
 double bsurf_localfit_eval(const bsurf_localfit *lf, int degree, const double *coef,

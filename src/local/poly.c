@@ -35,6 +35,23 @@ void bsurf_poly_basis(int degree, double u, double v, double *phi) {
   }
 }
 
+void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *dv) {
+  /* monomial u^(d-j) v^j: d/du = (d-j) u^(d-j-1) v^j, d/dv = j u^(d-j) v^(j-1) */
+  double up[BSURF_DEGREE_MAX + 1], vp[BSURF_DEGREE_MAX + 1];
+  up[0] = vp[0] = 1.0;
+  for (int e = 1; e <= degree; e++) {
+    up[e] = up[e - 1] * u;
+    vp[e] = vp[e - 1] * v;
+  }
+  int t = 0;
+  for (int d = 0; d <= degree; d++)
+    for (int j = 0; j <= d; j++, t++) {
+      int eu = d - j, ev = j;
+      du[t] = eu > 0 ? eu * up[eu - 1] * vp[ev] : 0.0;
+      dv[t] = ev > 0 ? ev * up[eu] * vp[ev - 1] : 0.0;
+    }
+}
+
 int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_tol,
                             double *c) {
   /* G = L L^T, L lower triangular stored row-major in a full m x m array. */
@@ -155,8 +172,8 @@ static void gemm_plain(int b0, int b1, int c0, int c1, int k, int nc, const doub
 }
 
 BSURF_CLONES
-static void gemm_rows(int B, int k, int nc, const double *restrict W, const double *restrict A,
-                      double *restrict out) {
+void bsurf_gemm_rows(int B, int k, int nc, const double *restrict W, const double *restrict A,
+                     double *restrict out) {
 #ifdef HAVE_V4D
   const int nc8 = nc - nc % 8, B4 = B - B % 4;
   for (int b = 0; b < B4; b += 4) {
@@ -198,7 +215,7 @@ static void gemm_rows(int B, int k, int nc, const double *restrict W, const doub
 }
 
 void bsurf_localfit_normal_eq(const bsurf_localfit *lf, int B, const double *W, double *rows) {
-  gemm_rows(B, lf->k, lf->ncols, W, lf->op, rows);
+  bsurf_gemm_rows(B, lf->k, lf->ncols, W, lf->op, rows);
 }
 
 int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row,
@@ -242,6 +259,22 @@ void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const d
       for (int j = 0; j < k; j++) pb[j] += ca * ph[j];
     }
   }
+}
+
+void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, int degree,
+                           const double *coef, double u, double v, double n[3]) {
+  double du[BSURF_TERMS_MAX], dv[BSURF_TERMS_MAX];
+  bsurf_poly_basis_grad(degree, u, v, du, dv);
+  double fu = 0, fv = 0;
+  for (int a = 0; a < bsurf_poly_terms(degree); a++) {
+    fu += coef[a] * du[a];
+    fv += coef[a] * dv[a];
+  }
+  /* r = (x, y, f(x, y)): r_x x r_y = (-f_x, -f_y, 1) (Eq. 5.9) */
+  double l[3] = {-fu / lf->scale, -fv / lf->scale, 1.0};
+  double len = sqrt(l[0] * l[0] + l[1] * l[1] + 1.0);
+  for (int t = 0; t < 3; t++) l[t] /= len;
+  bsurf_frame_dir_to_global(frame, l, n);
 }
 
 double bsurf_localfit_eval(const bsurf_localfit *lf, int degree, const double *coef,

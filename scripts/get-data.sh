@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Fetches the thesis's test meshes (Fandisk and Bunny, chapters 4-7) from
+# Debian's CGAL data (package libcgal-demo) into DIR (default: data/, which
+# git ignores). Only these two files are extracted; never commit them.
+#   scripts/get-data.sh [DIR]
+set -euo pipefail
+DIR=${1:-"$(cd "$(dirname "$0")/.." && pwd)/data"}
+ARCHIVE=/usr/share/doc/libcgal-dev/data.tar.gz
+FILES=(data/meshes/fandisk_large.off data/meshes/bunny00.off)
+
+if [ ! -f "$ARCHIVE" ]; then
+  if [ "$(id -u)" -ne 0 ]; then
+    echo "get-data: $ARCHIVE is missing; run as root (or: sudo apt-get install libcgal-demo)" >&2
+    exit 1
+  fi
+  echo "get-data: installing libcgal-demo (Debian) for $ARCHIVE" >&2
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq
+  apt-get install -y -qq --no-install-recommends libcgal-demo >&2
+fi
+if [ ! -f "$ARCHIVE" ]; then
+  echo "get-data: $ARCHIVE still missing after installing libcgal-demo" >&2
+  exit 1
+fi
+
+mkdir -p "$DIR"
+TMP=$(mktemp -d "${TMPDIR:-/tmp}/bsurf-data.XXXXXX")
+trap 'rm -rf "$TMP"' EXIT
+tar -xzf "$ARCHIVE" -C "$TMP" "${FILES[@]}"
+for f in "${FILES[@]}"; do
+  mv -f "$TMP/$f" "$DIR/$(basename "$f")"
+  echo "$DIR/$(basename "$f")"
+done

@@ -1,0 +1,299 @@
+/* Normals with bootstrap confidence (thesis chapter 5).
+ *
+ * For every point d_i with neighbourhood P_i (K points, d_i first):
+ *  - the normal of the whole neighbourhood n_P: PCA (5.2; second moments
+ *    about the centroid, or about d_i as Eq. 2.1 writes) or the normal of a
+ *    degree-M height polynomial at d_i (5.4, Eq. 5.9: (-f_x, -f_y, 1)
+ *    normalised and rotated back, Eq. 3.6);
+ *  - B bootstrap samples S_b (Eq. 4.2) keyed by (seed, i, b), the same
+ *    normal on each, oriented to minimise the angle with n_P (5.2.1);
+ *  - the estimate n(d_i) = sum n_b / |sum n_b| (Eq. 5.4, Algorithms 2);
+ *  - the confidence nu_i: the variance (1/(B-1), Eq. 5.2) of the angles
+ *    between n_1 and n_b (Eq. 5.5);
+ *  - with reference normals n_j (from a fixed neighbourhood size), the
+ *    bootstrap test error of the normal (5.5, Eq. 5.10, Algorithm 3):
+ *    (1/(B K)) sum_b sum_j theta(g^b(p_j), n_j), where g^b(p_j) is the
+ *    normal of the b-th fit at the neighbour p_j (for PCA the plane's
+ *    normal, the same for every j) and theta the unoriented angle.
+ * With B = 0 the single fit gives the normal, nu = 0, and the test error is
+ * the same average with the single fit (a training error).
+ *
+ * The weighted second moments of all B resamples, like the normal equations
+ * of the polynomial fits, are one B x K by K x c matrix product of the
+ * multiplicities with per-neighbour terms computed once (src/local). */
+#include "bootstrap/bootstrap.h"
+#include "common/common.h"
+#include "local/local.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define PCA_COLS 10 /* q q^T (6 entries), q (3), 1, with q = p - d_i */
+
+bsurf_normal_options bsurf_normal_options_default(void) {
+  bsurf_normal_options o;
+  memset(&o, 0, sizeof o);
+  o.fit = BSURF_NORMAL_PCA;
+  o.pca_center = BSURF_PCA_CENTROID;
+  o.k = 30;
+  o.degree = 2;
+  o.bootstrap = 50;
+  o.seed = 1;
+  return o;
+}
+
+/* Angle between two unit vectors, accurate near 0 (atan2 of |a x b| and
+ * a . b); unoriented: the smaller of the angles with b and -b. */
+static double angle_between(const double a[3], const double b[3], int unoriented) {
+  double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  if (unoriented) d = fabs(d);
+  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d);
+}
+
+typedef struct normal_scratch {
+  bsurf_localfit lf;
+  double *terms;   /* k x PCA_COLS */
+  double *weights; /* (B + 1) x k: row 0 all ones (the whole neighbourhood) */
+  double *rows;    /* (B + 1) x max(PCA_COLS, ncols) */
+  double *coefs;   /* (B + 1) x terms */
+  uint16_t *counts; /* k */
+  unsigned char *valid; /* B */
+  double *bn;      /* B x 3 bootstrap normals */
+  size_t skipped, reduced, degenerate;
+} normal_scratch;
+
+static void scratch_free(normal_scratch *s) {
+  bsurf_localfit_free(&s->lf);
+  free(s->terms);
+  free(s->weights);
+  free(s->rows);
+  free(s->coefs);
+  free(s->counts);
+  free(s->valid);
+  free(s->bn);
+  memset(s, 0, sizeof *s);
+}
+
+static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
+  memset(s, 0, sizeof *s);
+  bsurf_status st = bsurf_localfit_alloc(&s->lf, k, degree);
+  if (st != BSURF_OK) return st;
+  size_t nb = (size_t)B + 1;
+  s->terms = bsurf_alloc_array((size_t)k, PCA_COLS * sizeof(double));
+  s->weights = bsurf_alloc_array(nb * k, sizeof(double));
+  s->rows = bsurf_alloc_array(nb, BSURF_NCOLS_MAX * sizeof(double));
+  s->coefs = bsurf_alloc_array(nb, BSURF_TERMS_MAX * sizeof(double));
+  s->counts = bsurf_alloc_array((size_t)k, sizeof(uint16_t));
+  s->valid = bsurf_alloc_array(nb, 1);
+  s->bn = bsurf_alloc_array(nb, 3 * sizeof(double));
+  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->valid || !s->bn) {
+    scratch_free(s);
+    return BSURF_ERR_NOMEM;
+  }
+  return BSURF_OK;
+}
+
+/* PCA normal from the weighted sums of one row (q q^T, q, weight). Returns 0,
+ * or -1 when the points are collinear or repeated (normal undetermined). */
+static int pca_normal_from_row(const double *row, bsurf_pca_center center, double n[3]) {
+  const double w = row[9];
+  double mu[3] = {0, 0, 0};
+  if (center == BSURF_PCA_CENTROID)
+    for (int t = 0; t < 3; t++) mu[t] = row[6 + t] / w;
+  double C[3][3];
+  C[0][0] = row[0] / w - mu[0] * mu[0];
+  C[0][1] = C[1][0] = row[1] / w - mu[0] * mu[1];
+  C[0][2] = C[2][0] = row[2] / w - mu[0] * mu[2];
+  C[1][1] = row[3] / w - mu[1] * mu[1];
+  C[1][2] = C[2][1] = row[4] / w - mu[1] * mu[2];
+  C[2][2] = row[5] / w - mu[2] * mu[2];
+  double ev[3], V[3][3];
+  bsurf_eigen_sym3(C, ev, V);
+  for (int t = 0; t < 3; t++) n[t] = V[0][t];
+  return (ev[2] > 0 && ev[1] > 1e-12 * ev[2]) ? 0 : -1;
+}
+
+typedef struct normals_ctx {
+  const double *xyz;
+  const bsurf_neighbors *nb;
+  const double *ref;
+  const bsurf_normal_options *o;
+  normal_scratch *scr;
+  bsurf_normal_fields *out;
+} normals_ctx;
+
+static void normals_point(void *vctx, int thread, size_t i) {
+  normals_ctx *c = vctx;
+  const bsurf_normal_options *o = c->o;
+  normal_scratch *s = &c->scr[thread];
+  const int k = o->k, B = o->bootstrap;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  const double *xyz = c->xyz;
+
+  /* multiplicities of the B resamples as weights; row 0 is the whole P */
+  double *W = s->weights;
+  for (int j = 0; j < k; j++) W[j] = 1.0;
+  int min_distinct = o->fit == BSURF_NORMAL_PCA ? 3 : bsurf_poly_terms(o->degree);
+  for (int b = 0; b < B; b++) {
+    bsurf_boot_counts(o->seed, i, (uint32_t)b, k, s->counts);
+    int distinct = 0;
+    for (int j = 0; j < k; j++) {
+      W[(size_t)(b + 1) * k + j] = s->counts[j];
+      distinct += s->counts[j] != 0;
+    }
+    s->valid[b] = distinct >= min_distinct;
+  }
+
+  double nP[3];
+  bsurf_frame frame;
+  int degree = o->degree;
+  if (o->fit == BSURF_NORMAL_PCA) {
+    const double *d = &xyz[3 * (size_t)idx[0]];
+    for (int j = 0; j < k; j++) {
+      const double *p = &xyz[3 * (size_t)idx[j]];
+      double q[3] = {p[0] - d[0], p[1] - d[1], p[2] - d[2]};
+      double *r = &s->terms[(size_t)j * PCA_COLS];
+      r[0] = q[0] * q[0];
+      r[1] = q[0] * q[1];
+      r[2] = q[0] * q[2];
+      r[3] = q[1] * q[1];
+      r[4] = q[1] * q[2];
+      r[5] = q[2] * q[2];
+      r[6] = q[0];
+      r[7] = q[1];
+      r[8] = q[2];
+      r[9] = 1.0;
+    }
+    bsurf_gemm_rows(B + 1, k, PCA_COLS, W, s->terms, s->rows);
+    if (pca_normal_from_row(s->rows, o->pca_center, nP) != 0) s->degenerate++;
+    for (int b = 0; b < B; b++)
+      if (s->valid[b] &&
+          pca_normal_from_row(&s->rows[(size_t)(b + 1) * PCA_COLS], o->pca_center, &s->bn[3 * b]) != 0)
+        s->valid[b] = 0;
+  } else {
+    bsurf_local_frame(xyz, idx, k, o->pca_center, &frame);
+    if (!(frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2])) s->degenerate++;
+    bsurf_localfit *lf = &s->lf;
+    bsurf_localfit_setup(lf, xyz, idx, k, &frame, o->degree);
+    bsurf_gemm_rows(B + 1, k, lf->ncols, W, lf->op, s->rows);
+    while (degree > 0 && bsurf_localfit_solve_row(lf, degree, s->rows, s->coefs) != 0) degree--;
+    if (degree != o->degree) s->reduced++;
+    if (degree == 0) {
+      /* a constant height: the tangent plane itself */
+      for (int t = 0; t < 3; t++) nP[t] = frame.rot[2][t];
+    } else {
+      bsurf_localfit_normal(lf, &frame, degree, s->coefs, lf->u[0], lf->v[0], nP);
+    }
+    const int m = bsurf_poly_terms(degree);
+    for (int b = 0; b < B; b++) {
+      /* with a reduced degree fewer distinct points suffice: let the solve
+       * decide for the replicates the first check rejected */
+      double *cb = &s->coefs[(size_t)(b + 1) * m];
+      int ok = (s->valid[b] || degree < o->degree) && degree > 0 &&
+               bsurf_localfit_solve_row(lf, degree, &s->rows[(size_t)(b + 1) * lf->ncols], cb) == 0;
+      s->valid[b] = (unsigned char)ok;
+      if (ok) bsurf_localfit_normal(lf, &frame, degree, cb, lf->u[0], lf->v[0], &s->bn[3 * b]);
+    }
+  }
+
+  /* orient the bootstrap normals to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
+  double sum[3] = {0, 0, 0};
+  int nvalid = 0, first = -1;
+  for (int b = 0; b < B; b++) {
+    if (!s->valid[b]) {
+      s->skipped++;
+      continue;
+    }
+    double *n = &s->bn[3 * b];
+    if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
+      for (int t = 0; t < 3; t++) n[t] = -n[t];
+    for (int t = 0; t < 3; t++) sum[t] += n[t];
+    if (first < 0) first = b;
+    nvalid++;
+  }
+  double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
+  double nrm[3];
+  for (int t = 0; t < 3; t++) nrm[t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
+  if (c->out->normals)
+    for (int t = 0; t < 3; t++) c->out->normals[3 * i + t] = nrm[t];
+
+  if (c->out->normal_var) {
+    double var = 0;
+    if (nvalid >= 2) {
+      double mean = 0;
+      for (int b = 0; b < B; b++)
+        if (s->valid[b]) mean += angle_between(&s->bn[3 * first], &s->bn[3 * b], 0);
+      mean /= nvalid;
+      for (int b = 0; b < B; b++)
+        if (s->valid[b]) {
+          double a = angle_between(&s->bn[3 * first], &s->bn[3 * b], 0) - mean;
+          var += a * a;
+        }
+      var /= nvalid - 1;
+    }
+    c->out->normal_var[i] = var;
+  }
+
+  if (c->out->normal_err && c->ref) {
+    double total = 0;
+    long terms = 0;
+    for (int b = -1; b < B; b++) {
+      /* the replicates; or, with none, the single fit (b = -1) */
+      if (b >= 0 ? !s->valid[b] : nvalid > 0) continue;
+      for (int j = 0; j < k; j++) {
+        double g[3];
+        if (o->fit == BSURF_NORMAL_PCA || degree == 0) {
+          const double *src = b >= 0 ? &s->bn[3 * b] : nP;
+          for (int t = 0; t < 3; t++) g[t] = src[t];
+        } else {
+          const int m = bsurf_poly_terms(degree);
+          const double *cb = b >= 0 ? &s->coefs[(size_t)(b + 1) * m] : s->coefs;
+          bsurf_localfit_normal(&s->lf, &frame, degree, cb, s->lf.u[j], s->lf.v[j], g);
+        }
+        total += angle_between(g, &c->ref[3 * (size_t)idx[j]], 1);
+        terms++;
+      }
+    }
+    c->out->normal_err[i] = terms ? total / terms : 0.0;
+  }
+}
+
+bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb,
+                                    const double *ref_normals, const bsurf_normal_options *opts,
+                                    bsurf_normal_fields *out, bsurf_normal_report *report) {
+  bsurf_normal_options o = opts ? *opts : bsurf_normal_options_default();
+  if (report) memset(report, 0, sizeof *report);
+  if (!xyz || !nb || !nb->idx || !out) return BSURF_ERR_INVALID_ARG;
+  if (o.fit != BSURF_NORMAL_PCA && o.fit != BSURF_NORMAL_POLY) return BSURF_ERR_INVALID_ARG;
+  if (o.fit == BSURF_NORMAL_POLY && (o.degree < 1 || o.degree > BSURF_DEGREE_MAX))
+    return BSURF_ERR_INVALID_ARG;
+  if (o.bootstrap < 0 || o.bootstrap > 100000) return BSURF_ERR_INVALID_ARG;
+  if (o.k < 3 || o.k > 65535 || o.k > nb->k) return BSURF_ERR_INVALID_ARG;
+  if ((size_t)o.k > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
+  if (o.fit == BSURF_NORMAL_POLY && o.k < bsurf_poly_terms(o.degree)) return BSURF_ERR_TOO_FEW_POINTS;
+
+  const size_t n = nb->point_count;
+  const int T = bsurf_threads_resolve(o.threads);
+  normal_scratch *scr = calloc((size_t)T, sizeof *scr);
+  if (!scr) return BSURF_ERR_NOMEM;
+  bsurf_status st = BSURF_OK;
+  for (int t = 0; t < T && st == BSURF_OK; t++)
+    st = scratch_alloc(&scr[t], o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1);
+  if (st == BSURF_OK) {
+    normals_ctx ctx = {xyz, nb, ref_normals, &o, scr, out};
+    st = bsurf_parallel_points(n, T, normals_point, &ctx, o.progress, o.progress_user);
+  }
+  if (report && st == BSURF_OK) {
+    report->replicates_total = n * (size_t)o.bootstrap;
+    for (int t = 0; t < T; t++) {
+      report->replicates_skipped += scr[t].skipped;
+      report->degree_reduced += scr[t].reduced;
+      report->degenerate += scr[t].degenerate;
+    }
+  }
+  for (int t = 0; t < T; t++) scratch_free(&scr[t]);
+  free(scr);
+  return st;
+}
