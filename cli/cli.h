@@ -65,6 +65,8 @@ int cli_read_cloud(const char *path, bsurf_cloud *cloud);
 /* Checks before any work that OUTPUT can be written and is not the input
  * (unless force). Returns 0 or prints and returns 1 (or 2 for usage). */
 int cli_check_output(const char *output, const char *input, int force);
+/* The same for any file (no format check): not the input, directory writable. */
+int cli_check_writable(const char *output, const char *input, int force);
 /* Writes atomically; warns about fields the format cannot carry. 0 or 1. */
 int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
 

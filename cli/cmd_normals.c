@@ -137,7 +137,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   }
   if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   if (cli_check_output(output, pos[0], force)) return 1;
-  if (curve && cli_check_output(curve, pos[0], force)) return 1;
+  if (curve && cli_check_writable(curve, pos[0], force)) return 1;
 
   double t0 = cli_now();
   bsurf_cloud c, truth;

@@ -35,6 +35,10 @@ int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
 int cli_check_output(const char *output, const char *input, int force) {
   if (bsurf_format_from_path(output) == BSURF_FORMAT_UNKNOWN)
     return cli_error("%s: unknown output file type (use .ply, .off, .obj, .xyz or .txt)", output);
+  return cli_check_writable(output, input, force);
+}
+
+int cli_check_writable(const char *output, const char *input, int force) {
   struct stat so, si;
   if (input && !force && stat(output, &so) == 0 && stat(input, &si) == 0 &&
       so.st_dev == si.st_dev && so.st_ino == si.st_ino)

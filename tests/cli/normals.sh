@@ -1,0 +1,38 @@
+#!/usr/bin/env bash
+# bootsurf normals through the command line.
+. "$(dirname "$0")/common.inc"
+
+expect 0 "generate" -- "$BSURF" generate cube -n 6000 -o "$T/c.ply" -q
+expect 0 "noise" -- "$BSURF" noise "$T/c.ply" --level 0.5 --model uniform -o "$T/n.ply" -q
+expect 0 "normals -j1" -- "$BSURF" normals "$T/n.ply" -k 20 -B 20 -j 1 -o "$T/a.ply" -q
+expect 0 "normals -j2" -- "$BSURF" normals "$T/n.ply" -k 20 -B 20 -j 2 -o "$T/b.ply" --json
+cmp -s "$T/a.ply" "$T/b.ply" && ok || fail "normals -j 1 and -j 2 differ"
+for key in '"command":"normals"' '"k":20' '"fit":"pca"' '"bootstrap":20' '"normal_var":' '"degenerate":0' '"seconds":'; do
+  grep -qF "$key" "$T/out" && ok || fail "normals json lacks $key"
+done
+grep -a -q "property float normal_var$" "$T/a.ply" && ok || fail "normal_var written"
+grep -a -q "property float feature_dist$" "$T/a.ply" && ok || fail "input fields kept"
+expect 0 "poly + test error" -- "$BSURF" normals "$T/n.ply" --fit poly -d 2 -k 20 -B 10 --test-error --k-ref 15 -o "$T/p.ply" -q
+grep -a -q "property float normal_err$" "$T/p.ply" && ok || fail "normal_err written"
+expect 0 "select-k + curve" -- "$BSURF" normals "$T/n.ply" -k 20 -B 10 --select-k 10:30:10 --curve "$T/curve.csv" --truth "$T/c.ply" -o "$T/s.ply" -q
+grep -a -q "property ushort k_selected$" "$T/s.ply" && ok || fail "k_selected written"
+[ "$(wc -l < "$T/curve.csv")" -eq 4 ] && ok || fail "curve has a header and 3 rows"
+head -1 "$T/curve.csv" | grep -q "k,degree,mean_normal_err,mean_normal_var,mean_angle_err" && ok || fail "curve header"
+expect 0 "select-degree" -- "$BSURF" normals "$T/n.ply" --fit poly -k 20 -B 5 --select-k 15:20:5 --select-degree 1,2 -o "$T/sd.ply" -q
+grep -a -q "property uchar degree_selected$" "$T/sd.ply" && ok || fail "degree_selected written"
+expect 0 "smooth + orient" -- "$BSURF" normals "$T/n.ply" -k 20 -B 10 --smooth-iterations 3 --orient mst -o "$T/o.ply" --json
+grep -qF '"smooth_iterations":3' "$T/out" && grep -qF '"orient":"mst"' "$T/out" && ok || fail "smooth/orient json"
+expect 0 "single gaussian" -- "$BSURF" normals "$T/n.ply" -k 20 -B 0 --smooth-iterations 2 --sigma-nu inf -o "$T/g.ply" -q
+grep -a -q "normal_var" "$T/g.ply" && fail "normal_var written with -B 0" || ok
+expect 0 "xyz without normals" -- "$BSURF" normals "$T/n.ply" -k 10 -B 0 -o "$T/n.xyz" -q
+printf '0 0 0\n1 0 0\n0 1 0\n1 1 0\n2 0 0\n' >"$T/tiny.xyz"
+expect 0 "normals of a cloud without normals" -- "$BSURF" normals "$T/tiny.xyz" -k 4 -B 3 -o "$T/tiny.ply" -q
+expect 2 "bad fit" -- "$BSURF" normals "$T/n.ply" --fit spline -o "$T/x.ply"
+expect 2 "bad select-k" -- "$BSURF" normals "$T/n.ply" --select-k 30:10:5 -o "$T/x.ply"
+expect 2 "select-degree without poly" -- "$BSURF" normals "$T/n.ply" --select-degree 1,2 -o "$T/x.ply"
+expect 2 "curve without select-k" -- "$BSURF" normals "$T/n.ply" --curve "$T/x.csv" -o "$T/x.ply"
+expect 2 "K too small for degree" -- "$BSURF" normals "$T/n.ply" --fit poly -d 4 -k 10 -o "$T/x.ply"
+expect 2 "bad sigma-nu" -- "$BSURF" normals "$T/n.ply" --sigma-nu -1 -o "$T/x.ply"
+expect 1 "fewer points than K" -- "$BSURF" normals "$T/tiny.xyz" -k 30 -o "$T/x.ply"
+[ -e "$T/x.ply" ] && fail "output left after failures" || ok
+finish
