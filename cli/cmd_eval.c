@@ -1,9 +1,9 @@
 /* bootsurf eval: compare a result with ground truth of the same points.
  *
  * Thesis 5.2.2: mean angle between estimated and ground-truth normals
- * (Tables 5.1-5.9), and the split of Table 5.2 into the points with the
- * highest 15% of a per-point value (bootstrap variance) and the rest
- * (--split normal_var:0.85).
+ * (Tables 5.1, 5.3-5.9), and the split of 5.2.3 (Table 5.2) into the
+ * points with the highest 15% of a per-point value (bootstrap variance) and
+ * the rest (--split normal_var:0.85).
  *
  * The command is a list of sections ("normals" now; "position" and
  * "features" later), each present when the inputs allow it: a section says
@@ -59,13 +59,16 @@ static const char *normals_missing(const eval_ctx *e, char *buf, size_t n) {
   return buf;
 }
 
-static double vec_len(const double *v) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
+static double vec_len(const double *v) {
+  return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+}
 
 static int normals_compute(eval_ctx *e) {
   size_t n = e->result->point_count, bad = 0;
   double *angles = malloc(sizeof(double) * (n ? n : 1));
   if (!angles) return cli_error("out of memory");
-  bsurf_status st = bsurf_eval_normals(e->result->normals, e->truth->normals, n, angles, NULL, &bad);
+  bsurf_status st =
+      bsurf_eval_normals(e->result->normals, e->truth->normals, n, angles, NULL, &bad);
   if (st == BSURF_ERR_INVALID_VALUE) {
     free(angles);
     const char *which = vec_len(&e->result->normals[3 * bad]) > 0 ? e->truth_path : e->result_path;
@@ -95,18 +98,20 @@ static void normals_json(cli_json *j, const eval_ctx *e, int group) {
 }
 
 static void normals_text_header(FILE *f) {
-  fprintf(f, "  normal angle error %10s %10s %10s %9s %7s %7s\n", "mean rad", "median rad", "rms rad", "mean deg",
-          "<5deg", "<10deg");
+  fprintf(f, "  normal angle error %10s %10s %10s %9s %7s %7s\n", "mean rad", "median rad",
+          "rms rad", "mean deg", "<5deg", "<10deg");
 }
 
 static void normals_text_row(FILE *f, const eval_ctx *e, int group) {
   const bsurf_angle_stats *s = &e->normals[group];
-  fprintf(f, "    %-16s %10.6f %10.6f %10.6f %9.4f %6.2f%% %6.2f%%\n", group_names[group], s->mean_rad,
-          s->median_rad, s->rms_rad, s->mean_deg, 100 * s->under5deg, 100 * s->under10deg);
+  fprintf(f, "    %-16s %10.6f %10.6f %10.6f %9.4f %6.2f%% %6.2f%%\n", group_names[group],
+          s->mean_rad, s->median_rad, s->rms_rad, s->mean_deg, 100 * s->under5deg,
+          100 * s->under10deg);
 }
 
 static const eval_section sections[] = {
-    {"normals", normals_missing, normals_compute, normals_json, normals_text_header, normals_text_row},
+    {"normals", normals_missing, normals_compute, normals_json, normals_text_header,
+     normals_text_row},
 };
 #define SECTION_COUNT ((int)(sizeof sections / sizeof sections[0]))
 
@@ -122,7 +127,8 @@ static int parse_split(const cli_command *cmd, const char *arg, char *field, siz
   char *end = NULL;
   *q = strtod(colon + 1, &end);
   if (end == colon + 1 || *end || !(*q >= 0 && *q <= 1))
-    return cli_usage_error(cmd, "--split quantile must be a number from 0 to 1, not '%s'", colon + 1);
+    return cli_usage_error(cmd, "--split quantile must be a number from 0 to 1, not '%s'",
+                           colon + 1);
   return 0;
 }
 
@@ -152,9 +158,11 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
   const char *truth_path = NULL, *split = NULL;
   int json = 0, quiet = 0;
   cli_option opts[] = {
-      {0, "truth", ARG_STRING, &truth_path, "FILE", "ground truth: the same points in the same order", 1, 0},
+      {0, "truth", ARG_STRING, &truth_path, "FILE",
+       "ground truth: the same points in the same order", 1, 0},
       {0, "split", ARG_STRING, &split, "FIELD:Q",
-       "also summarise the points whose FIELD is above its Q-quantile (high) and the rest (low)", 1, 0},
+       "also summarise the points whose FIELD is above its Q-quantile (high) and the rest (low)", 1,
+       0},
       {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
       {'q', "quiet", ARG_FLAG, &quiet, "", "print nothing but errors (and --json)", 1, 0},
   };
@@ -187,7 +195,8 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
   int available[SECTION_COUNT], navailable = 0;
   char reasons[SECTION_COUNT][512];
   if (result.point_count != truth.point_count) {
-    rc = cli_error("%s has %zu points but %s (the truth) has %zu; eval compares the same points in the same order",
+    rc = cli_error("%s has %zu points but %s (the truth) has %zu; eval compares the same points in "
+                   "the same order",
                    pos[0], result.point_count, truth_path, truth.point_count);
     goto done;
   }
@@ -201,8 +210,10 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
     navailable += available[s];
   }
   if (navailable == 0) {
-    for (int s = 0; s < SECTION_COUNT; s++) cli_warn("%s: %s", sections[s].name, reasons[s]);
-    rc = cli_error("nothing to evaluate: %s", SECTION_COUNT == 1 ? reasons[0] : "see the warnings above");
+    for (int s = 0; s < SECTION_COUNT; s++)
+      cli_warn("%s: %s", sections[s].name, reasons[s]);
+    rc = cli_error("nothing to evaluate: %s",
+                   SECTION_COUNT == 1 ? reasons[0] : "see the warnings above");
     goto done;
   }
   for (int s = 0; s < SECTION_COUNT; s++)
@@ -236,17 +247,20 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
     json_num(&j, "seconds", secs);
     json_end(&j);
   } else if (!quiet) {
-    printf("eval %s against %s: %zu points, %.2f s\n", pos[0], truth_path, result.point_count, secs);
+    printf("eval %s against %s: %zu points, %.2f s\n", pos[0], truth_path, result.point_count,
+           secs);
     if (split)
-      printf("  split by %s at quantile %g (threshold %.6g): high %zu points (above), low %zu\n", split_field,
-             split_q, e.threshold, e.group_points[GROUP_HIGH], e.group_points[GROUP_LOW]);
+      printf("  split by %s at quantile %g (threshold %.6g): high %zu points (above), low %zu\n",
+             split_field, split_q, e.threshold, e.group_points[GROUP_HIGH],
+             e.group_points[GROUP_LOW]);
     for (int s = 0; s < SECTION_COUNT; s++) {
       if (!available[s]) {
         printf("  %s: not evaluated: %s\n", sections[s].name, reasons[s]);
         continue;
       }
       sections[s].text_header(stdout);
-      for (int g = 0; g < groups; g++) sections[s].text_row(stdout, &e, g);
+      for (int g = 0; g < groups; g++)
+        sections[s].text_row(stdout, &e, g);
     }
   }
 done:

@@ -1,6 +1,7 @@
 /* bootsurf generate: synthetic shapes with exact normals (and features). */
 #include "cli.h"
 
+#include <math.h>
 #include <stdlib.h>
 
 int cmd_generate(const cli_command *cmd, int argc, char **argv) {
@@ -39,6 +40,8 @@ int cmd_generate(const cli_command *cmd, int argc, char **argv) {
   if (st != BSURF_OK) return cli_error("generate: %s", bsurf_strerror(st));
   rc = cli_write_cloud(output, &c, ascii);
   if (rc == 0 && !quiet) {
+    double h = NAN;
+    if (c.point_count >= 2 && bsurf_mean_spacing(c.xyz, c.point_count, 0, &h) != BSURF_OK) h = NAN;
     double secs = cli_now() - t0;
     if (json) {
       cli_json j;
@@ -48,11 +51,12 @@ int cmd_generate(const cli_command *cmd, int argc, char **argv) {
       json_str(&j, "sampling", sampling);
       json_str(&j, "output", output);
       json_int(&j, "points", (long long)c.point_count);
+      json_num(&j, "h", h);
       json_int(&j, "seed", (long long)seed);
       json_num(&j, "seconds", secs);
       json_end(&j);
     } else {
-      printf("generated %s: %zu points -> %s\n", pos[0], c.point_count, output);
+      printf("generated %s: %zu points, h = %.6g -> %s\n", pos[0], c.point_count, h, output);
     }
   }
   bsurf_cloud_free(&c);

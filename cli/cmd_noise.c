@@ -39,7 +39,7 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   cli_option opts[] = {
       {0, "level", ARG_DOUBLE, &level, "XI", "noise level xi in units of h", 0, 1e300},
       {0, "sigma-diag", ARG_DOUBLE, &sigma_diag, "S",
-       "instead of --level: gaussian, sigma = S x bounding-box diagonal (PCPNet: 0.00125 0.006 0.012)", 0,
+       "instead of --level: gaussian, sigma = S x bbox diagonal (PCPNet 0.00125-0.012)", 0,
        1e300},
       {0, "model", ARG_STRING, &model, "M", "gaussian: t ~ N(0, xi^2); uniform: t ~ U[-xi, xi]", 1, 0},
       {0, "seed", ARG_U64, &seed, "S", "random seed", 1, 0},

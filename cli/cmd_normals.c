@@ -48,14 +48,6 @@ static double quantile(const double *v, size_t n, double q) {
   return r;
 }
 
-static double angle_unoriented(const double *a, const double *b) {
-  double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-  double d = fabs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
-  double la = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]), lb = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
-  if (!(la > 0) || !(lb > 0)) return NAN;
-  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d);
-}
-
 int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   bsurf_normal_options no = bsurf_normal_options_default();
   const char *fit = "pca", *center = "centroid", *output = NULL, *select_k = NULL, *select_degree = NULL;
@@ -250,7 +242,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       for (size_t i = 0; i < n; i++) {
         se += cand_e[i];
         sv += cand_v[i];
-        if (truth_path) sa += angle_unoriented(&cand_n[3 * i], &truth.normals[3 * i]);
+        if (truth_path) sa += bsurf_normal_angle(&cand_n[3 * i], &truth.normals[3 * i]);
         if (cand_e[i] < best_e[i]) { /* ties keep the smaller K, then degree */
           best_e[i] = cand_e[i];
           memcpy(&normals[3 * i], &cand_n[3 * i], 3 * sizeof(double));

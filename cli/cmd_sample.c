@@ -8,16 +8,18 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
   const char *output = NULL;
   int vertices = 0, ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
-      {0, "vertices", ARG_FLAG, &vertices, "", "the mesh's vertices with area-weighted normals (default)", 1, 0},
-      {'n', "points", ARG_SIZE, &so.points, "N", "N points uniform by area with face normals (0 = vertices)", 0,
-       4e9},
+      {0, "vertices", ARG_FLAG, &vertices, "",
+       "the mesh's vertices with area-weighted normals (default)", 1, 0},
+      {'n', "points", ARG_SIZE, &so.points, "N",
+       "N points uniform by area with face normals (0 = vertices)", 0, 4e9},
       {0, "sharp-angle", ARG_DOUBLE, &so.sharp_angle_deg, "DEG",
        "an edge is sharp when its faces' normals differ by more than DEG degrees", 0, 180},
       {0, "feature-width", ARG_DOUBLE, &so.feature_width, "W",
        "feature = within W nominal spacings sqrt(area / points) of a sharp edge", 0, 1e300},
       {0, "seed", ARG_U64, &so.seed, "S", "random seed (area sampling)", 1, 0},
       {'j', "threads", ARG_INT, &so.threads, "N", "threads, 0 = all cores", 0, 4096},
-      {'o', "output", ARG_STRING, &output, "FILE", "output file (.ply keeps feature_dist and feature)", 1, 0},
+      {'o', "output", ARG_STRING, &output, "FILE",
+       "output file (.ply keeps feature_dist and feature)", 1, 0},
       {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
       {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
       {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
@@ -39,22 +41,24 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
   if (cli_read_cloud(pos[0], &mesh)) return 1;
   if (mesh.face_count == 0) {
     bsurf_cloud_free(&mesh);
-    return cli_error("%s: has no faces; sample needs a triangle mesh (.off, .obj or .ply with faces)",
-                     pos[0]);
+    return cli_error(
+        "%s: has no faces; sample needs a triangle mesh (.off, .obj or .ply with faces)", pos[0]);
   }
   bsurf_sample_report rep;
   bsurf_status st = bsurf_sample_mesh(&c, &mesh, &so, &rep);
   size_t mesh_points = mesh.point_count, mesh_faces = mesh.face_count;
   bsurf_cloud_free(&mesh);
-  if (st == BSURF_ERR_INVALID_VALUE) return cli_error("%s: every face has zero area", pos[0]);
-  if (st == BSURF_ERR_TOO_FEW_POINTS) return cli_error("%s: no vertex belongs to a face of non-zero area", pos[0]);
+  if (st == BSURF_ERR_INVALID_VALUE) return cli_error("%s: the faces have no area (all degenerate)", pos[0]);
+  if (st == BSURF_ERR_TOO_FEW_POINTS)
+    return cli_error("%s: no vertex belongs to a face of non-zero area", pos[0]);
   if (st != BSURF_OK) return cli_error("%s: %s", pos[0], bsurf_strerror(st));
   if (rep.vertices_dropped)
     cli_warn("%s: %zu vertices belong to no face of non-zero area (no normal); left out", pos[0],
              rep.vertices_dropped);
   if (rep.inconsistent_edges)
-    cli_warn("%s: %zu edges join faces of opposite orientation; vertex normals there are unreliable", pos[0],
-             rep.inconsistent_edges);
+    cli_warn(
+        "%s: %zu edges join faces of opposite orientation; vertex normals there are unreliable",
+        pos[0], rep.inconsistent_edges);
   rc = cli_write_cloud(output, &c, ascii);
   if (rc == 0 && !quiet) {
     double secs = cli_now() - t0;
@@ -88,10 +92,10 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
       json_num(&j, "seconds", secs);
       json_end(&j);
     } else {
-      printf("sample %s: %zu points (%s) from %zu vertices and %zu faces -> %s\n", pos[0], c.point_count, mode,
-             mesh_points, mesh_faces, output);
-      printf("  %zu edges: %zu sharp (> %g deg), %zu boundary, %zu non-manifold\n", rep.edges, rep.sharp_edges,
-             so.sharp_angle_deg, rep.boundary_edges, rep.nonmanifold_edges);
+      printf("sample %s: %zu points (%s) from %zu vertices and %zu faces -> %s\n", pos[0],
+             c.point_count, mode, mesh_points, mesh_faces, output);
+      printf("  %zu edges: %zu sharp (> %g deg), %zu boundary, %zu non-manifold\n", rep.edges,
+             rep.sharp_edges, so.sharp_angle_deg, rep.boundary_edges, rep.nonmanifold_edges);
       printf("  %zu feature points (within %g x spacing %.6g = %.6g of a sharp edge), %.2f s\n",
              rep.feature_points, so.feature_width, rep.spacing, rep.feature_width, secs);
     }

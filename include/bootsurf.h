@@ -519,7 +519,7 @@ bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask
 bsurf_status bsurf_eval_normals(const double *result, const double *truth, size_t count,
                                 double *angles, bsurf_angle_stats *stats, size_t *bad_index);
 
-/* Splits points at the q-quantile of a per-point value (thesis 5.2.2, Table
+/* Splits points at the q-quantile of a per-point value (thesis 5.2.3, Table
  * 5.2: "the highest 15%" is q = 0.85). With the values sorted ascending as
  * v[0..count-1] and m = ceil(q count) (q count rounded first when within 1e-9
  * of a whole number), threshold = v[m-1] (-INFINITY when m = 0); high points

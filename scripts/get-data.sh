@@ -18,14 +18,23 @@ if [ ! -f "$ARCHIVE" ]; then
   apt-get update -qq
   apt-get install -y -qq --no-install-recommends libcgal-demo >&2
 fi
-if [ ! -f "$ARCHIVE" ]; then
-  echo "get-data: $ARCHIVE still missing after installing libcgal-demo" >&2
-  exit 1
-fi
 
 mkdir -p "$DIR"
 TMP=$(mktemp -d "${TMPDIR:-/tmp}/bsurf-data.XXXXXX")
+chmod 755 "$TMP" # apt-get download runs as _apt
 trap 'rm -rf "$TMP"' EXIT
+if [ ! -f "$ARCHIVE" ]; then
+  # images that exclude /usr/share/doc from installs (dpkg path-exclude):
+  # take the file from the package itself
+  echo "get-data: $ARCHIVE not installed; unpacking it from the libcgal-demo package" >&2
+  (cd "$TMP" && apt-get download libcgal-demo >&2)
+  dpkg-deb -x "$TMP"/libcgal-demo_*.deb "$TMP/deb"
+  ARCHIVE="$TMP/deb$ARCHIVE"
+  if [ ! -f "$ARCHIVE" ]; then
+    echo "get-data: the libcgal-demo package has no ${ARCHIVE#"$TMP/deb"}" >&2
+    exit 1
+  fi
+fi
 tar -xzf "$ARCHIVE" -C "$TMP" "${FILES[@]}"
 for f in "${FILES[@]}"; do
   mv -f "$TMP/$f" "$DIR/$(basename "$f")"

@@ -1,10 +1,11 @@
 /* Evaluation against ground truth: normal angle errors and their summaries.
  *
- * Thesis 5.2.2 (Tables 5.1-5.9) reports the average unoriented angle (in
- * radians) between estimated normals and ground-truth normals computed from
- * the mesh connectivity; Table 5.2 splits the vertices into the 15% with the
- * highest bootstrap variance and the rest. We add the median, the RMS and
- * PCPNet's PGP5/PGP10 (the fractions of points within 5 and 10 degrees).
+ * Thesis 5.2.2, 5.4 to 5.6 (Tables 5.1, 5.3-5.9) report the average
+ * unoriented angle (in radians) between estimated normals and ground-truth
+ * normals computed from the mesh connectivity; 5.2.3 (Table 5.2) splits the
+ * vertices into the 15% with the highest bootstrap variance and the rest.
+ * We add the median, the RMS and PCPNet's PGP5/PGP10 (the fractions of
+ * points within 5 and 10 degrees).
  *
  * The angle is atan2(|a x b|, |a . b|) of the normalised vectors: acos of the
  * dot product loses half the digits near 0, where good normals are. All sums
@@ -23,7 +24,8 @@ double bsurf_normal_angle(const double a[3], const double b[3]) {
   if (!(la > 0) || !(lb > 0) || !isfinite(la) || !isfinite(lb)) return NAN;
   double u[3] = {a[0] / la, a[1] / la, a[2] / la}, v[3] = {b[0] / lb, b[1] / lb, b[2] / lb};
   double c[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
-  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), fabs(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]));
+  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+               fabs(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]));
 }
 
 static int cmp_double(const void *pa, const void *pb) {
@@ -35,7 +37,8 @@ bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask
                                        size_t count, bsurf_angle_stats *stats) {
   if (!stats || (count && !angles)) return BSURF_ERR_INVALID_ARG;
   size_t n = 0;
-  for (size_t i = 0; i < count; i++) n += !mask || mask[i] == keep;
+  for (size_t i = 0; i < count; i++)
+    n += !mask || mask[i] == keep;
   stats->count = n;
   if (n == 0) {
     stats->mean_rad = stats->median_rad = stats->rms_rad = stats->mean_deg = NAN;

@@ -54,31 +54,31 @@ void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *d
 
 int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_tol,
                             double *c) {
-  /* G = L L^T, L lower triangular stored row-major in a full m x m array. */
-  double L[BSURF_TERMS_MAX * BSURF_TERMS_MAX];
+  /* G = L L^T, L lower triangular stored row-major in a full m x m array;
+   * inv[j] = 1 / L[j][j], so each column costs one division. */
+  double L[BSURF_TERMS_MAX * BSURF_TERMS_MAX], inv[BSURF_TERMS_MAX];
   for (int j = 0; j < m; j++) {
-    double gjj = G[bsurf_packed_index(j, j)];
+    const double gjj = G[bsurf_packed_index(j, j)];
     double s = gjj;
     for (int t = 0; t < j; t++) s -= L[j * m + t] * L[j * m + t];
     if (!(s > rel_tol * gjj) || !(gjj > 0)) return -1; /* also catches NaN */
-    double ljj = sqrt(s);
-    L[j * m + j] = ljj;
+    inv[j] = 1.0 / sqrt(s);
     for (int i = j + 1; i < m; i++) {
       double a = G[bsurf_packed_index(j, i)];
       for (int t = 0; t < j; t++) a -= L[i * m + t] * L[j * m + t];
-      L[i * m + j] = a / ljj;
+      L[i * m + j] = a * inv[j];
     }
   }
   double y[BSURF_TERMS_MAX];
   for (int i = 0; i < m; i++) { /* L y = r */
     double a = r[i];
     for (int t = 0; t < i; t++) a -= L[i * m + t] * y[t];
-    y[i] = a / L[i * m + i];
+    y[i] = a * inv[i];
   }
   for (int i = m - 1; i >= 0; i--) { /* L^T c = y */
     double a = y[i];
     for (int t = i + 1; t < m; t++) a -= L[t * m + i] * c[t];
-    c[i] = a / L[i * m + i];
+    c[i] = a * inv[i];
   }
   return 0;
 }

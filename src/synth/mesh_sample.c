@@ -65,9 +65,13 @@ static void cross3(const double *a, const double *b, double *out) {
   out[2] = a[0] * b[1] - a[1] * b[0];
 }
 
-static double dot3(const double *a, const double *b) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static double dot3(const double *a, const double *b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
 
-static double norm3(const double *a) { return sqrt(dot3(a, a)); }
+static double norm3(const double *a) {
+  return sqrt(dot3(a, a));
+}
 
 static bsurf_status check_mesh(const bsurf_cloud *mesh) {
   if (!mesh || !mesh->xyz || !mesh->faces || mesh->face_count == 0) return BSURF_ERR_INVALID_ARG;
@@ -173,7 +177,8 @@ static bsurf_status find_edges(const bsurf_cloud *mesh, const double *unit_norma
       uint32_t a = mesh->faces[3 * f + k], b = mesh->faces[3 * f + (k + 1) % 3];
       if (a != b) start[(a < b ? a : b) + 1]++; /* a repeated corner is no edge */
     }
-  for (size_t i = 0; i < n; i++) start[i + 1] += start[i];
+  for (size_t i = 0; i < n; i++)
+    start[i + 1] += start[i];
   size_t *fill = bsurf_alloc_array(n + 1, sizeof(size_t));
   if (!fill) {
     free(start);
@@ -201,7 +206,8 @@ static bsurf_status find_edges(const bsurf_cloud *mesh, const double *unit_norma
     for (size_t i = 1; i < cnt; i++) {
       half_edge x = g[i];
       size_t j = i;
-      while (j > 0 && (g[j - 1].other > x.other || (g[j - 1].other == x.other && g[j - 1].face > x.face))) {
+      while (j > 0 &&
+             (g[j - 1].other > x.other || (g[j - 1].other == x.other && g[j - 1].face > x.face))) {
         g[j] = g[j - 1];
         j--;
       }
@@ -209,7 +215,8 @@ static bsurf_status find_edges(const bsurf_cloud *mesh, const double *unit_norma
     }
     for (size_t i = 0; i < cnt;) {
       size_t j = i + 1;
-      while (j < cnt && g[j].other == g[i].other) j++;
+      while (j < cnt && g[j].other == g[i].other)
+        j++;
       size_t m = j - i;
       info->edges++;
       double d[3];
@@ -295,9 +302,21 @@ static void select_kth(bvh *t, size_t *ord, size_t n, size_t k, int axis) {
   while (hi > lo) {
     size_t mid = lo + (hi - lo) / 2, tmp;
     /* median of three as pivot, moved to hi */
-    if (center_less(t, ord[mid], ord[lo], axis)) { tmp = ord[mid]; ord[mid] = ord[lo]; ord[lo] = tmp; }
-    if (center_less(t, ord[hi], ord[lo], axis)) { tmp = ord[hi]; ord[hi] = ord[lo]; ord[lo] = tmp; }
-    if (center_less(t, ord[mid], ord[hi], axis)) { tmp = ord[mid]; ord[mid] = ord[hi]; ord[hi] = tmp; }
+    if (center_less(t, ord[mid], ord[lo], axis)) {
+      tmp = ord[mid];
+      ord[mid] = ord[lo];
+      ord[lo] = tmp;
+    }
+    if (center_less(t, ord[hi], ord[lo], axis)) {
+      tmp = ord[hi];
+      ord[hi] = ord[lo];
+      ord[lo] = tmp;
+    }
+    if (center_less(t, ord[mid], ord[hi], axis)) {
+      tmp = ord[mid];
+      ord[mid] = ord[hi];
+      ord[hi] = tmp;
+    }
     size_t pivot = ord[hi], store = lo;
     for (size_t i = lo; i < hi; i++)
       if (center_less(t, ord[i], pivot, axis)) {
@@ -309,8 +328,10 @@ static void select_kth(bvh *t, size_t *ord, size_t n, size_t k, int axis) {
     ord[hi] = ord[store];
     ord[store] = pivot;
     if (store == k) return;
-    if (store < k) lo = store + 1;
-    else hi = store - 1;
+    if (store < k)
+      lo = store + 1;
+    else
+      hi = store - 1;
   }
 }
 
@@ -376,7 +397,8 @@ static bsurf_status bvh_build(bvh *t, const double *xyz, const uint32_t *pairs, 
   for (size_t i = 0; i < m; i++) {
     memcpy(t->segs[i].a, &xyz[3 * (size_t)pairs[2 * i]], sizeof(double) * 3);
     memcpy(t->segs[i].b, &xyz[3 * (size_t)pairs[2 * i + 1]], sizeof(double) * 3);
-    for (int k = 0; k < 3; k++) t->center[3 * i + k] = 0.5 * (t->segs[i].a[k] + t->segs[i].b[k]);
+    for (int k = 0; k < 3; k++)
+      t->center[3 * i + k] = 0.5 * (t->segs[i].a[k] + t->segs[i].b[k]);
     t->order[i] = i;
   }
   bvh_build_node(t, 0, m);
@@ -421,7 +443,8 @@ static void compact(bsurf_cloud *c, const uint8_t *keep) {
     if (j != i) {
       memcpy(&c->xyz[3 * j], &c->xyz[3 * i], sizeof(double) * 3);
       if (c->normals) memcpy(&c->normals[3 * j], &c->normals[3 * i], sizeof(double) * 3);
-      for (size_t f = 0; f < c->field_count; f++) c->fields[f].values[j] = c->fields[f].values[i];
+      for (size_t f = 0; f < c->field_count; f++)
+        c->fields[f].values[j] = c->fields[f].values[i];
     }
     j++;
   }
@@ -446,8 +469,10 @@ static size_t pick_face(const double *cum, size_t F, double u, size_t last_posit
   size_t lo = 0, hi = F;
   while (lo < hi) {
     size_t mid = lo + (hi - lo) / 2;
-    if (cum[mid] > u) hi = mid;
-    else lo = mid + 1;
+    if (cum[mid] > u)
+      hi = mid;
+    else
+      lo = mid + 1;
   }
   return lo < F ? lo : last_positive;
 }
@@ -489,9 +514,12 @@ bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
     face_cross(mesh, f, c);
     double len = norm3(c);
     degenerate[f] = !(len > 0) || !isfinite(len);
-    for (int k = 0; k < 3; k++) unit[3 * f + k] = degenerate[f] ? 0.0 : c[k] / len;
-    if (degenerate[f]) rep.degenerate_faces++;
-    else last_positive = f;
+    for (int k = 0; k < 3; k++)
+      unit[3 * f + k] = degenerate[f] ? 0.0 : c[k] / len;
+    if (degenerate[f])
+      rep.degenerate_faces++;
+    else
+      last_positive = f;
     total += degenerate[f] ? 0.0 : 0.5 * len;
     cum[f] = total;
   }
@@ -603,7 +631,8 @@ bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
       flag[i] = d <= width ? 1.0 : 0.0;
     }
   }
-  for (long long i = 0; i < count; i++) rep.feature_points += flag[i] != 0;
+  for (long long i = 0; i < count; i++)
+    rep.feature_points += flag[i] != 0;
 
   bvh_free(&tree);
   free(edges.sharp);

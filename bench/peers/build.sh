@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# Builds the peer programs of the normals comparison (bench/normals_compare.sh).
+#
+# usage: bench/peers/build.sh [OUT_DIR=build/peers] [BOOTSURF_BUILD_DIR]
+#
+# OUT_DIR gets rss_exec (the harness's launcher), normals_pcl and normals_cgal (g++ -O3 against Debian 12's
+# libpcl-dev, libcgal-dev + libeigen3-dev, libtbb-dev) and, when
+# BOOTSURF_BUILD_DIR holds libbootsurf.a, normals_bootsurf (the library timed
+# without file I/O). Missing Debian packages are installed with apt-get first
+# (as root; idempotent: nothing is installed when dpkg already has them).
+# The Open3D peer is a Python script (python3-open3d, run with /usr/bin/python3).
+set -euo pipefail
+HERE=$(cd "$(dirname "$0")" && pwd)
+ROOT=$(cd "$HERE/../.." && pwd)
+OUT=${1:-build/peers}
+BS=${2:-}
+mkdir -p "$OUT"
+
+need=()
+for p in g++ pkg-config libpcl-dev libcgal-dev libeigen3-dev libtbb-dev python3-open3d python3-numpy; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need+=("$p")
+done
+if ((${#need[@]})); then
+  if [ "$(id -u)" -ne 0 ]; then
+    echo "build.sh: missing packages: ${need[*]} (run as root to install them)" >&2
+    exit 1
+  fi
+  echo "build.sh: installing ${need[*]}" >&2
+  DEBIAN_FRONTEND=noninteractive apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive apt-get install -y -qq --no-install-recommends "${need[@]}" >&2
+fi
+
+CXX=${CXX:-g++}
+CXXFLAGS=${CXXFLAGS:-"-O3 -DNDEBUG -std=c++17"}
+# Only PCL's C++ targets needed by NormalEstimationOMP (pkg-config pulls in flann etc.).
+PCL_FLAGS=$(pkg-config --cflags --libs pcl_features pcl_search pcl_kdtree pcl_common)
+
+# up to date: the program exists and is newer than every file it is made from
+fresh() {
+  local t=$1
+  shift
+  [ -x "$t" ] || return 1
+  for f in "$@"; do [ "$f" -nt "$t" ] && return 1; done
+  return 0
+}
+COMMON=("$HERE/ply_io.hpp" "$HERE/peer_util.hpp" "$HERE/build.sh")
+
+if ! fresh "$OUT/normals_pcl" "$HERE/normals_pcl.cpp" "${COMMON[@]}"; then
+  echo "build.sh: normals_pcl" >&2
+  # shellcheck disable=SC2086
+  $CXX $CXXFLAGS -fopenmp -I"$HERE" "$HERE/normals_pcl.cpp" -o "$OUT/normals_pcl" $PCL_FLAGS
+fi
+
+if ! fresh "$OUT/normals_cgal" "$HERE/normals_cgal.cpp" "${COMMON[@]}"; then
+  echo "build.sh: normals_cgal (TBB: Parallel_if_available_tag = Parallel_tag)" >&2
+  # CGAL 5.5 is header-only; CGAL_LINKED_WITH_TBB selects TBB for Parallel_if_available_tag,
+  # CGAL_EIGEN3_ENABLED lets jet fitting and PCA use Eigen.
+  # shellcheck disable=SC2086
+  $CXX $CXXFLAGS -I"$HERE" $(pkg-config --cflags eigen3) -DCGAL_EIGEN3_ENABLED -DCGAL_LINKED_WITH_TBB \
+    "$HERE/normals_cgal.cpp" -o "$OUT/normals_cgal" $(pkg-config --libs tbb) -lgmp -lmpfr -lpthread
+fi
+
+if ! fresh "$OUT/rss_exec" "$HERE/rss_exec.c" "$HERE/build.sh"; then
+  echo "build.sh: rss_exec (launcher: wall time and peak RSS of one command)" >&2
+  ${CC:-gcc} -O2 -std=c11 -Wall -Wextra "$HERE/rss_exec.c" -o "$OUT/rss_exec"
+fi
+
+if [ -n "$BS" ]; then
+  if [ -f "$BS/libbootsurf.a" ]; then
+    echo "build.sh: normals_bootsurf (against $BS/libbootsurf.a)" >&2
+    ${CC:-gcc} -O3 -DNDEBUG -std=c11 -Wall -Wextra -fopenmp -I"$ROOT/include" \
+      "$HERE/normals_bootsurf.c" -o "$OUT/normals_bootsurf" "$BS/libbootsurf.a" -lm
+  else
+    echo "build.sh: $BS/libbootsurf.a not found: normals_bootsurf not built" >&2
+    exit 1
+  fi
+fi
+echo "build.sh: peers in $OUT" >&2

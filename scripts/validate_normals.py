@@ -1,0 +1,145 @@
+#!/usr/bin/env python3
+"""Chapter-5 validation of bootsurf normals (docs/validation.md, issue "normals").
+
+Usage: scripts/validate_normals.py BUILD_DIR DATA_DIR OUT_DIR [--quick]
+
+DATA_DIR holds fandisk_large.off and bunny00.off (scripts/get-data.sh DATA_DIR).
+Runs only the bootsurf command line; prints markdown tables on stdout. Noise is
+`noise --model uniform` (the thesis text's model, whose magnitudes chapter 5's
+tables match), seed 1, levels 0.25 0.5 1.0 1.5; angle errors are unoriented
+mean angles in radians against the ground truth (mesh vertex normals, or the
+generated sphere's exact normals), computed by `bootsurf eval`.
+"""
+import json
+import os
+import subprocess
+import sys
+
+NOISES = [0.25, 0.5, 1.0, 1.5]
+
+
+def run(args):
+    r = subprocess.run(args, capture_output=True, text=True)
+    if r.returncode != 0:
+        sys.stderr.write("failed: %s\n%s" % (" ".join(args), r.stderr))
+        sys.exit(1)
+    return r.stdout
+
+
+def main():
+    if len(sys.argv) < 4:
+        sys.exit(__doc__)
+    build, data, out = sys.argv[1:4]
+    quick = "--quick" in sys.argv
+    bs = os.path.join(build, "bootsurf")
+    os.makedirs(out, exist_ok=True)
+
+    def path(name):
+        return os.path.join(out, name)
+
+    def normals(src, dst, *opts):
+        return json.loads(run([bs, "normals", src, "-o", dst, "--json", "-q"] + list(opts)))
+
+    def evaluate(res, truth, *opts):
+        return json.loads(run([bs, "eval", res, "--truth", truth, "--json"] + list(opts)))
+
+    # ground truth clouds
+    truths = {}
+    run([bs, "generate", "sphere", "-n", "4000" if quick else "26010", "-o", path("sphere.ply"), "-q"])
+    truths["sphere"] = path("sphere.ply")
+    for name, mesh in (("fandisk", "fandisk_large.off"), ("bunny", "bunny00.off")):
+        run([bs, "sample", os.path.join(data, mesh), "-o", path(name + ".ply"), "-q"])
+        truths[name] = path(name + ".ply")
+    run([bs, "generate", "cube", "-n", "6146", "-o", path("cube.ply"), "-q"])
+    truths["cube"] = path("cube.ply")
+
+    noisy = {}
+    for name, t in truths.items():
+        for xi in NOISES:
+            dst = path("%s_%g.ply" % (name, xi))
+            run([bs, "noise", t, "--model", "uniform", "--level", str(xi), "--seed", "1", "-o", dst, "-q"])
+            noisy[(name, xi)] = dst
+
+    def angle(name, xi, *opts, split=None):
+        res = path("res.ply")
+        normals(noisy[(name, xi)], res, *opts)
+        e = evaluate(res, truths[name], *(["--split", split] if split else []))
+        return e
+
+    # Table 5.1: PCA single fit vs bootstrap (B = 50), k = 15 and 30
+    print("\n### Table 5.1: PCA single fit vs bootstrap mean (B = 50), mean angle error (rad)\n")
+    for name in ("sphere", "bunny", "fandisk"):
+        print("%s | noise | k=15 single | k=15 bootstrap | k=30 single | k=30 bootstrap" % name)
+        print("|".join(["---"] * 6))
+        for xi in NOISES:
+            row = []
+            for k in (15, 30):
+                for B in (0, 50):
+                    row.append(angle(name, xi, "-k", str(k), "-B", str(B))["normals"]["mean_rad"])
+            print("| %g | %s" % (xi, " | ".join("%.4f" % v for v in row)))
+        print()
+
+    # Table 5.2: K = 50, the 15% of points with the highest normal_var vs the rest
+    print("\n### Table 5.2: mean angle error of the 15% highest-variance points vs the rest (K = 50, B = 50)\n")
+    for name in ("bunny", "fandisk"):
+        print("%s | noise | low variance (85%%) | high variance (15%%) | ratio" % name)
+        print("|".join(["---"] * 5))
+        for xi in NOISES:
+            e = angle(name, xi, "-k", "50", "-B", "50", split="normal_var:0.85")
+            lo, hi = e["split"]["low"]["mean_rad"], e["split"]["high"]["mean_rad"]
+            print("| %g | %.4f | %.4f | %.2f" % (xi, lo, hi, hi / lo))
+        print()
+
+    # Table 5.4: PCA vs quadratic (M2) bootstrap normals on the sphere, both PCA centres
+    print("\n### Table 5.4: sphere, bootstrap (B = 50) PCA vs quadratic normals, mean angle error (rad)\n")
+    for center in ("centroid", "point"):
+        print("PCA about the %s | noise | k=15 PCA | k=15 M2 | k=30 PCA | k=30 M2" % center)
+        print("|".join(["---"] * 6))
+        for xi in NOISES:
+            row = []
+            for k in (15, 30):
+                row.append(angle("sphere", xi, "-k", str(k), "--pca-center", center)["normals"]["mean_rad"])
+                row.append(angle("sphere", xi, "-k", str(k), "--fit", "poly", "-d", "2",
+                                 "--pca-center", center)["normals"]["mean_rad"])
+            print("| %g | %s" % (xi, " | ".join("%.4f" % v for v in row)))
+        print()
+
+    # Figure 5.2: bilateral (sigma_nu auto) vs single Gaussian (sigma_nu inf) smoothing,
+    # feature / non-feature points by the ground-truth `feature` label, noise 0.5
+    print("\n### Figure 5.2: normal smoothing at noise 0.5, mean angle error (rad) on feature / non-feature points\n")
+    iters = [0, 1, 2, 5, 10, 20]
+    for name in ("cube", "fandisk"):
+        print("%s | iterations | bilateral feature | single feature | bilateral non-feature | single non-feature"
+              % name)
+        print("|".join(["---"] * 6))
+        for it in iters:
+            row = []
+            for sig in ("auto", "inf"):
+                e = angle(name, 0.5, "-k", "15", "-B", "50", "--smooth-iterations", str(it),
+                          "--alpha", "0.1", "--sigma-nu", sig, split="feature:0.5")
+                row.append((e["split"]["high"]["mean_rad"], e["split"]["low"]["mean_rad"]))
+            print("| %d | %.4f | %.4f | %.4f | %.4f" % (it, row[0][0], row[1][0], row[0][1], row[1][1]))
+        print()
+
+    # Neighbourhood choice: per-point selected K vs the best single K
+    print("\n### Neighbourhood choice: per-point K (min normal_err) vs the best single K, mean angle error (rad)\n")
+    ks = list(range(10, 51, 5))
+    for name in ("fandisk", "bunny"):
+        print("%s | noise | best single K | its error | selected-K error | mean selected K" % name)
+        print("|".join(["---"] * 6))
+        for xi in NOISES:
+            best = None
+            for k in ks:
+                a = angle(name, xi, "-k", str(k), "-B", "0")["normals"]["mean_rad"]
+                if best is None or a < best[1]:
+                    best = (k, a)
+            res = path("sel.ply")
+            j = normals(noisy[(name, xi)], res, "-B", "20", "--select-k", "10:50:5", "--k-ref", "30")
+            e = evaluate(res, truths[name])
+            print("| %g | %d | %.4f | %.4f | %.1f" % (xi, best[0], best[1], e["normals"]["mean_rad"],
+                                                      j["mean"]["k_selected"]))
+        print()
+
+
+if __name__ == "__main__":
+    main()
