@@ -48,7 +48,8 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
   bsurf_status st = bsurf_sample_mesh(&c, &mesh, &so, &rep);
   size_t mesh_points = mesh.point_count, mesh_faces = mesh.face_count;
   bsurf_cloud_free(&mesh);
-  if (st == BSURF_ERR_INVALID_VALUE) return cli_error("%s: the faces have no area (all degenerate)", pos[0]);
+  if (st == BSURF_ERR_INVALID_VALUE)
+    return cli_error("%s: the faces have no area (all degenerate)", pos[0]);
   if (st == BSURF_ERR_TOO_FEW_POINTS)
     return cli_error("%s: no vertex belongs to a face of non-zero area", pos[0]);
   if (st != BSURF_OK) return cli_error("%s: %s", pos[0], bsurf_strerror(st));

@@ -30,12 +30,12 @@
  * max:  gamma = 11/9, R = (2/3)/(8/9) = .75, w = .632/(1 - .276)  */
 static const double y[3] = {0, 1, 2}, full[3] = {0.5, 1, 1.5};
 static const double boot[6] = {0, 1, 3, 1, 1, 2};
-static const uint16_t counts[6] = {2, 1, 0, 0, 1, 2};
+static const double counts[6] = {2, 1, 0, 0, 1, 2};
 
 static void test_estimators_by_hand(void **state) {
   (void)state;
   unsigned char valid[2] = {1, 1};
-  double scratch[16];
+  double scratch[32];
   bsurf_boot_result r;
   bsurf_boot_estimate(3, 2, y, full, boot, counts, valid, BSURF_GAMMA_FIT, scratch, &r);
   NEAR(r.err_train, 1.0 / 3);
@@ -66,7 +66,7 @@ static void test_estimators_by_hand(void **state) {
 static void test_estimators_skip_replicate(void **state) {
   (void)state;
   unsigned char valid[2] = {1, 0};
-  double scratch[16];
+  double scratch[32];
   bsurf_boot_result r;
   bsurf_boot_estimate(3, 2, y, full, boot, counts, valid, BSURF_GAMMA_FIT, scratch, &r);
   NEAR(r.err_boot, 1.0 / 3);
@@ -91,7 +91,7 @@ static void test_estimators_no_information(void **state) {
   const double ff[3] = {1, 1, 1};
   const double bb[6] = {3, 3, 3, 3, 3, 3};
   unsigned char valid[2] = {1, 1};
-  double scratch[16];
+  double scratch[32];
   bsurf_boot_result r;
   bsurf_boot_estimate(3, 2, y, ff, bb, counts, valid, BSURF_GAMMA_FIT, scratch, &r);
   NEAR(r.err_train, 2.0 / 3);

@@ -24,6 +24,9 @@ fall on different programs. Reported per program, medians over the rounds:
               Open3D), reading, computing, writing. bootsurf: the CLI
               `bootsurf normals ... -o OUT` (its JSON "seconds", the command
               without process start-up, is in the notes).
+  compute CPU s  user + system CPU time of all threads over the same interval
+              (getrusage): the work done, less sensitive than wall time to
+              other jobs on a shared machine; CPU s / compute s = cores used.
   ratios      t(bootsurf) / t(peer) of the same round, median over rounds, for
               the corresponding methods: bootsurf PCA -B 0 against the PCA
               peers, bootsurf poly degree 2 -B 0 against CGAL jet degree 2.
@@ -48,7 +51,7 @@ PY = "/usr/bin/python3"  # python3-open3d is installed for Debian's interpreter 
 
 
 def run(cmd, out_path, env, launcher=None):
-    """Runs cmd; returns (wall seconds, peak RSS kB, stdout text). Raises on failure.
+    """Runs cmd; returns (wall seconds, peak RSS kB, CPU seconds, stdout text). Raises on failure.
 
     With launcher (bench/peers/rss_exec) wall and RSS are the launcher's: see
     rss_exec.c for why the harness cannot take ru_maxrss of its own children.
@@ -58,14 +61,14 @@ def run(cmd, out_path, env, launcher=None):
     with open(out_path + ".stdout", "wb") as so, open(out_path + ".stderr", "wb") as se:
         t0 = time.monotonic()
         rc = subprocess.call(full, stdout=so, stderr=se, env=env)
-        wall, rss = time.monotonic() - t0, None
+        wall, rss, cpu = time.monotonic() - t0, None, None
     if rc != 0:
         err = open(out_path + ".stderr", errors="replace").read()
         raise RuntimeError("%s failed (%d):\n%s" % (" ".join(cmd), rc, err))
     if launcher:
-        w, r = open(stats).read().split()
-        wall, rss = float(w), int(r)
-    return wall, rss, open(out_path + ".stdout").read()
+        w, r, c = open(stats).read().split()
+        wall, rss, cpu = float(w), int(r), float(c)
+    return wall, rss, cpu, open(out_path + ".stdout").read()
 
 
 def last_json(text):
@@ -105,7 +108,7 @@ def programs(a):
 
 
 def angle(res, truth):
-    _, _, out = run([PY, os.path.join(HERE, "angle_error.py"), res, truth], res + ".ang", None)
+    _, _, _, out = run([PY, os.path.join(HERE, "angle_error.py"), res, truth], res + ".ang", None)
     return last_json(out)
 
 
@@ -126,19 +129,22 @@ def one_input(a, name, path, env):
     P = programs(a)
     work = os.path.join(a.work, name)
     os.makedirs(work, exist_ok=True)
-    res = {p[0]: {"wall": [], "rss": [], "compute": [], "json": None} for p in P}
+    res = {p[0]: {"wall": [], "rss": [], "cpu": [], "compute": [], "compute_cpu": [], "json": None}
+           for p in P}
     load_before = os.getloadavg()
     t_start = time.monotonic()
     for r in range(a.reps):
         order = P[r % len(P):] + P[:r % len(P)]
         for pid, prog, meth, grp, cmd, kind in order:
             out = os.path.join(work, pid + ".ply")
-            wall, rss, text = run(cmd(path, out), out, env, a.launcher)
+            wall, rss, cpu, text = run(cmd(path, out), out, env, a.launcher)
             js = last_json(text)
             d = res[pid]
             d["wall"].append(wall)
             d["rss"].append(rss)
+            d["cpu"].append(cpu)
             d["compute"].append(js.get("seconds"))
+            d["compute_cpu"].append(js.get("cpu_seconds"))
             d["json"] = js
             print("  [%s round %d] %-12s %-22s process %8.3f s  own %8.3f s" %
                   (name, r + 1, pid, meth, wall, js.get("seconds", float("nan"))),
@@ -160,16 +166,22 @@ def one_input(a, name, path, env):
         else:
             base, comp, whole = pid, res[pid], res[pid]
             ang_file = os.path.join(work, pid + ".ply")
-        ratio_c = ratio_w = None
+        ratio_c = ratio_w = ratio_cpu = None
         if not pid.startswith("bs_") and grp in bs_ref:
             b = bs_ref[grp]
-            ratio_c = statistics.median(x / y for x, y in zip(res[b + "_lib"]["compute"], comp["compute"]))
-            ratio_w = statistics.median(x / y for x, y in zip(res[b + "_cli"]["wall"], whole["wall"]))
+
+            def ratio(x, y):  # per round (the same loop), then the median
+                return statistics.median(u / v for u, v in zip(x, y))
+            ratio_c = ratio(res[b + "_lib"]["compute"], comp["compute"])
+            ratio_cpu = ratio(res[b + "_lib"]["compute_cpu"], comp["compute_cpu"])
+            ratio_w = ratio(res[b + "_cli"]["wall"], whole["wall"])
         ang = angle(ang_file, truth)
         tc = statistics.median(comp["compute"])
         rows.append({
             "id": base, "program": prog, "method": meth, "compute_s": tc,
             "points_per_s": npts / tc, "ratio_compute": ratio_c,
+            "compute_cpu_s": statistics.median(comp["compute_cpu"]), "ratio_compute_cpu": ratio_cpu,
+            "process_cpu_s": statistics.median(whole["cpu"]),
             "process_s": statistics.median(whole["wall"]), "ratio_process": ratio_w,
             "cli_json_seconds": (statistics.median(res[base + "_cli"]["compute"])
                                  if pid.endswith("_lib") else None),
@@ -184,7 +196,7 @@ def one_input(a, name, path, env):
     for b in ("bs_pca", "bs_pca_b50", "bs_poly2"):
         checks[b + " lib vs CLI max|dn|"] = max_normal_diff(os.path.join(work, b + "_lib.ply"),
                                                             os.path.join(work, b + "_cli.ply"))
-    _, _, ev = run([a.bootsurf, "eval", os.path.join(work, "pcl.ply"), "--truth", truth, "--json", "-q"],
+    _, _, _, ev = run([a.bootsurf, "eval", os.path.join(work, "pcl.ply"), "--truth", truth, "--json", "-q"],
                    os.path.join(work, "eval"), env)
     ev = last_json(ev)["normals"]
     pcl_row = [x for x in rows if x["id"] == "pcl"][0]
@@ -202,13 +214,14 @@ def print_table(t):
     print("load average (1/5/15 min) before %.2f %.2f %.2f, after %.2f %.2f %.2f; %.1f min" %
           (tuple(t["load_before"]) + tuple(t["load_after"]) + (t["minutes"],)))
     print()
-    print("| program | method | compute s | points/s | bs/peer compute | process s | bs/peer process "
-          "| mean angle rad | PGP5 | PGP10 | peak RSS MB |")
-    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    print("| program | method | compute s | points/s | bs/peer compute | compute CPU s | bs/peer CPU "
+          "| process s | bs/peer process | mean angle rad | PGP5 | PGP10 | peak RSS MB |")
+    print("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in t["rows"]:
-        print("| %s | %s | %.3f | %s | %s | %.3f | %s | %.5f | %.4f | %.4f | %.0f |" % (
+        print("| %s | %s | %.3f | %s | %s | %.3f | %s | %.3f | %s | %.5f | %.4f | %.4f | %.0f |" % (
             r["program"], r["method"], r["compute_s"], format(r["points_per_s"], ",.0f"),
-            fmt(r["ratio_compute"], ".2f"), r["process_s"], fmt(r["ratio_process"], ".2f"),
+            fmt(r["ratio_compute"], ".2f"), r["compute_cpu_s"], fmt(r["ratio_compute_cpu"], ".2f"),
+            r["process_s"], fmt(r["ratio_process"], ".2f"),
             r["mean_rad"], r["pgp5"], r["pgp10"], r["peak_rss_kb"] / 1024))
     notes = []
     for r in t["rows"]:

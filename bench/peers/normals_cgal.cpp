@@ -74,6 +74,7 @@ int main(int argc, char **argv) {
   auto np = CGAL::parameters::point_map(CGAL::First_of_pair_property_map<PointVectorPair>())
                 .normal_map(CGAL::Second_of_pair_property_map<PointVectorPair>());
 
+  const double c0 = peer::cpu_seconds();
   const double t0 = peer::now();
   if (o.method == "pca")
     CGAL::pca_estimate_normals<CGAL::Parallel_if_available_tag>(pts, cgal_k, np);
@@ -81,6 +82,7 @@ int main(int argc, char **argv) {
     CGAL::jet_estimate_normals<CGAL::Parallel_if_available_tag>(pts, cgal_k,
                                                                 np.degree_fitting((unsigned)o.degree));
   const double secs = peer::now() - t0;
+  const double cpu = peer::cpu_seconds() - c0;
 
   std::vector<double> nrm(3 * n);
   for (size_t i = 0; i < n; i++) {
@@ -96,9 +98,9 @@ int main(int argc, char **argv) {
     return 1;
   }
   std::printf("{\"peer\":\"cgal\",\"version\":\"%s\",\"method\":\"%s\",\"degree\":%d,\"k\":%d,"
-              "\"cgal_k\":%u,\"threads\":%d,\"tbb\":%s,\"points\":%zu,\"seconds\":%.6f,"
+              "\"cgal_k\":%u,\"threads\":%d,\"tbb\":%s,\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,"
               "\"peak_rss_kb\":%ld,\"timed\":\"%s_estimate_normals incl. kd-tree build\"}\n",
               CGAL_VERSION_STR, o.method.c_str(), o.method == "jet" ? o.degree : 1, o.k, cgal_k,
-              threads, tbb ? "true" : "false", n, secs, peer::peak_rss_kb(), o.method.c_str());
+              threads, tbb ? "true" : "false", n, secs, cpu, peer::peak_rss_kb(), o.method.c_str());
   return 0;
 }

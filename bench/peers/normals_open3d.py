@@ -133,15 +133,19 @@ def main():
     pcd.points = o3d.utility.Vector3dVector(xyz)
     param = o3d.geometry.KDTreeSearchParamKNN(knn=o["k"])
 
+    ru0 = resource.getrusage(resource.RUSAGE_SELF)
     t0 = time.monotonic()
     pcd.estimate_normals(search_param=param)
     secs = time.monotonic() - t0
+    ru1 = resource.getrusage(resource.RUSAGE_SELF)
+    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
 
     nrm = np.asarray(pcd.normals)
     write_xyz_normals(o["out"], xyz, nrm, "normals_open3d estimate_normals")
     print(json.dumps({
         "peer": "open3d", "version": o3d.__version__, "method": "pca", "k": o["k"],
         "threads": o["threads"], "points": int(xyz.shape[0]), "seconds": round(secs, 6),
+        "cpu_seconds": round(cpu, 6),
         "peak_rss_kb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
         "timed": "estimate_normals incl. KDTreeFlann build"}))
 

@@ -1,5 +1,5 @@
 // peer_util.hpp — what the C++ peer programs share besides PLY I/O: a monotonic
-// clock, the process's peak resident set size, options and the one-line JSON
+// clock, CPU time, the process's peak resident set size, options and the one-line JSON
 // result every peer prints on stdout.
 #pragma once
 
@@ -24,6 +24,14 @@ static inline long peak_rss_kb() {
   rusage ru;
   getrusage(RUSAGE_SELF, &ru);
   return ru.ru_maxrss;
+}
+
+// CPU time (user + system) of all threads of this process so far, seconds.
+static inline double cpu_seconds() {
+  rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+         (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
 }
 
 struct Options {

@@ -44,12 +44,12 @@ typedef struct error_scratch {
   bsurf_localfit lf;
   double *pred_full; /* k */
   double *pred_boot; /* B x k */
-  uint16_t *counts;  /* B x k */
+  uint16_t *counts;  /* k: one replicate's multiplicities */
   double *weights;   /* B x k: counts as doubles */
   double *rows;      /* B x ncols: normal equations of the replicates */
   double *coefs;     /* B x terms */
   unsigned char *valid; /* B */
-  double *est_scratch;  /* 5k + 1 */
+  double *est_scratch;  /* 6k + 1 */
   size_t skipped, reduced, center_unestimated;
 } error_scratch;
 
@@ -73,12 +73,12 @@ static bsurf_status scratch_alloc(error_scratch *s, int k, int B, int degree) {
   size_t nb = B > 0 ? (size_t)B : 1;
   s->pred_full = bsurf_alloc_array((size_t)k, sizeof(double));
   s->pred_boot = bsurf_alloc_array(nb * k, sizeof(double));
-  s->counts = bsurf_alloc_array(nb * k, sizeof(uint16_t));
+  s->counts = bsurf_alloc_array((size_t)k, sizeof(uint16_t));
   s->weights = bsurf_alloc_array(nb * k, sizeof(double));
   s->rows = bsurf_alloc_array(nb * BSURF_NCOLS_MAX, sizeof(double));
   s->coefs = bsurf_alloc_array(nb * BSURF_TERMS_MAX, sizeof(double));
   s->valid = bsurf_alloc_array(nb, 1);
-  s->est_scratch = bsurf_alloc_array(5 * (size_t)k + 1, sizeof(double));
+  s->est_scratch = bsurf_alloc_array(6 * (size_t)k + 1, sizeof(double));
   if (!s->pred_full || !s->pred_boot || !s->counts || !s->weights || !s->rows || !s->coefs ||
       !s->valid || !s->est_scratch) {
     scratch_free(s);
@@ -112,7 +112,7 @@ static void error_point(const double *xyz, const bsurf_neighbors *nb, const doub
    * replicates are one matrix product, then one small solve each. */
   const int m = bsurf_poly_terms(degree);
   for (int b = 0; b < B; b++) {
-    uint16_t *cnt = &s->counts[(size_t)b * k];
+    uint16_t *cnt = s->counts;
     double *w = &s->weights[(size_t)b * k];
     bsurf_boot_counts(o->seed, i, (uint32_t)b, k, cnt);
     int distinct = 0;
@@ -123,16 +123,12 @@ static void error_point(const double *xyz, const bsurf_neighbors *nb, const doub
     s->valid[b] = distinct >= m; /* fewer distinct points than terms: singular */
   }
   bsurf_localfit_normal_eq(lf, B, s->weights, s->rows);
-  for (int b = 0; b < B; b++) {
-    if (s->valid[b] &&
-        bsurf_localfit_solve_row(lf, degree, &s->rows[(size_t)b * lf->ncols], &s->coefs[(size_t)b * m]) != 0)
-      s->valid[b] = 0;
-    if (!s->valid[b]) s->skipped++;
-  }
+  bsurf_localfit_solve_rows(lf, degree, B, s->rows, s->valid, s->coefs);
+  for (int b = 0; b < B; b++) s->skipped += !s->valid[b];
   bsurf_localfit_predict(lf, degree, B, s->coefs, s->valid, s->pred_boot);
 
   bsurf_boot_result r;
-  bsurf_boot_estimate(k, B, lf->z, s->pred_full, s->pred_boot, s->counts, s->valid, o->gamma,
+  bsurf_boot_estimate(k, B, lf->z, s->pred_full, s->pred_boot, s->weights, s->valid, o->gamma,
                       s->est_scratch, &r);
   if (r.center_unestimated) s->center_unestimated++;
   put(out->err_train, i, r.err_train);

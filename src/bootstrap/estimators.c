@@ -19,6 +19,7 @@
  *  - with no valid replicate at all, every bootstrap estimate equals
  *    err_train and R = 0 (nothing is known beyond the training error). */
 #include "bootstrap/bootstrap.h"
+#include "common/common.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -69,8 +70,22 @@ double bsurf_boot_gamma_naive(int k, const double *pred, const double *y) {
   return total / ((double)k * (double)k);
 }
 
+/* One replicate's part of Eqs. 4.3, 4.4: elementwise over the points. */
+static inline void accumulate_replicate(int k, const double *restrict pb, const double *restrict wb,
+                                        const double *restrict y, double *restrict boot_j,
+                                        double *restrict loo_sum, double *restrict loo_cnt) {
+  for (int j = 0; j < k; j++) {
+    const double e = fabs(pb[j] - y[j]);
+    const int miss = wb[j] == 0.0;
+    boot_j[j] += e;
+    loo_sum[j] += miss ? e : 0.0;
+    loo_cnt[j] += miss ? 1.0 : 0.0;
+  }
+}
+
+BSURF_CLONES
 void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
-                         const double *pred_boot, const uint16_t *counts,
+                         const double *pred_boot, const double *weights,
                          const unsigned char *valid, bsurf_gamma_mode mode,
                          double *scratch, bsurf_boot_result *out) {
   double *y_sorted = scratch;                      /* k */
@@ -78,6 +93,7 @@ void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
   double *gscratch = scratch + 2 * (size_t)k + 1;  /* k */
   double *loo_sum = scratch + 3 * (size_t)k + 1;   /* k */
   double *loo_cnt = scratch + 4 * (size_t)k + 1;   /* k */
+  double *boot_j = scratch + 5 * (size_t)k + 1;    /* k */
   for (int j = 0; j < k; j++) y_sorted[j] = y[j];
   bsurf_sort_doubles(y_sorted, k);
   y_prefix[0] = 0;
@@ -88,15 +104,17 @@ void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
   err /= k;
   double gamma_fit = bsurf_boot_gamma(k, pred_full, y_sorted, y_prefix, gscratch);
 
-  double boot_sum = 0, gamma_sum = 0, gamma_max = 0;
+  /* Eq. 4.3 summed per point j (then over j), and Eqs. 4.4 / 4.11: for each
+   * point j, the replicates b in C_j (those not containing j); each sum runs
+   * over b = 0, 1, ... in order, elementwise over j (vectorised). */
+  double gamma_sum = 0, gamma_max = 0;
   int nvalid = 0;
-  for (int b = 0; b < B; b++) { /* Eq. 4.3 and the replicates' gammas */
+  for (int j = 0; j < k; j++) boot_j[j] = loo_sum[j] = loo_cnt[j] = 0;
+  for (int b = 0; b < B; b++) {
     if (!valid[b]) continue;
     nvalid++;
     const double *pb = &pred_boot[(size_t)b * k];
-    double s = 0;
-    for (int j = 0; j < k; j++) s += fabs(pb[j] - y[j]);
-    boot_sum += s;
+    accumulate_replicate(k, pb, &weights[(size_t)b * k], y, boot_j, loo_sum, loo_cnt);
     if (mode != BSURF_GAMMA_FIT) {
       /* the replicate's fit evaluated on the original neighbourhood */
       double g = bsurf_boot_gamma(k, pb, y_sorted, y_prefix, gscratch);
@@ -104,20 +122,8 @@ void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
       if (g > gamma_max) gamma_max = g;
     }
   }
-
-  /* Eqs. 4.4 and 4.11: for each point j, the replicates b in C_j (those
-   * that do not contain j), summed in the order b = 0, 1, ... */
-  for (int j = 0; j < k; j++) loo_sum[j] = loo_cnt[j] = 0;
-  for (int b = 0; b < B; b++) {
-    if (!valid[b]) continue;
-    const double *pb = &pred_boot[(size_t)b * k];
-    const uint16_t *cb = &counts[(size_t)b * k];
-    for (int j = 0; j < k; j++) {
-      const int miss = cb[j] == 0;
-      loo_sum[j] += miss ? fabs(pb[j] - y[j]) : 0.0;
-      loo_cnt[j] += miss ? 1.0 : 0.0;
-    }
-  }
+  double boot_sum = 0;
+  for (int j = 0; j < k; j++) boot_sum += boot_j[j];
   double loo = 0, loo_center = 0;
   int loo_points = 0, center_ok = 0;
   for (int j = 0; j < k; j++) {

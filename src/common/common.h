@@ -18,6 +18,15 @@
 #define BSURF_PRINTF(a, b)
 #endif
 
+/* Hot kernels are compiled twice: for x86-64-v3 (AVX2) and a portable
+ * default, chosen at load time. Kernels avoid floating-point contraction
+ * (-std=c11 keeps it off) so both clones give the same bits. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_ADDRESS__)
+#define BSURF_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define BSURF_CLONES
+#endif
+
 /* malloc of n * size bytes with an overflow check; NULL on failure or n == 0. */
 void *bsurf_alloc_array(size_t n, size_t size);
 void *bsurf_calloc_array(size_t n, size_t size);

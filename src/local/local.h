@@ -84,6 +84,13 @@ void bsurf_localfit_normal_eq(const bsurf_localfit *lf, int B, const double *W, 
 int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row,
                              double *coef);
 
+/* Solves every row b of bsurf_localfit_normal_eq with valid[b] != 0 (B
+ * rows, coefs out: B x terms(degree)); a rank-deficient row gets valid[b]
+ * = 0. Same results as bsurf_localfit_solve_row row by row, several at once
+ * in vector lanes. */
+void bsurf_localfit_solve_rows(const bsurf_localfit *lf, int degree, int B, const double *rows,
+                               unsigned char *valid, double *coefs);
+
 /* Least-squares fit of degree `degree` (<= the setup degree) with integer
  * weights `counts` (k; NULL = every point once). coef out: terms(degree).
  * Returns 0, or -1 when the system is rank-deficient. */

@@ -152,11 +152,6 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
 typedef double v4d __attribute__((vector_size(32)));
 #define HAVE_V4D 1
 #endif
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_ADDRESS__)
-#define BSURF_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
-#else
-#define BSURF_CLONES
-#endif
 
 static void gemm_plain(int b0, int b1, int c0, int c1, int k, int nc, const double *W,
                        const double *A, double *out) {
@@ -211,6 +206,94 @@ void bsurf_gemm_rows(int B, int k, int nc, const double *restrict W, const doubl
   if (B4 < B) gemm_plain(B4, B, 0, nc, k, nc, W, A, out);
 #else
   gemm_plain(0, B, 0, nc, k, nc, W, A, out);
+#endif
+}
+
+#ifdef HAVE_V4D
+typedef long long v4l __attribute__((vector_size(32)));
+
+/* Four Cholesky solves at once, one per vector lane, with exactly the
+ * operations of bsurf_chol_solve_packed in each lane (so the same bits).
+ * A lane whose pivot fails is given pivot 1 to keep the others going and is
+ * reported in the returned bit mask of failures. */
+BSURF_CLONES
+static int chol_solve4(int m, int p, const double *const rows[4], double rel_tol,
+                       double *const coef[4]) {
+  v4d G[BSURF_PACKED_MAX], r[BSURF_TERMS_MAX], L[BSURF_TERMS_MAX * BSURF_TERMS_MAX];
+  v4d inv[BSURF_TERMS_MAX], y[BSURF_TERMS_MAX], c[BSURF_TERMS_MAX];
+  const int pm = m * (m + 1) / 2;
+  for (int q = 0; q < pm; q++) G[q] = (v4d){rows[0][q], rows[1][q], rows[2][q], rows[3][q]};
+  for (int i = 0; i < m; i++)
+    r[i] = (v4d){rows[0][p + i], rows[1][p + i], rows[2][p + i], rows[3][p + i]};
+  const v4d one = {1, 1, 1, 1}, zero = {0, 0, 0, 0};
+  const v4d tol = {rel_tol, rel_tol, rel_tol, rel_tol};
+  v4l failed = {0, 0, 0, 0};
+  for (int j = 0; j < m; j++) {
+    const v4d gjj = G[bsurf_packed_index(j, j)];
+    v4d s = gjj;
+    for (int t = 0; t < j; t++) s -= L[j * m + t] * L[j * m + t];
+    v4l ok = (s > tol * gjj) & (gjj > zero);
+    failed |= ~ok;
+    s = (v4d)(((v4l)s & ok) | ((v4l)one & ~ok));
+    v4d root;
+    for (int l = 0; l < 4; l++) root[l] = sqrt(s[l]);
+    inv[j] = one / root;
+    for (int i = j + 1; i < m; i++) {
+      v4d a = G[bsurf_packed_index(j, i)];
+      for (int t = 0; t < j; t++) a -= L[i * m + t] * L[j * m + t];
+      L[i * m + j] = a * inv[j];
+    }
+  }
+  for (int i = 0; i < m; i++) {
+    v4d a = r[i];
+    for (int t = 0; t < i; t++) a -= L[i * m + t] * y[t];
+    y[i] = a * inv[i];
+  }
+  for (int i = m - 1; i >= 0; i--) {
+    v4d a = y[i];
+    for (int t = i + 1; t < m; t++) a -= L[t * m + i] * c[t];
+    c[i] = a * inv[i];
+  }
+  int mask = 0;
+  for (int l = 0; l < 4; l++) {
+    if (failed[l]) mask |= 1 << l;
+    else
+      for (int i = 0; i < m; i++) coef[l][i] = c[i][l];
+  }
+  return mask;
+}
+#endif
+
+void bsurf_localfit_solve_rows(const bsurf_localfit *lf, int degree, int B, const double *rows,
+                               unsigned char *valid, double *coefs) {
+  const int m = bsurf_poly_terms(degree), nc = lf->ncols;
+  int b = 0;
+#ifdef HAVE_V4D
+  int lane_b[4], nl = 0;
+  for (; b < B; b++) {
+    if (!valid[b]) continue;
+    lane_b[nl++] = b;
+    if (nl < 4) continue;
+    const double *rp[4];
+    double *cp[4];
+    for (int l = 0; l < 4; l++) {
+      rp[l] = &rows[(size_t)lane_b[l] * nc];
+      cp[l] = &coefs[(size_t)lane_b[l] * m];
+    }
+    int failed = chol_solve4(m, lf->p, rp, BSURF_RANK_TOL, cp);
+    for (int l = 0; l < 4; l++)
+      if (failed & (1 << l)) valid[lane_b[l]] = 0;
+    nl = 0;
+  }
+  for (int l = 0; l < nl; l++) { /* the last 1-3 in the scalar solver */
+    int bb = lane_b[l];
+    if (bsurf_localfit_solve_row(lf, degree, &rows[(size_t)bb * nc], &coefs[(size_t)bb * m]) != 0)
+      valid[bb] = 0;
+  }
+#else
+  for (; b < B; b++)
+    if (valid[b] && bsurf_localfit_solve_row(lf, degree, &rows[(size_t)b * nc], &coefs[(size_t)b * m]) != 0)
+      valid[b] = 0;
 #endif
 }
 
