@@ -17,8 +17,9 @@ static const cli_command commands[] = {
      cmd_generate},
     {"noise", "Displace points along their normals by t*h (thesis 4.2).", "INPUT -o OUTPUT [options]",
      "t ~ N(0, level^2) (gaussian, default) or U[-level, level] (uniform, the thesis\n"
-     "text's model); h is the input's mean nearest-neighbour distance. The input\n"
-     "must have normals (nx ny nz).",
+     "text's model); h is the input's mean nearest-neighbour distance. Or, with\n"
+     "--sigma-diag s, gaussian noise of sigma = s x bounding-box diagonal (PCPNet's\n"
+     "protocol: 0.00125, 0.006, 0.012). The input must have normals (nx ny nz).",
      cmd_noise},
     {"error", "Bootstrap test-error estimates of local polynomial fits (thesis ch. 4).",
      "INPUT [-o OUTPUT] [options]",

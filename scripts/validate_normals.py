@@ -18,6 +18,15 @@ import sys
 NOISES = [0.25, 0.5, 1.0, 1.5]
 
 
+def row(*cells):
+    print("| " + " | ".join(str(c) for c in cells) + " |")
+
+
+def header(*cells):
+    row(*cells)
+    row(*(["---"] * len(cells)))
+
+
 def run(args):
     r = subprocess.run(args, capture_output=True, text=True)
     if r.returncode != 0:
@@ -69,39 +78,36 @@ def main():
     # Table 5.1: PCA single fit vs bootstrap (B = 50), k = 15 and 30
     print("\n### Table 5.1: PCA single fit vs bootstrap mean (B = 50), mean angle error (rad)\n")
     for name in ("sphere", "bunny", "fandisk"):
-        print("%s | noise | k=15 single | k=15 bootstrap | k=30 single | k=30 bootstrap" % name)
-        print("|".join(["---"] * 6))
+        header(name + " noise", "k=15 single", "k=15 bootstrap", "k=30 single", "k=30 bootstrap")
         for xi in NOISES:
-            row = []
+            vals = []
             for k in (15, 30):
                 for B in (0, 50):
-                    row.append(angle(name, xi, "-k", str(k), "-B", str(B))["normals"]["mean_rad"])
-            print("| %g | %s" % (xi, " | ".join("%.4f" % v for v in row)))
+                    vals.append(angle(name, xi, "-k", str(k), "-B", str(B))["normals"]["mean_rad"])
+            row("%g" % xi, *("%.4f" % v for v in vals))
         print()
 
     # Table 5.2: K = 50, the 15% of points with the highest normal_var vs the rest
     print("\n### Table 5.2: mean angle error of the 15% highest-variance points vs the rest (K = 50, B = 50)\n")
     for name in ("bunny", "fandisk"):
-        print("%s | noise | low variance (85%%) | high variance (15%%) | ratio" % name)
-        print("|".join(["---"] * 5))
+        header(name + " noise", "low variance (85%)", "high variance (15%)", "ratio")
         for xi in NOISES:
             e = angle(name, xi, "-k", "50", "-B", "50", split="normal_var:0.85")
-            lo, hi = e["split"]["low"]["mean_rad"], e["split"]["high"]["mean_rad"]
-            print("| %g | %.4f | %.4f | %.2f" % (xi, lo, hi, hi / lo))
+            lo, hi = e["split"]["low"]["normals"]["mean_rad"], e["split"]["high"]["normals"]["mean_rad"]
+            row("%g" % xi, "%.4f" % lo, "%.4f" % hi, "%.2f" % (hi / lo))
         print()
 
     # Table 5.4: PCA vs quadratic (M2) bootstrap normals on the sphere, both PCA centres
     print("\n### Table 5.4: sphere, bootstrap (B = 50) PCA vs quadratic normals, mean angle error (rad)\n")
     for center in ("centroid", "point"):
-        print("PCA about the %s | noise | k=15 PCA | k=15 M2 | k=30 PCA | k=30 M2" % center)
-        print("|".join(["---"] * 6))
+        header("PCA about the %s: noise" % center, "k=15 PCA", "k=15 M2", "k=30 PCA", "k=30 M2")
         for xi in NOISES:
-            row = []
+            vals = []
             for k in (15, 30):
-                row.append(angle("sphere", xi, "-k", str(k), "--pca-center", center)["normals"]["mean_rad"])
-                row.append(angle("sphere", xi, "-k", str(k), "--fit", "poly", "-d", "2",
+                vals.append(angle("sphere", xi, "-k", str(k), "--pca-center", center)["normals"]["mean_rad"])
+                vals.append(angle("sphere", xi, "-k", str(k), "--fit", "poly", "-d", "2",
                                  "--pca-center", center)["normals"]["mean_rad"])
-            print("| %g | %s" % (xi, " | ".join("%.4f" % v for v in row)))
+            row("%g" % xi, *("%.4f" % v for v in vals))
         print()
 
     # Figure 5.2: bilateral (sigma_nu auto) vs single Gaussian (sigma_nu inf) smoothing,
@@ -109,24 +115,22 @@ def main():
     print("\n### Figure 5.2: normal smoothing at noise 0.5, mean angle error (rad) on feature / non-feature points\n")
     iters = [0, 1, 2, 5, 10, 20]
     for name in ("cube", "fandisk"):
-        print("%s | iterations | bilateral feature | single feature | bilateral non-feature | single non-feature"
-              % name)
-        print("|".join(["---"] * 6))
+        header(name + " iterations", "bilateral feature", "single Gaussian feature", "bilateral non-feature",
+               "single Gaussian non-feature")
         for it in iters:
-            row = []
+            vals = []
             for sig in ("auto", "inf"):
                 e = angle(name, 0.5, "-k", "15", "-B", "50", "--smooth-iterations", str(it),
                           "--alpha", "0.1", "--sigma-nu", sig, split="feature:0.5")
-                row.append((e["split"]["high"]["mean_rad"], e["split"]["low"]["mean_rad"]))
-            print("| %d | %.4f | %.4f | %.4f | %.4f" % (it, row[0][0], row[1][0], row[0][1], row[1][1]))
+                vals.append((e["split"]["high"]["normals"]["mean_rad"], e["split"]["low"]["normals"]["mean_rad"]))
+            row(it, "%.4f" % vals[0][0], "%.4f" % vals[1][0], "%.4f" % vals[0][1], "%.4f" % vals[1][1])
         print()
 
     # Neighbourhood choice: per-point selected K vs the best single K
     print("\n### Neighbourhood choice: per-point K (min normal_err) vs the best single K, mean angle error (rad)\n")
     ks = list(range(10, 51, 5))
     for name in ("fandisk", "bunny"):
-        print("%s | noise | best single K | its error | selected-K error | mean selected K" % name)
-        print("|".join(["---"] * 6))
+        header(name + " noise", "best single K", "its error", "selected-K error", "mean selected K")
         for xi in NOISES:
             best = None
             for k in ks:
@@ -136,8 +140,8 @@ def main():
             res = path("sel.ply")
             j = normals(noisy[(name, xi)], res, "-B", "20", "--select-k", "10:50:5", "--k-ref", "30")
             e = evaluate(res, truths[name])
-            print("| %g | %d | %.4f | %.4f | %.1f" % (xi, best[0], best[1], e["normals"]["mean_rad"],
-                                                      j["mean"]["k_selected"]))
+            row("%g" % xi, best[0], "%.4f" % best[1], "%.4f" % e["normals"]["mean_rad"],
+                "%.1f" % j["mean"]["k_selected"])
         print()
 
 
