@@ -126,23 +126,27 @@ def main():
             row(it, "%.4f" % vals[0][0], "%.4f" % vals[1][0], "%.4f" % vals[0][1], "%.4f" % vals[1][1])
         print()
 
-    # Neighbourhood choice: per-point selected K vs the best single K
-    print("\n### Neighbourhood choice: per-point K (min normal_err) vs the best single K, mean angle error (rad)\n")
+    # Neighbourhood choice: per-point selected K vs the best single K, with PCA
+    # and with quadratic fits (Eq. 5.10's g^b(p_j) then follows the curvature)
     ks = list(range(10, 51, 5))
-    for name in ("fandisk", "bunny"):
-        header(name + " noise", "best single K", "its error", "selected-K error", "mean selected K")
-        for xi in NOISES:
-            best = None
-            for k in ks:
-                a = angle(name, xi, "-k", str(k), "-B", "0")["normals"]["mean_rad"]
-                if best is None or a < best[1]:
-                    best = (k, a)
-            res = path("sel.ply")
-            j = normals(noisy[(name, xi)], res, "-B", "20", "--select-k", "10:50:5", "--k-ref", "30")
-            e = evaluate(res, truths[name])
-            row("%g" % xi, best[0], "%.4f" % best[1], "%.4f" % e["normals"]["mean_rad"],
-                "%.1f" % j["mean"]["k_selected"])
-        print()
+    for fit in (["--fit", "pca"], ["--fit", "poly", "-d", "2"]):
+        label = "PCA" if fit[1] == "pca" else "quadratic"
+        print("\n### Neighbourhood choice (%s): per-point K (min normal_err) vs the best single K, "
+              "mean angle error (rad)\n" % label)
+        for name in ("fandisk", "bunny"):
+            header(name + " noise", "best single K", "its error", "selected-K error", "mean selected K")
+            for xi in NOISES:
+                best = None
+                for k in ks:
+                    a = angle(name, xi, "-k", str(k), "-B", "0", *fit)["normals"]["mean_rad"]
+                    if best is None or a < best[1]:
+                        best = (k, a)
+                res = path("sel.ply")
+                j = normals(noisy[(name, xi)], res, "-B", "20", "--select-k", "10:50:5", "--k-ref", "30", *fit)
+                e = evaluate(res, truths[name])
+                row("%g" % xi, best[0], "%.4f" % best[1], "%.4f" % e["normals"]["mean_rad"],
+                    "%.1f" % j["mean"]["k_selected"])
+            print()
 
 
 if __name__ == "__main__":
