@@ -27,6 +27,17 @@ typedef struct cli_command {
   int (*run)(const struct cli_command *cmd, int argc, char **argv);
 } cli_command;
 
+/* Options shared by the commands, so their names and help never drift. */
+#define CLI_OPT_THREADS(var) {'j', "threads", ARG_INT, &(var), "N", "threads, 0 = all cores", 0, 4096}
+#define CLI_OPT_SEED(var) {0, "seed", ARG_U64, &(var), "S", "random seed", 1, 0}
+#define CLI_OPTS_OUTPUT(out, ascii, force)                                                         \
+  {'o', "output", ARG_STRING, &(out), "FILE", "output file (.ply keeps every field)", 1, 0},      \
+      {0, "ascii", ARG_FLAG, &(ascii), "", "write ascii PLY (default: binary little-endian)", 1, 0}, \
+      {0, "force", ARG_FLAG, &(force), "", "allow the output to be the input file", 1, 0}
+#define CLI_OPTS_REPORT(json, quiet)                                                               \
+  {0, "json", ARG_FLAG, &(json), "", "print the summary as one JSON object on stdout", 1, 0},      \
+      {'q', "quiet", ARG_FLAG, &(quiet), "", "no progress bar or summary", 1, 0}
+
 #define CLI_PARSED 0
 #define CLI_HELP_SHOWN (-1)
 #define CLI_USAGE 2

@@ -21,15 +21,12 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
       {0, "gamma", ARG_STRING, &gamma, "MODE",
        "no-information rate: fit (Eq. 4.10), mean or max over replicates (4.2.1)", 1, 0},
       {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point", 1, 0},
-      {0, "seed", ARG_U64, &eo.seed, "S", "random seed", 1, 0},
-      {'j', "threads", ARG_INT, &eo.threads, "N", "threads, 0 = all cores", 0, 4096},
+      CLI_OPT_SEED(eo.seed),
+      CLI_OPT_THREADS(eo.threads),
       {0, "test-sample", ARG_STRING, &test_path, "FILE",
        "same points with independent noise: also write err_test (validation)", 1, 0},
-      {'o', "output", ARG_STRING, &output, "FILE", "output file with the estimates (.ply keeps them)", 1, 0},
-      {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
-      {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
-      {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
-      {'q', "quiet", ARG_FLAG, &quiet, "", "no progress bar or summary", 1, 0},
+      CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
   int npos;

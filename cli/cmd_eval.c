@@ -163,8 +163,7 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
       {0, "split", ARG_STRING, &split, "FIELD:Q",
        "also summarise the points whose FIELD is above its Q-quantile (high) and the rest (low)", 1,
        0},
-      {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
-      {'q', "quiet", ARG_FLAG, &quiet, "", "print nothing but errors (and --json)", 1, 0},
+      CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
   int npos;

@@ -15,11 +15,8 @@ int cmd_generate(const cli_command *cmd, int argc, char **argv) {
       {0, "sampling", ARG_STRING, &sampling, "MODE", "regular (even, deterministic) or random (uniform by area)", 1, 0},
       {0, "seed", ARG_U64, &seed, "S", "random seed (random sampling)", 1, 0},
       {0, "feature-width", ARG_DOUBLE, &width, "W", "cube: feature = within W nominal spacings of an edge", 0, 1e300},
-      {'o', "output", ARG_STRING, &output, "FILE", "output file (.ply, .off, .obj, .xyz)", 1, 0},
-      {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
-      {0, "force", ARG_FLAG, &force, "", "overwrite the output even if it is an input", 1, 0},
-      {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
-      {'q', "quiet", ARG_FLAG, &quiet, "", "print nothing but errors", 1, 0},
+      CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
   int npos;

@@ -11,9 +11,8 @@ static const char *type_name(bsurf_type t) {
 int cmd_info(const cli_command *cmd, int argc, char **argv) {
   int threads = 0, json = 0, quiet = 0;
   cli_option opts[] = {
-      {'j', "threads", ARG_INT, &threads, "N", "threads, 0 = all cores", 0, 4096},
-      {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
-      {'q', "quiet", ARG_FLAG, &quiet, "", "no progress output", 1, 0},
+      CLI_OPT_THREADS(threads),
+      CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
   int npos;

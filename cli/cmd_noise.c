@@ -42,13 +42,10 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
        "instead of --level: gaussian, sigma = S x bbox diagonal (PCPNet 0.00125-0.012)", 0,
        1e300},
       {0, "model", ARG_STRING, &model, "M", "gaussian: t ~ N(0, xi^2); uniform: t ~ U[-xi, xi]", 1, 0},
-      {0, "seed", ARG_U64, &seed, "S", "random seed", 1, 0},
+      CLI_OPT_SEED(seed),
       {'j', "threads", ARG_INT, &threads, "N", "threads for measuring h, 0 = all cores", 0, 4096},
-      {'o', "output", ARG_STRING, &output, "FILE", "output file", 1, 0},
-      {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
-      {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
-      {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
-      {'q', "quiet", ARG_FLAG, &quiet, "", "print nothing but errors", 1, 0},
+      CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
   int npos;

@@ -60,8 +60,8 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       {'d', "degree", ARG_INT, &no.degree, "M", "degree of the polynomial for --fit poly, 1..4", 1, 4},
       {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point (Eq. 2.1)", 1, 0},
       {'B', "bootstrap", ARG_INT, &no.bootstrap, "B", "bootstrap replicates; 0 = a single fit", 0, 100000},
-      {0, "seed", ARG_U64, &no.seed, "S", "random seed", 1, 0},
-      {'j', "threads", ARG_INT, &no.threads, "N", "threads, 0 = all cores", 0, 4096},
+      CLI_OPT_SEED(no.seed),
+      CLI_OPT_THREADS(no.threads),
       {0, "test-error", ARG_FLAG, &test_error, "", "write normal_err, the bootstrap test error (Eq. 5.10)", 1, 0},
       {0, "k-ref", ARG_INT, &k_ref, "K", "neighbourhood of the reference PCA normals of Eq. 5.10 (0 = -k)", 0,
        65535},
@@ -77,11 +77,8 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       {0, "sigma-nu", ARG_STRING, &sigma_nu_s, "S",
        "variance sigma: a value, auto (85th percentile of normal_var) or inf (single Gaussian)", 1, 0},
       {0, "orient", ARG_STRING, &orient, "MODE", "none or mst (consistent orientation, Hoppe 1992)", 1, 0},
-      {'o', "output", ARG_STRING, &output, "FILE", "output file", 1, 0},
-      {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
-      {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
-      {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
-      {'q', "quiet", ARG_FLAG, &quiet, "", "no progress bar or summary", 1, 0},
+      CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
   int npos;

@@ -17,13 +17,12 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
       {0, "feature-width", ARG_DOUBLE, &so.feature_width, "W",
        "feature = within W nominal spacings sqrt(area / points) of a sharp edge", 0, 1e300},
       {0, "seed", ARG_U64, &so.seed, "S", "random seed (area sampling)", 1, 0},
-      {'j', "threads", ARG_INT, &so.threads, "N", "threads, 0 = all cores", 0, 4096},
+      CLI_OPT_THREADS(so.threads),
       {'o', "output", ARG_STRING, &output, "FILE",
        "output file (.ply keeps feature_dist and feature)", 1, 0},
       {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
       {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
-      {0, "json", ARG_FLAG, &json, "", "print the summary as one JSON object on stdout", 1, 0},
-      {'q', "quiet", ARG_FLAG, &quiet, "", "print nothing but errors", 1, 0},
+      CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
   int npos;

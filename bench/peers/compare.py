@@ -80,7 +80,8 @@ def last_json(text):
 
 
 def programs(a):
-    """(id, program, method, group, cmd(in, out), kind). kind: 'cli' or 'compute'."""
+    """(id, program, method, group, cmd(in, out)). bootsurf runs twice per configuration:
+    *_cli (the command, for process s) and *_lib (normals_bootsurf, for compute s)."""
     bs, pd, k, j = a.bootsurf, a.peers, str(a.k), str(a.threads)
     lib = os.path.join(pd, "normals_bootsurf")
     P = []
@@ -89,21 +90,19 @@ def programs(a):
             ("bs_pca_b50", "pca -B 50", "pca_b50", ["--fit", "pca", "-B", "50"]),
             ("bs_poly2", "poly d2 -B 0", "poly2", ["--fit", "poly", "-d", "2", "-B", "0"])]:
         P.append((bid + "_cli", "bootsurf", meth, grp,
-                  lambda i, o, e=extra: [bs, "normals", i, "-o", o, "-k", k, "-j", j, "--json", "-q"] + e,
-                  "cli"))
+                  lambda i, o, e=extra: [bs, "normals", i, "-o", o, "-k", k, "-j", j, "--json", "-q"] + e))
         P.append((bid + "_lib", "bootsurf", meth, grp,
-                  lambda i, o, e=extra: [lib, i, "-o", o, "-k", k, "-j", j] + e, "compute"))
+                  lambda i, o, e=extra: [lib, i, "-o", o, "-k", k, "-j", j] + e))
     P.append(("pcl", "PCL 1.13", "NormalEstimationOMP", "pca",
-              lambda i, o: [os.path.join(pd, "normals_pcl"), i, "-o", o, "-k", k, "-j", j], "both"))
+              lambda i, o: [os.path.join(pd, "normals_pcl"), i, "-o", o, "-k", k, "-j", j]))
     P.append(("open3d", "Open3D 0.16", "estimate_normals KNN", "pca",
-              lambda i, o: [PY, os.path.join(HERE, "normals_open3d.py"), i, "-o", o, "-k", k, "-j", j],
-              "both"))
+              lambda i, o: [PY, os.path.join(HERE, "normals_open3d.py"), i, "-o", o, "-k", k, "-j", j]))
     P.append(("cgal_pca", "CGAL 5.5", "pca_estimate_normals", "pca",
               lambda i, o: [os.path.join(pd, "normals_cgal"), i, "-o", o, "--method", "pca",
-                            "-k", k, "-j", j], "both"))
+                            "-k", k, "-j", j]))
     P.append(("cgal_jet", "CGAL 5.5", "jet_estimate_normals d2", "poly2",
               lambda i, o: [os.path.join(pd, "normals_cgal"), i, "-o", o, "--method", "jet",
-                            "-d", "2", "-k", k, "-j", j], "both"))
+                            "-d", "2", "-k", k, "-j", j]))
     return P
 
 
@@ -114,6 +113,7 @@ def angle(res, truth):
 
 def max_normal_diff(a, b):
     sys.path.insert(0, HERE)
+    sys.dont_write_bytecode = True  # no __pycache__ in the source tree
     import numpy as np
     from angle_error import read_fields
     na = read_fields(a, ["nx", "ny", "nz"])
@@ -135,7 +135,7 @@ def one_input(a, name, path, env):
     t_start = time.monotonic()
     for r in range(a.reps):
         order = P[r % len(P):] + P[:r % len(P)]
-        for pid, prog, meth, grp, cmd, kind in order:
+        for pid, prog, meth, grp, cmd in order:
             out = os.path.join(work, pid + ".ply")
             wall, rss, cpu, text = run(cmd(path, out), out, env, a.launcher)
             js = last_json(text)
@@ -156,7 +156,7 @@ def one_input(a, name, path, env):
     # rows: bootsurf rows join the compute run (lib) and the CLI run
     rows = []
     bs_ref = {"pca": "bs_pca", "poly2": "bs_poly2"}
-    for pid, prog, meth, grp, cmd, kind in P:
+    for pid, prog, meth, grp, cmd in P:
         if pid.endswith("_cli"):
             continue
         if pid.endswith("_lib"):
