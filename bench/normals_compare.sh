@@ -55,8 +55,9 @@ inputs=()
 "$BS" generate sphere --sampling random -n "$N" -o "$WORK/sphere.ply" -q
 truths=("sphere:$WORK/sphere.ply")
 if [ -n "$MODELS" ]; then
-  tar -xzf /usr/share/doc/libcgal-dev/data.tar.gz -C "$WORK" \
-    $(for m in $MODELS; do echo "data/meshes/$m.off"; done)
+  members=()
+  for m in $MODELS; do members+=("data/meshes/$m.off"); done
+  tar -xzf /usr/share/doc/libcgal-dev/data.tar.gz -C "$WORK" "${members[@]}"
   for m in $MODELS; do
     "$BS" sample "$WORK/data/meshes/$m.off" -o "$WORK/$m.ply" -q
     truths+=("$m:$WORK/$m.ply")

@@ -55,9 +55,11 @@ if ! fresh "$OUT/normals_cgal" "$HERE/normals_cgal.cpp" "${COMMON[@]}"; then
   echo "build.sh: normals_cgal (TBB: Parallel_if_available_tag = Parallel_tag)" >&2
   # CGAL 5.5 is header-only; CGAL_LINKED_WITH_TBB selects TBB for Parallel_if_available_tag,
   # CGAL_EIGEN3_ENABLED lets jet fitting and PCA use Eigen.
+  EIGEN_FLAGS=$(pkg-config --cflags eigen3)
+  TBB_LIBS=$(pkg-config --libs tbb)
   # shellcheck disable=SC2086
-  $CXX $CXXFLAGS -I"$HERE" $(pkg-config --cflags eigen3) -DCGAL_EIGEN3_ENABLED -DCGAL_LINKED_WITH_TBB \
-    "$HERE/normals_cgal.cpp" -o "$OUT/normals_cgal" $(pkg-config --libs tbb) -lgmp -lmpfr -lpthread
+  $CXX $CXXFLAGS -I"$HERE" $EIGEN_FLAGS -DCGAL_EIGEN3_ENABLED -DCGAL_LINKED_WITH_TBB \
+    "$HERE/normals_cgal.cpp" -o "$OUT/normals_cgal" $TBB_LIBS -lgmp -lmpfr -lpthread
 fi
 
 if ! fresh "$OUT/rss_exec" "$HERE/rss_exec.c" "$HERE/build.sh"; then
