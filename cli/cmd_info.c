@@ -34,7 +34,16 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
                                      (hi[2] - lo[2]) * (hi[2] - lo[2]))
                               : 0;
   double h = NAN;
-  if (c.point_count >= 2 && bsurf_mean_spacing(c.xyz, c.point_count, threads, &h) != BSURF_OK) h = NAN;
+  cli_progress prog;
+  cli_progress_init(&prog, "spacing", quiet || json);
+  if (c.point_count >= 2 &&
+      bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog) != BSURF_OK)
+    h = NAN;
+  cli_progress_done(&prog);
+  if (cli_interrupted()) {
+    bsurf_cloud_free(&c);
+    return cli_error("%s: interrupted", pos[0]);
+  }
   double secs = cli_now() - t0;
   if (json) {
     cli_json j;

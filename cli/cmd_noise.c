@@ -76,7 +76,10 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   }
   double h = 0, diag = bbox_diagonal(&c);
   /* --sigma-diag s: t ~ N(0, 1) scaled by s x diagonal, i.e. level 1 */
-  bsurf_status st = bsurf_mean_spacing(c.xyz, c.point_count, threads, &h);
+  cli_progress prog;
+  cli_progress_init(&prog, "spacing", quiet);
+  bsurf_status st = bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog);
+  cli_progress_done(&prog);
   double use_level = by_diag ? 1.0 : level, scale = by_diag ? sigma_diag * diag : h;
   if (st == BSURF_OK)
     st = bsurf_add_noise(c.xyz, c.normals, c.point_count, (bsurf_noise_model)m, use_level, scale, seed);

@@ -210,6 +210,10 @@ void bsurf_neighbors_free(bsurf_neighbors *nb);
  * index; threads: 0 = all cores. Needs at least 2 points. */
 bsurf_status bsurf_mean_spacing(const double *xyz, size_t point_count, int threads,
                                 double *h);
+/* The same with a progress callback (which may cancel). */
+bsurf_status bsurf_mean_spacing_progress(const double *xyz, size_t point_count, int threads,
+                                         double *h, bsurf_progress_fn progress,
+                                         void *progress_user);
 
 /* ------------------------------------------------------------------------ */
 /* Local analysis (thesis 3.3)                                               */

@@ -80,8 +80,13 @@ void bsurf_neighbors_free(bsurf_neighbors *nb) {
   memset(nb, 0, sizeof *nb);
 }
 
-bsurf_status bsurf_mean_spacing(const double *xyz, size_t point_count, int threads, double *h) {
+bsurf_status bsurf_mean_spacing_progress(const double *xyz, size_t point_count, int threads,
+                                         double *h, bsurf_progress_fn progress, void *user) {
   if (!h || !xyz || point_count > UINT32_MAX) return BSURF_ERR_INVALID_ARG;
   if (point_count < 2) return BSURF_ERR_TOO_FEW_POINTS;
-  return knn_with_spacing(xyz, point_count, 2, threads, NULL, h, NULL, NULL);
+  return knn_with_spacing(xyz, point_count, 2, threads, NULL, h, progress, user);
+}
+
+bsurf_status bsurf_mean_spacing(const double *xyz, size_t point_count, int threads, double *h) {
+  return bsurf_mean_spacing_progress(xyz, point_count, threads, h, NULL, NULL);
 }
