@@ -30,7 +30,8 @@
  * max:  gamma = 11/9, R = (2/3)/(8/9) = .75, w = .632/(1 - .276)  */
 static const double y[3] = {0, 1, 2}, full[3] = {0.5, 1, 1.5};
 static const double boot[6] = {0, 1, 3, 1, 1, 2};
-static const double counts[6] = {2, 1, 0, 0, 1, 2};
+/* 1 where the point is not in the replicate (its count is 0) */
+static const double counts[6] = {0, 0, 1, 1, 0, 0};
 
 static void test_estimators_by_hand(void **state) {
   (void)state;

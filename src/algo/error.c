@@ -46,6 +46,7 @@ typedef struct error_scratch {
   double *pred_boot; /* B x k */
   uint16_t *counts;  /* k: one replicate's multiplicities */
   double *weights;   /* B x k: counts as doubles */
+  double *missing;   /* B x k: 1 where the point is not in the replicate */
   double *rows;      /* B x ncols: normal equations of the replicates */
   double *coefs;     /* B x terms */
   unsigned char *valid; /* B */
@@ -59,6 +60,7 @@ static void scratch_free(error_scratch *s) {
   free(s->pred_boot);
   free(s->counts);
   free(s->weights);
+  free(s->missing);
   free(s->rows);
   free(s->coefs);
   free(s->valid);
@@ -75,11 +77,12 @@ static bsurf_status scratch_alloc(error_scratch *s, int k, int B, int degree) {
   s->pred_boot = bsurf_alloc_array(nb * k, sizeof(double));
   s->counts = bsurf_alloc_array((size_t)k, sizeof(uint16_t));
   s->weights = bsurf_alloc_array(nb * k, sizeof(double));
+  s->missing = bsurf_alloc_array(nb * k, sizeof(double));
   s->rows = bsurf_alloc_array(nb * BSURF_NCOLS_MAX, sizeof(double));
   s->coefs = bsurf_alloc_array(nb * BSURF_TERMS_MAX, sizeof(double));
   s->valid = bsurf_alloc_array(nb, 1);
   s->est_scratch = bsurf_alloc_array(6 * (size_t)k + 1, sizeof(double));
-  if (!s->pred_full || !s->pred_boot || !s->counts || !s->weights || !s->rows || !s->coefs ||
+  if (!s->pred_full || !s->pred_boot || !s->counts || !s->weights || !s->missing || !s->rows || !s->coefs ||
       !s->valid || !s->est_scratch) {
     scratch_free(s);
     return BSURF_ERR_NOMEM;
@@ -113,11 +116,12 @@ static void error_point(const double *xyz, const bsurf_neighbors *nb, const doub
   const int m = bsurf_poly_terms(degree);
   for (int b = 0; b < B; b++) {
     uint16_t *cnt = s->counts;
-    double *w = &s->weights[(size_t)b * k];
+    double *w = &s->weights[(size_t)b * k], *miss = &s->missing[(size_t)b * k];
     bsurf_boot_counts(o->seed, i, (uint32_t)b, k, cnt);
     int distinct = 0;
     for (int j = 0; j < k; j++) {
       w[j] = cnt[j];
+      miss[j] = cnt[j] == 0;
       distinct += cnt[j] != 0;
     }
     s->valid[b] = distinct >= m; /* fewer distinct points than terms: singular */
@@ -128,7 +132,7 @@ static void error_point(const double *xyz, const bsurf_neighbors *nb, const doub
   bsurf_localfit_predict(lf, degree, B, s->coefs, s->valid, s->pred_boot);
 
   bsurf_boot_result r;
-  bsurf_boot_estimate(k, B, lf->z, s->pred_full, s->pred_boot, s->weights, s->valid, o->gamma,
+  bsurf_boot_estimate(k, B, lf->z, s->pred_full, s->pred_boot, s->missing, s->valid, o->gamma,
                       s->est_scratch, &r);
   if (r.center_unestimated) s->center_unestimated++;
   put(out->err_train, i, r.err_train);

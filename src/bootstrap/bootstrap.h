@@ -34,13 +34,13 @@ typedef struct bsurf_boot_result {
  *   y          in: k observed heights y_j
  *   pred_full  in: k predictions of the fit to the whole neighbourhood f(x_j)
  *   pred_boot  in: B x k predictions of the replicates' fits f*b(x_j)
- *   weights    in: B x k multiplicities of point j in S_b (as doubles)
+ *   missing    in: B x k, 1.0 where point j is not in S_b (b in C_j), else 0.0
  *   valid      in: B, 0 for a replicate whose fit failed (skipped)
  *   scratch    6k + 1 doubles
  * gamma follows `mode` (Eq. 4.10 on the full fit, or the mean or maximum over
  * the replicates of the same formula with f*b, 4.2.1). */
 void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
-                         const double *pred_boot, const double *weights,
+                         const double *pred_boot, const double *missing,
                          const unsigned char *valid, bsurf_gamma_mode mode,
                          double *scratch, bsurf_boot_result *out);
 

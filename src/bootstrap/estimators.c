@@ -70,22 +70,29 @@ double bsurf_boot_gamma_naive(int k, const double *pred, const double *y) {
   return total / ((double)k * (double)k);
 }
 
-/* One replicate's part of Eqs. 4.3, 4.4: elementwise over the points. */
-static inline void accumulate_replicate(int k, const double *restrict pb, const double *restrict wb,
+/* One replicate's part of Eqs. 4.3, 4.4: elementwise over the points. Kept
+ * out of line: inlined into the replicate loop, GCC loses the restrict
+ * qualifiers and does not vectorise it. */
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+BSURF_CLONES
+static void accumulate_replicate(int k, const double *restrict pb, const double *restrict mb,
                                         const double *restrict y, double *restrict boot_j,
                                         double *restrict loo_sum, double *restrict loo_cnt) {
   for (int j = 0; j < k; j++) {
+    /* mb[j] = 1 when point j is not in the replicate (b in C_j); e is finite
+     * (a full-rank fit's prediction), so mb[j] * e adds exactly e or +0 */
     const double e = fabs(pb[j] - y[j]);
-    const int miss = wb[j] == 0.0;
     boot_j[j] += e;
-    loo_sum[j] += miss ? e : 0.0;
-    loo_cnt[j] += miss ? 1.0 : 0.0;
+    loo_sum[j] += mb[j] * e;
+    loo_cnt[j] += mb[j];
   }
 }
 
 BSURF_CLONES
 void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
-                         const double *pred_boot, const double *weights,
+                         const double *pred_boot, const double *missing,
                          const unsigned char *valid, bsurf_gamma_mode mode,
                          double *scratch, bsurf_boot_result *out) {
   double *y_sorted = scratch;                      /* k */
@@ -114,7 +121,7 @@ void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
     if (!valid[b]) continue;
     nvalid++;
     const double *pb = &pred_boot[(size_t)b * k];
-    accumulate_replicate(k, pb, &weights[(size_t)b * k], y, boot_j, loo_sum, loo_cnt);
+    accumulate_replicate(k, pb, &missing[(size_t)b * k], y, boot_j, loo_sum, loo_cnt);
     if (mode != BSURF_GAMMA_FIT) {
       /* the replicate's fit evaluated on the original neighbourhood */
       double g = bsurf_boot_gamma(k, pb, y_sorted, y_prefix, gscratch);
