@@ -5,8 +5,11 @@
  * points with the highest 15% of a per-point value (bootstrap variance) and
  * the rest (--split normal_var:0.85).
  *
- * The command is a list of sections ("normals" now; "position" and
- * "features" later), each present when the inputs allow it: a section says
+ * Chapter 7: precision, recall and F1 of the result's `feature` field
+ * against the truth's (the "features" section).
+ *
+ * The command is a list of sections ("normals", "features"; "position"
+ * later), each present when the inputs allow it: a section says
  * what it needs, computes its per-point data once, then writes its summary
  * for any group of points (all, high, low) as JSON or as a table row. */
 #include "cli.h"
@@ -28,6 +31,7 @@ typedef struct eval_ctx {
   size_t group_points[GROUP_COUNT];
   /* per-section results, per group */
   bsurf_angle_stats normals[GROUP_COUNT];
+  bsurf_feature_stats features[GROUP_COUNT];
 } eval_ctx;
 
 /* The points of a group: mask and the value selected (mask NULL = all). */
@@ -109,9 +113,73 @@ static void normals_text_row(FILE *f, const eval_ctx *e, int group) {
           100 * s->under10deg);
 }
 
+/* ---- features: precision, recall, F1 of `feature` (thesis ch. 7) ---- */
+
+static const char *features_missing(const eval_ctx *e, char *buf, size_t n) {
+  if (!bsurf_cloud_field(e->result, "feature"))
+    snprintf(buf, n, "%s has no field 'feature'", e->result_path);
+  else if (!bsurf_cloud_field(e->truth, "feature"))
+    snprintf(buf, n, "%s (the truth) has no field 'feature'", e->truth_path);
+  else
+    return NULL;
+  return buf;
+}
+
+static int features_compute(eval_ctx *e) {
+  size_t n = e->result->point_count;
+  const double *rv = bsurf_cloud_field(e->result, "feature")->values;
+  const double *tv = bsurf_cloud_field(e->truth, "feature")->values;
+  uint8_t *r = malloc(n ? n : 1), *t = malloc(n ? n : 1);
+  if (!r || !t) {
+    free(r);
+    free(t);
+    return cli_error("out of memory");
+  }
+  for (int g = 0; g < GROUP_COUNT; g++) {
+    uint8_t keep;
+    const uint8_t *mask = group_mask(e, g, &keep);
+    if (g != GROUP_ALL && !mask) break;
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+      if (mask && mask[i] != keep) continue;
+      r[m] = rv[i] != 0;
+      t[m++] = tv[i] != 0;
+    }
+    bsurf_eval_features(r, t, m, &e->features[g]);
+  }
+  free(r);
+  free(t);
+  return 0;
+}
+
+static void features_json(cli_json *j, const eval_ctx *e, int group) {
+  const bsurf_feature_stats *s = &e->features[group];
+  json_obj(j, "features");
+  json_num(j, "precision", s->precision);
+  json_num(j, "recall", s->recall);
+  json_num(j, "f1", s->f1);
+  json_int(j, "true_positives", (long long)s->true_pos);
+  json_int(j, "false_positives", (long long)s->false_pos);
+  json_int(j, "false_negatives", (long long)s->false_neg);
+  json_close_obj(j);
+}
+
+static void features_text_header(FILE *f) {
+  fprintf(f, "  features           %10s %10s %10s %9s %7s %7s\n", "precision", "recall", "F1", "TP",
+          "FP", "FN");
+}
+
+static void features_text_row(FILE *f, const eval_ctx *e, int group) {
+  const bsurf_feature_stats *s = &e->features[group];
+  fprintf(f, "    %-16s %10.4f %10.4f %10.4f %9zu %7zu %7zu\n", group_names[group], s->precision,
+          s->recall, s->f1, s->true_pos, s->false_pos, s->false_neg);
+}
+
 static const eval_section sections[] = {
     {"normals", normals_missing, normals_compute, normals_json, normals_text_header,
      normals_text_row},
+    {"features", features_missing, features_compute, features_json, features_text_header,
+     features_text_row},
 };
 #define SECTION_COUNT ((int)(sizeof sections / sizeof sections[0]))
 

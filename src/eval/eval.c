@@ -122,3 +122,22 @@ bsurf_status bsurf_quantile_split(const double *values, size_t count, double q, 
   if (high_count) *high_count = nh;
   return BSURF_OK;
 }
+
+bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth, size_t count,
+                                 bsurf_feature_stats *stats) {
+  if (!stats || (count && (!result || !truth))) return BSURF_ERR_INVALID_ARG;
+  memset(stats, 0, sizeof *stats);
+  for (size_t i = 0; i < count; i++) {
+    int r = result[i] != 0, t = truth[i] != 0;
+    if (r && t) stats->true_pos++;
+    else if (r) stats->false_pos++;
+    else if (t) stats->false_neg++;
+    else stats->true_neg++;
+  }
+  double tp = (double)stats->true_pos;
+  size_t det = stats->true_pos + stats->false_pos, pos = stats->true_pos + stats->false_neg;
+  stats->precision = det ? tp / (double)det : NAN;
+  stats->recall = pos ? tp / (double)pos : NAN;
+  stats->f1 = det + pos ? 2 * tp / (double)(det + pos) : NAN;
+  return BSURF_OK;
+}

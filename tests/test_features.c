@@ -1,0 +1,239 @@
+/* Feature detection (thesis chapter 7): planes have none, the cube's edges
+ * are found, incremental PCA equals PCA from scratch, thread independence,
+ * the automatic tail threshold, precision/recall/F1. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bootsurf.h"
+
+static bsurf_feature_stats detect(const bsurf_cloud *c, const bsurf_feature_options *o, int k,
+                                  uint8_t *feat, double *score) {
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c->xyz, c->point_count, k, 0, NULL, NULL), BSURF_OK);
+  bsurf_feature_report rep;
+  assert_int_equal(bsurf_detect_features(c->xyz, &nb, o, feat, score, &rep), BSURF_OK);
+  size_t count = 0;
+  for (size_t i = 0; i < c->point_count; i++) count += feat[i];
+  assert_int_equal(count, rep.feature_points);
+  bsurf_feature_stats s;
+  memset(&s, 0, sizeof s);
+  bsurf_field *truth = bsurf_cloud_field(c, "feature");
+  if (truth) {
+    uint8_t *t = malloc(c->point_count);
+    for (size_t i = 0; i < c->point_count; i++) t[i] = truth->values[i] != 0;
+    assert_int_equal(bsurf_eval_features(feat, t, c->point_count, &s), BSURF_OK);
+    free(t);
+  }
+  bsurf_neighbors_free(&nb);
+  return s;
+}
+
+/* A plane (with a little noise so the variance is not 0 everywhere) has no
+ * feature with either method. */
+static void test_plane_no_features(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 4000, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  uint8_t *feat = malloc(c.point_count);
+  double *score = malloc(c.point_count * sizeof(double));
+  bsurf_feature_options o = bsurf_feature_options_default();
+  detect(&c, &o, o.k_max, feat, score);
+  size_t count = 0;
+  for (size_t i = 0; i < c.point_count; i++) count += feat[i];
+  assert_int_equal(count, 0);
+  /* variance with a fixed threshold well above the flat-area level (the
+   * auto rule always finds "a tail", so it is not asked on a featureless
+   * shape); noise-free plane: every bootstrap normal is exact */
+  o.method = BSURF_FEATURES_VARIANCE;
+  o.normals.k = 20;
+  o.normals.bootstrap = 10;
+  o.threshold = 1e-6;
+  detect(&c, &o, 20, feat, score);
+  count = 0;
+  for (size_t i = 0; i < c.point_count; i++) count += feat[i];
+  assert_int_equal(count, 0);
+  free(feat);
+  free(score);
+  bsurf_cloud_free(&c);
+}
+
+/* The regular cube at noise 0: the distance method with the auto threshold
+ * finds the points within one spacing of an edge. */
+static void test_cube_edges_distance(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 1.0), BSURF_OK);
+  uint8_t *feat = malloc(c.point_count);
+  double *score = malloc(c.point_count * sizeof(double));
+  bsurf_feature_options o = bsurf_feature_options_default();
+  bsurf_feature_stats s = detect(&c, &o, o.k_max, feat, score);
+  assert_true(s.recall > 0.9);
+  assert_true(s.precision > 0.8);
+  /* the score of the detected points is <= 0, the rest positive */
+  for (size_t i = 0; i < c.point_count; i++) assert_int_equal(feat[i], score[i] <= 0);
+  free(feat);
+  free(score);
+  bsurf_cloud_free(&c);
+}
+
+/* The noisy cube (uniform noise 0.5 h): the variance method with the auto
+ * threshold finds the edges of the feature width 2 labels. */
+static void test_cube_edges_variance(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 2.0), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 0, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_UNIFORM, 0.5, h, 7),
+                   BSURF_OK);
+  uint8_t *feat = malloc(c.point_count);
+  double *score = malloc(c.point_count * sizeof(double));
+  bsurf_feature_options o = bsurf_feature_options_default();
+  o.method = BSURF_FEATURES_VARIANCE;
+  o.normals.bootstrap = 30;
+  bsurf_feature_stats s = detect(&c, &o, o.normals.k, feat, score);
+  assert_true(s.recall > 0.85);
+  assert_true(s.precision > 0.75);
+  free(feat);
+  free(score);
+  bsurf_cloud_free(&c);
+}
+
+/* Differential: the running sums give the same a/c as a PCA from scratch of
+ * every prefix of the neighbour list. */
+static void test_incremental_pca(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 5, 2.0), BSURF_OK);
+  const int k = 60;
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, k, 1, NULL, NULL), BSURF_OK);
+  double ratio[60];
+  for (size_t i = 0; i < c.point_count; i += 37) {
+    const uint32_t *idx = &nb.idx[i * (size_t)k];
+    bsurf_incremental_pca_ratios(c.xyz, idx, k, ratio);
+    for (int m = 3; m <= k; m++) {
+      bsurf_frame f;
+      bsurf_local_frame(c.xyz, idx, m, BSURF_PCA_CENTROID, &f);
+      double ref = f.eigenvalues[2] > 0 ? f.eigenvalues[0] / f.eigenvalues[2] : 0;
+      if (ref < 0) ref = 0;
+      assert_true(fabs(ratio[m - 1] - ref) <= 1e-9 + 1e-7 * ref);
+    }
+  }
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+/* 1 and 2 threads give identical outputs (both methods). */
+static void test_threads(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 5000, BSURF_SAMPLING_RANDOM, 9, 2.0), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 0, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, h, 2),
+                   BSURF_OK);
+  size_t n = c.point_count;
+  uint8_t *f1 = malloc(n), *f2 = malloc(n);
+  double *s1 = malloc(n * sizeof(double)), *s2 = malloc(n * sizeof(double));
+  for (int m = 0; m < 2; m++) {
+    bsurf_feature_options o = bsurf_feature_options_default();
+    o.method = (bsurf_feature_method)m;
+    o.normals.bootstrap = 10;
+    int k = m == 0 ? o.k_max : o.normals.k;
+    o.threads = 1;
+    detect(&c, &o, k, f1, s1);
+    o.threads = 2;
+    detect(&c, &o, k, f2, s2);
+    assert_memory_equal(f1, f2, n);
+    assert_memory_equal(s1, s2, n * sizeof(double));
+  }
+  free(f1);
+  free(f2);
+  free(s1);
+  free(s2);
+  bsurf_cloud_free(&c);
+}
+
+/* A log-normal bulk (median 0.001) with a 5% tail at 0.05: both rules put
+ * the threshold between the bulk's 99th percentile and the tail. */
+static void test_tail_threshold(void **state) {
+  (void)state;
+  const size_t n = 10000, tail = 500;
+  double *v = malloc(n * sizeof(double));
+  bsurf_rng r;
+  bsurf_rng_init(&r, 11, 0, 0);
+  for (size_t i = 0; i < n; i++)
+    v[i] = i < tail ? 0.05 * exp(0.2 * bsurf_rng_normal(&r)) : 0.001 * exp(0.3 * bsurf_rng_normal(&r));
+  for (int rule = 0; rule < 2; rule++) {
+    double t;
+    assert_int_equal(bsurf_tail_threshold(v, n, (bsurf_tail_rule)rule, &t), BSURF_OK);
+    size_t above_bulk = 0, above_tail = 0;
+    for (size_t i = 0; i < n; i++) {
+      if (i < tail) above_tail += v[i] > t;
+      else above_bulk += v[i] > t;
+    }
+    assert_true(above_tail >= tail * 99 / 100);
+    assert_true(above_bulk <= (n - tail) / 100);
+  }
+  assert_int_equal(bsurf_tail_threshold(v, 1, BSURF_TAIL_OTSU, &(double){0}), BSURF_ERR_TOO_FEW_POINTS);
+  v[3] = NAN;
+  assert_int_equal(bsurf_tail_threshold(v, n, BSURF_TAIL_MAD, &(double){0}), BSURF_ERR_INVALID_VALUE);
+  free(v);
+}
+
+static void test_eval_features(void **state) {
+  (void)state;
+  const uint8_t r[6] = {1, 1, 0, 0, 1, 0}, t[6] = {1, 0, 1, 0, 1, 0};
+  bsurf_feature_stats s;
+  assert_int_equal(bsurf_eval_features(r, t, 6, &s), BSURF_OK);
+  assert_int_equal(s.true_pos, 2);
+  assert_int_equal(s.false_pos, 1);
+  assert_int_equal(s.false_neg, 1);
+  assert_int_equal(s.true_neg, 2);
+  assert_true(fabs(s.precision - 2.0 / 3) < 1e-15);
+  assert_true(fabs(s.recall - 2.0 / 3) < 1e-15);
+  assert_true(fabs(s.f1 - 2.0 / 3) < 1e-15);
+  const uint8_t z[2] = {0, 0};
+  assert_int_equal(bsurf_eval_features(z, z, 2, &s), BSURF_OK);
+  assert_true(isnan(s.precision) && isnan(s.recall) && isnan(s.f1));
+}
+
+static void test_bad_args(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 500, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 20, 1, NULL, NULL), BSURF_OK);
+  uint8_t f[500];
+  bsurf_feature_options o = bsurf_feature_options_default();
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG); /* k_max > nb.k */
+  o.k_max = 20;
+  o.k_min = 25;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  o.k_min = 10;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_OK);
+  o.method = BSURF_FEATURES_VARIANCE;
+  o.normals.k = 20;
+  o.normals.bootstrap = 1;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_plane_no_features), cmocka_unit_test(test_cube_edges_distance),
+      cmocka_unit_test(test_cube_edges_variance), cmocka_unit_test(test_incremental_pca),
+      cmocka_unit_test(test_threads),           cmocka_unit_test(test_tail_threshold),
+      cmocka_unit_test(test_eval_features),     cmocka_unit_test(test_bad_args),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
