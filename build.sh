@@ -20,6 +20,7 @@ need_packages() {
   command -v cmake >/dev/null 2>&1 || missing+=(cmake)
   command -v pkg-config >/dev/null 2>&1 || missing+=(pkg-config)
   [ -f /usr/include/cmocka.h ] || missing+=(libcmocka-dev)
+  [ -f /usr/include/png.h ] || missing+=(libpng-dev)
   echo "${missing[@]:-}"
 }
 

@@ -127,5 +127,20 @@ int cmd_error(const cli_command *cmd, int argc, char **argv);
 int cmd_normals(const cli_command *cmd, int argc, char **argv);
 int cmd_sample(const cli_command *cmd, int argc, char **argv);
 int cmd_eval(const cli_command *cmd, int argc, char **argv);
+int cmd_render(const cli_command *cmd, int argc, char **argv);
+int cmd_histogram(const cli_command *cmd, int argc, char **argv);
+int cmd_compare(const cli_command *cmd, int argc, char **argv);
+/* Shared by render, histogram and compare (cmd_render.c): --size WxH and
+ * --range LO:HI (0 or CLI_USAGE after the message), a field or an error
+ * listing the available ones (NULL), --view or --azimuth/--elevation. */
+int render_parse_size(const cli_command *cmd, const char *text, int *w, int *h);
+int render_parse_range(const cli_command *cmd, const char *text, double *lo, double *hi);
+const bsurf_field *render_find_field(const bsurf_cloud *c, const char *path, const char *name);
+int render_view_option(const cli_command *cmd, const char *view, double az, double el, double *out_az,
+                       double *out_el);
+int render_up_option(const cli_command *cmd, const char *up, int *axis);
+/* Per-point spacing for splat sizes (malloc'ed, point_count) or NULL. */
+double *render_local_spacing(const bsurf_cloud *c, int threads, double h);
+int cmd_features(const cli_command *cmd, int argc, char **argv);
 
 #endif

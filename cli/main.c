@@ -58,6 +58,36 @@ static const cli_command commands[] = {
      "Q-quantile and the rest, e.g. normal_var:0.85 for the highest 15% of the\n"
      "bootstrap variance (thesis Table 5.2).",
      cmd_eval},
+    {"render", "Render a cloud to PNG, shaded by normals or coloured by a field.", "INPUT -o IMAGE.png [options]",
+     "Orthographic view of the points as z-buffered splats of diameter --point-size\n"
+     "times h (the mean nearest-neighbour distance), so surfaces look closed.\n"
+     "Without --field the surface is shaded by its normals (two-sided Lambert), or by\n"
+     "depth when there are none; with --field the values go through a colormap\n"
+     "(values outside --range, by default the 1st-99th percentile, are capped) and a\n"
+     "colour bar is drawn. --views 4 shows front, right, top and iso in a 2x2 grid.\n"
+     "The same input gives the same PNG bytes for any thread count.",
+     cmd_render},
+    {"histogram", "PNG histogram of a field, with an optional threshold marker (7.2).",
+     "INPUT --field NAME -o IMAGE.png [options]",
+     "Bars of the counts of the field's finite values in --bins equal bins between\n"
+     "its minimum and maximum (or --range), axes with ticks; --threshold T draws a\n"
+     "marker and counts the values above it; --log plots log10(1 + count).",
+     cmd_histogram},
+    {"compare", "Several clouds side by side in one PNG (same view and colour range).",
+     "A B ... -o IMAGE.png [options]",
+     "Each input becomes a panel of --size pixels with its title (--titles \"a,b\"\n"
+     "or the file name); with --field every panel uses the same colour range (by\n"
+     "default the 1st-99th percentile of all inputs together) and one colour bar.",
+     cmd_compare},
+    {"features", "Feature detection: PCA distance map or bootstrap variance (thesis ch. 7).",
+     "INPUT -o OUTPUT [options]",
+     "distance (7.1): per point, PCA of growing neighbourhoods (--k-min..--k-max);\n"
+     "the radius where lambda0/lambda2 first exceeds --ratio-threshold is the distance\n"
+     "to the nearest feature (points exceeding it at once get -max radius), smoothed by\n"
+     "a bilateral filter (Eq. 7.1); features: feature_dist <= --threshold x its maximum\n"
+     "(auto: <= 0). variance (7.2): features are normal_var > --threshold (auto: the\n"
+     "start of the distribution's tail). Writes feature (0/1) and the score.",
+     cmd_features},
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
 

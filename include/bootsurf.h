@@ -375,6 +375,97 @@ bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, 
                                   double *normals);
 
 /* ------------------------------------------------------------------------ */
+/* Feature detection (thesis chapter 7)                                      */
+/* ------------------------------------------------------------------------ */
+
+typedef enum bsurf_feature_method {
+  BSURF_FEATURES_DISTANCE = 0, /* distance to the nearest feature from PCA of
+                                  growing neighbourhoods (7.1) */
+  BSURF_FEATURES_VARIANCE      /* normal_var > t_h (7.2, Eq. 7.2) */
+} bsurf_feature_method;
+
+/* Automatic threshold rules for a score whose bulk is "non-feature" and whose
+ * upper tail is the feature area (7.2: "the start of the tail"). */
+typedef enum bsurf_tail_rule {
+  BSURF_TAIL_OTSU = 0, /* Otsu's two-class split of log(value) (256 bins);
+                          the default: best on the cube and Fandisk (see
+                          src/algo/features.c) */
+  BSURF_TAIL_MAD       /* median + 3 x 1.4826 x MAD of log(value) */
+} bsurf_tail_rule;
+
+/* The start of the upper tail of a distribution of non-negative values.
+ * Values <= 1e-12 x max (rounding-level zeros, e.g. a noise-free flat area)
+ * are bulk and left out; the rule runs on the logs of the others (if fewer
+ * than 2 remain, the threshold is 1e-12 x max).
+ * values in: count. *threshold out: points with value > threshold are the
+ * tail. BSURF_ERR_INVALID_VALUE for NaN, BSURF_ERR_TOO_FEW_POINTS for
+ * count < 2. */
+bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail_rule rule,
+                                  double *threshold);
+
+typedef struct bsurf_feature_options {
+  bsurf_feature_method method; /* DISTANCE */
+  /* distance (7.1) */
+  int k_min, k_max, k_step;    /* neighbourhood sizes k_min, k_min + k_step,
+                                  ... <= k_max, the point included (15, 60, 2;
+                                  k_min 15 beat 10 and 20 on the cube and
+                                  Fandisk at noise 0 and 0.5) */
+  double ratio_threshold;      /* T_{a/c}: stop when f = lambda0/lambda2 (or
+                                  f + d f') exceeds it (0.1) */
+  double derivative;           /* d of f + d f' (f' per step); 0 = f alone (0) */
+  double alpha;                /* bilateral filter strength, Eq. 7.1 (0.5) */
+  int iterations;              /* bilateral filter passes (5) */
+  int filter_k;                /* neighbours of the filter, point included
+                                  (0 = k_min) */
+  double sigma_range;          /* range sigma of g_b as a fraction of
+                                  max(radius) (0.05; the thesis's 0.01 is
+                                  absolute on a unit-size model) */
+  /* threshold: distance: feature_dist <= threshold x max(feature_dist);
+   * NAN = auto = 0 (features are the points the accentuated, filtered map
+   * keeps at or below zero; Fig. 7.5). variance: normal_var > threshold;
+   * NAN = auto (tail_rule). */
+  double threshold;            /* NAN */
+  bsurf_tail_rule tail_rule;   /* OTSU */
+  bsurf_normal_options normals; /* variance: the bootstrap normals (defaults) */
+  int threads;                 /* 0 = all cores (also used for normals) */
+  bsurf_progress_fn progress;
+  void *progress_user;
+} bsurf_feature_options;
+
+bsurf_feature_options bsurf_feature_options_default(void);
+
+typedef struct bsurf_feature_report {
+  double threshold;      /* the absolute threshold applied to the score */
+  size_t feature_points; /* points with feature = 1 */
+  double max_radius;     /* distance: the largest neighbourhood radius */
+  size_t immediate;      /* distance: points whose k_min neighbourhood
+                            already exceeded T_{a/c} (set to -max_radius) */
+} bsurf_feature_report;
+
+/* Feature detection. nb: neighbourhoods with nb->k >= k_max (distance) or
+ * >= normals.k (variance). feature out: point_count, 0/1; score out:
+ * point_count (feature_dist for DISTANCE, normal_var for VARIANCE), may be
+ * NULL. Deterministic for any thread count. */
+bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
+                                   const bsurf_feature_options *opts, uint8_t *feature,
+                                   double *score, bsurf_feature_report *report);
+
+/* The raw distance map of 7.1 (before filtering): for each point the radius
+ * of the first neighbourhood size whose a/c (or a/c + d (a/c)') exceeds the
+ * ratio threshold (k_max's radius when none does); points that exceed it at
+ * k_min get -max(radius). dist out: point_count. Also returns, per point,
+ * the neighbourhood size it stopped at (ksel out, may be NULL). */
+bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors *nb,
+                                        const bsurf_feature_options *opts, double *dist,
+                                        int *ksel, double *max_radius, size_t *immediate);
+
+/* Incremental PCA along a sorted neighbour list (internal to 7.1, public
+ * for the tests): for m = 1..k the ratio lambda0/lambda2 of the covariance
+ * (about the centroid) of the first m points xyz[idx[0..m-1]], from running
+ * sums. ratio out: k (0 where lambda2 = 0). */
+void bsurf_incremental_pca_ratios(const double *xyz, const uint32_t *idx, int k, double *ratio);
+
+/* ------------------------------------------------------------------------ */
 /* Generated shapes and noise                                                 */
 /* ------------------------------------------------------------------------ */
 
@@ -417,6 +508,118 @@ typedef enum bsurf_noise_model {
 bsurf_status bsurf_add_noise(double *xyz, const double *normals,
                              size_t point_count, bsurf_noise_model model,
                              double level, double scale, uint64_t seed);
+
+/* ------------------------------------------------------------------------ */
+/* Pictures                                                                  */
+/* ------------------------------------------------------------------------ */
+
+/* Colormaps: viridis and magma (matplotlib's perceptually uniform maps),
+ * gray, coolwarm (Moreland's diverging map). */
+typedef enum bsurf_colormap {
+  BSURF_COLORMAP_VIRIDIS = 0,
+  BSURF_COLORMAP_MAGMA,
+  BSURF_COLORMAP_GRAY,
+  BSURF_COLORMAP_COOLWARM
+} bsurf_colormap;
+
+/* Parses "viridis", "magma", "gray", "coolwarm". Returns 0 on success. */
+int bsurf_colormap_from_name(const char *name, bsurf_colormap *cmap);
+const char *bsurf_colormap_name(bsurf_colormap cmap);
+/* The colour at t in [0, 1] (clamped; NaN gives the low end). */
+void bsurf_colormap_rgb(bsurf_colormap cmap, double t, uint8_t rgb[3]);
+/* Named views: front (looking along +y, z up), back, left, right, top,
+ * bottom, iso. Returns 0 and the angles in degrees, or -1. */
+int bsurf_view_from_name(const char *name, double *azimuth, double *elevation);
+
+typedef struct bsurf_render_options {
+  int width, height;           /* pixels of the whole image (1024 x 768) */
+  double azimuth, elevation;   /* view direction in degrees (iso: 45, 35.26) */
+  int views;                   /* 1, or 4: front, right, top and iso in a 2x2 grid */
+  double point_size;           /* splat diameter in units of the spacing h (2) */
+  double spacing;              /* h; 0: estimated from the points */
+  const double *point_spacing; /* point_count local spacings (sparse regions get
+                                  larger splats) or NULL: h everywhere */
+  int up_axis;                 /* 0, 1, 2: x, y or z points up in named views (2) */
+  int round_splats;            /* 1: discs (default), 0: squares */
+  int supersample;             /* 1..4: samples per pixel side, averaged (2) */
+  bsurf_colormap colormap;     /* viridis */
+  double range_lo, range_hi;   /* field values mapped to the colormap's ends;
+                                  NaN: the percentiles below */
+  double percentile_lo, percentile_hi; /* in percent (1, 99); values outside are capped */
+  int shade;                   /* 1: field colours modulated by Lambert shading
+                                  when normals are given */
+  int colorbar;                /* 1: a colour bar with ticks when values are given */
+  const char *label;           /* colour-bar caption (e.g. the field name) or NULL */
+  const char *title;           /* text at the top or NULL */
+  uint8_t background[3];       /* white */
+  int threads;                 /* 0 = all cores; the image never depends on it */
+} bsurf_render_options;
+
+bsurf_render_options bsurf_render_options_default(void);
+
+typedef struct bsurf_render_info {
+  double range_lo, range_hi; /* the value range used (NaN without values) */
+  double spacing;            /* h used for the splat size */
+  size_t covered_pixels;     /* pixels showing a point */
+} bsurf_render_info;
+
+/* Renders points to an RGB image: orthographic view, z-buffered splats of
+ * diameter point_size * h (nearest point wins, ties by the lower index, so
+ * the image is the same for any thread count). Without values the surface is
+ * shaded by its normals (two-sided Lambert + ambient) or, without normals, by
+ * depth; with values, coloured through the colormap.
+ *   rgb      out: height x width x 3 bytes, rows top to bottom
+ *   xyz      in: point_count x 3
+ *   normals  in: point_count x 3 or NULL
+ *   values   in: point_count or NULL (NaN values are drawn gray)
+ *   point_count  below 2^32 - 1
+ *   info     out, may be NULL */
+bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals,
+                          size_t point_count, const double *values,
+                          const bsurf_render_options *opt, bsurf_render_info *info);
+
+/* The value range between two percentiles (in percent) of the finite values;
+ * BSURF_ERR_INVALID_VALUE when there is none. */
+bsurf_status bsurf_render_range(const double *values, size_t count, double percentile_lo,
+                                double percentile_hi, double *lo, double *hi);
+
+/* Draws a vertical colour bar with labelled ticks into the box (x, y, w, h)
+ * of an image (the bar, its ticks and the label all stay in the box). */
+void bsurf_render_colorbar(uint8_t *rgb, int width, int height, int x, int y, int w, int h,
+                           bsurf_colormap cmap, double lo, double hi, const char *label,
+                           const uint8_t background[3]);
+/* Draws text (5x7 font, enlarged `scale` times) with its top-left at (x, y). */
+void bsurf_render_text(uint8_t *rgb, int width, int height, int x, int y, const char *text,
+                       int scale, const uint8_t color[3]);
+
+typedef struct bsurf_histogram_options {
+  int width, height;         /* 800 x 500 */
+  int bins;                  /* 50 */
+  double range_lo, range_hi; /* NaN: min and max of the finite values */
+  double threshold;          /* a marker line at this value; NaN: none */
+  int log_counts;            /* 1: bar heights are log10(1 + count) */
+  const char *label;         /* x-axis caption or NULL */
+  const char *title;         /* NULL */
+} bsurf_histogram_options;
+
+bsurf_histogram_options bsurf_histogram_options_default(void);
+
+typedef struct bsurf_histogram_info {
+  size_t counted;         /* finite values inside the range */
+  size_t above_threshold; /* values > threshold */
+  size_t max_count;       /* of the fullest bin */
+} bsurf_histogram_info;
+
+/* A histogram picture: bars, axes with ticks and labels, threshold marker.
+ *   rgb  out: height x width x 3 */
+bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values, size_t count,
+                                    const bsurf_histogram_options *opt,
+                                    bsurf_histogram_info *info);
+
+/* Writes an 8-bit RGB PNG (libpng; no time stamp, so the same image gives the
+ * same bytes). Atomic like bsurf_write: a temporary file renamed at the end. */
+bsurf_status bsurf_write_png(const char *path, const uint8_t *rgb, int width, int height,
+                             bsurf_error *err);
 
 /* ------------------------------------------------------------------------ */
 /* Meshes and evaluation against ground truth                                */
@@ -534,6 +737,18 @@ bsurf_status bsurf_eval_normals(const double *result, const double *truth, size_
  * BSURF_ERR_INVALID_VALUE (and *bad_index) for a NaN value. */
 bsurf_status bsurf_quantile_split(const double *values, size_t count, double q, uint8_t *high,
                                   double *threshold, size_t *high_count, size_t *bad_index);
+
+/* Precision, recall and F1 of detected features against ground truth
+ * (feature = 1 / 0 per point). A ratio whose denominator is 0 is NAN
+ * (precision with no detection, recall with no true feature). */
+typedef struct bsurf_feature_stats {
+  size_t true_pos, false_pos, false_neg, true_neg;
+  double precision, recall, f1;
+} bsurf_feature_stats;
+
+/* result, truth in: count (non-zero = feature). */
+bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth, size_t count,
+                                 bsurf_feature_stats *stats);
 
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */

@@ -9,3 +9,4 @@ set -x
 "$BSURF" noise "$OUT/cube.ply" --level 0.5 --seed 1 -o "$OUT/cube_noisy.ply"
 "$BSURF" error "$OUT/cube_noisy.ply" -k 50 -d 3 -B 50 -o "$OUT/cube_error.ply"
 "$BSURF" info "$OUT/cube_error.ply"
+"$BSURF" render "$OUT/cube_error.ply" --field err_632plus -o "$OUT/cube_err632plus.png"

@@ -1,0 +1,206 @@
+/* bootsurf compare: several clouds side by side in one PNG, same view, same
+ * colour range (so colours compare across panels), with titles. */
+#include "cli.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define COMPARE_MAX 16
+
+int cmd_compare(const cli_command *cmd, int argc, char **argv) {
+  bsurf_render_options ro = bsurf_render_options_default();
+  const char *output = NULL, *field = NULL, *cmap = "viridis", *range = NULL, *view = NULL,
+             *size = NULL, *titles = NULL, *up = "z";
+  double az = NAN, el = NAN;
+  int json = 0, quiet = 0, force = 0, flat = 0;
+  ro.width = 512;
+  ro.height = 512;
+  cli_option opts[] = {
+      {'o', "output", ARG_STRING, &output, "IMAGE", "output PNG file", 1, 0},
+      {0, "field", ARG_STRING, &field, "NAME", "colour by this field (default: shade by normals)",
+       1, 0},
+      {0, "colormap", ARG_STRING, &cmap, "MAP", "viridis, magma, gray or coolwarm", 1, 0},
+      {0, "range", ARG_STRING, &range, "LO:HI",
+       "values at the colormap's ends (default: 1st-99th percentile of all inputs)", 1, 0},
+      {0, "titles", ARG_STRING, &titles, "A,B,...", "panel titles (default: the file names)", 1, 0},
+      {0, "view", ARG_STRING, &view, "VIEW",
+       "front, back, left, right, top, bottom or iso (default: iso)", 1, 0},
+      {0, "azimuth", ARG_DOUBLE, &az, "DEG", "view azimuth about z (0 = front)", -360, 360},
+      {0, "elevation", ARG_DOUBLE, &el, "DEG", "view elevation (90 = top)", -90, 90},
+      {0, "up", ARG_STRING, &up, "AXIS", "the axis that points up in the views: x, y or z", 1, 0},
+      {0, "size", ARG_STRING, &size, "WxH", "size of each panel in pixels (default: 512x512)", 1,
+       0},
+      {0, "point-size", ARG_DOUBLE, &ro.point_size, "S", "splat diameter in units of h", 0.05, 50},
+      {0, "flat", ARG_FLAG, &flat, "", "field colours without shading", 1, 0},
+      CLI_OPT_THREADS(ro.threads),
+      {0, "force", ARG_FLAG, &force, "", "allow the output to be an input file", 1, 0},
+      CLI_OPTS_REPORT(json, quiet),
+  };
+  char *pos[COMPARE_MAX];
+  int npos;
+  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, COMPARE_MAX,
+                     &npos);
+  if (rc != CLI_PARSED) return rc;
+  if (npos < 1) return cli_usage_error(cmd, "expected one or more INPUT files");
+  if (!output) return cli_usage_error(cmd, "-o IMAGE.png is required");
+  if (bsurf_colormap_from_name(cmap, &ro.colormap) != 0)
+    return cli_usage_error(cmd, "--colormap must be viridis, magma, gray or coolwarm, not '%s'",
+                           cmap);
+  if (size && render_parse_size(cmd, size, &ro.width, &ro.height)) return CLI_USAGE;
+  if (range && render_parse_range(cmd, range, &ro.range_lo, &ro.range_hi)) return CLI_USAGE;
+  if (render_view_option(cmd, view, az, el, &ro.azimuth, &ro.elevation)) return CLI_USAGE;
+  if (render_up_option(cmd, up, &ro.up_axis)) return CLI_USAGE;
+  ro.shade = !flat;
+  ro.colorbar = 0;
+  /* titles: split a copy at commas */
+  char *tcopy = NULL;
+  const char *tnames[COMPARE_MAX];
+  for (int i = 0; i < npos; i++) {
+    const char *slash = strrchr(pos[i], '/');
+    tnames[i] = slash ? slash + 1 : pos[i];
+  }
+  if (titles) {
+    tcopy = malloc(strlen(titles) + 1);
+    if (!tcopy) return cli_error("out of memory");
+    strcpy(tcopy, titles);
+    int k = 0;
+    for (char *p = tcopy, *tok; k < npos && (tok = p) != NULL; k++) {
+      char *comma = strchr(p, ',');
+      if (comma) *comma = 0;
+      tnames[k] = tok;
+      p = comma ? comma + 1 : NULL;
+      if (!p) {
+        k++;
+        break;
+      }
+    }
+  }
+  for (int i = 0; i < npos; i++)
+    if (cli_check_writable(output, pos[i], force)) {
+      free(tcopy);
+      return 1;
+    }
+
+  double t0 = cli_now();
+  bsurf_cloud clouds[COMPARE_MAX];
+  const double *vals[COMPARE_MAX];
+  double hs[COMPARE_MAX];
+  int loaded = 0;
+  rc = 0;
+  for (int i = 0; i < npos && rc == 0; i++) {
+    bsurf_cloud_init(&clouds[i]);
+    if (cli_read_cloud(pos[i], &clouds[i])) {
+      rc = 1;
+      break;
+    }
+    loaded++;
+    vals[i] = NULL;
+    if (field) {
+      const bsurf_field *f = render_find_field(&clouds[i], pos[i], field);
+      if (!f) {
+        rc = 1;
+        break;
+      }
+      vals[i] = f->values;
+    }
+    hs[i] = 0;
+    if (clouds[i].point_count >= 2 &&
+        bsurf_mean_spacing(clouds[i].xyz, clouds[i].point_count, ro.threads, &hs[i]) != BSURF_OK)
+      rc = cli_error("%s: spacing failed", pos[i]);
+  }
+  /* one colour range for every panel */
+  if (rc == 0 && field && (!isfinite(ro.range_lo) || !isfinite(ro.range_hi))) {
+    size_t total = 0;
+    for (int i = 0; i < npos; i++)
+      total += clouds[i].point_count;
+    double *all = malloc((total ? total : 1) * sizeof *all);
+    if (!all) {
+      rc = cli_error("out of memory");
+    } else {
+      size_t o = 0;
+      for (int i = 0; i < npos; i++) {
+        memcpy(all + o, vals[i], clouds[i].point_count * sizeof *all);
+        o += clouds[i].point_count;
+      }
+      double lo = NAN, hi = NAN;
+      if (bsurf_render_range(all, total, ro.percentile_lo, ro.percentile_hi, &lo, &hi) ==
+          BSURF_OK) {
+        ro.range_lo = lo;
+        ro.range_hi = hi;
+      }
+      free(all);
+    }
+  }
+  int pw = ro.width, ph = ro.height;
+  int bar =
+      field ? (ph * 3 / 4 >= 220 ? 150 : 90) : 0; /* the colour bar's font doubles from 220 px */
+  int W = pw * npos + bar, H = ph;
+  uint8_t *img = NULL, *panel = NULL;
+  if (rc == 0) {
+    img = malloc((size_t)W * (size_t)H * 3);
+    panel = malloc((size_t)pw * (size_t)ph * 3);
+    if (!img || !panel) rc = cli_error("out of memory");
+  }
+  if (rc == 0) {
+    memset(img, 255, (size_t)W * (size_t)H * 3);
+    for (int i = 0; i < npos && rc == 0; i++) {
+      bsurf_render_options o = ro;
+      o.title = tnames[i];
+      o.spacing = hs[i];
+      double *local = render_local_spacing(&clouds[i], ro.threads, hs[i]);
+      o.point_spacing = local;
+      bsurf_status st = bsurf_render(panel, clouds[i].xyz, clouds[i].normals, clouds[i].point_count,
+                                     vals[i], &o, NULL);
+      free(local);
+      if (st != BSURF_OK) {
+        rc = cli_error("%s: render: %s", pos[i], bsurf_strerror(st));
+        break;
+      }
+      for (int y = 0; y < ph; y++)
+        memcpy(img + ((size_t)y * W + (size_t)i * pw) * 3, panel + (size_t)y * pw * 3,
+               (size_t)pw * 3);
+    }
+    if (rc == 0 && field)
+      bsurf_render_colorbar(img, W, H, pw * npos, H / 8, bar - 4, H * 3 / 4, ro.colormap,
+                            ro.range_lo, ro.range_hi, field, ro.background);
+    if (rc == 0) {
+      bsurf_error err = {0, -1, ""};
+      bsurf_status st = bsurf_write_png(output, img, W, H, &err);
+      if (st != BSURF_OK)
+        rc = cli_error("%s: %s", output, err.message[0] ? err.message : bsurf_strerror(st));
+    }
+  }
+  double secs = cli_now() - t0;
+  if (rc == 0 && json) {
+    cli_json j;
+    json_begin(&j, stdout);
+    json_str(&j, "command", "compare");
+    json_arr(&j, "inputs");
+    for (int i = 0; i < npos; i++)
+      json_str(&j, NULL, pos[i]);
+    json_close_arr(&j);
+    json_str(&j, "output", output);
+    json_int(&j, "width", W);
+    json_int(&j, "height", H);
+    if (field) {
+      json_str(&j, "field", field);
+      json_arr(&j, "range");
+      json_num(&j, NULL, ro.range_lo);
+      json_num(&j, NULL, ro.range_hi);
+      json_close_arr(&j);
+    }
+    json_num(&j, "seconds", secs);
+    json_end(&j);
+  } else if (rc == 0 && !quiet) {
+    printf("compare: %d clouds, %dx%d", npos, W, H);
+    if (field) printf(", %s in [%.6g, %.6g]", field, ro.range_lo, ro.range_hi);
+    printf("\n  -> %s\n", output);
+  }
+  free(img);
+  free(panel);
+  for (int i = 0; i < loaded; i++)
+    bsurf_cloud_free(&clouds[i]);
+  free(tcopy);
+  return rc;
+}
