@@ -49,14 +49,16 @@ static const cli_command commands[] = {
      "diagonal when there is none), and feature, 1 within --feature-width nominal\n"
      "spacings sqrt(area / points) of one. MESH needs faces (.off, .obj, .ply).",
      cmd_sample},
-    {"eval", "Compare a result with ground truth (normal angles, ...).", "RESULT --truth TRUTH [options]",
+    {"eval", "Compare a result with ground truth (normal angles, feature scores).",
+     "RESULT --truth TRUTH [options]",
      "RESULT and TRUTH list the same points in the same order (e.g. the output of\n"
      "normals and the sample or generate file it came from). normals: unoriented\n"
      "angle errors, mean, median and rms in radians, mean in degrees, and the\n"
      "fractions under 5 and 10 degrees (PCPNet's PGP5/PGP10). --split FIELD:Q also\n"
      "reports the points whose FIELD (from RESULT, else TRUTH) is above its\n"
      "Q-quantile and the rest, e.g. normal_var:0.85 for the highest 15% of the\n"
-     "bootstrap variance (thesis Table 5.2).",
+     "bootstrap variance (thesis Table 5.2). features: precision, recall and F1 of\n"
+     "RESULT's feature field (0/1) against TRUTH's.",
      cmd_eval},
     {"render", "Render a cloud to PNG, shaded by normals or coloured by a field.", "INPUT -o IMAGE.png [options]",
      "Orthographic view of the points as z-buffered splats of diameter --point-size\n"
