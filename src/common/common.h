@@ -7,6 +7,7 @@
 
 #include <stdarg.h>
 #include <stddef.h>
+#include <stdio.h>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -34,6 +35,24 @@ void *bsurf_calloc_array(size_t n, size_t size);
 /* Fills an optional error record (printf-style message). Returns `status`. */
 bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line, long long byte,
                         const char *fmt, ...) BSURF_PRINTF(5, 6);
+
+/* A file written under a temporary name next to its target and renamed
+ * over it only when complete (atomic_file.c). */
+typedef struct bsurf_atomic_file {
+  FILE *f; /* write here (1 MiB buffer) */
+  char *tmp;
+  const char *path;
+  char *iobuf;
+} bsurf_atomic_file;
+
+/* Creates and opens the temporary file for `path`. */
+bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_error *err);
+/* Finishes: with status == BSURF_OK and write_errno == 0 (no write error seen
+ * by the caller) flushes, fsyncs, closes and renames over the target;
+ * otherwise, or if any of that fails, closes and removes the temporary.
+ * Returns `status` if it was an error, else the outcome (err filled). */
+bsurf_status bsurf_atomic_close(bsurf_atomic_file *af, bsurf_status status, int write_errno,
+                                bsurf_error *err);
 
 /* Number of points processed between two progress callbacks; also the unit
  * of cancellation. */

@@ -797,25 +797,6 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) 
 /* Writing                                                                   */
 /* ------------------------------------------------------------------------ */
 
-/* The process's umask, without changing it if the system can tell. */
-static mode_t current_umask(void) {
-  FILE *f = fopen("/proc/self/status", "r");
-  if (f) {
-    char line[256];
-    while (fgets(line, sizeof line, f)) {
-      unsigned v;
-      if (strncmp(line, "Umask:", 6) == 0 && sscanf(line + 6, "%o", &v) == 1) {
-        fclose(f);
-        return (mode_t)v;
-      }
-    }
-    fclose(f);
-  }
-  mode_t m = umask(022);
-  umask(m);
-  return m;
-}
-
 static bsurf_status check_cloud(const bsurf_cloud *cloud, bsurf_error *err) {
   if (cloud->point_count && !cloud->xyz)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "the cloud has no coordinates");
@@ -845,52 +826,10 @@ bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
   if (st == BSURF_OK && format == BSURF_FORMAT_PLY) st = bsurf_io_ply_check(cloud, err);
   if (st != BSURF_OK) return st;
 
-  /* The temporary goes next to the target so that rename() is atomic. */
-  const char *slash = strrchr(path, '/');
-  const char *base = slash ? slash + 1 : path;
-  if (!*base)
-    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "the output path names a directory");
-  size_t dir_len = slash ? (size_t)(slash - path) + 1 : 0; /* with the '/' */
-  size_t base_len = strlen(base);
-  if (base_len > 200) base_len = 200; /* stay under NAME_MAX */
-  static const char suffix[] = ".tmp.XXXXXX";
-  char *tmp = malloc(dir_len + 1 + base_len + sizeof suffix);
-  if (!tmp) return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
-  memcpy(tmp, path, dir_len);
-  tmp[dir_len] = '.';
-  memcpy(tmp + dir_len + 1, base, base_len);
-  memcpy(tmp + dir_len + 1 + base_len, suffix, sizeof suffix);
-
-  int fd = mkstemp(tmp);
-  if (fd < 0) {
-    int e = errno;
-    int shown = slash ? (int)(slash == path ? 1 : dir_len - 1) : 1;
-    st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot create a file in directory '%.*s': %s",
-                    shown, slash ? path : ".", strerror(e));
-    free(tmp);
-    return st;
-  }
-  /* mkstemp makes the file 0600; give the result the target's permissions,
-   * or those a newly created file would get. */
-  struct stat sb;
-  mode_t mode = (stat(path, &sb) == 0 && S_ISREG(sb.st_mode)) ? (sb.st_mode & 07777)
-                                                               : (0666 & ~current_umask());
-  (void)fchmod(fd, mode);
-
-  FILE *f = fdopen(fd, "wb");
-  if (!f) {
-    int e = errno;
-    close(fd);
-    unlink(tmp);
-    free(tmp);
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open the temporary file: %s",
-                      strerror(e));
-  }
-  const size_t bufsize = (size_t)1 << 20;
-  char *iobuf = malloc(bufsize);
-  if (iobuf) setvbuf(f, iobuf, _IOFBF, bufsize);
-
-  io_writer w = {f, 0, 0};
+  bsurf_atomic_file af;
+  st = bsurf_atomic_open(&af, path, err);
+  if (st != BSURF_OK) return st;
+  io_writer w = {af.f, 0, 0};
   switch (format) {
   case BSURF_FORMAT_PLY: st = bsurf_io_write_ply(&w, cloud, opts && opts->ascii, err); break;
   case BSURF_FORMAT_OFF: st = bsurf_io_write_off(&w, cloud, err); break;
@@ -899,38 +838,7 @@ bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
   case BSURF_FORMAT_UNKNOWN:
   default: st = bsurf_io_write_xyz(&w, cloud, err); break;
   }
-  if (st == BSURF_OK && !w.failed) {
-    errno = 0;
-    if (fflush(f) != 0) {
-      w.failed = 1;
-      w.err_no = errno ? errno : EIO;
-    } else if (fsync(fileno(f)) != 0 && errno != EINVAL && errno != ENOTSUP) {
-      /* EINVAL / ENOTSUP: the file system cannot sync; nothing to report */
-      w.failed = 1;
-      w.err_no = errno;
-    }
-  }
-  errno = 0;
-  if (fclose(f) != 0 && !w.failed) {
-    w.failed = 1;
-    w.err_no = errno ? errno : EIO;
-  }
-  free(iobuf);
-  if (st != BSURF_OK || w.failed) {
-    unlink(tmp);
-    free(tmp);
-    if (st != BSURF_OK) return st;
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "write failed: %s", strerror(w.err_no));
-  }
-  if (rename(tmp, path) != 0) {
-    int e = errno;
-    unlink(tmp);
-    free(tmp);
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot move the finished file into place: %s",
-                      strerror(e));
-  }
-  free(tmp);
-  return BSURF_OK;
+  return bsurf_atomic_close(&af, st, w.failed ? (w.err_no ? w.err_no : EIO) : 0, err);
 }
 
 /* ------------------------------------------------------------------------ */

@@ -63,65 +63,17 @@ bsurf_status bsurf_write_png(const char *path, const uint8_t *rgb, int width, in
   }
   if (!path || !rgb || width < 1 || height < 1)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no path or no image given");
-  const char *slash = strrchr(path, '/');
-  const char *base = slash ? slash + 1 : path;
-  if (!*base)
-    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "the output path names a directory");
-  size_t dir_len = slash ? (size_t)(slash - path) + 1 : 0;
-  size_t base_len = strlen(base);
-  if (base_len > 200) base_len = 200;
-  static const char suffix[] = ".tmp.XXXXXX";
-  char *tmp = malloc(dir_len + 1 + base_len + sizeof suffix);
-  if (!tmp) return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
-  memcpy(tmp, path, dir_len);
-  tmp[dir_len] = '.';
-  memcpy(tmp + dir_len + 1, base, base_len);
-  memcpy(tmp + dir_len + 1 + base_len, suffix, sizeof suffix);
-  int fd = mkstemp(tmp);
-  if (fd < 0) {
-    int e = errno;
-    bsurf_status st = bsurf_fail(
-        err, BSURF_ERR_IO, 0, -1, "cannot create a file in directory '%.*s': %s",
-        slash ? (int)(slash == path ? 1 : dir_len - 1) : 1, slash ? path : ".", strerror(e));
-    free(tmp);
-    return st;
-  }
-  mode_t um = umask(0);
-  umask(um);
-  struct stat sb;
-  mode_t mode = (stat(path, &sb) == 0 && S_ISREG(sb.st_mode)) ? (sb.st_mode & 07777) : (0666 & ~um);
-  (void)fchmod(fd, mode);
-  FILE *f = fdopen(fd, "wb");
-  if (!f) {
-    int e = errno;
-    close(fd);
-    unlink(tmp);
-    free(tmp);
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open the temporary file: %s", strerror(e));
-  }
+  bsurf_atomic_file af;
+  bsurf_status st = bsurf_atomic_open(&af, path, err);
+  if (st != BSURF_OK) return st;
   png_job job;
   memset(&job, 0, sizeof job);
-  job.f = f;
+  job.f = af.f;
   job.rgb = rgb;
   job.width = width;
   job.height = height;
-  int failed = encode(&job);
-  int e = 0;
-  if (!failed && fflush(f) != 0) failed = 1, e = errno;
-  if (fclose(f) != 0 && !failed) failed = 1, e = errno;
-  if (failed) {
-    unlink(tmp);
-    free(tmp);
-    if (job.message[0]) return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "PNG: %s", job.message);
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "write failed: %s", strerror(e ? e : EIO));
-  }
-  if (rename(tmp, path) != 0) {
-    e = errno;
-    unlink(tmp);
-    free(tmp);
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot move the finished file into place: %s",
-                      strerror(e));
-  }
-  free(tmp);
-  return BSURF_OK;
+  if (encode(&job) != 0)
+    st = job.message[0] ? bsurf_fail(err, BSURF_ERR_IO, 0, -1, "PNG: %s", job.message)
+                        : bsurf_fail(err, BSURF_ERR_IO, 0, -1, "PNG encoding failed");
+  return bsurf_atomic_close(&af, st, 0, err);
 }
