@@ -81,6 +81,12 @@ int cli_check_writable(const char *output, const char *input, int force);
 /* Writes atomically; warns about fields the format cannot carry. 0 or 1. */
 int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
 
+/* Builds the K-neighbourhoods of a cloud read from `path`, with a progress
+ * bar; on failure (fewer points than K, interrupted, no memory) prints the
+ * reason and returns 1. */
+int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
+                        bsurf_neighbors *nb);
+
 /* ---- progress, signals, time ---- */
 typedef struct cli_progress {
   const char *label;

@@ -62,22 +62,13 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
       goto done;
     }
   }
-  if (c.point_count < (size_t)eo.k) {
-    rc = cli_error("%s: has %zu points, fewer than K = %d", pos[0], c.point_count, eo.k);
-    goto done;
-  }
-
-  cli_progress prog;
-  cli_progress_init(&prog, "neighbours", quiet);
   bsurf_neighbors nb;
-  memset(&nb, 0, sizeof nb);
-  bsurf_status st =
-      bsurf_neighbors_build(&nb, c.xyz, c.point_count, eo.k, eo.threads, cli_progress_cb, &prog);
-  cli_progress_done(&prog);
-  if (st != BSURF_OK) {
-    rc = cli_error("%s: neighbourhoods: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
+  if (cli_build_neighbors(pos[0], &c, eo.k, eo.threads, quiet, &nb)) {
+    rc = 1;
     goto done;
   }
+  cli_progress prog;
+  bsurf_status st;
 
   bsurf_error_fields out;
   memset(&out, 0, sizeof out);

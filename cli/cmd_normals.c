@@ -150,18 +150,9 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       goto done;
     }
   }
-  if (c.point_count < (size_t)kmax) {
-    cli_error("%s: has %zu points, fewer than K = %d", pos[0], c.point_count, kmax);
-    goto done;
-  }
+  if (cli_build_neighbors(pos[0], &c, kmax, no.threads, quiet, &nb)) goto done;
   cli_progress prog;
-  cli_progress_init(&prog, "neighbours", quiet);
-  bsurf_status st = bsurf_neighbors_build(&nb, c.xyz, c.point_count, kmax, no.threads, cli_progress_cb, &prog);
-  cli_progress_done(&prog);
-  if (st != BSURF_OK) {
-    cli_error("%s: neighbourhoods: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
-    goto done;
-  }
+  bsurf_status st;
   const size_t n = c.point_count;
   normals = malloc(n * 3 * sizeof(double));
   var = calloc(n, sizeof(double));

@@ -80,6 +80,20 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii) {
   return 0;
 }
 
+int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
+                        bsurf_neighbors *nb) {
+  memset(nb, 0, sizeof *nb);
+  if (c->point_count < (size_t)k)
+    return cli_error("%s: has %zu points, fewer than K = %d", path, c->point_count, k);
+  cli_progress prog;
+  cli_progress_init(&prog, "neighbours", quiet);
+  bsurf_status st = bsurf_neighbors_build(nb, c->xyz, c->point_count, k, threads, cli_progress_cb, &prog);
+  cli_progress_done(&prog);
+  if (st != BSURF_OK)
+    return cli_error("%s: neighbourhoods: %s", path, cli_interrupted() ? "interrupted" : bsurf_strerror(st));
+  return 0;
+}
+
 /* ---- progress and signals ---- */
 
 static volatile sig_atomic_t interrupted = 0;
