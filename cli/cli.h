@@ -145,6 +145,9 @@ const bsurf_field *render_find_field(const bsurf_cloud *c, const char *path, con
 int render_view_option(const cli_command *cmd, const char *view, double az, double el, double *out_az,
                        double *out_el);
 int render_up_option(const cli_command *cmd, const char *up, int *axis);
+/* Writes an RGB image as PNG (atomically); prints the reason and returns 1
+ * on failure. */
+int cli_write_png(const char *path, const uint8_t *rgb, int w, int h);
 /* Per-point spacing for splat sizes (malloc'ed, point_count) or NULL. */
 double *render_local_spacing(const bsurf_cloud *c, int threads, double h);
 int cmd_features(const cli_command *cmd, int argc, char **argv);

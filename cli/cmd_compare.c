@@ -164,12 +164,7 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
     if (rc == 0 && field)
       bsurf_render_colorbar(img, W, H, pw * npos, H / 8, bar - 4, H * 3 / 4, ro.colormap,
                             ro.range_lo, ro.range_hi, field, ro.background);
-    if (rc == 0) {
-      bsurf_error err = {0, -1, ""};
-      bsurf_status st = bsurf_write_png(output, img, W, H, &err);
-      if (st != BSURF_OK)
-        rc = cli_error("%s: %s", output, err.message[0] ? err.message : bsurf_strerror(st));
-    }
+    if (rc == 0) rc = cli_write_png(output, img, W, H);
   }
   double secs = cli_now() - t0;
   if (rc == 0 && json) {

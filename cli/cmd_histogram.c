@@ -51,10 +51,7 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
   bsurf_histogram_info info;
   bsurf_status st = bsurf_render_histogram(rgb, f->values, c.point_count, &ho, &info);
   if (st == BSURF_OK) {
-    bsurf_error err = {0, -1, ""};
-    st = bsurf_write_png(output, rgb, ho.width, ho.height, &err);
-    if (st != BSURF_OK)
-      rc = cli_error("%s: %s", output, err.message[0] ? err.message : bsurf_strerror(st));
+    rc = cli_write_png(output, rgb, ho.width, ho.height);
   } else {
     rc = cli_error("%s: histogram: %s", pos[0], bsurf_strerror(st));
   }

@@ -105,6 +105,13 @@ int render_up_option(const cli_command *cmd, const char *up, int *axis) {
   return 0;
 }
 
+int cli_write_png(const char *path, const uint8_t *rgb, int w, int h) {
+  bsurf_error err = {0, -1, ""};
+  bsurf_status st = bsurf_write_png(path, rgb, w, h, &err);
+  if (st != BSURF_OK) return cli_error("%s: %s", path, err.message[0] ? err.message : bsurf_strerror(st));
+  return 0;
+}
+
 int cmd_render(const cli_command *cmd, int argc, char **argv) {
   bsurf_render_options ro = bsurf_render_options_default();
   const char *output = NULL, *field = NULL, *cmap = "viridis", *range = NULL, *view = NULL,
@@ -191,10 +198,7 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
   bsurf_status st =
       bsurf_render(rgb, c.xyz, c.normals, c.point_count, f ? f->values : NULL, &ro, &info);
   if (st == BSURF_OK) {
-    bsurf_error err = {0, -1, ""};
-    st = bsurf_write_png(output, rgb, ro.width, ro.height, &err);
-    if (st != BSURF_OK)
-      rc = cli_error("%s: %s", output, err.message[0] ? err.message : bsurf_strerror(st));
+    rc = cli_write_png(output, rgb, ro.width, ro.height);
   } else {
     rc = cli_error("%s: render: %s", pos[0], bsurf_strerror(st));
   }
