@@ -57,10 +57,16 @@ def read_fields(path, names):
             data = np.loadtxt(f, max_rows=n, ndmin=2)
             return data[:, [pnames.index(c) for c in names]].astype(np.float64)
         end = "<" if fmt == "binary_little_endian" else ">"
-        rec = np.fromfile(f, dtype=np.dtype([(a, end + t) for a, t in props]), count=n)
-        if rec.shape[0] != n:
-            raise ValueError(path + ": short binary data")
-    return np.stack([rec[c].astype(np.float64) for c in names], axis=1)
+        dt = np.dtype([(a, end + t) for a, t in props])
+        out = np.empty((n, len(names)), dtype=np.float64)
+        block = 65536  # blocks of rows: the peak RSS holds no copy of the whole file
+        for s in range(0, n, block):
+            rec = np.fromfile(f, dtype=dt, count=min(block, n - s))
+            if rec.shape[0] != min(block, n - s):
+                raise ValueError(path + ": short binary data")
+            for j, c in enumerate(names):
+                out[s:s + rec.shape[0], j] = rec[c]
+    return out
 
 
 def angle_errors(res, tru):

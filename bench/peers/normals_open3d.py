@@ -51,55 +51,12 @@ def parse(argv):
     return o
 
 
-PLY_TYPES = {"char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
-             "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
-             "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-             "float": "f4", "float32": "f4", "double": "f8", "float64": "f8"}
-
-
 def read_xyz(path):
-    """Vertex x y z (float64, n x 3) of a binary or ascii PLY (vertex element first)."""
+    """Vertex x y z (float64, n x 3) of a binary or ascii PLY: the harness's
+    shared reader (angle_error.py, beside this file)."""
     import numpy as np
-    with open(path, "rb") as f:
-        if f.readline().strip() != b"ply":
-            raise ValueError(path + ": not a PLY file")
-        fmt, n, props, in_vertex = None, 0, [], False
-        while True:
-            line = f.readline()
-            if not line:
-                raise ValueError(path + ": no end_header")
-            w = line.decode("ascii", "replace").split()
-            if not w:
-                continue
-            if w[0] == "format":
-                fmt = w[1]
-            elif w[0] == "element":
-                in_vertex = w[1] == "vertex"
-                if in_vertex:
-                    n = int(w[2])
-                elif n == 0:
-                    raise ValueError(path + ": an element before vertex")
-            elif w[0] == "property" and in_vertex:
-                if w[1] == "list":
-                    raise ValueError(path + ": list property in vertex")
-                props.append((w[2], PLY_TYPES[w[1]]))
-            elif w[0] == "end_header":
-                break
-        if fmt == "ascii":
-            data = np.loadtxt(f, max_rows=n, ndmin=2)
-            names = [p[0] for p in props]
-            return np.ascontiguousarray(data[:, [names.index(c) for c in "xyz"]], dtype=np.float64)
-        end = "<" if fmt == "binary_little_endian" else ">"
-        dt = np.dtype([(name, end + t) for name, t in props])
-        xyz = np.empty((n, 3), dtype=np.float64)
-        block = 65536  # blocks of rows: the peak RSS holds no copy of the whole file
-        for s in range(0, n, block):
-            rec = np.fromfile(f, dtype=dt, count=min(block, n - s))
-            if rec.shape[0] != min(block, n - s):
-                raise ValueError(path + ": short binary data")
-            for j, c in enumerate("xyz"):
-                xyz[s:s + rec.shape[0], j] = rec[c]
-    return xyz
+    from angle_error import read_fields
+    return np.ascontiguousarray(read_fields(path, ["x", "y", "z"]))
 
 
 def write_xyz_normals(path, xyz, nrm, comment):
