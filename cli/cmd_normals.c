@@ -32,22 +32,6 @@ static int parse_degrees(const char *s, int *ds, int max) {
   return n > 0 ? n : -1;
 }
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
-/* The q-quantile of a field (a sorted copy; index floor(q (n - 1))). */
-static double quantile(const double *v, size_t n, double q) {
-  double *c = malloc(n * sizeof *c);
-  if (!c) return NAN;
-  memcpy(c, v, n * sizeof *c);
-  qsort(c, n, sizeof *c, cmp_double);
-  double r = c[(size_t)floor(q * (double)(n - 1))];
-  free(c);
-  return r;
-}
-
 int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   bsurf_normal_options no = bsurf_normal_options_default();
   const char *fit = "pca", *center = "centroid", *output = NULL, *select_k = NULL, *select_degree = NULL;
@@ -249,7 +233,9 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   }
   double h = nb.h;
   if (iterations > 0) {
-    if (isnan(sigma_nu)) sigma_nu = no.bootstrap >= 2 ? quantile(var, n, 0.85) : INFINITY;
+    /* auto: the threshold of the top 15% of normal_var (Table 5.2's split) */
+    if (isnan(sigma_nu) && (no.bootstrap < 2 || bsurf_quantile_split(var, n, 0.85, NULL, &sigma_nu, NULL, NULL) != BSURF_OK))
+      sigma_nu = INFINITY;
     if (!(sigma_nu > 0)) sigma_nu = INFINITY; /* all variances 0: nothing to weigh */
     st = bsurf_smooth_normals(c.xyz, &nb, no.k, normals, no.bootstrap >= 2 ? var : NULL, iterations, alpha,
                               sigma_d > 0 ? sigma_d : h, sigma_nu, no.threads);
