@@ -74,11 +74,11 @@ bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, 
   /* symmetric adjacency (CSR): i -> j for j in N_i, and j -> i */
   size_t *start = calloc(n + 1, sizeof *start);
   uint32_t *adj = bsurf_alloc_array(2 * n * (size_t)(k - 1), sizeof *adj);
-  unsigned char *done = calloc(n, 1);
+  unsigned char *seen = calloc(n, 1); /* 1 = in a found component, 2 = oriented */
   uint32_t *stack = bsurf_alloc_array(n, sizeof *stack);
   heap h = {NULL, 0, 0};
   bsurf_status st = BSURF_OK;
-  if (!start || !adj || !done || !stack) {
+  if (!start || !adj || !seen || !stack) {
     st = BSURF_ERR_NOMEM;
     goto out;
   }
@@ -104,7 +104,6 @@ bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, 
     free(fill);
   }
   /* components in order of their smallest index; each starts at its highest point */
-  unsigned char *seen = done; /* reused: 1 = in a found component, 2 = oriented */
   for (size_t s0 = 0; s0 < n; s0++) {
     if (seen[s0]) continue;
     size_t top = 0, root = s0;
@@ -153,7 +152,7 @@ bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, 
 out:
   free(start);
   free(adj);
-  free(done);
+  free(seen);
   free(stack);
   free(h.a);
   return st;
