@@ -151,5 +151,6 @@ int cli_write_png(const char *path, const uint8_t *rgb, int w, int h);
 /* Per-point spacing for splat sizes (malloc'ed, point_count) or NULL. */
 double *render_local_spacing(const bsurf_cloud *c, int threads, double h);
 int cmd_features(const cli_command *cmd, int argc, char **argv);
+int cmd_smooth(const cli_command *cmd, int argc, char **argv);
 
 #endif

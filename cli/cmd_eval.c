@@ -8,10 +8,22 @@
  * Chapter 7: precision, recall and F1 of the result's `feature` field
  * against the truth's (the "features" section).
  *
- * The command is a list of sections ("normals", "features"; "position"
- * later), each present when the inputs allow it: a section says
- * what it needs, computes its per-point data once, then writes its summary
- * for any group of points (all, high, low) as JSON or as a table row. */
+ * Position error (smoothing, denoising): the distance of each result point
+ * to the true surface -- a mesh (--surface, or the truth's own faces), the
+ * generated shape the truth samples (bsurf_cloud.shape), or the tangent
+ * plane of the corresponding truth point -- in model units and in units of
+ * the truth's spacing h, split into feature and non-feature points when the
+ * truth has a `feature` field.
+ *
+ * Correspondence (tangent plane, feature labels, a --split field of the
+ * truth): result point i is truth point i when the clouds have the same
+ * number of points, else the nearest truth point. Normals and features
+ * compare by index only, so they need the same number of points.
+ *
+ * The command is a list of sections ("normals", "features", "position"),
+ * each present when the inputs allow it: a section says what it needs,
+ * computes its per-point data once, then writes its summary for any group
+ * of points (all, high, low) as JSON or as a table. */
 #include "cli.h"
 
 #include <math.h>
@@ -21,18 +33,45 @@
 enum { GROUP_ALL = 0, GROUP_HIGH, GROUP_LOW, GROUP_COUNT };
 static const char *const group_names[GROUP_COUNT] = {"all", "high", "low"};
 
+/* Position error is also summarised over the truth's feature labels. */
+enum { PART_ALL = 0, PART_FEATURE, PART_NON_FEATURE, PART_COUNT };
+static const char *const part_keys[PART_COUNT] = {"all", "feature", "non_feature"};
+static const char *const part_words[PART_COUNT] = {"", " feature", " non-feature"};
+
+/* The true surface of the position error, in order of preference. */
+enum { SURF_NONE = 0, SURF_MESH, SURF_SHAPE, SURF_TANGENT_PLANE };
+static const char *const surf_names[] = {"none", "mesh", "shape", "tangent_plane"};
+
 typedef struct eval_ctx {
   const char *result_path, *truth_path;
   const bsurf_cloud *result, *truth;
+  int threads, quiet;
   /* --split FIELD:Q: high[i] = 1 for the points above the q-quantile */
   const char *split_field;
   double split_q, threshold;
   uint8_t *high;
   size_t group_points[GROUP_COUNT];
+  /* result point i corresponds to truth point match[i] (NULL: to point i) */
+  uint32_t *match;
+  const char *correspondence; /* "index", "nearest", or "none" (not needed) */
+  /* position: the surface, its source (file or shape name), h */
+  int surf;
+  const bsurf_cloud *mesh; /* SURF_MESH: --surface or the truth */
+  const char *surf_source;
+  bsurf_shape shape;
+  const char *surface_path;
+  double h;
+  int has_feature; /* the truth has `feature`: the feature split exists */
   /* per-section results, per group */
   bsurf_angle_stats normals[GROUP_COUNT];
   bsurf_feature_stats features[GROUP_COUNT];
+  bsurf_distance_stats position[GROUP_COUNT][PART_COUNT];
 } eval_ctx;
+
+/* The truth point that corresponds to result point i. */
+static size_t truth_index(const eval_ctx *e, size_t i) {
+  return e->match ? e->match[i] : i;
+}
 
 /* The points of a group: mask and the value selected (mask NULL = all). */
 static const uint8_t *group_mask(const eval_ctx *e, int g, uint8_t *keep) {
@@ -47,13 +86,24 @@ typedef struct eval_section {
   /* computes every group's summary; 0 or an exit code (message printed) */
   int (*compute)(eval_ctx *e);
   void (*json)(cli_json *j, const eval_ctx *e, int group);
-  void (*text_header)(FILE *f);
+  void (*text_header)(FILE *f, const eval_ctx *e);
   void (*text_row)(FILE *f, const eval_ctx *e, int group);
 } eval_section;
+
+/* Normals and features compare point i with truth point i. */
+static const char *count_mismatch(const eval_ctx *e, char *buf, size_t n) {
+  if (e->result->point_count == e->truth->point_count) return NULL;
+  snprintf(buf, n,
+           "%s has %zu points but %s (the truth) has %zu; this compares the same points in the "
+           "same order",
+           e->result_path, e->result->point_count, e->truth_path, e->truth->point_count);
+  return buf;
+}
 
 /* ---- normals: unoriented angle errors ---- */
 
 static const char *normals_missing(const eval_ctx *e, char *buf, size_t n) {
+  if (count_mismatch(e, buf, n)) return buf;
   if (!e->result->normals)
     snprintf(buf, n, "%s has no normals (nx ny nz)", e->result_path);
   else if (!e->truth->normals)
@@ -101,7 +151,8 @@ static void normals_json(cli_json *j, const eval_ctx *e, int group) {
   json_close_obj(j);
 }
 
-static void normals_text_header(FILE *f) {
+static void normals_text_header(FILE *f, const eval_ctx *e) {
+  (void)e;
   fprintf(f, "  normal angle error %10s %10s %10s %9s %7s %7s\n", "mean rad", "median rad",
           "rms rad", "mean deg", "<5deg", "<10deg");
 }
@@ -116,6 +167,7 @@ static void normals_text_row(FILE *f, const eval_ctx *e, int group) {
 /* ---- features: precision, recall, F1 of `feature` (thesis ch. 7) ---- */
 
 static const char *features_missing(const eval_ctx *e, char *buf, size_t n) {
+  if (count_mismatch(e, buf, n)) return buf;
   if (!bsurf_cloud_field(e->result, "feature"))
     snprintf(buf, n, "%s has no field 'feature'", e->result_path);
   else if (!bsurf_cloud_field(e->truth, "feature"))
@@ -164,7 +216,8 @@ static void features_json(cli_json *j, const eval_ctx *e, int group) {
   json_close_obj(j);
 }
 
-static void features_text_header(FILE *f) {
+static void features_text_header(FILE *f, const eval_ctx *e) {
+  (void)e;
   fprintf(f, "  features           %10s %10s %10s %9s %7s %7s\n", "precision", "recall", "F1", "TP",
           "FP", "FN");
 }
@@ -175,11 +228,165 @@ static void features_text_row(FILE *f, const eval_ctx *e, int group) {
           s->recall, s->f1, s->true_pos, s->false_pos, s->false_neg);
 }
 
+/* ---- position: distance of each result point to the true surface ---- */
+
+/* Picks the true surface (e->surf and its source) in order of preference:
+ * --surface, the truth's faces, the truth's generated shape, the truth's
+ * normals (tangent planes). */
+static void position_pick_surface(eval_ctx *e, const bsurf_cloud *surface) {
+  e->surf = SURF_NONE;
+  if (surface) {
+    e->surf = SURF_MESH;
+    e->mesh = surface;
+    e->surf_source = e->surface_path;
+  } else if (e->truth->face_count) {
+    e->surf = SURF_MESH;
+    e->mesh = e->truth;
+    e->surf_source = e->truth_path;
+  } else if (e->truth->shape[0] && bsurf_shape_from_name(e->truth->shape, &e->shape) == 0) {
+    e->surf = SURF_SHAPE;
+    e->surf_source = bsurf_shape_name(e->shape);
+  } else if (e->truth->normals) {
+    e->surf = SURF_TANGENT_PLANE;
+    e->surf_source = e->truth_path;
+  }
+  if (e->truth->shape[0] && e->surf != SURF_SHAPE && !surface && !e->truth->face_count)
+    cli_warn("%s: unknown shape '%s' in the header, not used", e->truth_path, e->truth->shape);
+}
+
+static const char *position_missing(const eval_ctx *e, char *buf, size_t n) {
+  if (e->surf != SURF_NONE) return NULL;
+  snprintf(buf, n,
+           "no true surface: %s (the truth) has no faces, no generated shape and no normals; "
+           "give --surface MESH",
+           e->truth_path);
+  return buf;
+}
+
+static int position_compute(eval_ctx *e) {
+  const size_t n = e->result->point_count, nt = e->truth->point_count;
+  bsurf_status st;
+  e->h = NAN;
+  if (nt >= 2 && (st = bsurf_mean_spacing(e->truth->xyz, nt, e->threads, &e->h)) != BSURF_OK)
+    return cli_error("position: spacing h of %s: %s", e->truth_path, bsurf_strerror(st));
+  if (nt < 2) cli_warn("%s (the truth) has fewer than 2 points: no spacing h", e->truth_path);
+
+  bsurf_true_surface s;
+  memset(&s, 0, sizeof s);
+  bsurf_mesh_index *index = NULL;
+  if (e->surf == SURF_MESH) {
+    if ((st = bsurf_mesh_index_build(&index, e->mesh)) != BSURF_OK)
+      return cli_error("%s: %s", e->surf_source,
+                       st == BSURF_ERR_INVALID_ARG ? "a face has a vertex index out of range"
+                                                   : bsurf_strerror(st));
+    s.kind = BSURF_SURFACE_MESH;
+    s.mesh = index;
+  } else if (e->surf == SURF_SHAPE) {
+    s.kind = BSURF_SURFACE_SHAPE;
+    s.shape = e->shape;
+  } else {
+    s.kind = BSURF_SURFACE_TANGENT_PLANE;
+    s.truth_xyz = e->truth->xyz;
+    s.truth_normals = e->truth->normals;
+    s.truth_count = nt;
+    s.match = e->match;
+  }
+  double *dist = malloc(sizeof(double) * (n ? n : 1));
+  uint8_t *sel = malloc(n ? n : 1), *feat = NULL;
+  const bsurf_field *tf = bsurf_cloud_field(e->truth, "feature");
+  e->has_feature = tf != NULL;
+  if (tf) feat = malloc(n ? n : 1);
+  if (!dist || !sel || (tf && !feat)) {
+    bsurf_mesh_index_free(index);
+    free(dist);
+    free(sel);
+    free(feat);
+    return cli_error("out of memory");
+  }
+  cli_progress prog;
+  cli_progress_init(&prog, "position", e->quiet);
+  st = bsurf_position_errors(e->result->xyz, n, &s, e->threads, dist, cli_progress_cb, &prog);
+  cli_progress_done(&prog);
+  bsurf_mesh_index_free(index);
+  int rc = 0;
+  if (st == BSURF_ERR_INVALID_VALUE) {
+    size_t bad = 0;
+    while (bad < n && !isnan(dist[bad])) bad++;
+    rc = cli_error("%s: truth point %zu (0-based, for result point %zu) has a zero-length normal",
+                   e->truth_path, bad < n ? truth_index(e, bad) : 0, bad);
+  } else if (st != BSURF_OK) {
+    rc = cli_error("position: %s", bsurf_strerror(st));
+  }
+  for (size_t i = 0; tf && i < n; i++) feat[i] = tf->values[truth_index(e, i)] != 0;
+  for (int g = 0; g < GROUP_COUNT && rc == 0; g++) {
+    uint8_t keep;
+    const uint8_t *mask = group_mask(e, g, &keep);
+    if (g != GROUP_ALL && !mask) break;
+    for (int part = 0; part < (tf ? PART_COUNT : 1); part++) {
+      for (size_t i = 0; i < n; i++)
+        sel[i] = (!mask || mask[i] == keep) &&
+                 (part == PART_ALL || feat[i] == (part == PART_FEATURE));
+      bsurf_distance_stats_compute(dist, sel, 1, n, &e->position[g][part]);
+    }
+  }
+  free(dist);
+  free(sel);
+  free(feat);
+  return rc;
+}
+
+static void position_json_stats(cli_json *j, const bsurf_distance_stats *s, double h,
+                                int with_points) {
+  if (with_points) json_int(j, "points", (long long)s->count);
+  json_num(j, "mean", s->mean);
+  json_num(j, "rms", s->rms);
+  json_num(j, "max", s->max);
+  json_num(j, "mean_h", s->mean / h);
+  json_num(j, "rms_h", s->rms / h);
+  json_num(j, "max_h", s->max / h);
+}
+
+static void position_json(cli_json *j, const eval_ctx *e, int group) {
+  json_obj(j, "position");
+  if (group == GROUP_ALL) {
+    json_str(j, "surface", surf_names[e->surf]);
+    json_str(j, "source", e->surf_source);
+    json_str(j, "correspondence", e->correspondence);
+    json_num(j, "h", e->h);
+  }
+  position_json_stats(j, &e->position[group][PART_ALL], e->h, group != GROUP_ALL);
+  for (int part = PART_FEATURE; e->has_feature && part < PART_COUNT; part++) {
+    json_obj(j, part_keys[part]);
+    position_json_stats(j, &e->position[group][part], e->h, 1);
+    json_close_obj(j);
+  }
+  json_close_obj(j);
+}
+
+static void position_text_header(FILE *f, const eval_ctx *e) {
+  fprintf(f, "  position error: surface %s (%s), correspondence %s, h = %.6g\n",
+          surf_names[e->surf], e->surf_source, e->correspondence, e->h);
+  fprintf(f, "    %-20s %9s %11s %11s %11s %9s %9s %9s\n", "", "points", "mean", "rms", "max",
+          "mean/h", "rms/h", "max/h");
+}
+
+static void position_text_row(FILE *f, const eval_ctx *e, int group) {
+  for (int part = 0; part < (e->has_feature ? PART_COUNT : 1); part++) {
+    const bsurf_distance_stats *s = &e->position[group][part];
+    char label[32];
+    snprintf(label, sizeof label, "%s%s", group_names[group], part_words[part]);
+    fprintf(f, "    %-20s %9zu %11.5g %11.5g %11.5g %9.4f %9.4f %9.4f\n", label, s->count, s->mean,
+            s->rms, s->max, s->mean / e->h, s->rms / e->h, s->max / e->h);
+  }
+}
+
 static const eval_section sections[] = {
     {"normals", normals_missing, normals_compute, normals_json, normals_text_header,
      normals_text_row},
     {"features", features_missing, features_compute, features_json, features_text_header,
      features_text_row},
+    {"position", position_missing, position_compute, position_json, position_text_header,
+     position_text_row},
 };
 #define SECTION_COUNT ((int)(sizeof sections / sizeof sections[0]))
 
@@ -200,37 +407,84 @@ static int parse_split(const cli_command *cmd, const char *arg, char *field, siz
   return 0;
 }
 
+/* The --split field from the result, else from the truth (through the
+ * correspondence); 0 or an exit code. */
 static int run_split(eval_ctx *e) {
   const bsurf_field *f = bsurf_cloud_field(e->result, e->split_field);
   const char *where = e->result_path;
+  int from_truth = 0;
   if (!f) {
     f = bsurf_cloud_field(e->truth, e->split_field);
     where = e->truth_path;
+    from_truth = 1;
   }
   if (!f)
     return cli_error("--split: neither %s nor %s has a field '%s'", e->result_path, e->truth_path,
                      e->split_field);
   size_t n = e->result->point_count, bad = 0;
+  const double *values = f->values;
+  double *mapped = NULL;
+  if (from_truth && e->match) {
+    if (!(mapped = malloc(sizeof(double) * (n ? n : 1)))) return cli_error("out of memory");
+    for (size_t i = 0; i < n; i++) mapped[i] = f->values[e->match[i]];
+    values = mapped;
+  }
   e->high = malloc(n ? n : 1);
-  if (!e->high) return cli_error("out of memory");
-  bsurf_status st = bsurf_quantile_split(f->values, n, e->split_q, e->high, &e->threshold,
+  if (!e->high) {
+    free(mapped);
+    return cli_error("out of memory");
+  }
+  bsurf_status st = bsurf_quantile_split(values, n, e->split_q, e->high, &e->threshold,
                                          &e->group_points[GROUP_HIGH], &bad);
+  free(mapped);
   if (st == BSURF_ERR_INVALID_VALUE)
-    return cli_error("%s: field '%s' is NaN at point %zu (0-based)", where, e->split_field, bad);
+    return cli_error("%s: field '%s' is NaN at point %zu (0-based)", where, e->split_field,
+                     from_truth ? truth_index(e, bad) : bad);
   if (st != BSURF_OK) return cli_error("--split: %s", bsurf_strerror(st));
   e->group_points[GROUP_LOW] = n - e->group_points[GROUP_HIGH];
   return 0;
 }
 
+/* Result point i <-> truth point i when the counts agree, else the nearest
+ * truth point; computed only when something needs it (tangent planes, the
+ * truth's feature labels for position, a --split field of the truth). */
+static int run_correspondence(eval_ctx *e) {
+  const size_t n = e->result->point_count, nt = e->truth->point_count;
+  int split_from_truth = e->split_field && !bsurf_cloud_field(e->result, e->split_field) &&
+                         bsurf_cloud_field(e->truth, e->split_field);
+  int position_needs = e->surf == SURF_TANGENT_PLANE ||
+                       (e->surf != SURF_NONE && bsurf_cloud_field(e->truth, "feature"));
+  if (n == nt) {
+    e->correspondence = "index";
+    return 0;
+  }
+  if (!split_from_truth && !position_needs) {
+    e->correspondence = "none";
+    return 0;
+  }
+  e->correspondence = "nearest";
+  if (nt == 0) return cli_error("%s (the truth) has no points", e->truth_path);
+  if (nt > UINT32_MAX) return cli_error("%s (the truth) has too many points", e->truth_path);
+  e->match = malloc(sizeof(uint32_t) * (n ? n : 1));
+  if (!e->match) return cli_error("out of memory");
+  bsurf_status st = bsurf_match_nearest(e->truth->xyz, nt, e->result->xyz, n, e->threads, e->match);
+  if (st != BSURF_OK) return cli_error("correspondence: %s", bsurf_strerror(st));
+  return 0;
+}
+
 int cmd_eval(const cli_command *cmd, int argc, char **argv) {
-  const char *truth_path = NULL, *split = NULL;
-  int json = 0, quiet = 0;
+  const char *truth_path = NULL, *split = NULL, *surface_path = NULL;
+  int json = 0, quiet = 0, threads = 0;
   cli_option opts[] = {
       {0, "truth", ARG_STRING, &truth_path, "FILE",
-       "ground truth: the same points in the same order", 1, 0},
+       "ground truth: points (normals, feature) of the true surface", 1, 0},
+      {0, "surface", ARG_STRING, &surface_path, "MESH",
+       "true surface of the position error: a triangle mesh (e.g. the one TRUTH was sampled from)",
+       1, 0},
       {0, "split", ARG_STRING, &split, "FIELD:Q",
        "also summarise the points whose FIELD is above its Q-quantile (high) and the rest (low)", 1,
        0},
+      CLI_OPT_THREADS(threads),
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -244,34 +498,39 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
   if (split && parse_split(cmd, split, split_field, sizeof split_field, &split_q)) return CLI_USAGE;
 
   double t0 = cli_now();
-  bsurf_cloud result, truth;
+  bsurf_cloud result, truth, surface;
   bsurf_cloud_init(&result);
   bsurf_cloud_init(&truth);
+  bsurf_cloud_init(&surface);
   eval_ctx e;
   memset(&e, 0, sizeof e);
-  if (cli_read_cloud(pos[0], &result)) return 1;
-  if (cli_read_cloud(truth_path, &truth)) {
-    bsurf_cloud_free(&result);
-    return 1;
-  }
-  e.result_path = pos[0];
-  e.truth_path = truth_path;
-  e.result = &result;
-  e.truth = &truth;
-  e.group_points[GROUP_ALL] = result.point_count;
   int available[SECTION_COUNT], navailable = 0;
   char reasons[SECTION_COUNT][512];
-  if (result.point_count != truth.point_count) {
-    rc = cli_error("%s has %zu points but %s (the truth) has %zu; eval compares the same points in "
-                   "the same order",
-                   pos[0], result.point_count, truth_path, truth.point_count);
-    goto done;
+  rc = 1;
+  if (cli_read_cloud(pos[0], &result) || cli_read_cloud(truth_path, &truth)) goto done;
+  if (surface_path) {
+    if (cli_read_cloud(surface_path, &surface)) goto done;
+    if (!surface.face_count) {
+      rc = cli_error("%s has no faces: --surface needs a triangle mesh", surface_path);
+      goto done;
+    }
   }
+  rc = 0;
+  e.result_path = pos[0];
+  e.truth_path = truth_path;
+  e.surface_path = surface_path;
+  e.result = &result;
+  e.truth = &truth;
+  e.threads = threads;
+  e.quiet = quiet;
+  e.group_points[GROUP_ALL] = result.point_count;
+  position_pick_surface(&e, surface_path ? &surface : NULL);
   if (split) {
     e.split_field = split_field;
     e.split_q = split_q;
-    if ((rc = run_split(&e)) != 0) goto done;
   }
+  if ((rc = run_correspondence(&e)) != 0) goto done;
+  if (split && (rc = run_split(&e)) != 0) goto done;
   for (int s = 0; s < SECTION_COUNT; s++) {
     available[s] = sections[s].missing(&e, reasons[s], sizeof reasons[s]) == NULL;
     navailable += available[s];
@@ -295,6 +554,7 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
     json_str(&j, "input", pos[0]);
     json_str(&j, "truth", truth_path);
     json_int(&j, "points", (long long)result.point_count);
+    json_int(&j, "truth_points", (long long)truth.point_count);
     for (int s = 0; s < SECTION_COUNT; s++)
       if (available[s]) sections[s].json(&j, &e, GROUP_ALL);
     if (split) {
@@ -311,11 +571,12 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
       }
       json_close_obj(&j);
     }
+    json_int(&j, "threads", bsurf_threads_resolve(threads));
     json_num(&j, "seconds", secs);
     json_end(&j);
   } else if (!quiet) {
-    printf("eval %s against %s: %zu points, %.2f s\n", pos[0], truth_path, result.point_count,
-           secs);
+    printf("eval %s against %s: %zu points (truth %zu), %.2f s\n", pos[0], truth_path,
+           result.point_count, truth.point_count, secs);
     if (split)
       printf("  split by %s at quantile %g (threshold %.6g): high %zu points (above), low %zu\n",
              split_field, split_q, e.threshold, e.group_points[GROUP_HIGH],
@@ -325,14 +586,16 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
         printf("  %s: not evaluated: %s\n", sections[s].name, reasons[s]);
         continue;
       }
-      sections[s].text_header(stdout);
+      sections[s].text_header(stdout, &e);
       for (int g = 0; g < groups; g++)
         sections[s].text_row(stdout, &e, g);
     }
   }
 done:
   free(e.high);
+  free(e.match);
   bsurf_cloud_free(&result);
   bsurf_cloud_free(&truth);
+  bsurf_cloud_free(&surface);
   return rc;
 }

@@ -49,16 +49,21 @@ static const cli_command commands[] = {
      "diagonal when there is none), and feature, 1 within --feature-width nominal\n"
      "spacings sqrt(area / points) of one. MESH needs faces (.off, .obj, .ply).",
      cmd_sample},
-    {"eval", "Compare a result with ground truth (normal angles, feature scores).",
-     "RESULT --truth TRUTH [options]",
-     "RESULT and TRUTH list the same points in the same order (e.g. the output of\n"
-     "normals and the sample or generate file it came from). normals: unoriented\n"
+    {"eval", "Compare a result with ground truth (normal angles, feature scores, position).",
+     "RESULT --truth TRUTH [--surface MESH] [options]",
+     "normals and features compare the same points in the same order (e.g. the output\n"
+     "of normals and the sample or generate file it came from). normals: unoriented\n"
      "angle errors, mean, median and rms in radians, mean in degrees, and the\n"
-     "fractions under 5 and 10 degrees (PCPNet's PGP5/PGP10). --split FIELD:Q also\n"
-     "reports the points whose FIELD (from RESULT, else TRUTH) is above its\n"
-     "Q-quantile and the rest, e.g. normal_var:0.85 for the highest 15% of the\n"
-     "bootstrap variance (thesis Table 5.2). features: precision, recall and F1 of\n"
-     "RESULT's feature field (0/1) against TRUTH's.",
+     "fractions under 5 and 10 degrees (PCPNet's PGP5/PGP10). features: precision,\n"
+     "recall and F1 of RESULT's feature field (0/1) against TRUTH's. position: the\n"
+     "distance of each RESULT point to the true surface -- --surface MESH, else\n"
+     "TRUTH's faces, else the shape TRUTH was generated as, else the tangent plane of\n"
+     "the corresponding TRUTH point (its normal) -- mean, rms and max, absolute and in\n"
+     "units of TRUTH's spacing h, also for TRUTH's feature and non-feature points.\n"
+     "Point i corresponds to TRUTH point i when both have as many points, else to the\n"
+     "nearest TRUTH point. --split FIELD:Q also reports the points whose FIELD (from\n"
+     "RESULT, else TRUTH) is above its Q-quantile and the rest, e.g. normal_var:0.85\n"
+     "for the highest 15% of the bootstrap variance (thesis Table 5.2).",
      cmd_eval},
     {"render", "Render a cloud to PNG, shaded by normals or coloured by a field.", "INPUT -o IMAGE.png [options]",
      "Orthographic view of the points as z-buffered splats of diameter --point-size\n"
@@ -81,6 +86,15 @@ static const cli_command commands[] = {
      "or the file name); with --field every panel uses the same colour range (by\n"
      "default the 1st-99th percentile of all inputs together) and one colour bar.",
      cmd_compare},
+    {"smooth", "Denoise: move points towards the bootstrap fits (thesis ch. 6).", "INPUT -o OUTPUT [options]",
+     "naive (6.2, Eq. 6.1): each point to the mean of its B bootstrap fits, only where\n"
+     "its error is below --threshold. bilateral (6.3, Algorithm 4, Eq. 6.2): every\n"
+     "neighbourhood's fit pulls the point and its neighbours with weight\n"
+     "G(distance, h1) G(W_i, h2), G(a, b) = exp(-a^2/b^2). multipass (6.4, Algorithm 5):\n"
+     "per point a neighbourhood K_i shrinking with the error (Eqs. 6.3-6.4), fits made\n"
+     "once, then --iterations passes of Eq. 6.2 with h1 = a d_L (Eq. 6.5). Every input\n"
+     "field is kept; err_632, err_632plus and moved (and k_hat, d_local) are added.",
+     cmd_smooth},
     {"features", "Feature detection: PCA distance map or bootstrap variance (thesis ch. 7).",
      "INPUT -o OUTPUT [options]",
      "distance (7.1): per point, PCA of growing neighbourhoods (--k-min..--k-max);\n"

@@ -103,6 +103,10 @@ typedef struct bsurf_cloud {
   bsurf_field *fields;   /* field_count */
   size_t face_count;
   uint32_t *faces;       /* face_count x 3 (polygons are fan-triangulated) */
+  char shape[BSURF_FIELD_NAME_MAX]; /* the generated shape the points sample
+                                       (bsurf_shape_name; set by bsurf_generate)
+                                       or "": PLY keeps it as the header line
+                                       "comment bootsurf shape NAME" */
 } bsurf_cloud;
 
 /* An empty cloud (all zero / NULL). */
@@ -373,6 +377,85 @@ bsurf_status bsurf_smooth_normals(const double *xyz, const bsurf_neighbors *nb, 
  * is turned to +z. normals in/out: point_count x 3. */
 bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, int k,
                                   double *normals);
+
+/* ------------------------------------------------------------------------ */
+/* Smoothing driven by the bootstrap error (thesis chapter 6)                 */
+/* ------------------------------------------------------------------------ */
+
+typedef enum bsurf_smooth_method {
+  BSURF_SMOOTH_NAIVE = 0,  /* 6.2, Eq. 6.1: projection to the mean bootstrap fit */
+  BSURF_SMOOTH_BILATERAL,  /* 6.3, Algorithm 4, Eq. 6.2 */
+  BSURF_SMOOTH_MULTIPASS   /* 6.4, Algorithm 5, Eqs. 6.3-6.5 */
+} bsurf_smooth_method;
+
+typedef enum bsurf_smooth_order {
+  BSURF_ORDER_PARALLEL = 0, /* every neighbourhood's fit from the same positions;
+                               a point's moves are combined (order-independent) */
+  BSURF_ORDER_SEQUENTIAL    /* the thesis's in-place sweep i = 1..N (one thread) */
+} bsurf_smooth_order;
+
+typedef enum bsurf_smooth_estimator {
+  BSURF_SMOOTH_EST_DEFAULT = 0, /* .632+ for naive (6.2), .632 otherwise (6.1, Eq. 4.5) */
+  BSURF_SMOOTH_EST_632,
+  BSURF_SMOOTH_EST_632PLUS
+} bsurf_smooth_estimator;
+
+typedef struct bsurf_smooth_options {
+  bsurf_smooth_method method;       /* BILATERAL */
+  bsurf_error_options error;        /* K, degree, B, seed, gamma, PCA centre,
+                                       threads, progress of the bootstrap pass */
+  bsurf_smooth_estimator estimator; /* which error is W_i (DEFAULT) */
+  /* naive: project where W_i < threshold. NAN = auto (the mean of W_i over
+   * the cloud, the thesis's reference value of 6.2); INFINITY = every point. */
+  double threshold;
+  /* bilateral: theta_1 = G(., h1) and theta_2 = G(., h2) of Eq. 6.2, with
+   * G(a, b) = exp(-a^2/b^2) (Eq. 5.7). h1 <= 0: h (mean spacing). h2 <= 0:
+   * h2_fraction x |W|, the mean of W_i. */
+  double h1, h2;
+  double h2_fraction; /* <= 0: the method's default, 0.75 for bilateral (Fig. 6.5),
+                         0.3 for multipass (6.4.1) */
+  bsurf_smooth_order order; /* bilateral and multipass (PARALLEL) */
+  /* multipass: h1 = a d_L (Eq. 6.5); K_i = max{k_min, y} with y the linear
+   * map of Eq. 6.4 from (0, K) to (k_error, k_min); k_error <= 0: |W|. */
+  double a;          /* 0.1 */
+  int iterations;    /* 300 */
+  int k_min;         /* 10 */
+  double k_error;    /* 0 (= |W|) */
+} bsurf_smooth_options;
+
+bsurf_smooth_options bsurf_smooth_options_default(void);
+
+/* Per-point outputs, point_count long or NULL when not wanted. */
+typedef struct bsurf_smooth_fields {
+  double *err_632;     /* Eq. 4.5 of the bootstrap pass */
+  double *err_632plus; /* Eqs. 4.7-4.10 of the bootstrap pass */
+  double *moved;       /* distance from the input position */
+  double *k_hat;       /* multipass: K_i of Eq. 6.3 */
+  double *d_local;     /* multipass: d_L, the mean nearest-neighbour distance
+                          over the K_i neighbourhood */
+} bsurf_smooth_fields;
+
+typedef struct bsurf_smooth_report {
+  bsurf_error_report error; /* of the bootstrap pass */
+  double h;                 /* mean spacing (nb->h) */
+  double mean_error;        /* |W|: mean of the W_i used */
+  double threshold;         /* naive: the threshold applied */
+  double h1, h2;            /* the sigmas applied (multipass: h1 = 0, per point) */
+  double k_error;           /* multipass: the error mapped to k_min */
+  size_t projected;         /* naive: points under the threshold */
+  size_t moved_points;      /* points whose position changed */
+  double moved_mean, moved_max; /* displacement over all points */
+  int iterations;           /* multipass: passes run */
+} bsurf_smooth_report;
+
+/* Moves the points of a cloud towards the bootstrap fits (chapter 6).
+ * xyz in: point_count x 3; nb: neighbourhoods with nb->k >= opts->error.k;
+ * out_xyz out: point_count x 3 (may not alias xyz). Deterministic for a given
+ * seed, whatever the thread count (the sequential order runs its sweep on one
+ * thread). */
+bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
+                          const bsurf_smooth_options *opts, double *out_xyz,
+                          bsurf_smooth_fields *fields, bsurf_smooth_report *report);
 
 /* ------------------------------------------------------------------------ */
 /* Feature detection (thesis chapter 7)                                      */
@@ -749,6 +832,78 @@ typedef struct bsurf_feature_stats {
 /* result, truth in: count (non-zero = feature). */
 bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth, size_t count,
                                  bsurf_feature_stats *stats);
+
+/* Position error: the distance from points (e.g. a smoothed cloud) to the
+ * true surface. */
+
+/* Exact distance from p to the triangle (a, b, c): the closest point by
+ * Voronoi regions (Ericson, Real-Time Collision Detection, 5.1.5). A
+ * zero-area triangle is treated as its edges (never NaN for finite input).
+ * closest out: 3, may be NULL. */
+double bsurf_triangle_distance(const double p[3], const double a[3], const double b[3],
+                               const double c[3], double closest[3]);
+
+/* A bounding-volume hierarchy over a mesh's triangles for exact distances. */
+typedef struct bsurf_mesh_index bsurf_mesh_index;
+
+/* Builds the index over a mesh's faces (a copy: the mesh need not outlive
+ * it). Deterministic. BSURF_ERR_INVALID_ARG when the mesh has no face or a
+ * face index is out of range, BSURF_ERR_INVALID_VALUE for a non-finite
+ * vertex. */
+bsurf_status bsurf_mesh_index_build(bsurf_mesh_index **index, const bsurf_cloud *mesh);
+void bsurf_mesh_index_free(bsurf_mesh_index *index);
+
+/* Exact distance from p to the nearest triangle: the minimum of
+ * bsurf_triangle_distance over all faces, bit for bit (equal distances: the
+ * lowest face index). face out (may be NULL): that face; closest out: 3, may
+ * be NULL. NAN for a non-finite p. Thread-safe (the index is read only). */
+double bsurf_mesh_distance(const bsurf_mesh_index *index, const double p[3], size_t *face,
+                           double closest[3]);
+
+typedef enum bsurf_surface_kind {
+  BSURF_SURFACE_MESH = 0,     /* a triangle mesh: bsurf_mesh_distance */
+  BSURF_SURFACE_SHAPE,        /* a generated shape: bsurf_shape_distance */
+  BSURF_SURFACE_TANGENT_PLANE /* |(p - t) . n| / |n| with t, n the corresponding
+                                 truth point and its normal */
+} bsurf_surface_kind;
+
+/* The true surface of bsurf_position_errors; only the kind's members are read. */
+typedef struct bsurf_true_surface {
+  bsurf_surface_kind kind;
+  const bsurf_mesh_index *mesh;  /* MESH */
+  bsurf_shape shape;             /* SHAPE */
+  const double *truth_xyz;       /* TANGENT_PLANE: truth_count x 3 */
+  const double *truth_normals;   /* TANGENT_PLANE: truth_count x 3, non-zero */
+  size_t truth_count;
+  const uint32_t *match;         /* TANGENT_PLANE: point i corresponds to truth
+                                    point match[i] (count); NULL: to truth point i */
+} bsurf_true_surface;
+
+/* Per-point distance to the true surface, in parallel; the same for any
+ * thread count. xyz in: count x 3; dist out: count. BSURF_ERR_INVALID_ARG
+ * for a missing member or a match out of range; BSURF_ERR_INVALID_VALUE when
+ * a distance is NaN (a zero truth normal, a non-finite point), the others
+ * being filled. */
+bsurf_status bsurf_position_errors(const double *xyz, size_t count,
+                                   const bsurf_true_surface *surface, int threads, double *dist,
+                                   bsurf_progress_fn progress, void *progress_user);
+
+/* Correspondence of two clouds with different points: for each point of xyz
+ * (count x 3) the nearest truth point (k-d tree; ties by the lower index).
+ * match out: count. Parallel, deterministic. truth_count >= 1. */
+bsurf_status bsurf_match_nearest(const double *truth_xyz, size_t truth_count, const double *xyz,
+                                 size_t count, int threads, uint32_t *match);
+
+/* Summary of distances. An empty set has count 0 and NAN elsewhere. */
+typedef struct bsurf_distance_stats {
+  size_t count;
+  double mean, rms, max;
+} bsurf_distance_stats;
+
+/* Statistics of dist[i] over the points with mask[i] == keep (mask NULL:
+ * all), summed in point order. dist in: count. */
+bsurf_status bsurf_distance_stats_compute(const double *dist, const uint8_t *mask, uint8_t keep,
+                                          size_t count, bsurf_distance_stats *stats);
 
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */

@@ -19,9 +19,8 @@
  * are computed once per point (src/local/poly.c); those of all B replicates
  * are one B x K by K x (p + m) matrix product, then a Cholesky solve each. Points are
  * independent, so the loop is parallel; results do not depend on threads. */
-#include "bootstrap/bootstrap.h"
+#include "algo/algo.h"
 #include "common/common.h"
-#include "local/local.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -40,21 +39,7 @@ bsurf_error_options bsurf_error_options_default(void) {
   return o;
 }
 
-typedef struct error_scratch {
-  bsurf_localfit lf;
-  double *pred_full; /* k */
-  double *pred_boot; /* B x k */
-  uint16_t *counts;  /* k: one replicate's multiplicities */
-  double *weights;   /* B x k: counts as doubles */
-  double *missing;   /* B x k: 1 where the point is not in the replicate */
-  double *rows;      /* B x ncols: normal equations of the replicates */
-  double *coefs;     /* B x terms */
-  unsigned char *valid; /* B */
-  double *est_scratch;  /* 6k + 1 */
-  size_t skipped, reduced, center_unestimated;
-} error_scratch;
-
-static void scratch_free(error_scratch *s) {
+void bsurf_error_scratch_free(bsurf_error_scratch *s) {
   bsurf_localfit_free(&s->lf);
   free(s->pred_full);
   free(s->pred_boot);
@@ -68,7 +53,7 @@ static void scratch_free(error_scratch *s) {
   memset(s, 0, sizeof *s);
 }
 
-static bsurf_status scratch_alloc(error_scratch *s, int k, int B, int degree) {
+bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int degree) {
   memset(s, 0, sizeof *s);
   bsurf_status st = bsurf_localfit_alloc(&s->lf, k, degree);
   if (st != BSURF_OK) return st;
@@ -84,7 +69,7 @@ static bsurf_status scratch_alloc(error_scratch *s, int k, int B, int degree) {
   s->est_scratch = bsurf_alloc_array(6 * (size_t)k + 1, sizeof(double));
   if (!s->pred_full || !s->pred_boot || !s->counts || !s->weights || !s->missing || !s->rows || !s->coefs ||
       !s->valid || !s->est_scratch) {
-    scratch_free(s);
+    bsurf_error_scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
   return BSURF_OK;
@@ -94,11 +79,10 @@ static void put(double *field, size_t i, double v) {
   if (field) field[i] = v;
 }
 
-static void error_point(const double *xyz, const bsurf_neighbors *nb, const double *test_xyz,
-                        const bsurf_error_options *o, size_t i, error_scratch *s,
-                        bsurf_error_fields *out) {
+void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *test_xyz,
+                       const bsurf_error_options *o, size_t i, bsurf_error_scratch *s,
+                       bsurf_error_fields *out, bsurf_error_fit *fit) {
   const int k = o->k, B = o->bootstrap;
-  const uint32_t *idx = &nb->idx[i * (size_t)nb->k];
   bsurf_frame frame;
   bsurf_local_frame(xyz, idx, k, o->pca_center, &frame);
   bsurf_localfit *lf = &s->lf;
@@ -144,6 +128,24 @@ static void error_point(const double *xyz, const bsurf_neighbors *nb, const doub
   put(out->gamma, i, r.gamma);
   put(out->overfit_rate, i, r.overfit_rate);
 
+  if (fit) {
+    fit->frame = frame;
+    fit->inv_scale = 1.0 / lf->scale;
+    fit->degree = degree;
+    const int mfull = bsurf_poly_terms(o->degree);
+    for (int a = 0; a < mfull; a++) fit->coef[a] = a < m ? coef[a] : 0.0;
+    /* Eq. 6.1: the mean of the valid replicates' predictions at the centre */
+    double sum = 0;
+    int used = 0;
+    for (int b = 0; b < B; b++)
+      if (s->valid[b]) {
+        sum += s->pred_boot[(size_t)b * k];
+        used++;
+      }
+    fit->boot_center = used ? sum / used : s->pred_full[0];
+    fit->r = r;
+  }
+
   if (test_xyz && (out->err_test || out->err_test_center)) {
     /* The true test error of this fit: the same surface points with
      * independent noise, localised in the same frame (validation only). */
@@ -160,18 +162,34 @@ static void error_point(const double *xyz, const bsurf_neighbors *nb, const doub
   }
 }
 
+bsurf_status bsurf_error_check(const bsurf_error_options *o, const bsurf_neighbors *nb) {
+  if (!o || !nb || !nb->idx) return BSURF_ERR_INVALID_ARG;
+  if (o->degree < 1 || o->degree > BSURF_DEGREE_MAX) return BSURF_ERR_INVALID_ARG;
+  if (o->bootstrap < 0 || o->bootstrap > 100000) return BSURF_ERR_INVALID_ARG;
+  if (o->k < 2 || o->k > 65535) return BSURF_ERR_INVALID_ARG;
+  if (o->k > nb->k) return BSURF_ERR_INVALID_ARG;
+  if ((size_t)o->k > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
+  if (o->k < bsurf_poly_terms(o->degree)) return BSURF_ERR_TOO_FEW_POINTS;
+  return BSURF_OK;
+}
+
 typedef struct error_ctx {
   const double *xyz;
   const bsurf_neighbors *nb;
   const double *test_xyz;
   const bsurf_error_options *o;
-  error_scratch *scr;
+  bsurf_error_scratch *scr;
   bsurf_error_fields *out;
 } error_ctx;
 
+static void error_point_at(error_ctx *c, int thread, size_t i) {
+  bsurf_error_point(c->xyz, &c->nb->idx[i * (size_t)c->nb->k], c->test_xyz, c->o, i, &c->scr[thread],
+                    c->out, NULL);
+}
+
 static void error_point_task(void *vctx, int thread, size_t i) {
   error_ctx *c = vctx;
-  error_point(c->xyz, c->nb, c->test_xyz, c->o, i, &c->scr[thread], c->out);
+  error_point_at(c, thread, i);
 }
 
 bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
@@ -179,21 +197,16 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
                                   bsurf_error_fields *out, bsurf_error_report *report) {
   bsurf_error_options o = opts ? *opts : bsurf_error_options_default();
   if (report) memset(report, 0, sizeof *report);
-  if (!xyz || !nb || !nb->idx || !out) return BSURF_ERR_INVALID_ARG;
-  if (o.degree < 1 || o.degree > BSURF_DEGREE_MAX) return BSURF_ERR_INVALID_ARG;
-  if (o.bootstrap < 0 || o.bootstrap > 100000) return BSURF_ERR_INVALID_ARG;
-  if (o.k < 2 || o.k > 65535) return BSURF_ERR_INVALID_ARG;
-  if (o.k > nb->k) return BSURF_ERR_INVALID_ARG;
-  if ((size_t)o.k > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
-  if (o.k < bsurf_poly_terms(o.degree)) return BSURF_ERR_TOO_FEW_POINTS;
+  if (!xyz || !out) return BSURF_ERR_INVALID_ARG;
+  bsurf_status st = bsurf_error_check(&o, nb);
+  if (st != BSURF_OK) return st;
 
   const size_t n = nb->point_count;
   const int T = bsurf_threads_resolve(o.threads);
-  error_scratch *scr = calloc((size_t)T, sizeof *scr);
+  bsurf_error_scratch *scr = calloc((size_t)T, sizeof *scr);
   if (!scr) return BSURF_ERR_NOMEM;
-  bsurf_status st = BSURF_OK;
   for (int t = 0; t < T && st == BSURF_OK; t++)
-    st = scratch_alloc(&scr[t], o.k, o.bootstrap, o.degree);
+    st = bsurf_error_scratch_alloc(&scr[t], o.k, o.bootstrap, o.degree);
 
   if (st == BSURF_OK) {
     error_ctx ctx = {xyz, nb, test_xyz, &o, scr, out};
@@ -208,7 +221,7 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
       report->center_unestimated += scr[t].center_unestimated;
     }
   }
-  for (int t = 0; t < T; t++) scratch_free(&scr[t]);
+  for (int t = 0; t < T; t++) bsurf_error_scratch_free(&scr[t]);
   free(scr);
   return st;
 }

@@ -51,6 +51,7 @@ bsurf_status bsurf_cloud_copy(bsurf_cloud *dst, const bsurf_cloud *src) {
   c.point_count = src->point_count;
   c.xyz_type = src->xyz_type;
   c.normal_type = src->normal_type;
+  memcpy(c.shape, src->shape, sizeof c.shape);
   c.xyz = dup_array(src->xyz, src->point_count, 3 * sizeof(double));
   c.normals = dup_array(src->normals, src->point_count, 3 * sizeof(double));
   c.faces = dup_array(src->faces, src->face_count, 3 * sizeof(uint32_t));

@@ -66,4 +66,8 @@ typedef void (*bsurf_point_fn)(void *ctx, int thread, size_t i);
 bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, void *ctx,
                                    bsurf_progress_fn progress, void *progress_user);
 
+/* The same in one parallel region, without progress or cancellation: for
+ * short sweeps repeated many times (the smoothing passes). */
+bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void *ctx);
+
 #endif

@@ -28,3 +28,20 @@ bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, voi
   (void)T;
   return BSURF_OK;
 }
+
+bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void *ctx) {
+  const int T = bsurf_threads_resolve(threads);
+  long long nn = (long long)n;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(T) schedule(dynamic, 512)
+#endif
+  for (long long i = 0; i < nn; i++) {
+#ifdef _OPENMP
+    fn(ctx, omp_get_thread_num(), (size_t)i);
+#else
+    fn(ctx, 0, (size_t)i);
+#endif
+  }
+  (void)T;
+  return BSURF_OK;
+}

@@ -96,6 +96,7 @@ bsurf_status bsurf_generate(bsurf_cloud *cloud, bsurf_shape shape, size_t n,
   bsurf_status st = bsurf_cloud_alloc(cloud, count, 1);
   if (st != BSURF_OK) return st;
   cloud->normal_type = BSURF_FLOAT64;
+  snprintf(cloud->shape, sizeof cloud->shape, "%s", bsurf_shape_name(shape));
 
   if (sampling == BSURF_SAMPLING_REGULAR) {
     switch (shape) {

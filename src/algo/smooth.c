@@ -1,0 +1,650 @@
+/* Smoothing driven by the bootstrap test error (thesis chapter 6).
+ *
+ * Every method starts with the bootstrap pass of chapter 4 (Algorithm 1,
+ * the same per-point fits as bsurf_estimate_error, algo/algo.h), which gives
+ * each point i its error W_i and its fits. Then:
+ *
+ * naive (6.2, Eq. 6.1): (x_i, y_i) -> (x_i, (1/B) sum_b f*b(x_i)) in point
+ *   i's local frame, i.e. the point moves along the frame normal to the mean
+ *   of the replicates' predictions at it, only where W_i (.632+ by default)
+ *   is below the threshold.
+ *
+ * bilateral (6.3, Algorithm 4, Eq. 6.2): the fit f_i of neighbourhood i moves
+ *   every neighbour z_ij towards its projection z*_ij onto the fitted surface
+ *   (along the frame normal: z*_ij = z_ij + (f_i(x_j, y_j) - y_j) n_i):
+ *       z_ij -> (1 - w_ij) z_ij + w_ij z*_ij,
+ *       w_ij = theta_1(|z_ij - z_i0|) theta_2(W_i),  theta_k(x) = G(x, h_k),
+ *   with G(a, b) = exp(-a^2/b^2) (Eq. 5.7).
+ *   order sequential: the thesis's sweep i = 1..N in place; each fit (frame
+ *     and polynomial) is made from the current positions, so earlier moves
+ *     feed later fits (6.4's remark on Algorithm 4). One thread.
+ *   order parallel: every fit from the input positions; a point p that lies
+ *     in the neighbourhoods i_1 < i_2 < ... receives the moves of all of them
+ *     at once as
+ *         p' = P p + (1 - P) sum_i w_i z*_i / sum_i w_i,  P = prod_i (1 - w_i),
+ *     which is what the sequential composition gives when the targets agree,
+ *     and does not depend on the order (sums run in increasing i).
+ *
+ * multipass (6.4, Algorithm 5, Eqs. 6.3-6.5): per point, K_i = max{k_min, y}
+ *   with y = (k_min - K) / k_error * W_i + K (Eq. 6.4, k_error = mean W by
+ *   default, y rounded to the nearest integer); d_L, the local average
+ *   distance between points, taken as the mean distance from the point to the
+ *   other K_i - 1 (for a uniformly sampled disc the mean over all pairs is
+ *   about 1.36 times this; it would cost K_i^2 instead of K_i); the frame and
+ *   polynomial of the K_i neighbourhood, computed once (Algorithm 5's second
+ *   loop), of the asked degree or lower so that there are at least two points
+ *   per coefficient (K_i = 10 would otherwise make a cubic interpolate).
+ *   A fit moves only points inside the disc its neighbourhood spans. Then `iterations` passes of Eq. 6.2 with h1 = a d_L (Eq. 6.5):
+ *   each pass projects the current positions onto the fixed fitted surfaces,
+ *   with weights from the current distances. The passes combine as the
+ *   bilateral orders above.
+ *
+ * Gaussian weights below 2^-54 are taken as 0: 1 - w rounds to 1 there, so
+ * such a weight cannot move a point by itself; this cut (a^2/b^2 > 54 ln 2)
+ * lets the passes skip far neighbours after one distance test.
+ *
+ * All of it is deterministic for a given seed, whatever the thread count:
+ * every point is updated by gathering its contributions in a fixed order. */
+#include "algo/algo.h"
+#include "common/common.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define GAUSS_CUT 37.42995136401172 /* 54 ln 2: exp(-GAUSS_CUT) = 2^-54 */
+
+bsurf_smooth_options bsurf_smooth_options_default(void) {
+  bsurf_smooth_options o;
+  memset(&o, 0, sizeof o);
+  o.method = BSURF_SMOOTH_BILATERAL;
+  o.error = bsurf_error_options_default();
+  o.estimator = BSURF_SMOOTH_EST_DEFAULT;
+  o.threshold = NAN;
+  o.h1 = 0;
+  o.h2 = 0;
+  o.h2_fraction = 0;
+  o.order = BSURF_ORDER_PARALLEL;
+  o.a = 0.1;
+  o.iterations = 300;
+  o.k_min = 10;
+  o.k_error = 0;
+  return o;
+}
+
+/* The exponent a^2 / b^2 of G(a, b) = exp(-a^2 / b^2) (Eq. 5.7); G(0, 0) = 1. */
+static double gauss_exponent(double a, double b) {
+  if (a == 0) return 0.0;
+  if (!(b > 0)) return INFINITY;
+  return (a / b) * (a / b);
+}
+
+/* A weight exp(-e), cut to 0 below 2^-54. */
+static double weight_of(double e) { return e > GAUSS_CUT ? 0.0 : (e == 0 ? 1.0 : exp(-e)); }
+
+/* ---- a fit kept for later passes: frame, scale, coefficients ----------- */
+/* Layout of one stored fit: origin[3], rot[9] (row-major), inv_scale, coef[m]. */
+#define FIT_HEAD 13
+
+static void fit_store(double *F, const bsurf_frame *fr, double inv_scale, const double *coef, int m) {
+  for (int t = 0; t < 3; t++) F[t] = fr->origin[t];
+  for (int r = 0; r < 3; r++)
+    for (int t = 0; t < 3; t++) F[3 + 3 * r + t] = fr->rot[r][t];
+  F[12] = inv_scale;
+  for (int a = 0; a < m; a++) F[FIT_HEAD + a] = coef[a];
+}
+
+/* delta = f(x', y') - z' for p in the stored frame: p's projection onto the
+ * fitted surface along the frame normal is p + delta n. A fit holds only over
+ * the disc its points span (scaled radius 1): outside it, where a polynomial
+ * extrapolates, NAN (no move). */
+static double fit_delta(const double *F, int degree, int m, const double p[3]) {
+  double q[3] = {p[0] - F[0], p[1] - F[1], p[2] - F[2]};
+  double x = F[3] * q[0] + F[4] * q[1] + F[5] * q[2];
+  double y = F[6] * q[0] + F[7] * q[1] + F[8] * q[2];
+  double z = F[9] * q[0] + F[10] * q[1] + F[11] * q[2];
+  double u = x * F[12], v = y * F[12];
+  if (u * u + v * v > 1.0) return NAN;
+  const double *a = &F[FIT_HEAD];
+  double f;
+  if (m <= 10) {
+    /* the graded basis up to degree 3 (zero-padded coefficients), summed in
+     * basis order as bsurf_poly_basis would */
+    double uu = u * u, uv = u * v, vv = v * v;
+    f = a[0];
+    if (m > 1) f += a[1] * u + a[2] * v;
+    if (m > 3) f += a[3] * uu + a[4] * uv + a[5] * vv;
+    if (m > 6) f += a[6] * (uu * u) + a[7] * (uu * v) + a[8] * (u * vv) + a[9] * (vv * v);
+  } else {
+    double phi[BSURF_TERMS_MAX];
+    bsurf_poly_basis(degree, u, v, phi);
+    f = 0;
+    for (int t = 0; t < m; t++) f += phi[t] * a[t];
+  }
+  return f - z;
+}
+
+/* Full-rank fit of the highest degree <= `degree` (down to a constant), as
+ * the error pass does for degenerate neighbourhoods; coef zero-padded to m. */
+static int solve_with_fallback(const bsurf_localfit *lf, int degree, int m, double *coef) {
+  int d = degree;
+  while (d > 0 && bsurf_localfit_solve(lf, d, NULL, coef) != 0) d--;
+  if (d == 0) bsurf_localfit_solve(lf, 0, NULL, coef);
+  for (int a = bsurf_poly_terms(d); a < m; a++) coef[a] = 0.0;
+  return d;
+}
+
+/* ---- progress over several stages ------------------------------------- */
+typedef struct staged_progress {
+  bsurf_progress_fn fn;
+  void *user;
+  int stage, stages;
+} staged_progress;
+
+static int staged_cb(void *u, size_t done, size_t total) {
+  staged_progress *s = u;
+  if (!s->fn) return 0;
+  size_t per = 1000;
+  size_t d = total ? (size_t)((double)done / (double)total * per) : per;
+  return s->fn(s->user, (size_t)s->stage * per + d, (size_t)s->stages * per);
+}
+
+/* ---- the shared state -------------------------------------------------- */
+typedef struct smooth_ctx {
+  const double *xyz;
+  const bsurf_neighbors *nb;
+  bsurf_smooth_options o;
+  size_t n;
+  int k, degree, m, stride;
+  bsurf_error_scratch *scr; /* per thread */
+  double *err_632, *err_632plus, *W;
+  double *fits;       /* n x stride (bilateral parallel, multipass) */
+  int *fit_degree;    /* n */
+  double *out;        /* n x 3 */
+  /* multipass */
+  int *khat;          /* n */
+  double *dl;         /* n */
+  double *e2;         /* n: theta_2(W_i) = exp(-e2[i]) */
+  double *inv_h1sq;   /* n: 1 / h1_i^2 (0 when h1_i = 0) */
+  double h1, h2, k_error;
+  double inv_h1sq_global; /* bilateral: 1 / h1^2 */
+  /* reverse neighbourhoods: the i whose neighbourhood contains p */
+  size_t *rev_off;    /* n + 1 */
+  uint32_t *rev;      /* rev_off[n] */
+  const double *cur;  /* positions a pass reads */
+  double *next;       /* positions a pass writes */
+  /* multipass: the pairs that can have a weight, rebuilt as points move */
+  uint32_t *act;      /* rev_off[n]: per p, a prefix of its slot range */
+  uint32_t *act_n;    /* n */
+  double *reach2;     /* n: (cut distance of theta_1 + 2 margin)^2 */
+  double *tmax;       /* threads x 8: largest move of a pass, per thread */
+} smooth_ctx;
+
+/* Stage 1: Algorithm 1 at every point (and the naive projection). */
+static void boot_task(void *vc, int thread, size_t i) {
+  smooth_ctx *c = vc;
+  bsurf_error_fields ef;
+  memset(&ef, 0, sizeof ef);
+  ef.err_632 = c->err_632;
+  ef.err_632plus = c->err_632plus;
+  bsurf_error_fit fit;
+  bsurf_error_point(c->xyz, &c->nb->idx[i * (size_t)c->nb->k], NULL, &c->o.error, i, &c->scr[thread],
+                    &ef, &fit);
+  const double *p = &c->xyz[3 * i];
+  if (c->o.method == BSURF_SMOOTH_NAIVE) {
+    /* Eq. 6.1: the centre has local coordinates (0, 0, 0) (the frame's
+     * origin is the point), so it moves by boot_center along n. */
+    for (int t = 0; t < 3; t++) c->out[3 * i + t] = p[t] + fit.boot_center * fit.frame.rot[2][t];
+  } else if (c->fits) {
+    fit_store(&c->fits[i * (size_t)c->stride], &fit.frame, fit.inv_scale, fit.coef, c->m);
+    c->fit_degree[i] = c->degree;
+  }
+}
+
+/* Multipass stage 2: K_i (Eqs. 6.3-6.4), d_L and the fit of the K_i points. */
+static void multipass_fit_task(void *vc, int thread, size_t i) {
+  smooth_ctx *c = vc;
+  const int K = c->k, kmin = c->o.k_min;
+  double y = (double)K;
+  if (c->k_error > 0) y = (double)(kmin - K) / c->k_error * c->W[i] + (double)K;
+  int kh = kmin;
+  if (y > kmin) kh = y >= K ? K : (int)floor(y + 0.5);
+  if (kh < kmin) kh = kmin;
+  if (kh > K) kh = K;
+  c->khat[i] = kh;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  const double *p0 = &c->xyz[3 * i];
+  double s = 0;
+  for (int j = 1; j < kh; j++) {
+    const double *q = &c->xyz[3 * (size_t)idx[j]];
+    s += sqrt((q[0] - p0[0]) * (q[0] - p0[0]) + (q[1] - p0[1]) * (q[1] - p0[1]) +
+              (q[2] - p0[2]) * (q[2] - p0[2]));
+  }
+  c->dl[i] = kh > 1 ? s / (kh - 1) : 0.0;
+
+  bsurf_frame fr;
+  bsurf_local_frame(c->xyz, idx, kh, c->o.error.pca_center, &fr);
+  bsurf_localfit *lf = &c->scr[thread].lf;
+  /* least squares with at least two points per term: a fit that (nearly)
+   * interpolates K_i noisy points follows the noise and swings between them */
+  int deg = c->degree;
+  while (deg > 1 && 2 * bsurf_poly_terms(deg) > kh) deg--;
+  bsurf_localfit_setup(lf, c->xyz, idx, kh, &fr, deg);
+  double coef[BSURF_TERMS_MAX];
+  c->fit_degree[i] = solve_with_fallback(lf, deg, c->m, coef);
+  fit_store(&c->fits[i * (size_t)c->stride], &fr, 1.0 / lf->scale, coef, c->m);
+
+  double h1 = c->o.a * c->dl[i];
+  c->inv_h1sq[i] = h1 > 0 ? 1.0 / (h1 * h1) : 0.0;
+  c->e2[i] = gauss_exponent(c->W[i], c->h2);
+}
+
+/* One point's gathered update (parallel order): the moves of every
+ * neighbourhood i that contains p, from the positions `cur`. */
+static double gather_update(const smooth_ctx *c, size_t p, int multipass) {
+  const double *x = &c->cur[3 * p];
+  double P = 1.0, S = 0.0, T[3] = {0, 0, 0};
+  const uint32_t *list = multipass ? &c->act[c->rev_off[p]] : &c->rev[c->rev_off[p]];
+  const size_t count = multipass ? c->act_n[p] : c->rev_off[p + 1] - c->rev_off[p];
+  for (size_t e = 0; e < count; e++) {
+    const uint32_t i = list[e];
+    const double *ci = &c->cur[3 * (size_t)i];
+    double d2 = (x[0] - ci[0]) * (x[0] - ci[0]) + (x[1] - ci[1]) * (x[1] - ci[1]) +
+                (x[2] - ci[2]) * (x[2] - ci[2]);
+    /* w = theta_1 theta_2 = exp(-(d^2/h1^2 + W_i^2/h2^2)) */
+    double ex = c->e2[i];
+    if (d2 > 0) {
+      double inv = multipass ? c->inv_h1sq[i] : c->inv_h1sq_global;
+      ex = inv > 0 ? ex + d2 * inv : INFINITY; /* h1 = 0: only the point itself */
+    }
+    if (!(ex <= GAUSS_CUT)) continue;
+    double w = ex == 0 ? 1.0 : exp(-ex);
+    const double *F = &c->fits[(size_t)i * c->stride];
+    double delta = fit_delta(F, c->fit_degree[i], c->m, x);
+    if (isnan(delta)) continue;
+    P *= 1.0 - w;
+    S += w;
+    for (int t = 0; t < 3; t++) T[t] += w * (x[t] + delta * F[9 + t]);
+  }
+  double *o = &c->next[3 * p];
+  if (S > 0) {
+    for (int t = 0; t < 3; t++) o[t] = P * x[t] + (1.0 - P) * (T[t] / S);
+  } else {
+    for (int t = 0; t < 3; t++) o[t] = x[t];
+  }
+  return (o[0] - x[0]) * (o[0] - x[0]) + (o[1] - x[1]) * (o[1] - x[1]) + (o[2] - x[2]) * (o[2] - x[2]);
+}
+
+static void gather_bilateral_task(void *vc, int thread, size_t p) {
+  (void)thread;
+  gather_update(vc, p, 0);
+}
+
+static void gather_multipass_task(void *vc, int thread, size_t p) {
+  smooth_ctx *c = vc;
+  double step2 = gather_update(c, p, 1);
+  if (step2 > c->tmax[8 * thread]) c->tmax[8 * thread] = step2;
+}
+
+/* The pairs (p, i) of the multipass that can carry a weight while no point
+ * moves by more than the margin: i = p, or |p - i| < cut_i + 2 margin at the
+ * positions `cur` (a pair further apart stays beyond theta_1's cut). Keeps
+ * the order of the reverse list. */
+static void active_task(void *vc, int thread, size_t p) {
+  (void)thread;
+  smooth_ctx *c = vc;
+  const double *x = &c->cur[3 * p];
+  uint32_t *act = &c->act[c->rev_off[p]];
+  uint32_t cnt = 0;
+  for (size_t e = c->rev_off[p]; e < c->rev_off[p + 1]; e++) {
+    const uint32_t i = c->rev[e];
+    if (!(c->e2[i] <= GAUSS_CUT)) continue; /* theta_2 alone is below the cut */
+    if (i != p) {
+      const double *ci = &c->cur[3 * (size_t)i];
+      double d2 = (x[0] - ci[0]) * (x[0] - ci[0]) + (x[1] - ci[1]) * (x[1] - ci[1]) +
+                  (x[2] - ci[2]) * (x[2] - ci[2]);
+      if (!(d2 < c->reach2[i])) continue;
+    }
+    act[cnt++] = i;
+  }
+  c->act_n[p] = cnt;
+}
+
+/* The reverse lists: for every p, the i (ascending) whose first size(i)
+ * neighbours contain p. size = NULL: all k. */
+static bsurf_status build_reverse(smooth_ctx *c, const int *size) {
+  const size_t n = c->n;
+  const int stride = c->nb->k;
+  c->rev_off = bsurf_calloc_array(n + 1, sizeof(size_t));
+  if (!c->rev_off) return BSURF_ERR_NOMEM;
+  for (size_t i = 0; i < n; i++) {
+    int kk = size ? size[i] : c->k;
+    const uint32_t *idx = &c->nb->idx[i * (size_t)stride];
+    for (int j = 0; j < kk; j++) c->rev_off[idx[j] + 1]++;
+  }
+  for (size_t p = 0; p < n; p++) c->rev_off[p + 1] += c->rev_off[p];
+  c->rev = bsurf_alloc_array(c->rev_off[n] ? c->rev_off[n] : 1, sizeof(uint32_t));
+  size_t *pos = bsurf_alloc_array(n ? n : 1, sizeof(size_t));
+  if (!c->rev || !pos) {
+    free(pos);
+    return BSURF_ERR_NOMEM;
+  }
+  memcpy(pos, c->rev_off, n * sizeof(size_t));
+  for (size_t i = 0; i < n; i++) {
+    int kk = size ? size[i] : c->k;
+    const uint32_t *idx = &c->nb->idx[i * (size_t)stride];
+    for (int j = 0; j < kk; j++) c->rev[pos[idx[j]]++] = (uint32_t)i;
+  }
+  free(pos);
+  return BSURF_OK;
+}
+
+/* Algorithm 4 step 3 in the thesis's order: for i = 1..N, the frame and fit
+ * of neighbourhood i from the current positions, then Eq. 6.2 in place. */
+static void bilateral_sequential(smooth_ctx *c) {
+  bsurf_localfit *lf = &c->scr[0].lf;
+  double *pred = c->scr[0].pred_full;
+  double *w = c->scr[0].est_scratch; /* >= k doubles */
+  const int k = c->k;
+  for (size_t i = 0; i < c->n; i++) {
+    const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+    const double e2 = c->e2[i];
+    if (!(e2 <= GAUSS_CUT)) continue;
+    bsurf_frame fr;
+    bsurf_local_frame(c->out, idx, k, c->o.error.pca_center, &fr);
+    bsurf_localfit_setup(lf, c->out, idx, k, &fr, c->degree);
+    double coef[BSURF_TERMS_MAX];
+    int d = solve_with_fallback(lf, c->degree, c->m, coef);
+    bsurf_localfit_predict(lf, d, 1, coef, NULL, pred);
+    const double *z0 = &c->out[3 * (size_t)idx[0]];
+    for (int j = 0; j < k; j++) {
+      const double *z = &c->out[3 * (size_t)idx[j]];
+      double dist = sqrt((z[0] - z0[0]) * (z[0] - z0[0]) + (z[1] - z0[1]) * (z[1] - z0[1]) +
+                         (z[2] - z0[2]) * (z[2] - z0[2]));
+      w[j] = weight_of(gauss_exponent(dist, c->h1) + e2);
+    }
+    for (int j = 0; j < k; j++) {
+      if (w[j] < 0x1p-54) continue;
+      double *z = &c->out[3 * (size_t)idx[j]];
+      double delta = pred[j] - lf->z[j];
+      for (int t = 0; t < 3; t++) z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * fr.rot[2][t]);
+    }
+  }
+}
+
+/* One multipass pass in the thesis's order (in place, one thread). */
+static void multipass_sequential_pass(smooth_ctx *c) {
+  double *w = c->scr[0].est_scratch;
+  for (size_t i = 0; i < c->n; i++) {
+    const double e2 = c->e2[i];
+    if (!(e2 <= GAUSS_CUT)) continue;
+    const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+    const int kh = c->khat[i];
+    const double *z0 = &c->out[3 * i];
+    for (int j = 0; j < kh; j++) {
+      const double *z = &c->out[3 * (size_t)idx[j]];
+      double d2 = (z[0] - z0[0]) * (z[0] - z0[0]) + (z[1] - z0[1]) * (z[1] - z0[1]) +
+                  (z[2] - z0[2]) * (z[2] - z0[2]);
+      double e1 = d2 == 0 ? 0 : (c->inv_h1sq[i] > 0 ? d2 * c->inv_h1sq[i] : INFINITY);
+      w[j] = weight_of(e1 + e2);
+    }
+    const double *F = &c->fits[i * (size_t)c->stride];
+    for (int j = 0; j < kh; j++) {
+      if (w[j] < 0x1p-54) continue;
+      double *z = &c->out[3 * (size_t)idx[j]];
+      double delta = fit_delta(F, c->fit_degree[i], c->m, z);
+      if (isnan(delta)) continue;
+      for (int t = 0; t < 3; t++) z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * F[9 + t]);
+    }
+  }
+}
+
+static void ctx_free(smooth_ctx *c, int T) {
+  if (c->scr)
+    for (int t = 0; t < T; t++) bsurf_error_scratch_free(&c->scr[t]);
+  free(c->scr);
+  free(c->fits);
+  free(c->fit_degree);
+  free(c->khat);
+  free(c->dl);
+  free(c->e2);
+  free(c->inv_h1sq);
+  free(c->rev_off);
+  free(c->rev);
+  free(c->act);
+  free(c->act_n);
+  free(c->reach2);
+  free(c->tmax);
+}
+
+bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
+                          const bsurf_smooth_options *opts, double *out_xyz,
+                          bsurf_smooth_fields *fields, bsurf_smooth_report *report) {
+  bsurf_smooth_options o = opts ? *opts : bsurf_smooth_options_default();
+  if (report) memset(report, 0, sizeof *report);
+  if (!xyz || !out_xyz || out_xyz == xyz) return BSURF_ERR_INVALID_ARG;
+  bsurf_status st = bsurf_error_check(&o.error, nb);
+  if (st != BSURF_OK) return st;
+  if (o.method < BSURF_SMOOTH_NAIVE || o.method > BSURF_SMOOTH_MULTIPASS) return BSURF_ERR_INVALID_ARG;
+  if (o.order != BSURF_ORDER_PARALLEL && o.order != BSURF_ORDER_SEQUENTIAL) return BSURF_ERR_INVALID_ARG;
+  if (isnan(o.h1) || isnan(o.h2) || isnan(o.h2_fraction) || isnan(o.k_error)) return BSURF_ERR_INVALID_ARG;
+  if (o.method == BSURF_SMOOTH_MULTIPASS) {
+    if (!(o.a >= 0) || !isfinite(o.a) || o.iterations < 0 || o.k_min < 1) return BSURF_ERR_INVALID_ARG;
+    if (o.k_min > o.error.k) return BSURF_ERR_INVALID_ARG;
+  }
+
+  smooth_ctx c;
+  memset(&c, 0, sizeof c);
+  c.xyz = xyz;
+  c.nb = nb;
+  c.n = nb->point_count;
+  c.k = o.error.k;
+  c.degree = o.error.degree;
+  c.m = bsurf_poly_terms(c.degree);
+  c.stride = FIT_HEAD + c.m;
+  c.out = out_xyz;
+  const size_t n = c.n;
+  const int T = bsurf_threads_resolve(o.error.threads);
+  const int seq = o.order == BSURF_ORDER_SEQUENTIAL;
+  const int stages = o.method == BSURF_SMOOTH_NAIVE ? 1 : (o.method == BSURF_SMOOTH_BILATERAL ? 2 : 3);
+  staged_progress sp = {o.error.progress, o.error.progress_user, 0, stages};
+  o.error.progress = NULL;
+  o.error.progress_user = NULL;
+
+  double *own632 = NULL, *own632p = NULL, *own_moved = NULL;
+  c.err_632 = fields && fields->err_632 ? fields->err_632 : (own632 = bsurf_alloc_array(n, sizeof(double)));
+  c.err_632plus = fields && fields->err_632plus ? fields->err_632plus
+                                                : (own632p = bsurf_alloc_array(n, sizeof(double)));
+  c.scr = calloc((size_t)T, sizeof *c.scr);
+  if (!c.err_632 || !c.err_632plus || !c.scr) {
+    st = BSURF_ERR_NOMEM;
+    goto done;
+  }
+  for (int t = 0; t < T && st == BSURF_OK; t++)
+    st = bsurf_error_scratch_alloc(&c.scr[t], c.k, o.error.bootstrap, c.degree);
+  if (st != BSURF_OK) goto done;
+  if ((o.method == BSURF_SMOOTH_BILATERAL && !seq) || o.method == BSURF_SMOOTH_MULTIPASS) {
+    c.fits = bsurf_alloc_array(n * (size_t)c.stride, sizeof(double));
+    c.fit_degree = bsurf_alloc_array(n, sizeof(int));
+    if (!c.fits || !c.fit_degree) {
+      st = BSURF_ERR_NOMEM;
+      goto done;
+    }
+  }
+  c.o = o;
+
+  /* ---- stage 1: the bootstrap pass (Algorithm 4 step 1, Algorithm 5's
+   * first loop) ---- */
+  st = bsurf_parallel_points(n, T, boot_task, &c, staged_cb, &sp);
+  if (st != BSURF_OK) goto done;
+  if (report) {
+    report->error.replicates_total = n * (size_t)o.error.bootstrap;
+    for (int t = 0; t < T; t++) {
+      report->error.replicates_skipped += c.scr[t].skipped;
+      report->error.degree_reduced += c.scr[t].reduced;
+      report->error.center_unestimated += c.scr[t].center_unestimated;
+    }
+  }
+  bsurf_smooth_estimator est = o.estimator;
+  if (est == BSURF_SMOOTH_EST_DEFAULT)
+    est = o.method == BSURF_SMOOTH_NAIVE ? BSURF_SMOOTH_EST_632PLUS : BSURF_SMOOTH_EST_632;
+  c.W = est == BSURF_SMOOTH_EST_632PLUS ? c.err_632plus : c.err_632;
+  double sumW = 0;
+  for (size_t i = 0; i < n; i++) sumW += c.W[i];
+  const double meanW = n ? sumW / (double)n : 0.0; /* |W| (Algorithm 4 step 2) */
+  double frac = o.h2_fraction > 0 ? o.h2_fraction : (o.method == BSURF_SMOOTH_MULTIPASS ? 0.3 : 0.75);
+  c.h1 = o.h1 > 0 ? o.h1 : nb->h;
+  c.h2 = o.h2 > 0 ? o.h2 : frac * meanW;
+  if (report) {
+    report->h = nb->h;
+    report->mean_error = meanW;
+  }
+
+  if (o.method == BSURF_SMOOTH_NAIVE) {
+    /* Eq. 6.1 only where W_i < threshold (6.2, Figs. 6.2-6.3) */
+    double thr = isnan(o.threshold) ? meanW : o.threshold;
+    size_t projected = 0;
+    for (size_t i = 0; i < n; i++) {
+      if (c.W[i] < thr) {
+        projected++;
+      } else {
+        for (int t = 0; t < 3; t++) out_xyz[3 * i + t] = xyz[3 * i + t];
+      }
+    }
+    if (report) {
+      report->threshold = thr;
+      report->projected = projected;
+    }
+  } else if (o.method == BSURF_SMOOTH_BILATERAL) {
+    c.e2 = bsurf_alloc_array(n, sizeof(double));
+    if (!c.e2) {
+      st = BSURF_ERR_NOMEM;
+      goto done;
+    }
+    for (size_t i = 0; i < n; i++) c.e2[i] = gauss_exponent(c.W[i], c.h2);
+    c.inv_h1sq_global = 1.0 / (c.h1 * c.h1);
+    sp.stage = 1;
+    if (seq) {
+      memcpy(out_xyz, xyz, n * 3 * sizeof(double));
+      bilateral_sequential(&c);
+      if (sp.fn && staged_cb(&sp, 1, 1)) st = BSURF_ERR_CANCELLED;
+    } else {
+      st = build_reverse(&c, NULL);
+      if (st != BSURF_OK) goto done;
+      c.cur = xyz;
+      c.next = out_xyz;
+      st = bsurf_parallel_points(n, T, gather_bilateral_task, &c, staged_cb, &sp);
+    }
+    if (report) {
+      report->h1 = c.h1;
+      report->h2 = c.h2;
+    }
+  } else {
+    /* ---- multipass: K_i, d_L and the fits, once ---- */
+    /* |W| by default; errors below 1e-9 h are rounding, not noise, and their
+     * ratios carry no information (exact data keeps K_i = K) */
+    c.k_error = o.k_error > 0 ? o.k_error : fmax(meanW, 1e-9 * nb->h);
+    c.khat = bsurf_alloc_array(n, sizeof(int));
+    c.dl = bsurf_alloc_array(n, sizeof(double));
+    c.e2 = bsurf_alloc_array(n, sizeof(double));
+    c.inv_h1sq = bsurf_alloc_array(n, sizeof(double));
+    if (!c.khat || !c.dl || !c.e2 || !c.inv_h1sq) {
+      st = BSURF_ERR_NOMEM;
+      goto done;
+    }
+    sp.stage = 1;
+    st = bsurf_parallel_points(n, T, multipass_fit_task, &c, staged_cb, &sp);
+    if (st != BSURF_OK) goto done;
+    sp.stage = 2;
+    double *buf = NULL;
+    memcpy(out_xyz, xyz, n * 3 * sizeof(double));
+    /* the margin of the active pairs: a tenth of the mean spacing */
+    const double margin = 0.1 * nb->h;
+    double drift = INFINITY; /* how far points may have moved since the pairs were listed */
+    if (!seq) {
+      st = build_reverse(&c, c.khat);
+      buf = bsurf_alloc_array(n * 3, sizeof(double));
+      c.act = bsurf_alloc_array(c.rev_off ? (c.rev_off[n] ? c.rev_off[n] : 1) : 1, sizeof(uint32_t));
+      c.act_n = bsurf_alloc_array(n, sizeof(uint32_t));
+      c.reach2 = bsurf_alloc_array(n, sizeof(double));
+      c.tmax = bsurf_calloc_array((size_t)T * 8, sizeof(double));
+      if (st == BSURF_OK && (!buf || !c.act || !c.act_n || !c.reach2 || !c.tmax)) st = BSURF_ERR_NOMEM;
+      if (st == BSURF_OK)
+        for (size_t i = 0; i < n; i++) {
+          /* theta_1 theta_2 >= 2^-54 needs d^2 / h1^2 <= GAUSS_CUT - e2 */
+          double room = GAUSS_CUT - c.e2[i];
+          double r = c.inv_h1sq[i] > 0 && room > 0 ? sqrt(room / c.inv_h1sq[i]) + 2 * margin : 0.0;
+          c.reach2[i] = r * r;
+        }
+    }
+    int it = 0;
+    for (; st == BSURF_OK && it < o.iterations; it++) {
+      if (seq) {
+        multipass_sequential_pass(&c);
+      } else {
+        /* even passes read out_xyz and write buf, odd ones the reverse */
+        c.cur = (it % 2 == 0) ? out_xyz : buf;
+        c.next = (it % 2 == 0) ? buf : out_xyz;
+        if (drift > margin) {
+          st = bsurf_parallel_sweep(n, T, active_task, &c);
+          drift = 0;
+        }
+        if (st == BSURF_OK) {
+          for (int t = 0; t < T; t++) c.tmax[8 * t] = 0;
+          st = bsurf_parallel_sweep(n, T, gather_multipass_task, &c);
+          double mx = 0;
+          for (int t = 0; t < T; t++)
+            if (c.tmax[8 * t] > mx) mx = c.tmax[8 * t];
+          drift += sqrt(mx);
+        }
+      }
+      if (st == BSURF_OK && sp.fn && staged_cb(&sp, (size_t)it + 1, (size_t)o.iterations))
+        st = BSURF_ERR_CANCELLED;
+    }
+    if (st == BSURF_OK && !seq && (o.iterations % 2 == 1)) memcpy(out_xyz, buf, n * 3 * sizeof(double));
+    free(buf);
+    if (st != BSURF_OK) goto done;
+    if (report) {
+      report->h1 = 0;
+      report->h2 = c.h2;
+      report->k_error = c.k_error;
+      report->iterations = it;
+    }
+    if (fields && fields->k_hat)
+      for (size_t i = 0; i < n; i++) fields->k_hat[i] = c.khat[i];
+    if (fields && fields->d_local) memcpy(fields->d_local, c.dl, n * sizeof(double));
+  }
+  if (st != BSURF_OK) goto done;
+
+  /* ---- how far the points moved ---- */
+  {
+    double *moved = fields && fields->moved ? fields->moved : (own_moved = bsurf_alloc_array(n, sizeof(double)));
+    if (!moved) {
+      st = BSURF_ERR_NOMEM;
+      goto done;
+    }
+    double sum = 0, mx = 0;
+    size_t count = 0;
+    for (size_t i = 0; i < n; i++) {
+      const double *a = &xyz[3 * i], *b = &out_xyz[3 * i];
+      double d = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+                      (a[2] - b[2]) * (a[2] - b[2]));
+      moved[i] = d;
+      sum += d;
+      if (d > mx) mx = d;
+      count += d > 0;
+    }
+    if (report) {
+      report->moved_points = count;
+      report->moved_mean = n ? sum / (double)n : 0;
+      report->moved_max = mx;
+    }
+  }
+
+done:
+  ctx_free(&c, T);
+  free(own632);
+  free(own632p);
+  free(own_moved);
+  return st;
+}

@@ -1,0 +1,533 @@
+/* Position error: the distance from points to a true surface.
+ *
+ * The true surface is a triangle mesh (exact point-to-triangle distance,
+ * accelerated by a bounding-volume hierarchy), a generated shape
+ * (bsurf_shape_distance) or, when only points with normals are known, the
+ * tangent plane of the corresponding truth point.
+ *
+ * Point to triangle: the closest point by Voronoi regions of C. Ericson,
+ * "Real-Time Collision Detection" (Morgan Kaufmann 2005), section 5.1.5,
+ * ClosestPtPointTriangle: the three vertex regions, the three edge regions
+ * and the face region are told apart by the signs of dot products and of the
+ * barycentric numerators va, vb, vc. Two changes for robustness:
+ *  - the offset q - p is built from differences (p - a, b - a, ...) only, so
+ *    its rounding error scales with the triangle's size and the distance,
+ *    never with how far the mesh is from the origin;
+ *  - in the face region the closest point is the foot of the perpendicular,
+ *    p - ((p - a) . n / n . n) n with n = (b - a) x (c - a), instead of the
+ *    barycentric combination, whose numerators cancel on thin triangles;
+ *  - a degenerate triangle (zero area: collinear or repeated vertices) has no
+ *    face region and would divide 0 by 0 there; it is treated as its three
+ *    edges (segments, a zero-length one being a point), and every division of
+ *    the edge regions is guarded, so no input gives NaN.
+ *
+ * The hierarchy: axis-aligned boxes, median split of the triangles' centroids
+ * along the longest axis (ties by face index, so the tree is a function of
+ * the mesh alone), leaves of at most BVH_LEAF triangles stored contiguously.
+ * A query descends nearest-box-first and skips a box only when its distance
+ * exceeds the best distance found so far by more than a bound on the
+ * rounding error of the triangle distance (see prune_slack). Equal distances
+ * keep the lowest face index. So the result is the minimum of the same
+ * function over all triangles, bit for bit, whatever order the search takes:
+ * the tests compare it with a brute-force loop.
+ *
+ * Per-point loops run through bsurf_parallel_points and write only their own
+ * point's output: results are the same for any thread count. */
+#include "common/common.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define BVH_LEAF 4
+#define BVH_STACK 128
+
+/* ---- small vector helpers ---- */
+
+static void sub3(const double *a, const double *b, double *out) {
+  out[0] = a[0] - b[0];
+  out[1] = a[1] - b[1];
+  out[2] = a[2] - b[2];
+}
+
+static double dot3(const double *a, const double *b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+/* ---- point to triangle (Ericson 5.1.5) ---- */
+
+/* Squared distance from p to the segment [a, b] (a point when a == b);
+ * *t out: the parameter of the closest point a + t (b - a). */
+static double seg_dist2(const double *p, const double *a, const double *b, double *t) {
+  double ab[3], ap[3];
+  sub3(b, a, ab);
+  sub3(p, a, ap);
+  double ll = dot3(ab, ab), s = ll > 0 ? dot3(ap, ab) / ll : 0.0;
+  s = s < 0 ? 0 : s > 1 ? 1 : s;
+  double e[3] = {s * ab[0] - ap[0], s * ab[1] - ap[1], s * ab[2] - ap[2]};
+  *t = s;
+  return dot3(e, e);
+}
+
+/* A zero-area triangle: the nearest of its three edges. */
+static double degenerate_dist2(const double *p, const double *a, const double *b, const double *c,
+                               double *closest) {
+  const double *ends[3][2] = {{a, b}, {b, c}, {c, a}};
+  double best = INFINITY, bt = 0;
+  int be = 0;
+  for (int e = 0; e < 3; e++) {
+    double t, d = seg_dist2(p, ends[e][0], ends[e][1], &t);
+    if (d < best) {
+      best = d;
+      bt = t;
+      be = e;
+    }
+  }
+  if (closest) {
+    const double *u = ends[be][0], *v = ends[be][1];
+    for (int k = 0; k < 3; k++) closest[k] = u[k] + bt * (v[k] - u[k]);
+  }
+  return best;
+}
+
+/* x / y for the barycentric parameters, 0 when y is not positive (only a
+ * degenerate configuration gets there), clamped to [0, 1]. */
+static double ratio01(double x, double y) {
+  double r = y > 0 ? x / y : 0.0;
+  return r < 0 ? 0 : r > 1 ? 1 : r;
+}
+
+/* Squared distance from p to triangle (a, b, c); closest out (may be NULL). */
+static double tri_dist2(const double *p, const double *a, const double *b, const double *c,
+                        double *closest) {
+  double ab[3], ac[3], ap[3], bp[3], cp[3], q[3];
+  sub3(b, a, ab);
+  sub3(c, a, ac);
+  /* zero area (to rounding): |ab x ac|^2 = |ab|^2 |ac|^2 sin^2 */
+  double n[3] = {ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2],
+                 ab[0] * ac[1] - ab[1] * ac[0]};
+  if (!(dot3(n, n) > 1e-30 * dot3(ab, ab) * dot3(ac, ac)))
+    return degenerate_dist2(p, a, b, c, closest);
+
+  const double *base; /* the closest point is base + u dir1 + v dir2 */
+  double u = 0, v = 0, dir2[3] = {0, 0, 0};
+  const double *dir1 = ab, *off; /* off = p - base */
+
+  sub3(p, a, ap);
+  double d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+  sub3(p, b, bp);
+  double d3 = dot3(ab, bp), d4 = dot3(ac, bp);
+  sub3(p, c, cp);
+  double d5 = dot3(ab, cp), d6 = dot3(ac, cp);
+  /* the barycentric numerators of the closest point (Ericson's va, vb, vc) */
+  double vc = d1 * d4 - d3 * d2, vb = d5 * d2 - d1 * d6, va = d3 * d6 - d5 * d4;
+
+  if (d1 <= 0 && d2 <= 0) { /* vertex region a */
+    base = a, off = ap;
+  } else if (d3 >= 0 && d4 <= d3) { /* vertex region b */
+    base = b, off = bp;
+  } else if (vc <= 0 && d1 >= 0 && d3 <= 0) { /* edge region ab */
+    base = a, off = ap, u = ratio01(d1, d1 - d3);
+  } else if (d6 >= 0 && d5 <= d6) { /* vertex region c */
+    base = c, off = cp;
+  } else if (vb <= 0 && d2 >= 0 && d6 <= 0) { /* edge region ac */
+    base = a, off = ap, dir1 = ac, u = ratio01(d2, d2 - d6);
+  } else if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) { /* edge region bc */
+    double bc[3];
+    sub3(c, b, bc);
+    memcpy(dir2, bc, sizeof bc);
+    base = b, off = bp, v = ratio01(d4 - d3, (d4 - d3) + (d5 - d6));
+  } else { /* face region: the foot of the perpendicular on the plane */
+    /* Ericson returns a + v ab + w ac with v = vb / (va + vb + vc), ...;
+     * va, vb, vc lose digits to cancellation on thin triangles, while the
+     * projection along n = ab x ac does not (and gives the same point). */
+    double s = dot3(ap, n) / dot3(n, n);
+    for (int k = 0; k < 3; k++) q[k] = -s * n[k];
+    if (closest)
+      for (int k = 0; k < 3; k++) closest[k] = p[k] + q[k];
+    return dot3(q, q);
+  }
+  for (int k = 0; k < 3; k++) q[k] = u * dir1[k] + v * dir2[k] - off[k]; /* closest - p */
+  if (closest)
+    for (int k = 0; k < 3; k++) closest[k] = base[k] + (u * dir1[k] + v * dir2[k]);
+  return dot3(q, q);
+}
+
+double bsurf_triangle_distance(const double p[3], const double a[3], const double b[3],
+                               const double c[3], double closest[3]) {
+  return sqrt(tri_dist2(p, a, b, c, closest));
+}
+
+/* ---- the hierarchy ---- */
+
+typedef struct tri {
+  double v[3][3];
+} tri;
+
+typedef struct bvh_node {
+  double lo[3], hi[3];
+  size_t first, count; /* leaf: triangles [first, first + count) */
+  size_t left, right;  /* internal (count == 0): children */
+} bvh_node;
+
+struct bsurf_mesh_index {
+  size_t tri_count;
+  tri *tris;      /* in leaf order */
+  size_t *face;   /* the mesh's face index of tris[i] */
+  bvh_node *nodes;
+  size_t node_count;
+  double edge2;   /* the longest edge, squared (scale of rounding errors) */
+};
+
+typedef struct build_ctx {
+  const double *xyz;
+  const uint32_t *faces;
+  double *center; /* face centroids, 3 per face */
+  size_t *order;  /* face indices, permuted into leaf order */
+  bvh_node *nodes;
+  size_t node_count;
+} build_ctx;
+
+static int center_less(const build_ctx *b, size_t i, size_t j, int axis) {
+  double x = b->center[3 * i + axis], y = b->center[3 * j + axis];
+  return x < y || (x == y && i < j);
+}
+
+static void swap_sz(size_t *a, size_t *b) {
+  size_t t = *a;
+  *a = *b;
+  *b = t;
+}
+
+/* Quickselect: afterwards ord[0..k) are the k smallest by (centre on axis,
+ * face index), a total order, so the split does not depend on the input
+ * permutation. */
+static void select_kth(const build_ctx *b, size_t *ord, size_t n, size_t k, int axis) {
+  size_t lo = 0, hi = n - 1;
+  while (hi > lo) {
+    size_t mid = lo + (hi - lo) / 2;
+    if (center_less(b, ord[mid], ord[lo], axis)) swap_sz(&ord[mid], &ord[lo]);
+    if (center_less(b, ord[hi], ord[lo], axis)) swap_sz(&ord[hi], &ord[lo]);
+    if (center_less(b, ord[mid], ord[hi], axis)) swap_sz(&ord[mid], &ord[hi]);
+    size_t pivot = ord[hi], store = lo;
+    for (size_t i = lo; i < hi; i++)
+      if (center_less(b, ord[i], pivot, axis)) swap_sz(&ord[i], &ord[store++]);
+    swap_sz(&ord[hi], &ord[store]);
+    if (store == k) return;
+    if (store < k)
+      lo = store + 1;
+    else
+      hi = store - 1;
+  }
+}
+
+static size_t build_node(build_ctx *b, size_t first, size_t count) {
+  size_t id = b->node_count++;
+  bvh_node *nd = &b->nodes[id];
+  double clo[3], chi[3];
+  for (int k = 0; k < 3; k++) {
+    nd->lo[k] = clo[k] = INFINITY;
+    nd->hi[k] = chi[k] = -INFINITY;
+  }
+  for (size_t i = first; i < first + count; i++) {
+    size_t f = b->order[i];
+    for (int v = 0; v < 3; v++) {
+      const double *x = &b->xyz[3 * (size_t)b->faces[3 * f + (size_t)v]];
+      for (int k = 0; k < 3; k++) {
+        if (x[k] < nd->lo[k]) nd->lo[k] = x[k];
+        if (x[k] > nd->hi[k]) nd->hi[k] = x[k];
+      }
+    }
+    for (int k = 0; k < 3; k++) {
+      double c = b->center[3 * f + (size_t)k];
+      if (c < clo[k]) clo[k] = c;
+      if (c > chi[k]) chi[k] = c;
+    }
+  }
+  nd->first = first;
+  nd->count = count;
+  nd->left = nd->right = 0;
+  if (count <= BVH_LEAF) return id;
+  int axis = 0;
+  for (int k = 1; k < 3; k++)
+    if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
+  size_t half = count / 2;
+  select_kth(b, &b->order[first], count, half, axis);
+  size_t left = build_node(b, first, half); /* nodes never move: allocated up front */
+  size_t right = build_node(b, first + half, count - half);
+  nd = &b->nodes[id];
+  nd->count = 0;
+  nd->left = left;
+  nd->right = right;
+  return id;
+}
+
+void bsurf_mesh_index_free(bsurf_mesh_index *index) {
+  if (!index) return;
+  free(index->tris);
+  free(index->face);
+  free(index->nodes);
+  free(index);
+}
+
+bsurf_status bsurf_mesh_index_build(bsurf_mesh_index **index, const bsurf_cloud *mesh) {
+  if (!index) return BSURF_ERR_INVALID_ARG;
+  *index = NULL;
+  if (!mesh || !mesh->xyz || !mesh->faces || mesh->face_count == 0) return BSURF_ERR_INVALID_ARG;
+  const size_t m = mesh->face_count, n = mesh->point_count;
+  for (size_t i = 0; i < 3 * m; i++)
+    if (mesh->faces[i] >= n) return BSURF_ERR_INVALID_ARG;
+  for (size_t i = 0; i < 3 * n; i++)
+    if (!isfinite(mesh->xyz[i])) return BSURF_ERR_INVALID_VALUE;
+
+  bsurf_mesh_index *ix = calloc(1, sizeof *ix);
+  build_ctx b;
+  memset(&b, 0, sizeof b);
+  b.xyz = mesh->xyz;
+  b.faces = mesh->faces;
+  b.center = bsurf_alloc_array(m, 3 * sizeof(double));
+  b.order = bsurf_alloc_array(m, sizeof(size_t));
+  /* a binary tree whose leaves hold >= 1 triangle has < 2m nodes */
+  b.nodes = bsurf_alloc_array(m, 2 * sizeof(bvh_node));
+  if (ix) {
+    ix->tris = bsurf_alloc_array(m, sizeof(tri));
+    ix->face = bsurf_alloc_array(m, sizeof(size_t));
+  }
+  if (!ix || !b.center || !b.order || !b.nodes || !ix->tris || !ix->face) {
+    free(b.center);
+    free(b.order);
+    free(b.nodes);
+    bsurf_mesh_index_free(ix);
+    return BSURF_ERR_NOMEM;
+  }
+  double edge2 = 0;
+  for (size_t f = 0; f < m; f++) {
+    const double *v[3];
+    for (int k = 0; k < 3; k++) v[k] = &mesh->xyz[3 * (size_t)mesh->faces[3 * f + (size_t)k]];
+    for (int k = 0; k < 3; k++) {
+      b.center[3 * f + (size_t)k] = (v[0][k] + v[1][k] + v[2][k]) / 3.0;
+      double e[3];
+      sub3(v[(k + 1) % 3], v[k], e);
+      double l2 = dot3(e, e);
+      if (l2 > edge2) edge2 = l2;
+    }
+    b.order[f] = f;
+  }
+  build_node(&b, 0, m);
+  for (size_t i = 0; i < m; i++) {
+    size_t f = b.order[i];
+    ix->face[i] = f;
+    for (int v = 0; v < 3; v++)
+      memcpy(ix->tris[i].v[v], &mesh->xyz[3 * (size_t)mesh->faces[3 * f + (size_t)v]],
+             3 * sizeof(double));
+  }
+  ix->tri_count = m;
+  ix->nodes = b.nodes;
+  ix->node_count = b.node_count;
+  ix->edge2 = edge2;
+  free(b.center);
+  free(b.order);
+  *index = ix;
+  return BSURF_OK;
+}
+
+static double box_dist2(const double *p, const bvh_node *nd) {
+  double s = 0;
+  for (int k = 0; k < 3; k++) {
+    double d = p[k] < nd->lo[k] ? nd->lo[k] - p[k] : p[k] > nd->hi[k] ? p[k] - nd->hi[k] : 0.0;
+    s += d * d;
+  }
+  return s;
+}
+
+/* How much farther than the best squared distance a box may be and still
+ * hold a triangle whose computed distance ties or beats it. tri_dist2 works
+ * on differences of magnitude <= sqrt(best) + longest edge, so its rounding
+ * error is a few ulps of (best + edge2); box_dist2 is accurate to a few ulps
+ * of itself. 1e-9 is five orders of magnitude above both, and costs nothing:
+ * it only keeps boxes within a hair of the best distance. */
+static double prune_slack(const bsurf_mesh_index *ix, double best) {
+  return 1e-9 * (best + ix->edge2);
+}
+
+/* Squared distance to the nearest triangle; *face and closest (may be NULL). */
+static double mesh_nearest(const bsurf_mesh_index *ix, const double *p, size_t *face,
+                           double *closest) {
+  size_t stack[BVH_STACK];
+  double sd[BVH_STACK];
+  int top = 0;
+  double best = INFINITY, bound = INFINITY;
+  size_t best_i = 0;
+  stack[top] = 0;
+  sd[top++] = box_dist2(p, &ix->nodes[0]);
+  while (top > 0) {
+    --top;
+    if (sd[top] > bound) continue;
+    const bvh_node *nd = &ix->nodes[stack[top]];
+    if (nd->count) {
+      for (size_t i = nd->first; i < nd->first + nd->count; i++) {
+        const tri *t = &ix->tris[i];
+        double d = tri_dist2(p, t->v[0], t->v[1], t->v[2], NULL);
+        if (d < best || (d == best && ix->face[i] < ix->face[best_i])) {
+          best = d;
+          best_i = i;
+          bound = best + prune_slack(ix, best);
+        }
+      }
+      continue;
+    }
+    double dl = box_dist2(p, &ix->nodes[nd->left]), dr = box_dist2(p, &ix->nodes[nd->right]);
+    size_t near = nd->left, far = nd->right;
+    double dn = dl, df = dr;
+    if (dr < dl) {
+      near = nd->right, far = nd->left;
+      dn = dr, df = dl;
+    }
+    /* the farther child below the nearer one: the nearer is searched first.
+     * The depth of a median-split tree is log2(faces) + 1 < BVH_STACK / 2. */
+    if (df <= bound) {
+      stack[top] = far;
+      sd[top++] = df;
+    }
+    if (dn <= bound) {
+      stack[top] = near;
+      sd[top++] = dn;
+    }
+  }
+  if (face) *face = ix->face[best_i];
+  if (closest) {
+    const tri *t = &ix->tris[best_i];
+    tri_dist2(p, t->v[0], t->v[1], t->v[2], closest);
+  }
+  return best;
+}
+
+double bsurf_mesh_distance(const bsurf_mesh_index *index, const double p[3], size_t *face,
+                           double closest[3]) {
+  if (!index || !isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2])) {
+    if (closest) closest[0] = closest[1] = closest[2] = NAN;
+    if (face) *face = 0;
+    return NAN;
+  }
+  return sqrt(mesh_nearest(index, p, face, closest));
+}
+
+/* ---- per-point position errors ---- */
+
+typedef struct position_ctx {
+  const double *xyz;
+  const bsurf_true_surface *s;
+  double *dist;
+} position_ctx;
+
+static void position_point(void *vctx, int thread, size_t i) {
+  (void)thread;
+  const position_ctx *c = vctx;
+  const double *p = &c->xyz[3 * i];
+  const bsurf_true_surface *s = c->s;
+  switch (s->kind) {
+  case BSURF_SURFACE_MESH:
+    c->dist[i] = bsurf_mesh_distance(s->mesh, p, NULL, NULL);
+    break;
+  case BSURF_SURFACE_SHAPE:
+    c->dist[i] = bsurf_shape_distance(s->shape, p);
+    break;
+  case BSURF_SURFACE_TANGENT_PLANE: {
+    size_t j = s->match ? s->match[i] : i;
+    const double *t = &s->truth_xyz[3 * j], *n = &s->truth_normals[3 * j];
+    double d[3], nn = sqrt(dot3(n, n));
+    sub3(p, t, d);
+    c->dist[i] = nn > 0 && isfinite(nn) ? fabs(dot3(d, n)) / nn : NAN;
+    break;
+  }
+  }
+}
+
+bsurf_status bsurf_position_errors(const double *xyz, size_t count,
+                                   const bsurf_true_surface *surface, int threads, double *dist,
+                                   bsurf_progress_fn progress, void *progress_user) {
+  if (!surface || (count && (!xyz || !dist))) return BSURF_ERR_INVALID_ARG;
+  switch (surface->kind) {
+  case BSURF_SURFACE_MESH:
+    if (!surface->mesh) return BSURF_ERR_INVALID_ARG;
+    break;
+  case BSURF_SURFACE_SHAPE:
+    if ((unsigned)surface->shape > BSURF_SHAPE_PLANE) return BSURF_ERR_INVALID_ARG;
+    break;
+  case BSURF_SURFACE_TANGENT_PLANE:
+    if (!surface->truth_xyz || !surface->truth_normals) return BSURF_ERR_INVALID_ARG;
+    if (!surface->match && surface->truth_count != count) return BSURF_ERR_INVALID_ARG;
+    for (size_t i = 0; surface->match && i < count; i++)
+      if (surface->match[i] >= surface->truth_count) return BSURF_ERR_INVALID_ARG;
+    break;
+  default:
+    return BSURF_ERR_INVALID_ARG;
+  }
+  position_ctx c = {xyz, surface, dist};
+  bsurf_status st = bsurf_parallel_points(count, threads, position_point, &c, progress,
+                                          progress_user);
+  if (st != BSURF_OK) return st;
+  for (size_t i = 0; i < count; i++)
+    if (isnan(dist[i])) return BSURF_ERR_INVALID_VALUE;
+  return BSURF_OK;
+}
+
+/* ---- correspondence ---- */
+
+typedef struct match_ctx {
+  const bsurf_knn_index *index;
+  const double *xyz;
+  uint32_t *match;
+  int failed; /* set (never cleared) by a failing query; read after the loop */
+} match_ctx;
+
+static void match_point(void *vctx, int thread, size_t i) {
+  (void)thread;
+  match_ctx *c = vctx;
+  if (bsurf_knn_query(c->index, &c->xyz[3 * i], 1, &c->match[i], NULL) != BSURF_OK) {
+#ifdef _OPENMP
+#pragma omp atomic write
+#endif
+    c->failed = 1;
+  }
+}
+
+bsurf_status bsurf_match_nearest(const double *truth_xyz, size_t truth_count, const double *xyz,
+                                 size_t count, int threads, uint32_t *match) {
+  if (!truth_xyz || truth_count == 0 || truth_count > UINT32_MAX || (count && (!xyz || !match)))
+    return BSURF_ERR_INVALID_ARG;
+  bsurf_knn_index *index = NULL;
+  bsurf_status st = bsurf_knn_build(&index, truth_xyz, truth_count);
+  if (st != BSURF_OK) return st;
+  match_ctx c = {index, xyz, match, 0};
+  st = bsurf_parallel_points(count, threads, match_point, &c, NULL, NULL);
+  if (st == BSURF_OK && c.failed) st = BSURF_ERR_INVALID_VALUE;
+  bsurf_knn_free(index);
+  return st;
+}
+
+/* ---- statistics ---- */
+
+bsurf_status bsurf_distance_stats_compute(const double *dist, const uint8_t *mask, uint8_t keep,
+                                          size_t count, bsurf_distance_stats *stats) {
+  if (!stats || (count && !dist)) return BSURF_ERR_INVALID_ARG;
+  size_t n = 0;
+  double sum = 0, sum2 = 0, max = 0;
+  for (size_t i = 0; i < count; i++) {
+    if (mask && mask[i] != keep) continue;
+    double d = dist[i];
+    n++;
+    sum += d;
+    sum2 += d * d;
+    if (d > max || isnan(d)) max = d;
+  }
+  stats->count = n;
+  if (n == 0) {
+    stats->mean = stats->rms = stats->max = NAN;
+    return BSURF_OK;
+  }
+  stats->mean = sum / (double)n;
+  stats->rms = sqrt(sum2 / (double)n);
+  stats->max = max;
+  return BSURF_OK;
+}

@@ -1,0 +1,302 @@
+/* bsurf_smooth (thesis chapter 6): exact cases (a plane and a quadric do not
+ * move), a noisy plane gets flatter, the naive threshold's semantics, the
+ * multipass neighbourhood sizes, determinism for any thread count, and
+ * argument checks. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bootsurf.h"
+
+static const bsurf_smooth_method methods[3] = {BSURF_SMOOTH_NAIVE, BSURF_SMOOTH_BILATERAL,
+                                               BSURF_SMOOTH_MULTIPASS};
+
+static bsurf_smooth_options options(bsurf_smooth_method m, int k, int degree, int B) {
+  bsurf_smooth_options o = bsurf_smooth_options_default();
+  o.method = m;
+  o.error.k = k;
+  o.error.degree = degree;
+  o.error.bootstrap = B;
+  o.error.threads = 2;
+  o.iterations = 20;
+  return o;
+}
+
+/* A random sample of [-1,1]^2 lifted by z = f(x, y), then tilted about x. */
+static void surface(bsurf_cloud *c, size_t n, double qa, double qb, double qc, double tilt) {
+  assert_int_equal(bsurf_generate(c, BSURF_SHAPE_PLANE, n, BSURF_SAMPLING_RANDOM, 5, 0), BSURF_OK);
+  for (size_t i = 0; i < c->point_count; i++) {
+    double *p = &c->xyz[3 * i];
+    double x = p[0], y = p[1];
+    double z = 0.1 * x - 0.2 * y + qa * x * x + qb * x * y + qc * y * y;
+    p[1] = cos(tilt) * y - sin(tilt) * z + 3;
+    p[2] = sin(tilt) * y + cos(tilt) * z - 1;
+  }
+}
+
+static double max_move(const double *a, const double *b, size_t n) {
+  double mx = 0;
+  for (size_t i = 0; i < 3 * n; i += 3) {
+    double d = sqrt((a[i] - b[i]) * (a[i] - b[i]) + (a[i + 1] - b[i + 1]) * (a[i + 1] - b[i + 1]) +
+                    (a[i + 2] - b[i + 2]) * (a[i + 2] - b[i + 2]));
+    if (d > mx) mx = d;
+  }
+  return mx;
+}
+
+/* Points on a plane are fitted exactly: no method, no order moves them. */
+static void test_plane_does_not_move(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  surface(&c, 3000, 0, 0, 0, 0.6);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
+  double *out = malloc(c.point_count * 3 * sizeof(double));
+  for (int m = 0; m < 3; m++)
+    for (int order = 0; order < 2; order++) {
+      bsurf_smooth_options o = options(methods[m], 30, 3, 20);
+      o.order = (bsurf_smooth_order)order;
+      o.threshold = INFINITY;
+      bsurf_smooth_report r;
+      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, &r), BSURF_OK);
+      assert_true(max_move(c.xyz, out, c.point_count) <= 1e-9 * nb.h);
+      assert_true(r.moved_max <= 1e-9 * nb.h);
+    }
+  free(out);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+/* On a quadric the local height function in a tilted PCA frame is not a
+ * polynomial, but a cubic fit follows it far below the point spacing: the
+ * points stay put (moves < 1e-3 h), and the quadric's own axis-aligned
+ * neighbourhoods are reproduced. */
+static void test_quadric_does_not_move(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  surface(&c, 4000, 0.3, -0.2, 0.25, 0.0);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 40, 2, NULL, NULL), BSURF_OK);
+  double *out = malloc(c.point_count * 3 * sizeof(double));
+  for (int m = 0; m < 3; m++) {
+    bsurf_smooth_options o = options(methods[m], 40, 3, 20);
+    o.threshold = INFINITY;
+    bsurf_smooth_report r;
+    assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, &r), BSURF_OK);
+    print_message("quadric, method %d: max move %.3g h\n", m, r.moved_max / nb.h);
+    assert_true(r.moved_max < 1e-3 * nb.h);
+  }
+  free(out);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+/* Gaussian noise of 0.5 h on a plane: every method leaves it flatter. */
+static void test_noisy_plane_gets_flatter(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 6000, BSURF_SAMPLING_RANDOM, 7, 0), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 11), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 50, 2, NULL, NULL), BSURF_OK);
+  double *out = malloc(c.point_count * 3 * sizeof(double));
+  double rms0 = 0;
+  size_t inner = 0;
+  for (size_t i = 0; i < c.point_count; i++) rms0 += c.xyz[3 * i + 2] * c.xyz[3 * i + 2];
+  rms0 = sqrt(rms0 / c.point_count);
+  for (int m = 0; m < 3; m++)
+    for (int order = 0; order < 2; order++) {
+      bsurf_smooth_options o = options(methods[m], 50, 2, 30);
+      o.order = (bsurf_smooth_order)order;
+      o.threshold = INFINITY;
+      o.h2_fraction = 2.0; /* a wide error weight: smooth everywhere */
+      o.iterations = 300;
+      bsurf_smooth_report r;
+      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, &r), BSURF_OK);
+      double rms = 0;
+      inner = 0;
+      for (size_t i = 0; i < c.point_count; i++) {
+        /* away from the border, where fits extrapolate */
+        if (fabs(c.xyz[3 * i]) > 0.8 || fabs(c.xyz[3 * i + 1]) > 0.8) continue;
+        rms += out[3 * i + 2] * out[3 * i + 2];
+        inner++;
+      }
+      rms = sqrt(rms / inner);
+      print_message("noisy plane, method %d order %d: rms %.3f h -> %.3f h\n", m, order, rms0 / h, rms / h);
+      /* multipass shrinks K_i to k_min (a plane fit of 10 points) wherever
+       * W_i exceeds the mean error (Eq. 6.4): on pure noise that is half the
+       * points, so it smooths less */
+      assert_true(rms < (methods[m] == BSURF_SMOOTH_MULTIPASS ? 0.75 : 0.35) * rms0);
+    }
+  free(out);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+/* The naive threshold: 0 moves nothing, none (INFINITY) projects every
+ * point, auto projects exactly the points whose .632+ error is below the
+ * mean, and those move along their frame normal only. */
+static void test_naive_threshold(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 2, 2), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, h, 1), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
+  const size_t n = c.point_count;
+  double *out = malloc(n * 3 * sizeof(double)), *e632p = malloc(n * sizeof(double)),
+         *moved = malloc(n * sizeof(double));
+  bsurf_smooth_fields f;
+  memset(&f, 0, sizeof f);
+  f.err_632plus = e632p;
+  f.moved = moved;
+  bsurf_smooth_options o = options(BSURF_SMOOTH_NAIVE, 30, 3, 25);
+  bsurf_smooth_report r;
+
+  o.threshold = 0;
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, &f, &r), BSURF_OK);
+  assert_int_equal(r.projected, 0);
+  assert_int_equal(r.moved_points, 0);
+  assert_memory_equal(out, c.xyz, n * 3 * sizeof(double));
+
+  o.threshold = INFINITY;
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, &f, &r), BSURF_OK);
+  assert_int_equal(r.projected, n);
+
+  o.threshold = NAN;
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, &f, &r), BSURF_OK);
+  double mean = 0;
+  for (size_t i = 0; i < n; i++) mean += e632p[i];
+  mean /= n;
+  assert_true(fabs((r.threshold) - (mean)) <= 1e-12 * mean);
+  assert_true(fabs((r.mean_error) - (mean)) <= 1e-12 * mean);
+  size_t below = 0;
+  for (size_t i = 0; i < n; i++) {
+    if (e632p[i] < r.threshold) {
+      below++;
+    } else {
+      assert_true(moved[i] == 0);
+    }
+  }
+  assert_int_equal(r.projected, below);
+  assert_true(below > n / 5 && below < n);
+  free(out);
+  free(e632p);
+  free(moved);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+/* Multipass: K_i within [k_min, K], K where the error is smallest, k_min
+ * where it reaches k_error; d_L positive; the report's passes. */
+static void test_multipass_neighbourhoods(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 4, 2), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 3), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 40, 2, NULL, NULL), BSURF_OK);
+  const size_t n = c.point_count;
+  double *out = malloc(n * 3 * sizeof(double)), *e632 = malloc(n * sizeof(double)),
+         *khat = malloc(n * sizeof(double)), *dl = malloc(n * sizeof(double));
+  bsurf_smooth_fields f;
+  memset(&f, 0, sizeof f);
+  f.err_632 = e632;
+  f.k_hat = khat;
+  f.d_local = dl;
+  bsurf_smooth_options o = options(BSURF_SMOOTH_MULTIPASS, 40, 3, 20);
+  o.iterations = 7;
+  bsurf_smooth_report r;
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, &f, &r), BSURF_OK);
+  assert_int_equal(r.iterations, 7);
+  assert_true(fabs((r.k_error) - (r.mean_error)) <= 0);
+  for (size_t i = 0; i < n; i++) {
+    assert_true(khat[i] >= 10 && khat[i] <= 40);
+    double y = (10.0 - 40.0) / r.k_error * e632[i] + 40.0;
+    double expect = y <= 10 ? 10 : floor(y + 0.5);
+    assert_true(khat[i] == expect);
+    assert_true(dl[i] > 0);
+  }
+  free(out);
+  free(e632);
+  free(khat);
+  free(dl);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+/* 1 thread == 2 threads, bit for bit, for every method and order. */
+static void test_thread_determinism(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_TORUS, 4000, BSURF_SAMPLING_RANDOM, 9, 0), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 5), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
+  const size_t n = c.point_count;
+  double *a = malloc(n * 3 * sizeof(double)), *b = malloc(n * 3 * sizeof(double));
+  for (int m = 0; m < 3; m++)
+    for (int order = 0; order < 2; order++) {
+      bsurf_smooth_options o = options(methods[m], 30, 3, 20);
+      o.order = (bsurf_smooth_order)order;
+      o.h2_fraction = 1.0;
+      o.error.threads = 1;
+      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, a, NULL, NULL), BSURF_OK);
+      o.error.threads = 2;
+      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, b, NULL, NULL), BSURF_OK);
+      assert_memory_equal(a, b, n * 3 * sizeof(double));
+      assert_true(max_move(c.xyz, a, n) > 0);
+    }
+  free(a);
+  free(b);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+static void test_arguments(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 500, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 20, 2, NULL, NULL), BSURF_OK);
+  double *out = malloc(c.point_count * 3 * sizeof(double));
+  bsurf_smooth_options o = options(BSURF_SMOOTH_MULTIPASS, 20, 2, 10);
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, c.xyz, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, NULL, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  o.k_min = 21;
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  o = options(BSURF_SMOOTH_BILATERAL, 30, 2, 10); /* more than the neighbourhoods hold */
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  o = options(BSURF_SMOOTH_BILATERAL, 5, 2, 10); /* fewer points than terms */
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_ERR_TOO_FEW_POINTS);
+  o = options(BSURF_SMOOTH_BILATERAL, 20, 2, 10);
+  o.h1 = NAN;
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  free(out);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_plane_does_not_move),   cmocka_unit_test(test_quadric_does_not_move),
+      cmocka_unit_test(test_noisy_plane_gets_flatter), cmocka_unit_test(test_naive_threshold),
+      cmocka_unit_test(test_multipass_neighbourhoods), cmocka_unit_test(test_thread_determinism),
+      cmocka_unit_test(test_arguments),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
