@@ -1,4 +1,15 @@
-/* bootsurf features: feature detection (thesis chapter 7). */
+/* bootsurf features: feature detection (thesis chapter 7).
+ *
+ * Input fields named like the outputs (`feature`, and `feature_dist` or
+ * `normal_var`) are most often ground truth (`generate` and `sample` write
+ * feature and feature_dist; `noise` keeps them) or an earlier run's results.
+ * Overwriting would silently lose the truth -- and `feature_dist` of the
+ * truth (exact distance to an edge) is not the distance map of 7.1 -- so
+ * an input field NAME is kept as NAME_in. When NAME_in exists already (the
+ * input is itself a features output, NAME_in the original), NAME is an
+ * earlier result and is replaced; NAME_in stays. Refusing would break the
+ * common generate | noise | features pipeline. Both cases are reported
+ * (stderr, and "kept_input_fields" / "replaced_input_fields" in --json). */
 #include "cli.h"
 
 #include <math.h>
@@ -18,6 +29,8 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       {0, "k-step", ARG_INT, &fo.k_step, "S", "distance: growth step of the neighbourhood", 1, 65535},
       {0, "ratio-threshold", ARG_DOUBLE, &fo.ratio_threshold, "T", "distance: T_{a/c} on lambda0/lambda2", 0,
        1},
+      {0, "noise-factor", ARG_DOUBLE, &fo.noise_factor, "C",
+       "distance: T_{a/c} of size K = max(T, C x median f(K)) (0 = T alone)", 0, 1e6},
       {0, "derivative", ARG_DOUBLE, &fo.derivative, "D", "distance: threshold f + D f' instead of f (0 = off)", 0,
        1e6},
       {0, "alpha", ARG_DOUBLE, &fo.alpha, "A", "distance: bilateral filter strength (Eq. 7.1)", 0, 1},
@@ -26,7 +39,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       {0, "sigma-range", ARG_DOUBLE, &fo.sigma_range, "S",
        "distance: range sigma of the filter, fraction of max radius", 1e-12, 1e6},
       {0, "threshold", ARG_STRING, &threshold_s, "T",
-       "distance: fraction of max(feature_dist), auto = 0; variance: normal_var value or auto", 1, 0},
+       "distance: fraction of max(feature_dist) or auto; variance: normal_var value or auto", 1, 0},
       {0, "tail-rule", ARG_STRING, &tail, "R", "variance auto threshold: otsu or mad", 1, 0},
       CLI_OPT_SEED(fo.normals.seed),
       CLI_OPT_THREADS(fo.threads),
@@ -86,6 +99,23 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     goto done;
   }
   const char *score_name = fo.method == BSURF_FEATURES_DISTANCE ? "feature_dist" : "normal_var";
+  const char *out_names[2] = {"feature", score_name};
+  int kept[2] = {0, 0}, replaced[2] = {0, 0};
+  for (int t = 0; t < 2; t++) {
+    bsurf_field *old = bsurf_cloud_field(&c, out_names[t]);
+    if (!old) continue;
+    char in_name[BSURF_FIELD_NAME_MAX];
+    snprintf(in_name, sizeof in_name, "%s_in", out_names[t]);
+    if (bsurf_cloud_field(&c, in_name)) {
+      replaced[t] = 1;
+      if (!quiet)
+        cli_warn("%s: replacing the input's %s (%s is kept)", pos[0], out_names[t], in_name);
+    } else {
+      strcpy(old->name, in_name);
+      kept[t] = 1;
+      if (!quiet) cli_warn("%s: the input's %s is kept as %s", pos[0], out_names[t], in_name);
+    }
+  }
   bsurf_field *fs = bsurf_cloud_add_field(&c, score_name, BSURF_FLOAT32);
   bsurf_field *ff = bsurf_cloud_add_field(&c, "feature", BSURF_UINT8);
   if (!fs || !ff) {
@@ -111,6 +141,8 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       json_int(&j, "k_max", fo.k_max);
       json_int(&j, "k_step", fo.k_step);
       json_num(&j, "ratio_threshold", fo.ratio_threshold);
+      json_num(&j, "noise_factor", fo.noise_factor);
+      json_num(&j, "ratio_threshold_kmin", rep.ratio_threshold_kmin);
       json_num(&j, "derivative", fo.derivative);
       json_num(&j, "alpha", fo.alpha);
       json_int(&j, "iterations", fo.iterations);
@@ -126,6 +158,18 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     }
     json_str(&j, "threshold_mode", isnan(fo.threshold) ? "auto" : "value");
     json_close_obj(&j);
+    json_obj(&j, "kept_input_fields");
+    for (int t = 0; t < 2; t++)
+      if (kept[t]) {
+        char in_name[BSURF_FIELD_NAME_MAX];
+        snprintf(in_name, sizeof in_name, "%s_in", out_names[t]);
+        json_str(&j, out_names[t], in_name);
+      }
+    json_close_obj(&j);
+    json_arr(&j, "replaced_input_fields");
+    for (int t = 0; t < 2; t++)
+      if (replaced[t]) json_str(&j, NULL, out_names[t]);
+    json_close_arr(&j);
     json_num(&j, "threshold", rep.threshold);
     json_int(&j, "feature_points", (long long)rep.feature_points);
     json_int(&j, "threads", bsurf_threads_resolve(fo.threads));
@@ -137,8 +181,8 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
            isnan(fo.threshold) ? "auto" : "given", rep.feature_points,
            n ? 100.0 * (double)rep.feature_points / (double)n : 0.0);
     if (fo.method == BSURF_FEATURES_DISTANCE)
-      printf("  max radius %.6g, %zu points stopped at k_min (set to -max radius)\n", rep.max_radius,
-             rep.immediate);
+      printf("  T_{a/c} %.4g at k_min, max radius %.6g, %zu points stopped at k_min (set to -max radius)\n",
+             rep.ratio_threshold_kmin, rep.max_radius, rep.immediate);
     printf("  -> %s\n", output);
   }
   rc = 0;

@@ -56,8 +56,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       {0, "h1", ARG_STRING, &h1_text, "X", "bilateral: distance sigma of Eq. 6.2 (a length; h = the mean spacing)", 1,
        0},
       {0, "h2", ARG_STRING, &h2_text, "X",
-       "bilateral, multipass: error sigma of Eq. 6.2: a length, a fraction of |W| (0.75W) or auto "
-       "(0.75W bilateral, 0.3W multipass)",
+       "bilateral, multipass: error sigma of Eq. 6.2: a length, a multiple of |W| (e.g. 1W) or auto "
+       "(2W bilateral, 0.3W multipass)",
        1, 0},
       {0, "order", ARG_STRING, &order, "O",
        "bilateral, multipass: parallel (order-independent) or sequential (the thesis's in-place sweep, one "
@@ -67,7 +67,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       {0, "iterations", ARG_INT, &so.iterations, "N", "multipass: smoothing passes", 0, 1000000},
       {0, "k-min", ARG_INT, &so.k_min, "K", "multipass: the smallest neighbourhood (Eq. 6.3)", 1, 65535},
       {0, "k-error", ARG_STRING, &kerr_text, "X",
-       "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length or auto (|W|)", 1, 0},
+       "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length, a multiple of |W| (e.g. "
+       "2W) or auto (1W)",
+       1, 0},
       CLI_OPT_SEED(so.error.seed),
       CLI_OPT_THREADS(so.error.threads),
       CLI_OPTS_OUTPUT(output, ascii, force),
@@ -111,10 +113,11 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   if (parse_length(h1_text, 1, 0, &dummy, &frac) || dummy <= 0)
     return cli_usage_error(cmd, "--h1 must be a positive length (e.g. 0.01 or 1.5h), not '%s'", h1_text);
   if (strcmp(h2_text, "auto") && (parse_length(h2_text, 1, 1, &dummy, &frac) || (dummy <= 0 && frac <= 0)))
-    return cli_usage_error(cmd, "--h2 must be a positive length, a fraction of |W| (e.g. 0.75W) or auto, not '%s'",
+    return cli_usage_error(cmd, "--h2 must be a positive length, a multiple of |W| (e.g. 1W) or auto, not '%s'",
                            h2_text);
-  if (strcmp(kerr_text, "auto") && (parse_length(kerr_text, 1, 0, &dummy, &frac) || dummy <= 0))
-    return cli_usage_error(cmd, "--k-error must be a positive length or auto, not '%s'", kerr_text);
+  if (strcmp(kerr_text, "auto") && (parse_length(kerr_text, 1, 1, &dummy, &frac) || (dummy <= 0 && frac <= 0)))
+    return cli_usage_error(cmd, "--k-error must be a positive length, a multiple of |W| or auto, not '%s'",
+                           kerr_text);
   if (cli_check_output(output, pos[0], force)) return 1;
 
   double t0 = cli_now();
@@ -134,7 +137,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   else parse_length(threshold, h, 0, &so.threshold, &frac);
   parse_length(h1_text, h, 0, &so.h1, &frac);
   if (strcmp(h2_text, "auto")) parse_length(h2_text, h, 1, &so.h2, &so.h2_fraction);
-  if (strcmp(kerr_text, "auto")) parse_length(kerr_text, h, 0, &so.k_error, &frac);
+  if (strcmp(kerr_text, "auto")) parse_length(kerr_text, h, 1, &so.k_error, &so.k_error_fraction);
 
   int nfields = so.method == BSURF_SMOOTH_MULTIPASS ? 5 : 3;
   for (int f = 0; f < nfields; f++) {

@@ -98,11 +98,16 @@ static const cli_command commands[] = {
     {"features", "Feature detection: PCA distance map or bootstrap variance (thesis ch. 7).",
      "INPUT -o OUTPUT [options]",
      "distance (7.1): per point, PCA of growing neighbourhoods (--k-min..--k-max);\n"
-     "the radius where lambda0/lambda2 first exceeds --ratio-threshold is the distance\n"
-     "to the nearest feature (points exceeding it at once get -max radius), smoothed by\n"
-     "a bilateral filter (Eq. 7.1); features: feature_dist <= --threshold x its maximum\n"
-     "(auto: <= 0). variance (7.2): features are normal_var > --threshold (auto: the\n"
-     "start of the distribution's tail). Writes feature (0/1) and the score.",
+     "the radius where lambda0/lambda2 first exceeds --ratio-threshold (raised to\n"
+     "--noise-factor x its median over the points where noise lifts that above it) is\n"
+     "the distance to the nearest feature (points exceeding it at once get -max radius),\n"
+     "smoothed by a bilateral filter (Eq. 7.1); features: feature_dist <= --threshold x\n"
+     "its maximum (auto: <= 0, or below Otsu's split of the positive values).\n"
+     "variance (7.2): features are normal_var > --threshold (auto: the start of the\n"
+     "distribution's tail). Writes feature (0/1) and the score (feature_dist or\n"
+     "normal_var); input fields of those names (e.g. ground truth from generate or\n"
+     "sample) are kept as feature_in and feature_dist_in / normal_var_in, or, when\n"
+     "those exist already, replaced (they were an earlier result).",
      cmd_features},
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);

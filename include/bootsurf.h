@@ -412,15 +412,18 @@ typedef struct bsurf_smooth_options {
    * G(a, b) = exp(-a^2/b^2) (Eq. 5.7). h1 <= 0: h (mean spacing). h2 <= 0:
    * h2_fraction x |W|, the mean of W_i. */
   double h1, h2;
-  double h2_fraction; /* <= 0: the method's default, 0.75 for bilateral (Fig. 6.5),
+  double h2_fraction; /* <= 0: the method's default, 2 for bilateral (the thesis
+                         shows 0.5-1, Figs. 6.4-6.6; see docs/smoothing.md),
                          0.3 for multipass (6.4.1) */
   bsurf_smooth_order order; /* bilateral and multipass (PARALLEL) */
   /* multipass: h1 = a d_L (Eq. 6.5); K_i = max{k_min, y} with y the linear
-   * map of Eq. 6.4 from (0, K) to (k_error, k_min); k_error <= 0: |W|. */
+   * map of Eq. 6.4 from (0, K) to (k_error, k_min); k_error <= 0:
+   * k_error_fraction x |W|. */
   double a;          /* 0.1 */
   int iterations;    /* 300 */
   int k_min;         /* 10 */
-  double k_error;    /* 0 (= |W|) */
+  double k_error;    /* 0 */
+  double k_error_fraction; /* 1 */
 } bsurf_smooth_options;
 
 bsurf_smooth_options bsurf_smooth_options_default(void);
@@ -495,6 +498,13 @@ typedef struct bsurf_feature_options {
                                   Fandisk at noise 0 and 0.5) */
   double ratio_threshold;      /* T_{a/c}: stop when f = lambda0/lambda2 (or
                                   f + d f') exceeds it (0.1) */
+  double noise_factor;         /* c > 0: at each size K the threshold is
+                                  max(T_{a/c}, c x the median of f(K) over
+                                  the points), so that noise alone (which
+                                  raises f everywhere) does not stop the
+                                  growth; at low noise c x median < T_{a/c}
+                                  and nothing changes. 0 = T_{a/c} alone, the
+                                  thesis (1.75, see src/algo/features.c) */
   double derivative;           /* d of f + d f' (f' per step); 0 = f alone (0) */
   double alpha;                /* bilateral filter strength, Eq. 7.1 (0.5) */
   int iterations;              /* bilateral filter passes (5) */
@@ -503,10 +513,13 @@ typedef struct bsurf_feature_options {
   double sigma_range;          /* range sigma of g_b as a fraction of
                                   max(radius) (0.05; the thesis's 0.01 is
                                   absolute on a unit-size model) */
-  /* threshold: distance: feature_dist <= threshold x max(feature_dist);
-   * NAN = auto = 0 (features are the points the accentuated, filtered map
-   * keeps at or below zero; Fig. 7.5). variance: normal_var > threshold;
-   * NAN = auto (tail_rule). */
+  /* threshold: distance: feature_dist <= threshold x max(feature_dist)
+   * (0: the thesis's T_h = 0 of Fig. 7.5, the points the accentuated,
+   * filtered map keeps at or below zero); NAN = auto: the points <= 0 and
+   * those below Otsu's split of the positive values that exceeded T_{a/c}
+   * at some size (the band that met a feature before k_max, apart from the
+   * plateau near max radius of those that met none).
+   * variance: normal_var > threshold; NAN = auto (tail_rule). */
   double threshold;            /* NAN */
   bsurf_tail_rule tail_rule;   /* OTSU */
   bsurf_normal_options normals; /* variance: the bootstrap normals (defaults) */
@@ -523,6 +536,9 @@ typedef struct bsurf_feature_report {
   double max_radius;     /* distance: the largest neighbourhood radius */
   size_t immediate;      /* distance: points whose k_min neighbourhood
                             already exceeded T_{a/c} (set to -max_radius) */
+  double ratio_threshold_kmin; /* distance: the T_{a/c} applied at k_min
+                                  (above ratio_threshold when noise_factor
+                                  raised it); NAN for VARIANCE */
 } bsurf_feature_report;
 
 /* Feature detection. nb: neighbourhoods with nb->k >= k_max (distance) or
@@ -535,7 +551,8 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
 
 /* The raw distance map of 7.1 (before filtering): for each point the radius
  * of the first neighbourhood size whose a/c (or a/c + d (a/c)') exceeds the
- * ratio threshold (k_max's radius when none does); points that exceed it at
+ * ratio threshold (with noise_factor: the raised threshold of that size;
+ * k_max's radius when none does); points that exceed it at
  * k_min get -max(radius). dist out: point_count. Also returns, per point,
  * the neighbourhood size it stopped at (ksel out, may be NULL). */
 bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors *nb,

@@ -64,8 +64,9 @@ static void test_plane_no_features(void **state) {
   bsurf_cloud_free(&c);
 }
 
-/* The regular cube at noise 0: the distance method with the auto threshold
- * finds the points within one spacing of an edge. */
+/* The regular cube at noise 0: the distance method with the thesis's T_h = 0
+ * finds the points within one spacing of an edge; the automatic T_h those
+ * within two (the labels of feature width 2). */
 static void test_cube_edges_distance(void **state) {
   (void)state;
   bsurf_cloud c;
@@ -73,13 +74,74 @@ static void test_cube_edges_distance(void **state) {
   uint8_t *feat = malloc(c.point_count);
   double *score = malloc(c.point_count * sizeof(double));
   bsurf_feature_options o = bsurf_feature_options_default();
+  o.threshold = 0;
   bsurf_feature_stats s = detect(&c, &o, o.k_max, feat, score);
   assert_true(s.recall > 0.9);
   assert_true(s.precision > 0.8);
   /* the score of the detected points is <= 0, the rest positive */
   for (size_t i = 0; i < c.point_count; i++) assert_int_equal(feat[i], score[i] <= 0);
+  bsurf_cloud_free(&c);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 2.0), BSURF_OK);
+  o.threshold = NAN;
+  s = detect(&c, &o, o.k_max, feat, score);
+  assert_true(s.recall > 0.95);
+  assert_true(s.precision > 0.95);
   free(feat);
   free(score);
+  bsurf_cloud_free(&c);
+}
+
+/* The distance method's automatic rule (noise-adapted T_{a/c}, Otsu's split
+ * of the positive map values) on a cube with uniform noise 1.0 h, where the
+ * thesis's fixed T_{a/c} = 0.1 stops nearly every point at k_min (noise alone
+ * lifts lambda0/lambda2 above it): the thesis's setting marks most of the
+ * cube, the automatic rule the edges. Without noise the adapted T_{a/c} is
+ * the given one. */
+static void test_distance_auto_rule(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 2.0), BSURF_OK);
+  const size_t n = c.point_count;
+  bsurf_neighbors nb;
+  bsurf_feature_options o = bsurf_feature_options_default();
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, o.k_max, 0, NULL, NULL), BSURF_OK);
+  uint8_t *feat = malloc(n), *feat2 = malloc(n);
+  double *score = malloc(n * sizeof(double)), *score2 = malloc(n * sizeof(double));
+  bsurf_feature_report rep;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, feat, score, &rep), BSURF_OK);
+  assert_true(rep.ratio_threshold_kmin == o.ratio_threshold);
+  bsurf_neighbors_free(&nb);
+
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, n, 0, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_UNIFORM, 1.0, h, 3), BSURF_OK);
+  bsurf_feature_stats thesis, adapted;
+  o.noise_factor = 0;
+  o.threshold = 0;
+  thesis = detect(&c, &o, o.k_max, feat, score);
+  o = bsurf_feature_options_default();
+  o.threads = 1;
+  adapted = detect(&c, &o, o.k_max, feat, score);
+  assert_true(thesis.f1 < 0.4);
+  assert_true(adapted.f1 > 0.65);
+  assert_true(adapted.precision > 0.5 && adapted.recall > 0.75);
+
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, o.k_max, 0, NULL, NULL), BSURF_OK);
+  o.threads = 2;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, feat2, score2, &rep), BSURF_OK);
+  assert_true(rep.ratio_threshold_kmin > 2 * o.ratio_threshold); /* noise 1.0: f(k_min) ~ 0.15 */
+  assert_true(rep.threshold > 0 && rep.threshold < rep.max_radius);
+  for (size_t i = 0; i < n; i++) assert_int_equal(feat2[i], score2[i] <= rep.threshold);
+  /* the sampled medians and the split are thread-independent */
+  assert_memory_equal(feat, feat2, n);
+  assert_memory_equal(score, score2, n * sizeof(double));
+  o.noise_factor = -1;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, feat2, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  bsurf_neighbors_free(&nb);
+  free(feat);
+  free(feat2);
+  free(score);
+  free(score2);
   bsurf_cloud_free(&c);
 }
 
@@ -234,6 +296,7 @@ int main(void) {
       cmocka_unit_test(test_cube_edges_variance), cmocka_unit_test(test_incremental_pca),
       cmocka_unit_test(test_threads),           cmocka_unit_test(test_tail_threshold),
       cmocka_unit_test(test_eval_features),     cmocka_unit_test(test_bad_args),
+      cmocka_unit_test(test_distance_auto_rule),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

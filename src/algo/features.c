@@ -4,12 +4,34 @@
  * K = k_min, k_min + k_step, ... <= k_max along its sorted neighbour list.
  * The covariance is grown incrementally: running sums of q and q q^T with
  * q = x - p (about p for conditioning; the covariance is about the
- * centroid), so each size costs O(k_step) plus one 3x3 eigen-decomposition.
+ * centroid), so each size costs O(k_step) plus the eigenvalues of a 3x3
+ * matrix (closed form, eigvals_sym3).
  * f(i) = lambda0 / lambda2 (a/c of the thesis). The first size where f (or
  * f + d f', f' the difference to the previous size) exceeds T_{a/c} stops
  * the growth; its radius (distance to its farthest point, the last of the
  * sorted list) is the distance h_p to the nearest feature. If T_{a/c} is
  * never exceeded the radius of k_max is used ("the process will terminate").
+ *
+ * Noise-adapted T_{a/c} (noise_factor c, default 1.75; 0 = the thesis's
+ * fixed T_{a/c}): noise of amplitude sigma adds about sigma^2 to lambda0
+ * while lambda2 grows with the radius squared, so on a flat area f(K) is
+ * about 3 sigma^2 / r_K^2: uniform noise 1.0 h gives f(15) ~ 0.15 on the
+ * faces of the cube, above 0.1, and 86% of the points "stopped at once"
+ * (Fig. 7.3's problem; F1 0.26 on the cube, 0.50 on Fandisk, whatever T_h).
+ * Each size K gets T(K) = max(T_{a/c}, c x median_i f_i(K)): the median
+ * point is a flat one (features are a minority), so c x median sits above
+ * the noise level of f(K) and below the features' f. At noise <= 0.5 h
+ * c x median < 0.1 at every K and the map is the thesis's unchanged.
+ * Measured on the cube and Fandisk of docs/validation.md (F1 with the
+ * automatic T_h below, noise 0 / 0.5 / 1.0, without the filter): c = 1.25: cube 1.00 / 0.94 /
+ * 0.44, Fandisk 0.86 / 0.90 / 0.72; 1.5: 0.64 and 0.82 at noise 1.0; 1.75:
+ * 0.76 and 0.83; 2: 0.76 and 0.78; 2.5: 0.62 and 0.60 (and lower at 0.5:
+ * T(k_min) passes 0.1). Subtracting an estimate of sigma^2 from lambda0
+ * instead ((lambda0 - s^2) / (lambda2 - s^2), s^2 the median lambda0 at k_max
+ * or at each K) was tried and not kept: 0.65-0.74 at noise 1.0 but Fandisk
+ * at 0.5 fell from 0.90 to 0.78-0.84 (its curvature lifts the median). The
+ * medians come from every stride-th point (at most ~4M values), so the
+ * cost is a fraction of the map's.
  *
  * The points that stop at once (the k_min neighbourhood already exceeds
  * T_{a/c}) are the thesis's "points with zero distance values": they are on
@@ -25,7 +47,22 @@
  * distance, as the thesis), sigma_b = sigma_range x max(radius).
  *
  * Features: feature_dist <= threshold x max(feature_dist) (Fig. 7.4: 10-30%
- * of the maximum), or with auto (NAN) feature_dist <= 0 (Fig. 7.5, T_h = 0).
+ * of the maximum; threshold 0 is Fig. 7.5's T_h = 0). Auto (NAN): the
+ * points <= 0 and, among those that exceeded T_{a/c} at some size, the ones
+ * below Otsu's split of the positive values. Why: T_h = 0 keeps only the
+ * points that stop at k_min, i.e. within about one spacing of an edge
+ * (recall 0.35-0.71 against the 2-spacing labels: F1 0.51-0.83); the
+ * positive map is a plateau near max(radius) (neighbourhoods that never
+ * met a feature) and a band below it (those that met one before k_max),
+ * two modes that Otsu separates. Tried on the same data (F1, cube / Fandisk
+ * at noise 0 / 0.5, fixed T_{a/c}, without the filter): T_h = 0: 0.67 0.83 / 0.51 0.68; Otsu on
+ * all values (it splits at 0): the same; Otsu on the positive values: 1.00
+ * 0.94 / 0.86 0.90; a fixed 0.75 x max: 1.00 0.96 / 0.88 0.91 (as good,
+ * but tied to the k_max / k_min radius ratio); median - 3 MAD of the
+ * positive values: 0.24 0.68 / 0.88 0.91 (the cube's plateau is too narrow).
+ * Points that never exceeded T_{a/c} are kept out even below the split: on
+ * a featureless surface the split would cut the density variations of the
+ * k_max radii (a plane would get features).
  *
  * Variance (7.2, Eq. 7.2): F = {i | nu_i > t_h}, nu = normal_var from
  * bsurf_estimate_normals; t_h given or from bsurf_tail_threshold.
@@ -64,6 +101,7 @@ bsurf_feature_options bsurf_feature_options_default(void) {
   o.k_max = 60;
   o.k_step = 2;
   o.ratio_threshold = 0.1;
+  o.noise_factor = 1.75;
   o.derivative = 0;
   o.alpha = 0.5;
   o.iterations = 5;
@@ -96,6 +134,33 @@ static void sums_add(pca_sums *s, const double *p, const double *o) {
   s->m++;
 }
 
+/* The eigenvalues of a symmetric 3x3 matrix, ascending, in closed form
+ * (trigonometric solution of the characteristic polynomial; Smith 1961).
+ * Only the ratio lambda0 / lambda2 is needed, to be compared with T_{a/c}
+ * ~ 0.1: the absolute error of about 1e-15 lambda2 is ample, and it is
+ * several times faster than the Jacobi sweeps of bsurf_eigen_sym3 (which
+ * also build the eigenvectors; it took 45% of the distance method). */
+static void eigvals_sym3(const double C[3][3], double ev[3]) {
+  const double p1 = C[0][1] * C[0][1] + C[0][2] * C[0][2] + C[1][2] * C[1][2];
+  const double q = (C[0][0] + C[1][1] + C[2][2]) / 3;
+  const double d0 = C[0][0] - q, d1 = C[1][1] - q, d2 = C[2][2] - q;
+  const double p2 = d0 * d0 + d1 * d1 + d2 * d2 + 2 * p1;
+  if (!(p2 > 0)) { /* a multiple of the identity (or 0) */
+    ev[0] = ev[1] = ev[2] = q;
+    return;
+  }
+  const double p = sqrt(p2 / 6), ip = 1 / p;
+  const double b00 = d0 * ip, b11 = d1 * ip, b22 = d2 * ip;
+  const double b01 = C[0][1] * ip, b02 = C[0][2] * ip, b12 = C[1][2] * ip;
+  double r = 0.5 * (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02) +
+                    b02 * (b01 * b12 - b11 * b02));
+  r = r < -1 ? -1 : r > 1 ? 1 : r;
+  const double phi = acos(r) / 3;
+  ev[2] = q + 2 * p * cos(phi);
+  ev[0] = q + 2 * p * cos(phi + 2.0943951023931954923); /* + 2 pi / 3 */
+  ev[1] = 3 * q - ev[0] - ev[2];
+}
+
 /* lambda0 / lambda2 of the covariance about the centroid; 0 if lambda2 <= 0 */
 static double sums_ratio(const pca_sums *s) {
   const double w = s->m;
@@ -107,8 +172,8 @@ static double sums_ratio(const pca_sums *s) {
   C[1][1] = s->s2[3] / w - mu[1] * mu[1];
   C[1][2] = C[2][1] = s->s2[4] / w - mu[1] * mu[2];
   C[2][2] = s->s2[5] / w - mu[2] * mu[2];
-  double ev[3], V[3][3];
-  bsurf_eigen_sym3(C, ev, V);
+  double ev[3];
+  eigvals_sym3((const double(*)[3])C, ev);
   if (!(ev[2] > 0)) return 0;
   double r = ev[0] / ev[2];
   return r > 0 ? r : 0; /* rounding can make lambda0 a hair negative */
@@ -130,9 +195,10 @@ typedef struct dist_ctx {
   const double *xyz;
   const bsurf_neighbors *nb;
   const bsurf_feature_options *o;
+  const double *T; /* T_{a/c} of each size k_min + j k_step */
   double *dist;
   int *ksel;
-  uint8_t *immediate;
+  uint8_t *state; /* 0 reached k_max, 1 exceeded T_{a/c} later, 2 at k_min */
 } dist_ctx;
 
 static void dist_point(void *vctx, int thread, size_t i) {
@@ -144,15 +210,15 @@ static void dist_point(void *vctx, int thread, size_t i) {
   pca_sums s;
   memset(&s, 0, sizeof s);
   double f_prev = NAN;
-  int stop = -1, m = 0, exceeded = 0;
-  for (int K = o->k_min; K <= o->k_max; K += o->k_step) {
+  int stop = -1, m = 0, exceeded = 0, j = 0;
+  for (int K = o->k_min; K <= o->k_max; K += o->k_step, j++) {
     while (m < K) sums_add(&s, &c->xyz[3 * (size_t)idx[m++]], p);
     double f = sums_ratio(&s);
     double g = f;
     if (o->derivative != 0 && !isnan(f_prev)) g = f + o->derivative * (f - f_prev);
     f_prev = f;
     stop = K;
-    if (g > o->ratio_threshold) {
+    if (g > c->T[j]) {
       exceeded = 1;
       break;
     }
@@ -162,47 +228,124 @@ static void dist_point(void *vctx, int thread, size_t i) {
   c->dist[i] = sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
   if (c->ksel) c->ksel[i] = stop;
   /* stopped at once: the k_min neighbourhood already exceeds T_{a/c} */
-  c->immediate[i] = (uint8_t)(exceeded && stop == o->k_min);
+  c->state[i] = (uint8_t)(exceeded ? (stop == o->k_min ? 2 : 1) : 0);
+}
+
+/* ---- noise-adapted T_{a/c} ----
+ * f(K) of every sampled point at every size: the per-size medians give the
+ * flat-area level of f, which noise raises (uniform noise t h, t in
+ * [-1, 1]: f(15) ~ 0.15 on a plane, above the thesis's 0.1, so that every
+ * point "stops at once"). The sample is every stride-th point, at most
+ * ~4M values in all; deterministic. */
+
+typedef struct ratio_ctx {
+  const double *xyz;
+  const bsurf_neighbors *nb;
+  const bsurf_feature_options *o;
+  size_t stride, m;
+  double *vals; /* [size j][sample s] */
+} ratio_ctx;
+
+static void ratio_point(void *vctx, int thread, size_t s) {
+  (void)thread;
+  ratio_ctx *c = vctx;
+  const bsurf_feature_options *o = c->o;
+  const size_t i = s * c->stride;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  const double *p = &c->xyz[3 * i];
+  pca_sums sm;
+  memset(&sm, 0, sizeof sm);
+  int m = 0, j = 0;
+  for (int K = o->k_min; K <= o->k_max; K += o->k_step, j++) {
+    while (m < K) sums_add(&sm, &c->xyz[3 * (size_t)idx[m++]], p);
+    c->vals[(size_t)j * c->m + s] = sums_ratio(&sm);
+  }
+}
+
+static int cmp_double(const void *pa, const void *pb);
+
+static bsurf_status ratio_thresholds(const double *xyz, const bsurf_neighbors *nb,
+                                     const bsurf_feature_options *o, int sizes, double *T) {
+  for (int j = 0; j < sizes; j++) T[j] = o->ratio_threshold;
+  if (!(o->noise_factor > 0)) return BSURF_OK;
+  const size_t n = nb->point_count;
+  size_t cap = (size_t)4000000 / (size_t)sizes;
+  if (cap < 1024) cap = 1024;
+  size_t stride = n > cap ? (n + cap - 1) / cap : 1;
+  size_t m = (n + stride - 1) / stride;
+  double *vals = bsurf_alloc_array(m * (size_t)sizes, sizeof(double));
+  if (!vals) return BSURF_ERR_NOMEM;
+  ratio_ctx rc = {xyz, nb, o, stride, m, vals};
+  bsurf_status st =
+      bsurf_parallel_points(m, bsurf_threads_resolve(o->threads), ratio_point, &rc, NULL, NULL);
+  for (int j = 0; j < sizes && st == BSURF_OK; j++) {
+    double *v = &vals[(size_t)j * m];
+    qsort(v, m, sizeof(double), cmp_double);
+    double med = m % 2 ? v[m / 2] : 0.5 * (v[m / 2 - 1] + v[m / 2]);
+    if (o->noise_factor * med > T[j]) T[j] = o->noise_factor * med;
+  }
+  free(vals);
+  return st;
 }
 
 static bsurf_status check_distance_opts(const bsurf_neighbors *nb, const bsurf_feature_options *o) {
   if (o->k_min < 3 || o->k_max < o->k_min || o->k_step < 1) return BSURF_ERR_INVALID_ARG;
   if (o->k_max > nb->k) return BSURF_ERR_INVALID_ARG;
   if (!(o->ratio_threshold >= 0) || !isfinite(o->derivative)) return BSURF_ERR_INVALID_ARG;
+  if (!(o->noise_factor >= 0) || !isfinite(o->noise_factor)) return BSURF_ERR_INVALID_ARG;
   if (!(o->alpha >= 0 && o->alpha <= 1) || o->iterations < 0) return BSURF_ERR_INVALID_ARG;
   if (o->filter_k < 0 || o->filter_k > nb->k || !(o->sigma_range > 0)) return BSURF_ERR_INVALID_ARG;
   if ((size_t)o->k_max > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
   return BSURF_OK;
 }
 
-bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors *nb,
-                                        const bsurf_feature_options *opts, double *dist,
-                                        int *ksel, double *max_radius, size_t *immediate) {
+/* state out (may be NULL): per point 0 = reached k_max without exceeding
+ * T_{a/c}, 1 = exceeded it at a larger size, 2 = at k_min */
+static bsurf_status distance_raw(const double *xyz, const bsurf_neighbors *nb,
+                                 const bsurf_feature_options *opts, double *dist, int *ksel,
+                                 double *max_radius, size_t *immediate, double *t_kmin,
+                                 uint8_t *state) {
   bsurf_feature_options o = opts ? *opts : bsurf_feature_options_default();
   if (!xyz || !nb || !nb->idx || !dist) return BSURF_ERR_INVALID_ARG;
   bsurf_status st = check_distance_opts(nb, &o);
   if (st != BSURF_OK) return st;
   const size_t n = nb->point_count;
-  uint8_t *imm = bsurf_alloc_array(n, 1);
-  if (!imm) return BSURF_ERR_NOMEM;
-  dist_ctx ctx = {xyz, nb, &o, dist, ksel, imm};
-  st = bsurf_parallel_points(n, bsurf_threads_resolve(o.threads), dist_point, &ctx, o.progress,
-                             o.progress_user);
+  const int sizes = (o.k_max - o.k_min) / o.k_step + 1;
+  uint8_t *imm = state ? state : bsurf_alloc_array(n, 1);
+  double *T = bsurf_alloc_array((size_t)sizes, sizeof(double));
+  if (!imm || !T) {
+    if (!state) free(imm);
+    free(T);
+    return BSURF_ERR_NOMEM;
+  }
+  st = ratio_thresholds(xyz, nb, &o, sizes, T);
+  if (t_kmin) *t_kmin = T[0];
+  dist_ctx ctx = {xyz, nb, &o, T, dist, ksel, imm};
+  if (st == BSURF_OK)
+    st = bsurf_parallel_points(n, bsurf_threads_resolve(o.threads), dist_point, &ctx, o.progress,
+                               o.progress_user);
   if (st == BSURF_OK) {
     double R = 0;
     size_t ni = 0;
     for (size_t i = 0; i < n; i++)
       if (dist[i] > R) R = dist[i];
     for (size_t i = 0; i < n; i++)
-      if (imm[i]) {
+      if (imm[i] == 2) {
         dist[i] = -R;
         ni++;
       }
     if (max_radius) *max_radius = R;
     if (immediate) *immediate = ni;
   }
-  free(imm);
+  if (!state) free(imm);
+  free(T);
   return st;
+}
+
+bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors *nb,
+                                        const bsurf_feature_options *opts, double *dist,
+                                        int *ksel, double *max_radius, size_t *immediate) {
+  return distance_raw(xyz, nb, opts, dist, ksel, max_radius, immediate, NULL, NULL);
 }
 
 typedef struct filter_ctx {
@@ -244,6 +387,59 @@ static double median_sorted(const double *v, size_t n) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
+/* Otsu's two-class split of sorted values (count >= 1) on a 256-bin
+ * histogram between the 0.1% and 100% quantiles (a few outliers at the
+ * bottom would stretch the range): the upper edge of the last bin of the
+ * lower class. */
+static double otsu_sorted(const double *l, size_t count) {
+  enum { BINS = 256 };
+  double lo = l[(size_t)(0.001 * (double)(count - 1))], hi = l[count - 1];
+  if (!(hi > lo)) return hi;
+  double hist[BINS] = {0};
+  double w = (hi - lo) / BINS;
+  for (size_t i = 0; i < count; i++) {
+    int b = l[i] <= lo ? 0 : (int)((l[i] - lo) / w);
+    if (b >= BINS) b = BINS - 1;
+    hist[b] += 1;
+  }
+  double total = (double)count, sum_all = 0;
+  for (int b = 0; b < BINS; b++) sum_all += b * hist[b];
+  double w0 = 0, sum0 = 0, best = -1;
+  int best_b = 0;
+  for (int b = 0; b < BINS - 1; b++) {
+    w0 += hist[b];
+    sum0 += b * hist[b];
+    double w1 = total - w0;
+    if (w0 <= 0 || w1 <= 0) continue;
+    double m0 = sum0 / w0, m1 = (sum_all - sum0) / w1;
+    double between = w0 * w1 * (m0 - m1) * (m0 - m1);
+    if (between > best) {
+      best = between;
+      best_b = b;
+    }
+  }
+  return lo + (best_b + 1) * w;
+}
+
+/* The distance method's automatic T_h: Otsu's split of the map's positive
+ * values (the points <= 0 are features whatever it is); 0 when fewer than
+ * two are positive. Only points that exceeded T_{a/c} somewhere (state > 0)
+ * are features below it (see bsurf_detect_features). */
+static bsurf_status distance_auto_threshold(const double *map, size_t n, double *t) {
+  double *v = bsurf_alloc_array(n ? n : 1, sizeof(double));
+  if (!v) return BSURF_ERR_NOMEM;
+  size_t m = 0;
+  for (size_t i = 0; i < n; i++)
+    if (map[i] > 0) v[m++] = map[i];
+  *t = 0;
+  if (m >= 2) {
+    qsort(v, m, sizeof(double), cmp_double);
+    *t = otsu_sorted(v, m);
+  }
+  free(v);
+  return BSURF_OK;
+}
+
 bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail_rule rule,
                                   double *threshold) {
   if (!values || !threshold || (rule != BSURF_TAIL_OTSU && rule != BSURF_TAIL_MAD))
@@ -278,38 +474,7 @@ bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail
     double mad = median_sorted(l, count);
     t = med + 3.0 * 1.4826 * mad;
   } else {
-    /* Otsu on a 256-bin histogram of log(value) between the 0.1% and 100%
-     * quantiles (a few outliers at the bottom would stretch the range) */
-    enum { BINS = 256 };
-    double lo = l[(size_t)(0.001 * (double)(count - 1))], hi = l[count - 1];
-    if (!(hi > lo)) {
-      t = hi;
-    } else {
-      double hist[BINS] = {0};
-      double w = (hi - lo) / BINS;
-      for (size_t i = 0; i < count; i++) {
-        int b = l[i] <= lo ? 0 : (int)((l[i] - lo) / w);
-        if (b >= BINS) b = BINS - 1;
-        hist[b] += 1;
-      }
-      double total = (double)count, sum_all = 0;
-      for (int b = 0; b < BINS; b++) sum_all += b * hist[b];
-      double w0 = 0, sum0 = 0, best = -1;
-      int best_b = 0;
-      for (int b = 0; b < BINS - 1; b++) {
-        w0 += hist[b];
-        sum0 += b * hist[b];
-        double w1 = total - w0;
-        if (w0 <= 0 || w1 <= 0) continue;
-        double m0 = sum0 / w0, m1 = (sum_all - sum0) / w1;
-        double between = w0 * w1 * (m0 - m1) * (m0 - m1);
-        if (between > best) {
-          best = between;
-          best_b = b;
-        }
-      }
-      t = lo + (best_b + 1) * w;
-    }
+    t = otsu_sorted(l, count);
   }
   free(l);
   *threshold = exp(t);
@@ -329,9 +494,10 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
   const size_t n = nb->point_count;
   double *sc = score ? score : bsurf_alloc_array(n, sizeof(double));
   double *tmp = NULL;
+  uint8_t *state = NULL;
   if (!sc) return BSURF_ERR_NOMEM;
   bsurf_status st = BSURF_OK;
-  double thr = 0, R = 0;
+  double thr = 0, R = 0, t_kmin = NAN;
   size_t imm = 0;
   if (o.method == BSURF_FEATURES_VARIANCE) {
     bsurf_normal_options no = o.normals;
@@ -350,7 +516,8 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
     if (st == BSURF_OK)
       for (size_t i = 0; i < n; i++) feature[i] = sc[i] > thr;
   } else {
-    st = bsurf_feature_distance_raw(xyz, nb, &o, sc, NULL, &R, &imm);
+    state = bsurf_alloc_array(n, 1);
+    st = state ? distance_raw(xyz, nb, &o, sc, NULL, &R, &imm, &t_kmin, state) : BSURF_ERR_NOMEM;
     int fk = o.filter_k ? o.filter_k : o.k_min;
     if (st == BSURF_OK && o.iterations > 0 && o.alpha > 0 && R > 0) {
       tmp = bsurf_alloc_array(n, sizeof(double));
@@ -369,17 +536,27 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
       double mx = -INFINITY;
       for (size_t i = 0; i < n; i++)
         if (sc[i] > mx) mx = sc[i];
-      thr = isnan(o.threshold) ? 0 : o.threshold * mx;
-      for (size_t i = 0; i < n; i++) feature[i] = sc[i] <= thr;
+      if (isnan(o.threshold))
+        st = distance_auto_threshold(sc, n, &thr);
+      else
+        thr = o.threshold * mx;
     }
+    /* auto: a point whose neighbourhoods never exceeded T_{a/c} has seen no
+     * feature up to k_max, whatever its radius (on a featureless surface the
+     * split would otherwise cut the density variations of the k_max radii) */
+    if (st == BSURF_OK)
+      for (size_t i = 0; i < n; i++)
+        feature[i] = sc[i] <= thr && (sc[i] <= 0 || !isnan(o.threshold) || state[i] != 0);
   }
   if (st == BSURF_OK && report) {
     report->threshold = thr;
     report->max_radius = R;
     report->immediate = imm;
+    report->ratio_threshold_kmin = t_kmin;
     for (size_t i = 0; i < n; i++) report->feature_points += feature[i];
   }
   free(tmp);
+  free(state);
   if (!score) free(sc);
   return st;
 }

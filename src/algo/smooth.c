@@ -27,7 +27,7 @@
  *
  * multipass (6.4, Algorithm 5, Eqs. 6.3-6.5): per point, K_i = max{k_min, y}
  *   with y = (k_min - K) / k_error * W_i + K (Eq. 6.4, k_error = mean W by
- *   default, y rounded to the nearest integer); d_L, the local average
+ *   default, or a multiple of it, y rounded to the nearest integer); d_L, the local average
  *   distance between points, taken as the mean distance from the point to the
  *   other K_i - 1 (for a uniformly sampled disc the mean over all pairs is
  *   about 1.36 times this; it would cost K_i^2 instead of K_i); the frame and
@@ -69,6 +69,7 @@ bsurf_smooth_options bsurf_smooth_options_default(void) {
   o.iterations = 300;
   o.k_min = 10;
   o.k_error = 0;
+  o.k_error_fraction = 1.0;
   return o;
 }
 
@@ -427,7 +428,8 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
   if (st != BSURF_OK) return st;
   if (o.method < BSURF_SMOOTH_NAIVE || o.method > BSURF_SMOOTH_MULTIPASS) return BSURF_ERR_INVALID_ARG;
   if (o.order != BSURF_ORDER_PARALLEL && o.order != BSURF_ORDER_SEQUENTIAL) return BSURF_ERR_INVALID_ARG;
-  if (isnan(o.h1) || isnan(o.h2) || isnan(o.h2_fraction) || isnan(o.k_error)) return BSURF_ERR_INVALID_ARG;
+  if (isnan(o.h1) || isnan(o.h2) || isnan(o.h2_fraction) || isnan(o.k_error) || isnan(o.k_error_fraction))
+    return BSURF_ERR_INVALID_ARG;
   if (o.method == BSURF_SMOOTH_MULTIPASS) {
     if (!(o.a >= 0) || !isfinite(o.a) || o.iterations < 0 || o.k_min < 1) return BSURF_ERR_INVALID_ARG;
     if (o.k_min > o.error.k) return BSURF_ERR_INVALID_ARG;
@@ -492,7 +494,11 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
   double sumW = 0;
   for (size_t i = 0; i < n; i++) sumW += c.W[i];
   const double meanW = n ? sumW / (double)n : 0.0; /* |W| (Algorithm 4 step 2) */
-  double frac = o.h2_fraction > 0 ? o.h2_fraction : (o.method == BSURF_SMOOTH_MULTIPASS ? 0.3 : 0.75);
+  /* h2 defaults: 0.3 |W| for multipass (6.4.1); 2 |W| for bilateral, where
+   * the thesis shows 0.5-1 |W| (Figs. 6.4-6.6): on fandisk and the cube at
+   * noise 0.25 and 0.5 the distance to the true surface keeps falling up to
+   * about 2 |W|, feature points included (docs/smoothing.md) */
+  double frac = o.h2_fraction > 0 ? o.h2_fraction : (o.method == BSURF_SMOOTH_MULTIPASS ? 0.3 : 2.0);
   c.h1 = o.h1 > 0 ? o.h1 : nb->h;
   c.h2 = o.h2 > 0 ? o.h2 : frac * meanW;
   if (report) {
@@ -543,7 +549,8 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     /* ---- multipass: K_i, d_L and the fits, once ---- */
     /* |W| by default; errors below 1e-9 h are rounding, not noise, and their
      * ratios carry no information (exact data keeps K_i = K) */
-    c.k_error = o.k_error > 0 ? o.k_error : fmax(meanW, 1e-9 * nb->h);
+    double kf = o.k_error_fraction > 0 ? o.k_error_fraction : 1.0;
+    c.k_error = o.k_error > 0 ? o.k_error : fmax(kf * meanW, 1e-9 * nb->h);
     c.khat = bsurf_alloc_array(n, sizeof(int));
     c.dl = bsurf_alloc_array(n, sizeof(double));
     c.e2 = bsurf_alloc_array(n, sizeof(double));

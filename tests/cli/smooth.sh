@@ -32,6 +32,7 @@ done
 cmp -s "$T/b.parallel.ply" "$T/b.sequential.ply" && fail "the two orders gave the same bytes" || ok
 expect 0 "multipass sequential" -- "$BSURF" smooth "$T/n.ply" --order sequential --iterations 3 -k 30 -B 20 \
   --a 0.5 --h2 0.01 --k-min 12 --k-error 0.5h -o "$T/x.ply" -q
+expect 0 "multipass k-error in W" -- "$BSURF" smooth "$T/n.ply" --method multipass --iterations 2 -k 30 -B 20 --k-error 2W -o "$T/x.ply" -q
 [ "$(cksum <"$T/n.ply")" = "$sum_before" ] && ok || fail "input modified"
 # bad usage (exit 2) and bad input (exit 1), never an output
 rm -f "$T/x.ply"
