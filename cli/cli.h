@@ -148,8 +148,11 @@ int render_up_option(const cli_command *cmd, const char *up, int *axis);
 /* Writes an RGB image as PNG (atomically); prints the reason and returns 1
  * on failure. */
 int cli_write_png(const char *path, const uint8_t *rgb, int w, int h);
-/* Per-point spacing for splat sizes (malloc'ed, point_count) or NULL. */
-double *render_local_spacing(const bsurf_cloud *c, int threads, double h);
+/* One 7-nearest-neighbour search: the mean spacing h (0 for fewer than 2
+ * points) and, returned, each point's splat spacing (malloc'ed, point_count;
+ * NULL for fewer than 8 points or on failure, with *status set). */
+double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn progress, void *user, double *h,
+                       bsurf_status *status);
 int cmd_features(const cli_command *cmd, int argc, char **argv);
 int cmd_smooth(const cli_command *cmd, int argc, char **argv);
 

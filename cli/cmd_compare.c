@@ -86,6 +86,7 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
   bsurf_cloud clouds[COMPARE_MAX];
   const double *vals[COMPARE_MAX];
   double hs[COMPARE_MAX];
+  double *locals[COMPARE_MAX] = {NULL};
   int loaded = 0;
   rc = 0;
   for (int i = 0; i < npos && rc == 0; i++) {
@@ -104,10 +105,9 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
       }
       vals[i] = f->values;
     }
-    hs[i] = 0;
-    if (clouds[i].point_count >= 2 &&
-        bsurf_mean_spacing(clouds[i].xyz, clouds[i].point_count, ro.threads, &hs[i]) != BSURF_OK)
-      rc = cli_error("%s: spacing failed", pos[i]);
+    bsurf_status sst;
+    locals[i] = render_spacing(&clouds[i], ro.threads, NULL, NULL, &hs[i], &sst);
+    if (sst != BSURF_OK) rc = cli_error("%s: spacing: %s", pos[i], bsurf_strerror(sst));
   }
   /* one colour range for every panel */
   if (rc == 0 && field && (!isfinite(ro.range_lo) || !isfinite(ro.range_hi))) {
@@ -148,11 +148,9 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
       bsurf_render_options o = ro;
       o.title = tnames[i];
       o.spacing = hs[i];
-      double *local = render_local_spacing(&clouds[i], ro.threads, hs[i]);
-      o.point_spacing = local;
+      o.point_spacing = locals[i];
       bsurf_status st = bsurf_render(panel, clouds[i].xyz, clouds[i].normals, clouds[i].point_count,
                                      vals[i], &o, NULL);
-      free(local);
       if (st != BSURF_OK) {
         rc = cli_error("%s: render: %s", pos[i], bsurf_strerror(st));
         break;
@@ -194,8 +192,10 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
   }
   free(img);
   free(panel);
-  for (int i = 0; i < loaded; i++)
+  for (int i = 0; i < loaded; i++) {
     bsurf_cloud_free(&clouds[i]);
+    free(locals[i]);
+  }
   free(tcopy);
   return rc;
 }

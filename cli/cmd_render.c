@@ -67,29 +67,39 @@ int render_view_option(const cli_command *cmd, const char *view, double az, doub
  * clamped to [1, 4]: evenly sampled regions keep splats of h, sparse regions
  * of a scan get larger ones, so they look closed too. NULL on failure (the
  * renderer then uses h everywhere). */
-double *render_local_spacing(const bsurf_cloud *c, int threads, double h) {
+double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn progress, void *user, double *h,
+                       bsurf_status *status) {
   const int k = 7;
-  if (c->point_count < (size_t)k + 1 || !(h > 0)) return NULL;
   size_t n = c->point_count;
-  bsurf_knn_index *index = NULL;
-  uint32_t *idx = malloc(n * k * sizeof *idx);
-  double *d2 = malloc(n * k * sizeof *d2), *out = malloc(n * sizeof *out);
-  int okay = idx && d2 && out && bsurf_knn_build(&index, c->xyz, n) == BSURF_OK &&
-             bsurf_knn_all(index, k, threads, idx, d2, NULL, NULL) == BSURF_OK;
+  *h = 0;
+  *status = BSURF_OK;
+  if (n < 2) return NULL;
+  if (n < (size_t)k + 1) {
+    *status = bsurf_mean_spacing_progress(c->xyz, n, threads, h, progress, user);
+    return NULL;
+  }
+  /* one search: the nearest neighbour gives h (as bsurf_mean_spacing), the
+   * 7th the local spacing */
+  bsurf_neighbors nb;
+  *status = bsurf_neighbors_build(&nb, c->xyz, n, k, threads, progress, user);
+  if (*status != BSURF_OK) return NULL;
+  *h = nb.h;
+  double *out = malloc(n * sizeof *out);
   double med = 0, unused = 0;
+  int okay = out != NULL && nb.h > 0;
   if (okay) {
-    for (size_t i = 0; i < n; i++)
-      out[i] = sqrt(d2[i * k + k - 1]);
+    for (size_t i = 0; i < n; i++) {
+      const double *p = &c->xyz[3 * i], *q = &c->xyz[3 * (size_t)nb.idx[i * k + k - 1]];
+      out[i] = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
+    }
     okay = bsurf_render_range(out, n, 50, 50, &med, &unused) == BSURF_OK && med > 0;
   }
   if (okay)
     for (size_t i = 0; i < n; i++) {
       double r = out[i] / med;
-      out[i] = h * (r < 1 ? 1 : r > 4 ? 4 : r);
+      out[i] = nb.h * (r < 1 ? 1 : r > 4 ? 4 : r);
     }
-  bsurf_knn_free(index);
-  free(idx);
-  free(d2);
+  bsurf_neighbors_free(&nb);
   if (!okay) {
     free(out);
     return NULL;
@@ -173,20 +183,16 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
   }
   ro.label = field;
   double h = 0;
-  if (c.point_count >= 2) {
-    cli_progress prog;
-    cli_progress_init(&prog, "spacing", quiet || json);
-    bsurf_status st =
-        bsurf_mean_spacing_progress(c.xyz, c.point_count, ro.threads, &h, cli_progress_cb, &prog);
-    cli_progress_done(&prog);
-    if (st != BSURF_OK) {
-      bsurf_cloud_free(&c);
-      return cli_error("%s: spacing: %s", pos[0],
-                       cli_interrupted() ? "interrupted" : bsurf_strerror(st));
-    }
+  cli_progress prog;
+  cli_progress_init(&prog, "spacing", quiet || json);
+  bsurf_status sst;
+  double *local = render_spacing(&c, ro.threads, cli_progress_cb, &prog, &h, &sst);
+  cli_progress_done(&prog);
+  if (sst != BSURF_OK) {
+    bsurf_cloud_free(&c);
+    return cli_error("%s: spacing: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(sst));
   }
   ro.spacing = h;
-  double *local = render_local_spacing(&c, ro.threads, h);
   ro.point_spacing = local;
   uint8_t *rgb = malloc((size_t)ro.width * (size_t)ro.height * 3);
   if (!rgb) {
