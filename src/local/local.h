@@ -8,7 +8,8 @@
 #define BSURF_DEGREE_MAX 4
 #define BSURF_TERMS_MAX 15 /* bsurf_poly_terms(BSURF_DEGREE_MAX) */
 #define BSURF_PACKED_MAX (BSURF_TERMS_MAX * (BSURF_TERMS_MAX + 1) / 2)
-#define BSURF_NCOLS_MAX (BSURF_PACKED_MAX + BSURF_TERMS_MAX)
+#define BSURF_MOMENTS_MAX 45 /* bsurf_poly_terms(2 * BSURF_DEGREE_MAX) */
+#define BSURF_NCOLS_MAX 64 /* BSURF_MOMENTS_MAX + BSURF_TERMS_MAX, padded to 8 */
 
 /* Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations (a is not modified).
  * evals ascending; evecs[i] is the unit eigenvector of evals[i]. */
@@ -21,8 +22,8 @@ void bsurf_frame_to_global(const bsurf_frame *f, const double local[3], double o
 /* A direction (no translation) from local to global coordinates. */
 void bsurf_frame_dir_to_global(const bsurf_frame *f, const double local[3], double out[3]);
 
-/* Monomials of total degree <= degree in graded order
- * 1, u, v, u^2, uv, v^2, u^3, u^2 v, u v^2, v^3, ...
+/* Monomials of total degree <= degree (at most 2 * BSURF_DEGREE_MAX) in
+ * graded order 1, u, v, u^2, uv, v^2, u^3, u^2 v, u v^2, v^3, ...
  * so the basis of a lower degree is a prefix of the basis of a higher one. */
 void bsurf_poly_basis(int degree, double u, double v, double *phi);
 
@@ -51,17 +52,20 @@ void bsurf_gemm_rows(int B, int k, int nc, const double *W, const double *A, dou
 
 /* A neighbourhood prepared for (weighted) polynomial height fits: local
  * coordinates scaled to the unit disc, the basis at every point and the
- * per-point products phi phi^T (packed) and phi z, so that the normal
- * equations of any integer-weighted (bootstrap) fit are sums of precomputed
- * terms (thesis 4.1.2: a fit on each resample S_b). */
+ * per-point monomials u^i v^j of degree <= 2M (every entry phi_a phi_b of
+ * phi phi^T is one of them: 28 numbers for a cubic instead of 55) and phi z,
+ * so that the normal equations of any integer-weighted (bootstrap) fit are
+ * sums of precomputed terms (thesis 4.1.2: a fit on each resample S_b). */
 typedef struct bsurf_localfit {
   int kmax, degree_max;
-  int k, degree, m, p; /* current neighbourhood size, degree, terms, packed size */
-  int ncols;           /* p + m: the width of a row of `op` */
+  int k, degree, m, p; /* current neighbourhood size, degree, terms, moments
+                          of degree <= 2 * degree */
+  int ncols;           /* p + m padded to a multiple of 8: the width of a row
+                          of `op` (the padding is zero) */
   double scale;        /* local coordinates are divided by this */
   double *u, *v, *z;   /* k: scaled x', y' and unscaled height z' */
   double *phit;        /* m x k: basis, transposed (term-major) */
-  double *op;          /* k x ncols: packed phi phi^T, then phi z */
+  double *op;          /* k x ncols: the moments' monomials, then phi z */
 } bsurf_localfit;
 
 bsurf_status bsurf_localfit_alloc(bsurf_localfit *lf, int kmax, int degree_max);
@@ -73,7 +77,7 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
                           int k, const bsurf_frame *frame, int degree);
 
 /* Normal equations of B weighted fits at once (a B x k by k x ncols matrix
- * product): row b of `rows` (B x lf->ncols) receives the packed G followed by
+ * product): row b of `rows` (B x lf->ncols) receives the moments of G followed by
  * r for the weights W[b] (W: B x k, row-major). The sum over the points runs
  * in index order, so a row equals what a point-by-point sum gives. */
 void bsurf_localfit_normal_eq(const bsurf_localfit *lf, int B, const double *W, double *rows);

@@ -22,10 +22,11 @@ int bsurf_poly_terms(int degree) {
 void bsurf_poly_basis(int degree, double u, double v, double *phi) {
   int t = 0;
   phi[t++] = 1.0;
-  double prev[BSURF_DEGREE_MAX + 1] = {1.0}; /* monomials of degree d-1 */
+  /* degree up to 2 * BSURF_DEGREE_MAX: the moments of localfit */
+  double prev[2 * BSURF_DEGREE_MAX + 1] = {1.0}; /* monomials of degree d-1 */
   for (int d = 1; d <= degree; d++) {
     /* degree d: u^d, u^(d-1) v, ..., v^d from the previous degree */
-    double cur[BSURF_DEGREE_MAX + 1];
+    double cur[2 * BSURF_DEGREE_MAX + 1];
     for (int j = 0; j < d; j++) cur[j] = prev[j] * u;
     cur[d] = prev[d - 1] * v;
     for (int j = 0; j <= d; j++) {
@@ -87,7 +88,7 @@ bsurf_status bsurf_localfit_alloc(bsurf_localfit *lf, int kmax, int degree_max) 
   memset(lf, 0, sizeof *lf);
   if (kmax < 1 || degree_max < 0 || degree_max > BSURF_DEGREE_MAX)
     return BSURF_ERR_INVALID_ARG;
-  int m = bsurf_poly_terms(degree_max), ncols = m * (m + 1) / 2 + m;
+  int m = bsurf_poly_terms(degree_max), ncols = (bsurf_poly_terms(2 * degree_max) + m + 7) / 8 * 8;
   lf->kmax = kmax;
   lf->degree_max = degree_max;
   lf->u = bsurf_alloc_array((size_t)kmax, 3 * sizeof(double));
@@ -114,8 +115,10 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
   lf->k = k;
   lf->degree = degree;
   lf->m = bsurf_poly_terms(degree);
-  lf->p = lf->m * (lf->m + 1) / 2;
-  lf->ncols = lf->p + lf->m;
+  lf->p = bsurf_poly_terms(2 * degree);
+  /* padded with zero columns to a multiple of 8, the width of the matrix
+   * product's register blocks */
+  lf->ncols = (lf->p + lf->m + 7) / 8 * 8;
   double r2max = 0;
   for (int j = 0; j < k; j++) {
     double q[3];
@@ -132,14 +135,39 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
   for (int j = 0; j < k; j++) {
     lf->u[j] *= inv;
     lf->v[j] *= inv;
-    double phi[BSURF_TERMS_MAX];
-    bsurf_poly_basis(degree, lf->u[j], lf->v[j], phi);
-    for (int a = 0; a < m; a++) lf->phit[(size_t)a * k + j] = phi[a];
+    /* the monomials of degree <= 2M in graded order: every product
+     * phi_a phi_b is one of them (moment_index), and the basis of degree M
+     * is their prefix */
     double *o = &lf->op[(size_t)j * nc];
-    for (int b = 0; b < m; b++)
-      for (int a = 0; a <= b; a++) o[bsurf_packed_index(a, b)] = phi[a] * phi[b];
-    for (int a = 0; a < m; a++) o[p + a] = phi[a] * lf->z[j];
+    bsurf_poly_basis(2 * degree, lf->u[j], lf->v[j], o);
+    for (int a = 0; a < m; a++) lf->phit[(size_t)a * k + j] = o[a];
+    for (int a = 0; a < m; a++) o[p + a] = o[a] * lf->z[j];
+    for (int c = p + m; c < nc; c++) o[c] = 0.0;
   }
+}
+
+/* Position of the monomial phi_a phi_b among the graded monomials, for
+ * every packed (a, b), a <= b < BSURF_TERMS_MAX: phi_a of total degree d_a
+ * has v-power j_a = a - d_a(d_a+1)/2, and u^i v^j of degree d = i + j sits at
+ * d(d+1)/2 + j, so phi_a phi_b is at d(d+1)/2 + j_a + j_b with d = d_a + d_b.
+ * (Generated from that formula; a wrong entry breaks test_local's exact
+ * recovery of polynomials.) */
+static const unsigned char packed_moment[BSURF_PACKED_MAX] = {
+    0, 1, 3, 2, 4, 5, 3, 6, 7, 10, 4, 7, 8, 11, 12, 5, 8, 9, 12, 13,
+    14, 6, 10, 11, 15, 16, 17, 21, 7, 11, 12, 16, 17, 18, 22, 23, 8, 12, 13, 17,
+    18, 19, 23, 24, 25, 9, 13, 14, 18, 19, 20, 24, 25, 26, 27, 10, 15, 16, 21, 22,
+    23, 28, 29, 30, 31, 36, 11, 16, 17, 22, 23, 24, 29, 30, 31, 32, 37, 38, 12, 17,
+    18, 23, 24, 25, 30, 31, 32, 33, 38, 39, 40, 13, 18, 19, 24, 25, 26, 31, 32, 33,
+    34, 39, 40, 41, 42, 14, 19, 20, 25, 26, 27, 32, 33, 34, 35, 40, 41, 42, 43, 44,
+};
+
+static const unsigned char *moment_map(void) { return packed_moment; }
+
+/* The packed G (m x m) of one row of moments. */
+static void gram_from_moments(int m, const double *row, double *G) {
+  const unsigned char *map = moment_map();
+  const int pm = m * (m + 1) / 2;
+  for (int q = 0; q < pm; q++) G[q] = row[map[q]];
 }
 
 /* rows (B x nc) = W (B x k) * A (k x nc). Blocks of 4 rows by 8 columns are
@@ -222,7 +250,9 @@ static int chol_solve4(int m, int p, const double *const rows[4], double rel_tol
   v4d G[BSURF_PACKED_MAX], r[BSURF_TERMS_MAX], L[BSURF_TERMS_MAX * BSURF_TERMS_MAX];
   v4d inv[BSURF_TERMS_MAX], y[BSURF_TERMS_MAX], c[BSURF_TERMS_MAX];
   const int pm = m * (m + 1) / 2;
-  for (int q = 0; q < pm; q++) G[q] = (v4d){rows[0][q], rows[1][q], rows[2][q], rows[3][q]};
+  const unsigned char *map = moment_map();
+  for (int q = 0; q < pm; q++)
+    G[q] = (v4d){rows[0][map[q]], rows[1][map[q]], rows[2][map[q]], rows[3][map[q]]};
   for (int i = 0; i < m; i++)
     r[i] = (v4d){rows[0][p + i], rows[1][p + i], rows[2][p + i], rows[3][p + i]};
   const v4d one = {1, 1, 1, 1}, zero = {0, 0, 0, 0};
@@ -303,10 +333,13 @@ void bsurf_localfit_normal_eq(const bsurf_localfit *lf, int B, const double *W, 
 
 int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row,
                              double *coef) {
-  /* the packed G of a lower degree is a prefix of the setup degree's; its
-   * right-hand side is a prefix of r, which starts at column p */
-  return bsurf_chol_solve_packed(bsurf_poly_terms(degree), row, row + lf->p, BSURF_RANK_TOL,
-                                 coef);
+  /* G from the moments (a lower degree uses a subset of them); the
+   * right-hand side of a lower degree is a prefix of r, which starts at
+   * column p */
+  const int m = bsurf_poly_terms(degree);
+  double G[BSURF_PACKED_MAX];
+  gram_from_moments(m, row, G);
+  return bsurf_chol_solve_packed(m, G, row + lf->p, BSURF_RANK_TOL, coef);
 }
 
 int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *counts,
