@@ -44,7 +44,9 @@
  * lets the passes skip far neighbours after one distance test.
  *
  * All of it is deterministic for a given seed, whatever the thread count:
- * every point is updated by gathering its contributions in a fixed order. */
+ * every point is updated by gathering its contributions in a fixed order.
+ * The multipass's parallel passes run over the points in Morton order (cache
+ * locality; the order of a point's sums follows it). */
 #include "algo/algo.h"
 #include "common/common.h"
 
@@ -312,16 +314,19 @@ static void active_task(void *vc, int thread, size_t p) {
 }
 
 /* The reverse lists: for every p, the i (ascending) whose first size(i)
- * neighbours contain p. size = NULL: all k. */
-static bsurf_status build_reverse(smooth_ctx *c, const int *size) {
+ * neighbours contain p. size = NULL: all k. With a spatial order (perm[i'] =
+ * i, rank[i] = i'), the lists are built in that order's indices: list rank[p]
+ * holds the ranks of the neighbourhoods that contain p. */
+static bsurf_status build_reverse(smooth_ctx *c, const int *size, const uint32_t *perm, const uint32_t *rank) {
   const size_t n = c->n;
   const int stride = c->nb->k;
   c->rev_off = bsurf_calloc_array(n + 1, sizeof(size_t));
   if (!c->rev_off) return BSURF_ERR_NOMEM;
-  for (size_t i = 0; i < n; i++) {
+  for (size_t r = 0; r < n; r++) {
+    const size_t i = perm ? perm[r] : r;
     int kk = size ? size[i] : c->k;
     const uint32_t *idx = &c->nb->idx[i * (size_t)stride];
-    for (int j = 0; j < kk; j++) c->rev_off[idx[j] + 1]++;
+    for (int j = 0; j < kk; j++) c->rev_off[(rank ? rank[idx[j]] : idx[j]) + 1]++;
   }
   for (size_t p = 0; p < n; p++) c->rev_off[p + 1] += c->rev_off[p];
   c->rev = bsurf_alloc_array(c->rev_off[n] ? c->rev_off[n] : 1, sizeof(uint32_t));
@@ -331,12 +336,88 @@ static bsurf_status build_reverse(smooth_ctx *c, const int *size) {
     return BSURF_ERR_NOMEM;
   }
   memcpy(pos, c->rev_off, n * sizeof(size_t));
-  for (size_t i = 0; i < n; i++) {
+  for (size_t r = 0; r < n; r++) {
+    const size_t i = perm ? perm[r] : r;
     int kk = size ? size[i] : c->k;
     const uint32_t *idx = &c->nb->idx[i * (size_t)stride];
-    for (int j = 0; j < kk; j++) c->rev[pos[idx[j]]++] = (uint32_t)i;
+    for (int j = 0; j < kk; j++) c->rev[pos[rank ? rank[idx[j]] : idx[j]]++] = (uint32_t)r;
   }
   free(pos);
+  return BSURF_OK;
+}
+
+/* ---- a spatially coherent order for the passes ------------------------ */
+/* The passes read the positions of every point's neighbourhoods; in input
+ * order (often random) each read is a cache miss. The points are visited in
+ * Morton (Z-curve) order of their coordinates quantised to 21 bits over the
+ * bounding box, ties by index. */
+typedef struct morton_key {
+  uint64_t code;
+  uint32_t index;
+} morton_key;
+
+static uint64_t spread3(uint64_t x) { /* 21 bits -> every third of 63 */
+  x &= 0x1fffff;
+  x = (x | x << 32) & 0x1f00000000ffffULL;
+  x = (x | x << 16) & 0x1f0000ff0000ffULL;
+  x = (x | x << 8) & 0x100f00f00f00f00fULL;
+  x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+  x = (x | x << 2) & 0x1249249249249249ULL;
+  return x;
+}
+
+static int morton_cmp(const void *a, const void *b) {
+  const morton_key *x = a, *y = b;
+  if (x->code != y->code) return x->code < y->code ? -1 : 1;
+  return x->index < y->index ? -1 : (x->index > y->index);
+}
+
+static bsurf_status spatial_order(const double *xyz, size_t n, uint32_t **perm_out, uint32_t **rank_out) {
+  morton_key *keys = bsurf_alloc_array(n ? n : 1, sizeof *keys);
+  uint32_t *perm = bsurf_alloc_array(n ? n : 1, sizeof *perm), *rank = bsurf_alloc_array(n ? n : 1, sizeof *rank);
+  if (!keys || !perm || !rank) {
+    free(keys);
+    free(perm);
+    free(rank);
+    return BSURF_ERR_NOMEM;
+  }
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < n; i++)
+    for (int t = 0; t < 3; t++) {
+      if (xyz[3 * i + t] < lo[t]) lo[t] = xyz[3 * i + t];
+      if (xyz[3 * i + t] > hi[t]) hi[t] = xyz[3 * i + t];
+    }
+  double ext = 0;
+  for (int t = 0; t < 3; t++)
+    if (hi[t] - lo[t] > ext) ext = hi[t] - lo[t];
+  const double scale = ext > 0 ? 2097151.0 / ext : 0.0;
+  for (size_t i = 0; i < n; i++) {
+    uint64_t q[3];
+    for (int t = 0; t < 3; t++) {
+      double v = (xyz[3 * i + t] - lo[t]) * scale;
+      q[t] = v > 0 ? (uint64_t)(v < 2097151.0 ? v : 2097151.0) : 0;
+    }
+    keys[i].code = spread3(q[0]) | spread3(q[1]) << 1 | spread3(q[2]) << 2;
+    keys[i].index = (uint32_t)i;
+  }
+  qsort(keys, n, sizeof *keys, morton_cmp);
+  for (size_t r = 0; r < n; r++) {
+    perm[r] = keys[r].index;
+    rank[keys[r].index] = (uint32_t)r;
+  }
+  free(keys);
+  *perm_out = perm;
+  *rank_out = rank;
+  return BSURF_OK;
+}
+
+/* a[r] = old a[perm[r]] for rows of `width` elements of `size` bytes */
+static bsurf_status permute_rows(void **array, size_t n, size_t row_bytes, const uint32_t *perm) {
+  unsigned char *src = *array, *dst = bsurf_alloc_array(n ? n : 1, row_bytes);
+  if (!dst) return BSURF_ERR_NOMEM;
+  for (size_t r = 0; r < n; r++) memcpy(dst + r * row_bytes, src + (size_t)perm[r] * row_bytes, row_bytes);
+  free(src);
+  *array = dst;
   return BSURF_OK;
 }
 
@@ -535,7 +616,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       bilateral_sequential(&c);
       if (sp.fn && staged_cb(&sp, 1, 1)) st = BSURF_ERR_CANCELLED;
     } else {
-      st = build_reverse(&c, NULL);
+      st = build_reverse(&c, NULL, NULL, NULL);
       if (st != BSURF_OK) goto done;
       c.cur = xyz;
       c.next = out_xyz;
@@ -563,13 +644,27 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     st = bsurf_parallel_points(n, T, multipass_fit_task, &c, staged_cb, &sp);
     if (st != BSURF_OK) goto done;
     sp.stage = 2;
-    double *buf = NULL;
+    double *buf = NULL, *pos = out_xyz;
+    uint32_t *perm = NULL, *rank = NULL;
     memcpy(out_xyz, xyz, n * 3 * sizeof(double));
     /* the margin of the active pairs: a tenth of the mean spacing */
     const double margin = 0.1 * nb->h;
     double drift = INFINITY; /* how far points may have moved since the pairs were listed */
     if (!seq) {
-      st = build_reverse(&c, c.khat);
+      /* the passes run in a spatial order: every per-point array is permuted
+       * (rank r holds point perm[r]) and the result is put back at the end */
+      st = spatial_order(xyz, n, &perm, &rank);
+      if (st == BSURF_OK) st = permute_rows((void **)&c.fits, n, (size_t)c.stride * sizeof(double), perm);
+      if (st == BSURF_OK) st = permute_rows((void **)&c.fit_degree, n, sizeof(int), perm);
+      if (st == BSURF_OK) st = permute_rows((void **)&c.e2, n, sizeof(double), perm);
+      if (st == BSURF_OK) st = permute_rows((void **)&c.inv_h1sq, n, sizeof(double), perm);
+      if (st == BSURF_OK) {
+        pos = bsurf_alloc_array(n * 3, sizeof(double));
+        if (!pos) st = BSURF_ERR_NOMEM;
+        else
+          for (size_t r = 0; r < n; r++) memcpy(&pos[3 * r], &xyz[3 * (size_t)perm[r]], 3 * sizeof(double));
+      }
+      if (st == BSURF_OK) st = build_reverse(&c, c.khat, perm, rank);
       buf = bsurf_alloc_array(n * 3, sizeof(double));
       c.act = bsurf_alloc_array(c.rev_off ? (c.rev_off[n] ? c.rev_off[n] : 1) : 1, sizeof(uint32_t));
       c.act_n = bsurf_alloc_array(n, sizeof(uint32_t));
@@ -589,9 +684,9 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       if (seq) {
         multipass_sequential_pass(&c);
       } else {
-        /* even passes read out_xyz and write buf, odd ones the reverse */
-        c.cur = (it % 2 == 0) ? out_xyz : buf;
-        c.next = (it % 2 == 0) ? buf : out_xyz;
+        /* even passes read pos and write buf, odd ones the reverse */
+        c.cur = (it % 2 == 0) ? pos : buf;
+        c.next = (it % 2 == 0) ? buf : pos;
         if (drift > margin) {
           st = bsurf_parallel_sweep(n, T, active_task, &c);
           drift = 0;
@@ -608,8 +703,14 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       if (st == BSURF_OK && sp.fn && staged_cb(&sp, (size_t)it + 1, (size_t)o.iterations))
         st = BSURF_ERR_CANCELLED;
     }
-    if (st == BSURF_OK && !seq && (o.iterations % 2 == 1)) memcpy(out_xyz, buf, n * 3 * sizeof(double));
+    if (st == BSURF_OK && !seq) {
+      const double *fin = (o.iterations % 2 == 1) ? buf : pos;
+      for (size_t r = 0; r < n; r++) memcpy(&out_xyz[3 * (size_t)perm[r]], &fin[3 * r], 3 * sizeof(double));
+    }
     free(buf);
+    if (pos != out_xyz) free(pos);
+    free(perm);
+    free(rank);
     if (st != BSURF_OK) goto done;
     if (report) {
       report->h1 = 0;
