@@ -77,4 +77,39 @@ if [ -n "$BS" ]; then
     exit 1
   fi
 fi
+# --- smoothing peers (bench/smooth_compare.sh): smooth_pcl (MovingLeastSquares,
+# libpcl-dev's pcl_surface) and smooth_cgal (jet_smooth_point_set,
+# bilateral_smooth_point_set; jet_estimate_normals + mst_orient_normals for the
+# latter's normals). Same packages as above.
+if ! fresh "$OUT/smooth_pcl" "$HERE/smooth_pcl.cpp" "${COMMON[@]}"; then
+  echo "build.sh: smooth_pcl" >&2
+  PCL_SURFACE_FLAGS=$(pkg-config --cflags --libs pcl_surface pcl_search pcl_kdtree pcl_common)
+  # shellcheck disable=SC2086
+  $CXX $CXXFLAGS -fopenmp -I"$HERE" "$HERE/smooth_pcl.cpp" -o "$OUT/smooth_pcl" $PCL_SURFACE_FLAGS
+fi
+if ! fresh "$OUT/smooth_cgal" "$HERE/smooth_cgal.cpp" "${COMMON[@]}"; then
+  echo "build.sh: smooth_cgal (TBB: Parallel_if_available_tag = Parallel_tag)" >&2
+  EIGEN_FLAGS=$(pkg-config --cflags eigen3)
+  TBB_LIBS=$(pkg-config --libs tbb)
+  # shellcheck disable=SC2086
+  $CXX $CXXFLAGS -I"$HERE" $EIGEN_FLAGS -DCGAL_EIGEN3_ENABLED -DCGAL_LINKED_WITH_TBB \
+    "$HERE/smooth_cgal.cpp" -o "$OUT/smooth_cgal" $TBB_LIBS -lgmp -lmpfr -lpthread
+fi
+
+# --- feature-detection baselines (scripts/validate_features.py): features_pcl
+# (NormalEstimationOMP's curvature = surface variation) and features_cgal
+# (compute_vcm + the vcm_is_on_feature_edge ratio). Same packages as above.
+if ! fresh "$OUT/features_pcl" "$HERE/features_pcl.cpp" "${COMMON[@]}"; then
+  echo "build.sh: features_pcl" >&2
+  # shellcheck disable=SC2086
+  $CXX $CXXFLAGS -fopenmp -I"$HERE" "$HERE/features_pcl.cpp" -o "$OUT/features_pcl" $PCL_FLAGS
+fi
+if ! fresh "$OUT/features_cgal" "$HERE/features_cgal.cpp" "${COMMON[@]}"; then
+  echo "build.sh: features_cgal" >&2
+  EIGEN_FLAGS=$(pkg-config --cflags eigen3)
+  # shellcheck disable=SC2086
+  $CXX $CXXFLAGS -I"$HERE" $EIGEN_FLAGS -DCGAL_EIGEN3_ENABLED "$HERE/features_cgal.cpp" \
+    -o "$OUT/features_cgal" -lgmp -lmpfr -lpthread
+fi
+
 echo "build.sh: peers in $OUT" >&2

@@ -177,4 +177,132 @@ static inline void write_xyz_normals(const std::string &path, const std::vector<
   }
 }
 
+// ---- added for the smoothing peers (smooth_cgal.cpp, smooth_pcl.cpp) ----
+
+// Reads the named scalar vertex properties (e.g. {"nx","ny","nz"}) into cols,
+// n * names.size() doubles, row-major. Returns false (cols empty) when one of
+// them is missing; throws std::runtime_error on a malformed file. Same formats
+// as read_xyz.
+static inline bool read_columns(const std::string &path, const std::vector<std::string> &names,
+                                std::vector<double> &cols) {
+  cols.clear();
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path + ": cannot open");
+  std::string line, format;
+  std::getline(in, line);
+  if (line.rfind("ply", 0) != 0) throw std::runtime_error(path + ": not a PLY file");
+  size_t n = 0;
+  bool in_vertex = false;
+  std::vector<Prop> props;
+  while (std::getline(in, line)) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    std::istringstream ls(line);
+    std::string w;
+    ls >> w;
+    if (w == "format") ls >> format;
+    else if (w == "element") {
+      std::string name;
+      ls >> name;
+      in_vertex = name == "vertex";
+      if (in_vertex) ls >> n;
+    } else if (w == "property" && in_vertex) {
+      std::string t, name;
+      ls >> t;
+      if (t == "list") throw std::runtime_error(path + ": list property in vertex");
+      ls >> name;
+      Prop p;
+      p.name = name;
+      if (!type_of(t, p)) throw std::runtime_error(path + ": unknown type " + t);
+      props.push_back(p);
+    } else if (w == "end_header") break;
+  }
+  const size_t m = names.size();
+  std::vector<int> idx(m, -1);
+  std::vector<size_t> off(props.size());
+  size_t stride = 0;
+  for (size_t i = 0; i < props.size(); i++) {
+    off[i] = stride;
+    stride += props[i].size;
+    for (size_t c = 0; c < m; c++)
+      if (props[i].name == names[c]) idx[c] = (int)i;
+  }
+  for (size_t c = 0; c < m; c++)
+    if (idx[c] < 0) return false;
+  cols.resize(n * m);
+  if (format == "ascii") {
+    std::vector<double> v(props.size());
+    for (size_t r = 0; r < n; r++) {
+      for (size_t i = 0; i < props.size(); i++)
+        if (!(in >> v[i])) throw std::runtime_error(path + ": short ascii data");
+      for (size_t c = 0; c < m; c++) cols[m * r + c] = v[idx[c]];
+    }
+    return true;
+  }
+  const uint16_t one = 1;
+  const bool host_le = *(const unsigned char *)&one == 1;
+  bool swap;
+  if (format == "binary_little_endian") swap = !host_le;
+  else if (format == "binary_big_endian") swap = host_le;
+  else throw std::runtime_error(path + ": unknown format " + format);
+  const size_t block = 65536;
+  std::vector<unsigned char> buf(stride * (n < block ? n : block));
+  for (size_t s = 0; s < n; s += block) {
+    const size_t b = n - s < block ? n - s : block;
+    in.read((char *)buf.data(), (std::streamsize)(stride * b));
+    if ((size_t)in.gcount() != stride * b) throw std::runtime_error(path + ": short binary data");
+    for (size_t r = 0; r < b; r++)
+      for (size_t c = 0; c < m; c++)
+        cols[m * (s + r) + c] = decode(buf.data() + r * stride + off[idx[c]], props[idx[c]], swap);
+  }
+  return true;
+}
+
+// Writes x y z (doubles), then nx ny nz (doubles) when nrm is not empty, then
+// every extra column as a float property; binary little-endian, atomic (temporary
+// file + rename). n = xyz.size() / 3; each extra column holds n values.
+struct Extra {
+  std::string name;
+  std::vector<float> values;
+};
+static inline void write_points(const std::string &path, const std::vector<double> &xyz,
+                                const std::vector<double> &nrm, const std::vector<Extra> &extra,
+                                const std::string &comment) {
+  const size_t n = xyz.size() / 3;
+  if (!nrm.empty() && nrm.size() != xyz.size()) throw std::runtime_error("write: normals size mismatch");
+  for (const Extra &e : extra)
+    if (e.values.size() != n) throw std::runtime_error("write: column " + e.name + " size mismatch");
+  const std::string tmp = path + ".tmp";
+  FILE *f = std::fopen(tmp.c_str(), "wb");
+  if (!f) throw std::runtime_error(path + ": cannot write");
+  std::fprintf(f, "ply\nformat binary_little_endian 1.0\ncomment %s\nelement vertex %zu\n"
+               "property double x\nproperty double y\nproperty double z\n", comment.c_str(), n);
+  if (!nrm.empty()) std::fprintf(f, "property double nx\nproperty double ny\nproperty double nz\n");
+  for (const Extra &e : extra) std::fprintf(f, "property float %s\n", e.name.c_str());
+  std::fprintf(f, "end_header\n");
+  const size_t row_bytes = 8 * (nrm.empty() ? 3 : 6) + 4 * extra.size();
+  std::vector<unsigned char> buf(row_bytes * 4096);
+  bool ok = true;
+  for (size_t s = 0; s < n && ok; s += 4096) {
+    const size_t m = n - s < 4096 ? n - s : 4096;
+    unsigned char *p = buf.data();
+    for (size_t r = 0; r < m; r++) {  // little-endian host (x86-64, aarch64)
+      std::memcpy(p, &xyz[3 * (s + r)], 24);
+      p += 24;
+      if (!nrm.empty()) {
+        std::memcpy(p, &nrm[3 * (s + r)], 24);
+        p += 24;
+      }
+      for (const Extra &e : extra) {
+        std::memcpy(p, &e.values[s + r], 4);
+        p += 4;
+      }
+    }
+    ok = std::fwrite(buf.data(), 1, row_bytes * m, f) == row_bytes * m;
+  }
+  if (std::fclose(f) != 0 || !ok || std::rename(tmp.c_str(), path.c_str()) != 0) {
+    std::remove(tmp.c_str());
+    throw std::runtime_error(path + ": cannot write");
+  }
+}
+
 }  // namespace plyio
