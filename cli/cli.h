@@ -34,6 +34,12 @@ typedef struct cli_command {
   {'o', "output", ARG_STRING, &(out), "FILE", "output file (.ply keeps every field)", 1, 0},      \
       {0, "ascii", ARG_FLAG, &(ascii), "", "write ascii PLY (default: binary little-endian)", 1, 0}, \
       {0, "force", ARG_FLAG, &(force), "", "allow the output to be the input file", 1, 0}
+/* For every command that reads clouds: cli_read_cloud() then drops points
+ * with a NaN or infinite coordinate or normal instead of rejecting the file. */
+extern int cli_drop_invalid;
+#define CLI_OPT_DROP_INVALID                                                                        \
+  {0, "drop-invalid", ARG_FLAG, &cli_drop_invalid, "",                                              \
+   "skip points with a NaN or infinite coordinate or normal (default: reject the file)", 1, 0}
 #define CLI_OPTS_REPORT(json, quiet)                                                               \
   {0, "json", ARG_FLAG, &(json), "", "print the summary as one JSON object on stdout", 1, 0},      \
       {'q', "quiet", ARG_FLAG, &(quiet), "", "no progress bar or summary", 1, 0}
@@ -71,19 +77,25 @@ int cli_choice(const char *value, const char *const *names, int count);
 
 /* ---- files ---- */
 /* Reads a cloud; on failure prints "error: PATH:LINE: message" and returns 1.
- * Rejects NaN/Inf coordinates naming the point. */
+ * Rejects an empty file, and NaN/Inf coordinates naming the point (or, with
+ * --drop-invalid, drops those points with a warning and counts them). */
 int cli_read_cloud(const char *path, bsurf_cloud *cloud);
+/* Text summaries: the points dropped by --drop-invalid and the duplicate
+ * points cli_build_neighbors() found, when there are any. (JSON summaries get
+ * "dropped_invalid" and "duplicate_points" from json_end().) */
+void cli_print_input_report(FILE *f);
 /* Checks before any work that OUTPUT can be written and is not the input
  * (unless force). Returns 0 or prints and returns 1 (or 2 for usage). */
 int cli_check_output(const char *output, const char *input, int force);
 /* The same for any file (no format check): not the input, directory writable. */
 int cli_check_writable(const char *output, const char *input, int force);
-/* Writes atomically; warns about fields the format cannot carry. 0 or 1. */
+/* Writes atomically; warns about fields the format cannot carry; writes
+ * nothing once SIGINT/SIGTERM arrived. 0 or 1. */
 int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
 
 /* Builds the K-neighbourhoods of a cloud read from `path`, with a progress
- * bar; on failure (fewer points than K, interrupted, no memory) prints the
- * reason and returns 1. */
+ * bar, and counts the duplicate points; on failure (fewer points than K,
+ * interrupted, no memory) prints the reason and returns 1. */
 int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
                         bsurf_neighbors *nb);
 

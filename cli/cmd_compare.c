@@ -35,6 +35,7 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
       {0, "flat", ARG_FLAG, &flat, "", "field colours without shading", 1, 0},
       CLI_OPT_THREADS(ro.threads),
       {0, "force", ARG_FLAG, &force, "", "allow the output to be an input file", 1, 0},
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[COMPARE_MAX];
@@ -188,7 +189,9 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
   } else if (rc == 0 && !quiet) {
     printf("compare: %d clouds, %dx%d", npos, W, H);
     if (field) printf(", %s in [%.6g, %.6g]", field, ro.range_lo, ro.range_hi);
-    printf("\n  -> %s\n", output);
+    printf("\n");
+    cli_print_input_report(stdout);
+    printf("  -> %s\n", output);
   }
   free(img);
   free(panel);

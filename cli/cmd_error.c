@@ -26,6 +26,7 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
       {0, "test-sample", ARG_STRING, &test_path, "FILE",
        "same points with independent noise: also write err_test (validation)", 1, 0},
       CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -45,6 +46,7 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
     return cli_usage_error(cmd, "K = %d is too small for degree %d: a fit needs at least %d points", eo.k,
                            eo.degree, terms);
   if (output && cli_check_output(output, pos[0], force)) return 1;
+  if (output && test_path && cli_check_output(output, test_path, force)) return 1;
 
   double t0 = cli_now();
   bsurf_cloud c, test;
@@ -135,6 +137,7 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
              rep.replicates_total);
     if (rep.degree_reduced)
       printf("  %zu points had degenerate neighbourhoods and used a lower degree\n", rep.degree_reduced);
+    cli_print_input_report(stdout);
     if (output) printf("  -> %s\n", output);
   }
 done:

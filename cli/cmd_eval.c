@@ -485,6 +485,7 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
        "also summarise the points whose FIELD is above its Q-quantile (high) and the rest (low)", 1,
        0},
       CLI_OPT_THREADS(threads),
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -590,6 +591,7 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
       for (int g = 0; g < groups; g++)
         sections[s].text_row(stdout, &e, g);
     }
+    cli_print_input_report(stdout);
   }
 done:
   free(e.high);

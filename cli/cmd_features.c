@@ -44,6 +44,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       CLI_OPT_SEED(fo.normals.seed),
       CLI_OPT_THREADS(fo.threads),
       CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -116,8 +117,10 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       if (!quiet) cli_warn("%s: the input's %s is kept as %s", pos[0], out_names[t], in_name);
     }
   }
+  /* adding a field may move the field array: look both up once both exist */
   bsurf_field *fs = bsurf_cloud_add_field(&c, score_name, BSURF_FLOAT32);
-  bsurf_field *ff = bsurf_cloud_add_field(&c, "feature", BSURF_UINT8);
+  bsurf_field *ff = fs ? bsurf_cloud_add_field(&c, "feature", BSURF_UINT8) : NULL;
+  if (ff) fs = bsurf_cloud_field(&c, score_name);
   if (!fs || !ff) {
     cli_error("out of memory");
     goto done;
@@ -183,6 +186,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     if (fo.method == BSURF_FEATURES_DISTANCE)
       printf("  T_{a/c} %.4g at k_min, max radius %.6g, %zu points stopped at k_min (set to -max radius)\n",
              rep.ratio_threshold_kmin, rep.max_radius, rep.immediate);
+    cli_print_input_report(stdout);
     printf("  -> %s\n", output);
   }
   rc = 0;

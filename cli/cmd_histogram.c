@@ -20,6 +20,7 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
       {0, "size", ARG_STRING, &size, "WxH", "image size in pixels (default: 800x500)", 1, 0},
       {0, "title", ARG_STRING, &title, "TEXT", "a title at the top", 1, 0},
       {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -78,7 +79,9 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
     printf("histogram: %s of %zu points, %d bins, fullest bin %zu", field, c.point_count, ho.bins,
            info.max_count);
     if (isfinite(ho.threshold)) printf(", %zu above %g", info.above_threshold, ho.threshold);
-    printf("\n  -> %s\n", output);
+    printf("\n");
+    cli_print_input_report(stdout);
+    printf("  -> %s\n", output);
   }
   bsurf_cloud_free(&c);
   return rc;

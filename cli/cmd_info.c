@@ -12,11 +12,12 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
   int threads = 0, json = 0, quiet = 0;
   cli_option opts[] = {
       CLI_OPT_THREADS(threads),
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
   int npos;
-  int rc = cli_parse(cmd, opts, 3, argc, argv, pos, 1, &npos);
+  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
   if (rc != CLI_PARSED) return rc;
   if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
   double t0 = cli_now();
@@ -83,6 +84,7 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
       printf("  bbox       [%g %g %g] .. [%g %g %g], diagonal %g\n", lo[0], lo[1], lo[2], hi[0], hi[1],
              hi[2], diag);
     printf("  h          %.6g (mean nearest-neighbour distance)\n", h);
+    cli_print_input_report(stdout);
   }
   bsurf_cloud_free(&c);
   return 0;

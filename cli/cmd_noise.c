@@ -45,6 +45,7 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
       CLI_OPT_SEED(seed),
       {'j', "threads", ARG_INT, &threads, "N", "threads for measuring h, 0 = all cores", 0, 4096},
       CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -120,6 +121,7 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
                scale, h > 0 ? scale / h : NAN, c.point_count, output);
       else
         printf("noise %s level %g (x h = %.6g) on %zu points -> %s\n", model, level, h, c.point_count, output);
+      cli_print_input_report(stdout);
     }
   }
   bsurf_cloud_free(&c);

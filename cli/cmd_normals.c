@@ -62,6 +62,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
        "variance sigma: a value, auto (85th percentile of normal_var) or inf (single Gaussian)", 1, 0},
       {0, "orient", ARG_STRING, &orient, "MODE", "none or mst (consistent orientation, Hoppe 1992)", 1, 0},
       CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -110,6 +111,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   }
   if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   if (cli_check_output(output, pos[0], force)) return 1;
+  if (truth_path && cli_check_output(output, truth_path, force)) return 1;
   if (curve && cli_check_writable(curve, pos[0], force)) return 1;
 
   double t0 = cli_now();
@@ -336,6 +338,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
            no.fit == BSURF_NORMAL_POLY ? " (poly)" : "", no.bootstrap, secs);
     print_field_means(stdout, &c, names, nf, h);
     if (total.degenerate) printf("  %zu points have degenerate neighbourhoods\n", total.degenerate);
+    cli_print_input_report(stdout);
     printf("  -> %s\n", output);
   }
   rc = 0;

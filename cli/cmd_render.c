@@ -117,6 +117,7 @@ int render_up_option(const cli_command *cmd, const char *up, int *axis) {
 
 int cli_write_png(const char *path, const uint8_t *rgb, int w, int h) {
   bsurf_error err = {0, -1, ""};
+  if (cli_interrupted()) return cli_error("%s: interrupted; nothing written", path);
   bsurf_status st = bsurf_write_png(path, rgb, w, h, &err);
   if (st != BSURF_OK) return cli_error("%s: %s", path, err.message[0] ? err.message : bsurf_strerror(st));
   return 0;
@@ -149,6 +150,7 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
       {0, "square", ARG_FLAG, &square, "", "square splats instead of discs", 1, 0},
       CLI_OPT_THREADS(ro.threads),
       {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -240,7 +242,9 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
   } else if (rc == 0 && !quiet) {
     printf("render: %zu points, h = %.6g, %dx%d", c.point_count, h, ro.width, ro.height);
     if (f) printf(", %s in [%.6g, %.6g] (%s)", field, info.range_lo, info.range_hi, cmap);
-    printf(", %.2f s\n  -> %s\n", secs, output);
+    printf(", %.2f s\n", secs);
+    cli_print_input_report(stdout);
+    printf("  -> %s\n", output);
   }
   bsurf_cloud_free(&c);
   return rc;

@@ -22,6 +22,7 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
        "output file (.ply keeps feature_dist and feature)", 1, 0},
       {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
       {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -98,6 +99,7 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
              rep.sharp_edges, so.sharp_angle_deg, rep.boundary_edges, rep.nonmanifold_edges);
       printf("  %zu feature points (within %g x spacing %.6g = %.6g of a sharp edge), %.2f s\n",
              rep.feature_points, so.feature_width, rep.spacing, rep.feature_width, secs);
+      cli_print_input_report(stdout);
     }
   }
   bsurf_cloud_free(&c);

@@ -73,6 +73,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       CLI_OPT_SEED(so.error.seed),
       CLI_OPT_THREADS(so.error.threads),
       CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
@@ -249,6 +250,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
              so.a, rep.h2, rep.h2 / hh, so.k_min, so.error.k);
     printf("  moved %zu points: mean %.4g h, max %.4g h\n", rep.moved_points, rep.moved_mean / hh,
            rep.moved_max / hh);
+    cli_print_input_report(stdout);
     printf("  -> %s\n", output);
   }
 done:

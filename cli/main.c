@@ -2,6 +2,7 @@
  * Exit codes: 0 ok, 1 bad input or failed computation, 2 bad usage. */
 #include "cli.h"
 
+#include <errno.h>
 #include <string.h>
 
 static const cli_command commands[] = {
@@ -168,5 +169,13 @@ int main(int argc, char **argv) {
   }
   cli_install_signals();
   int rc = c->run(c, argc - 1, argv + 1);
-  return rc == CLI_HELP_SHOWN ? 0 : rc;
+  if (rc == CLI_HELP_SHOWN) rc = 0;
+  /* a summary that could not be written (a full disk, /dev/full) is a
+   * failure, not a silent success */
+  errno = 0;
+  if (fflush(stdout) != 0 || ferror(stdout)) {
+    fprintf(stderr, "bootsurf: error: standard output: %s\n", errno ? strerror(errno) : "write failed");
+    if (rc == 0) rc = 1;
+  }
+  return rc;
 }

@@ -13,10 +13,63 @@
 
 /* ---- files ---- */
 
+/* --drop-invalid (CLI_OPT_DROP_INVALID) and what reading and the
+ * neighbourhoods found; json_end() and cli_print_input_report() report them. */
+int cli_drop_invalid = 0;
+static size_t input_dropped = 0;
+static int input_duplicates_known = 0;
+static size_t input_duplicates = 0;
+
+static int point_is_finite(const bsurf_cloud *c, size_t i) {
+  const double *p = c->xyz + 3 * i, *q = c->normals ? c->normals + 3 * i : NULL;
+  return isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2]) &&
+         (!q || (isfinite(q[0]) && isfinite(q[1]) && isfinite(q[2])));
+}
+
+/* Removes the points with a NaN or infinite coordinate or normal, with their
+ * field values and the faces that use them; keeps the order of the rest.
+ * Returns the number removed, or (size_t)-1 when out of memory. */
+static size_t drop_invalid_points(bsurf_cloud *c) {
+  const size_t n = c->point_count;
+  uint32_t *map = NULL;
+  if (c->face_count && !(map = malloc(n * sizeof *map))) return (size_t)-1;
+  size_t m = 0;
+  for (size_t i = 0; i < n; i++) {
+    int ok = point_is_finite(c, i);
+    if (map) map[i] = ok ? (uint32_t)m : UINT32_MAX;
+    if (!ok) continue;
+    if (m != i) {
+      memcpy(c->xyz + 3 * m, c->xyz + 3 * i, 3 * sizeof(double));
+      if (c->normals) memcpy(c->normals + 3 * m, c->normals + 3 * i, 3 * sizeof(double));
+      for (size_t f = 0; f < c->field_count; f++) c->fields[f].values[m] = c->fields[f].values[i];
+    }
+    m++;
+  }
+  if (map) {
+    size_t kept = 0;
+    for (size_t t = 0; t < c->face_count; t++) {
+      const uint32_t *f = c->faces + 3 * t;
+      if (map[f[0]] == UINT32_MAX || map[f[1]] == UINT32_MAX || map[f[2]] == UINT32_MAX) continue;
+      uint32_t a = map[f[0]], b = map[f[1]], d = map[f[2]];
+      c->faces[3 * kept] = a;
+      c->faces[3 * kept + 1] = b;
+      c->faces[3 * kept + 2] = d;
+      kept++;
+    }
+    c->face_count = kept;
+    free(map);
+  }
+  c->point_count = m;
+  return n - m;
+}
+
 int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
   bsurf_error err = {0, -1, ""};
   if (bsurf_format_from_path(path) == BSURF_FORMAT_UNKNOWN)
     return cli_error("%s: unknown file type (use .ply, .off, .obj, .xyz or .txt)", path);
+  struct stat sb;
+  if (stat(path, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size == 0)
+    return cli_error("%s: the file is empty", path);
   bsurf_status st = bsurf_read(path, cloud, &err);
   if (st != BSURF_OK) {
     const char *msg = err.message[0] ? err.message : bsurf_strerror(st);
@@ -26,10 +79,31 @@ int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
   }
   size_t bad = 0;
   if (bsurf_cloud_check_finite(cloud, &bad) != BSURF_OK) {
-    bsurf_cloud_free(cloud);
-    return cli_error("%s: point %zu (0-based) has a NaN or infinite coordinate or normal", path, bad);
+    if (!cli_drop_invalid) {
+      bsurf_cloud_free(cloud);
+      return cli_error("%s: point %zu (0-based) has a NaN or infinite coordinate or normal "
+                       "(--drop-invalid skips such points)",
+                       path, bad);
+    }
+    size_t dropped = drop_invalid_points(cloud);
+    if (dropped == (size_t)-1) {
+      bsurf_cloud_free(cloud);
+      return cli_error("%s: out of memory", path);
+    }
+    input_dropped += dropped;
+    cli_warn("%s: dropped %zu point(s) with a NaN or infinite coordinate or normal (the first: "
+             "point %zu, 0-based); %zu left",
+             path, dropped, bad, cloud->point_count);
   }
   return 0;
+}
+
+void cli_print_input_report(FILE *f) {
+  if (input_dropped)
+    fprintf(f, "  %zu input points with a NaN or infinite coordinate or normal were dropped\n",
+            input_dropped);
+  if (input_duplicates)
+    fprintf(f, "  %zu points coincide with another point (duplicates)\n", input_duplicates);
 }
 
 int cli_check_output(const char *output, const char *input, int force) {
@@ -63,6 +137,8 @@ int cli_check_writable(const char *output, const char *input, int force) {
   }
   if (access(dir, W_OK) != 0)
     return cli_error("%s: cannot write in directory '%s': %s", output, dir, strerror(errno));
+  if (stat(dir, &sd) != 0 || !S_ISDIR(sd.st_mode))
+    return cli_error("%s: cannot write in directory '%s': %s", output, dir, strerror(ENOTDIR));
   return 0;
 }
 
@@ -72,6 +148,7 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii) {
     cli_warn("%s: this format cannot store the %zu scalar field(s) (first: %s); write .ply to keep them",
              path, cloud->field_count, cloud->fields[0].name);
   }
+  if (cli_interrupted()) return cli_error("%s: interrupted; nothing written", path);
   bsurf_write_options wo = {ascii};
   bsurf_error err = {0, -1, ""};
   bsurf_status st = bsurf_write(path, cloud, &wo, &err);
@@ -91,6 +168,15 @@ int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threa
   cli_progress_done(&prog);
   if (st != BSURF_OK)
     return cli_error("%s: neighbourhoods: %s", path, cli_interrupted() ? "interrupted" : bsurf_strerror(st));
+  /* points at the same place as another: the nearest other neighbour (the
+   * point itself comes first) is at distance 0 */
+  size_t dup = 0;
+  for (size_t i = 0; i < c->point_count; i++) {
+    const double *a = c->xyz + 3 * i, *b = c->xyz + 3 * (size_t)nb->idx[i * (size_t)k + 1];
+    dup += a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+  }
+  input_duplicates_known = 1;
+  input_duplicates = dup;
   return 0;
 }
 
@@ -168,6 +254,8 @@ void json_begin(cli_json *j, FILE *f) {
 }
 
 void json_end(cli_json *j) {
+  if (cli_drop_invalid) json_int(j, "dropped_invalid", (long long)input_dropped);
+  if (input_duplicates_known) json_int(j, "duplicate_points", (long long)input_duplicates);
   fputs("}\n", j->f);
   fflush(j->f);
 }
@@ -270,8 +358,8 @@ void print_field_means(FILE *f, const bsurf_cloud *cloud, const char *const *nam
     const bsurf_field *fl = bsurf_cloud_field(cloud, names[t]);
     if (!fl) continue;
     double m = cli_field_mean(fl, cloud->point_count);
-    if (is_length_field(names[t]))
-      fprintf(f, "  %-16s %14.6g %12.4f\n", names[t], m, h > 0 ? m / h : NAN);
+    if (is_length_field(names[t]) && h > 0) /* h = 0: every point has a duplicate */
+      fprintf(f, "  %-16s %14.6g %12.4f\n", names[t], m, m / h);
     else
       fprintf(f, "  %-16s %14.6g %12s\n", names[t], m, "-");
   }

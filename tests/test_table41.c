@@ -40,11 +40,22 @@ static double field_mean(const double *v, size_t n) {
   return s / n;
 }
 
+/* The thesis's 26,010 points, unless BSURF_TABLE41_POINTS asks for fewer (the
+ * sanitizer build in .ci/run uses 3000: same relations, a ninth of the time). */
+static size_t requested_points(void) {
+  const char *s = getenv("BSURF_TABLE41_POINTS");
+  char *end = NULL;
+  long v = s && *s ? strtol(s, &end, 10) : 0;
+  return v >= 1000 && v <= 26010 && end && *end == 0 ? (size_t)v : 26010;
+}
+
 static void run_all(void) {
   bsurf_cloud clean;
-  assert_int_equal(bsurf_generate(&clean, BSURF_SHAPE_SPHERE, 26010, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+  const size_t want = requested_points();
+  assert_int_equal(bsurf_generate(&clean, BSURF_SHAPE_SPHERE, want, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
   const size_t n = clean.point_count;
-  assert_int_equal(n, 26010);
+  if (want == 26010) assert_int_equal(n, 26010);
+  assert_true(n >= 900);
   double h;
   assert_int_equal(bsurf_mean_spacing(clean.xyz, n, 0, &h), BSURF_OK);
   double *noisy = malloc(sizeof(double) * 3 * n), *test = malloc(sizeof(double) * 3 * n);

@@ -30,9 +30,18 @@ int io_text_next_line(io_text *t, const char **line, size_t *len) {
   size_t left = t->size - t->pos;
   const char *nl = memchr(start, '\n', left);
   size_t n = nl ? (size_t)(nl - start) : left;
-  t->pos += nl ? n + 1 : n;
+  /* A '\r' before the '\n' ends the line too: "\r\n" (Windows) is one
+   * break, a lone '\r' (classic Mac OS) another, so files mixing the three
+   * conventions read line by line alike. */
+  const char *cr = n ? memchr(start, '\r', n) : NULL;
+  if (cr && cr + 1 < start + n) {
+    n = (size_t)(cr - start);
+    t->pos += n + 1;
+  } else {
+    t->pos += nl ? n + 1 : n;
+    if (cr) n--; /* the '\r' of "\r\n", or one ending the data */
+  }
   t->line++;
-  if (n > 0 && start[n - 1] == '\r') n--;
   *line = start;
   *len = n;
   return 1;

@@ -130,6 +130,8 @@ static bsurf_status parse_header(ply_reader *r) {
     io_cursor_init(&c, line, len, IO_SEP_SPACE);
     ok = io_next_token(&c, &tok) && io_token_is(tok, "ply") && !io_next_token(&c, &extra);
   }
+  if (!ok && r->size == 0)
+    return bsurf_fail(r->err, BSURF_ERR_PARSE, 1, -1, "not a PLY file: the file is empty");
   if (!ok)
     return bsurf_fail(r->err, BSURF_ERR_PARSE, 1, -1,
                       "not a PLY file: the first line is not 'ply'");
