@@ -83,5 +83,5 @@ stderr_has "fewer than K" "fewer points than K"
 printf '0 0 0\nnan 1 0\n0 1 0\n' >"$T/nan.xyz"
 expect 1 "NaN coordinate" -- "$BSURF" info "$T/nan.xyz"
 stderr_has "point 1" "NaN names the point"
-ls "$T" | grep -q '\.tmp\.' && fail "temporary files left behind" || ok
+ls -A "$T" | grep -q '\.tmp\.' && fail "temporary files left behind" || ok
 finish

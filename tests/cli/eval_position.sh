@@ -158,5 +158,5 @@ stderr_has "$T/none.off" "missing surface named"
 printf '0 0 0\n1 0 0\n0 1 0\n0 0 1\n' >"$T/pts.xyz"
 expect 1 "no surface" -- "$BSURF" eval "$T/pts.xyz" --truth "$T/pts.xyz"
 stderr_has "no true surface" "no surface explained"
-ls "$T" | grep -q '\.tmp\.' && fail "temporary files left behind" || ok
+ls -A "$T" | grep -q '\.tmp\.' && fail "temporary files left behind" || ok
 finish

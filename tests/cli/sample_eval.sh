@@ -118,5 +118,5 @@ expect 0 "eval unmoved" -- "$BSURF" eval "$T/n0.ply" --truth "$T/a1.ply" --json
 grep -qF '"mean_rad":0' "$T/out" && ok || fail "sigma-diag 0 leaves normals"
 expect 0 "noise level json has sigma" -- "$BSURF" noise "$T/a1.ply" --level 0.5 -o "$T/n2.ply" --json
 grep -qF '"sigma":' "$T/out" && grep -qF '"level":0.5' "$T/out" && ok || fail "noise --level json"
-ls "$T" | grep -q '\.tmp\.' && fail "temporary files left behind" || ok
+ls -A "$T" | grep -q '\.tmp\.' && fail "temporary files left behind" || ok
 finish
