@@ -231,7 +231,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     json_num(&j, "moved_max", rep.moved_max);
     json_num(&j, "moved_mean_h", rep.moved_mean / hh);
     json_num(&j, "moved_max_h", rep.moved_max / hh);
-    json_field_means(&j, &c, smooth_fields_all, nfields, h);
+    /* lengths only (mean and mean / h); K_i is a count */
+    static const char *const length_fields[] = {"err_632", "err_632plus", "moved", "d_local"};
+    json_field_means(&j, &c, length_fields, nfields == 5 ? 4 : 3, h);
+    if (nfields == 5) json_num(&j, "k_hat_mean", cli_field_mean(bsurf_cloud_field(&c, "k_hat"), c.point_count));
     json_num(&j, "compute_seconds", compute);
     json_num(&j, "seconds", secs);
     json_end(&j);
