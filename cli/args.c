@@ -73,7 +73,8 @@ static int set_value(const cli_command *cmd, const cli_option *o, const char *na
     return 0;
   }
   case ARG_U64: {
-    if (arg[0] == '-') return cli_usage_error(cmd, "option %s needs a non-negative whole number, not '%s'", name, arg);
+    /* strtoull skips white space and negates a '-' after it: only digits */
+    if (arg[0] < '0' || arg[0] > '9') return cli_usage_error(cmd, "option %s needs a non-negative whole number, not '%s'", name, arg);
     unsigned long long v = strtoull(arg, &end, 10);
     if (end == arg || *end || errno)
       return cli_usage_error(cmd, "option %s needs a non-negative whole number, not '%s'", name, arg);
@@ -81,7 +82,7 @@ static int set_value(const cli_command *cmd, const cli_option *o, const char *na
     return 0;
   }
   case ARG_SIZE: {
-    if (arg[0] == '-') return cli_usage_error(cmd, "option %s needs a positive whole number, not '%s'", name, arg);
+    if (!(arg[0] >= '0' && arg[0] <= '9') && arg[0] != '.') return cli_usage_error(cmd, "option %s needs a positive whole number, not '%s'", name, arg);
     double v = strtod(arg, &end); /* accepts 1e6 */
     if (end == arg || *end || errno || !(v >= 0) || v != floor(v) || v > 4294967295.0 || !in_range(o, v))
       return cli_usage_error(cmd, "option %s needs a whole number%s, not '%s'", name, range, arg);

@@ -5,8 +5,14 @@
  * copied to an allocation of exactly its size, so a build with
  * -DBSURF_SANITIZE=ON catches reads past the end as the fuzzers do.
  *
- * Inputs that made a fuzzer fail are also written out below, minimized,
- * with the reason they failed. */
+ * Each seed is also cut at every length and has every byte replaced in turn
+ * by a few bytes that matter to the parsers (NUL, line breaks, a space, a
+ * digit, '-', 0xff): a small deterministic fuzz run on every build.
+ *
+ * The fuzzing campaigns in docs/fuzzing.md found no crash, leak, undefined
+ * behaviour or broken contract; an input that ever does goes into the corpus
+ * as fuzz/corpus/fuzz_<target>/regress-<what> (replayed here) and gets a test
+ * of its own below, with the reason it failed. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -68,6 +74,28 @@ static void corpus_dir(char *out, size_t cap, const char *target) {
   snprintf(out, cap, "%s/%s", corpus && *corpus ? corpus : "fuzz/corpus", target);
 }
 
+/* Every prefix of the input, then every byte replaced by each of a few. */
+static void read_variants(const char *buf, size_t size, bsurf_format format) {
+  static const char subst[] = {'\0', '\n', '\r', ' ', '9', '-', (char)0xff};
+  bsurf_cloud c;
+  bsurf_error err;
+  for (size_t n = 0; n <= size; n++) {
+    read_exact(buf, n, format, &c, &err);
+    bsurf_cloud_free(&c);
+  }
+  char *m = malloc(size ? size : 1);
+  assert_non_null(m);
+  for (size_t i = 0; i < size; i++)
+    for (size_t k = 0; k < sizeof subst; k++) {
+      if (buf[i] == subst[k]) continue;
+      memcpy(m, buf, size);
+      m[i] = subst[k];
+      read_exact(m, size, format, &c, &err);
+      bsurf_cloud_free(&c);
+    }
+  free(m);
+}
+
 static int replay_dir(const char *target, bsurf_format format) {
   char dir[4096], path[4400];
   corpus_dir(dir, sizeof dir, target);
@@ -97,6 +125,7 @@ static int replay_dir(const char *target, bsurf_format format) {
     bsurf_error err;
     read_exact(buf, size, format, &c, &err);
     bsurf_cloud_free(&c);
+    if (size <= 4096) read_variants(buf, size, format);
     free(buf);
     n++;
   }

@@ -19,10 +19,11 @@
 #define BSURF_PRINTF(a, b)
 #endif
 
-/* Hot kernels are compiled twice: for x86-64-v3 (AVX2) and a portable
- * default, chosen at load time. Kernels avoid floating-point contraction
+/* Hot kernels are compiled twice (GCC): for x86-64-v3 (AVX2) and a portable
+ * default, chosen at load time (clang 14 rejects target_clones beside
+ * noinline, so clang builds use the default path only). Kernels avoid floating-point contraction
  * (-std=c11 keeps it off) so both clones give the same bits. */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__SANITIZE_ADDRESS__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
 #define BSURF_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
 #define BSURF_CLONES
