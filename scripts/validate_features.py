@@ -43,23 +43,14 @@ import struct
 import subprocess
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tables import row, run  # noqa: E402
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # CGAL's edges_example.cpp: R = 0.2, r = 0.1 on data/fandisk.off (h = 0.0168718)
 CGAL_EXAMPLE = (0.2 / 0.0168718, 0.1 / 0.0168718)
 CGAL_SMALL = (4.0, 2.0)
 CGAL_THRESHOLD = 0.16
-
-
-def run(args):
-    r = subprocess.run(args, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.stderr.write("failed: %s\n%s" % (" ".join(args), r.stderr))
-        sys.exit(1)
-    return r.stdout
-
-
-def row(*cells):
-    print("| " + " | ".join(str(c) for c in cells) + " |")
 
 
 # ---- PLY (as bootsurf writes it: binary little-endian, or ascii) ----

@@ -19,25 +19,10 @@ Noise: gaussian along the normals, seed 1.
 """
 import json
 import os
-import subprocess
 import sys
 
-
-def row(*cells):
-    print("| " + " | ".join(str(c) for c in cells) + " |")
-
-
-def header(*cells):
-    row(*cells)
-    row(*(["---"] * len(cells)))
-
-
-def run(args):
-    r = subprocess.run(args, capture_output=True, text=True)
-    if r.returncode != 0:
-        sys.stderr.write("failed: %s\n%s" % (" ".join(args), r.stderr))
-        sys.exit(1)
-    return r.stdout
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from tables import header, row, run  # noqa: E402
 
 
 def main():
