@@ -40,6 +40,18 @@ static void surface(bsurf_cloud *c, size_t n, double qa, double qb, double qc, d
   }
 }
 
+/* Random points on a generated shape with gaussian noise of `level` h along
+ * the normals; returns h, the clean sample's mean spacing. */
+static double noisy_shape(bsurf_cloud *c, bsurf_shape shape, size_t n, uint64_t seed, double feature_width,
+                          double level, uint64_t noise_seed) {
+  assert_int_equal(bsurf_generate(c, shape, n, BSURF_SAMPLING_RANDOM, seed, feature_width), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c->xyz, c->point_count, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c->xyz, c->normals, c->point_count, BSURF_NOISE_GAUSSIAN, level, h, noise_seed),
+                   BSURF_OK);
+  return h;
+}
+
 static double max_move(const double *a, const double *b, size_t n) {
   double mx = 0;
   for (size_t i = 0; i < 3 * n; i += 3) {
@@ -101,10 +113,7 @@ static void test_quadric_does_not_move(void **state) {
 static void test_noisy_plane_gets_flatter(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 6000, BSURF_SAMPLING_RANDOM, 7, 0), BSURF_OK);
-  double h;
-  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 11), BSURF_OK);
+  double h = noisy_shape(&c, BSURF_SHAPE_PLANE, 6000, 7, 0, 0.5, 11);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 50, 2, NULL, NULL), BSURF_OK);
   double *out = malloc(c.point_count * 3 * sizeof(double));
@@ -147,10 +156,7 @@ static void test_noisy_plane_gets_flatter(void **state) {
 static void test_naive_threshold(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 2, 2), BSURF_OK);
-  double h;
-  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, h, 1), BSURF_OK);
+  (void)noisy_shape(&c, BSURF_SHAPE_CUBE, 3000, 2, 2, 0.3, 1);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
   const size_t n = c.point_count;
@@ -202,10 +208,7 @@ static void test_naive_threshold(void **state) {
 static void test_multipass_neighbourhoods(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 4, 2), BSURF_OK);
-  double h;
-  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 3), BSURF_OK);
+  (void)noisy_shape(&c, BSURF_SHAPE_CUBE, 3000, 4, 2, 0.5, 3);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 40, 2, NULL, NULL), BSURF_OK);
   const size_t n = c.point_count;
@@ -241,10 +244,7 @@ static void test_multipass_neighbourhoods(void **state) {
 static void test_thread_determinism(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_TORUS, 4000, BSURF_SAMPLING_RANDOM, 9, 0), BSURF_OK);
-  double h;
-  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 5), BSURF_OK);
+  (void)noisy_shape(&c, BSURF_SHAPE_TORUS, 4000, 9, 0, 0.5, 5);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
   const size_t n = c.point_count;
