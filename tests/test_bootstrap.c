@@ -154,6 +154,26 @@ static void test_counts(void **state) {
   assert_true(memcmp(a, b, sizeof a) != 0);
 }
 
+/* Four replicates in vector lanes give exactly the scalar counts, also when
+ * draws are rejected (k = 60000: about one rejection per replicate, taken by
+ * the scalar fallback) and for a partial group. */
+static void test_counts4_equal_scalar(void **state) {
+  (void)state;
+  static uint16_t four[4 * 60000], one[60000];
+  const int ks[] = {2, 3, 30, 50, 51, 60000};
+  for (size_t t = 0; t < sizeof ks / sizeof ks[0]; t++) {
+    const int k = ks[t];
+    for (uint32_t b0 = 0; b0 < 12; b0 += 4)
+      for (int nrep = 1; nrep <= 4; nrep++) {
+        bsurf_boot_counts4(5, 77 + b0, b0, nrep, k, four);
+        for (int l = 0; l < nrep; l++) {
+          bsurf_boot_counts(5, 77 + b0, b0 + (uint32_t)l, k, one);
+          assert_memory_equal(one, four + (size_t)l * k, (size_t)k * sizeof *one);
+        }
+      }
+  }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_estimators_by_hand),
@@ -161,6 +181,7 @@ int main(void) {
       cmocka_unit_test(test_estimators_no_information),
       cmocka_unit_test(test_gamma_fast_equals_naive),
       cmocka_unit_test(test_counts),
+      cmocka_unit_test(test_counts4_equal_scalar),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

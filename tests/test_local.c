@@ -167,6 +167,59 @@ static void test_poly_exact_recovery(void **state) {
   }
 }
 
+/* The normal equations of many weighted fits as one matrix product in
+ * vector lanes (the bootstrap's path) give the same bits as the row
+ * product and as one fit at a time, and the lane solver the same
+ * coefficients (or the same rank-deficiency) as the row solver. */
+static void test_lanes_equal_rows(void **state) {
+  (void)state;
+  enum { K = 37, R = 12 };
+  double xyz[3 * K];
+  uint32_t idx[K];
+  bsurf_rng rng;
+  bsurf_rng_init(&rng, 11, 2, 3);
+  for (int j = 0; j < K; j++) {
+    for (int t = 0; t < 3; t++) xyz[3 * j + t] = bsurf_rng_uniform(&rng) * 2 - 1;
+    xyz[3 * j + 2] *= 0.1;
+    idx[j] = (uint32_t)j;
+  }
+  bsurf_frame f;
+  identity_frame(&f);
+  bsurf_localfit lf;
+  assert_int_equal(bsurf_localfit_alloc(&lf, K, 4), BSURF_OK);
+  for (int D = 1; D <= 4; D++) {
+    bsurf_localfit_setup(&lf, xyz, idx, K, &f, D);
+    const int nc = lf.ncols, m = bsurf_poly_terms(D);
+    double W[R * K], rows[R * 64], lanes[R * 64], row[64];
+    uint16_t counts[R][K];
+    for (int b = 0; b < R; b++)
+      for (int j = 0; j < K; j++) {
+        /* replicate 5 has only 2 distinct points: rank-deficient */
+        counts[b][j] = b == 5 ? (uint16_t)(j < 2 ? 5 : 0) : (uint16_t)((j * 7 + b * 3) % 4);
+        W[b * K + j] = counts[b][j];
+      }
+    bsurf_gemm_rows(R, K, nc, W, lf.op, rows);
+    bsurf_localfit_normal_eq_lanes(&lf, R, W, lanes);
+    unsigned char valid[R];
+    double coefs[R * 15];
+    for (int b = 0; b < R; b++) {
+      bsurf_lanes_row(nc, lanes, b, row);
+      assert_memory_equal(row, &rows[b * nc], (size_t)nc * sizeof *row);
+      valid[b] = b != 7; /* a replicate the caller skips */
+    }
+    bsurf_localfit_solve_lanes(&lf, D, R, lanes, valid, coefs);
+    for (int b = 0; b < R; b++) {
+      double c[15];
+      int st = bsurf_localfit_solve(&lf, D, counts[b], c);
+      if (b == 7) continue;
+      assert_int_equal(valid[b], st == 0);
+      if (st == 0) assert_memory_equal(c, &coefs[b * m], (size_t)m * sizeof *c);
+    }
+    assert_int_equal(valid[5], 0);
+  }
+  bsurf_localfit_free(&lf);
+}
+
 /* Collinear points (all on the x axis) cannot determine a surface: every
  * degree >= 1 is reported rank-deficient, never silently solved. */
 static void test_rank_deficient_detected(void **state) {
@@ -255,6 +308,7 @@ int main(void) {
       cmocka_unit_test(test_poly_basis_order),
       cmocka_unit_test(test_poly_exact_recovery),
       cmocka_unit_test(test_rank_deficient_detected),
+      cmocka_unit_test(test_lanes_equal_rows),
       cmocka_unit_test(test_pca_noisy_plane),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

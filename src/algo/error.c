@@ -58,12 +58,14 @@ bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int
   bsurf_status st = bsurf_localfit_alloc(&s->lf, k, degree);
   if (st != BSURF_OK) return st;
   size_t nb = B > 0 ? (size_t)B : 1;
+  /* B replicates and the full fit, padded to whole groups of four */
+  size_t nr = ((size_t)B + 1 + 3) / 4 * 4;
   s->pred_full = bsurf_alloc_array((size_t)k, sizeof(double));
   s->pred_boot = bsurf_alloc_array(nb * k, sizeof(double));
-  s->counts = bsurf_alloc_array((size_t)k, sizeof(uint16_t));
-  s->weights = bsurf_alloc_array(nb * k, sizeof(double));
+  s->counts = bsurf_alloc_array(4 * (size_t)k, sizeof(uint16_t));
+  s->weights = bsurf_alloc_array(nr * k, sizeof(double));
   s->missing = bsurf_alloc_array(nb * k, sizeof(double));
-  s->rows = bsurf_alloc_array(nb * BSURF_NCOLS_MAX, sizeof(double));
+  s->rows = bsurf_alloc_array(nr * BSURF_NCOLS_MAX, sizeof(double));
   s->coefs = bsurf_alloc_array(nb * BSURF_TERMS_MAX, sizeof(double));
   s->valid = bsurf_alloc_array(nb, 1);
   s->est_scratch = bsurf_alloc_array(6 * (size_t)k + 1, sizeof(double));
@@ -88,30 +90,46 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
   bsurf_localfit *lf = &s->lf;
   bsurf_localfit_setup(lf, xyz, idx, k, &frame, o->degree);
 
-  double coef[BSURF_TERMS_MAX];
+  /* The normal equations of the B resamples (4.1.1) and of the fit to the
+   * whole neighbourhood (row B, every weight 1) are one matrix product; then
+   * one small solve each. */
+  const int R = (B + 1 + 3) / 4 * 4;
+  for (int b0 = 0; b0 < B; b0 += 4) {
+    const int nrep = B - b0 < 4 ? B - b0 : 4;
+    bsurf_boot_counts4(o->seed, i, (uint32_t)b0, nrep, k, s->counts);
+    for (int b = b0; b < b0 + nrep; b++) {
+      const uint16_t *cnt = &s->counts[(size_t)(b - b0) * k];
+      double *w = &s->weights[(size_t)b * k], *miss = &s->missing[(size_t)b * k];
+      int distinct = 0;
+      for (int j = 0; j < k; j++) {
+        w[j] = cnt[j];
+        miss[j] = cnt[j] == 0;
+        distinct += cnt[j] != 0;
+      }
+      /* fewer distinct points than terms: singular */
+      s->valid[b] = distinct >= bsurf_poly_terms(o->degree);
+    }
+  }
+  for (int j = 0; j < k; j++) s->weights[(size_t)B * k + j] = 1.0;
+  for (size_t t = (size_t)(B + 1) * k; t < (size_t)R * k; t++) s->weights[t] = 0.0;
+  bsurf_localfit_normal_eq_lanes(lf, R, s->weights, s->rows);
+
+  double coef[BSURF_TERMS_MAX], row[BSURF_NCOLS_MAX];
+  bsurf_lanes_row(lf->ncols, s->rows, B, row);
   int degree = o->degree;
-  while (degree > 0 && bsurf_localfit_solve(lf, degree, NULL, coef) != 0) degree--;
-  if (degree == 0) bsurf_localfit_solve(lf, 0, NULL, coef); /* constant: never singular */
+  while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, coef) != 0) degree--;
+  if (degree == 0) bsurf_localfit_solve_row(lf, 0, row, coef); /* constant: never singular */
   if (degree != o->degree) s->reduced++;
   bsurf_localfit_predict(lf, degree, 1, coef, NULL, s->pred_full);
 
-  /* B resamples (4.1.1) and their fits: the normal equations of all
-   * replicates are one matrix product, then one small solve each. */
   const int m = bsurf_poly_terms(degree);
-  for (int b = 0; b < B; b++) {
-    uint16_t *cnt = s->counts;
-    double *w = &s->weights[(size_t)b * k], *miss = &s->missing[(size_t)b * k];
-    bsurf_boot_counts(o->seed, i, (uint32_t)b, k, cnt);
-    int distinct = 0;
-    for (int j = 0; j < k; j++) {
-      w[j] = cnt[j];
-      miss[j] = cnt[j] == 0;
-      distinct += cnt[j] != 0;
+  if (degree != o->degree) /* a lower degree needs fewer distinct points */
+    for (int b = 0; b < B; b++) {
+      int distinct = 0;
+      for (int j = 0; j < k; j++) distinct += s->missing[(size_t)b * k + j] == 0;
+      s->valid[b] = distinct >= m;
     }
-    s->valid[b] = distinct >= m; /* fewer distinct points than terms: singular */
-  }
-  bsurf_localfit_normal_eq(lf, B, s->weights, s->rows);
-  bsurf_localfit_solve_rows(lf, degree, B, s->rows, s->valid, s->coefs);
+  bsurf_localfit_solve_lanes(lf, degree, B, s->rows, s->valid, s->coefs);
   for (int b = 0; b < B; b++) s->skipped += !s->valid[b];
   bsurf_localfit_predict(lf, degree, B, s->coefs, s->valid, s->pred_boot);
 

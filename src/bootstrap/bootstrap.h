@@ -10,6 +10,12 @@
 void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
                        uint16_t *counts);
 
+/* The counts of nrep (<= 4) consecutive replicates replicate, replicate + 1,
+ * ... (counts out: nrep x k), exactly those of bsurf_boot_counts, four
+ * streams at a time in vector lanes. */
+void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
+                        uint16_t *counts);
+
 /* gamma = 1/k^2 sum_j sum_l |pred_j - y_l| (Eq. 4.10), in O(k log k) by
  * sorting. y_sorted: the k observed heights in ascending order; y_prefix:
  * k+1 prefix sums of y_sorted; scratch: k doubles. */

@@ -4,6 +4,7 @@
  * least-squares fit and the leave-one-out bookkeeping (b in C_j iff the
  * count of j is 0) need. */
 #include "bootstrap/bootstrap.h"
+#include "common/common.h"
 
 #include <string.h>
 
@@ -27,4 +28,69 @@ void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
       t++;
     }
   }
+}
+
+#if defined(__GNUC__)
+typedef uint64_t v4u __attribute__((vector_size(32)));
+
+/* xoshiro256** (common/rng.c) in four independent lanes. */
+#define ROTL4(x, r) (((x) << (r)) | ((x) >> (64 - (r))))
+#endif
+
+BSURF_CLONES
+void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
+                        uint16_t *counts) {
+#if defined(__GNUC__)
+  if (nrep == 4) {
+    /* The streams of four replicates side by side in vector lanes; each
+     * lane runs exactly the scalar generator and the same two draws per
+     * output. A lane that meets a rejection (probability below k / 2^32 per
+     * draw) is redone by the scalar code at the end, so the counts are
+     * always those of bsurf_boot_counts. */
+    bsurf_rng r[4];
+    for (int l = 0; l < 4; l++) bsurf_rng_init(&r[l], seed, point, replicate + (uint32_t)l);
+    v4u s0 = {r[0].s[0], r[1].s[0], r[2].s[0], r[3].s[0]};
+    v4u s1 = {r[0].s[1], r[1].s[1], r[2].s[1], r[3].s[1]};
+    v4u s2 = {r[0].s[2], r[1].s[2], r[2].s[2], r[3].s[2]};
+    v4u s3 = {r[0].s[3], r[1].s[3], r[2].s[3], r[3].s[3]};
+    memset(counts, 0, 4 * (size_t)k * sizeof *counts);
+    uint16_t *c0 = counts, *c1 = counts + k, *c2 = counts + 2 * (size_t)k,
+             *c3 = counts + 3 * (size_t)k;
+    const uint64_t kk = (uint64_t)k, threshold = (uint32_t)(-(uint32_t)k) % (uint32_t)k;
+    const v4u K = {kk, kk, kk, kk}, lo = {0xffffffffu, 0xffffffffu, 0xffffffffu, 0xffffffffu};
+    const v4u thr = {threshold, threshold, threshold, threshold};
+    v4u reject = {0, 0, 0, 0};
+    for (int t = 0; t < k; t += 2) {
+      const v4u x1 = (s1 << 2) + s1; /* s1 * 5 */
+      const v4u x2 = ROTL4(x1, 7);
+      const v4u res = (x2 << 3) + x2; /* * 9 */
+      const v4u tt = s1 << 17;
+      s2 ^= s0;
+      s3 ^= s1;
+      s1 ^= s2;
+      s0 ^= s3;
+      s2 ^= tt;
+      s3 = ROTL4(s3, 45);
+      const v4u mh = (res >> 32) * K;
+      reject |= (v4u)((mh & lo) < thr);
+      c0[mh[0] >> 32]++;
+      c1[mh[1] >> 32]++;
+      c2[mh[2] >> 32]++;
+      c3[mh[3] >> 32]++;
+      if (t + 1 < k) {
+        const v4u ml = (res & lo) * K;
+        reject |= (v4u)((ml & lo) < thr);
+        c0[ml[0] >> 32]++;
+        c1[ml[1] >> 32]++;
+        c2[ml[2] >> 32]++;
+        c3[ml[3] >> 32]++;
+      }
+    }
+    for (int l = 0; l < 4; l++)
+      if (reject[l]) bsurf_boot_counts(seed, point, replicate + (uint32_t)l, k, counts + l * (size_t)k);
+    return;
+  }
+#endif
+  for (int l = 0; l < nrep; l++)
+    bsurf_boot_counts(seed, point, replicate + (uint32_t)l, k, counts + l * (size_t)k);
 }

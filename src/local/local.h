@@ -64,7 +64,8 @@ typedef struct bsurf_localfit {
                           of `op` (the padding is zero) */
   double scale;        /* local coordinates are divided by this */
   double *u, *v, *z;   /* k: scaled x', y' and unscaled height z' */
-  double *phit;        /* m x k: basis, transposed (term-major) */
+  int kp;              /* k rounded up to a multiple of 8: the row stride of phit */
+  double *phit;        /* m x kp: basis, transposed (term-major), zero beyond k */
   double *op;          /* k x ncols: the moments' monomials, then phi z */
 } bsurf_localfit;
 
@@ -76,24 +77,34 @@ void bsurf_localfit_free(bsurf_localfit *lf);
 void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t *idx,
                           int k, const bsurf_frame *frame, int degree);
 
-/* Normal equations of B weighted fits at once (a B x k by k x ncols matrix
- * product): row b of `rows` (B x lf->ncols) receives the moments of G followed by
- * r for the weights W[b] (W: B x k, row-major). The sum over the points runs
- * in index order, so a row equals what a point-by-point sum gives. */
-void bsurf_localfit_normal_eq(const bsurf_localfit *lf, int B, const double *W, double *rows);
+/* out = W (R x k) * A (k x nc) with R a multiple of 4 and nc of 8, stored
+ * in groups of four rows interleaved by column: entry (r, c) at
+ * out[(r / 4) * 4 nc + 4 c + r % 4], the layout of four Cholesky solves
+ * in vector lanes. Same sums, in the same order, as bsurf_gemm_rows. */
+void bsurf_gemm_lanes(int R, int k, int nc, const double *W, const double *A, double *out);
+/* Row r of a bsurf_gemm_lanes result, contiguous (nc entries). */
+void bsurf_lanes_row(int nc, const double *lanes, int r, double *row);
 
-/* Solves one row of bsurf_localfit_normal_eq for a fit of degree `degree`
+/* Normal equations of R weighted fits at once (an R x k by k x ncols matrix
+ * product, R a multiple of 4): row b (in the layout of bsurf_gemm_lanes,
+ * R x lf->ncols) receives the moments of G followed by r for the weights W[b]
+ * (W: R x k, row-major). The sum over the points runs in index order, so a
+ * row equals what a point-by-point sum gives. */
+void bsurf_localfit_normal_eq_lanes(const bsurf_localfit *lf, int R, const double *W,
+                                    double *lanes);
+
+/* Solves one row (bsurf_lanes_row) of bsurf_localfit_normal_eq_lanes for a fit of degree `degree`
  * (<= the setup degree; the lower degree's system is a leading block).
  * Returns 0, or -1 when the system is rank-deficient. */
 int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row,
                              double *coef);
 
-/* Solves every row b of bsurf_localfit_normal_eq with valid[b] != 0 (B
- * rows, coefs out: B x terms(degree)); a rank-deficient row gets valid[b]
- * = 0. Same results as bsurf_localfit_solve_row row by row, several at once
- * in vector lanes. */
-void bsurf_localfit_solve_rows(const bsurf_localfit *lf, int degree, int B, const double *rows,
-                               unsigned char *valid, double *coefs);
+/* Solves every row b < B of bsurf_localfit_normal_eq_lanes with valid[b]
+ * != 0 (coefs out: B x terms(degree)); a rank-deficient row gets valid[b]
+ * = 0. Same results as bsurf_localfit_solve_row row by row, four at once in
+ * vector lanes. */
+void bsurf_localfit_solve_lanes(const bsurf_localfit *lf, int degree, int B, const double *lanes,
+                                unsigned char *valid, double *coefs);
 
 /* Least-squares fit of degree `degree` (<= the setup degree) with integer
  * weights `counts` (k; NULL = every point once). coef out: terms(degree).

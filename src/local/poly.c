@@ -92,7 +92,9 @@ bsurf_status bsurf_localfit_alloc(bsurf_localfit *lf, int kmax, int degree_max) 
   lf->kmax = kmax;
   lf->degree_max = degree_max;
   lf->u = bsurf_alloc_array((size_t)kmax, 3 * sizeof(double));
-  lf->phit = bsurf_alloc_array((size_t)kmax * m, sizeof(double));
+  /* phit rows are padded to a multiple of 8 points (zeros) for the
+   * register blocks of bsurf_localfit_predict */
+  lf->phit = bsurf_alloc_array((size_t)(kmax + 7) / 8 * 8 * m, sizeof(double));
   lf->op = bsurf_alloc_array((size_t)kmax * ncols, sizeof(double));
   if (!lf->u || !lf->phit || !lf->op) {
     bsurf_localfit_free(lf);
@@ -131,19 +133,32 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
   }
   lf->scale = r2max > 0 ? sqrt(r2max) : 1.0;
   const double inv = 1.0 / lf->scale;
-  const int m = lf->m, p = lf->p, nc = lf->ncols;
+  const int m = lf->m, p = lf->p, nc = lf->ncols, kp = (k + 7) / 8 * 8, d2 = 2 * degree;
+  lf->kp = kp;
   for (int j = 0; j < k; j++) {
-    lf->u[j] *= inv;
-    lf->v[j] *= inv;
+    const double u = lf->u[j] * inv, v = lf->v[j] * inv;
+    lf->u[j] = u;
+    lf->v[j] = v;
     /* the monomials of degree <= 2M in graded order: every product
      * phi_a phi_b is one of them (moment_index), and the basis of degree M
-     * is their prefix */
+     * is their prefix. u^i v^j (at (i+j)(i+j+1)/2 + j) is v^j times u, i
+     * times, left to right: the same products as bsurf_poly_basis. */
     double *o = &lf->op[(size_t)j * nc];
-    bsurf_poly_basis(2 * degree, lf->u[j], lf->v[j], o);
-    for (int a = 0; a < m; a++) lf->phit[(size_t)a * k + j] = o[a];
+    double vj = 1.0;
+    for (int e = 0; e <= d2; e++) {
+      double x = vj;
+      for (int i = 0; i + e <= d2; i++) {
+        o[(i + e) * (i + e + 1) / 2 + e] = x;
+        x *= u;
+      }
+      vj *= v;
+    }
+    for (int a = 0; a < m; a++) lf->phit[(size_t)a * kp + j] = o[a];
     for (int a = 0; a < m; a++) o[p + a] = o[a] * lf->z[j];
     for (int c = p + m; c < nc; c++) o[c] = 0.0;
   }
+  for (int a = 0; a < m; a++)
+    for (int j = k; j < kp; j++) lf->phit[(size_t)a * kp + j] = 0.0;
 }
 
 /* Position of the monomial phi_a phi_b among the graded monomials, for
@@ -194,40 +209,56 @@ static void gemm_plain(int b0, int b1, int c0, int c1, int k, int nc, const doub
   }
 }
 
+#ifdef HAVE_V4D
+/* One 4 x 8 block of W A: rows w[0..3] (k weights each) times columns
+ * c..c+7 of A; acc[2 r + h] holds row r, columns c + 4h .. c + 4h + 3. */
+static inline __attribute__((always_inline)) void gemm_block(const double *const w[4], int k,
+                                                             int nc, const double *A, int c,
+                                                             v4d acc[8]) {
+  v4d a00 = {0, 0, 0, 0}, a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00,
+      a31 = a00;
+  const double *w0 = w[0], *w1 = w[1], *w2 = w[2], *w3 = w[3];
+  for (int j = 0; j < k; j++) {
+    v4d x0, x1;
+    memcpy(&x0, &A[(size_t)j * nc + c], sizeof x0);
+    memcpy(&x1, &A[(size_t)j * nc + c + 4], sizeof x1);
+    const v4d s0 = {w0[j], w0[j], w0[j], w0[j]}, s1 = {w1[j], w1[j], w1[j], w1[j]};
+    const v4d s2 = {w2[j], w2[j], w2[j], w2[j]}, s3 = {w3[j], w3[j], w3[j], w3[j]};
+    a00 += s0 * x0;
+    a01 += s0 * x1;
+    a10 += s1 * x0;
+    a11 += s1 * x1;
+    a20 += s2 * x0;
+    a21 += s2 * x1;
+    a30 += s3 * x0;
+    a31 += s3 * x1;
+  }
+  acc[0] = a00;
+  acc[1] = a01;
+  acc[2] = a10;
+  acc[3] = a11;
+  acc[4] = a20;
+  acc[5] = a21;
+  acc[6] = a30;
+  acc[7] = a31;
+}
+#endif
+
 BSURF_CLONES
 void bsurf_gemm_rows(int B, int k, int nc, const double *restrict W, const double *restrict A,
                      double *restrict out) {
 #ifdef HAVE_V4D
   const int nc8 = nc - nc % 8, B4 = B - B % 4;
   for (int b = 0; b < B4; b += 4) {
-    const double *w0 = &W[(size_t)b * k], *w1 = w0 + k, *w2 = w1 + k, *w3 = w2 + k;
+    const double *w[4] = {&W[(size_t)b * k], &W[(size_t)(b + 1) * k], &W[(size_t)(b + 2) * k],
+                          &W[(size_t)(b + 3) * k]};
     for (int c = 0; c < nc8; c += 8) {
-      v4d a00 = {0, 0, 0, 0}, a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00,
-          a31 = a00;
-      for (int j = 0; j < k; j++) {
-        v4d x0, x1;
-        memcpy(&x0, &A[(size_t)j * nc + c], sizeof x0);
-        memcpy(&x1, &A[(size_t)j * nc + c + 4], sizeof x1);
-        const v4d s0 = {w0[j], w0[j], w0[j], w0[j]}, s1 = {w1[j], w1[j], w1[j], w1[j]};
-        const v4d s2 = {w2[j], w2[j], w2[j], w2[j]}, s3 = {w3[j], w3[j], w3[j], w3[j]};
-        a00 += s0 * x0;
-        a01 += s0 * x1;
-        a10 += s1 * x0;
-        a11 += s1 * x1;
-        a20 += s2 * x0;
-        a21 += s2 * x1;
-        a30 += s3 * x0;
-        a31 += s3 * x1;
+      v4d acc[8];
+      gemm_block(w, k, nc, A, c, acc);
+      for (int r = 0; r < 4; r++) {
+        memcpy(&out[(size_t)(b + r) * nc + c], &acc[2 * r], 32);
+        memcpy(&out[(size_t)(b + r) * nc + c + 4], &acc[2 * r + 1], 32);
       }
-      double *o = &out[(size_t)b * nc + c];
-      memcpy(o, &a00, 32);
-      memcpy(o + 4, &a01, 32);
-      memcpy(o + nc, &a10, 32);
-      memcpy(o + nc + 4, &a11, 32);
-      memcpy(o + 2 * nc, &a20, 32);
-      memcpy(o + 2 * nc + 4, &a21, 32);
-      memcpy(o + 3 * nc, &a30, 32);
-      memcpy(o + 3 * nc + 4, &a31, 32);
     }
     if (nc8 < nc) gemm_plain(b, b + 4, nc8, nc, k, nc, W, A, out);
   }
@@ -237,24 +268,54 @@ void bsurf_gemm_rows(int B, int k, int nc, const double *restrict W, const doubl
 #endif
 }
 
+BSURF_CLONES
+void bsurf_gemm_lanes(int R, int k, int nc, const double *restrict W, const double *restrict A,
+                      double *restrict out) {
+#ifdef HAVE_V4D
+  for (int b = 0; b < R; b += 4) {
+    const double *w[4] = {&W[(size_t)b * k], &W[(size_t)(b + 1) * k], &W[(size_t)(b + 2) * k],
+                          &W[(size_t)(b + 3) * k]};
+    double *o = &out[(size_t)b * nc];
+    for (int c = 0; c < nc; c += 8) {
+      v4d acc[8];
+      gemm_block(w, k, nc, A, c, acc);
+      for (int r = 0; r < 4; r++)
+        for (int h = 0; h < 8; h++) o[(size_t)(c + h) * 4 + r] = acc[2 * r + h / 4][h % 4];
+    }
+  }
+#else
+  double row[BSURF_NCOLS_MAX];
+  for (int b = 0; b < R; b++) {
+    gemm_plain(0, 1, 0, nc, k, nc, &W[(size_t)b * k], A, row);
+    for (int c = 0; c < nc; c++) out[(size_t)(b / 4) * 4 * nc + (size_t)c * 4 + b % 4] = row[c];
+  }
+#endif
+}
+
+void bsurf_lanes_row(int nc, const double *lanes, int r, double *row) {
+  const double *g = &lanes[(size_t)(r / 4) * 4 * nc];
+  for (int c = 0; c < nc; c++) row[c] = g[(size_t)c * 4 + r % 4];
+}
+
 #ifdef HAVE_V4D
 typedef long long v4l __attribute__((vector_size(32)));
 
 /* Four Cholesky solves at once, one per vector lane, with exactly the
  * operations of bsurf_chol_solve_packed in each lane (so the same bits).
- * A lane whose pivot fails is given pivot 1 to keep the others going and is
- * reported in the returned bit mask of failures. */
-BSURF_CLONES
-static int chol_solve4(int m, int p, const double *const rows[4], double rel_tol,
-                       double *const coef[4]) {
+ * g4 is one group of bsurf_gemm_lanes (column c of the four rows at
+ * g4[4c .. 4c+3]). A lane whose pivot fails is given pivot 1 to keep the
+ * others going and is reported in the returned bit mask of failures; lanes
+ * not in `want` are not stored. Inlined with a constant m (chol_solve4_m)
+ * so that the compiler unrolls the small loops. */
+static inline __attribute__((always_inline)) int chol_solve4(int m, int p, const double *g4,
+                                                             double rel_tol, int want,
+                                                             double *const coef[4]) {
   v4d G[BSURF_PACKED_MAX], r[BSURF_TERMS_MAX], L[BSURF_TERMS_MAX * BSURF_TERMS_MAX];
   v4d inv[BSURF_TERMS_MAX], y[BSURF_TERMS_MAX], c[BSURF_TERMS_MAX];
   const int pm = m * (m + 1) / 2;
   const unsigned char *map = moment_map();
-  for (int q = 0; q < pm; q++)
-    G[q] = (v4d){rows[0][map[q]], rows[1][map[q]], rows[2][map[q]], rows[3][map[q]]};
-  for (int i = 0; i < m; i++)
-    r[i] = (v4d){rows[0][p + i], rows[1][p + i], rows[2][p + i], rows[3][p + i]};
+  for (int q = 0; q < pm; q++) memcpy(&G[q], &g4[4 * map[q]], sizeof G[q]);
+  for (int i = 0; i < m; i++) memcpy(&r[i], &g4[4 * (p + i)], sizeof r[i]);
   const v4d one = {1, 1, 1, 1}, zero = {0, 0, 0, 0};
   const v4d tol = {rel_tol, rel_tol, rel_tol, rel_tol};
   v4l failed = {0, 0, 0, 0};
@@ -287,48 +348,54 @@ static int chol_solve4(int m, int p, const double *const rows[4], double rel_tol
   int mask = 0;
   for (int l = 0; l < 4; l++) {
     if (failed[l]) mask |= 1 << l;
-    else
+    else if (want & (1 << l))
       for (int i = 0; i < m; i++) coef[l][i] = c[i][l];
   }
   return mask;
 }
+
+BSURF_CLONES
+static int chol_solve4_m(int m, int p, const double *g4, double rel_tol, int want,
+                         double *const coef[4]) {
+  switch (m) {
+  case 3: return chol_solve4(3, p, g4, rel_tol, want, coef);
+  case 6: return chol_solve4(6, p, g4, rel_tol, want, coef);
+  case 10: return chol_solve4(10, p, g4, rel_tol, want, coef);
+  default: return chol_solve4(m, p, g4, rel_tol, want, coef);
+  }
+}
 #endif
 
-void bsurf_localfit_solve_rows(const bsurf_localfit *lf, int degree, int B, const double *rows,
-                               unsigned char *valid, double *coefs) {
+void bsurf_localfit_solve_lanes(const bsurf_localfit *lf, int degree, int B, const double *lanes,
+                                unsigned char *valid, double *coefs) {
   const int m = bsurf_poly_terms(degree), nc = lf->ncols;
-  int b = 0;
+  for (int b0 = 0; b0 < B; b0 += 4) {
+    const double *g4 = &lanes[(size_t)b0 * nc];
+    int want = 0;
+    for (int l = 0; l < 4 && b0 + l < B; l++)
+      if (valid[b0 + l]) want |= 1 << l;
+    if (!want) continue;
 #ifdef HAVE_V4D
-  int lane_b[4], nl = 0;
-  for (; b < B; b++) {
-    if (!valid[b]) continue;
-    lane_b[nl++] = b;
-    if (nl < 4) continue;
-    const double *rp[4];
     double *cp[4];
-    for (int l = 0; l < 4; l++) {
-      rp[l] = &rows[(size_t)lane_b[l] * nc];
-      cp[l] = &coefs[(size_t)lane_b[l] * m];
-    }
-    int failed = chol_solve4(m, lf->p, rp, BSURF_RANK_TOL, cp);
+    for (int l = 0; l < 4; l++) cp[l] = &coefs[(size_t)(want & (1 << l) ? b0 + l : b0) * m];
+    int failed = chol_solve4_m(m, lf->p, g4, BSURF_RANK_TOL, want, cp) & want;
     for (int l = 0; l < 4; l++)
-      if (failed & (1 << l)) valid[lane_b[l]] = 0;
-    nl = 0;
-  }
-  for (int l = 0; l < nl; l++) { /* the last 1-3 in the scalar solver */
-    int bb = lane_b[l];
-    if (bsurf_localfit_solve_row(lf, degree, &rows[(size_t)bb * nc], &coefs[(size_t)bb * m]) != 0)
-      valid[bb] = 0;
-  }
+      if (failed & (1 << l)) valid[b0 + l] = 0;
 #else
-  for (; b < B; b++)
-    if (valid[b] && bsurf_localfit_solve_row(lf, degree, &rows[(size_t)b * nc], &coefs[(size_t)b * m]) != 0)
-      valid[b] = 0;
+    for (int l = 0; l < 4; l++) {
+      if (!(want & (1 << l))) continue;
+      double row[BSURF_NCOLS_MAX];
+      bsurf_lanes_row(nc, lanes, b0 + l, row);
+      if (bsurf_localfit_solve_row(lf, degree, row, &coefs[(size_t)(b0 + l) * m]) != 0)
+        valid[b0 + l] = 0;
+    }
 #endif
+  }
 }
 
-void bsurf_localfit_normal_eq(const bsurf_localfit *lf, int B, const double *W, double *rows) {
-  bsurf_gemm_rows(B, lf->k, lf->ncols, W, lf->op, rows);
+void bsurf_localfit_normal_eq_lanes(const bsurf_localfit *lf, int R, const double *W,
+                                    double *lanes) {
+  bsurf_gemm_lanes(R, lf->k, lf->ncols, W, lf->op, lanes);
 }
 
 int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row,
@@ -358,12 +425,65 @@ int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *c
   return bsurf_localfit_solve_row(lf, degree, row, coef);
 }
 
+#ifdef HAVE_V4D
+/* pred[b][j0..j0+7] of up to two replicates (c1 may be NULL), the terms
+ * added in order a = 0..m-1 from 0, as the plain loop; only the first `n`
+ * (<= 8) entries are stored. */
+static inline __attribute__((always_inline)) void predict_block(int m, int kp, const double *phit, int j0, int n,
+                                 const double *c0, const double *c1, double *p0, double *p1) {
+  v4d a00 = {0, 0, 0, 0}, a01 = a00, a10 = a00, a11 = a00;
+  for (int a = 0; a < m; a++) {
+    v4d x0, x1;
+    memcpy(&x0, &phit[(size_t)a * kp + j0], sizeof x0);
+    memcpy(&x1, &phit[(size_t)a * kp + j0 + 4], sizeof x1);
+    const v4d s0 = {c0[a], c0[a], c0[a], c0[a]};
+    a00 += s0 * x0;
+    a01 += s0 * x1;
+    if (c1) {
+      const v4d s1 = {c1[a], c1[a], c1[a], c1[a]};
+      a10 += s1 * x0;
+      a11 += s1 * x1;
+    }
+  }
+  double t[16];
+  memcpy(t, &a00, 32);
+  memcpy(t + 4, &a01, 32);
+  memcpy(t + 8, &a10, 32);
+  memcpy(t + 12, &a11, 32);
+  if (n == 8) {
+    memcpy(p0 + j0, t, 8 * sizeof *t);
+    if (c1) memcpy(p1 + j0, t + 8, 8 * sizeof *t);
+  } else {
+    for (int j = 0; j < n; j++) p0[j0 + j] = t[j];
+    if (c1)
+      for (int j = 0; j < n; j++) p1[j0 + j] = t[8 + j];
+  }
+}
+#endif
+
 BSURF_CLONES
 void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const double *coef,
                             const unsigned char *valid, double *pred) {
   /* pred[b][j] = sum_a coef[b][a] phi_a(x_j), summed over a in order;
-   * vectorised across j. */
-  const int m = bsurf_poly_terms(degree), k = lf->k;
+   * vectorised across j, two replicates by eight points at a time. */
+  const int m = bsurf_poly_terms(degree), k = lf->k, kp = lf->kp;
+#ifdef HAVE_V4D
+  int pending = -1;
+  for (int b = 0; b <= B; b++) {
+    if (b < B && valid && !valid[b]) continue;
+    if (b < B && pending < 0) {
+      pending = b;
+      continue;
+    }
+    if (pending < 0) break;
+    const int b1 = b < B ? b : -1;
+    const double *c0 = &coef[(size_t)pending * m], *c1 = b1 >= 0 ? &coef[(size_t)b1 * m] : NULL;
+    double *p0 = &pred[(size_t)pending * k], *p1 = b1 >= 0 ? &pred[(size_t)b1 * k] : NULL;
+    for (int j0 = 0; j0 < k; j0 += 8)
+      predict_block(m, kp, lf->phit, j0, k - j0 < 8 ? k - j0 : 8, c0, c1, p0, p1);
+    pending = -1;
+  }
+#else
   for (int b = 0; b < B; b++) {
     if (valid && !valid[b]) continue;
     double *restrict pb = &pred[(size_t)b * k];
@@ -371,10 +491,11 @@ void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const d
     for (int j = 0; j < k; j++) pb[j] = 0;
     for (int a = 0; a < m; a++) {
       const double ca = cb[a];
-      const double *restrict ph = &lf->phit[(size_t)a * k];
+      const double *restrict ph = &lf->phit[(size_t)a * kp];
       for (int j = 0; j < k; j++) pb[j] += ca * ph[j];
     }
   }
+#endif
 }
 
 void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, int degree,
