@@ -21,6 +21,7 @@
  * independent, so the loop is parallel; results do not depend on threads. */
 #include "algo/algo.h"
 #include "common/common.h"
+#include "search/search.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -131,11 +132,25 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
     }
   bsurf_localfit_solve_lanes(lf, degree, B, s->rows, s->valid, s->coefs);
   for (int b = 0; b < B; b++) s->skipped += !s->valid[b];
-  bsurf_localfit_predict(lf, degree, B, s->coefs, s->valid, s->pred_boot);
 
   bsurf_boot_result r;
-  bsurf_boot_estimate(k, B, lf->z, s->pred_full, s->pred_boot, s->missing, s->valid, o->gamma,
-                      s->est_scratch, &r);
+  if (o->gamma == BSURF_GAMMA_FIT) {
+    /* the estimators need only per-point sums of the replicates' residuals
+     * (Eqs. 4.3, 4.4): summed as the predictions are made, never stored */
+    double *sums = s->est_scratch + 3 * (size_t)k + 1;
+    double *boot_j = sums, *loo_sum = sums + k, *loo_cnt = sums + 2 * (size_t)k;
+    bsurf_localfit_residual_sums(lf, degree, B, s->coefs, s->valid, s->missing, boot_j, loo_sum,
+                                 loo_cnt);
+    int nvalid = 0;
+    for (int b = 0; b < B; b++) nvalid += s->valid[b];
+    bsurf_boot_estimate_sums(k, nvalid, lf->z, s->pred_full, boot_j, loo_sum, loo_cnt, 0, 0,
+                             o->gamma, s->est_scratch, &r);
+  } else {
+    /* mean or max of Eq. 4.10 over the replicates: every prediction */
+    bsurf_localfit_predict(lf, degree, B, s->coefs, s->valid, s->pred_boot);
+    bsurf_boot_estimate(k, B, lf->z, s->pred_full, s->pred_boot, s->missing, s->valid, o->gamma,
+                        s->est_scratch, &r);
+  }
   if (r.center_unestimated) s->center_unestimated++;
   put(out->err_train, i, r.err_train);
   put(out->err_boot, i, r.err_boot);
@@ -152,12 +167,15 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
     fit->degree = degree;
     const int mfull = bsurf_poly_terms(o->degree);
     for (int a = 0; a < mfull; a++) fit->coef[a] = a < m ? coef[a] : 0.0;
-    /* Eq. 6.1: the mean of the valid replicates' predictions at the centre */
+    /* Eq. 6.1: the mean of the valid replicates' predictions at the centre
+     * (each as bsurf_localfit_predict makes it: terms in order from 0) */
     double sum = 0;
     int used = 0;
     for (int b = 0; b < B; b++)
       if (s->valid[b]) {
-        sum += s->pred_boot[(size_t)b * k];
+        double pc = 0;
+        for (int a = 0; a < m; a++) pc += s->coefs[(size_t)b * m + a] * lf->phit[(size_t)a * lf->kp];
+        sum += pc;
         used++;
       }
     fit->boot_center = used ? sum / used : s->pred_full[0];
@@ -198,6 +216,7 @@ typedef struct error_ctx {
   const bsurf_error_options *o;
   bsurf_error_scratch *scr;
   bsurf_error_fields *out;
+  const uint32_t *order; /* visit order (Morton) */
 } error_ctx;
 
 static void error_point_at(error_ctx *c, int thread, size_t i) {
@@ -205,9 +224,9 @@ static void error_point_at(error_ctx *c, int thread, size_t i) {
                     c->out, NULL);
 }
 
-static void error_point_task(void *vctx, int thread, size_t i) {
+static void error_point_task(void *vctx, int thread, size_t r) {
   error_ctx *c = vctx;
-  error_point_at(c, thread, i);
+  error_point_at(c, thread, c->order[r]);
 }
 
 bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
@@ -226,10 +245,15 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = bsurf_error_scratch_alloc(&scr[t], o.k, o.bootstrap, o.degree);
 
+  /* points are independent: visiting them in Morton order keeps the
+   * neighbourhoods' coordinates in cache and changes no result */
+  uint32_t *order = NULL;
+  if (st == BSURF_OK) st = bsurf_spatial_order(xyz, n, &order, NULL);
   if (st == BSURF_OK) {
-    error_ctx ctx = {xyz, nb, test_xyz, &o, scr, out};
+    error_ctx ctx = {xyz, nb, test_xyz, &o, scr, out, order};
     st = bsurf_parallel_points(n, T, error_point_task, &ctx, o.progress, o.progress_user);
   }
+  free(order);
 
   if (report && st == BSURF_OK) {
     report->replicates_total = n * (size_t)o.bootstrap;

@@ -48,6 +48,7 @@
  * The multipass's parallel passes run over the points in Morton order (cache
  * locality; the order of a point's sums follows it). */
 #include "algo/algo.h"
+#include "search/search.h"
 #include "common/common.h"
 
 #include <math.h>
@@ -348,68 +349,8 @@ static bsurf_status build_reverse(smooth_ctx *c, const int *size, const uint32_t
 
 /* ---- a spatially coherent order for the passes ------------------------ */
 /* The passes read the positions of every point's neighbourhoods; in input
- * order (often random) each read is a cache miss. The points are visited in
- * Morton (Z-curve) order of their coordinates quantised to 21 bits over the
- * bounding box, ties by index. */
-typedef struct morton_key {
-  uint64_t code;
-  uint32_t index;
-} morton_key;
-
-static uint64_t spread3(uint64_t x) { /* 21 bits -> every third of 63 */
-  x &= 0x1fffff;
-  x = (x | x << 32) & 0x1f00000000ffffULL;
-  x = (x | x << 16) & 0x1f0000ff0000ffULL;
-  x = (x | x << 8) & 0x100f00f00f00f00fULL;
-  x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
-  x = (x | x << 2) & 0x1249249249249249ULL;
-  return x;
-}
-
-static int morton_cmp(const void *a, const void *b) {
-  const morton_key *x = a, *y = b;
-  if (x->code != y->code) return x->code < y->code ? -1 : 1;
-  return x->index < y->index ? -1 : (x->index > y->index);
-}
-
-static bsurf_status spatial_order(const double *xyz, size_t n, uint32_t **perm_out, uint32_t **rank_out) {
-  morton_key *keys = bsurf_alloc_array(n ? n : 1, sizeof *keys);
-  uint32_t *perm = bsurf_alloc_array(n ? n : 1, sizeof *perm), *rank = bsurf_alloc_array(n ? n : 1, sizeof *rank);
-  if (!keys || !perm || !rank) {
-    free(keys);
-    free(perm);
-    free(rank);
-    return BSURF_ERR_NOMEM;
-  }
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t i = 0; i < n; i++)
-    for (int t = 0; t < 3; t++) {
-      if (xyz[3 * i + t] < lo[t]) lo[t] = xyz[3 * i + t];
-      if (xyz[3 * i + t] > hi[t]) hi[t] = xyz[3 * i + t];
-    }
-  double ext = 0;
-  for (int t = 0; t < 3; t++)
-    if (hi[t] - lo[t] > ext) ext = hi[t] - lo[t];
-  const double scale = ext > 0 ? 2097151.0 / ext : 0.0;
-  for (size_t i = 0; i < n; i++) {
-    uint64_t q[3];
-    for (int t = 0; t < 3; t++) {
-      double v = (xyz[3 * i + t] - lo[t]) * scale;
-      q[t] = v > 0 ? (uint64_t)(v < 2097151.0 ? v : 2097151.0) : 0;
-    }
-    keys[i].code = spread3(q[0]) | spread3(q[1]) << 1 | spread3(q[2]) << 2;
-    keys[i].index = (uint32_t)i;
-  }
-  qsort(keys, n, sizeof *keys, morton_cmp);
-  for (size_t r = 0; r < n; r++) {
-    perm[r] = keys[r].index;
-    rank[keys[r].index] = (uint32_t)r;
-  }
-  free(keys);
-  *perm_out = perm;
-  *rank_out = rank;
-  return BSURF_OK;
-}
+ * order (often random) each read is a cache miss, so they run in Morton
+ * order (bsurf_spatial_order). */
 
 /* a[r] = old a[perm[r]] for rows of `width` elements of `size` bytes */
 static bsurf_status permute_rows(void **array, size_t n, size_t row_bytes, const uint32_t *perm) {
@@ -653,7 +594,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     if (!seq) {
       /* the passes run in a spatial order: every per-point array is permuted
        * (rank r holds point perm[r]) and the result is put back at the end */
-      st = spatial_order(xyz, n, &perm, &rank);
+      st = bsurf_spatial_order(xyz, n, &perm, &rank);
       if (st == BSURF_OK) st = permute_rows((void **)&c.fits, n, (size_t)c.stride * sizeof(double), perm);
       if (st == BSURF_OK) st = permute_rows((void **)&c.fit_degree, n, sizeof(int), perm);
       if (st == BSURF_OK) st = permute_rows((void **)&c.e2, n, sizeof(double), perm);

@@ -50,4 +50,15 @@ void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
                          const unsigned char *valid, bsurf_gamma_mode mode,
                          double *scratch, bsurf_boot_result *out);
 
+/* The same estimators from per-point sums over the nvalid valid replicates,
+ * each summed over b in increasing order: boot_j[j] = sum_b |f*b(x_j) - y_j|,
+ * loo_sum[j] = the same over b in C_j, loo_cnt[j] = |C_j|; gamma_sum and
+ * gamma_max: sum and maximum over the replicates of Eq. 4.10 with f*b (used
+ * by the modes mean and max only). scratch: 3k + 1 doubles. This is the
+ * second half of bsurf_boot_estimate (same bits). */
+void bsurf_boot_estimate_sums(int k, int nvalid, const double *y, const double *pred_full,
+                              const double *boot_j, const double *loo_sum, const double *loo_cnt,
+                              double gamma_sum, double gamma_max, bsurf_gamma_mode mode,
+                              double *scratch, bsurf_boot_result *out);
+
 #endif

@@ -90,6 +90,13 @@ static void accumulate_replicate(int k, const double *restrict pb, const double 
   }
 }
 
+static void sort_heights(int k, const double *y, double *y_sorted, double *y_prefix) {
+  for (int j = 0; j < k; j++) y_sorted[j] = y[j];
+  bsurf_sort_doubles(y_sorted, k);
+  y_prefix[0] = 0;
+  for (int j = 0; j < k; j++) y_prefix[j + 1] = y_prefix[j] + y_sorted[j];
+}
+
 BSURF_CLONES
 void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
                          const double *pred_boot, const double *missing,
@@ -101,15 +108,7 @@ void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
   double *loo_sum = scratch + 3 * (size_t)k + 1;   /* k */
   double *loo_cnt = scratch + 4 * (size_t)k + 1;   /* k */
   double *boot_j = scratch + 5 * (size_t)k + 1;    /* k */
-  for (int j = 0; j < k; j++) y_sorted[j] = y[j];
-  bsurf_sort_doubles(y_sorted, k);
-  y_prefix[0] = 0;
-  for (int j = 0; j < k; j++) y_prefix[j + 1] = y_prefix[j] + y_sorted[j];
-
-  double err = 0; /* Eq. 4.6 */
-  for (int j = 0; j < k; j++) err += fabs(pred_full[j] - y[j]);
-  err /= k;
-  double gamma_fit = bsurf_boot_gamma(k, pred_full, y_sorted, y_prefix, gscratch);
+  if (mode != BSURF_GAMMA_FIT) sort_heights(k, y, y_sorted, y_prefix);
 
   /* Eq. 4.3 summed per point j (then over j), and Eqs. 4.4 / 4.11: for each
    * point j, the replicates b in C_j (those not containing j); each sum runs
@@ -129,6 +128,24 @@ void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
       if (g > gamma_max) gamma_max = g;
     }
   }
+  bsurf_boot_estimate_sums(k, nvalid, y, pred_full, boot_j, loo_sum, loo_cnt, gamma_sum, gamma_max,
+                           mode, scratch, out);
+}
+
+void bsurf_boot_estimate_sums(int k, int nvalid, const double *y, const double *pred_full,
+                              const double *boot_j, const double *loo_sum, const double *loo_cnt,
+                              double gamma_sum, double gamma_max, bsurf_gamma_mode mode,
+                              double *scratch, bsurf_boot_result *out) {
+  double *y_sorted = scratch;                      /* k */
+  double *y_prefix = scratch + k;                  /* k + 1 */
+  double *gscratch = scratch + 2 * (size_t)k + 1;  /* k */
+  sort_heights(k, y, y_sorted, y_prefix);
+
+  double err = 0; /* Eq. 4.6 */
+  for (int j = 0; j < k; j++) err += fabs(pred_full[j] - y[j]);
+  err /= k;
+  double gamma_fit = bsurf_boot_gamma(k, pred_full, y_sorted, y_prefix, gscratch);
+
   double boot_sum = 0;
   for (int j = 0; j < k; j++) boot_sum += boot_j[j];
   double loo = 0, loo_center = 0;

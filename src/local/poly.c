@@ -300,68 +300,78 @@ void bsurf_lanes_row(int nc, const double *lanes, int r, double *row) {
 #ifdef HAVE_V4D
 typedef long long v4l __attribute__((vector_size(32)));
 
-/* Four Cholesky solves at once, one per vector lane, with exactly the
- * operations of bsurf_chol_solve_packed in each lane (so the same bits).
- * g4 is one group of bsurf_gemm_lanes (column c of the four rows at
- * g4[4c .. 4c+3]). A lane whose pivot fails is given pivot 1 to keep the
- * others going and is reported in the returned bit mask of failures; lanes
- * not in `want` are not stored. Inlined with a constant m (chol_solve4_m)
- * so that the compiler unrolls the small loops. */
-static inline __attribute__((always_inline)) int chol_solve4(int m, int p, const double *g4,
+/* Cholesky solves in vector lanes, two groups of four at once (g4[0],
+ * g4[1]: groups of bsurf_gemm_lanes, column c of a group's four rows at
+ * [4c .. 4c+3]), with exactly the operations of bsurf_chol_solve_packed in
+ * each lane (so the same bits). The two independent groups are interleaved
+ * statement by statement to hide the latency of the square roots and
+ * divisions. A lane whose pivot fails is given pivot 1 to keep the others
+ * going and is reported in the returned bit mask of failures (lane 4h + l
+ * for group h); lanes not in `want` are not stored. Inlined with a constant
+ * m (chol_solve8_m) so that the compiler unrolls the small loops. */
+static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
+                                                             const double *const g4[2],
                                                              double rel_tol, int want,
-                                                             double *const coef[4]) {
-  v4d G[BSURF_PACKED_MAX], r[BSURF_TERMS_MAX], L[BSURF_TERMS_MAX * BSURF_TERMS_MAX];
-  v4d inv[BSURF_TERMS_MAX], y[BSURF_TERMS_MAX], c[BSURF_TERMS_MAX];
+                                                             double *const coef[8]) {
+  v4d G[2][BSURF_PACKED_MAX], r[2][BSURF_TERMS_MAX], L[2][BSURF_TERMS_MAX * BSURF_TERMS_MAX];
+  v4d inv[2][BSURF_TERMS_MAX], y[2][BSURF_TERMS_MAX], c[2][BSURF_TERMS_MAX];
   const int pm = m * (m + 1) / 2;
   const unsigned char *map = moment_map();
-  for (int q = 0; q < pm; q++) memcpy(&G[q], &g4[4 * map[q]], sizeof G[q]);
-  for (int i = 0; i < m; i++) memcpy(&r[i], &g4[4 * (p + i)], sizeof r[i]);
+  for (int h = 0; h < 2; h++) {
+    for (int q = 0; q < pm; q++) memcpy(&G[h][q], &g4[h][4 * map[q]], sizeof(v4d));
+    for (int i = 0; i < m; i++) memcpy(&r[h][i], &g4[h][4 * (p + i)], sizeof(v4d));
+  }
   const v4d one = {1, 1, 1, 1}, zero = {0, 0, 0, 0};
   const v4d tol = {rel_tol, rel_tol, rel_tol, rel_tol};
-  v4l failed = {0, 0, 0, 0};
+  v4l failed[2] = {{0, 0, 0, 0}, {0, 0, 0, 0}};
   for (int j = 0; j < m; j++) {
-    const v4d gjj = G[bsurf_packed_index(j, j)];
-    v4d s = gjj;
-    for (int t = 0; t < j; t++) s -= L[j * m + t] * L[j * m + t];
-    v4l ok = (s > tol * gjj) & (gjj > zero);
-    failed |= ~ok;
-    s = (v4d)(((v4l)s & ok) | ((v4l)one & ~ok));
-    v4d root;
-    for (int l = 0; l < 4; l++) root[l] = sqrt(s[l]);
-    inv[j] = one / root;
-    for (int i = j + 1; i < m; i++) {
-      v4d a = G[bsurf_packed_index(j, i)];
-      for (int t = 0; t < j; t++) a -= L[i * m + t] * L[j * m + t];
-      L[i * m + j] = a * inv[j];
+    for (int h = 0; h < 2; h++) {
+      const v4d gjj = G[h][bsurf_packed_index(j, j)];
+      v4d s = gjj;
+      for (int t = 0; t < j; t++) s -= L[h][j * m + t] * L[h][j * m + t];
+      v4l ok = (s > tol * gjj) & (gjj > zero);
+      failed[h] |= ~ok;
+      s = (v4d)(((v4l)s & ok) | ((v4l)one & ~ok));
+      v4d root;
+      for (int l = 0; l < 4; l++) root[l] = sqrt(s[l]);
+      inv[h][j] = one / root;
     }
+    for (int i = j + 1; i < m; i++)
+      for (int h = 0; h < 2; h++) {
+        v4d a = G[h][bsurf_packed_index(j, i)];
+        for (int t = 0; t < j; t++) a -= L[h][i * m + t] * L[h][j * m + t];
+        L[h][i * m + j] = a * inv[h][j];
+      }
   }
-  for (int i = 0; i < m; i++) {
-    v4d a = r[i];
-    for (int t = 0; t < i; t++) a -= L[i * m + t] * y[t];
-    y[i] = a * inv[i];
-  }
-  for (int i = m - 1; i >= 0; i--) {
-    v4d a = y[i];
-    for (int t = i + 1; t < m; t++) a -= L[t * m + i] * c[t];
-    c[i] = a * inv[i];
-  }
+  for (int i = 0; i < m; i++)
+    for (int h = 0; h < 2; h++) {
+      v4d a = r[h][i];
+      for (int t = 0; t < i; t++) a -= L[h][i * m + t] * y[h][t];
+      y[h][i] = a * inv[h][i];
+    }
+  for (int i = m - 1; i >= 0; i--)
+    for (int h = 0; h < 2; h++) {
+      v4d a = y[h][i];
+      for (int t = i + 1; t < m; t++) a -= L[h][t * m + i] * c[h][t];
+      c[h][i] = a * inv[h][i];
+    }
   int mask = 0;
-  for (int l = 0; l < 4; l++) {
-    if (failed[l]) mask |= 1 << l;
+  for (int l = 0; l < 8; l++) {
+    if (failed[l / 4][l % 4]) mask |= 1 << l;
     else if (want & (1 << l))
-      for (int i = 0; i < m; i++) coef[l][i] = c[i][l];
+      for (int i = 0; i < m; i++) coef[l][i] = c[l / 4][i][l % 4];
   }
   return mask;
 }
 
 BSURF_CLONES
-static int chol_solve4_m(int m, int p, const double *g4, double rel_tol, int want,
-                         double *const coef[4]) {
+static int chol_solve8_m(int m, int p, const double *const g4[2], double rel_tol, int want,
+                         double *const coef[8]) {
   switch (m) {
-  case 3: return chol_solve4(3, p, g4, rel_tol, want, coef);
-  case 6: return chol_solve4(6, p, g4, rel_tol, want, coef);
-  case 10: return chol_solve4(10, p, g4, rel_tol, want, coef);
-  default: return chol_solve4(m, p, g4, rel_tol, want, coef);
+  case 3: return chol_solve8(3, p, g4, rel_tol, want, coef);
+  case 6: return chol_solve8(6, p, g4, rel_tol, want, coef);
+  case 10: return chol_solve8(10, p, g4, rel_tol, want, coef);
+  default: return chol_solve8(m, p, g4, rel_tol, want, coef);
   }
 }
 #endif
@@ -369,20 +379,21 @@ static int chol_solve4_m(int m, int p, const double *g4, double rel_tol, int wan
 void bsurf_localfit_solve_lanes(const bsurf_localfit *lf, int degree, int B, const double *lanes,
                                 unsigned char *valid, double *coefs) {
   const int m = bsurf_poly_terms(degree), nc = lf->ncols;
-  for (int b0 = 0; b0 < B; b0 += 4) {
-    const double *g4 = &lanes[(size_t)b0 * nc];
+  for (int b0 = 0; b0 < B; b0 += 8) {
     int want = 0;
-    for (int l = 0; l < 4 && b0 + l < B; l++)
+    for (int l = 0; l < 8 && b0 + l < B; l++)
       if (valid[b0 + l]) want |= 1 << l;
     if (!want) continue;
 #ifdef HAVE_V4D
-    double *cp[4];
-    for (int l = 0; l < 4; l++) cp[l] = &coefs[(size_t)(want & (1 << l) ? b0 + l : b0) * m];
-    int failed = chol_solve4_m(m, lf->p, g4, BSURF_RANK_TOL, want, cp) & want;
-    for (int l = 0; l < 4; l++)
+    /* a missing second group repeats the first (its lanes are not wanted) */
+    const double *g4[2] = {&lanes[(size_t)b0 * nc], &lanes[(size_t)(b0 + 4 < B ? b0 + 4 : b0) * nc]};
+    double *cp[8];
+    for (int l = 0; l < 8; l++) cp[l] = &coefs[(size_t)(want & (1 << l) ? b0 + l : b0) * m];
+    int failed = chol_solve8_m(m, lf->p, g4, BSURF_RANK_TOL, want, cp) & want;
+    for (int l = 0; l < 8; l++)
       if (failed & (1 << l)) valid[b0 + l] = 0;
 #else
-    for (int l = 0; l < 4; l++) {
+    for (int l = 0; l < 8; l++) {
       if (!(want & (1 << l))) continue;
       double row[BSURF_NCOLS_MAX];
       bsurf_lanes_row(nc, lanes, b0 + l, row);
@@ -493,6 +504,98 @@ void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const d
       const double ca = cb[a];
       const double *restrict ph = &lf->phit[(size_t)a * kp];
       for (int j = 0; j < k; j++) pb[j] += ca * ph[j];
+    }
+  }
+#endif
+}
+
+#ifdef HAVE_V4D
+/* The residual sums of bsurf_localfit_residual_sums for points j0..j0+7. */
+static inline __attribute__((always_inline)) void residual_block(
+    int m, int k, int kp, const double *phit, const double *z, int j0, int B, const double *coef,
+    const unsigned char *valid, const double *missing, double *all, double *out, double *cnt) {
+  const int n = k - j0 < 8 ? k - j0 : 8;
+  double yb[8] = {0, 0, 0, 0, 0, 0, 0, 0}, mb[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  memcpy(yb, &z[j0], (size_t)n * sizeof *yb);
+  v4d y0, y1;
+  memcpy(&y0, yb, 32);
+  memcpy(&y1, yb + 4, 32);
+  const v4d zero = {0, 0, 0, 0};
+  v4d s0 = zero, s1 = zero, o0 = zero, o1 = zero, c0 = zero, c1 = zero;
+  for (int b = 0; b < B; b++) {
+    if (valid && !valid[b]) continue;
+    const double *cb = &coef[(size_t)b * m];
+    v4d p0 = zero, p1 = zero;
+    for (int a = 0; a < m; a++) {
+      v4d x0, x1;
+      memcpy(&x0, &phit[(size_t)a * kp + j0], sizeof x0);
+      memcpy(&x1, &phit[(size_t)a * kp + j0 + 4], sizeof x1);
+      const v4d ca = {cb[a], cb[a], cb[a], cb[a]};
+      p0 += ca * x0;
+      p1 += ca * x1;
+    }
+    const double *mrow = &missing[(size_t)b * k + j0];
+    if (n < 8) {
+      memcpy(mb, mrow, (size_t)n * sizeof *mb);
+      mrow = mb;
+    }
+    v4d w0, w1;
+    memcpy(&w0, mrow, 32);
+    memcpy(&w1, mrow + 4, 32);
+    v4d e0 = p0 - y0, e1 = p1 - y1;
+    for (int l = 0; l < 4; l++) { /* fabs, lane by lane (vectorised) */
+      e0[l] = fabs(e0[l]);
+      e1[l] = fabs(e1[l]);
+    }
+    s0 += e0;
+    s1 += e1;
+    o0 += w0 * e0;
+    o1 += w1 * e1;
+    c0 += w0;
+    c1 += w1;
+  }
+  double t[8];
+  memcpy(t, &s0, 32);
+  memcpy(t + 4, &s1, 32);
+  memcpy(&all[j0], t, (size_t)n * sizeof *t);
+  memcpy(t, &o0, 32);
+  memcpy(t + 4, &o1, 32);
+  memcpy(&out[j0], t, (size_t)n * sizeof *t);
+  memcpy(t, &c0, 32);
+  memcpy(t + 4, &c1, 32);
+  memcpy(&cnt[j0], t, (size_t)n * sizeof *t);
+}
+#endif
+
+BSURF_CLONES
+void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, const double *coef,
+                                  const unsigned char *valid, const double *missing, double *all,
+                                  double *out, double *cnt) {
+  const int m = bsurf_poly_terms(degree), k = lf->k, kp = lf->kp;
+#ifdef HAVE_V4D
+  /* with a constant term count the compiler unrolls the sum over terms */
+#define RESIDUAL_BLOCKS(M)                                                                         \
+  for (int j0 = 0; j0 < k; j0 += 8)                                                                \
+    residual_block(M, k, kp, lf->phit, lf->z, j0, B, coef, valid, missing, all, out, cnt)
+  switch (m) {
+  case 3: RESIDUAL_BLOCKS(3); break;
+  case 6: RESIDUAL_BLOCKS(6); break;
+  case 10: RESIDUAL_BLOCKS(10); break;
+  default: RESIDUAL_BLOCKS(m); break;
+  }
+#undef RESIDUAL_BLOCKS
+#else
+  for (int j = 0; j < k; j++) all[j] = out[j] = cnt[j] = 0;
+  for (int b = 0; b < B; b++) {
+    if (valid && !valid[b]) continue;
+    const double *cb = &coef[(size_t)b * m];
+    for (int j = 0; j < k; j++) {
+      double p = 0;
+      for (int a = 0; a < m; a++) p += cb[a] * lf->phit[(size_t)a * kp + j];
+      const double e = fabs(p - lf->z[j]), w = missing[(size_t)b * k + j];
+      all[j] += e;
+      out[j] += w * e;
+      cnt[j] += w;
     }
   }
 #endif

@@ -23,4 +23,9 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
                               double *dist2, double *nn_dist2, bsurf_progress_fn progress,
                               void *progress_user);
 
+/* Morton order of the points (order.c): perm[r] = the index of the r-th
+ * point in the order; rank (may be NULL) its inverse. Both allocated (n
+ * entries), freed by the caller. */
+bsurf_status bsurf_spatial_order(const double *xyz, size_t n, uint32_t **perm, uint32_t **rank);
+
 #endif
