@@ -437,38 +437,21 @@ int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *c
 }
 
 #ifdef HAVE_V4D
-/* pred[b][j0..j0+7] of up to two replicates (c1 may be NULL), the terms
- * added in order a = 0..m-1 from 0, as the plain loop; only the first `n`
- * (<= 8) entries are stored. */
-static inline __attribute__((always_inline)) void predict_block(int m, int kp, const double *phit, int j0, int n,
-                                 const double *c0, const double *c1, double *p0, double *p1) {
-  v4d a00 = {0, 0, 0, 0}, a01 = a00, a10 = a00, a11 = a00;
+/* The predictions of one fit (coefficients cb) at points j0..j0+7, the
+ * terms added in order a = 0..m-1 from 0, as the plain loop. */
+static inline __attribute__((always_inline)) void predict8(int m, int kp, const double *phit, int j0,
+                                                           const double *cb, v4d *p0, v4d *p1) {
+  v4d a0 = {0, 0, 0, 0}, a1 = a0;
   for (int a = 0; a < m; a++) {
     v4d x0, x1;
     memcpy(&x0, &phit[(size_t)a * kp + j0], sizeof x0);
     memcpy(&x1, &phit[(size_t)a * kp + j0 + 4], sizeof x1);
-    const v4d s0 = {c0[a], c0[a], c0[a], c0[a]};
-    a00 += s0 * x0;
-    a01 += s0 * x1;
-    if (c1) {
-      const v4d s1 = {c1[a], c1[a], c1[a], c1[a]};
-      a10 += s1 * x0;
-      a11 += s1 * x1;
-    }
+    const v4d ca = {cb[a], cb[a], cb[a], cb[a]};
+    a0 += ca * x0;
+    a1 += ca * x1;
   }
-  double t[16];
-  memcpy(t, &a00, 32);
-  memcpy(t + 4, &a01, 32);
-  memcpy(t + 8, &a10, 32);
-  memcpy(t + 12, &a11, 32);
-  if (n == 8) {
-    memcpy(p0 + j0, t, 8 * sizeof *t);
-    if (c1) memcpy(p1 + j0, t + 8, 8 * sizeof *t);
-  } else {
-    for (int j = 0; j < n; j++) p0[j0 + j] = t[j];
-    if (c1)
-      for (int j = 0; j < n; j++) p1[j0 + j] = t[8 + j];
-  }
+  *p0 = a0;
+  *p1 = a1;
 }
 #endif
 
@@ -476,23 +459,19 @@ BSURF_CLONES
 void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const double *coef,
                             const unsigned char *valid, double *pred) {
   /* pred[b][j] = sum_a coef[b][a] phi_a(x_j), summed over a in order;
-   * vectorised across j, two replicates by eight points at a time. */
+   * vectorised across j, eight points at a time. */
   const int m = bsurf_poly_terms(degree), k = lf->k, kp = lf->kp;
 #ifdef HAVE_V4D
-  int pending = -1;
-  for (int b = 0; b <= B; b++) {
-    if (b < B && valid && !valid[b]) continue;
-    if (b < B && pending < 0) {
-      pending = b;
-      continue;
+  for (int b = 0; b < B; b++) {
+    if (valid && !valid[b]) continue;
+    for (int j0 = 0; j0 < k; j0 += 8) {
+      v4d p0, p1;
+      double t[8];
+      predict8(m, kp, lf->phit, j0, &coef[(size_t)b * m], &p0, &p1);
+      memcpy(t, &p0, 32);
+      memcpy(t + 4, &p1, 32);
+      memcpy(&pred[(size_t)b * k + j0], t, (size_t)(k - j0 < 8 ? k - j0 : 8) * sizeof *t);
     }
-    if (pending < 0) break;
-    const int b1 = b < B ? b : -1;
-    const double *c0 = &coef[(size_t)pending * m], *c1 = b1 >= 0 ? &coef[(size_t)b1 * m] : NULL;
-    double *p0 = &pred[(size_t)pending * k], *p1 = b1 >= 0 ? &pred[(size_t)b1 * k] : NULL;
-    for (int j0 = 0; j0 < k; j0 += 8)
-      predict_block(m, kp, lf->phit, j0, k - j0 < 8 ? k - j0 : 8, c0, c1, p0, p1);
-    pending = -1;
   }
 #else
   for (int b = 0; b < B; b++) {
@@ -524,16 +503,8 @@ static inline __attribute__((always_inline)) void residual_block(
   v4d s0 = zero, s1 = zero, o0 = zero, o1 = zero, c0 = zero, c1 = zero;
   for (int b = 0; b < B; b++) {
     if (valid && !valid[b]) continue;
-    const double *cb = &coef[(size_t)b * m];
-    v4d p0 = zero, p1 = zero;
-    for (int a = 0; a < m; a++) {
-      v4d x0, x1;
-      memcpy(&x0, &phit[(size_t)a * kp + j0], sizeof x0);
-      memcpy(&x1, &phit[(size_t)a * kp + j0 + 4], sizeof x1);
-      const v4d ca = {cb[a], cb[a], cb[a], cb[a]};
-      p0 += ca * x0;
-      p1 += ca * x1;
-    }
+    v4d p0, p1;
+    predict8(m, kp, phit, j0, &coef[(size_t)b * m], &p0, &p1);
     const double *mrow = &missing[(size_t)b * k + j0];
     if (n < 8) {
       memcpy(mb, mrow, (size_t)n * sizeof *mb);
