@@ -78,6 +78,20 @@ bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int
   return BSURF_OK;
 }
 
+/* A replicate's multiplicities as weights, and 1 where a point is missing
+ * (b in C_j); returns the number of distinct points drawn. */
+BSURF_CLONES
+static int counts_to_weights(int k, const uint16_t *restrict cnt, double *restrict w,
+                             double *restrict miss) {
+  int distinct = 0;
+  for (int j = 0; j < k; j++) {
+    w[j] = cnt[j];
+    miss[j] = cnt[j] == 0;
+    distinct += cnt[j] != 0;
+  }
+  return distinct;
+}
+
 static void put(double *field, size_t i, double v) {
   if (field) field[i] = v;
 }
@@ -99,14 +113,8 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
     const int nrep = B - b0 < 4 ? B - b0 : 4;
     bsurf_boot_counts4(o->seed, i, (uint32_t)b0, nrep, k, s->counts);
     for (int b = b0; b < b0 + nrep; b++) {
-      const uint16_t *cnt = &s->counts[(size_t)(b - b0) * k];
-      double *w = &s->weights[(size_t)b * k], *miss = &s->missing[(size_t)b * k];
-      int distinct = 0;
-      for (int j = 0; j < k; j++) {
-        w[j] = cnt[j];
-        miss[j] = cnt[j] == 0;
-        distinct += cnt[j] != 0;
-      }
+      int distinct = counts_to_weights(k, &s->counts[(size_t)(b - b0) * k], &s->weights[(size_t)b * k],
+                                       &s->missing[(size_t)b * k]);
       /* fewer distinct points than terms: singular */
       s->valid[b] = distinct >= bsurf_poly_terms(o->degree);
     }

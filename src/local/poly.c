@@ -112,6 +112,21 @@ void bsurf_localfit_free(bsurf_localfit *lf) {
   memset(lf, 0, sizeof *lf);
 }
 
+/* The monomials u^i v^e of degree <= d in graded order (u^i v^e at
+ * (i+e)(i+e+1)/2 + e), each v^e times u, i times, left to right: the same
+ * products as bsurf_poly_basis. */
+static inline __attribute__((always_inline)) void monomials(int d, double u, double v, double *o) {
+  double ve = 1.0;
+  for (int e = 0; e <= d; e++) {
+    double x = ve;
+    for (int i = 0; i + e <= d; i++) {
+      o[(i + e) * (i + e + 1) / 2 + e] = x;
+      x *= u;
+    }
+    ve *= v;
+  }
+}
+
 void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t *idx,
                           int k, const bsurf_frame *frame, int degree) {
   lf->k = k;
@@ -141,17 +156,13 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
     lf->v[j] = v;
     /* the monomials of degree <= 2M in graded order: every product
      * phi_a phi_b is one of them (moment_index), and the basis of degree M
-     * is their prefix. u^i v^j (at (i+j)(i+j+1)/2 + j) is v^j times u, i
-     * times, left to right: the same products as bsurf_poly_basis. */
+     * is their prefix */
     double *o = &lf->op[(size_t)j * nc];
-    double vj = 1.0;
-    for (int e = 0; e <= d2; e++) {
-      double x = vj;
-      for (int i = 0; i + e <= d2; i++) {
-        o[(i + e) * (i + e + 1) / 2 + e] = x;
-        x *= u;
-      }
-      vj *= v;
+    switch (d2) { /* constant degrees unroll */
+    case 2: monomials(2, u, v, o); break;
+    case 4: monomials(4, u, v, o); break;
+    case 6: monomials(6, u, v, o); break;
+    default: monomials(d2, u, v, o); break;
     }
     for (int a = 0; a < m; a++) lf->phit[(size_t)a * kp + j] = o[a];
     for (int a = 0; a < m; a++) o[p + a] = o[a] * lf->z[j];
