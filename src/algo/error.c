@@ -78,20 +78,6 @@ bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int
   return BSURF_OK;
 }
 
-/* A replicate's multiplicities as weights, and 1 where a point is missing
- * (b in C_j); returns the number of distinct points drawn. */
-BSURF_CLONES
-static int counts_to_weights(int k, const uint16_t *restrict cnt, double *restrict w,
-                             double *restrict miss) {
-  int distinct = 0;
-  for (int j = 0; j < k; j++) {
-    w[j] = cnt[j];
-    miss[j] = cnt[j] == 0;
-    distinct += cnt[j] != 0;
-  }
-  return distinct;
-}
-
 static void put(double *field, size_t i, double v) {
   if (field) field[i] = v;
 }
@@ -113,7 +99,7 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
     const int nrep = B - b0 < 4 ? B - b0 : 4;
     bsurf_boot_counts4(o->seed, i, (uint32_t)b0, nrep, k, s->counts);
     for (int b = b0; b < b0 + nrep; b++) {
-      int distinct = counts_to_weights(k, &s->counts[(size_t)(b - b0) * k], &s->weights[(size_t)b * k],
+      int distinct = bsurf_boot_weights(k, &s->counts[(size_t)(b - b0) * k], &s->weights[(size_t)b * k],
                                        &s->missing[(size_t)b * k]);
       /* fewer distinct points than terms: singular */
       s->valid[b] = distinct >= bsurf_poly_terms(o->degree);
@@ -224,7 +210,6 @@ typedef struct error_ctx {
   const bsurf_error_options *o;
   bsurf_error_scratch *scr;
   bsurf_error_fields *out;
-  const uint32_t *order; /* visit order (Morton) */
 } error_ctx;
 
 static void error_point_at(error_ctx *c, int thread, size_t i) {
@@ -232,9 +217,9 @@ static void error_point_at(error_ctx *c, int thread, size_t i) {
                     c->out, NULL);
 }
 
-static void error_point_task(void *vctx, int thread, size_t r) {
+static void error_point_task(void *vctx, int thread, size_t i) {
   error_ctx *c = vctx;
-  error_point_at(c, thread, c->order[r]);
+  error_point_at(c, thread, i);
 }
 
 bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
@@ -258,8 +243,8 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
   uint32_t *order = NULL;
   if (st == BSURF_OK) st = bsurf_spatial_order(xyz, n, &order, NULL);
   if (st == BSURF_OK) {
-    error_ctx ctx = {xyz, nb, test_xyz, &o, scr, out, order};
-    st = bsurf_parallel_points(n, T, error_point_task, &ctx, o.progress, o.progress_user);
+    error_ctx ctx = {xyz, nb, test_xyz, &o, scr, out};
+    st = bsurf_parallel_points_ordered(n, order, T, error_point_task, &ctx, o.progress, o.progress_user);
   }
   free(order);
 

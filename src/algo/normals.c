@@ -24,6 +24,7 @@
 #include "bootstrap/bootstrap.h"
 #include "common/common.h"
 #include "local/local.h"
+#include "search/search.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -58,7 +59,7 @@ typedef struct normal_scratch {
   double *weights; /* (B + 1) x k: row 0 all ones (the whole neighbourhood) */
   double *rows;    /* (B + 1) x max(PCA_COLS, ncols) */
   double *coefs;   /* (B + 1) x terms */
-  uint16_t *counts; /* k */
+  uint16_t *counts; /* 4 x k */
   unsigned char *valid; /* B */
   double *bn;      /* B x 3 bootstrap normals */
   size_t skipped, reduced, degenerate;
@@ -85,7 +86,7 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
   s->weights = bsurf_alloc_array(nb * k, sizeof(double));
   s->rows = bsurf_alloc_array(nb, BSURF_NCOLS_MAX * sizeof(double));
   s->coefs = bsurf_alloc_array(nb, BSURF_TERMS_MAX * sizeof(double));
-  s->counts = bsurf_alloc_array((size_t)k, sizeof(uint16_t));
+  s->counts = bsurf_alloc_array(4 * (size_t)k, sizeof(uint16_t));
   s->valid = bsurf_alloc_array(nb, 1);
   s->bn = bsurf_alloc_array(nb, 3 * sizeof(double));
   if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->valid || !s->bn) {
@@ -136,14 +137,12 @@ static void normals_point(void *vctx, int thread, size_t i) {
   double *W = s->weights;
   for (int j = 0; j < k; j++) W[j] = 1.0;
   int min_distinct = o->fit == BSURF_NORMAL_PCA ? 3 : bsurf_poly_terms(o->degree);
-  for (int b = 0; b < B; b++) {
-    bsurf_boot_counts(o->seed, i, (uint32_t)b, k, s->counts);
-    int distinct = 0;
-    for (int j = 0; j < k; j++) {
-      W[(size_t)(b + 1) * k + j] = s->counts[j];
-      distinct += s->counts[j] != 0;
-    }
-    s->valid[b] = distinct >= min_distinct;
+  for (int b0 = 0; b0 < B; b0 += 4) {
+    const int nrep = B - b0 < 4 ? B - b0 : 4;
+    bsurf_boot_counts4(o->seed, i, (uint32_t)b0, nrep, k, s->counts);
+    for (int b = b0; b < b0 + nrep; b++)
+      s->valid[b] = bsurf_boot_weights(k, &s->counts[(size_t)(b - b0) * k], &W[(size_t)(b + 1) * k], NULL) >=
+                    min_distinct;
   }
 
   double nP[3];
@@ -281,10 +280,14 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
   bsurf_status st = BSURF_OK;
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = scratch_alloc(&scr[t], o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1);
+  /* points visited in Morton order (cache locality; no result changes) */
+  uint32_t *order = NULL;
+  if (st == BSURF_OK) st = bsurf_spatial_order(xyz, n, &order, NULL);
   if (st == BSURF_OK) {
     normals_ctx ctx = {xyz, nb, ref_normals, &o, scr, out};
-    st = bsurf_parallel_points(n, T, normals_point, &ctx, o.progress, o.progress_user);
+    st = bsurf_parallel_points_ordered(n, order, T, normals_point, &ctx, o.progress, o.progress_user);
   }
+  free(order);
   if (report && st == BSURF_OK) {
     report->replicates_total = n * (size_t)o.bootstrap;
     for (int t = 0; t < T; t++) {

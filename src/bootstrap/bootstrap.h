@@ -16,6 +16,11 @@ void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
 void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
                         uint16_t *counts);
 
+/* A replicate's multiplicities as fit weights (w: k) and, if missing is not
+ * NULL, 1.0 where a point was not drawn (b in C_j, Eq. 4.4), else 0.0.
+ * Returns the number of distinct points drawn. */
+int bsurf_boot_weights(int k, const uint16_t *counts, double *w, double *missing);
+
 /* gamma = 1/k^2 sum_j sum_l |pred_j - y_l| (Eq. 4.10), in O(k log k) by
  * sorting. y_sorted: the k observed heights in ascending order; y_prefix:
  * k+1 prefix sums of y_sorted; scratch: k doubles. */

@@ -94,3 +94,16 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
   for (int l = 0; l < nrep; l++)
     bsurf_boot_counts(seed, point, replicate + (uint32_t)l, k, counts + l * (size_t)k);
 }
+
+BSURF_CLONES
+int bsurf_boot_weights(int k, const uint16_t *restrict counts, double *restrict w,
+                       double *restrict missing) {
+  int distinct = 0;
+  for (int j = 0; j < k; j++) {
+    w[j] = counts[j];
+    distinct += counts[j] != 0;
+  }
+  if (missing)
+    for (int j = 0; j < k; j++) missing[j] = counts[j] == 0;
+  return distinct;
+}

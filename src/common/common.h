@@ -67,6 +67,13 @@ typedef void (*bsurf_point_fn)(void *ctx, int thread, size_t i);
 bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, void *ctx,
                                    bsurf_progress_fn progress, void *progress_user);
 
+/* The same, visiting point order[r] at step r (order: a permutation of
+ * 0..n-1, e.g. bsurf_spatial_order's; NULL = index order). Progress counts
+ * steps. */
+bsurf_status bsurf_parallel_points_ordered(size_t n, const uint32_t *order, int threads,
+                                           bsurf_point_fn fn, void *ctx,
+                                           bsurf_progress_fn progress, void *progress_user);
+
 /* The same in one parallel region, without progress or cancellation: for
  * short sweeps repeated many times (the smoothing passes). */
 bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void *ctx);

@@ -29,6 +29,25 @@ bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, voi
   return BSURF_OK;
 }
 
+typedef struct ordered_ctx {
+  bsurf_point_fn fn;
+  void *ctx;
+  const uint32_t *order;
+} ordered_ctx;
+
+static void ordered_task(void *vctx, int thread, size_t r) {
+  ordered_ctx *c = vctx;
+  c->fn(c->ctx, thread, c->order[r]);
+}
+
+bsurf_status bsurf_parallel_points_ordered(size_t n, const uint32_t *order, int threads,
+                                           bsurf_point_fn fn, void *ctx,
+                                           bsurf_progress_fn progress, void *progress_user) {
+  if (!order) return bsurf_parallel_points(n, threads, fn, ctx, progress, progress_user);
+  ordered_ctx c = {fn, ctx, order};
+  return bsurf_parallel_points(n, threads, ordered_task, &c, progress, progress_user);
+}
+
 bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void *ctx) {
   const int T = bsurf_threads_resolve(threads);
   long long nn = (long long)n;
