@@ -202,6 +202,9 @@ typedef struct bsurf_neighbors {
   int k;         /* neighbours per point, the point itself first */
   uint32_t *idx; /* point_count x k */
   double h;      /* mean nearest-neighbour distance (the thesis's unit) */
+  uint32_t *order; /* point_count: the points in k-d tree (spatially coherent)
+                      order, in which per-point passes visit them for cache
+                      locality; may be NULL (then a Morton order is made) */
 } bsurf_neighbors;
 
 /* Builds the neighbourhoods (kd-tree + all-kNN) and h. k >= 2. */

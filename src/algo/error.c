@@ -238,15 +238,16 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = bsurf_error_scratch_alloc(&scr[t], o.k, o.bootstrap, o.degree);
 
-  /* points are independent: visiting them in Morton order keeps the
+  /* points are independent: visiting them in k-d tree order keeps the
    * neighbourhoods' coordinates in cache and changes no result */
-  uint32_t *order = NULL;
-  if (st == BSURF_OK) st = bsurf_spatial_order(xyz, n, &order, NULL);
+  uint32_t *owned = NULL;
+  const uint32_t *order = NULL;
+  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) {
     error_ctx ctx = {xyz, nb, test_xyz, &o, scr, out};
     st = bsurf_parallel_points_ordered(n, order, T, error_point_task, &ctx, o.progress, o.progress_user);
   }
-  free(order);
+  free(owned);
 
   if (report && st == BSURF_OK) {
     report->replicates_total = n * (size_t)o.bootstrap;

@@ -280,14 +280,15 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
   bsurf_status st = BSURF_OK;
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = scratch_alloc(&scr[t], o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1);
-  /* points visited in Morton order (cache locality; no result changes) */
-  uint32_t *order = NULL;
-  if (st == BSURF_OK) st = bsurf_spatial_order(xyz, n, &order, NULL);
+  /* points visited in k-d tree order (cache locality; no result changes) */
+  uint32_t *owned = NULL;
+  const uint32_t *order = NULL;
+  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) {
     normals_ctx ctx = {xyz, nb, ref_normals, &o, scr, out};
     st = bsurf_parallel_points_ordered(n, order, T, normals_point, &ctx, o.progress, o.progress_user);
   }
-  free(order);
+  free(owned);
   if (report && st == BSURF_OK) {
     report->replicates_total = n * (size_t)o.bootstrap;
     for (int t = 0; t < T; t++) {

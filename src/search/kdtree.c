@@ -370,6 +370,8 @@ bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz, size_t 
   return BSURF_OK;
 }
 
+const uint32_t *bsurf_knn_tree_ids(const bsurf_knn_index *index) { return index->ids; }
+
 void bsurf_knn_free(bsurf_knn_index *index) {
   if (!index) return;
   free(index->pts);

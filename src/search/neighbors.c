@@ -28,10 +28,11 @@ static double sum_sqrt(const double *v, size_t n) {
   return sum_sqrt(v, n / 2) + sum_sqrt(v + n / 2, n - n / 2);
 }
 
-/* Builds a temporary index and runs the all-kNN; idx may be NULL. */
+/* Builds a temporary index and runs the all-kNN; idx may be NULL; order
+ * (may be NULL) receives the tree order of the points. */
 static bsurf_status knn_with_spacing(const double *xyz, size_t point_count, int k, int threads,
-                                     uint32_t *idx, double *h, bsurf_progress_fn progress,
-                                     void *user) {
+                                     uint32_t *idx, uint32_t *order, double *h,
+                                     bsurf_progress_fn progress, void *user) {
   bsurf_knn_index *index = NULL;
   double *nn;
   bsurf_status st;
@@ -41,6 +42,7 @@ static bsurf_status knn_with_spacing(const double *xyz, size_t point_count, int 
   st = bsurf_knn_build(&index, xyz, point_count);
   if (st == BSURF_OK) {
     st = bsurf_knn_all_ex(index, k, threads, idx, NULL, nn, progress, user);
+    if (order) memcpy(order, bsurf_knn_tree_ids(index), point_count * sizeof *order);
     bsurf_knn_free(index);
   }
   if (st == BSURF_OK) *h = sum_sqrt(nn, point_count) / (double)point_count;
@@ -61,15 +63,22 @@ bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz, size_
   if (point_count == 0 || (size_t)k > point_count) return BSURF_ERR_TOO_FEW_POINTS;
 
   idx = bsurf_alloc_array(point_count, (size_t)k * sizeof *idx);
-  if (!idx) return BSURF_ERR_NOMEM;
-  st = knn_with_spacing(xyz, point_count, k, threads, idx, &h, progress, progress_user);
+  uint32_t *order = bsurf_alloc_array(point_count, sizeof *order);
+  if (!idx || !order) {
+    free(idx);
+    free(order);
+    return BSURF_ERR_NOMEM;
+  }
+  st = knn_with_spacing(xyz, point_count, k, threads, idx, order, &h, progress, progress_user);
   if (st != BSURF_OK) {
     free(idx);
+    free(order);
     return st;
   }
   nb->point_count = point_count;
   nb->k = k;
   nb->idx = idx;
+  nb->order = order;
   nb->h = h;
   return BSURF_OK;
 }
@@ -77,6 +86,7 @@ bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz, size_
 void bsurf_neighbors_free(bsurf_neighbors *nb) {
   if (!nb) return;
   free(nb->idx);
+  free(nb->order);
   memset(nb, 0, sizeof *nb);
 }
 
@@ -84,7 +94,7 @@ bsurf_status bsurf_mean_spacing_progress(const double *xyz, size_t point_count, 
                                          double *h, bsurf_progress_fn progress, void *user) {
   if (!h || !xyz || point_count > UINT32_MAX) return BSURF_ERR_INVALID_ARG;
   if (point_count < 2) return BSURF_ERR_TOO_FEW_POINTS;
-  return knn_with_spacing(xyz, point_count, 2, threads, NULL, h, progress, user);
+  return knn_with_spacing(xyz, point_count, 2, threads, NULL, NULL, h, progress, user);
 }
 
 bsurf_status bsurf_mean_spacing(const double *xyz, size_t point_count, int threads, double *h) {

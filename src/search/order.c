@@ -73,3 +73,10 @@ bsurf_status bsurf_spatial_order(const double *xyz, size_t n, uint32_t **perm_ou
   return BSURF_OK;
 }
 
+
+const uint32_t *bsurf_visit_order(const bsurf_neighbors *nb, const double *xyz, uint32_t **owned) {
+  *owned = NULL;
+  if (nb->order) return nb->order;
+  if (bsurf_spatial_order(xyz, nb->point_count, owned, NULL) != BSURF_OK) return NULL;
+  return *owned;
+}

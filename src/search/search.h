@@ -23,6 +23,15 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
                               double *dist2, double *nn_dist2, bsurf_progress_fn progress,
                               void *progress_user);
 
+/* The original index of each tree position (n entries): the points in the
+ * index's spatially coherent order. */
+const uint32_t *bsurf_knn_tree_ids(const bsurf_knn_index *index);
+
+/* The order in which a per-point pass visits the points: nb->order when
+ * set, else a Morton order of xyz, returned in *owned (free it). NULL with
+ * *owned NULL when memory runs out. */
+const uint32_t *bsurf_visit_order(const bsurf_neighbors *nb, const double *xyz, uint32_t **owned);
+
 /* Morton order of the points (order.c): perm[r] = the index of the r-th
  * point in the order; rank (may be NULL) its inverse. Both allocated (n
  * entries), freed by the caller. */
