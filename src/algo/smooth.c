@@ -476,6 +476,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
   o.error.progress_user = NULL;
 
   double *own632 = NULL, *own632p = NULL, *own_moved = NULL;
+  uint32_t *visit_owned = NULL;
   c.err_632 = fields && fields->err_632 ? fields->err_632 : (own632 = bsurf_alloc_array(n, sizeof(double)));
   c.err_632plus = fields && fields->err_632plus ? fields->err_632plus
                                                 : (own632p = bsurf_alloc_array(n, sizeof(double)));
@@ -499,7 +500,14 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
 
   /* ---- stage 1: the bootstrap pass (Algorithm 4 step 1, Algorithm 5's
    * first loop) ---- */
-  st = bsurf_parallel_points(n, T, boot_task, &c, staged_cb, &sp);
+  /* per-point stages visit the points in k-d tree order (cache locality;
+   * each point writes only its own outputs, so no result depends on it) */
+  const uint32_t *visit = bsurf_visit_order(nb, xyz, &visit_owned);
+  if (!visit) {
+    st = BSURF_ERR_NOMEM;
+    goto done;
+  }
+  st = bsurf_parallel_points_ordered(n, visit, T, boot_task, &c, staged_cb, &sp);
   if (st != BSURF_OK) goto done;
   if (report) {
     report->error.replicates_total = n * (size_t)o.error.bootstrap;
@@ -561,7 +569,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       if (st != BSURF_OK) goto done;
       c.cur = xyz;
       c.next = out_xyz;
-      st = bsurf_parallel_points(n, T, gather_bilateral_task, &c, staged_cb, &sp);
+      st = bsurf_parallel_points_ordered(n, visit, T, gather_bilateral_task, &c, staged_cb, &sp);
     }
     if (report) {
       report->h1 = c.h1;
@@ -582,7 +590,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       goto done;
     }
     sp.stage = 1;
-    st = bsurf_parallel_points(n, T, multipass_fit_task, &c, staged_cb, &sp);
+    st = bsurf_parallel_points_ordered(n, visit, T, multipass_fit_task, &c, staged_cb, &sp);
     if (st != BSURF_OK) goto done;
     sp.stage = 2;
     double *buf = NULL, *pos = out_xyz;
@@ -695,5 +703,6 @@ done:
   free(own632);
   free(own632p);
   free(own_moved);
+  free(visit_owned);
   return st;
 }
