@@ -12,10 +12,11 @@ typedef struct bsurf_error_scratch {
   bsurf_localfit lf;
   double *pred_full; /* k */
   double *pred_boot; /* B x k */
-  uint16_t *counts;  /* k: one replicate's multiplicities */
-  double *weights;   /* B x k: counts as doubles */
+  uint16_t *counts;  /* 4 x k: four replicates' multiplicities */
+  double *weights;   /* R x k, R = B + 1 rounded up to 4: counts as doubles,
+                        row B all ones (the full fit), then zero rows */
   double *missing;   /* B x k: 1 where the point is not in the replicate */
-  double *rows;      /* B x ncols: normal equations of the replicates */
+  double *rows;      /* R x ncols: normal equations (bsurf_gemm_lanes layout) */
   double *coefs;     /* B x terms */
   unsigned char *valid; /* B */
   double *est_scratch;  /* 6k + 1 */
