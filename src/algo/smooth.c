@@ -169,6 +169,7 @@ typedef struct smooth_ctx {
   int *khat;          /* n */
   double *dl;         /* n */
   double *e2;         /* n: theta_2(W_i) = exp(-e2[i]) */
+  double *w2;         /* n: theta_2(W_i) itself (the weight at distance 0) */
   double *inv_h1sq;   /* n: 1 / h1_i^2 (0 when h1_i = 0) */
   double h1, h2, k_error;
   double inv_h1sq_global; /* bilateral: 1 / h1^2 */
@@ -241,6 +242,7 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
   double h1 = c->o.a * c->dl[i];
   c->inv_h1sq[i] = h1 > 0 ? 1.0 / (h1 * h1) : 0.0;
   c->e2[i] = gauss_exponent(c->W[i], c->h2);
+  c->w2[i] = c->e2[i] == 0 ? 1.0 : exp(-c->e2[i]);
 }
 
 /* One point's gathered update (parallel order): the moves of every
@@ -256,13 +258,16 @@ static double gather_update(const smooth_ctx *c, size_t p, int multipass) {
     double d2 = (x[0] - ci[0]) * (x[0] - ci[0]) + (x[1] - ci[1]) * (x[1] - ci[1]) +
                 (x[2] - ci[2]) * (x[2] - ci[2]);
     /* w = theta_1 theta_2 = exp(-(d^2/h1^2 + W_i^2/h2^2)) */
-    double ex = c->e2[i];
+    double ex = c->e2[i], w;
     if (d2 > 0) {
       double inv = multipass ? c->inv_h1sq[i] : c->inv_h1sq_global;
       ex = inv > 0 ? ex + d2 * inv : INFINITY; /* h1 = 0: only the point itself */
+      if (!(ex <= GAUSS_CUT)) continue;
+      w = ex == 0 ? 1.0 : exp(-ex);
+    } else { /* the point itself (or a duplicate): theta_1 = 1, precomputed */
+      if (!(ex <= GAUSS_CUT)) continue;
+      w = c->w2[i];
     }
-    if (!(ex <= GAUSS_CUT)) continue;
-    double w = ex == 0 ? 1.0 : exp(-ex);
     const double *F = &c->fits[(size_t)i * c->stride];
     double delta = fit_delta(F, c->fit_degree[i], c->m, x);
     if (isnan(delta)) continue;
@@ -431,6 +436,7 @@ static void ctx_free(smooth_ctx *c, int T) {
   free(c->khat);
   free(c->dl);
   free(c->e2);
+  free(c->w2);
   free(c->inv_h1sq);
   free(c->rev_off);
   free(c->rev);
@@ -553,11 +559,15 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     }
   } else if (o.method == BSURF_SMOOTH_BILATERAL) {
     c.e2 = bsurf_alloc_array(n, sizeof(double));
-    if (!c.e2) {
+    c.w2 = bsurf_alloc_array(n, sizeof(double));
+    if (!c.e2 || !c.w2) {
       st = BSURF_ERR_NOMEM;
       goto done;
     }
-    for (size_t i = 0; i < n; i++) c.e2[i] = gauss_exponent(c.W[i], c.h2);
+    for (size_t i = 0; i < n; i++) {
+      c.e2[i] = gauss_exponent(c.W[i], c.h2);
+      c.w2[i] = c.e2[i] == 0 ? 1.0 : exp(-c.e2[i]);
+    }
     c.inv_h1sq_global = 1.0 / (c.h1 * c.h1);
     sp.stage = 1;
     if (seq) {
@@ -584,8 +594,9 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     c.khat = bsurf_alloc_array(n, sizeof(int));
     c.dl = bsurf_alloc_array(n, sizeof(double));
     c.e2 = bsurf_alloc_array(n, sizeof(double));
+    c.w2 = bsurf_alloc_array(n, sizeof(double));
     c.inv_h1sq = bsurf_alloc_array(n, sizeof(double));
-    if (!c.khat || !c.dl || !c.e2 || !c.inv_h1sq) {
+    if (!c.khat || !c.dl || !c.e2 || !c.w2 || !c.inv_h1sq) {
       st = BSURF_ERR_NOMEM;
       goto done;
     }
@@ -606,6 +617,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       if (st == BSURF_OK) st = permute_rows((void **)&c.fits, n, (size_t)c.stride * sizeof(double), perm);
       if (st == BSURF_OK) st = permute_rows((void **)&c.fit_degree, n, sizeof(int), perm);
       if (st == BSURF_OK) st = permute_rows((void **)&c.e2, n, sizeof(double), perm);
+      if (st == BSURF_OK) st = permute_rows((void **)&c.w2, n, sizeof(double), perm);
       if (st == BSURF_OK) st = permute_rows((void **)&c.inv_h1sq, n, sizeof(double), perm);
       if (st == BSURF_OK) {
         pos = bsurf_alloc_array(n * 3, sizeof(double));
