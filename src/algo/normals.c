@@ -57,7 +57,8 @@ typedef struct normal_scratch {
   bsurf_localfit lf;
   double *terms;   /* k x PCA_COLS */
   double *weights; /* (B + 1) x k: row 0 all ones (the whole neighbourhood) */
-  double *rows;    /* (B + 1) x max(PCA_COLS, ncols) */
+  double *weights_lanes; /* R x k, R = B + 1 rounded up to 4: the replicates, then P (poly fits) */
+  double *rows;    /* R x max(PCA_COLS, ncols): PCA rows, or the fits' lanes */
   double *coefs;   /* (B + 1) x terms */
   uint16_t *counts; /* 4 x k */
   unsigned char *valid; /* B */
@@ -69,6 +70,7 @@ static void scratch_free(normal_scratch *s) {
   bsurf_localfit_free(&s->lf);
   free(s->terms);
   free(s->weights);
+  free(s->weights_lanes);
   free(s->rows);
   free(s->coefs);
   free(s->counts);
@@ -81,15 +83,16 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
   memset(s, 0, sizeof *s);
   bsurf_status st = bsurf_localfit_alloc(&s->lf, k, degree);
   if (st != BSURF_OK) return st;
-  size_t nb = (size_t)B + 1;
+  size_t nb = ((size_t)B + 1 + 3) / 4 * 4;
   s->terms = bsurf_alloc_array((size_t)k, PCA_COLS * sizeof(double));
   s->weights = bsurf_alloc_array(nb * k, sizeof(double));
+  s->weights_lanes = bsurf_alloc_array(nb * k, sizeof(double));
   s->rows = bsurf_alloc_array(nb, BSURF_NCOLS_MAX * sizeof(double));
   s->coefs = bsurf_alloc_array(nb, BSURF_TERMS_MAX * sizeof(double));
   s->counts = bsurf_alloc_array(4 * (size_t)k, sizeof(uint16_t));
   s->valid = bsurf_alloc_array(nb, 1);
   s->bn = bsurf_alloc_array(nb, 3 * sizeof(double));
-  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->valid || !s->bn) {
+  if (!s->terms || !s->weights || !s->weights_lanes || !s->rows || !s->coefs || !s->counts || !s->valid || !s->bn) {
     scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -176,8 +179,17 @@ static void normals_point(void *vctx, int thread, size_t i) {
     if (!(frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2])) s->degenerate++;
     bsurf_localfit *lf = &s->lf;
     bsurf_localfit_setup(lf, xyz, idx, k, &frame, o->degree);
-    bsurf_gemm_rows(B + 1, k, lf->ncols, W, lf->op, s->rows);
-    while (degree > 0 && bsurf_localfit_solve_row(lf, degree, s->rows, s->coefs) != 0) degree--;
+    /* the same weights as lanes: replicate b in row b, the whole P in row B
+     * (four solves at a time; same sums, same bits as row by row) */
+    const int R = (B + 1 + 3) / 4 * 4;
+    double *WL = s->weights_lanes;
+    memcpy(WL, W + k, (size_t)B * k * sizeof *WL);
+    memcpy(WL + (size_t)B * k, W, (size_t)k * sizeof *WL);
+    memset(WL + (size_t)(B + 1) * k, 0, (size_t)(R - B - 1) * k * sizeof *WL);
+    bsurf_localfit_normal_eq_lanes(lf, R, WL, s->rows);
+    double row[BSURF_NCOLS_MAX];
+    bsurf_lanes_row(lf->ncols, s->rows, B, row);
+    while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, s->coefs) != 0) degree--;
     if (degree != o->degree) s->reduced++;
     if (degree == 0) {
       /* a constant height: the tangent plane itself */
@@ -186,15 +198,14 @@ static void normals_point(void *vctx, int thread, size_t i) {
       bsurf_localfit_normal(lf, &frame, degree, s->coefs, lf->u[0], lf->v[0], nP);
     }
     const int m = bsurf_poly_terms(degree);
-    for (int b = 0; b < B; b++) {
-      /* with a reduced degree fewer distinct points suffice: let the solve
-       * decide for the replicates the first check rejected */
-      double *cb = &s->coefs[(size_t)(b + 1) * m];
-      int ok = (s->valid[b] || degree < o->degree) && degree > 0 &&
-               bsurf_localfit_solve_row(lf, degree, &s->rows[(size_t)(b + 1) * lf->ncols], cb) == 0;
-      s->valid[b] = (unsigned char)ok;
-      if (ok) bsurf_localfit_normal(lf, &frame, degree, cb, lf->u[0], lf->v[0], &s->bn[3 * b]);
-    }
+    /* with a reduced degree fewer distinct points suffice: let the solve
+     * decide for the replicates the first check rejected */
+    for (int b = 0; b < B; b++) s->valid[b] = (s->valid[b] || degree < o->degree) && degree > 0;
+    bsurf_localfit_solve_lanes(lf, degree, B, s->rows, s->valid, s->coefs + m);
+    for (int b = 0; b < B; b++)
+      if (s->valid[b])
+        bsurf_localfit_normal(lf, &frame, degree, &s->coefs[(size_t)(b + 1) * m], lf->u[0], lf->v[0],
+                              &s->bn[3 * b]);
   }
 
   /* orient the bootstrap normals to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
