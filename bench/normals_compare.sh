@@ -18,11 +18,12 @@
 # bench/peers/compare.py runs them alternately REPS times and prints the tables
 # (it explains each column). See bench/README.md.
 set -euo pipefail
-if [ $# -lt 1 ]; then
-  sed -n '2,19p' "$0" >&2
-  exit 2
-fi
 HERE=$(cd "$(dirname "$0")" && pwd)
+# shellcheck source=bench/common.sh
+. "$HERE/common.sh"
+if [ $# -lt 1 ]; then
+  bench_usage "$0" 19
+fi
 BUILD=$(cd "$1" && pwd)
 N=${2:-1000000}
 NOISE=${NOISE:-"0.5 1.0"}
@@ -33,12 +34,7 @@ K=${K:-30}
 BS="$BUILD/bootsurf"
 [ -x "$BS" ] || { echo "normals_compare: $BS not found (build bootsurf first)" >&2; exit 1; }
 
-if [ -n "${WORK:-}" ]; then
-  mkdir -p "$WORK"
-else
-  WORK=$(mktemp -d)
-  trap 'rm -rf "$WORK"' EXIT
-fi
+bench_work
 
 # libcgal-demo holds the meshes; the peers' packages are checked by build.sh
 if [ -n "$MODELS" ] && [ ! -f /usr/share/doc/libcgal-dev/data.tar.gz ]; then

@@ -32,11 +32,12 @@
 # libeigen3-dev libtbb-dev libnanoflann-dev python3-open3d python3-numpy; get-data.sh:
 # libcgal-demo) are installed with apt-get first. See docs/performance.md and bench/README.md.
 set -euo pipefail
-if [ $# -lt 1 ] || [ "$1" = -h ] || [ "$1" = --help ]; then
-  sed -n '2,33p' "$0" >&2
-  exit 2
-fi
 HERE=$(cd "$(dirname "$0")" && pwd)
+# shellcheck source=bench/common.sh
+. "$HERE/common.sh"
+if [ $# -lt 1 ] || [ "$1" = -h ] || [ "$1" = --help ]; then
+  bench_usage "$0" 33
+fi
 ROOT=$(cd "$HERE/.." && pwd)
 BUILD=$(cd "$1" && pwd)
 N=${2:-${N:-1000000}}
@@ -63,13 +64,7 @@ for p in $PARTS; do
   case $p in normals|knn|error|smooth|self) ;; *) echo "bench/run.sh: unknown part '$p'" >&2; exit 2 ;; esac
 done
 
-if [ -n "${WORK:-}" ]; then
-  mkdir -p "$WORK"
-else
-  WORK=$(mktemp -d)
-  trap 'rm -rf "$WORK"' EXIT
-fi
-WORK=$(cd "$WORK" && pwd)
+bench_work
 JS="$WORK/json"
 mkdir -p "$JS" "$WORK/inputs"
 rm -f "$JS"/*.json

@@ -23,11 +23,12 @@
 #   NS="20000 100000" SWEEP_N=50000 bench/scaling.sh build
 # The default run takes about 10 minutes on 2 free cores (BIG_N=10000000 adds ~4, BIG_CLI ~5).
 set -euo pipefail
-if [ $# -lt 1 ] || [ "$1" = -h ] || [ "$1" = --help ]; then
-  sed -n '2,26p' "$0" >&2
-  exit 2
-fi
 HERE=$(cd "$(dirname "$0")" && pwd)
+# shellcheck source=bench/common.sh
+. "$HERE/common.sh"
+if [ $# -lt 1 ] || [ "$1" = -h ] || [ "$1" = --help ]; then
+  bench_usage "$0" 26
+fi
 BUILD=$(cd "$1" && pwd)
 [ -x "$BUILD/bench_error" ] || { echo "scaling.sh: $BUILD/bench_error not found (build first)" >&2; exit 1; }
 K=${K:-50}
@@ -35,13 +36,7 @@ B=${B:-50}
 DEGREE=${DEGREE:-3}
 THREADS=${THREADS:-2}
 BIG_N=${BIG_N:-0}
-if [ -n "${WORK:-}" ]; then
-  mkdir -p "$WORK"
-else
-  WORK=$(mktemp -d)
-  trap 'rm -rf "$WORK"' EXIT
-fi
-WORK=$(cd "$WORK" && pwd)
+bench_work
 ${CC:-gcc} -O2 -std=c11 -Wall -Wextra "$HERE/peers/rss_exec.c" -o "$WORK/rss_exec"
 
 echo "## Scaling of bootsurf error"

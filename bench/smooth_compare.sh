@@ -45,6 +45,8 @@ if [ $# -lt 1 ]; then
   exit 2
 fi
 HERE=$(cd "$(dirname "$0")" && pwd)
+# shellcheck source=bench/common.sh
+. "$HERE/common.sh"
 ROOT=$(cd "$HERE/.." && pwd)
 BUILD=$(cd "$1" && pwd)
 DATA=${2:-"$ROOT/data"}
@@ -77,13 +79,7 @@ if [ -z "$PEERS_ONLY" ]; then
   fi
 fi
 
-if [ -n "${WORK:-}" ]; then
-  mkdir -p "$WORK"
-else
-  WORK=$(mktemp -d)
-  trap 'rm -rf "$WORK"' EXIT
-fi
-WORK=$(cd "$WORK" && pwd)
+bench_work
 
 if [ "$MODE" = quality ] && [ -n "$MODELS" ]; then
   for m in $MODELS; do

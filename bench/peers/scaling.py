@@ -76,6 +76,20 @@ def row_common(R, key):
             "rss_kb": g("process_rss_kb"), "pps": n / g("seconds"), "cpu_us_per_point": 1e6 * g("cpu_seconds") / n}
 
 
+def table(title, header, rows, note=""):
+    """A markdown table under a ### title: header cells, rows of cell strings, numbers right-aligned."""
+    print()
+    print("### " + title)
+    print()
+    print("| " + " | ".join(header) + " |")
+    print("|" + "---:|" * len(header))
+    for r in rows:
+        print("| " + " | ".join(r) + " |")
+    if note:
+        print()
+        print(note)
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--bench-error", required=True)
@@ -122,85 +136,67 @@ def main():
     if "n" in parts:
         rows = [row_common(R, key) for key in plan["n"]]
         base = rows[0]
-        print()
-        print("### Time and memory against N (K = %d, B = %d, %d threads)" % (a.k, a.b, a.threads))
-        print()
-        print("| N | neighbourhoods s | estimation s | total s | total CPU s | points/s | CPU µs / point "
-              "| CPU / point vs N = %s | peak RSS MB | RSS bytes / point |" % format(base["n"], ","))
-        print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
         for r in rows:
             r["cpu_per_point_rel"] = r["cpu_us_per_point"] / base["cpu_us_per_point"]
             r["rss_bytes_per_point"] = r["rss_kb"] * 1024.0 / r["n"]
-            print("| %s | %.2f | %.2f | %.2f | %.2f | %s | %.2f | %.2f | %.0f | %.0f |" % (
-                format(r["n"], ","), r["nb_s"], r["est_s"], r["total_s"], r["total_cpu"],
-                format(r["pps"], ",.0f"), r["cpu_us_per_point"], r["cpu_per_point_rel"], r["rss_kb"] / 1024,
-                r["rss_bytes_per_point"]))
-        print()
-        print("Near-linear: CPU per point stays near 1.00 x the smallest N's (the k-d tree's log N "
+        table("Time and memory against N (K = %d, B = %d, %d threads)" % (a.k, a.b, a.threads),
+              ["N", "neighbourhoods s", "estimation s", "total s", "total CPU s", "points/s", "CPU µs / point",
+               "CPU / point vs N = %s" % format(base["n"], ","), "peak RSS MB", "RSS bytes / point"],
+              [[format(r["n"], ","), "%.2f" % r["nb_s"], "%.2f" % r["est_s"], "%.2f" % r["total_s"],
+                "%.2f" % r["total_cpu"], format(r["pps"], ",.0f"), "%.2f" % r["cpu_us_per_point"],
+                "%.2f" % r["cpu_per_point_rel"], "%.0f" % (r["rss_kb"] / 1024), "%.0f" % r["rss_bytes_per_point"]]
+               for r in rows],
+              "Near-linear: CPU per point stays near 1.00 x the smallest N's (the k-d tree's log N "
               "and cache misses on larger clouds push it up slowly).")
         out["tables"]["n"] = rows
     if "b" in parts:
         rows = [row_common(R, key) for key in plan["b"]]
         base = rows[0]
-        print()
-        print("### Time against B (N = %s, K = %d, %d threads)" % (format(sn, ","), a.k, a.threads))
-        print()
-        print("| B | estimation s | estimation CPU s | CPU s / B | est. CPU vs B = %d | B / %d | total s |"
-              % (base["b"], base["b"]))
-        print("|---:|---:|---:|---:|---:|---:|---:|")
-        for r in rows:
-            r["est_cpu_rel"] = r["est_cpu"] / base["est_cpu"]
-            print("| %d | %.2f | %.2f | %.3f | %.2f | %.1f | %.2f |" % (
-                r["b"], r["est_s"], r["est_cpu"], r["est_cpu"] / r["b"], r["est_cpu_rel"],
-                r["b"] / base["b"], r["total_s"]))
+        note = ""
         if len(rows) >= 2:
             x = [r["b"] for r in rows]
             y = [r["est_cpu"] for r in rows]
             mx, my = statistics.mean(x), statistics.mean(y)
             slope = sum((u - mx) * (v - my) for u, v in zip(x, y)) / sum((u - mx) ** 2 for u in x)
             icpt = my - slope * mx
-            print()
-            print("Least-squares line: estimation CPU s = %.2f + %.4f x B (per point: %.2f µs + %.3f µs x B); "
-                  "the constant is the full fit, the estimators and the frame." % (
-                      icpt, slope, 1e6 * icpt / sn, 1e6 * slope / sn))
+            note = ("Least-squares line: estimation CPU s = %.2f + %.4f x B (per point: %.2f µs + %.3f µs x B); "
+                    "the constant is the full fit, the estimators and the frame." % (
+                        icpt, slope, 1e6 * icpt / sn, 1e6 * slope / sn))
             out["b_fit"] = {"intercept_cpu_s": icpt, "slope_cpu_s_per_b": slope}
+        table("Time against B (N = %s, K = %d, %d threads)" % (format(sn, ","), a.k, a.threads),
+              ["B", "estimation s", "estimation CPU s", "CPU s / B", "est. CPU vs B = %d" % base["b"],
+               "B / %d" % base["b"], "total s"],
+              [["%d" % r["b"], "%.2f" % r["est_s"], "%.2f" % r["est_cpu"], "%.3f" % (r["est_cpu"] / r["b"]),
+                "%.2f" % (r["est_cpu"] / base["est_cpu"]), "%.1f" % (r["b"] / base["b"]), "%.2f" % r["total_s"]]
+               for r in rows], note)
         out["tables"]["b"] = rows
     if "k" in parts:
         rows = [row_common(R, key) for key in plan["k"]]
-        print()
-        print("### Time and memory against K (N = %s, B = %d, %d threads)" % (format(sn, ","), a.b, a.threads))
-        print()
-        print("| K | neighbourhoods s | neighbourhoods CPU s | estimation s | estimation CPU s | total s "
-              "| CPU µs / point | peak RSS MB | RSS bytes / point |")
-        print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
-        for r in rows:
-            print("| %d | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.0f | %.0f |" % (
-                r["k"], r["nb_s"], r["nb_cpu"], r["est_s"], r["est_cpu"], r["total_s"],
-                r["cpu_us_per_point"], r["rss_kb"] / 1024, r["rss_kb"] * 1024.0 / r["n"]))
+        table("Time and memory against K (N = %s, B = %d, %d threads)" % (format(sn, ","), a.b, a.threads),
+              ["K", "neighbourhoods s", "neighbourhoods CPU s", "estimation s", "estimation CPU s", "total s",
+               "CPU µs / point", "peak RSS MB", "RSS bytes / point"],
+              [["%d" % r["k"], "%.2f" % r["nb_s"], "%.2f" % r["nb_cpu"], "%.2f" % r["est_s"], "%.2f" % r["est_cpu"],
+                "%.2f" % r["total_s"], "%.2f" % r["cpu_us_per_point"], "%.0f" % (r["rss_kb"] / 1024),
+                "%.0f" % (r["rss_kb"] * 1024.0 / r["n"])] for r in rows])
         out["tables"]["k"] = rows
     if "threads" in parts:
         rows = [row_common(R, key) for key in plan["threads"]]
         base = rows[0]
-        print()
-        print("### Threads (N = %s, K = %d, B = %d)" % (format(sn, ","), a.k, a.b))
-        print()
-        print("| threads | neighbourhoods s | estimation s | total s | total CPU s | CPU s / total s "
-              "| speed-up, estimation | speed-up, total | bound from CPU s |")
-        print("|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
         for r in rows:
             r["speedup_est"] = base["est_s"] / r["est_s"]
             r["speedup_total"] = base["total_s"] / r["total_s"]
             # with idle cores: threads x (1-thread CPU s / this CPU s), the work's own parallel overhead
             r["speedup_cpu_bound"] = r["threads"] * base["total_cpu"] / r["total_cpu"] / base["threads"]
-            print("| %d | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f |" % (
-                r["threads"], r["nb_s"], r["est_s"], r["total_s"], r["total_cpu"], r["total_cpu"] / r["total_s"],
-                r["speedup_est"], r["speedup_total"], r["speedup_cpu_bound"]))
-        print()
-        print("Target: speed-up >= 1.8 from 1 to 2 threads (wall time, total). Wall-time speed-up needs "
+        table("Threads (N = %s, K = %d, B = %d)" % (format(sn, ","), a.k, a.b),
+              ["threads", "neighbourhoods s", "estimation s", "total s", "total CPU s", "CPU s / total s",
+               "speed-up, estimation", "speed-up, total", "bound from CPU s"],
+              [["%d" % r["threads"], "%.2f" % r["nb_s"], "%.2f" % r["est_s"], "%.2f" % r["total_s"],
+                "%.2f" % r["total_cpu"], "%.2f" % (r["total_cpu"] / r["total_s"]), "%.2f" % r["speedup_est"],
+                "%.2f" % r["speedup_total"], "%.2f" % r["speedup_cpu_bound"]] for r in rows],
+              "Target: speed-up >= 1.8 from 1 to 2 threads (wall time, total). Wall-time speed-up needs "
               "idle cores: with other jobs running it understates the code's scaling (CPU s / total s "
               "shows the cores the run got). \"Bound from CPU s\" = threads x CPU s(1 thread) / CPU s: the "
-              "speed-up on idle cores if nothing but the extra work of threading (and memory bandwidth) "
-              "limited it.")
+              "speed-up on idle cores if nothing but the extra work of threading limited it.")
         out["tables"]["threads"] = rows
     if a.json_out:
         with open(a.json_out, "w") as f:
