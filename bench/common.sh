@@ -1,10 +1,10 @@
 # Sourced by the benchmark scripts (run.sh, scaling.sh, normals_compare.sh,
 # smooth_compare.sh): what they do alike.
 
-# bench_usage SCRIPT LAST_LINE: prints the script's header comment (lines 2 to
-# LAST_LINE) on stderr and exits 2.
+# bench_usage SCRIPT: prints the script's header comment (the lines after the
+# #! line up to the first that is not a comment) on stderr and exits 2.
 bench_usage() {
-  sed -n "2,${2}p" "$1" >&2
+  awk 'NR == 1 { next } /^#/ { print; next } { exit }' "$1" >&2
   exit 2
 }
 

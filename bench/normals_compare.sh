@@ -22,7 +22,7 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 # shellcheck source=bench/common.sh
 . "$HERE/common.sh"
 if [ $# -lt 1 ]; then
-  bench_usage "$0" 19
+  bench_usage "$0"
 fi
 BUILD=$(cd "$1" && pwd)
 N=${2:-1000000}

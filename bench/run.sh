@@ -36,7 +36,7 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 # shellcheck source=bench/common.sh
 . "$HERE/common.sh"
 if [ $# -lt 1 ] || [ "$1" = -h ] || [ "$1" = --help ]; then
-  bench_usage "$0" 33
+  bench_usage "$0"
 fi
 ROOT=$(cd "$HERE/.." && pwd)
 BUILD=$(cd "$1" && pwd)

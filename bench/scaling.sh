@@ -27,7 +27,7 @@ HERE=$(cd "$(dirname "$0")" && pwd)
 # shellcheck source=bench/common.sh
 . "$HERE/common.sh"
 if [ $# -lt 1 ] || [ "$1" = -h ] || [ "$1" = --help ]; then
-  bench_usage "$0" 26
+  bench_usage "$0"
 fi
 BUILD=$(cd "$1" && pwd)
 [ -x "$BUILD/bench_error" ] || { echo "scaling.sh: $BUILD/bench_error not found (build first)" >&2; exit 1; }

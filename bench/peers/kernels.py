@@ -12,7 +12,8 @@ knn: all-K-nearest neighbours of every point of INPUT (the point itself
     among its K), tree build included and also reported apart:
       bootsurf     bench/peers/knn_bootsurf (bsurf_knn_build + bsurf_knn_all)
       nanoflann    bench/peers/knn_nanoflann (KDTreeSingleIndexAdaptor, knnSearch
-                   per point in an OpenMP loop)
+                   per point in an OpenMP loop), the queries in the tree's leaf order
+                   and, a second row, in input order (what a plain loop over the file does)
       Open3D core  bench/peers/knn_open3d.py --api core: core.nns.NearestNeighborSearch,
                    one batched knn_search (C++)
       Open3D legacy  knn_open3d.py --api legacy: geometry.KDTreeFlann and
@@ -103,12 +104,16 @@ def knn(a, name, path, env):
     pd, k, j = a.peers, str(a.k), str(a.threads)
     o3d = os.path.join(HERE, "knn_open3d.py")
     P = [("bootsurf", lambda i, o: [os.path.join(pd, "knn_bootsurf"), i, "-o", o, "-k", k, "-j", j]),
-         ("nanoflann", lambda i, o: [os.path.join(pd, "knn_nanoflann"), i, "-o", o, "-k", k, "-j", j]),
+         ("nanoflann", lambda i, o: [os.path.join(pd, "knn_nanoflann"), i, "-o", o, "-k", k, "-j", j,
+                                     "--method", "tree"]),
+         ("nanoflann_input", lambda i, o: [os.path.join(pd, "knn_nanoflann"), i, "-o", o, "-k", k, "-j", j,
+                                           "--method", "input"]),
          ("open3d_core", lambda i, o: [PY, o3d, i, "-o", o, "-k", k, "-j", j, "--api", "core"])]
     if not a.no_legacy:
         P.append(("open3d_legacy", lambda i, o: [PY, o3d, i, "-o", o, "-k", k, "-j", j, "--api", "legacy"]))
     labels = {"bootsurf": ("bootsurf", "bsurf_knn_build + bsurf_knn_all"),
-              "nanoflann": ("nanoflann", "KDTreeSingleIndexAdaptor, knnSearch per point (OpenMP)"),
+              "nanoflann": ("nanoflann", "KDTreeSingleIndexAdaptor, knnSearch per point in tree order (OpenMP)"),
+              "nanoflann_input": ("nanoflann", "KDTreeSingleIndexAdaptor, knnSearch per point in input order (OpenMP)"),
               "open3d_core": ("Open3D", "core.nns.NearestNeighborSearch knn_search, batched (C++)"),
               "open3d_legacy": ("Open3D", "KDTreeFlann search_knn_vector_3d, Python loop")}
     a.out_ext = {pid: ".f64" for pid, _ in P}
@@ -165,6 +170,9 @@ def knn(a, name, path, env):
     for r in rows:
         print("- %s %s: runs total %s" % (r["program"], r["method"],
                                           ", ".join("%.3f" % x for x in r["compute_runs"])))
+        if r["id"] == "nanoflann_input":
+            print("  (the same search as the row above, the points queried in file order: the difference is "
+                  "cache misses; Open3D's rows query in file order too)")
         if r["id"] == "open3d_core":
             print("  (Open3D's core search runs its own parallel loop; CPU s / total s = %.2f cores)" %
                   (r["compute_cpu_s"] / r["compute_s"]))
@@ -341,7 +349,7 @@ def summary(a):
         for t in json.load(open(a.knn)):
             for r in t["rows"]:
                 if r["ratio_compute"] is not None:
-                    add("all-kNN K=%d / %s %s" % (t["k"], r["program"], r["method"].split(",")[0]),
+                    add("all-kNN K=%d / %s %s" % (t["k"], r["program"], r["method"]),
                         "%s (%d)" % (t["input"], t["points"]),
                         "%.2f (search %.2f)" % (r["ratio_compute"], r["ratio_search"]), "report", None,
                         "" if r["rows_differing"] == 0 else "%d points differ" % r["rows_differing"])
