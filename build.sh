@@ -3,7 +3,9 @@
 #   build  configure and compile (Release) into build/
 #   test   build, then run the whole test suite through ctest
 #   demo   build, then generate a noisy cube, estimate its errors, print the summary
-#   bench  build, then run the benchmarks in bench/ (not tests; see docs/performance.md)
+#   bench  build, then run the side-by-side benchmark harness bench/run.sh: bootsurf
+#          beside PCL, Open3D, CGAL and nanoflann (their Debian packages installed
+#          when missing, as root); env N, REPS, PARTS, ... (see docs/performance.md)
 # On a Debian/Ubuntu machine where this runs as root, missing build
 # dependencies are installed with apt-get first.
 set -euo pipefail

@@ -1,18 +1,30 @@
 /* Benchmark (not a test): points per second of the bootstrap error estimate
  * (K = 50, B = 50, cubic by default) on a noisy sphere, computation only (no
  * file I/O), split into the neighbourhood step and the estimation step.
- * Usage: bench_error [N=1000000] [threads=2] [K=50] [B=50] [degree=3] */
+ * Usage: bench_error [N=1000000] [threads=2] [K=50] [B=50] [degree=3]
+ * Prints wall time, CPU time (user + system, all threads) and points/s of each
+ * step, then one JSON line with the same numbers and the process's peak RSS
+ * (bench/scaling.sh reads it). The sphere (bsurf_generate, random sampling,
+ * seed 1) and its noise (0.5 h, seed 1) are made first, untimed. */
 #include "bootsurf.h"
 
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <time.h>
 
 static double now(void) {
   struct timespec ts;
   clock_gettime(CLOCK_MONOTONIC, &ts);
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static double cpu_now(void) {
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+         (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
 }
 
 int main(int argc, char **argv) {
@@ -28,10 +40,10 @@ int main(int argc, char **argv) {
   double h;
   bsurf_mean_spacing(c.xyz, c.point_count, threads, &h);
   bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 1);
-  double t0 = now();
+  double c0 = cpu_now(), t0 = now();
   bsurf_neighbors nb;
   if (bsurf_neighbors_build(&nb, c.xyz, c.point_count, o.k, threads, NULL, NULL) != BSURF_OK) return 1;
-  double t1 = now();
+  double c1 = cpu_now(), t1 = now();
   double *v = malloc(sizeof(double) * c.point_count * 8);
   bsurf_error_fields out;
   memset(&out, 0, sizeof out);
@@ -44,13 +56,22 @@ int main(int argc, char **argv) {
   out.gamma = v + 6 * c.point_count;
   out.overfit_rate = v + 7 * c.point_count;
   if (bsurf_estimate_error(c.xyz, &nb, NULL, &o, &out, NULL) != BSURF_OK) return 1;
-  double t2 = now();
+  double c2 = cpu_now(), t2 = now();
   double total = t2 - t0;
   printf("bench_error: N=%zu K=%d B=%d degree=%d threads=%d\n", c.point_count, o.k, o.bootstrap, o.degree,
          bsurf_threads_resolve(threads));
-  printf("  neighbourhoods  %8.3f s  %12.0f points/s\n", t1 - t0, c.point_count / (t1 - t0));
-  printf("  estimation      %8.3f s  %12.0f points/s\n", t2 - t1, c.point_count / (t2 - t1));
-  printf("  total           %8.3f s  %12.0f points/s\n", total, c.point_count / total);
+  printf("  neighbourhoods  %8.3f s  %12.0f points/s  CPU %8.3f s\n", t1 - t0, c.point_count / (t1 - t0),
+         c1 - c0);
+  printf("  estimation      %8.3f s  %12.0f points/s  CPU %8.3f s\n", t2 - t1, c.point_count / (t2 - t1),
+         c2 - c1);
+  printf("  total           %8.3f s  %12.0f points/s  CPU %8.3f s\n", total, c.point_count / total, c2 - c0);
+  struct rusage ru;
+  getrusage(RUSAGE_SELF, &ru);
+  printf("{\"points\":%zu,\"k\":%d,\"bootstrap\":%d,\"degree\":%d,\"threads\":%d,"
+         "\"seconds_neighbors\":%.6f,\"seconds_estimate\":%.6f,\"seconds\":%.6f,"
+         "\"cpu_neighbors\":%.6f,\"cpu_estimate\":%.6f,\"cpu_seconds\":%.6f,\"peak_rss_kb\":%ld}\n",
+         c.point_count, o.k, o.bootstrap, o.degree, bsurf_threads_resolve(threads), t1 - t0, t2 - t1, total,
+         c1 - c0, c2 - c1, c2 - c0, ru.ru_maxrss);
   free(v);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);

@@ -6,6 +6,7 @@
 #        MODELS="fandisk_large bunny00"  CGAL meshes (libcgal-demo's data.tar.gz); "" = none
 #        THREADS=2 REPS=3 K=30
 #        WORK=DIR             scratch directory (default: a fresh mktemp -d, removed at exit)
+#        PEERS_DIR=DIR        where bench/peers/build.sh puts the peers (default WORK/peers)
 #        JSON_OUT=FILE        also write every table as JSON
 #
 # BUILD_DIR is a bootsurf CMake build (bootsurf, libbootsurf.a). Run as root on
@@ -17,11 +18,12 @@
 # bench/peers/compare.py runs them alternately REPS times and prints the tables
 # (it explains each column). See bench/README.md.
 set -euo pipefail
-if [ $# -lt 1 ]; then
-  sed -n '2,20p' "$0" >&2
-  exit 2
-fi
 HERE=$(cd "$(dirname "$0")" && pwd)
+# shellcheck source=bench/common.sh
+. "$HERE/common.sh"
+if [ $# -lt 1 ]; then
+  bench_usage "$0"
+fi
 BUILD=$(cd "$1" && pwd)
 N=${2:-1000000}
 NOISE=${NOISE:-"0.5 1.0"}
@@ -32,12 +34,7 @@ K=${K:-30}
 BS="$BUILD/bootsurf"
 [ -x "$BS" ] || { echo "normals_compare: $BS not found (build bootsurf first)" >&2; exit 1; }
 
-if [ -n "${WORK:-}" ]; then
-  mkdir -p "$WORK"
-else
-  WORK=$(mktemp -d)
-  trap 'rm -rf "$WORK"' EXIT
-fi
+bench_work
 
 # libcgal-demo holds the meshes; the peers' packages are checked by build.sh
 if [ -n "$MODELS" ] && [ ! -f /usr/share/doc/libcgal-dev/data.tar.gz ]; then
@@ -48,7 +45,8 @@ if [ -n "$MODELS" ] && [ ! -f /usr/share/doc/libcgal-dev/data.tar.gz ]; then
     exit 1
   fi
 fi
-"$HERE/peers/build.sh" "$WORK/peers" "$BUILD"
+PEERS_DIR=${PEERS_DIR:-"$WORK/peers"}
+"$HERE/peers/build.sh" "$PEERS_DIR" "$BUILD"
 
 echo "== inputs in $WORK" >&2
 inputs=()
@@ -72,7 +70,7 @@ for lv in $NOISE; do
 done
 
 echo "== machine: $(nproc) cores; $(uptime)" >&2
-/usr/bin/python3 "$HERE/peers/compare.py" --bootsurf "$BS" --peers "$WORK/peers" \
+/usr/bin/python3 "$HERE/peers/compare.py" --bootsurf "$BS" --peers "$PEERS_DIR" \
   --threads "$THREADS" --reps "$REPS" --k "$K" --work "$WORK/runs" \
   ${JSON_OUT:+--json-out "$JSON_OUT"} "${inputs[@]}"
 echo "== done; $(uptime)" >&2

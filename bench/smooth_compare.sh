@@ -23,6 +23,8 @@
 #        WORK=DIR (scratch; default a fresh mktemp -d, removed at exit)  JSON_OUT=FILE
 #        PEERS_DIR=DIR (where bench/peers/build.sh puts the peers; default WORK/peers;
 #        build.sh skips programs that are up to date, so a kept directory saves ~2 min)
+#        METHODS="naive bilateral multipass" (bootsurf smooth methods to run)
+#        PEER_METHODS="jet bilateral mls" (CGAL jet, CGAL bilateral, PCL MLS)
 #
 # BUILD_DIR is a bootsurf CMake build with the `smooth` command and eval's
 # position section (--surface). Debian 12 packages for the peers are installed
@@ -34,15 +36,17 @@ while [ $# -gt 0 ]; do
   case $1 in
     --bench) MODE=bench; shift ;;
     --peers-only) PEERS_ONLY=1; shift ;;
-    -h|--help) sed -n '2,29p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,31p' "$0"; exit 0 ;;
     *) break ;;
   esac
 done
 if [ $# -lt 1 ]; then
-  sed -n '2,29p' "$0" >&2
+  sed -n '2,31p' "$0" >&2
   exit 2
 fi
 HERE=$(cd "$(dirname "$0")" && pwd)
+# shellcheck source=bench/common.sh
+. "$HERE/common.sh"
 ROOT=$(cd "$HERE/.." && pwd)
 BUILD=$(cd "$1" && pwd)
 DATA=${2:-"$ROOT/data"}
@@ -56,6 +60,8 @@ SEED=${SEED:-1}
 REPS=${REPS:-3}
 N_BENCH=${N_BENCH:-1000000}
 BENCH_NOISE=${BENCH_NOISE:-0.5}
+METHODS=${METHODS:-"naive bilateral multipass"}
+PEER_METHODS=${PEER_METHODS:-"jet bilateral mls"}
 BS="$BUILD/bootsurf"
 [ -x "$BS" ] || { echo "smooth_compare: $BS not found (build bootsurf first)" >&2; exit 1; }
 
@@ -73,13 +79,7 @@ if [ -z "$PEERS_ONLY" ]; then
   fi
 fi
 
-if [ -n "${WORK:-}" ]; then
-  mkdir -p "$WORK"
-else
-  WORK=$(mktemp -d)
-  trap 'rm -rf "$WORK"' EXIT
-fi
-WORK=$(cd "$WORK" && pwd)
+bench_work
 
 if [ "$MODE" = quality ] && [ -n "$MODELS" ]; then
   for m in $MODELS; do
@@ -123,5 +123,6 @@ fi
 echo "== machine: $(nproc) cores; $(uptime)" >&2
 /usr/bin/python3 "$HERE/peers/smooth_compare.py" --bootsurf "$BS" --peers "$PEERS_DIR" \
   --work "$WORK/runs" --threads "$THREADS" --k "$K" --seed "$SEED" \
+  --methods "${METHODS// /,}" --peer-methods "${PEER_METHODS// /,}" \
   ${PEERS_ONLY:+--peers-only} ${JSON_OUT:+--json-out "$JSON_OUT"} "${args[@]}"
 echo "== done; $(uptime)" >&2

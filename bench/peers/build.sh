@@ -1,13 +1,16 @@
 #!/usr/bin/env bash
-# Builds the peer programs of the normals comparison (bench/normals_compare.sh).
+# Builds the peer programs of the side-by-side benchmarks (bench/run.sh and the
+# scripts it calls: normals_compare.sh, smooth_compare.sh, peers/kernels.py).
 #
 # usage: bench/peers/build.sh [OUT_DIR=build/peers] [BOOTSURF_BUILD_DIR]
 #
-# OUT_DIR gets rss_exec (the harness's launcher), normals_pcl and normals_cgal (g++ -O3 against Debian 12's
-# libpcl-dev, libcgal-dev + libeigen3-dev, libtbb-dev) and, when
-# BOOTSURF_BUILD_DIR holds libbootsurf.a, normals_bootsurf (the library timed
-# without file I/O). Missing Debian packages are installed with apt-get first
-# (as root; idempotent: nothing is installed when dpkg already has them).
+# OUT_DIR gets rss_exec (the harness's launcher); normals_pcl, normals_cgal,
+# smooth_pcl, smooth_cgal, features_pcl, features_cgal (g++ -O3 against Debian
+# 12's libpcl-dev, libcgal-dev + libeigen3-dev, libtbb-dev); knn_nanoflann
+# (libnanoflann-dev); and, when BOOTSURF_BUILD_DIR holds libbootsurf.a, the
+# library drivers normals_bootsurf, knn_bootsurf and error_bootsurf (bootsurf
+# timed without file I/O). Missing Debian packages are installed with apt-get
+# first (as root; idempotent: nothing is installed when dpkg already has them).
 # The Open3D peer is a Python script (python3-open3d, run with /usr/bin/python3).
 set -euo pipefail
 HERE=$(cd "$(dirname "$0")" && pwd)
@@ -17,7 +20,8 @@ BS=${2:-}
 mkdir -p "$OUT"
 
 need=()
-for p in g++ pkg-config libpcl-dev libcgal-dev libeigen3-dev libtbb-dev python3-open3d python3-numpy; do
+for p in g++ pkg-config libpcl-dev libcgal-dev libeigen3-dev libtbb-dev libnanoflann-dev python3-open3d \
+  python3-numpy; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need+=("$p")
 done
 if ((${#need[@]})); then
@@ -69,11 +73,14 @@ fi
 
 if [ -n "$BS" ]; then
   if [ -f "$BS/libbootsurf.a" ]; then
-    echo "build.sh: normals_bootsurf (against $BS/libbootsurf.a)" >&2
-    ${CC:-gcc} -O3 -DNDEBUG -std=c11 -Wall -Wextra -fopenmp -I"$ROOT/include" \
-      "$HERE/normals_bootsurf.c" -o "$OUT/normals_bootsurf" "$BS/libbootsurf.a" -lm
+    # the library drivers: always rebuilt (the library under test changes between runs)
+    for d in normals_bootsurf knn_bootsurf error_bootsurf; do
+      echo "build.sh: $d (against $BS/libbootsurf.a)" >&2
+      ${CC:-gcc} -O3 -DNDEBUG -std=c11 -Wall -Wextra -fopenmp -I"$ROOT/include" -I"$HERE" \
+        "$HERE/$d.c" -o "$OUT/$d" "$BS/libbootsurf.a" -lm
+    done
   else
-    echo "build.sh: $BS/libbootsurf.a not found: normals_bootsurf not built" >&2
+    echo "build.sh: $BS/libbootsurf.a not found: the library drivers (*_bootsurf) not built" >&2
     exit 1
   fi
 fi
@@ -94,6 +101,14 @@ if ! fresh "$OUT/smooth_cgal" "$HERE/smooth_cgal.cpp" "${COMMON[@]}"; then
   # shellcheck disable=SC2086
   $CXX $CXXFLAGS -I"$HERE" $EIGEN_FLAGS -DCGAL_EIGEN3_ENABLED -DCGAL_LINKED_WITH_TBB \
     "$HERE/smooth_cgal.cpp" -o "$OUT/smooth_cgal" $TBB_LIBS -lgmp -lmpfr -lpthread
+fi
+
+# --- kNN peer (bench/peers/kernels.py knn): knn_nanoflann, Debian's libnanoflann-dev
+# (header-only), OpenMP over the queries.
+if ! fresh "$OUT/knn_nanoflann" "$HERE/knn_nanoflann.cpp" "${COMMON[@]}"; then
+  echo "build.sh: knn_nanoflann" >&2
+  # shellcheck disable=SC2086
+  $CXX $CXXFLAGS -fopenmp -I"$HERE" "$HERE/knn_nanoflann.cpp" -o "$OUT/knn_nanoflann"
 fi
 
 # --- feature-detection baselines (scripts/validate_features.py): features_pcl

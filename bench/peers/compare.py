@@ -42,41 +42,14 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
 import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+from harness import last_json, run  # noqa: E402
 PY = "/usr/bin/python3"  # python3-open3d is installed for Debian's interpreter only
-
-
-def run(cmd, out_path, env, launcher=None):
-    """Runs cmd; returns (wall seconds, peak RSS kB, CPU seconds, stdout text). Raises on failure.
-
-    With launcher (bench/peers/rss_exec) wall and RSS are the launcher's: see
-    rss_exec.c for why the harness cannot take ru_maxrss of its own children.
-    """
-    stats = out_path + ".stats"
-    full = [launcher, stats] + cmd if launcher else cmd
-    with open(out_path + ".stdout", "wb") as so, open(out_path + ".stderr", "wb") as se:
-        t0 = time.monotonic()
-        rc = subprocess.call(full, stdout=so, stderr=se, env=env)
-        wall, rss, cpu = time.monotonic() - t0, None, None
-    if rc != 0:
-        err = open(out_path + ".stderr", errors="replace").read()
-        raise RuntimeError("%s failed (%d):\n%s" % (" ".join(cmd), rc, err))
-    if launcher:
-        w, r, c = open(stats).read().split()
-        wall, rss, cpu = float(w), int(r), float(c)
-    return wall, rss, cpu, open(out_path + ".stdout").read()
-
-
-def last_json(text):
-    for line in reversed(text.strip().splitlines()):
-        line = line.strip()
-        if line.startswith("{"):
-            return json.loads(line)
-    raise ValueError("no JSON line in: " + text[:500])
 
 
 def programs(a):
@@ -112,8 +85,6 @@ def angle(res, truth):
 
 
 def max_normal_diff(a, b):
-    sys.path.insert(0, HERE)
-    sys.dont_write_bytecode = True  # no __pycache__ in the source tree
     import numpy as np
     from angle_error import read_fields
     na = read_fields(a, ["nx", "ny", "nz"])

@@ -17,21 +17,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/resource.h>
-#include <time.h>
 
-static double now(void) {
-  struct timespec ts;
-  clock_gettime(CLOCK_MONOTONIC, &ts);
-  return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static double cpu_seconds(void) {
-  struct rusage ru;
-  getrusage(RUSAGE_SELF, &ru);
-  return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
-         (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
-}
+#include "bs_driver.h"
 
 static int usage(void) {
   fprintf(stderr, "usage: normals_bootsurf INPUT.ply -o OUTPUT.ply [-k 30] [-j 2] "
@@ -65,13 +52,9 @@ int main(int argc, char **argv) {
   else return usage();
 
   bsurf_cloud c;
+  if (driver_read("normals_bootsurf", in, &c)) return 1;
   bsurf_error where;
   memset(&where, 0, sizeof where);
-  bsurf_cloud_init(&c);
-  if (bsurf_read(in, &c, &where) != BSURF_OK) {
-    fprintf(stderr, "normals_bootsurf: %s: %s\n", in, where.message);
-    return 1;
-  }
   const size_t n = c.point_count;
   double *normals = malloc(n * 3 * sizeof(double));
   double *var = calloc(n, sizeof(double)); /* the CLI always asks for normal_var */
@@ -112,14 +95,12 @@ int main(int argc, char **argv) {
     fprintf(stderr, "normals_bootsurf: %s: %s\n", out, where.message);
     return 1;
   }
-  struct rusage ru;
-  getrusage(RUSAGE_SELF, &ru);
   printf("{\"peer\":\"bootsurf\",\"method\":\"%s\",\"degree\":%d,\"bootstrap\":%d,\"k\":%d,"
          "\"threads\":%d,\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"seconds_neighbors\":%.6f,"
          "\"seconds_normals\":%.6f,\"peak_rss_kb\":%ld,\"degenerate\":%zu,"
          "\"timed\":\"bsurf_neighbors_build + bsurf_estimate_normals\"}\n",
          fit, no.fit == BSURF_NORMAL_POLY ? no.degree : 1, no.bootstrap, no.k, no.threads, n,
-         t2 - t0, cpu, t1 - t0, t2 - t1, ru.ru_maxrss, rep.degenerate);
+         t2 - t0, cpu, t1 - t0, t2 - t1, peak_rss_kb(), rep.degenerate);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&o);
   bsurf_cloud_free(&c);

@@ -6,7 +6,7 @@ bench/smooth_compare.sh, which builds the peers and makes the inputs.
 
 usage: /usr/bin/python3 smooth_compare.py --bootsurf BUILD/bootsurf --peers PEERS_DIR --work DIR
            [--threads 2] [--k 50] [--seed 1] [--reps 3] [--bench] [--peers-only]
-           [--json-out FILE]
+           [--json-out FILE] [--methods naive,bilateral,multipass] [--peer-methods jet,bilateral,mls]
            --input NAME NOISE NOISY.ply TRUTH.ply SURFACE|- [--input ...]
 
 Quality mode (default): every program once per input; each output (and the
@@ -31,56 +31,38 @@ import argparse
 import json
 import os
 import statistics
-import subprocess
 import sys
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.dont_write_bytecode = True  # no __pycache__ in the source tree
+from harness import last_json, run  # noqa: E402
 PY = "/usr/bin/python3"
 
 
-def run(cmd, out_path, env, launcher=None):
-    """Runs cmd; returns (wall s, peak RSS kB, CPU s, stdout). Raises on failure."""
-    stats = out_path + ".stats"
-    full = [launcher, stats] + cmd if launcher else cmd
-    with open(out_path + ".stdout", "wb") as so, open(out_path + ".stderr", "wb") as se:
-        t0 = time.monotonic()
-        rc = subprocess.call(full, stdout=so, stderr=se, env=env)
-        wall, rss, cpu = time.monotonic() - t0, None, None
-    if rc != 0:
-        err = open(out_path + ".stderr", errors="replace").read()
-        raise RuntimeError("%s failed (%d):\n%s" % (" ".join(cmd), rc, err[-3000:]))
-    if launcher:
-        w, r, c = open(stats).read().split()
-        wall, rss, cpu = float(w), int(r), float(c)
-    return wall, rss, cpu, open(out_path + ".stdout").read()
-
-
-def last_json(text):
-    for line in reversed(text.strip().splitlines()):
-        line = line.strip()
-        if line.startswith("{"):
-            return json.loads(line)
-    raise ValueError("no JSON line in: " + text[:500])
-
-
 def programs(a):
-    """(id, program, method, kind, cmd(in, out)); kind "bs" or "peer"."""
+    """(id, program, method, kind, cmd(in, out)); kind "bs" or "peer". --methods and
+    --peer-methods choose the rows (all by default)."""
     bs, pd, k, j, seed = a.bootsurf, a.peers, str(a.k), str(a.threads), str(a.seed)
     P = []
     if not a.peers_only:
-        for m in ("naive", "bilateral", "multipass"):
+        for m in a.methods:
             P.append(("bs_" + m, "bootsurf", m + " (defaults)", "bs",
                       lambda i, o, m=m: [bs, "smooth", i, "-o", o, "--method", m, "-j", j,
                                          "--seed", seed, "--json", "-q"]))
     cg = os.path.join(pd, "smooth_cgal")
-    P.append(("cgal_jet", "CGAL 5.5", "jet_smooth_point_set d2", "peer",
-              lambda i, o: [cg, i, "-o", o, "--method", "jet", "-d", "2", "-k", k, "-j", j]))
-    P.append(("cgal_bilateral", "CGAL 5.5", "bilateral_smooth_point_set 25deg x3", "peer",
-              lambda i, o: [cg, i, "-o", o, "--method", "bilateral", "--sharpness", "25",
-                            "--iterations", "3", "-k", k, "-j", j]))
-    P.append(("pcl_mls", "PCL 1.13", "MovingLeastSquares d2", "peer",
-              lambda i, o: [os.path.join(pd, "smooth_pcl"), i, "-o", o, "-d", "2", "-k", k, "-j", j]))
+    if "jet" in a.peer_methods:
+        P.append(("cgal_jet", "CGAL 5.5", "jet_smooth_point_set d2", "peer",
+                  lambda i, o: [cg, i, "-o", o, "--method", "jet", "-d", "2", "-k", k, "-j", j]))
+    if "bilateral" in a.peer_methods:
+        P.append(("cgal_bilateral", "CGAL 5.5", "bilateral_smooth_point_set 25deg x3", "peer",
+                  lambda i, o: [cg, i, "-o", o, "--method", "bilateral", "--sharpness", "25",
+                                "--iterations", "3", "-k", k, "-j", j]))
+    if "mls" in a.peer_methods:
+        P.append(("pcl_mls", "PCL 1.13", "MovingLeastSquares d2", "peer",
+                  lambda i, o: [os.path.join(pd, "smooth_pcl"), i, "-o", o, "-d", "2", "-k", k,
+                                "-j", j]))
     return P
 
 
@@ -323,9 +305,19 @@ def main():
     ap.add_argument("--bench", action="store_true")
     ap.add_argument("--peers-only", action="store_true")
     ap.add_argument("--json-out")
+    ap.add_argument("--methods", default="naive,bilateral,multipass",
+                    help="bootsurf smooth methods, comma-separated")
+    ap.add_argument("--peer-methods", default="jet,bilateral,mls",
+                    help="peers, comma-separated: jet (CGAL), bilateral (CGAL), mls (PCL)")
     ap.add_argument("--input", nargs=5, action="append", required=True,
                     metavar=("NAME", "NOISE", "NOISY", "TRUTH", "SURFACE"))
     a = ap.parse_args()
+    a.methods = [m for m in a.methods.split(",") if m]
+    a.peer_methods = [m for m in a.peer_methods.split(",") if m]
+    bad = [m for m in a.methods if m not in ("naive", "bilateral", "multipass")] + \
+        [m for m in a.peer_methods if m not in ("jet", "bilateral", "mls")]
+    if bad or not a.peer_methods:
+        ap.error("unknown or no methods: %s" % ",".join(bad))
     a.launcher = os.path.join(a.peers, "rss_exec")
     env = dict(os.environ, OMP_NUM_THREADS=str(a.threads))
     ev = Evaluator(a, env)
