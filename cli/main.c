@@ -168,8 +168,10 @@ int main(int argc, char **argv) {
     return 2;
   }
   cli_install_signals();
+  cli_mpi_init(&argc, &argv);
   int rc = c->run(c, argc - 1, argv + 1);
   if (rc == CLI_HELP_SHOWN) rc = 0;
+  cli_mpi_finalize();
   /* a summary that could not be written (a full disk, /dev/full) is a
    * failure, not a silent success */
   errno = 0;

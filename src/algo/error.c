@@ -101,7 +101,7 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
   for (int b = 0; b < B; b++) {
     uint16_t *cnt = s->counts;
     double *w = &s->weights[(size_t)b * k], *miss = &s->missing[(size_t)b * k];
-    bsurf_boot_counts(o->seed, i, (uint32_t)b, k, cnt);
+    bsurf_boot_counts(o->seed, o->point_index ? o->point_index[i] : i, (uint32_t)b, k, cnt);
     int distinct = 0;
     for (int j = 0; j < k; j++) {
       w[j] = cnt[j];

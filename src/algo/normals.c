@@ -137,7 +137,7 @@ static void normals_point(void *vctx, int thread, size_t i) {
   for (int j = 0; j < k; j++) W[j] = 1.0;
   int min_distinct = o->fit == BSURF_NORMAL_PCA ? 3 : bsurf_poly_terms(o->degree);
   for (int b = 0; b < B; b++) {
-    bsurf_boot_counts(o->seed, i, (uint32_t)b, k, s->counts);
+    bsurf_boot_counts(o->seed, o->point_index ? o->point_index[i] : i, (uint32_t)b, k, s->counts);
     int distinct = 0;
     for (int j = 0; j < k; j++) {
       W[(size_t)(b + 1) * k + j] = s->counts[j];
