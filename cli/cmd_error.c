@@ -90,7 +90,7 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   if (output && cli_check_output(output, pos[0], force)) return 1;
   if (output && test_path && cli_check_output(output, test_path, force)) return 1;
 
-  size_t plan = 0;
+  size_t plan = 0, tiles = 0;
   rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, eo.k, 8, &plan);
   if (rc) return rc;
   if (plan && test_path) return cli_error("%s: --test-sample is not available in tiled runs", test_path);
@@ -109,7 +109,10 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
     bsurf_tile_ops ops = {plan, eo.k, eo.threads, &et, error_prepare, error_run, ERROR_SUMS, NULL, NULL, NULL};
     bsurf_tile_report tr;
     tr.sums = sums;
-    if (cli_tiles_run(pos[0], output, &ops, &tr, quiet)) return 1;
+    int trc = cli_tiles_run(pos[0], output, &ops, &tr, quiet);
+    plan = ops.tile_points;
+    tiles = tr.tiles;
+    if (trc) return 1;
     npoints = tr.points;
     h = tr.h;
     rep.replicates_total = (size_t)sums[0];
@@ -194,7 +197,11 @@ summary:;
     json_int(&j, "replicates_skipped", (long long)rep.replicates_skipped);
     json_int(&j, "degree_reduced", (long long)rep.degree_reduced);
     json_int(&j, "center_unestimated", (long long)rep.center_unestimated);
-    if (plan) json_int(&j, "tile_points", (long long)plan);
+    if (plan) {
+      json_int(&j, "tile_points", (long long)plan);
+      json_int(&j, "tiles", (long long)tiles);
+      json_int(&j, "ranks", cli_mpi_ranks());
+    }
     json_means(&j, error_fields, means, nfields, h);
     json_num(&j, "seconds", secs);
     json_end(&j);

@@ -314,7 +314,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   job.nk = nk;
   job.nd = nd;
   job.quiet = quiet;
-  size_t plan = 0;
+  size_t plan = 0, tiles = 0;
   rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 4, &plan);
   if (rc) return rc;
   /* smoothing passes and normal_err (Eq. 5.10: the neighbours' reference
@@ -347,7 +347,10 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     bsurf_tile_ops ops = {plan, kmax, no.threads, &job, normals_prepare, normals_run, NORMALS_SUMS, NULL, NULL, NULL};
     bsurf_tile_report tr;
     tr.sums = sums;
-    if (cli_tiles_run(pos[0], output, &ops, &tr, quiet)) goto done;
+    int trc = cli_tiles_run(pos[0], output, &ops, &tr, quiet);
+    plan = ops.tile_points;
+    tiles = tr.tiles;
+    if (trc) goto done;
     n = tr.points;
     h = tr.h;
     total.replicates_total = (size_t)sums[0];
@@ -448,7 +451,11 @@ summary:;
     json_int(&j, "replicates_skipped", (long long)total.replicates_skipped);
     json_int(&j, "degree_reduced", (long long)total.degree_reduced);
     json_int(&j, "degenerate", (long long)total.degenerate);
-    if (plan) json_int(&j, "tile_points", (long long)plan);
+    if (plan) {
+      json_int(&j, "tile_points", (long long)plan);
+      json_int(&j, "tiles", (long long)tiles);
+      json_int(&j, "ranks", cli_mpi_ranks());
+    }
     json_means(&j, names, means, nf, h);
     json_num(&j, "seconds", secs);
     json_end(&j);
