@@ -87,6 +87,21 @@ static void drop_pages(const tile_map *m, size_t from, size_t to) {
   if (b > a) madvise(m->data + a, b - a, MADV_DONTNEED);
 }
 
+/* Drops pages behind a sweep through a mapping in increasing offsets, so
+ * that at most about 64 MB of it is resident: a tile's points are spread
+ * over the whole file when the file's order is not spatial. */
+typedef struct sweep {
+  const tile_map *m;
+  size_t mark;
+} sweep;
+
+static void sweep_at(sweep *s, size_t offset) {
+  if (offset > s->mark + ((size_t)64 << 20)) {
+    drop_pages(s->m, s->mark, offset);
+    s->mark = offset;
+  }
+}
+
 static bsurf_status map_input(const char *path, tile_map *m, bsurf_error *err) {
   m->data = NULL;
   m->size = 0;
@@ -231,6 +246,12 @@ static size_t cell_id(const tiles_ctx *c, const uint32_t cc[3]) {
 
 #define PASS_DROP ((size_t)1 << 20) /* points between page drops */
 
+/* Between two page drops the passes ask the progress callback (at 0 done)
+ * whether to stop: an interrupt stops a pass within ~10^6 points. */
+static int pass_cancelled(const tiles_ctx *c) {
+  return c->ops->progress && c->ops->progress(c->ops->progress_user, 0, c->n);
+}
+
 /* Pass 1: every coordinate (and normal) finite, bounding box. */
 static bsurf_status pass_bounds(tiles_ctx *c, bsurf_tile_report *rep) {
   bsurf_cloud one;
@@ -250,9 +271,14 @@ static bsurf_status pass_bounds(tiles_ctx *c, bsurf_tile_report *rep) {
       if (p[a] < c->lo[a]) c->lo[a] = p[a];
       if (p[a] > c->hi[a]) c->hi[a] = p[a];
     }
-    if ((i + 1) % PASS_DROP == 0)
+    if ((i + 1) % PASS_DROP == 0) {
       drop_pages(&c->in, c->layout.body + (i + 1 - PASS_DROP) * c->layout.record,
                  c->layout.body + (i + 1) * c->layout.record);
+      if (pass_cancelled(c)) {
+        st = BSURF_ERR_CANCELLED;
+        break;
+      }
+    }
   }
   drop_pages(&c->in, 0, c->in.size);
   bsurf_cloud_free(&one);
@@ -305,7 +331,13 @@ static bsurf_status pass_sort(tiles_ctx *c, const char *output, bsurf_error *err
     xyz_of(c, i, p);
     cell_coords(c, p, cc);
     c->cell_start[cell_id(c, cc) + 1]++;
-    if ((i + 1) % PASS_DROP == 0) drop_pages(&c->in, 0, c->in.size);
+    if ((i + 1) % PASS_DROP == 0) {
+      drop_pages(&c->in, 0, c->in.size);
+      if (pass_cancelled(c)) {
+        free(cursor);
+        return BSURF_ERR_CANCELLED;
+      }
+    }
   }
   for (size_t j = 0; j < c->cells; j++) c->cell_start[j + 1] += c->cell_start[j];
   memcpy(cursor, c->cell_start, c->cells * sizeof *cursor);
@@ -316,9 +348,15 @@ static bsurf_status pass_sort(tiles_ctx *c, const char *output, bsurf_error *err
       xyz_of(c, i, p);
       cell_coords(c, p, cc);
       sorted[cursor[cell_id(c, cc)]++] = i;
+      /* the writes land all over the file: drop them often (they stay in
+       * the page cache, not in this process) */
+      if ((i + 1) % (PASS_DROP / 16) == 0) drop_pages(&c->sorted, 0, c->sorted.size);
       if ((i + 1) % PASS_DROP == 0) {
         drop_pages(&c->in, 0, c->in.size);
-        drop_pages(&c->sorted, 0, c->sorted.size);
+        if (pass_cancelled(c)) {
+          st = BSURF_ERR_CANCELLED;
+          break;
+        }
       }
     }
     drop_pages(&c->in, 0, c->in.size);
@@ -541,6 +579,7 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
   }
   const uint64_t *sorted = (const uint64_t *)c->sorted.data;
   G->n = 0;
+  u64vec cand = {NULL, 0, 0}; /* points of the cells around the tile */
   double p[3];
   for (uint32_t z = clo[2]; z < chi[2]; z++)
     for (uint32_t y = clo[1]; y < chi[1]; y++)
@@ -550,16 +589,27 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
         int in_tile = x >= b->lo[0] && x < b->hi[0] && y >= b->lo[1] && y < b->hi[1] && z >= b->lo[2] &&
                       z < b->hi[2];
         for (uint64_t s = c->cell_start[j]; s < c->cell_start[j + 1]; s++) {
-          uint64_t i = sorted[s];
-          if (!in_tile) {
-            xyz_of(c, i, p);
-            if (!(p[0] >= rlo[0] && p[0] <= rhi[0] && p[1] >= rlo[1] && p[1] <= rhi[1] && p[2] >= rlo[2] &&
-                  p[2] <= rhi[2]))
-              continue;
+          if (u64_push(in_tile ? G : &cand, sorted[s])) {
+            free(cand.v);
+            return BSURF_ERR_NOMEM;
           }
-          if (u64_push(G, i)) return BSURF_ERR_NOMEM;
         }
       }
+  /* those inside R, read in file order */
+  qsort(cand.v, cand.n, sizeof *cand.v, cmp_u64);
+  sweep sw = {&c->in, 0};
+  for (size_t j = 0; j < cand.n; j++) {
+    uint64_t i = cand.v[j];
+    xyz_of(c, i, p);
+    sweep_at(&sw, c->layout.body + (size_t)i * c->layout.record);
+    if (p[0] >= rlo[0] && p[0] <= rhi[0] && p[1] >= rlo[1] && p[1] <= rhi[1] && p[2] >= rlo[2] && p[2] <= rhi[2] &&
+        u64_push(G, i)) {
+      free(cand.v);
+      return BSURF_ERR_NOMEM;
+    }
+  }
+  free(cand.v);
+  drop_pages(&c->in, 0, c->in.size);
   qsort(G->v, G->n, sizeof *G->v, cmp_u64);
   return BSURF_OK;
 }
@@ -620,6 +670,14 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep) {
           if (u64_push(&w.core, sorted[s])) st = BSURF_ERR_NOMEM;
       }
   if (st != BSURF_OK) goto out;
+  /* searched in cell order (neighbouring queries share the tree's leaves),
+   * stored in index order */
+  uint64_t *by_cell = bsurf_alloc_array(w.core.n, sizeof *by_cell);
+  if (!by_cell) {
+    st = BSURF_ERR_NOMEM;
+    goto out;
+  }
+  memcpy(by_cell, w.core.v, w.core.n * sizeof *by_cell);
   qsort(w.core.v, w.core.n, sizeof *w.core.v, cmp_u64);
   const size_t nc = w.core.n;
   w.rows = bsurf_alloc_array(nc, (size_t)k * sizeof *w.rows);
@@ -630,11 +688,13 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep) {
   w.qidx = bsurf_alloc_array((size_t)T, (size_t)k * sizeof *w.qidx);
   w.qd2 = bsurf_alloc_array((size_t)T, (size_t)k * sizeof *w.qd2);
   if (!w.rows || !w.nn2 || !w.done || !w.dup || !w.pending || !w.qidx || !w.qd2) {
+    free(by_cell);
     st = BSURF_ERR_NOMEM;
     goto out;
   }
   size_t npend = nc;
-  for (size_t j = 0; j < nc; j++) w.pending[j] = j;
+  for (size_t j = 0; j < nc; j++) w.pending[j] = find_u64(w.core.v, nc, by_cell[j]);
+  free(by_cell);
 
   double halo = c->cell, box_lo[3], box_hi[3];
   for (int a = 0; a < 3; a++) {
@@ -658,7 +718,12 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep) {
       st = BSURF_ERR_NOMEM;
       goto out;
     }
-    for (size_t j = 0; j < w.G.n; j++) xyz_of(c, w.G.v[j], w.gx + 3 * j);
+    sweep sw = {&c->in, 0};
+    for (size_t j = 0; j < w.G.n; j++) {
+      xyz_of(c, w.G.v[j], w.gx + 3 * j);
+      sweep_at(&sw, c->layout.body + (size_t)w.G.v[j] * c->layout.record);
+    }
+    drop_pages(&c->in, 0, c->in.size);
     bsurf_knn_index *index = NULL;
     st = bsurf_knn_build(&index, w.gx, w.G.n);
     if (st != BSURF_OK) goto out;
@@ -721,7 +786,12 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep) {
   /* the core points with every input property, prepared by the command */
   st = cloud_like(&c->schema, nc, &core);
   if (st != BSURF_OK) goto out;
-  for (size_t j = 0; j < nc; j++) io_ply_decode(&c->layout, c->in.data, w.core.v[j], &core, j);
+  sweep sw = {&c->in, 0};
+  for (size_t j = 0; j < nc; j++) {
+    io_ply_decode(&c->layout, c->in.data, w.core.v[j], &core, j);
+    sweep_at(&sw, c->layout.body + (size_t)w.core.v[j] * c->layout.record);
+  }
+  drop_pages(&c->in, 0, c->in.size);
   st = c->ops->prepare(c->ops->user, &core);
   if (st != BSURF_OK) goto out;
 
@@ -743,9 +813,12 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep) {
   st = io_ply_encode(&core, w.enc);
   if (st != BSURF_OK) goto out;
   double *nnd = (double *)c->nn.data;
+  sweep so = {&c->out, 0}, sn = {&c->nn, 0};
   for (size_t j = 0; j < nc; j++) {
     memcpy(c->out.data + c->header + (size_t)w.core.v[j] * c->record, w.enc + j * c->record, c->record);
     nnd[w.core.v[j]] = w.nn2[j];
+    sweep_at(&so, c->header + (size_t)w.core.v[j] * c->record);
+    sweep_at(&sn, (size_t)w.core.v[j] * sizeof(double));
   }
   if (nc > rep->max_tile_points) rep->max_tile_points = nc;
   if (nl > rep->max_local_points) rep->max_local_points = nl;
