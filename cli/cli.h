@@ -44,6 +44,14 @@ extern int cli_drop_invalid;
   {0, "json", ARG_FLAG, &(json), "", "print the summary as one JSON object on stdout", 1, 0},      \
       {'q', "quiet", ARG_FLAG, &(quiet), "", "no progress bar or summary", 1, 0}
 
+/* Tiled runs (cli/tiles.c, docs/scaling.md). */
+#define CLI_OPTS_TILES(tile_points, memory_limit)                                                  \
+  {0, "tile-points", ARG_SIZE, &(tile_points), "N",                                                \
+   "out of core: tiles of about N points with proven halos, same bytes as in memory "             \
+   "(binary PLY in and out; 0 = only above --memory-limit)", 0, 4294967295.0},                     \
+      {0, "memory-limit", ARG_STRING, &(memory_limit), "SIZE",                                      \
+       "inputs needing more memory (e.g. 8G; auto = 3/4 of RAM; none) are tiled", 1, 0}
+
 #define CLI_PARSED 0
 #define CLI_HELP_SHOWN (-1)
 #define CLI_USAGE 2
@@ -99,6 +107,24 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
 int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
                         bsurf_neighbors *nb);
 
+/* --tile-points / --memory-limit: *plan = the tile size, or 0 for the
+ * in-memory run (always tiles under mpirun with several ranks). Checks that a
+ * tiled run can write its output. 0, or prints and returns 1 (2: usage). */
+int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
+                   size_t tile_points, const char *memory_limit, int k, int out_fields, size_t *plan);
+/* bsurf_tiles_run with a progress bar, MPI when started by mpirun, messages
+ * naming the file and place. 0 or 1 (printed). */
+int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep,
+                  int quiet);
+/* The duplicate count of a tiled run, for the summaries. */
+void cli_set_duplicates(size_t count);
+/* MPI (a build with BSURF_MPI, started by mpirun); otherwise one rank. */
+void cli_mpi_init(int *argc, char ***argv);
+void cli_mpi_finalize(void);
+const bsurf_tile_comm *cli_mpi_comm(void);
+int cli_mpi_rank(void);
+int cli_mpi_ranks(void);
+
 /* ---- progress, signals, time ---- */
 typedef struct cli_progress {
   const char *label;
@@ -132,6 +158,9 @@ void json_bool(cli_json *j, const char *key, int v);
 /* "mean": {field: mean} and "mean_h": {field: mean / h} of the named fields. */
 void json_field_means(cli_json *j, const bsurf_cloud *cloud, const char *const *names, int count,
                       double h);
+/* The same from means computed elsewhere (tiled runs). */
+void json_means(cli_json *j, const char *const *names, const double *means, int count, double h);
+void print_means(FILE *f, const char *const *names, const double *means, int count, double h);
 /* The same as a table on `f` for people. */
 void print_field_means(FILE *f, const bsurf_cloud *cloud, const char *const *names, int count,
                        double h);

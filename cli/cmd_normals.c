@@ -32,12 +32,198 @@ static int parse_degrees(const char *s, int *ds, int max) {
   return n > 0 ? n : -1;
 }
 
+
+/* What one normals run computes (every candidate K and degree), shared by the
+ * in-memory run and the tiles. */
+typedef struct normals_job {
+  bsurf_normal_options no;
+  int test_error, selecting, select_k, select_degree, k_ref;
+  int ks[MAX_CANDIDATES], nk, ds[4], nd;
+  int quiet;
+} normals_job;
+
+/* Per-point results (n long, x 3 for vectors). */
+typedef struct normals_bufs {
+  double *normals, *var, *err, *ref, *cand_n, *cand_v, *cand_e, *best_e, *ksel, *dsel;
+} normals_bufs;
+
+static void normals_bufs_free(normals_bufs *b) {
+  free(b->normals);
+  free(b->var);
+  free(b->err);
+  free(b->ref);
+  free(b->cand_n);
+  free(b->cand_v);
+  free(b->cand_e);
+  free(b->best_e);
+  free(b->ksel);
+  free(b->dsel);
+  memset(b, 0, sizeof *b);
+}
+
+static int normals_bufs_alloc(normals_bufs *b, const normals_job *job, size_t n) {
+  memset(b, 0, sizeof *b);
+  b->normals = malloc(n * 3 * sizeof(double));
+  b->var = calloc(n, sizeof(double));
+  b->err = calloc(n, sizeof(double));
+  int ok = b->normals && b->var && b->err;
+  if (job->test_error) ok = ok && (b->ref = malloc(n * 3 * sizeof(double)));
+  if (job->selecting) {
+    b->cand_n = malloc(n * 3 * sizeof(double));
+    b->cand_v = calloc(n, sizeof(double));
+    b->cand_e = calloc(n, sizeof(double));
+    b->best_e = malloc(n * sizeof(double));
+    b->ksel = calloc(n, sizeof(double));
+    b->dsel = calloc(n, sizeof(double));
+    ok = ok && b->cand_n && b->cand_v && b->cand_e && b->best_e && b->ksel && b->dsel;
+    for (size_t i = 0; ok && i < n; i++) b->best_e[i] = INFINITY;
+  }
+  if (!ok) normals_bufs_free(b);
+  return ok ? 0 : cli_error("out of memory");
+}
+
+/* The reference normals, then every candidate (K, degree), keeping per point
+ * the one with the smallest normal_err. cf / truth: the --curve file and its
+ * ground truth, or NULL. Progress bars unless prog is NULL. */
+static bsurf_status normals_compute(const normals_job *job, const double *xyz, const bsurf_neighbors *nb,
+                                    const uint64_t *point_index, normals_bufs *b, bsurf_normal_report *total,
+                                    FILE *cf, const bsurf_cloud *truth, cli_progress *prog) {
+  const size_t n = nb->point_count;
+  bsurf_normal_options no = job->no;
+  no.point_index = point_index;
+  no.progress = prog ? cli_progress_cb : NULL;
+  no.progress_user = prog;
+  bsurf_normal_report rep;
+  bsurf_status st;
+  memset(total, 0, sizeof *total);
+  if (job->test_error) {
+    /* reference normals n_j of Eq. 5.10: single PCA fits on a fixed K */
+    bsurf_normal_options ro = no;
+    ro.fit = BSURF_NORMAL_PCA;
+    ro.k = job->k_ref;
+    ro.bootstrap = 0;
+    bsurf_normal_fields rf = {b->ref, NULL, NULL};
+    if (prog) cli_progress_init(prog, "reference", job->quiet);
+    st = bsurf_estimate_normals(xyz, nb, NULL, &ro, &rf, NULL);
+    if (prog) cli_progress_done(prog);
+    if (st != BSURF_OK) return st;
+  }
+  const int selecting = job->selecting;
+  for (int a = 0; a < job->nk; a++) {
+    for (int d = 0; d < job->nd; d++) {
+      bsurf_normal_options o = no;
+      o.k = job->ks[a];
+      o.degree = job->ds[d];
+      bsurf_normal_fields out = {selecting ? b->cand_n : b->normals, selecting ? b->cand_v : b->var,
+                                 job->test_error ? (selecting ? b->cand_e : b->err) : NULL};
+      char label[32];
+      snprintf(label, sizeof label, selecting ? "K=%d" : "normals", o.k);
+      if (prog) cli_progress_init(prog, label, job->quiet);
+      st = bsurf_estimate_normals(xyz, nb, b->ref, &o, &out, &rep);
+      if (prog) cli_progress_done(prog);
+      if (st != BSURF_OK) return st;
+      total->replicates_total += rep.replicates_total;
+      total->replicates_skipped += rep.replicates_skipped;
+      total->degree_reduced += rep.degree_reduced;
+      total->degenerate += rep.degenerate;
+      if (!selecting) continue;
+      double se = 0, sv = 0, sa = 0;
+      for (size_t i = 0; i < n; i++) {
+        se += b->cand_e[i];
+        sv += b->cand_v[i];
+        if (truth) sa += bsurf_normal_angle(&b->cand_n[3 * i], &truth->normals[3 * i]);
+        if (b->cand_e[i] < b->best_e[i]) { /* ties keep the smaller K, then degree */
+          b->best_e[i] = b->cand_e[i];
+          memcpy(&b->normals[3 * i], &b->cand_n[3 * i], 3 * sizeof(double));
+          b->var[i] = b->cand_v[i];
+          b->err[i] = b->cand_e[i];
+          b->ksel[i] = o.k;
+          b->dsel[i] = o.degree;
+        }
+      }
+      if (cf) {
+        fprintf(cf, "%d,%d,%.10g,%.10g", o.k, no.fit == BSURF_NORMAL_POLY ? o.degree : 1, se / n, sv / n);
+        if (truth) fprintf(cf, ",%.10g", sa / n);
+        fprintf(cf, "\n");
+      }
+    }
+  }
+  return BSURF_OK;
+}
+
+/* The output fields of a run, in the order they are added to the cloud. */
+static int normals_field_names(const normals_job *job, const char **names, bsurf_type *types) {
+  int nf = 0;
+  if (job->no.bootstrap >= 2) names[nf] = "normal_var", types[nf++] = BSURF_FLOAT32;
+  if (job->test_error) names[nf] = "normal_err", types[nf++] = BSURF_FLOAT32;
+  if (job->select_k) names[nf] = "k_selected", types[nf++] = BSURF_UINT16;
+  if (job->select_degree) names[nf] = "degree_selected", types[nf++] = BSURF_UINT8;
+  return nf;
+}
+
+/* Normals replaced (FLOAT32 when the input had none), fields added; with b,
+ * the values copied in. */
+static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, const normals_bufs *b) {
+  const size_t n = c->point_count;
+  if (!c->normals) {
+    c->normals = calloc(n * 3, sizeof(double));
+    c->normal_type = BSURF_FLOAT32;
+    if (!c->normals) return BSURF_ERR_NOMEM;
+  }
+  if (b) memcpy(c->normals, b->normals, n * 3 * sizeof(double));
+  const char *names[4];
+  bsurf_type types[4];
+  const double *vals[4] = {b ? b->var : NULL, b ? b->err : NULL, b ? b->ksel : NULL, b ? b->dsel : NULL};
+  int nf = normals_field_names(job, names, types), v = 0;
+  for (int t = 0; t < nf; t++) {
+    bsurf_field *fl = bsurf_cloud_add_field(c, names[t], types[t]);
+    if (!fl) return BSURF_ERR_NOMEM;
+    /* which buffer: var, err, ksel, dsel in that order, skipping absent ones */
+    while (v < 4 && !((v == 0 && job->no.bootstrap >= 2) || (v == 1 && job->test_error) ||
+                      (v == 2 && job->select_k) || (v == 3 && job->select_degree)))
+      v++;
+    if (b) memcpy(fl->values, vals[v], n * sizeof(double));
+    v++;
+  }
+  return BSURF_OK;
+}
+
+/* ---- tiles (cli/tiles.c) ---- */
+
+#define NORMALS_SUMS 8 /* replicates total, skipped, degree reduced, degenerate, 4 field sums */
+
+static bsurf_status normals_prepare(void *user, bsurf_cloud *c) { return normals_store(user, c, NULL); }
+
+static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
+  const normals_job *job = user;
+  normals_bufs b;
+  if (normals_bufs_alloc(&b, job, tile->core_count)) return BSURF_ERR_NOMEM;
+  bsurf_normal_report total;
+  bsurf_status st = normals_compute(job, tile->xyz, tile->nb, tile->point_index, &b, &total, NULL, NULL, NULL);
+  if (st == BSURF_OK) st = normals_store(job, core, &b);
+  if (st == BSURF_OK) {
+    sums[0] += (double)total.replicates_total;
+    sums[1] += (double)total.replicates_skipped;
+    sums[2] += (double)total.degree_reduced;
+    sums[3] += (double)total.degenerate;
+    const char *names[4];
+    bsurf_type types[4];
+    int nf = normals_field_names(job, names, types);
+    for (int t = 0; t < nf; t++)
+      sums[4 + t] += cli_field_mean(bsurf_cloud_field(core, names[t]), core->point_count) * (double)core->point_count;
+  }
+  normals_bufs_free(&b);
+  return st;
+}
+
 int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   bsurf_normal_options no = bsurf_normal_options_default();
   const char *fit = "pca", *center = "centroid", *output = NULL, *select_k = NULL, *select_degree = NULL;
   const char *curve = NULL, *truth_path = NULL, *sigma_nu_s = "auto", *orient = "none";
   int k_ref = 0, test_error = 0, iterations = 0, ascii = 0, json = 0, quiet = 0, force = 0;
   double alpha = 0.1, sigma_d = 0;
+  const char *memory_limit = "auto";
+  size_t tile_points = 0;
   cli_option opts[] = {
       {'k', "neighbors", ARG_INT, &no.k, "K", "neighbourhood size K, the point included", 3, 65535},
       {0, "fit", ARG_STRING, &fit, "F", "pca (plane) or poly (height polynomial, Eq. 5.9)", 1, 0},
@@ -62,6 +248,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
        "variance sigma: a value, auto (85th percentile of normal_var) or inf (single Gaussian)", 1, 0},
       {0, "orient", ARG_STRING, &orient, "MODE", "none or mst (consistent orientation, Hoppe 1992)", 1, 0},
       CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPTS_TILES(tile_points, memory_limit),
       CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
@@ -114,20 +301,65 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   if (truth_path && cli_check_output(output, truth_path, force)) return 1;
   if (curve && cli_check_writable(curve, pos[0], force)) return 1;
 
+  normals_job job;
+  memset(&job, 0, sizeof job);
+  job.no = no;
+  job.test_error = test_error;
+  job.selecting = selecting;
+  job.select_k = select_k != NULL;
+  job.select_degree = select_degree != NULL;
+  job.k_ref = k_ref;
+  memcpy(job.ks, ks, sizeof ks);
+  memcpy(job.ds, ds, sizeof ds);
+  job.nk = nk;
+  job.nd = nd;
+  job.quiet = quiet;
+  size_t plan = 0, tiles = 0;
+  rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 4, &plan);
+  if (rc) return rc;
+  /* smoothing passes and normal_err (Eq. 5.10: the neighbours' reference
+   * normals) reach beyond the K-neighbourhood; orientation is global */
+  if (plan && (iterations > 0 || om == 1 || test_error))
+    return cli_error("%s: --smooth-iterations, --orient mst, --test-error and --select-k/--select-degree "
+                     "use more than each point's K-neighbourhood: not available in tiled runs",
+                     pos[0]);
+
   double t0 = cli_now();
   bsurf_cloud c, truth;
   bsurf_cloud_init(&c);
   bsurf_cloud_init(&truth);
   bsurf_neighbors nb;
   memset(&nb, 0, sizeof nb);
-  double *ref = NULL, *cand_n = NULL, *cand_v = NULL, *cand_e = NULL, *best_e = NULL;
-  double *normals = NULL, *var = NULL, *err = NULL;
-  double *ksel = NULL, *dsel = NULL;
+  normals_bufs b;
+  memset(&b, 0, sizeof b);
   FILE *cf = NULL;
   char curve_tmp[4200] = "";
-  bsurf_normal_report rep, total;
+  bsurf_normal_report total;
   memset(&total, 0, sizeof total);
+  const char *names[4];
+  bsurf_type types[4];
+  int nf = normals_field_names(&job, names, types);
+  double means[4], h = 0;
+  size_t n = 0;
   rc = 1;
+  if (plan) {
+    double sums[NORMALS_SUMS] = {0};
+    bsurf_tile_ops ops = {plan, kmax, no.threads, &job, normals_prepare, normals_run, NORMALS_SUMS, NULL, NULL, NULL};
+    bsurf_tile_report tr;
+    tr.sums = sums;
+    int trc = cli_tiles_run(pos[0], output, &ops, &tr, quiet);
+    plan = ops.tile_points;
+    tiles = tr.tiles;
+    if (trc) goto done;
+    n = tr.points;
+    h = tr.h;
+    total.replicates_total = (size_t)sums[0];
+    total.replicates_skipped = (size_t)sums[1];
+    total.degree_reduced = (size_t)sums[2];
+    total.degenerate = (size_t)sums[3];
+    for (int t = 0; t < nf; t++) means[t] = sums[4 + t] / (double)n;
+    goto summary;
+  }
   if (cli_read_cloud(pos[0], &c)) goto done;
   if (truth_path) {
     if (cli_read_cloud(truth_path, &truth)) goto done;
@@ -139,158 +371,46 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   if (cli_build_neighbors(pos[0], &c, kmax, no.threads, quiet, &nb)) goto done;
   cli_progress prog;
   bsurf_status st;
-  const size_t n = c.point_count;
-  normals = malloc(n * 3 * sizeof(double));
-  var = calloc(n, sizeof(double));
-  err = calloc(n, sizeof(double));
-  if (!normals || !var || !err) {
-    cli_error("out of memory");
+  n = c.point_count;
+  if (normals_bufs_alloc(&b, &job, n)) goto done;
+  if (curve) {
+    snprintf(curve_tmp, sizeof curve_tmp, "%s.tmp", curve);
+    cf = fopen(curve_tmp, "w");
+    if (!cf) {
+      cli_error("%s: cannot write", curve_tmp);
+      goto done;
+    }
+    fprintf(cf, "k,degree,mean_normal_err,mean_normal_var%s\n", truth_path ? ",mean_angle_err" : "");
+  }
+  st = normals_compute(&job, c.xyz, &nb, NULL, &b, &total, cf, truth_path ? &truth : NULL, &prog);
+  if (st != BSURF_OK) {
+    cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
     goto done;
   }
-  no.progress = cli_progress_cb;
-  no.progress_user = &prog;
-  if (test_error) {
-    /* reference normals n_j of Eq. 5.10: single PCA fits on a fixed K */
-    bsurf_normal_options ro = no;
-    ro.fit = BSURF_NORMAL_PCA;
-    ro.k = k_ref;
-    ro.bootstrap = 0;
-    ref = malloc(n * 3 * sizeof(double));
-    if (!ref) {
-      cli_error("out of memory");
-      goto done;
-    }
-    bsurf_normal_fields rf = {ref, NULL, NULL};
-    cli_progress_init(&prog, "reference", quiet);
-    st = bsurf_estimate_normals(c.xyz, &nb, NULL, &ro, &rf, NULL);
-    cli_progress_done(&prog);
-    if (st != BSURF_OK) {
-      cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
-      goto done;
-    }
-  }
-  if (selecting) {
-    cand_n = malloc(n * 3 * sizeof(double));
-    cand_v = calloc(n, sizeof(double));
-    cand_e = calloc(n, sizeof(double));
-    best_e = malloc(n * sizeof(double));
-    ksel = calloc(n, sizeof(double));
-    dsel = calloc(n, sizeof(double));
-    if (!cand_n || !cand_v || !cand_e || !best_e || !ksel || !dsel) {
-      cli_error("out of memory");
-      goto done;
-    }
-    for (size_t i = 0; i < n; i++) best_e[i] = INFINITY;
-    if (curve) {
-      snprintf(curve_tmp, sizeof curve_tmp, "%s.tmp", curve);
-      cf = fopen(curve_tmp, "w");
-      if (!cf) {
-        cli_error("%s: cannot write", curve_tmp);
-        goto done;
-      }
-      fprintf(cf, "k,degree,mean_normal_err,mean_normal_var%s\n", truth_path ? ",mean_angle_err" : "");
-    }
-  }
-  for (int a = 0; a < nk; a++) {
-    for (int b = 0; b < nd; b++) {
-      bsurf_normal_options o = no;
-      o.k = ks[a];
-      o.degree = ds[b];
-      bsurf_normal_fields out = {selecting ? cand_n : normals, selecting ? cand_v : var,
-                                 test_error ? (selecting ? cand_e : err) : NULL};
-      char label[32];
-      snprintf(label, sizeof label, selecting ? "K=%d" : "normals", o.k);
-      cli_progress_init(&prog, label, quiet);
-      st = bsurf_estimate_normals(c.xyz, &nb, ref, &o, &out, &rep);
-      cli_progress_done(&prog);
-      if (st != BSURF_OK) {
-        cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
-        goto done;
-      }
-      total.replicates_total += rep.replicates_total;
-      total.replicates_skipped += rep.replicates_skipped;
-      total.degree_reduced += rep.degree_reduced;
-      total.degenerate += rep.degenerate;
-      if (!selecting) continue;
-      double se = 0, sv = 0, sa = 0;
-      for (size_t i = 0; i < n; i++) {
-        se += cand_e[i];
-        sv += cand_v[i];
-        if (truth_path) sa += bsurf_normal_angle(&cand_n[3 * i], &truth.normals[3 * i]);
-        if (cand_e[i] < best_e[i]) { /* ties keep the smaller K, then degree */
-          best_e[i] = cand_e[i];
-          memcpy(&normals[3 * i], &cand_n[3 * i], 3 * sizeof(double));
-          var[i] = cand_v[i];
-          err[i] = cand_e[i];
-          ksel[i] = o.k;
-          dsel[i] = o.degree;
-        }
-      }
-      if (cf) {
-        fprintf(cf, "%d,%d,%.10g,%.10g", o.k, no.fit == BSURF_NORMAL_POLY ? o.degree : 1, se / n, sv / n);
-        if (truth_path) fprintf(cf, ",%.10g", sa / n);
-        fprintf(cf, "\n");
-      }
-    }
-  }
-  double h = nb.h;
+  h = nb.h;
   if (iterations > 0) {
     /* auto: the threshold of the top 15% of normal_var (Table 5.2's split) */
-    if (isnan(sigma_nu) && (no.bootstrap < 2 || bsurf_quantile_split(var, n, 0.85, NULL, &sigma_nu, NULL, NULL) != BSURF_OK))
+    if (isnan(sigma_nu) && (no.bootstrap < 2 || bsurf_quantile_split(b.var, n, 0.85, NULL, &sigma_nu, NULL, NULL) != BSURF_OK))
       sigma_nu = INFINITY;
     if (!(sigma_nu > 0)) sigma_nu = INFINITY; /* all variances 0: nothing to weigh */
-    st = bsurf_smooth_normals(c.xyz, &nb, no.k, normals, no.bootstrap >= 2 ? var : NULL, iterations, alpha,
+    st = bsurf_smooth_normals(c.xyz, &nb, no.k, b.normals, no.bootstrap >= 2 ? b.var : NULL, iterations, alpha,
                               sigma_d > 0 ? sigma_d : h, sigma_nu, no.threads);
     if (st != BSURF_OK) {
       cli_error("smoothing: %s", bsurf_strerror(st));
       goto done;
     }
   }
-  if (om == 1 && (st = bsurf_orient_normals(c.xyz, &nb, no.k, normals)) != BSURF_OK) {
+  if (om == 1 && (st = bsurf_orient_normals(c.xyz, &nb, no.k, b.normals)) != BSURF_OK) {
     cli_error("orientation: %s", bsurf_strerror(st));
     goto done;
   }
   /* outputs: normals replaced, confidence and error fields added */
-  if (!c.normals) {
-    c.normals = normals;
-    c.normal_type = BSURF_FLOAT32;
-    normals = NULL;
-  } else {
-    memcpy(c.normals, normals, n * 3 * sizeof(double));
-  }
-  const char *names[4];
-  const double *vals[4];
-  bsurf_type types[4];
-  int nf = 0;
-  if (no.bootstrap >= 2) {
-    names[nf] = "normal_var";
-    vals[nf] = var;
-    types[nf++] = BSURF_FLOAT32;
-  }
-  if (test_error) {
-    names[nf] = "normal_err";
-    vals[nf] = err;
-    types[nf++] = BSURF_FLOAT32;
-  }
-  if (select_k) {
-    names[nf] = "k_selected";
-    vals[nf] = ksel;
-    types[nf++] = BSURF_UINT16;
-  }
-  if (select_degree) {
-    names[nf] = "degree_selected";
-    vals[nf] = dsel;
-    types[nf++] = BSURF_UINT8;
-  }
-  for (int t = 0; t < nf; t++) {
-    bsurf_field *fl = bsurf_cloud_add_field(&c, names[t], types[t]);
-    if (!fl) {
-      cli_error("out of memory");
-      goto done;
-    }
-    memcpy(fl->values, vals[t], n * sizeof(double));
+  if (normals_store(&job, &c, &b) != BSURF_OK) {
+    cli_error("out of memory");
+    goto done;
   }
   if (cli_write_cloud(output, &c, ascii)) goto done;
+  for (int t = 0; t < nf; t++) means[t] = cli_field_mean(bsurf_cloud_field(&c, names[t]), n);
   if (cf) {
     int bad = fclose(cf) != 0;
     cf = NULL;
@@ -300,6 +420,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     }
     curve_tmp[0] = 0;
   }
+summary:;
   double secs = cli_now() - t0;
   if (json) {
     cli_json j;
@@ -330,13 +451,18 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     json_int(&j, "replicates_skipped", (long long)total.replicates_skipped);
     json_int(&j, "degree_reduced", (long long)total.degree_reduced);
     json_int(&j, "degenerate", (long long)total.degenerate);
-    json_field_means(&j, &c, names, nf, h);
+    if (plan) {
+      json_int(&j, "tile_points", (long long)plan);
+      json_int(&j, "tiles", (long long)tiles);
+      json_int(&j, "ranks", cli_mpi_ranks());
+    }
+    json_means(&j, names, means, nf, h);
     json_num(&j, "seconds", secs);
     json_end(&j);
   } else if (!quiet) {
     printf("normals: %zu points, h = %.6g, K = %d, %s%s, B = %d, %.2f s\n", n, h, no.k, fit,
            no.fit == BSURF_NORMAL_POLY ? " (poly)" : "", no.bootstrap, secs);
-    print_field_means(stdout, &c, names, nf, h);
+    print_means(stdout, names, means, nf, h);
     if (total.degenerate) printf("  %zu points have degenerate neighbourhoods\n", total.degenerate);
     cli_print_input_report(stdout);
     printf("  -> %s\n", output);
@@ -348,15 +474,6 @@ done:
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
   bsurf_cloud_free(&truth);
-  free(ref);
-  free(cand_n);
-  free(cand_v);
-  free(cand_e);
-  free(best_e);
-  free(normals);
-  free(var);
-  free(err);
-  free(ksel);
-  free(dsel);
+  normals_bufs_free(&b);
   return rc;
 }

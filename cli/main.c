@@ -29,7 +29,11 @@ static const cli_command commands[] = {
      "err_train (4.6), err_boot (4.3), err_loo (4.4), err_loo_center (4.11),\n"
      "err_632 (4.5), err_632plus (4.7-4.10), gamma and overfit_rate (R, 4.9).\n"
      "All are written per point (model units); the summary gives their means in\n"
-     "model units and in units of h.",
+     "model units and in units of h.\n"
+     "Out of core: --tile-points N (or an input above --memory-limit) processes a\n"
+     "binary PLY file in tiles with proven halos; mpirun -n P shares the tiles between\n"
+     "P processes. Same output bytes as in memory (not with --test-sample); see\n"
+     "docs/scaling.md.",
      cmd_error},
     {"normals", "Normals with bootstrap confidence and test error (thesis ch. 5).",
      "INPUT -o OUTPUT [options]",
@@ -38,7 +42,11 @@ static const cli_command commands[] = {
      "of their angles (Eq. 5.5), a confidence value: lower is more reliable. Optional:\n"
      "normal_err, the bootstrap test error of the normal (Eq. 5.10, Algorithm 3);\n"
      "per-point choice of K (and degree) by smallest normal_err; bilateral smoothing\n"
-     "of the normals (Eqs. 5.6-5.8); consistent orientation (minimum spanning tree).",
+     "of the normals (Eqs. 5.6-5.8); consistent orientation (minimum spanning tree).\n"
+     "Out of core: --tile-points N (or an input above --memory-limit), and mpirun,\n"
+     "as for error: same bytes as in memory, for the normals and normal_var; not with\n"
+     "--test-error, --select-k, --smooth-iterations or --orient (they reach beyond\n"
+     "the K-neighbourhood). smooth and features are not tiled. docs/scaling.md.",
      cmd_normals},
     {"sample", "Points from a triangle mesh with ground-truth normals and feature labels.",
      "MESH -o OUTPUT [options]",
@@ -168,8 +176,10 @@ int main(int argc, char **argv) {
     return 2;
   }
   cli_install_signals();
+  cli_mpi_init(&argc, &argv);
   int rc = c->run(c, argc - 1, argv + 1);
   if (rc == CLI_HELP_SHOWN) rc = 0;
+  cli_mpi_finalize();
   /* a summary that could not be written (a full disk, /dev/full) is a
    * failure, not a silent success */
   errno = 0;

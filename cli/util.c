@@ -332,32 +332,49 @@ static int is_length_field(const char *name) {
   return 1;
 }
 
-void json_field_means(cli_json *j, const bsurf_cloud *cloud, const char *const *names, int count,
-                      double h) {
-  double means[64];
-  int have[64];
+void cli_set_duplicates(size_t count) {
+  input_duplicates_known = 1;
+  input_duplicates = count;
+}
+
+/* means[t] is NAN for a field the cloud lacks */
+static void field_means(const bsurf_cloud *cloud, const char *const *names, int count, double *means) {
   for (int t = 0; t < count && t < 64; t++) {
     const bsurf_field *f = bsurf_cloud_field(cloud, names[t]);
-    have[t] = f != NULL;
-    means[t] = f ? cli_field_mean(f, cloud->point_count) : 0;
+    means[t] = f ? cli_field_mean(f, cloud->point_count) : NAN;
   }
+}
+
+void json_means(cli_json *j, const char *const *names, const double *means, int count, double h) {
   json_obj(j, "mean");
   for (int t = 0; t < count && t < 64; t++)
-    if (have[t]) json_num(j, names[t], means[t]);
+    if (!isnan(means[t])) json_num(j, names[t], means[t]);
   json_close_obj(j);
   json_obj(j, "mean_h");
   for (int t = 0; t < count && t < 64; t++)
-    if (have[t] && is_length_field(names[t])) json_num(j, names[t], h > 0 ? means[t] / h : NAN);
+    if (!isnan(means[t]) && is_length_field(names[t])) json_num(j, names[t], h > 0 ? means[t] / h : NAN);
   json_close_obj(j);
+}
+
+void json_field_means(cli_json *j, const bsurf_cloud *cloud, const char *const *names, int count,
+                      double h) {
+  double means[64];
+  field_means(cloud, names, count, means);
+  json_means(j, names, means, count, h);
 }
 
 void print_field_means(FILE *f, const bsurf_cloud *cloud, const char *const *names, int count,
                        double h) {
+  double means[64];
+  field_means(cloud, names, count, means);
+  print_means(f, names, means, count, h);
+}
+
+void print_means(FILE *f, const char *const *names, const double *means, int count, double h) {
   fprintf(f, "  %-16s %14s %12s\n", "field", "mean", "mean / h");
-  for (int t = 0; t < count; t++) {
-    const bsurf_field *fl = bsurf_cloud_field(cloud, names[t]);
-    if (!fl) continue;
-    double m = cli_field_mean(fl, cloud->point_count);
+  for (int t = 0; t < count && t < 64; t++) {
+    double m = means[t];
+    if (isnan(m)) continue;
     if (is_length_field(names[t]) && h > 0) /* h = 0: every point has a duplicate */
       fprintf(f, "  %-16s %14.6g %12.4f\n", names[t], m, m / h);
     else

@@ -269,6 +269,11 @@ typedef struct bsurf_error_options {
   int threads;            /* 0 = all cores */
   bsurf_progress_fn progress;
   void *progress_user;
+  /* NULL, or point_count global indices: row i of the neighbourhoods is the
+   * point point_index[i] of a larger cloud, and its random draws are keyed by
+   * that index instead of i (tiled and distributed runs, bsurf_tiles_run:
+   * the same draws as the whole cloud in memory). */
+  const uint64_t *point_index;
 } bsurf_error_options;
 
 bsurf_error_options bsurf_error_options_default(void);
@@ -329,6 +334,8 @@ typedef struct bsurf_normal_options {
   int threads;                 /* 0 = all cores */
   bsurf_progress_fn progress;
   void *progress_user;
+  const uint64_t *point_index; /* NULL, or the global index of each row (as
+                                  bsurf_error_options.point_index) */
 } bsurf_normal_options;
 
 bsurf_normal_options bsurf_normal_options_default(void);
@@ -924,6 +931,87 @@ typedef struct bsurf_distance_stats {
  * all), summed in point order. dist in: count. */
 bsurf_status bsurf_distance_stats_compute(const double *dist, const uint8_t *mask, uint8_t keep,
                                           size_t count, bsurf_distance_stats *stats);
+
+/* ------------------------------------------------------------------------ */
+/* Tiled (out-of-core) and distributed runs                                  */
+/* ------------------------------------------------------------------------ */
+
+/* Every per-point estimate depends only on the point's K-neighbourhood and
+ * on random draws keyed by its global index, so a cloud too large for memory
+ * is processed tile by tile: space is cut into tiles of about tile_points
+ * points; each tile is loaded with a halo grown until every tile point's K
+ * nearest neighbours are proven to lie inside the loaded region (see
+ * src/tile/tiles.c); results are written at the points' places in the
+ * output. The input is a binary PLY file read by offset (memory-mapped), the
+ * output a binary little-endian PLY file with the bytes the in-memory writer
+ * gives. docs/scaling.md. */
+
+/* One tile, as given to bsurf_tile_ops.run. */
+typedef struct bsurf_tile {
+  size_t index, tile_count;
+  size_t core_count;             /* the tile's own points: the rows of nb */
+  size_t local_count;            /* those and their neighbours in the halo */
+  const double *xyz;             /* local_count x 3, in increasing global order */
+  const uint64_t *point_index;   /* core_count global indices (increasing) */
+  const bsurf_neighbors *nb;     /* core_count rows of k local indices, each
+                                    point first, exactly the rows the whole
+                                    cloud gives (nb->h is 0: see report) */
+  double halo;                   /* the widest halo the tile needed */
+} bsurf_tile;
+
+/* Messages between the processes of a distributed run (MPI in the CLI; the
+ * library itself never links MPI). All calls are collective. */
+typedef struct bsurf_tile_comm {
+  int rank, ranks;
+  void *user;
+  void (*barrier)(void *user);
+  /* element-wise sum over the ranks of count doubles, result on every rank */
+  void (*sum)(void *user, double *values, size_t count);
+  /* the largest of the ranks' values, on every rank */
+  int (*max)(void *user, int value);
+  /* bytes from rank 0 to every rank */
+  void (*broadcast)(void *user, void *data, size_t bytes);
+} bsurf_tile_comm;
+
+typedef struct bsurf_tile_ops {
+  size_t tile_points; /* about this many points per tile (>= 2 k) */
+  int k;              /* neighbourhood size, the point included */
+  int threads;        /* for the neighbour search (0 = all cores) */
+  void *user;
+  /* Adds the command's output properties to a cloud that has the input's
+   * (what the in-memory command does to the whole cloud); any point count. */
+  bsurf_status (*prepare)(void *user, bsurf_cloud *cloud);
+  /* Computes a tile: `core` holds its core points with every input property,
+   * prepared; run fills the outputs and may add to sums[0 .. nsums-1] (the
+   * tile's own accumulators, reduced in tile order). */
+  bsurf_status (*run)(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums);
+  size_t nsums;
+  const bsurf_tile_comm *comm; /* NULL: one process */
+  bsurf_progress_fn progress;  /* points done of all (this rank's share) */
+  void *progress_user;
+} bsurf_tile_ops;
+
+typedef struct bsurf_tile_report {
+  size_t points;      /* in the input */
+  size_t tiles;
+  size_t max_tile_points;  /* core points of the largest tile */
+  size_t max_local_points; /* tile + halo points of the largest */
+  size_t halo_grown;  /* tile passes that had to widen the halo */
+  size_t duplicates;  /* points at the same place as another */
+  double h;           /* mean nearest-neighbour distance, bit-identical to
+                         bsurf_neighbors_build on the whole cloud */
+  double *sums;       /* nsums totals (owned by the caller: pass a buffer) */
+  size_t bad_point;   /* BSURF_ERR_INVALID_VALUE: the first non-finite point */
+} bsurf_tile_report;
+
+/* Runs a local computation over a binary PLY file tile by tile and writes
+ * the result to `output` (binary little-endian PLY, atomically: a temporary
+ * file renamed at the end; nothing on failure). report->sums must point to
+ * ops->nsums doubles. With ops->comm, every rank calls it with the same
+ * arguments; tiles are dealt round-robin and each rank writes its points.
+ * Errors name the file and place in err (as bsurf_read). */
+bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
+                             bsurf_tile_report *report, bsurf_error *err);
 
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */

@@ -97,7 +97,7 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
   const int R = (B + 1 + 3) / 4 * 4;
   for (int b0 = 0; b0 < B; b0 += 4) {
     const int nrep = B - b0 < 4 ? B - b0 : 4;
-    bsurf_boot_counts4(o->seed, i, (uint32_t)b0, nrep, k, s->counts);
+    bsurf_boot_counts4(o->seed, o->point_index ? o->point_index[i] : i, (uint32_t)b0, nrep, k, s->counts);
     for (int b = b0; b < b0 + nrep; b++) {
       int distinct = bsurf_boot_weights(k, &s->counts[(size_t)(b - b0) * k], &s->weights[(size_t)b * k],
                                        &s->missing[(size_t)b * k]);

@@ -142,7 +142,7 @@ static void normals_point(void *vctx, int thread, size_t i) {
   int min_distinct = o->fit == BSURF_NORMAL_PCA ? 3 : bsurf_poly_terms(o->degree);
   for (int b0 = 0; b0 < B; b0 += 4) {
     const int nrep = B - b0 < 4 ? B - b0 : 4;
-    bsurf_boot_counts4(o->seed, i, (uint32_t)b0, nrep, k, s->counts);
+    bsurf_boot_counts4(o->seed, o->point_index ? o->point_index[i] : i, (uint32_t)b0, nrep, k, s->counts);
     for (int b = b0; b < b0 + nrep; b++)
       s->valid[b] = bsurf_boot_weights(k, &s->counts[(size_t)(b - b0) * k], &W[(size_t)(b + 1) * k], NULL) >=
                     min_distinct;

@@ -153,6 +153,47 @@ bsurf_status bsurf_io_read_obj(const char *data, size_t size, bsurf_cloud *cloud
 bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud,
                                bsurf_error *err);
 
+/* ---- binary PLY by offset (the tiled runs of src/tile) ------------------ */
+
+/* One vertex property: where it is in a record and where it goes in a cloud
+ * with the schema's arrays (array 0: xyz, 1: normals, 2: field `at`). */
+typedef struct io_ply_column {
+  size_t offset;
+  bsurf_type type;
+  size_t stride;
+  int array;
+  size_t at;
+} io_ply_column;
+
+typedef struct io_ply_layout {
+  size_t body;   /* offset of vertex 0 */
+  size_t record; /* bytes per vertex */
+  size_t count;  /* vertices */
+  int big_endian;
+  size_t nprops;
+  io_ply_column *props;
+} io_ply_layout;
+
+/* Validates a whole binary PLY file (little- or big-endian) exactly as
+ * bsurf_io_read_ply does, with the same messages, but stores no vertex: it
+ * locates them (layout) and fills `schema`, a one-point cloud (point 0) with
+ * the properties, types and shape bsurf_io_read_ply would give. ascii files
+ * and meshes (faces) are BSURF_ERR_UNSUPPORTED. */
+bsurf_status io_ply_map(const char *data, size_t size, io_ply_layout *layout,
+                        bsurf_cloud *schema, bsurf_error *err);
+void io_ply_layout_free(io_ply_layout *layout);
+/* Vertex i of the mapped file into point j of c (a cloud with the schema's
+ * properties). */
+void io_ply_decode(const io_ply_layout *layout, const char *data, size_t i, bsurf_cloud *c, size_t j);
+/* x y z of vertex i. */
+void io_ply_xyz(const io_ply_layout *layout, const char *data, size_t i, double p[3]);
+/* The header bsurf_io_write_ply (binary) writes for a cloud with `schema`'s
+ * properties and point_count points, and its record size. */
+bsurf_status io_ply_write_header(io_writer *w, const bsurf_cloud *schema, size_t point_count,
+                                 size_t *record);
+/* The binary records of every point of `cloud`, as bsurf_io_write_ply. */
+bsurf_status io_ply_encode(const bsurf_cloud *cloud, unsigned char *out);
+
 /* ---- writers: the cloud has been validated (faces in range, arrays present);
  * write errors are recorded in w and reported by the caller ---------------- */
 

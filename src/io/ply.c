@@ -51,6 +51,7 @@ typedef struct ply_reader {
   int dry;              /* ascii data too short for the header: validate only */
   bsurf_error dry_err;  /* the error to report if validation finds nothing */
   char shape[BSURF_FIELD_NAME_MAX]; /* from "comment bootsurf shape NAME" */
+  io_ply_layout *layout; /* io_ply_map: vertices are located, not stored */
 } ply_reader;
 
 /* A shape name a header line can carry: one printable word that fits. */
@@ -397,7 +398,8 @@ static bsurf_status setup(ply_reader *r, bsurf_cloud *cloud) {
     for (size_t j = 0; j < vertex->nprops; j++) vertex->props[j].dst = NULL;
     return BSURF_OK;
   }
-  size_t n = (size_t)vertex->count;
+  /* io_ply_map: a one-point cloud with the file's properties (the schema) */
+  size_t n = r->layout ? 1 : (size_t)vertex->count;
   if (bsurf_cloud_alloc(cloud, n, with_normals) != BSURF_OK) return nomem(r);
   cloud->xyz_type = pc[0]->type;
   if (with_normals) cloud->normal_type = pn[0]->type;
@@ -432,6 +434,32 @@ static bsurf_status setup(ply_reader *r, bsurf_cloud *cloud) {
       }
     }
     if (!special) p->dst = cloud->fields[f++].values;
+  }
+  if (r->layout) {
+    io_ply_layout *L = r->layout;
+    L->count = (size_t)vertex->count;
+    L->record = vertex->min_record;
+    L->big_endian = r->format == PLY_BE;
+    L->nprops = vertex->nprops;
+    L->props = bsurf_alloc_array(vertex->nprops ? vertex->nprops : 1, sizeof *L->props);
+    if (!L->props) return nomem(r);
+    for (size_t j = 0; j < vertex->nprops; j++) {
+      const ply_prop *p = &vertex->props[j];
+      io_ply_column *col = &L->props[j];
+      col->offset = p->offset;
+      col->type = p->type;
+      col->stride = p->stride;
+      /* where the value goes in a cloud with the schema's arrays */
+      col->array = 0;
+      col->at = 0;
+      for (int k = 0; k < 3; k++) {
+        if (p == pc[k]) col->at = (size_t)k;
+        if (with_normals && p == pn[k]) col->array = 1, col->at = (size_t)k;
+      }
+      if (p->stride == 1)
+        for (size_t q = 0; q < cloud->field_count; q++)
+          if (cloud->fields[q].values == p->dst) col->array = 2, col->at = q;
+    }
   }
   return BSURF_OK;
 }
@@ -497,7 +525,9 @@ static bsurf_status read_binary(ply_reader *r) {
        * element before them may have taken more than its minimum) */
       size_t rec = e->min_record;
       if (e->count > (r->size - pos) / rec) return too_short(r, e, pos, r->size - pos);
-      if (e->kind == ELEM_VERTEX) {
+      if (e->kind == ELEM_VERTEX && r->layout) {
+        r->layout->body = pos;
+      } else if (e->kind == ELEM_VERTEX) {
         size_t n = (size_t)e->count;
         const unsigned char *p = d + pos;
         for (size_t i = 0; i < n; i++, p += rec)
@@ -693,6 +723,65 @@ bsurf_status bsurf_io_read_ply(const char *data, size_t size, bsurf_cloud *cloud
   return st;
 }
 
+bsurf_status io_ply_map(const char *data, size_t size, io_ply_layout *layout,
+                        bsurf_cloud *schema, bsurf_error *err) {
+  ply_reader r;
+  memset(&r, 0, sizeof r);
+  memset(layout, 0, sizeof *layout);
+  bsurf_cloud_init(schema);
+  r.data = data;
+  r.size = size;
+  r.err = err;
+  r.layout = layout;
+  io_faces_init(&r.faces);
+  bsurf_status st = parse_header(&r);
+  if (st == BSURF_OK && r.format == PLY_ASCII)
+    st = bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1,
+                    "an ascii PLY file; tiled runs read binary PLY (convert it first)");
+  for (size_t i = 0; st == BSURF_OK && i < r.nelems; i++)
+    if (io_token_is(r.elems[i].name, "face") && r.elems[i].count)
+      st = bsurf_fail(err, BSURF_ERR_UNSUPPORTED, r.elems[i].line, -1,
+                      "the file is a mesh (it has faces); tiled runs take point clouds");
+  if (st == BSURF_OK) st = setup(&r, schema);
+  if (st == BSURF_OK) st = read_binary(&r);
+  if (st == BSURF_OK) {
+    memcpy(schema->shape, r.shape, sizeof schema->shape);
+    if (layout->count) io_ply_decode(layout, data, 0, schema, 0);
+  }
+  io_faces_free(&r.faces);
+  for (size_t i = 0; i < r.nelems; i++) free(r.elems[i].props);
+  free(r.elems);
+  if (st != BSURF_OK) {
+    io_ply_layout_free(layout);
+    bsurf_cloud_free(schema);
+  }
+  return st;
+}
+
+void io_ply_layout_free(io_ply_layout *layout) {
+  free(layout->props);
+  memset(layout, 0, sizeof *layout);
+}
+
+void io_ply_xyz(const io_ply_layout *L, const char *data, size_t i, double p[3]) {
+  const unsigned char *rec = (const unsigned char *)data + L->body + i * L->record;
+  for (size_t q = 0; q < L->nprops; q++)
+    if (L->props[q].array == 0)
+      p[L->props[q].at] = get_value(rec + L->props[q].offset, L->props[q].type, L->big_endian);
+}
+
+void io_ply_decode(const io_ply_layout *L, const char *data, size_t i, bsurf_cloud *c, size_t j) {
+  const unsigned char *p = (const unsigned char *)data + L->body + i * L->record;
+  for (size_t q = 0; q < L->nprops; q++) {
+    const io_ply_column *col = &L->props[q];
+    double v = get_value(p + col->offset, col->type, L->big_endian);
+    double *dst = col->array == 0   ? c->xyz + 3 * j + col->at
+                  : col->array == 1 ? c->normals + 3 * j + col->at
+                                    : c->fields[col->at].values + j;
+    *dst = v;
+  }
+}
+
 /* ------------------------------------------------------------------------ */
 /* Writer                                                                    */
 /* ------------------------------------------------------------------------ */
@@ -763,22 +852,18 @@ static size_t vertex_layout(const bsurf_cloud *cloud, out_prop *props) {
   return n;
 }
 
-bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int ascii,
-                                bsurf_error *err) {
+static void write_header(io_writer *w, const bsurf_cloud *cloud, const out_prop *props, size_t np,
+                         size_t point_count, int ascii) {
   static const char *const coord[6] = {"x", "y", "z", "nx", "ny", "nz"};
-  size_t np = 3 + (cloud->normals ? 3u : 0u) + cloud->field_count;
-  out_prop *props = bsurf_alloc_array(np, sizeof *props);
-  if (!props) return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
-  vertex_layout(cloud, props);
   /* Face indices as int (what every reader expects) unless they do not fit. */
-  int wide = cloud->point_count > 0x7fffffffu;
+  int wide = point_count > 0x7fffffffu;
 
   io_write_fmt(w, "ply\nformat %s 1.0\ncomment generated by bootsurf\n",
                ascii ? "ascii" : "binary_little_endian");
   const char *shape_end = memchr(cloud->shape, 0, sizeof cloud->shape);
   if (shape_end && shape_name_ok(cloud->shape, (size_t)(shape_end - cloud->shape)))
     io_write_fmt(w, "comment bootsurf shape %s\n", cloud->shape);
-  io_write_fmt(w, "element vertex %zu\n", cloud->point_count);
+  io_write_fmt(w, "element vertex %zu\n", point_count);
   size_t nfixed = cloud->normals ? 6 : 3;
   for (size_t j = 0; j < np; j++)
     io_write_fmt(w, "property %s %s\n", io_type_name(props[j].type),
@@ -787,6 +872,39 @@ bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int asci
     io_write_fmt(w, "element face %zu\nproperty list uchar %s vertex_indices\n", cloud->face_count,
                  wide ? "uint" : "int");
   io_write_str(w, "end_header\n");
+}
+
+bsurf_status io_ply_write_header(io_writer *w, const bsurf_cloud *schema, size_t point_count,
+                                 size_t *record) {
+  size_t np = 3 + (schema->normals ? 3u : 0u) + schema->field_count;
+  out_prop *props = bsurf_alloc_array(np, sizeof *props);
+  if (!props) return BSURF_ERR_NOMEM;
+  vertex_layout(schema, props);
+  write_header(w, schema, props, np, point_count, 0);
+  *record = 0;
+  for (size_t j = 0; j < np; j++) *record += io_type_size(props[j].type);
+  free(props);
+  return BSURF_OK;
+}
+
+bsurf_status io_ply_encode(const bsurf_cloud *cloud, unsigned char *out) {
+  size_t np = 3 + (cloud->normals ? 3u : 0u) + cloud->field_count;
+  out_prop *props = bsurf_alloc_array(np, sizeof *props);
+  if (!props) return BSURF_ERR_NOMEM;
+  vertex_layout(cloud, props);
+  for (size_t i = 0; i < cloud->point_count; i++)
+    for (size_t j = 0; j < np; j++) out = put_value(out, props[j].src[i * props[j].stride], props[j].type);
+  free(props);
+  return BSURF_OK;
+}
+
+bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int ascii,
+                                bsurf_error *err) {
+  size_t np = 3 + (cloud->normals ? 3u : 0u) + cloud->field_count;
+  out_prop *props = bsurf_alloc_array(np, sizeof *props);
+  if (!props) return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
+  vertex_layout(cloud, props);
+  write_header(w, cloud, props, np, cloud->point_count, ascii);
 
   bsurf_status st = BSURF_OK;
   if (ascii) {

@@ -1,0 +1,186 @@
+/* Tiled (out-of-core) and distributed runs from the command line: the
+ * --tile-points / --memory-limit decision, the run with messages that name
+ * the file and the place, and MPI when the tool is built with it
+ * (docs/scaling.md). */
+#include "cli.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* "8G", "512M", "1.5T", "100000" (bytes); 0 on a bad value. */
+static double parse_bytes(const char *s) {
+  char *end;
+  errno = 0;
+  double v = strtod(s, &end);
+  if (end == s || errno || !(v > 0)) return 0;
+  double unit = 1;
+  switch (toupper((unsigned char)*end)) {
+  case 0: break;
+  case 'K': unit = 1024.0; end++; break;
+  case 'M': unit = 1024.0 * 1024; end++; break;
+  case 'G': unit = 1024.0 * 1024 * 1024; end++; break;
+  case 'T': unit = 1024.0 * 1024 * 1024 * 1024; end++; break;
+  default: return 0;
+  }
+  if (*end == 'B' || *end == 'b') end++;
+  return *end ? 0 : v * unit;
+}
+
+/* The vertex count of a PLY header, or 0 when it cannot be read. */
+static size_t ply_vertex_count(const char *path) {
+  FILE *f = fopen(path, "rb");
+  if (!f) return 0;
+  char line[512];
+  size_t n = 0;
+  for (int i = 0; i < 10000 && fgets(line, sizeof line, f); i++) {
+    unsigned long long v;
+    if (sscanf(line, "element vertex %llu", &v) == 1) n = (size_t)v;
+    if (strncmp(line, "end_header", 10) == 0) break;
+  }
+  fclose(f);
+  return n;
+}
+
+int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
+                   size_t tile_points, const char *memory_limit, int k, int out_fields, size_t *plan) {
+  *plan = 0;
+  double limit;
+  if (strcmp(memory_limit, "auto") == 0) {
+    long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
+    limit = pages > 0 && page > 0 ? 0.75 * (double)pages * (double)page : 0;
+  } else if (strcmp(memory_limit, "none") == 0) {
+    limit = 0;
+  } else if (!(limit = parse_bytes(memory_limit))) {
+    return cli_usage_error(cmd, "--memory-limit needs a size like 8G, 512M, auto or none, not '%s'",
+                           memory_limit);
+  }
+  /* the whole cloud in memory: the file, its values as doubles, the
+   * neighbourhoods (4 K bytes), the k-d tree and the new fields */
+  struct stat sb;
+  double size = stat(input, &sb) == 0 ? (double)sb.st_size : 0;
+  size_t n = bsurf_format_from_path(input) == BSURF_FORMAT_PLY ? ply_vertex_count(input) : 0;
+  double need = 3 * size + (double)n * (4.0 * k + 40 + 8.0 * out_fields);
+  int distributed = cli_mpi_ranks() > 1;
+  int automatic = !tile_points && !distributed && limit > 0 && need > limit;
+  if (!tile_points && !automatic && !distributed) return 0;
+  if (!output) return cli_error("%s: tiled runs write their points to a file: give -o FILE.ply", input);
+  if (bsurf_format_from_path(output) != BSURF_FORMAT_PLY || ascii)
+    return cli_error("%s: tiled runs write binary PLY (not --ascii, .xyz, .off or .obj)", output);
+  if (bsurf_format_from_path(input) != BSURF_FORMAT_PLY)
+    return cli_error("%s: tiled runs read binary PLY files (write one with any command's -o FILE.ply)",
+                     input);
+  if (cli_drop_invalid) return cli_error("%s: --drop-invalid is not available in tiled runs", input);
+  if (!tile_points) {
+    /* tiles well inside the budget: the neighbourhood rows (12 K bytes per
+     * point while they are built), the fields and the halo */
+    double budget = limit > 0 ? limit : 4.0 * 1024 * 1024 * 1024;
+    double per = 4.0 * (12.0 * k + 8.0 * out_fields + 200);
+    tile_points = (size_t)fmin(budget / per, 2e8);
+  }
+  if (tile_points < 2 * (size_t)k) tile_points = 2 * (size_t)k;
+  if (automatic && !cli_mpi_rank())
+    cli_warn("%s: needs about %.1f GB in memory, more than --memory-limit %.1f GB: tiles of %zu points",
+             input, need / 1e9, limit / 1e9, tile_points);
+  *plan = tile_points;
+  return 0;
+}
+
+int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep,
+                  int quiet) {
+  struct stat sb;
+  if (stat(input, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size == 0)
+    return cli_error("%s: the file is empty", input);
+  cli_progress prog;
+  cli_progress_init(&prog, "tiles", quiet || cli_mpi_rank() != 0);
+  ops->progress = cli_progress_cb;
+  ops->progress_user = &prog;
+  ops->comm = cli_mpi_comm();
+  if (ops->comm && ops->tile_points > 0) {
+    /* at least two tiles per rank */
+    size_t n = ply_vertex_count(input), per = (n + 2 * (size_t)ops->comm->ranks - 1) / (2 * (size_t)ops->comm->ranks);
+    if (n && per < ops->tile_points) ops->tile_points = per < 2 * (size_t)ops->k ? 2 * (size_t)ops->k : per;
+  }
+  bsurf_error err = {0, -1, ""};
+  bsurf_status st = bsurf_tiles_run(input, output, ops, rep, &err);
+  cli_progress_done(&prog);
+  if (st == BSURF_OK) {
+    cli_set_duplicates(rep->duplicates);
+    return 0;
+  }
+  if (cli_mpi_rank() != 0) return 1;
+  const char *msg = cli_interrupted() ? "interrupted" : err.message[0] ? err.message : bsurf_strerror(st);
+  if (st == BSURF_ERR_INVALID_VALUE)
+    return cli_error("%s: %s (--drop-invalid, in memory, skips such points)", input, msg);
+  if (err.line > 0) return cli_error("%s:%ld: %s", input, err.line, msg);
+  if (err.byte >= 0) return cli_error("%s: byte %lld: %s", input, err.byte, msg);
+  return cli_error("%s: %s", input, msg);
+}
+
+/* ---- MPI ---------------------------------------------------------------------- */
+
+#ifdef BSURF_MPI
+#include <mpi.h>
+
+static int mpi_on = 0, mpi_rank = 0, mpi_size = 1;
+
+static void mpi_barrier(void *u) {
+  (void)u;
+  MPI_Barrier(MPI_COMM_WORLD);
+}
+
+static void mpi_sum(void *u, double *v, size_t n) {
+  (void)u;
+  for (size_t i = 0; i < n; i += (size_t)1 << 24) {
+    size_t m = n - i < ((size_t)1 << 24) ? n - i : (size_t)1 << 24;
+    MPI_Allreduce(MPI_IN_PLACE, v + i, (int)m, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
+  }
+}
+
+static int mpi_max(void *u, int v) {
+  (void)u;
+  int r = v;
+  MPI_Allreduce(&v, &r, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+  return r;
+}
+
+static void mpi_bcast(void *u, void *data, size_t bytes) {
+  (void)u;
+  MPI_Bcast(data, (int)bytes, MPI_BYTE, 0, MPI_COMM_WORLD);
+}
+
+static bsurf_tile_comm mpi_comm;
+
+void cli_mpi_init(int *argc, char ***argv) {
+  /* only when started by mpirun (Open MPI, or a PMI launcher) */
+  if (!getenv("OMPI_COMM_WORLD_SIZE") && !getenv("PMI_SIZE") && !getenv("PMIX_RANK")) return;
+  MPI_Init(argc, argv);
+  mpi_on = 1;
+  MPI_Comm_rank(MPI_COMM_WORLD, &mpi_rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &mpi_size);
+  mpi_comm = (bsurf_tile_comm){mpi_rank, mpi_size, NULL, mpi_barrier, mpi_sum, mpi_max, mpi_bcast};
+  /* one summary: the other ranks say nothing on stdout */
+  if (mpi_rank != 0 && !freopen("/dev/null", "w", stdout)) mpi_rank = mpi_rank;
+}
+
+void cli_mpi_finalize(void) {
+  if (mpi_on) MPI_Finalize();
+}
+
+const bsurf_tile_comm *cli_mpi_comm(void) { return mpi_on ? &mpi_comm : NULL; }
+int cli_mpi_rank(void) { return mpi_rank; }
+int cli_mpi_ranks(void) { return mpi_on ? mpi_size : 1; }
+#else
+void cli_mpi_init(int *argc, char ***argv) {
+  (void)argc;
+  (void)argv;
+}
+void cli_mpi_finalize(void) {}
+const bsurf_tile_comm *cli_mpi_comm(void) { return NULL; }
+int cli_mpi_rank(void) { return 0; }
+int cli_mpi_ranks(void) { return 1; }
+#endif

@@ -1,0 +1,82 @@
+#!/usr/bin/env bash
+# Tiled (--tile-points, --memory-limit) and MPI runs give the in-memory
+# run's bytes; what cannot be tiled is refused with exit 1 and no output.
+# (Non-uniform density, outliers, duplicates, big-endian input: test_tiles.)
+. "$(dirname "$0")/common.inc"
+
+expect 0 "generate" -- "$BSURF" generate sphere -n 12000 --sampling random -o "$T/s.ply" -q
+expect 0 "noise" -- "$BSURF" noise "$T/s.ply" --level 0.5 -o "$T/n.ply" -q
+expect 0 "generate cube" -- "$BSURF" generate cube -n 8000 -o "$T/c.ply" -q
+
+# error: in memory, then tiles of 60 (hundreds of tile borders) and 3000 points
+expect 0 "error in memory" -- "$BSURF" error "$T/n.ply" -k 20 -B 8 -o "$T/e.ply" --json
+cp "$T/out" "$T/e.json"
+for tp in 60 3000; do
+  expect 0 "error tiles $tp" -- "$BSURF" error "$T/n.ply" -k 20 -B 8 -o "$T/e$tp.ply" --tile-points $tp --json
+  cmp -s "$T/e.ply" "$T/e$tp.ply" && ok || fail "error --tile-points $tp: output differs from the in-memory run"
+  grep -o '"h":[^,]*' "$T/out" | cmp -s - <(grep -o '"h":[^,]*' "$T/e.json") && ok || fail "error --tile-points $tp: h differs"
+  grep -o '"replicates_skipped":[^,]*' "$T/out" | cmp -s - <(grep -o '"replicates_skipped":[^,]*' "$T/e.json") && ok ||
+    fail "error --tile-points $tp: skipped replicates differ"
+  grep -q '"tiles":' "$T/out" && ok || fail "error --tile-points: json lacks tiles"
+done
+# automatic: the input needs more than --memory-limit
+expect 0 "error --memory-limit" -- "$BSURF" error "$T/n.ply" -k 20 -B 8 -o "$T/ea.ply" --memory-limit 2M -q
+stderr_has "tiles of" "automatic tiling warns"
+cmp -s "$T/e.ply" "$T/ea.ply" && ok || fail "error --memory-limit 2M: output differs"
+# an input that already has fields (the cube's feature_dist, feature), normals
+for args in "-k 20 -B 10" "--fit poly -d 2 -k 15 -B 5" "-k 10 -B 0"; do
+  expect 0 "normals $args" -- "$BSURF" normals "$T/c.ply" $args -o "$T/m.ply" -q
+  expect 0 "normals $args tiles" -- "$BSURF" normals "$T/c.ply" $args -o "$T/mt.ply" --tile-points 100 -q
+  cmp -s "$T/m.ply" "$T/mt.ply" && ok || fail "normals $args: tiled output differs"
+done
+expect 0 "normals without input normals" -- "$BSURF" error "$T/n.ply" -k 10 -B 2 -o "$T/nn.ply" -q
+
+# refused: exit 1, a message, nothing written
+"$BSURF" generate sphere -n 2000 --ascii -o "$T/ascii.ply" -q
+expect 1 "ascii input" -- "$BSURF" error "$T/ascii.ply" -k 10 -o "$T/x.ply" --tile-points 100
+stderr_has "binary PLY" "ascii input refused"
+expect 1 "xyz input" -- "$BSURF" error "$T/s.ply" -k 10 -o "$T/x.xyz" --tile-points 100
+expect 1 "ascii output" -- "$BSURF" error "$T/n.ply" -k 10 -o "$T/x.ply" --ascii --tile-points 100
+expect 1 "no output" -- "$BSURF" error "$T/n.ply" -k 10 --tile-points 100
+expect 1 "test sample" -- "$BSURF" error "$T/n.ply" -k 10 -o "$T/x.ply" --test-sample "$T/s.ply" --tile-points 100
+for opt in "--orient mst" "--test-error" "--select-k 10:20:5" "--smooth-iterations 2"; do
+  expect 1 "normals $opt" -- "$BSURF" normals "$T/n.ply" -k 10 $opt -o "$T/x.ply" --tile-points 100
+  stderr_has "not available in tiled runs" "normals $opt refused"
+done
+printf 'ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n' >"$T/short.ply"
+printf 'abcd' >>"$T/short.ply"
+expect 1 "truncated input" -- "$BSURF" error "$T/short.ply" -k 3 -d 1 -B 2 -o "$T/x.ply" --tile-points 100
+stderr_has "short.ply: byte" "truncated input names the byte"
+expect 2 "bad memory limit" -- "$BSURF" error "$T/n.ply" -o "$T/x.ply" --memory-limit lots
+[ -e "$T/x.ply" ] && fail "output left after refusals" || ok
+ls -A "$T" | grep -q "bootsurf-tiles\|\.tmp\." && fail "scratch or temporary files left" || ok
+expect 0 "help names the option" -- "$BSURF" help error
+grep -q -- "--tile-points" "$T/out" && ok || fail "help error lacks --tile-points"
+
+# MPI: 1, 2 and 4 ranks give the serial bytes (when built with MPI)
+if ! command -v mpirun >/dev/null 2>&1; then
+  echo "SKIP: mpirun not found; the MPI runs are not tested (apt-get install openmpi-bin libopenmpi-dev)"
+else
+  root=()
+  [ "$(id -u)" = 0 ] && root=(--allow-run-as-root)
+  expect 0 "mpirun -n 2" -- mpirun "${root[@]}" --oversubscribe -n 2 "$BSURF" error "$T/n.ply" -k 20 -B 8 -j 1 \
+    -o "$T/mpi2.ply" --tile-points 2000 --json
+  if ! grep -q '"ranks":2' "$T/out"; then
+    echo "SKIP: bootsurf was built without MPI (cmake found no MPI library); the MPI runs are not tested"
+  else
+    for P in 1 2 4; do
+      expect 0 "mpirun -n $P" -- mpirun "${root[@]}" --oversubscribe -n $P "$BSURF" error "$T/n.ply" -k 20 -B 8 -j 1 \
+        -o "$T/mpi$P.ply" --tile-points 700 --json
+      cmp -s "$T/e.ply" "$T/mpi$P.ply" && ok || fail "mpirun -n $P: output differs from the serial run"
+      [ "$(grep -c '"command":"error"' "$T/out")" = 1 ] && ok || fail "mpirun -n $P: one summary expected"
+      grep -o '"h":[^,]*' "$T/out" | cmp -s - <(grep -o '"h":[^,]*' "$T/e.json") && ok || fail "mpirun -n $P: h differs"
+    done
+    expect 0 "mpirun normals" -- mpirun "${root[@]}" --oversubscribe -n 3 "$BSURF" normals "$T/c.ply" -k 10 -B 0 -j 1 \
+      -o "$T/mpin.ply" -q
+    expect 0 "normals serial" -- "$BSURF" normals "$T/c.ply" -k 10 -B 0 -o "$T/sern.ply" -q
+    cmp -s "$T/sern.ply" "$T/mpin.ply" && ok || fail "mpirun normals: output differs"
+    expect 1 "mpirun bad input" -- mpirun "${root[@]}" --oversubscribe -n 2 "$BSURF" error "$T/short.ply" -k 3 -d 1 -o "$T/x.ply"
+    [ -e "$T/x.ply" ] && fail "mpirun: output left after a failure" || ok
+  fi
+fi
+finish
