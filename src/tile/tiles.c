@@ -795,7 +795,7 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep) {
   st = c->ops->prepare(c->ops->user, &core);
   if (st != BSURF_OK) goto out;
 
-  bsurf_neighbors nb = {nc, k, w.idx, 0.0};
+  bsurf_neighbors nb = {nc, k, w.idx, 0.0, NULL};
   bsurf_tile tile = {t, c->ntiles, nc, nl, w.lxyz, w.core.v, &nb, halo};
   double *sums = c->tile_sums + t * (c->ops->nsums + 1);
   st = c->ops->run(c->ops->user, &tile, &core, sums);
