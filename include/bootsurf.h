@@ -989,6 +989,10 @@ typedef struct bsurf_tile_ops {
   const bsurf_tile_comm *comm; /* NULL: one process */
   bsurf_progress_fn progress;  /* points done of all (this rank's share) */
   void *progress_user;
+  /* The output is assembled in index order this many points at a time
+   * (record + 8 bytes each in memory); 0: the larger of tile_points and
+   * 32 MiB of them. */
+  size_t range_points;
 } bsurf_tile_ops;
 
 typedef struct bsurf_tile_report {
@@ -1006,9 +1010,12 @@ typedef struct bsurf_tile_report {
 
 /* Runs a local computation over a binary PLY file tile by tile and writes
  * the result to `output` (binary little-endian PLY, atomically: a temporary
- * file renamed at the end; nothing on failure). report->sums must point to
- * ops->nsums doubles. With ops->comm, every rank calls it with the same
- * arguments; tiles are dealt round-robin and each rank writes its points.
+ * file renamed at the end; nothing on failure). The tiles' rows go to a
+ * scratch file beside the output (removed on every exit) and the output is
+ * then written once in index order. report->sums must point to ops->nsums
+ * doubles. With ops->comm, every rank calls it with the same arguments;
+ * tiles are dealt round-robin, each rank writes its tiles' rows to the
+ * scratch file and rank 0 writes the output.
  * Errors name the file and place in err (as bsurf_read). */
 bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
                              bsurf_tile_report *report, bsurf_error *err);

@@ -135,11 +135,12 @@ static void assert_same_file(const char *a, const char *b) {
   free(y);
 }
 
-static bsurf_status tiled(const char *in, const char *out, job *j, size_t tile_points,
-                          bsurf_tile_report *rep, double *sums) {
+static bsurf_status tiled_ranges(const char *in, const char *out, job *j, size_t tile_points,
+                                 size_t range_points, bsurf_tile_report *rep, double *sums) {
   bsurf_tile_ops ops;
   memset(&ops, 0, sizeof ops);
   ops.tile_points = tile_points;
+  ops.range_points = range_points;
   ops.k = j->eo.k;
   ops.threads = 2;
   ops.user = j;
@@ -155,20 +156,29 @@ static bsurf_status tiled(const char *in, const char *out, job *j, size_t tile_p
   return bsurf_tiles_run(in, out, &ops, rep, &err);
 }
 
+static bsurf_status tiled(const char *in, const char *out, job *j, size_t tile_points,
+                          bsurf_tile_report *rep, double *sums) {
+  return tiled_ranges(in, out, j, tile_points, 0, rep, sums);
+}
+
 /* Every tile size gives the reference's bytes and h. */
 static void check_tiles(const char *in, job *j, const size_t *sizes, int nsizes) {
   double h;
   size_t dups;
   reference(in, tmp_path("ref.ply"), j, &h, &dups);
-  for (int s = 0; s < nsizes; s++) {
+  for (int s = 0; s < 2 * nsizes; s++) {
     bsurf_tile_report rep;
     double sums[1] = {0};
-    assert_int_equal(tiled(in, tmp_path("tiled.ply"), j, sizes[s], &rep, sums), BSURF_OK);
+    /* the output assembled at once (one range here), then in ranges of 97
+     * points (every tile's rows spread over many) */
+    size_t range = s < nsizes ? 0 : 97;
+    assert_int_equal(tiled_ranges(in, tmp_path("tiled.ply"), j, sizes[s % nsizes], range, &rep, sums),
+                     BSURF_OK);
     assert_same_file(tmp_path("ref.ply"), tmp_path("tiled.ply"));
     assert_true(rep.h == h); /* the same double */
     assert_int_equal(rep.duplicates, dups);
     assert_int_equal((size_t)sums[0], rep.points);
-    if (sizes[s] < rep.points / 4) assert_true(rep.tiles > 2);
+    if (sizes[s % nsizes] < rep.points / 4) assert_true(rep.tiles > 2);
   }
 }
 
@@ -343,6 +353,17 @@ static void test_refusals(void **state) {
   /* cancelled after the first tile */
   j.cancel_after = 1;
   assert_int_equal(tiled(tmp_path("ok.ply"), out, &j, 40, &rep, sums), BSURF_ERR_CANCELLED);
+  assert_int_equal(access(out, F_OK), -1);
+  /* cancelled while the output is assembled: one call per tile, then one
+   * per range of 50 points; stopped at the second range */
+  j.cancel_after = 1 << 30;
+  j.calls = 0;
+  assert_int_equal(tiled_ranges(tmp_path("ok.ply"), out, &j, 40, 50, &rep, sums), BSURF_OK);
+  assert_int_equal(j.calls, (int)(rep.tiles + (rep.points + 49) / 50));
+  assert_int_equal(remove(out), 0);
+  j.cancel_after = (int)rep.tiles + 1;
+  j.calls = 0;
+  assert_int_equal(tiled_ranges(tmp_path("ok.ply"), out, &j, 40, 50, &rep, sums), BSURF_ERR_CANCELLED);
   assert_int_equal(access(out, F_OK), -1);
   bsurf_cloud_free(&c);
 }

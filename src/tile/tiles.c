@@ -33,16 +33,19 @@
  *    R covers the whole cloud. Nothing is guessed from the density.
  *  - The tile's points and the neighbours they use become a small cloud
  *    (global index order again) handed to the command's run(); its output
- *    rows are encoded as the in-memory writer encodes them and copied to
- *    their places in the output, a file of header + N fixed-size records
- *    (memory-mapped, space reserved first, renamed at the end).
- *  - h (mean nearest-neighbour distance) is global: each tile point's
- *    squared nearest-other distance goes to a scratch file at its index, and
- *    the sum runs at the end in index order with the cascade of
+ *    rows are encoded as the in-memory writer encodes them and written, with
+ *    their indices and squared nearest-other distances, as one sequential
+ *    block of a scratch file. At the end the output (header + N fixed-size
+ *    records, space reserved first, renamed when complete) is assembled in
+ *    index order, one range of indices in memory at a time, and written
+ *    sequentially: about once, whatever the tile count and the file's order.
+ *  - h (mean nearest-neighbour distance) is global: the squared distances are
+ *    summed during the assembly, in index order with the cascade of
  *    src/search/neighbors.c, so it is bit-identical.
  *  - Distributed: the ranks compute the same grid and tiles (deterministic),
- *    take tiles round-robin, write their rows into the one output file, and
- *    rank 0 sums h and the per-tile accumulators in tile order.
+ *    take tiles round-robin, write their blocks at known offsets of the one
+ *    scratch file, and rank 0 assembles the output, h and the per-tile
+ *    accumulators in tile order.
  */
 #define _DEFAULT_SOURCE /* madvise */
 #include "common/common.h"
@@ -133,10 +136,10 @@ static void path_beside(char *out, size_t cap, const char *path, const char *nam
     snprintf(out, cap, "%.*s/%s", (int)(slash - path), path, name);
 }
 
-/* A scratch file of `bytes` next to `near`, mapped shared and writable; its
- * name goes to `name` (to be unlinked by the caller) or, when name is NULL,
- * it is unlinked at once. */
-static bsurf_status scratch_create(const char *near, size_t bytes, tile_map *m, char *name,
+/* A scratch file of `bytes` (space reserved) next to `near`, mapped shared
+ * and writable when `map`; its name goes to `name` (to be unlinked by the
+ * caller) or, when name is NULL, it is unlinked at once. */
+static bsurf_status scratch_create(const char *near, size_t bytes, int map, tile_map *m, char *name,
                                    bsurf_error *err) {
   char tmp[TILE_PATH_MAX];
   path_beside(tmp, sizeof tmp, near, ".bootsurf-tiles.XXXXXX");
@@ -151,7 +154,7 @@ static bsurf_status scratch_create(const char *near, size_t bytes, tile_map *m, 
   else
     unlink(tmp);
   int e = bytes ? posix_fallocate(m->fd, 0, (off_t)bytes) : 0;
-  if (e == 0 && bytes) {
+  if (e == 0 && bytes && map) {
     m->data = mmap(NULL, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, m->fd, 0);
     if (m->data == MAP_FAILED) m->data = NULL, e = errno;
   }
@@ -164,21 +167,28 @@ static bsurf_status scratch_create(const char *near, size_t bytes, tile_map *m, 
   return BSURF_OK;
 }
 
-/* Maps an existing file (made by rank 0) shared and writable. */
-static bsurf_status map_shared(const char *name, size_t bytes, tile_map *m, bsurf_error *err) {
-  m->data = NULL;
-  m->size = bytes;
-  m->fd = open(name, O_RDWR);
-  if (m->fd >= 0 && bytes) {
-    m->data = mmap(NULL, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, m->fd, 0);
-    if (m->data == MAP_FAILED) m->data = NULL;
+/* Writes or reads all of [buf, buf + bytes) at `offset` (short transfers
+ * and interrupted calls are resumed); 0 or an errno. */
+static int pwrite_all(int fd, const void *buf, size_t bytes, size_t offset) {
+  const char *p = buf;
+  while (bytes > 0) {
+    ssize_t k = pwrite(fd, p, bytes, (off_t)offset);
+    if (k < 0 && errno == EINTR) continue;
+    if (k <= 0) return k < 0 ? errno : EIO;
+    p += k, bytes -= (size_t)k, offset += (size_t)k;
   }
-  if (m->fd < 0 || (bytes && !m->data)) {
-    int e = errno;
-    map_close(m);
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", name, strerror(e));
+  return 0;
+}
+
+static int pread_all(int fd, void *buf, size_t bytes, size_t offset) {
+  char *p = buf;
+  while (bytes > 0) {
+    ssize_t k = pread(fd, p, bytes, (off_t)offset);
+    if (k < 0 && errno == EINTR) continue;
+    if (k <= 0) return k < 0 ? errno : EIO; /* 0: the file is shorter than it must be */
+    p += k, bytes -= (size_t)k, offset += (size_t)k;
   }
-  return BSURF_OK;
+  return 0;
 }
 
 /* ---- the run's state --------------------------------------------------------- */
@@ -207,12 +217,14 @@ typedef struct tiles_ctx {
   tile_box *tiles;
   size_t ntiles;
   /* output */
-  tile_map out;
   size_t header, record;
   bsurf_atomic_file af; /* rank 0 */
   int af_open;
-  tile_map nn; /* n doubles: squared nearest-other distances */
-  char nn_name[TILE_PATH_MAX];
+  /* the tiles' results (assemble below): one block per tile at block[t] */
+  int scr; /* file descriptor, -1 */
+  size_t range; /* points per range of the output (the last may be shorter) */
+  size_t nranges;
+  size_t *block; /* ntiles + 1 offsets */
   double *tile_sums; /* ntiles x (nsums + 1): the accumulators, then duplicates */
 } tiles_ctx;
 
@@ -341,7 +353,7 @@ static bsurf_status pass_sort(tiles_ctx *c, const char *output, bsurf_error *err
   }
   for (size_t j = 0; j < c->cells; j++) c->cell_start[j + 1] += c->cell_start[j];
   memcpy(cursor, c->cell_start, c->cells * sizeof *cursor);
-  bsurf_status st = scratch_create(output, c->n * sizeof(uint64_t), &c->sorted, NULL, err);
+  bsurf_status st = scratch_create(output, c->n * sizeof(uint64_t), 1, &c->sorted, NULL, err);
   if (st == BSURF_OK) {
     uint64_t *sorted = (uint64_t *)c->sorted.data;
     for (size_t i = 0; i < c->n; i++) {
@@ -648,9 +660,160 @@ static void work_free(tile_work *w) {
   memset(w, 0, sizeof *w);
 }
 
+/* ---- the output: tile blocks, then ranges in index order ------------------ */
+
+/* Writing each tile's rows at their places in the output would spread them
+ * over the whole file when its point order is not spatial, and every tile
+ * would dirty nearly every page of it (the kernel writing the file back once
+ * per tile). Instead each tile appends one block to a scratch file, in one
+ * sequential write:
+ *   cuts[0 .. R]   uint64: cuts[r] = the tile's rows with index < r x range
+ *   entries        per row, in increasing index: uint64 index, double nn2
+ *                  (squared nearest-other distance, for h), the encoded row
+ * and after the tiles rank 0 assembles the output range by range (R ranges
+ * of `range` consecutive indices, each held in memory once): from every tile
+ * the entries [cuts[r], cuts[r + 1]) of its block are read and placed, and
+ * the range is written to the output sequentially. The blocks' offsets
+ * follow from the tiles' point counts, which every rank knows, so ranks write
+ * their blocks into the one scratch file without exchanging anything. */
+
+#define BLOCK_CHUNK ((size_t)1 << 20) /* bytes per read or write of entries */
+
+static size_t entry_bytes(const tiles_ctx *c) { return 16 + c->record; }
+
+/* range, nranges and every tile's block offset (ntiles + 1 of them) */
+static bsurf_status plan_blocks(tiles_ctx *c) {
+  /* a range holds at least a tile's points (a tile's memory is many times
+   * its rows') and at least 32 MiB, so that R x tiles reads stay few */
+  size_t by_bytes = ((size_t)32 << 20) / (c->record + sizeof(double));
+  c->range = c->ops->tile_points > by_bytes ? c->ops->tile_points : by_bytes;
+  if (c->ops->range_points) c->range = c->ops->range_points;
+  if (c->range > c->n) c->range = c->n;
+  c->nranges = (c->n + c->range - 1) / c->range;
+  c->block = bsurf_alloc_array(c->ntiles + 1, sizeof *c->block);
+  if (!c->block) return BSURF_ERR_NOMEM;
+  c->block[0] = 0;
+  for (size_t t = 0; t < c->ntiles; t++)
+    c->block[t + 1] = c->block[t] + (c->nranges + 1) * sizeof(uint64_t) + c->tiles[t].count * entry_bytes(c);
+  return BSURF_OK;
+}
+
+static bsurf_status scratch_error(bsurf_error *err, const char *what, int e) {
+  return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot %s the scratch file of the tiles' rows: %s", what,
+                    strerror(e));
+}
+
+/* Tile t's block: core (increasing global indices), nn2 and the encoded rows
+ * of its nc points. */
+static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *core, const double *nn2,
+                                const unsigned char *enc, size_t nc, bsurf_error *err) {
+  assert(nc == c->tiles[t].count);
+  const size_t eb = entry_bytes(c), per = BLOCK_CHUNK / eb ? BLOCK_CHUNK / eb : 1;
+  uint64_t *cuts = bsurf_alloc_array(c->nranges + 1, sizeof *cuts);
+  unsigned char *buf = bsurf_alloc_array(per, eb);
+  if (!cuts || !buf) {
+    free(cuts);
+    free(buf);
+    return BSURF_ERR_NOMEM;
+  }
+  for (size_t r = 0; r < c->nranges; r++) cuts[r] = find_u64(core, nc, (uint64_t)(r * c->range));
+  cuts[c->nranges] = nc;
+  size_t off = c->block[t];
+  int e = pwrite_all(c->scr, cuts, (c->nranges + 1) * sizeof *cuts, off);
+  off += (c->nranges + 1) * sizeof *cuts;
+  for (size_t j = 0; j < nc && !e; j += per) {
+    size_t m = nc - j < per ? nc - j : per;
+    for (size_t q = 0; q < m; q++) {
+      unsigned char *p = buf + q * eb;
+      memcpy(p, &core[j + q], 8);
+      memcpy(p + 8, &nn2[j + q], 8);
+      memcpy(p + 16, enc + (j + q) * c->record, c->record);
+    }
+    e = pwrite_all(c->scr, buf, m * eb, off);
+    off += m * eb;
+  }
+  free(cuts);
+  free(buf);
+  return e ? scratch_error(err, "write", e) : BSURF_OK;
+}
+
+/* Rank 0's assembly, pulled by the sum for h (which visits the points in
+ * index order): nn_at(i) loads the range of i after writing the previous
+ * one to the output. */
+typedef struct assembler {
+  const tiles_ctx *c;
+  int out; /* the output's descriptor */
+  size_t next; /* the next range to load */
+  size_t lo, hi; /* the range in memory: points [lo, hi) */
+  unsigned char *rows; /* range x record */
+  double *nn; /* range */
+  unsigned char *buf; /* entries read */
+  size_t per; /* entries per read */
+  bsurf_status st;
+  bsurf_error *err;
+} assembler;
+
+static void asm_flush(assembler *a) {
+  const tiles_ctx *c = a->c;
+  if (a->st != BSURF_OK || a->hi == a->lo) return;
+  int e = pwrite_all(a->out, a->rows, (a->hi - a->lo) * c->record, c->header + a->lo * c->record);
+  if (e) a->st = bsurf_fail(a->err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(e));
+  a->lo = a->hi;
+}
+
+static void asm_load(assembler *a) {
+  const tiles_ctx *c = a->c;
+  const size_t eb = entry_bytes(c), r = a->next++;
+  if (pass_cancelled(c)) {
+    a->st = BSURF_ERR_CANCELLED;
+    return;
+  }
+  a->lo = r * c->range;
+  a->hi = a->lo + c->range < c->n ? a->lo + c->range : c->n;
+  size_t placed = 0;
+  int e = 0;
+  for (size_t t = 0; t < c->ntiles && !e; t++) {
+    uint64_t cut[2];
+    e = pread_all(c->scr, cut, sizeof cut, c->block[t] + r * sizeof(uint64_t));
+    if (e) break;
+    size_t base = c->block[t] + (c->nranges + 1) * sizeof(uint64_t);
+    if (cut[0] > cut[1] || cut[1] > c->tiles[t].count) {
+      e = EIO;
+      break;
+    }
+    for (uint64_t j = cut[0]; j < cut[1] && !e; j += a->per) {
+      size_t m = cut[1] - j < a->per ? (size_t)(cut[1] - j) : a->per;
+      e = pread_all(c->scr, a->buf, m * eb, base + (size_t)j * eb);
+      for (size_t q = 0; q < m && !e; q++) {
+        const unsigned char *p = a->buf + q * eb;
+        uint64_t i;
+        memcpy(&i, p, 8);
+        if (i < a->lo || i >= a->hi) {
+          e = EIO;
+          break;
+        }
+        memcpy(&a->nn[i - a->lo], p + 8, 8);
+        memcpy(a->rows + (i - a->lo) * c->record, p + 16, c->record);
+      }
+      placed += m;
+    }
+  }
+  /* the tiles partition the points: every row of the range exactly once */
+  if (!e && placed != a->hi - a->lo) e = EIO;
+  if (e) a->st = scratch_error(a->err, "read", e);
+}
+
+static double nn_at(assembler *a, size_t i) {
+  while (a->st == BSURF_OK && i >= a->hi) {
+    asm_flush(a);
+    if (a->st == BSURF_OK) asm_load(a);
+  }
+  return a->st == BSURF_OK ? a->nn[i - a->lo] : 0.0;
+}
+
 /* The exact K-neighbourhoods of a tile's points (growing the halo until they
  * are proven), then the command's run and the output rows. */
-static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep) {
+static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_error *err) {
   const tile_box *b = &c->tiles[t];
   const int k = c->k;
   const int T = bsurf_threads_resolve(c->ops->threads);
@@ -804,7 +967,7 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep) {
   for (size_t j = 0; j < nc; j++) dups += w.dup[j];
   sums[c->ops->nsums] = (double)dups;
 
-  /* rows to their places; squared nearest distances for h */
+  /* the rows and squared nearest distances (for h) to the tile's block */
   w.enc = bsurf_alloc_array(nc, c->record);
   if (!w.enc) {
     st = BSURF_ERR_NOMEM;
@@ -812,14 +975,8 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep) {
   }
   st = io_ply_encode(&core, w.enc);
   if (st != BSURF_OK) goto out;
-  double *nnd = (double *)c->nn.data;
-  sweep so = {&c->out, 0}, sn = {&c->nn, 0};
-  for (size_t j = 0; j < nc; j++) {
-    memcpy(c->out.data + c->header + (size_t)w.core.v[j] * c->record, w.enc + j * c->record, c->record);
-    nnd[w.core.v[j]] = w.nn2[j];
-    sweep_at(&so, c->header + (size_t)w.core.v[j] * c->record);
-    sweep_at(&sn, (size_t)w.core.v[j] * sizeof(double));
-  }
+  st = write_block(c, t, w.core.v, w.nn2, w.enc, nc, err);
+  if (st != BSURF_OK) goto out;
   if (nc > rep->max_tile_points) rep->max_tile_points = nc;
   if (nl > rep->max_local_points) rep->max_local_points = nl;
 out:
@@ -828,32 +985,46 @@ out:
   /* nothing of the files stays resident between tiles */
   drop_pages(&c->in, 0, c->in.size);
   drop_pages(&c->sorted, 0, c->sorted.size);
-  drop_pages(&c->out, 0, c->out.size);
-  drop_pages(&c->nn, 0, c->nn.size);
   return st;
 }
 
-/* ---- h: the cascade of src/search/neighbors.c over the scratch file ------ */
+/* ---- h: the cascade of src/search/neighbors.c over the assembled values --- */
 
 /* sum_i sqrt(v[i]) in the binary-tree order of sum_sqrt in neighbors.c:
  * halves down to 64 values, each summed left to right. The leaves are
- * visited in index order. */
-static double sum_sqrt_map(const tile_map *m, size_t first, size_t n) {
+ * visited in index order, which drives the assembly of the output. */
+static double sum_sqrt_asm(assembler *a, size_t first, size_t n) {
   if (n <= 64) {
-    const double *v = (const double *)m->data + first;
     double s = 0.0;
-    for (size_t i = 0; i < n; i++) s += sqrt(v[i]);
-    if ((first + n) % PASS_DROP < n) drop_pages(m, 0, (first + n) * sizeof(double));
+    for (size_t i = 0; i < n; i++) s += sqrt(nn_at(a, first + i));
     return s;
   }
-  return sum_sqrt_map(m, first, n / 2) + sum_sqrt_map(m, first + n / 2, n - n / 2);
+  return sum_sqrt_asm(a, first, n / 2) + sum_sqrt_asm(a, first + n / 2, n - n / 2);
+}
+
+/* Rank 0: the output's records in index order and h. */
+static bsurf_status assemble(tiles_ctx *c, double *h, bsurf_error *err) {
+  assembler a;
+  memset(&a, 0, sizeof a);
+  a.c = c;
+  a.out = fileno(c->af.f);
+  a.err = err;
+  a.per = BLOCK_CHUNK / entry_bytes(c) ? BLOCK_CHUNK / entry_bytes(c) : 1;
+  a.rows = bsurf_alloc_array(c->range, c->record);
+  a.nn = bsurf_alloc_array(c->range, sizeof *a.nn);
+  a.buf = bsurf_alloc_array(a.per, entry_bytes(c));
+  if (!a.rows || !a.nn || !a.buf) a.st = BSURF_ERR_NOMEM;
+  double s = a.st == BSURF_OK ? sum_sqrt_asm(&a, 0, c->n) : 0.0;
+  asm_flush(&a);
+  assert(a.st != BSURF_OK || a.next == c->nranges);
+  free(a.rows);
+  free(a.nn);
+  free(a.buf);
+  if (a.st == BSURF_OK) *h = s / (double)c->n;
+  return a.st;
 }
 
 /* ---- the run ---------------------------------------------------------------- */
-
-static void comm_barrier(const bsurf_tile_comm *cm) {
-  if (cm) cm->barrier(cm->user);
-}
 
 /* The worst status of all ranks (every rank must call it at the same place). */
 static bsurf_status agree(const bsurf_tile_comm *cm, bsurf_status st) {
@@ -861,21 +1032,20 @@ static bsurf_status agree(const bsurf_tile_comm *cm, bsurf_status st) {
 }
 
 /* Rank 0 creates the output (temporary name, header, space for every
- * record) and the scratch file of nearest distances; every rank maps both. */
+ * record) and the scratch file of the tiles' blocks; every rank opens the
+ * scratch file, then its name is removed (nothing is left behind on any
+ * exit, however abrupt). */
 static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_error *err) {
   const bsurf_tile_comm *cm = c->comm;
   const int rank = cm ? cm->rank : 0;
-  struct {
-    char out[TILE_PATH_MAX], nn[TILE_PATH_MAX];
-    size_t header;
-  } names;
-  memset(&names, 0, sizeof names);
+  char name[TILE_PATH_MAX];
+  memset(name, 0, sizeof name);
   bsurf_status st = BSURF_OK;
-  size_t total = 0;
   c->record = 3 * io_type_size(c->out_schema.xyz_type);
   if (c->out_schema.normals) c->record += 3 * io_type_size(c->out_schema.normal_type);
   for (size_t f = 0; f < c->out_schema.field_count; f++) c->record += io_type_size(c->out_schema.fields[f].type);
-  if (rank == 0) {
+  st = plan_blocks(c);
+  if (rank == 0 && st == BSURF_OK) {
     st = bsurf_atomic_open(&c->af, output, err);
     if (st == BSURF_OK) {
       c->af_open = 1;
@@ -887,36 +1057,29 @@ static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_error *
       long pos = ftell(c->af.f);
       if (w.failed || pos < 0)
         st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write: %s", strerror(w.err_no ? w.err_no : EIO));
-      names.header = (size_t)pos;
+      c->header = (size_t)pos;
     }
     if (st == BSURF_OK) {
-      strncpy(names.out, c->af.tmp, sizeof names.out - 1);
-      total = names.header + c->n * c->record;
+      size_t total = c->header + c->n * c->record;
       int e = posix_fallocate(fileno(c->af.f), 0, (off_t)total);
       if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write %zu bytes: %s", total, strerror(e));
     }
-    if (st == BSURF_OK) st = scratch_create(output, c->n * sizeof(double), &c->nn, names.nn, err);
+    if (st == BSURF_OK) {
+      tile_map m;
+      st = scratch_create(output, c->block[c->ntiles], 0, &m, name, err);
+      if (st == BSURF_OK) c->scr = m.fd;
+    }
   }
   st = agree(cm, st);
   if (st != BSURF_OK) return st;
-  if (cm) cm->broadcast(cm->user, &names, sizeof names);
-  c->header = names.header;
-  total = c->header + c->n * c->record;
-  if (rank == 0) {
-    c->out.fd = -1;
-    c->out.size = total;
-    c->out.data = mmap(NULL, total, PROT_READ | PROT_WRITE, MAP_SHARED, fileno(c->af.f), 0);
-    if (c->out.data == MAP_FAILED) {
-      c->out.data = NULL;
-      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot map the output: %s", strerror(errno));
-    }
-  } else {
-    st = map_shared(names.out, total, &c->out, err);
-    if (st == BSURF_OK) st = map_shared(names.nn, c->n * sizeof(double), &c->nn, err);
+  if (cm) cm->broadcast(cm->user, name, sizeof name);
+  if (rank != 0) {
+    c->scr = open(name, O_RDWR);
+    if (c->scr < 0) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", name, strerror(errno));
   }
   st = agree(cm, st);
   /* every rank has the scratch file open: its name can go */
-  if (rank == 0 && names.nn[0]) unlink(names.nn);
+  if (rank == 0 && name[0]) unlink(name);
   return st;
 }
 
@@ -934,7 +1097,7 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   c.ops = ops;
   c.comm = ops->comm;
   c.k = ops->k;
-  c.in.fd = c.sorted.fd = c.out.fd = c.nn.fd = -1;
+  c.in.fd = c.sorted.fd = c.scr = -1;
   bsurf_cloud_init(&c.schema);
   bsurf_cloud_init(&c.out_schema);
   const int rank = c.comm ? c.comm->rank : 0, ranks = c.comm ? c.comm->ranks : 1;
@@ -977,7 +1140,7 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   size_t done = 0, mine = 0;
   for (size_t t = (size_t)rank; t < c.ntiles; t += (size_t)ranks) mine += c.tiles[t].count;
   for (size_t t = (size_t)rank; t < c.ntiles && st == BSURF_OK; t += (size_t)ranks) {
-    st = do_tile(&c, t, report);
+    st = do_tile(&c, t, report, err);
     done += c.tiles[t].count;
     if (st == BSURF_OK && ops->progress && ops->progress(ops->progress_user, done, mine))
       st = BSURF_ERR_CANCELLED;
@@ -1012,12 +1175,13 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
       }
     }
   }
-  /* unmap the output everywhere before rank 0 syncs and renames it */
-  if (c.out.data) munmap(c.out.data, c.out.size);
-  c.out.data = NULL;
-  comm_barrier(c.comm);
-  if (st == BSURF_OK && rank == 0) report->h = sum_sqrt_map(&c.nn, 0, c.n) / (double)c.n;
-  if (c.comm && st == BSURF_OK) c.comm->broadcast(c.comm->user, &report->h, sizeof report->h);
+  /* every rank's blocks are written (the agreement above follows every
+   * rank's last write): rank 0 assembles the output and h */
+  if (st == BSURF_OK && rank == 0) st = assemble(&c, &report->h, err);
+  if (c.comm) {
+    st = agree(c.comm, st);
+    if (st == BSURF_OK) c.comm->broadcast(c.comm->user, &report->h, sizeof report->h);
+  }
   if (rank == 0 && c.af_open) {
     bsurf_error cerr;
     bsurf_status cst = bsurf_atomic_close(&c.af, st, 0, &cerr);
@@ -1030,8 +1194,8 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
 
   map_close(&c.in);
   map_close(&c.sorted);
-  map_close(&c.nn);
-  if (c.out.fd >= 0) close(c.out.fd);
+  if (c.scr >= 0) close(c.scr);
+  free(c.block);
   io_ply_layout_free(&c.layout);
   bsurf_cloud_free(&c.schema);
   bsurf_cloud_free(&c.out_schema);
