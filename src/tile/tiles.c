@@ -608,7 +608,7 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
         }
       }
   /* those inside R, read in file order */
-  qsort(cand.v, cand.n, sizeof *cand.v, cmp_u64);
+  if (cand.n > 1) qsort(cand.v, cand.n, sizeof *cand.v, cmp_u64);
   sweep sw = {&c->in, 0};
   for (size_t j = 0; j < cand.n; j++) {
     uint64_t i = cand.v[j];
@@ -622,7 +622,7 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
   }
   free(cand.v);
   drop_pages(&c->in, 0, c->in.size);
-  qsort(G->v, G->n, sizeof *G->v, cmp_u64);
+  if (G->n > 1) qsort(G->v, G->n, sizeof *G->v, cmp_u64);
   return BSURF_OK;
 }
 
@@ -840,8 +840,8 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
     st = BSURF_ERR_NOMEM;
     goto out;
   }
-  memcpy(by_cell, w.core.v, w.core.n * sizeof *by_cell);
-  qsort(w.core.v, w.core.n, sizeof *w.core.v, cmp_u64);
+  if (w.core.n) memcpy(by_cell, w.core.v, w.core.n * sizeof *by_cell);
+  if (w.core.n > 1) qsort(w.core.v, w.core.n, sizeof *w.core.v, cmp_u64);
   const size_t nc = w.core.n;
   w.rows = bsurf_alloc_array(nc, (size_t)k * sizeof *w.rows);
   w.nn2 = bsurf_alloc_array(nc, sizeof *w.nn2);
