@@ -112,7 +112,7 @@ int main(int argc, char **argv) {
   out.gamma = &fields[6];
   out.overfit_rate = &fields[7];
   const double hz = clock_hz();
-  const int m = bsurf_poly_terms(D), R = (B + 1 + 3) / 4 * 4;
+  const int m = bsurf_poly_terms(D), R = bsurf_boot_rows(B);
 
   /* the whole per-point analysis */
   bsurf_error_point(xyz, idx, NULL, &o, 0, &s, &out, NULL);
@@ -161,12 +161,7 @@ int main(int argc, char **argv) {
   t0 = now();
   while (now() - t0 < budget)
     for (int r = 0; r < 100; r++, calls++)
-      for (int b0 = 0; b0 < B; b0 += 4) {
-        int nrep = B - b0 < 4 ? B - b0 : 4;
-        bsurf_boot_counts4(1, calls, (uint32_t)b0, nrep, K, s.counts);
-        for (int b = b0; b < b0 + nrep; b++)
-          bsurf_boot_weights(K, &s.counts[(size_t)(b - b0) * K], &s.weights[(size_t)b * K], &s.missing[(size_t)b * K]);
-      }
+      bsurf_boot_weight_rows(1, calls, B, K, m, s.counts, s.weights, s.missing, valid);
   t_counts.seconds_per_call = (now() - t0) / (double)calls;
 
   printf("bench_kernel: K=%d B=%d degree=%d (m=%d terms, %d normal-equation columns, %d rows)\n", K, B, D,

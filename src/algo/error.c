@@ -60,7 +60,7 @@ bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int
   if (st != BSURF_OK) return st;
   size_t nb = B > 0 ? (size_t)B : 1;
   /* B replicates and the full fit, padded to whole groups of four */
-  size_t nr = ((size_t)B + 1 + 3) / 4 * 4;
+  size_t nr = (size_t)bsurf_boot_rows(B > 0 ? B : 0);
   s->pred_full = bsurf_alloc_array((size_t)k, sizeof(double));
   s->pred_boot = bsurf_alloc_array(nb * k, sizeof(double));
   s->counts = bsurf_alloc_array(4 * (size_t)k, sizeof(uint16_t));
@@ -94,20 +94,10 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
   /* The normal equations of the B resamples (4.1.1) and of the fit to the
    * whole neighbourhood (row B, every weight 1) are one matrix product; then
    * one small solve each. */
-  const int R = (B + 1 + 3) / 4 * 4;
-  for (int b0 = 0; b0 < B; b0 += 4) {
-    const int nrep = B - b0 < 4 ? B - b0 : 4;
-    bsurf_boot_counts4(o->seed, o->point_index ? o->point_index[i] : i, (uint32_t)b0, nrep, k, s->counts);
-    for (int b = b0; b < b0 + nrep; b++) {
-      int distinct = bsurf_boot_weights(k, &s->counts[(size_t)(b - b0) * k], &s->weights[(size_t)b * k],
-                                       &s->missing[(size_t)b * k]);
-      /* fewer distinct points than terms: singular */
-      s->valid[b] = distinct >= bsurf_poly_terms(o->degree);
-    }
-  }
-  for (int j = 0; j < k; j++) s->weights[(size_t)B * k + j] = 1.0;
-  for (size_t t = (size_t)(B + 1) * k; t < (size_t)R * k; t++) s->weights[t] = 0.0;
-  bsurf_localfit_normal_eq_lanes(lf, R, s->weights, s->rows);
+  /* fewer distinct points than terms: singular */
+  bsurf_boot_weight_rows(o->seed, o->point_index ? o->point_index[i] : i, B, k,
+                         bsurf_poly_terms(o->degree), s->counts, s->weights, s->missing, s->valid);
+  bsurf_localfit_normal_eq_lanes(lf, bsurf_boot_rows(B), s->weights, s->rows);
 
   double coef[BSURF_TERMS_MAX], row[BSURF_NCOLS_MAX];
   bsurf_lanes_row(lf->ncols, s->rows, B, row);

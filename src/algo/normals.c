@@ -56,9 +56,8 @@ static double angle_between(const double a[3], const double b[3], int unoriented
 typedef struct normal_scratch {
   bsurf_localfit lf;
   double *terms;   /* k x PCA_COLS */
-  double *weights; /* (B + 1) x k: row 0 all ones (the whole neighbourhood) */
-  double *weights_lanes; /* R x k, R = B + 1 rounded up to 4: the replicates, then P (poly fits) */
-  double *rows;    /* R x max(PCA_COLS, ncols): PCA rows, or the fits' lanes */
+  double *weights; /* bsurf_boot_rows(B) x k: the replicates, then P (all ones) */
+  double *rows;    /* the same count x max(PCA_COLS, ncols): PCA rows, or the fits' lanes */
   double *coefs;   /* (B + 1) x terms */
   uint16_t *counts; /* 4 x k */
   unsigned char *valid; /* B */
@@ -70,7 +69,6 @@ static void scratch_free(normal_scratch *s) {
   bsurf_localfit_free(&s->lf);
   free(s->terms);
   free(s->weights);
-  free(s->weights_lanes);
   free(s->rows);
   free(s->coefs);
   free(s->counts);
@@ -83,16 +81,15 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
   memset(s, 0, sizeof *s);
   bsurf_status st = bsurf_localfit_alloc(&s->lf, k, degree);
   if (st != BSURF_OK) return st;
-  size_t nb = ((size_t)B + 1 + 3) / 4 * 4;
+  size_t nb = (size_t)bsurf_boot_rows(B);
   s->terms = bsurf_alloc_array((size_t)k, PCA_COLS * sizeof(double));
   s->weights = bsurf_alloc_array(nb * k, sizeof(double));
-  s->weights_lanes = bsurf_alloc_array(nb * k, sizeof(double));
   s->rows = bsurf_alloc_array(nb, BSURF_NCOLS_MAX * sizeof(double));
   s->coefs = bsurf_alloc_array(nb, BSURF_TERMS_MAX * sizeof(double));
   s->counts = bsurf_alloc_array(4 * (size_t)k, sizeof(uint16_t));
   s->valid = bsurf_alloc_array(nb, 1);
   s->bn = bsurf_alloc_array(nb, 3 * sizeof(double));
-  if (!s->terms || !s->weights || !s->weights_lanes || !s->rows || !s->coefs || !s->counts || !s->valid || !s->bn) {
+  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->valid || !s->bn) {
     scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -136,17 +133,11 @@ static void normals_point(void *vctx, int thread, size_t i) {
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const double *xyz = c->xyz;
 
-  /* multiplicities of the B resamples as weights; row 0 is the whole P */
+  /* multiplicities of the B resamples as weights; row B is the whole P */
   double *W = s->weights;
-  for (int j = 0; j < k; j++) W[j] = 1.0;
-  int min_distinct = o->fit == BSURF_NORMAL_PCA ? 3 : bsurf_poly_terms(o->degree);
-  for (int b0 = 0; b0 < B; b0 += 4) {
-    const int nrep = B - b0 < 4 ? B - b0 : 4;
-    bsurf_boot_counts4(o->seed, o->point_index ? o->point_index[i] : i, (uint32_t)b0, nrep, k, s->counts);
-    for (int b = b0; b < b0 + nrep; b++)
-      s->valid[b] = bsurf_boot_weights(k, &s->counts[(size_t)(b - b0) * k], &W[(size_t)(b + 1) * k], NULL) >=
-                    min_distinct;
-  }
+  bsurf_boot_weight_rows(o->seed, o->point_index ? o->point_index[i] : i, B, k,
+                         o->fit == BSURF_NORMAL_PCA ? 3 : bsurf_poly_terms(o->degree), s->counts, W, NULL,
+                         s->valid);
 
   double nP[3];
   bsurf_frame frame;
@@ -169,24 +160,17 @@ static void normals_point(void *vctx, int thread, size_t i) {
       r[9] = 1.0;
     }
     bsurf_gemm_rows(B + 1, k, PCA_COLS, W, s->terms, s->rows);
-    if (pca_normal_from_row(s->rows, o->pca_center, nP) != 0) s->degenerate++;
+    if (pca_normal_from_row(&s->rows[(size_t)B * PCA_COLS], o->pca_center, nP) != 0) s->degenerate++;
     for (int b = 0; b < B; b++)
-      if (s->valid[b] &&
-          pca_normal_from_row(&s->rows[(size_t)(b + 1) * PCA_COLS], o->pca_center, &s->bn[3 * b]) != 0)
+      if (s->valid[b] && pca_normal_from_row(&s->rows[(size_t)b * PCA_COLS], o->pca_center, &s->bn[3 * b]) != 0)
         s->valid[b] = 0;
   } else {
     bsurf_local_frame(xyz, idx, k, o->pca_center, &frame);
     if (!(frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2])) s->degenerate++;
     bsurf_localfit *lf = &s->lf;
     bsurf_localfit_setup(lf, xyz, idx, k, &frame, o->degree);
-    /* the same weights as lanes: replicate b in row b, the whole P in row B
-     * (four solves at a time; same sums, same bits as row by row) */
-    const int R = (B + 1 + 3) / 4 * 4;
-    double *WL = s->weights_lanes;
-    memcpy(WL, W + k, (size_t)B * k * sizeof *WL);
-    memcpy(WL + (size_t)B * k, W, (size_t)k * sizeof *WL);
-    memset(WL + (size_t)(B + 1) * k, 0, (size_t)(R - B - 1) * k * sizeof *WL);
-    bsurf_localfit_normal_eq_lanes(lf, R, WL, s->rows);
+    /* as lanes: four solves at a time (same sums, same bits as row by row) */
+    bsurf_localfit_normal_eq_lanes(lf, bsurf_boot_rows(B), W, s->rows);
     double row[BSURF_NCOLS_MAX];
     bsurf_lanes_row(lf->ncols, s->rows, B, row);
     while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, s->coefs) != 0) degree--;

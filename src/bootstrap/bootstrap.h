@@ -16,10 +16,17 @@ void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
 void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
                         uint16_t *counts);
 
-/* A replicate's multiplicities as fit weights (w: k) and, if missing is not
- * NULL, 1.0 where a point was not drawn (b in C_j, Eq. 4.4), else 0.0.
- * Returns the number of distinct points drawn. */
-int bsurf_boot_weights(int k, const uint16_t *counts, double *w, double *missing);
+/* The weight rows of B resamples and of the whole neighbourhood, laid out
+ * for one normal-equation product (bsurf_gemm_rows / bsurf_gemm_lanes):
+ * W (bsurf_boot_rows(B) x k): row b < B the multiplicities of replicate b
+ * (stream (seed, point, b)), row B all ones, the rest zero; missing (B x k,
+ * may be NULL): 1.0 where point j is not in replicate b (b in C_j, Eq. 4.4),
+ * else 0.0; valid[b]: replicate b drew at least min_distinct distinct points.
+ * counts: 4k scratch. */
+void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
+                            uint16_t *counts, double *W, double *missing, unsigned char *valid);
+/* B + 1 rows rounded up to a multiple of 4 (whole groups of vector lanes). */
+int bsurf_boot_rows(int B);
 
 /* gamma = 1/k^2 sum_j sum_l |pred_j - y_l| (Eq. 4.10), in O(k log k) by
  * sorting. y_sorted: the k observed heights in ascending order; y_prefix:

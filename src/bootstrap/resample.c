@@ -95,9 +95,11 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
     bsurf_boot_counts(seed, point, replicate + (uint32_t)l, k, counts + l * (size_t)k);
 }
 
+/* A replicate's multiplicities as fit weights (w) and, if missing is not
+ * NULL, 1.0 where a point was not drawn; the number of distinct points. */
 BSURF_CLONES
-int bsurf_boot_weights(int k, const uint16_t *restrict counts, double *restrict w,
-                       double *restrict missing) {
+static int boot_weights(int k, const uint16_t *restrict counts, double *restrict w,
+                        double *restrict missing) {
   int distinct = 0;
   for (int j = 0; j < k; j++) {
     w[j] = counts[j];
@@ -106,4 +108,19 @@ int bsurf_boot_weights(int k, const uint16_t *restrict counts, double *restrict 
   if (missing)
     for (int j = 0; j < k; j++) missing[j] = counts[j] == 0;
   return distinct;
+}
+
+int bsurf_boot_rows(int B) { return (B + 1 + 3) / 4 * 4; }
+
+void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
+                            uint16_t *counts, double *W, double *missing, unsigned char *valid) {
+  for (int b0 = 0; b0 < B; b0 += 4) {
+    const int nrep = B - b0 < 4 ? B - b0 : 4;
+    bsurf_boot_counts4(seed, point, (uint32_t)b0, nrep, k, counts);
+    for (int b = b0; b < b0 + nrep; b++)
+      valid[b] = boot_weights(k, &counts[(size_t)(b - b0) * k], &W[(size_t)b * k],
+                              missing ? &missing[(size_t)b * k] : NULL) >= min_distinct;
+  }
+  for (int j = 0; j < k; j++) W[(size_t)B * k + j] = 1.0;
+  for (size_t t = (size_t)(B + 1) * k; t < (size_t)bsurf_boot_rows(B) * k; t++) W[t] = 0.0;
 }
