@@ -47,7 +47,7 @@ fresh() {
   for f in "$@"; do [ "$f" -nt "$t" ] && return 1; done
   return 0
 }
-COMMON=("$HERE/ply_io.hpp" "$HERE/peer_util.hpp" "$HERE/build.sh")
+COMMON=("$HERE/ply_io.hpp" "$HERE/peer_util.hpp" "$HERE/pcl_util.hpp" "$HERE/build.sh")
 
 if ! fresh "$OUT/normals_pcl" "$HERE/normals_pcl.cpp" "${COMMON[@]}"; then
   echo "build.sh: normals_pcl" >&2

@@ -23,24 +23,14 @@
 
 #include "peer_util.hpp"
 #include "ply_io.hpp"
+#include "pcl_util.hpp"
 
 int main(int argc, char **argv) {
   const peer::Options o = peer::parse(argc, argv, "", "pca");
   std::vector<double> xyz;
-  try {
-    plyio::read_xyz(o.in, xyz);
-  } catch (const std::exception &e) {
-    std::fprintf(stderr, "normals_pcl: %s\n", e.what());
-    return 1;
-  }
-  const size_t n = xyz.size() / 3;
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  cloud->resize(n);
-  for (size_t i = 0; i < n; i++) {
-    (*cloud)[i].x = (float)xyz[3 * i];
-    (*cloud)[i].y = (float)xyz[3 * i + 1];
-    (*cloud)[i].z = (float)xyz[3 * i + 2];
-  }
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud = peer::read_pcl_cloud(o.in, "normals_pcl", xyz);
+  if (!cloud) return 1;
+  const size_t n = cloud->size();
   pcl::PointCloud<pcl::Normal> normals;
 
   const double c0 = peer::cpu_seconds();

@@ -41,6 +41,7 @@
 
 #include "peer_util.hpp"
 #include "ply_io.hpp"
+#include "pcl_util.hpp"
 
 static const char *EXTRA = " [-d DEGREE] [--radius R]\n  default K here: 50";
 
@@ -61,20 +62,9 @@ int main(int argc, char **argv) {
   if (o.degree < 0 || o.degree > 4) peer::usage(argv[0], EXTRA);
 
   std::vector<double> xyz;
-  try {
-    plyio::read_xyz(o.in, xyz);
-  } catch (const std::exception &e) {
-    std::fprintf(stderr, "smooth_pcl: %s\n", e.what());
-    return 1;
-  }
-  const size_t n = xyz.size() / 3;
-  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud(new pcl::PointCloud<pcl::PointXYZ>);
-  cloud->resize(n);
-  for (size_t i = 0; i < n; i++) {
-    (*cloud)[i].x = (float)xyz[3 * i];
-    (*cloud)[i].y = (float)xyz[3 * i + 1];
-    (*cloud)[i].z = (float)xyz[3 * i + 2];
-  }
+  pcl::PointCloud<pcl::PointXYZ>::Ptr cloud = peer::read_pcl_cloud(o.in, "smooth_pcl", xyz);
+  if (!cloud) return 1;
+  const size_t n = cloud->size();
 
   // radius: mean distance to the K-th neighbour (point included) over a sample
   const size_t sample = n < 10000 ? n : 10000;
