@@ -62,88 +62,12 @@ static inline double decode(const unsigned char *b, const Prop &p, bool swap) {
   }
 }
 
+static inline bool read_columns(const std::string &path, const std::vector<std::string> &names,
+                                std::vector<double> &cols);
+
 // Reads the vertex positions: xyz gets 3 * n doubles. Throws std::runtime_error.
 static inline void read_xyz(const std::string &path, std::vector<double> &xyz) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error(path + ": cannot open");
-  std::string line;
-  std::getline(in, line);
-  if (line.rfind("ply", 0) != 0) throw std::runtime_error(path + ": not a PLY file");
-  std::string format;
-  size_t n = 0;
-  bool in_vertex = false, vertex_seen = false;
-  std::vector<Prop> props;
-  while (std::getline(in, line)) {
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    std::istringstream ls(line);
-    std::string w;
-    ls >> w;
-    if (w == "format") ls >> format;
-    else if (w == "element") {
-      std::string name;
-      ls >> name;
-      if (name == "vertex") {
-        if (vertex_seen) throw std::runtime_error(path + ": two vertex elements");
-        ls >> n;
-        in_vertex = vertex_seen = true;
-      } else {
-        if (!vertex_seen) throw std::runtime_error(path + ": an element before vertex");
-        in_vertex = false;
-      }
-    } else if (w == "property" && in_vertex) {
-      std::string t, name;
-      ls >> t;
-      if (t == "list") throw std::runtime_error(path + ": list property in vertex");
-      ls >> name;
-      Prop p;
-      p.name = name;
-      if (!type_of(t, p)) throw std::runtime_error(path + ": unknown type " + t);
-      props.push_back(p);
-    } else if (w == "end_header") break;
-  }
-  int ix = -1, iy = -1, iz = -1;
-  size_t stride = 0;
-  std::vector<size_t> off(props.size());
-  for (size_t i = 0; i < props.size(); i++) {
-    off[i] = stride;
-    stride += props[i].size;
-    if (props[i].name == "x") ix = (int)i;
-    if (props[i].name == "y") iy = (int)i;
-    if (props[i].name == "z") iz = (int)i;
-  }
-  if (ix < 0 || iy < 0 || iz < 0) throw std::runtime_error(path + ": no x y z");
-  xyz.resize(3 * n);
-  if (format == "ascii") {
-    std::vector<double> v(props.size());
-    for (size_t r = 0; r < n; r++) {
-      for (size_t i = 0; i < props.size(); i++)
-        if (!(in >> v[i])) throw std::runtime_error(path + ": short ascii data");
-      xyz[3 * r] = v[ix];
-      xyz[3 * r + 1] = v[iy];
-      xyz[3 * r + 2] = v[iz];
-    }
-    return;
-  }
-  bool swap;
-  const uint16_t one = 1;
-  const bool host_le = *(const unsigned char *)&one == 1;
-  if (format == "binary_little_endian") swap = !host_le;
-  else if (format == "binary_big_endian") swap = host_le;
-  else throw std::runtime_error(path + ": unknown format " + format);
-  // In blocks of rows, so that the peers' peak RSS does not count a copy of the file.
-  const size_t block = 65536;
-  std::vector<unsigned char> buf(stride * (n < block ? n : block));
-  for (size_t s = 0; s < n; s += block) {
-    const size_t m = n - s < block ? n - s : block;
-    in.read((char *)buf.data(), (std::streamsize)(stride * m));
-    if ((size_t)in.gcount() != stride * m) throw std::runtime_error(path + ": short binary data");
-    for (size_t r = 0; r < m; r++) {
-      const unsigned char *row = buf.data() + r * stride;
-      xyz[3 * (s + r)] = decode(row + off[ix], props[ix], swap);
-      xyz[3 * (s + r) + 1] = decode(row + off[iy], props[iy], swap);
-      xyz[3 * (s + r) + 2] = decode(row + off[iz], props[iz], swap);
-    }
-  }
+  if (!read_columns(path, {"x", "y", "z"}, xyz)) throw std::runtime_error(path + ": no x y z");
 }
 
 // Writes x y z nx ny nz (binary little-endian doubles); n = xyz.size() / 3.
@@ -177,12 +101,11 @@ static inline void write_xyz_normals(const std::string &path, const std::vector<
   }
 }
 
-// ---- added for the smoothing peers (smooth_cgal.cpp, smooth_pcl.cpp) ----
-
 // Reads the named scalar vertex properties (e.g. {"nx","ny","nz"}) into cols,
 // n * names.size() doubles, row-major. Returns false (cols empty) when one of
-// them is missing; throws std::runtime_error on a malformed file. Same formats
-// as read_xyz.
+// them is missing; throws std::runtime_error on a malformed file. ascii and
+// binary (either byte order), read in blocks of rows so that the peers' peak
+// RSS does not count a copy of the file.
 static inline bool read_columns(const std::string &path, const std::vector<std::string> &names,
                                 std::vector<double> &cols) {
   cols.clear();
@@ -192,7 +115,7 @@ static inline bool read_columns(const std::string &path, const std::vector<std::
   std::getline(in, line);
   if (line.rfind("ply", 0) != 0) throw std::runtime_error(path + ": not a PLY file");
   size_t n = 0;
-  bool in_vertex = false;
+  bool in_vertex = false, vertex_seen = false;
   std::vector<Prop> props;
   while (std::getline(in, line)) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
@@ -203,8 +126,15 @@ static inline bool read_columns(const std::string &path, const std::vector<std::
     else if (w == "element") {
       std::string name;
       ls >> name;
-      in_vertex = name == "vertex";
-      if (in_vertex) ls >> n;
+      if (name == "vertex") {
+        if (vertex_seen) throw std::runtime_error(path + ": two vertex elements");
+        ls >> n;
+        in_vertex = vertex_seen = true;
+      } else {
+        // the vertex data must come first in the body
+        if (!vertex_seen) throw std::runtime_error(path + ": an element before vertex");
+        in_vertex = false;
+      }
     } else if (w == "property" && in_vertex) {
       std::string t, name;
       ls >> t;
