@@ -60,7 +60,7 @@ bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int
   if (st != BSURF_OK) return st;
   size_t nb = B > 0 ? (size_t)B : 1;
   /* B replicates and the full fit, padded to whole groups of four */
-  size_t nr = (size_t)bsurf_boot_rows(B > 0 ? B : 0);
+  size_t nr = (size_t)bsurf_boot_rows(B);
   s->pred_full = bsurf_alloc_array((size_t)k, sizeof(double));
   s->pred_boot = bsurf_alloc_array(nb * k, sizeof(double));
   s->counts = bsurf_alloc_array(4 * (size_t)k, sizeof(uint16_t));
