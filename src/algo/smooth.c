@@ -102,7 +102,8 @@ static void fit_store(double *F, const bsurf_frame *fr, double inv_scale, const 
  * fitted surface along the frame normal is p + delta n. A fit holds only over
  * the disc its points span (scaled radius 1): outside it, where a polynomial
  * extrapolates, NAN (no move). */
-static double fit_delta(const double *F, int degree, int m, const double p[3]) {
+static inline __attribute__((always_inline)) double fit_delta(const double *F, int degree, int m,
+                                                              const double p[3]) {
   double q[3] = {p[0] - F[0], p[1] - F[1], p[2] - F[2]};
   double x = F[3] * q[0] + F[4] * q[1] + F[5] * q[2];
   double y = F[6] * q[0] + F[7] * q[1] + F[8] * q[2];
