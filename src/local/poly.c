@@ -375,13 +375,22 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
   return mask;
 }
 
+/* dst = column `col` of a group of four rows (bsurf_gemm_lanes layout) */
+#define LD4(dst, g, col) memcpy(&(dst), &(g)[4 * (col)], sizeof(v4d))
+/* square roots lane by lane (one vector instruction) */
+#define ROOT4(dst, s)                                                                              \
+  for (int l_ = 0; l_ < 4; l_++) (dst)[l_] = sqrt((s)[l_])
+
+/* chol_solve8 for m = 3, 6, 10 as straight-line code (generated). */
+#include "local/chol_unrolled.h"
+
 BSURF_CLONES
 static int chol_solve8_m(int m, int p, const double *const g4[2], double rel_tol, int want,
                          double *const coef[8]) {
   switch (m) {
-  case 3: return chol_solve8(3, p, g4, rel_tol, want, coef);
-  case 6: return chol_solve8(6, p, g4, rel_tol, want, coef);
-  case 10: return chol_solve8(10, p, g4, rel_tol, want, coef);
+  case 3: return chol_solve8_3(p, g4, rel_tol, want, coef);
+  case 6: return chol_solve8_6(p, g4, rel_tol, want, coef);
+  case 10: return chol_solve8_10(p, g4, rel_tol, want, coef);
   default: return chol_solve8(m, p, g4, rel_tol, want, coef);
   }
 }
