@@ -199,6 +199,36 @@ static void test_counts4_equal_scalar(void **state) {
   }
 }
 
+/* bsurf_sort_doubles (rank counting up to 64 values, qsort above) gives the
+ * bits of a stable insertion sort: ties (many, from a small value set), and
+ * -0 before or after +0 as in the input. */
+static void test_sort_doubles_stable(void **state) {
+  (void)state;
+  uint64_t x = 12345;
+  for (int n = 1; n <= 70; n++)
+    for (int rep = 0; rep < 20; rep++) {
+      double a[70], ref[70];
+      for (int i = 0; i < n; i++) {
+        x = x * 6364136223846793005ull + 1442695040888963407ull;
+        const int v = (int)(x >> 59); /* 0..31: many ties */
+        a[i] = v == 0 ? (x >> 20 & 1 ? -0.0 : 0.0) : (double)(v - 16) * 0.25;
+      }
+      memcpy(ref, a, sizeof ref);
+      for (int i = 1; i < n; i++) { /* stable insertion sort */
+        double t = ref[i];
+        int j = i - 1;
+        while (j >= 0 && ref[j] > t) {
+          ref[j + 1] = ref[j];
+          j--;
+        }
+        ref[j + 1] = t;
+      }
+      bsurf_sort_doubles(a, n);
+      if (n <= 64) assert_memory_equal(a, ref, (size_t)n * sizeof *a);
+      for (int i = 1; i < n; i++) assert_true(a[i - 1] <= a[i]); /* qsort: order only */
+    }
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_estimators_by_hand),
@@ -207,6 +237,7 @@ int main(void) {
       cmocka_unit_test(test_gamma_fast_equals_naive),
       cmocka_unit_test(test_counts),
       cmocka_unit_test(test_counts4_equal_scalar),
+      cmocka_unit_test(test_sort_doubles_stable),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -23,10 +23,56 @@
 
 #include <math.h>
 #include <stdlib.h>
+#include <string.h>
 
 static int cmp_double(const void *a, const void *b) {
   double x = *(const double *)a, y = *(const double *)b;
   return (x > y) - (x < y);
+}
+
+/* Sorts up to 64 values by counting each one's rank: value i goes to the
+ * number of values below it plus the equal ones before it (a stable sort,
+ * as the insertion sort this replaced, so even -0 and +0 keep their order).
+ * K^2 comparisons, but branch-free and vectorised: a point's two sorts
+ * (heights and predictions, for gamma) were ~5% of `error` as an insertion
+ * sort, mostly mispredicted branches. */
+#if defined(__GNUC__)
+typedef double v4d_ __attribute__((vector_size(32)));
+typedef long long v4l_ __attribute__((vector_size(32)));
+#endif
+
+BSURF_CLONES
+static void rank_sort(double *a, int n) {
+#if defined(__GNUC__)
+  /* padded with +inf, which no finite value exceeds or equals */
+  double v[64 + 4];
+  for (int i = 0; i < n; i++) v[i] = a[i];
+  for (int i = n; i < (n + 3) / 4 * 4; i++) v[i] = INFINITY;
+  for (int i = 0; i < n; i++) {
+    const double x = v[i];
+    const v4d_ xv = {x, x, x, x};
+    const v4l_ iv = {i, i, i, i};
+    v4l_ cnt = {0, 0, 0, 0}, jv = {0, 1, 2, 3};
+    const v4l_ four = {4, 4, 4, 4};
+    for (int j = 0; j < n; j += 4) { /* below x, or equal and before: -1 per lane */
+      v4d_ y;
+      memcpy(&y, &v[j], sizeof y);
+      cnt += (v4l_)(y < xv) | ((v4l_)(y == xv) & (jv < iv));
+      jv += four;
+    }
+    a[-(cnt[0] + cnt[1] + cnt[2] + cnt[3])] = x;
+  }
+#else
+  double v[64];
+  for (int i = 0; i < n; i++) v[i] = a[i];
+  for (int i = 0; i < n; i++) {
+    const double x = v[i];
+    int r = 0;
+    for (int j = 0; j < i; j++) r += v[j] <= x;
+    for (int j = i + 1; j < n; j++) r += v[j] < x;
+    a[r] = x;
+  }
+#endif
 }
 
 void bsurf_sort_doubles(double *a, int n) {
@@ -34,15 +80,7 @@ void bsurf_sort_doubles(double *a, int n) {
     qsort(a, (size_t)n, sizeof *a, cmp_double);
     return;
   }
-  for (int i = 1; i < n; i++) {
-    double x = a[i];
-    int j = i - 1;
-    while (j >= 0 && a[j] > x) {
-      a[j + 1] = a[j];
-      j--;
-    }
-    a[j + 1] = x;
-  }
+  rank_sort(a, n);
 }
 
 double bsurf_boot_gamma(int k, const double *pred, const double *y_sorted,
