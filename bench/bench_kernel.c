@@ -153,7 +153,7 @@ int main(int argc, char **argv) {
   t0 = now();
   while (now() - t0 < budget)
     for (int r = 0; r < 100; r++, calls++)
-      bsurf_localfit_residual_sums(lf, D, B, s.coefs, valid, s.missing, sums, sums + K, sums + 2 * K);
+      bsurf_localfit_residual_sums(lf, D, B, s.coefs, valid, s.weights, sums, sums + K, sums + 2 * K);
   t_res.seconds_per_call = (now() - t0) / (double)calls;
 
   timing t_counts = {"resampling (counts4 + weights)", 0, 0};
@@ -161,7 +161,7 @@ int main(int argc, char **argv) {
   t0 = now();
   while (now() - t0 < budget)
     for (int r = 0; r < 100; r++, calls++)
-      bsurf_boot_weight_rows(1, calls, B, K, m, s.counts, s.weights, s.missing, valid);
+      bsurf_boot_weight_rows(1, calls, B, K, m, s.counts, s.weights, NULL, valid);
   t_counts.seconds_per_call = (now() - t0) / (double)calls;
 
   printf("bench_kernel: K=%d B=%d degree=%d (m=%d terms, %d normal-equation columns, %d rows)\n", K, B, D,

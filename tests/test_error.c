@@ -155,6 +155,52 @@ static void test_degenerate_neighbourhoods(void **state) {
   free(xyz);
 }
 
+/* The two ways of summing the replicates give the same bits: gamma = fit
+ * sums the residuals as they are predicted (left-out points formed from the
+ * weights in registers), gamma = mean stores every prediction and the
+ * left-out rows; err_train, err_boot, err_loo, err_loo_center and err_632
+ * do not depend on gamma. On a noisy torus and on duplicate / collinear
+ * points (reduced degrees, skipped replicates). */
+static void test_sum_paths_agree(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_TORUS, 3000, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 4), BSURF_OK);
+  enum { N = 400 };
+  double dup[3 * N];
+  for (int i = 0; i < N; i++) {
+    const int q = i % 20;
+    dup[3 * i] = i < 200 ? i * 0.01 : 10 + q % 5;
+    dup[3 * i + 1] = i < 200 ? 2 * i * 0.01 : 10 + q / 5;
+    dup[3 * i + 2] = i < 200 ? 5 : 0.1 * q;
+  }
+  const double *clouds[2] = {c.xyz, dup};
+  const size_t counts[2] = {c.point_count, N};
+  for (int w = 0; w < 2; w++)
+    for (int degree = 1; degree <= 3; degree++) {
+      const size_t n = counts[w];
+      bsurf_neighbors nb;
+      assert_int_equal(bsurf_neighbors_build(&nb, clouds[w], n, 30, 2, NULL, NULL), BSURF_OK);
+      fields A, M;
+      fields_alloc(&A, n);
+      fields_alloc(&M, n);
+      bsurf_error_options o = bsurf_error_options_default();
+      o.k = 30;
+      o.degree = degree;
+      o.gamma = BSURF_GAMMA_FIT;
+      assert_int_equal(bsurf_estimate_error(clouds[w], &nb, NULL, &o, &A.f, NULL), BSURF_OK);
+      o.gamma = BSURF_GAMMA_MEAN;
+      assert_int_equal(bsurf_estimate_error(clouds[w], &nb, NULL, &o, &M.f, NULL), BSURF_OK);
+      for (int t = 0; t < 5; t++) assert_memory_equal(A.v[t], M.v[t], n * sizeof(double));
+      fields_free(&A);
+      fields_free(&M);
+      bsurf_neighbors_free(&nb);
+    }
+  bsurf_cloud_free(&c);
+}
+
 static int cancel_cb(void *user, size_t done, size_t total) {
   (void)user;
   (void)done;
@@ -196,6 +242,7 @@ int main(void) {
       cmocka_unit_test(test_plane_zero_error),
       cmocka_unit_test(test_thread_determinism),
       cmocka_unit_test(test_degenerate_neighbourhoods),
+      cmocka_unit_test(test_sum_paths_agree),
       cmocka_unit_test(test_arguments),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -95,8 +95,12 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
    * whole neighbourhood (row B, every weight 1) are one matrix product; then
    * one small solve each. */
   /* fewer distinct points than terms: singular */
+  /* the rows of points left out (b in C_j) are needed as an array only by
+   * the estimators of gamma mean / max; the residual sums form them from
+   * the weights */
+  double *missing = o->gamma == BSURF_GAMMA_FIT ? NULL : s->missing;
   bsurf_boot_weight_rows(o->seed, o->point_index ? o->point_index[i] : i, B, k,
-                         bsurf_poly_terms(o->degree), s->counts, s->weights, s->missing, s->valid);
+                         bsurf_poly_terms(o->degree), s->counts, s->weights, missing, s->valid);
   bsurf_localfit_normal_eq_lanes(lf, bsurf_boot_rows(B), s->weights, s->rows);
 
   double coef[BSURF_TERMS_MAX], row[BSURF_NCOLS_MAX];
@@ -111,7 +115,7 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
   if (degree != o->degree) /* a lower degree needs fewer distinct points */
     for (int b = 0; b < B; b++) {
       int distinct = 0;
-      for (int j = 0; j < k; j++) distinct += s->missing[(size_t)b * k + j] == 0;
+      for (int j = 0; j < k; j++) distinct += s->weights[(size_t)b * k + j] != 0;
       s->valid[b] = distinct >= m;
     }
   bsurf_localfit_solve_lanes(lf, degree, B, s->rows, s->valid, s->coefs);
@@ -123,7 +127,7 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
      * (Eqs. 4.3, 4.4): summed as the predictions are made, never stored */
     double *sums = s->est_scratch + 3 * (size_t)k + 1;
     double *boot_j = sums, *loo_sum = sums + k, *loo_cnt = sums + 2 * (size_t)k;
-    bsurf_localfit_residual_sums(lf, degree, B, s->coefs, s->valid, s->missing, boot_j, loo_sum,
+    bsurf_localfit_residual_sums(lf, degree, B, s->coefs, s->valid, s->weights, boot_j, loo_sum,
                                  loo_cnt);
     int nvalid = 0;
     for (int b = 0; b < B; b++) nvalid += s->valid[b];

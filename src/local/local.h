@@ -121,12 +121,14 @@ void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const d
 /* For B fits (coef: B x terms(degree); rows with valid[b] = 0 skipped, valid
  * may be NULL), the absolute residuals e_bj = |f_b(x_j) - z_j| at the k
  * neighbourhood points, summed over b in increasing order: all[j] = sum_b
- * e_bj, out[j] = sum_b w_bj e_bj and cnt[j] = sum_b w_bj, with w = `missing`
- * (B x k, 0 or 1: the bootstrap's b in C_j). The predictions are those of
- * bsurf_localfit_predict and the sums those of bsurf_boot_estimate (same
- * bits), without storing the B x k predictions. */
+ * e_bj, out[j] = sum_b w_bj e_bj and cnt[j] = sum_b w_bj, with w_bj = 1 where
+ * weights[b k + j] = 0 and 0 elsewhere (weights: B x k, the replicates'
+ * multiplicities: w is the bootstrap's b in C_j, the `missing` rows of
+ * bsurf_boot_weight_rows, formed in registers instead of read). The
+ * predictions are those of bsurf_localfit_predict and the sums those of
+ * bsurf_boot_estimate (same bits), without storing the B x k predictions. */
 void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, const double *coef,
-                                  const unsigned char *valid, const double *missing, double *all,
+                                  const unsigned char *valid, const double *weights, double *all,
                                   double *out, double *cnt);
 
 /* The unit normal (global coordinates, Eq. 5.9 rotated back by Eq. 3.6) of

@@ -512,27 +512,29 @@ void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const d
 /* The residual sums of bsurf_localfit_residual_sums for points j0..j0+7. */
 static inline __attribute__((always_inline)) void residual_block(
     int m, int k, int kp, const double *phit, const double *z, int j0, int B, const double *coef,
-    const unsigned char *valid, const double *missing, double *all, double *out, double *cnt) {
+    const unsigned char *valid, const double *weights, double *all, double *out, double *cnt) {
   const int n = k - j0 < 8 ? k - j0 : 8;
-  double yb[8] = {0, 0, 0, 0, 0, 0, 0, 0}, mb[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  double yb[8] = {0, 0, 0, 0, 0, 0, 0, 0}, wb[8] = {1, 1, 1, 1, 1, 1, 1, 1};
   memcpy(yb, &z[j0], (size_t)n * sizeof *yb);
   v4d y0, y1;
   memcpy(&y0, yb, 32);
   memcpy(&y1, yb + 4, 32);
-  const v4d zero = {0, 0, 0, 0};
+  const v4d zero = {0, 0, 0, 0}, one = {1, 1, 1, 1};
   v4d s0 = zero, s1 = zero, o0 = zero, o1 = zero, c0 = zero, c1 = zero;
   for (int b = 0; b < B; b++) {
     if (valid && !valid[b]) continue;
     v4d p0, p1;
     predict8(m, kp, phit, j0, &coef[(size_t)b * m], &p0, &p1);
-    const double *mrow = &missing[(size_t)b * k + j0];
-    if (n < 8) {
-      memcpy(mb, mrow, (size_t)n * sizeof *mb);
-      mrow = mb;
+    const double *wrow = &weights[(size_t)b * k + j0];
+    if (n < 8) { /* padding: weight 1, not missing */
+      memcpy(wb, wrow, (size_t)n * sizeof *wb);
+      wrow = wb;
     }
-    v4d w0, w1;
-    memcpy(&w0, mrow, 32);
-    memcpy(&w1, mrow + 4, 32);
+    v4d m0, m1;
+    memcpy(&m0, wrow, 32);
+    memcpy(&m1, wrow + 4, 32);
+    /* 1.0 where the weight is 0 (the point is not in replicate b), else 0 */
+    const v4d w0 = (v4d)((v4l)(m0 == zero) & (v4l)one), w1 = (v4d)((v4l)(m1 == zero) & (v4l)one);
     v4d e0 = p0 - y0, e1 = p1 - y1;
     for (int l = 0; l < 4; l++) { /* fabs, lane by lane (vectorised) */
       e0[l] = fabs(e0[l]);
@@ -560,14 +562,14 @@ static inline __attribute__((always_inline)) void residual_block(
 
 BSURF_CLONES
 void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, const double *coef,
-                                  const unsigned char *valid, const double *missing, double *all,
+                                  const unsigned char *valid, const double *weights, double *all,
                                   double *out, double *cnt) {
   const int m = bsurf_poly_terms(degree), k = lf->k, kp = lf->kp;
 #ifdef HAVE_V4D
   /* with a constant term count the compiler unrolls the sum over terms */
 #define RESIDUAL_BLOCKS(M)                                                                         \
   for (int j0 = 0; j0 < k; j0 += 8)                                                                \
-    residual_block(M, k, kp, lf->phit, lf->z, j0, B, coef, valid, missing, all, out, cnt)
+    residual_block(M, k, kp, lf->phit, lf->z, j0, B, coef, valid, weights, all, out, cnt)
   switch (m) {
   case 3: RESIDUAL_BLOCKS(3); break;
   case 6: RESIDUAL_BLOCKS(6); break;
@@ -583,7 +585,7 @@ void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, c
     for (int j = 0; j < k; j++) {
       double p = 0;
       for (int a = 0; a < m; a++) p += cb[a] * lf->phit[(size_t)a * kp + j];
-      const double e = fabs(p - lf->z[j]), w = missing[(size_t)b * k + j];
+      const double e = fabs(p - lf->z[j]), w = weights[(size_t)b * k + j] == 0 ? 1.0 : 0.0;
       all[j] += e;
       out[j] += w * e;
       cnt[j] += w;
