@@ -71,14 +71,22 @@ static void test_plane_zero_error(void **state) {
   bsurf_cloud_free(&c);
 }
 
+/* A random torus of about n points with gaussian noise 0.5 h along the
+ * normals. */
+static void noisy_torus(bsurf_cloud *c, size_t n, uint64_t seed, uint64_t noise_seed) {
+  assert_int_equal(bsurf_generate(c, BSURF_SHAPE_TORUS, n, BSURF_SAMPLING_RANDOM, seed, 0), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c->xyz, c->point_count, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c->xyz, c->normals, c->point_count, BSURF_NOISE_GAUSSIAN, 0.5, h,
+                                   noise_seed),
+                   BSURF_OK);
+}
+
 /* Bit-identical results for 1 and 2 threads, and for two runs. */
 static void test_thread_determinism(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_TORUS, 6000, BSURF_SAMPLING_RANDOM, 5, 0), BSURF_OK);
-  double h;
-  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 9), BSURF_OK);
+  noisy_torus(&c, 6000, 5, 9);
   fields A, B2, C;
   fields_alloc(&A, c.point_count);
   fields_alloc(&B2, c.point_count);
@@ -164,10 +172,7 @@ static void test_degenerate_neighbourhoods(void **state) {
 static void test_sum_paths_agree(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_TORUS, 3000, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
-  double h;
-  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 4), BSURF_OK);
+  noisy_torus(&c, 3000, 3, 4);
   enum { N = 400 };
   double dup[3 * N];
   for (int i = 0; i < N; i++) {
