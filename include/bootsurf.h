@@ -957,7 +957,31 @@ typedef struct bsurf_tile {
                                     point first, exactly the rows the whole
                                     cloud gives (nb->h is 0: see report) */
   double halo;                   /* the widest halo the tile needed */
+  /* Two-stage runs (bsurf_tile_ops.values_in / nvalues; docs/scaling.md): */
+  const double *values;          /* values_in: local_count x values_in->nvalues,
+                                    the first stage's values of every local point */
+  double *values_out;            /* nvalues > 0: core_count x nvalues to fill */
+  /* reverse: for core point r, the local indices (increasing) of every
+   * point whose K-neighbourhood in the whole cloud contains it (itself
+   * included): rev[rev_off[r] .. rev_off[r + 1]) */
+  const size_t *rev_off;
+  const uint32_t *rev;
 } bsurf_tile;
+
+/* Per-point values of a first tiled stage, kept by global index in a scratch
+ * file beside the output (removed on every exit: it is unlinked while open)
+ * for the reductions and the second stage of a two-stage run. */
+typedef struct bsurf_tile_values {
+  int fd;          /* -1: none */
+  size_t count;    /* points */
+  size_t nvalues;  /* the stage's values per point (a last column, the
+                      squared distance to the K-th neighbour, is the
+                      engine's: it bounds the reverse neighbourhoods) */
+} bsurf_tile_values;
+
+/* Values [first, first + count) x nvalues into out, in index order. */
+bsurf_status bsurf_tile_values_read(const bsurf_tile_values *v, size_t first, size_t count, double *out);
+void bsurf_tile_values_close(bsurf_tile_values *v);
 
 /* Messages between the processes of a distributed run (MPI in the CLI; the
  * library itself never links MPI). All calls are collective. */
@@ -993,6 +1017,18 @@ typedef struct bsurf_tile_ops {
    * (record + 8 bytes each in memory); 0: the larger of tile_points and
    * 32 MiB of them. */
   size_t range_points;
+  /* A first stage: run() fills tile->values_out with nvalues doubles per
+   * core point; they are kept in index order in *values_out (which the
+   * caller closes). prepare NULL: no output file (`output` then only names
+   * where the scratch files go). */
+  size_t nvalues;
+  bsurf_tile_values *values_out;
+  /* A second stage: the first stage's values, given for every local point
+   * (tile->values); with `reverse`, tiles also get every point whose exact
+   * K-neighbourhood contains a tile point (tile->rev_off, rev: the halo of
+   * reverse neighbours, proven from the first stage's K-th distances). */
+  const bsurf_tile_values *values_in;
+  int reverse;
 } bsurf_tile_ops;
 
 typedef struct bsurf_tile_report {
@@ -1019,6 +1055,16 @@ typedef struct bsurf_tile_report {
  * Errors name the file and place in err (as bsurf_read). */
 bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
                              bsurf_tile_report *report, bsurf_error *err);
+
+/* A pointwise second stage: the input is streamed in index order, range by
+ * range (ops->range_points), with the first stage's values; each range's
+ * points (every input property, prepared by ops->prepare) go to map, which
+ * fills the outputs; the rows are written as bsurf_tiles_run writes them.
+ * With ops->comm, rank 0 writes and the others wait. Uses prepare, map,
+ * range_points, comm and progress of ops. */
+typedef bsurf_status (*bsurf_tile_map_fn)(void *user, size_t first, bsurf_cloud *points, const double *values);
+bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_tile_ops *ops,
+                             const bsurf_tile_values *values, bsurf_tile_map_fn map, bsurf_error *err);
 
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */
