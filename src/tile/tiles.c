@@ -1433,7 +1433,10 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
     st = cloud_like(&c.schema, 1, &c.out_schema);
     if (st == BSURF_OK && ops->prepare) st = ops->prepare(ops->user, &c.out_schema);
   }
-  if (st == BSURF_OK && ops->values_in) st = map_values(ops->values_in, c.n, &c.vin, err);
+  if (st == BSURF_OK && ops->values_in) {
+    st = map_values(ops->values_in, c.n, &c.vin, err);
+    c.vin_cols = ops->values_in->nvalues + 1;
+  }
   if (st == BSURF_OK) {
     st = pass_bounds(&c, report);
     if (st == BSURF_ERR_INVALID_VALUE)
