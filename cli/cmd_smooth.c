@@ -313,19 +313,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     rep.h2 = st1.so.h2;
     /* stage 2: the output */
     if (so.method == BSURF_SMOOTH_NAIVE) {
-      bsurf_error err = {0, -1, ""};
       ops.prepare = smooth_prepare;
-      ops.comm = cli_mpi_comm();
-      cli_progress prog;
-      cli_progress_init(&prog, "smooth", quiet || cli_mpi_rank() != 0);
-      ops.progress = cli_progress_cb;
-      ops.progress_user = &prog;
-      bsurf_status st = bsurf_tiles_map(pos[0], output, &ops, &vals, smooth_map, &err);
-      cli_progress_done(&prog);
-      if (st != BSURF_OK) {
-        rc = cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : err.message[0] ? err.message : bsurf_strerror(st));
-        goto tiled_done;
-      }
+      rc = cli_tiles_map(pos[0], output, &ops, &vals, smooth_map, "smooth", quiet);
+      if (rc) goto tiled_done;
       rep.projected = st1.projected;
     } else {
       bsurf_tile_ops ops2 = {plan, so.error.k, so.error.threads, &st1, smooth_prepare, smooth_stage2_run, 0, NULL,
