@@ -133,7 +133,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
-      {0, "method", ARG_STRING, &method, "M", "distance (PCA distance map, 7.1) or variance (7.2)", 1, 0},
+      {0, "method", ARG_STRING, &method, "M", "distance (PCA distance map, 7.1; not tiled) or variance (7.2; tiled in two stages)", 1, 0},
       {'k', "neighbors", ARG_INT, &fo.normals.k, "K", "variance: neighbourhood of the normals", 3, 65535},
       {'B', "bootstrap", ARG_INT, &fo.normals.bootstrap, "B", "variance: bootstrap replicates (>= 2)", 2, 100000},
       {0, "k-min", ARG_INT, &fo.k_min, "K", "distance: smallest neighbourhood", 3, 65535},

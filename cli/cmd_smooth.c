@@ -174,7 +174,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
       {0, "method", ARG_STRING, &method, "M",
-       "naive (Eq. 6.1), bilateral (Algorithm 4, Eq. 6.2) or multipass (Algorithm 5)", 1, 0},
+       "naive (Eq. 6.1), bilateral (Algorithm 4, Eq. 6.2) or multipass (Algorithm 5; not tiled: "
+       "--iterations passes reach as many rings)",
+       1, 0},
       {'k', "neighbors", ARG_INT, &so.error.k, "K", "neighbourhood size K, the point included", 2, 65535},
       {'d', "degree", ARG_INT, &so.error.degree, "M", "degree of the height polynomial, 1..4", 1, 4},
       {'B', "bootstrap", ARG_INT, &so.error.bootstrap, "B", "bootstrap replicates per point", 0, 100000},
@@ -193,8 +195,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "(2W bilateral, 0.3W multipass)",
        1, 0},
       {0, "order", ARG_STRING, &order, "O",
-       "bilateral, multipass: parallel (order-independent) or sequential (the thesis's in-place sweep, one "
-       "thread)",
+       "bilateral, multipass: parallel (order-independent; tiled with a halo of reverse neighbours) or "
+       "sequential (the thesis's in-place sweep, one thread; not tiled: a chain over the whole cloud)",
        1, 0},
       {0, "a", ARG_DOUBLE, &so.a, "A", "multipass: h1 = A x d_L, the mean distance to the K_i neighbours (Eq. 6.5)", 0, 1e6},
       {0, "iterations", ARG_INT, &so.iterations, "N", "multipass: smoothing passes", 0, 1000000},
