@@ -116,6 +116,10 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
  * naming the file and place. 0 or 1 (printed). */
 int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep,
                   int quiet);
+/* bsurf_tiles_map (a pointwise second stage) with a progress bar, MPI when
+ * started by mpirun, messages naming the file. 0 or 1 (printed). */
+int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, const bsurf_tile_values *values,
+                  bsurf_tile_map_fn map, const char *label, int quiet);
 /* The duplicate count of a tiled run, for the summaries. */
 void cli_set_duplicates(size_t count);
 /* MPI (a build with BSURF_MPI, started by mpirun); otherwise one rank. */

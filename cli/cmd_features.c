@@ -16,12 +16,124 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The output fields: an input field NAME is kept as NAME_in, unless NAME_in
+ * exists (then NAME is an earlier result and is replaced); then the score
+ * and `feature` are added (their values zero). kept / replaced: per name. */
+static bsurf_status features_fields(bsurf_cloud *c, const char *const names[2], int kept[2], int replaced[2]) {
+  for (int t = 0; t < 2; t++) {
+    kept[t] = replaced[t] = 0;
+    bsurf_field *old = bsurf_cloud_field(c, names[t]);
+    if (!old) continue;
+    char in_name[BSURF_FIELD_NAME_MAX];
+    snprintf(in_name, sizeof in_name, "%s_in", names[t]);
+    if (bsurf_cloud_field(c, in_name)) {
+      replaced[t] = 1;
+    } else {
+      strcpy(old->name, in_name);
+      kept[t] = 1;
+    }
+  }
+  /* adding a field may move the field array: look both up once both exist */
+  return bsurf_cloud_add_field(c, names[1], BSURF_FLOAT32) && bsurf_cloud_add_field(c, names[0], BSURF_UINT8)
+             ? BSURF_OK
+             : BSURF_ERR_NOMEM;
+}
+
+static void features_warn(const char *input, const char *const names[2], const int kept[2], const int replaced[2]) {
+  for (int t = 0; t < 2; t++) {
+    if (replaced[t]) cli_warn("%s: replacing the input's %s (%s_in is kept)", input, names[t], names[t]);
+    if (kept[t]) cli_warn("%s: the input's %s is kept as %s_in", input, names[t], names[t]);
+  }
+}
+
+/* ---- tiled runs of the variance method (cli/tiles.c, docs/scaling.md) ----
+ * Stage 1 (tiles): normal_var of every point from its K-neighbourhood, kept
+ * by index. The automatic threshold of Eq. 7.2 needs every value: they are
+ * read back in index order into memory (8 bytes per point) for
+ * bsurf_tail_threshold. Stage 2 streams the points with their values and
+ * writes normal_var and feature = normal_var > t_h. */
+
+typedef struct features_tiles {
+  bsurf_normal_options no;
+  double threshold;
+  const char *names[2];
+  int kept[2], replaced[2];
+} features_tiles;
+
+static bsurf_status features_stage1_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
+  (void)core;
+  (void)sums;
+  const features_tiles *ft = user;
+  bsurf_normal_options no = ft->no;
+  no.point_index = tile->point_index;
+  bsurf_normal_fields nf = {NULL, tile->values_out, NULL};
+  return bsurf_estimate_normals(tile->xyz, tile->nb, NULL, &no, &nf, NULL);
+}
+
+static bsurf_status features_prepare(void *user, bsurf_cloud *c) {
+  features_tiles *ft = user;
+  return features_fields(c, ft->names, ft->kept, ft->replaced);
+}
+
+static bsurf_status features_map(void *user, size_t first, bsurf_cloud *c, const double *values) {
+  (void)first;
+  const features_tiles *ft = user;
+  double *score = bsurf_cloud_field(c, ft->names[1])->values, *feat = bsurf_cloud_field(c, ft->names[0])->values;
+  for (size_t i = 0; i < c->point_count; i++) {
+    score[i] = values[i];
+    feat[i] = values[i] > ft->threshold; /* Eq. 7.2 */
+  }
+  return BSURF_OK;
+}
+
+/* The tiled variance method: threshold (given or automatic), the feature
+ * count and h out. 0 or 1 (printed). */
+static int features_tiled(const char *input, const char *output, const bsurf_feature_options *fo, size_t *plan,
+                          int quiet, features_tiles *ft, size_t *tiles, size_t *n, double *h,
+                          bsurf_feature_report *rep) {
+  bsurf_tile_values vals = {-1, 0, 0};
+  ft->no = fo->normals;
+  ft->no.threads = fo->threads;
+  bsurf_tile_ops ops = {*plan, fo->normals.k, fo->threads, ft, NULL, features_stage1_run, 0, NULL,
+                        NULL, NULL, 0, 1, &vals, NULL, 0};
+  bsurf_tile_report tr;
+  tr.sums = NULL;
+  int rc = cli_tiles_run(input, output, &ops, &tr, quiet);
+  *plan = ops.tile_points;
+  *tiles = tr.tiles;
+  double *v = NULL;
+  if (!rc) {
+    *n = tr.points;
+    *h = tr.h;
+    v = malloc((*n ? *n : 1) * sizeof(double));
+    if (!v) rc = cli_error("out of memory");
+    else if (bsurf_tile_values_read(&vals, 0, *n, v) != BSURF_OK)
+      rc = cli_error("%s: cannot read the scratch file of the first stage", input);
+  }
+  bsurf_status st = BSURF_OK;
+  if (!rc && isnan(fo->threshold)) st = bsurf_tail_threshold(v, *n, fo->tail_rule, &ft->threshold);
+  else ft->threshold = fo->threshold;
+  if (st != BSURF_OK) rc = cli_error("%s: %s", input, bsurf_strerror(st));
+  memset(rep, 0, sizeof *rep);
+  rep->threshold = ft->threshold;
+  for (size_t i = 0; !rc && i < *n; i++) rep->feature_points += v[i] > ft->threshold;
+  free(v);
+  if (!rc) {
+    ops.prepare = features_prepare;
+    rc = cli_tiles_map(input, output, &ops, &vals, features_map, "features", quiet);
+  }
+  bsurf_tile_values_close(&vals);
+  return rc;
+}
+
 int cmd_features(const cli_command *cmd, int argc, char **argv) {
   bsurf_feature_options fo = bsurf_feature_options_default();
   const char *method = "distance", *output = NULL, *threshold_s = "auto", *tail = "otsu";
+  const char *memory_limit = "auto";
+  size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
-      {0, "method", ARG_STRING, &method, "M", "distance (PCA distance map, 7.1) or variance (7.2)", 1, 0},
+      {0, "method", ARG_STRING, &method, "M", "distance (PCA distance map, 7.1; not tiled) or variance (7.2; tiled in two stages)", 1, 0},
       {'k', "neighbors", ARG_INT, &fo.normals.k, "K", "variance: neighbourhood of the normals", 3, 65535},
       {'B', "bootstrap", ARG_INT, &fo.normals.bootstrap, "B", "variance: bootstrap replicates (>= 2)", 2, 100000},
       {0, "k-min", ARG_INT, &fo.k_min, "K", "distance: smallest neighbourhood", 3, 65535},
@@ -44,6 +156,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       CLI_OPT_SEED(fo.normals.seed),
       CLI_OPT_THREADS(fo.threads),
       CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPTS_TILES(tile_points, memory_limit),
       CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
@@ -69,6 +182,15 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   if (cli_check_output(output, pos[0], force)) return 1;
   const int kmax = fo.method == BSURF_FEATURES_DISTANCE ? fo.k_max : fo.normals.k;
+  size_t plan = 0, tiles = 0;
+  rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 2, &plan);
+  if (rc) return rc;
+  if (plan && fo.method == BSURF_FEATURES_DISTANCE)
+    return cli_error("%s: features --method distance is not available in tiled runs: its bilateral filter "
+                     "(--iterations passes) reaches that many neighbourhood rings, and its thresholds are "
+                     "global (per-size medians of lambda0/lambda2 for --noise-factor, Otsu's split of the "
+                     "whole map); --method variance is tiled",
+                     pos[0]);
 
   double t0 = cli_now();
   bsurf_cloud c;
@@ -77,12 +199,30 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   memset(&nb, 0, sizeof nb);
   uint8_t *feat = NULL;
   double *score = NULL;
+  const char *score_name = fo.method == BSURF_FEATURES_DISTANCE ? "feature_dist" : "normal_var";
+  const char *out_names[2] = {"feature", score_name};
+  int kept[2] = {0, 0}, replaced[2] = {0, 0};
+  size_t n = 0;
+  double h = 0;
+  bsurf_feature_report rep;
   rc = 1;
+  if (plan) {
+    features_tiles ft;
+    memset(&ft, 0, sizeof ft);
+    ft.names[0] = out_names[0];
+    ft.names[1] = out_names[1];
+    if (features_tiled(pos[0], output, &fo, &plan, quiet, &ft, &tiles, &n, &h, &rep)) goto done;
+    memcpy(kept, ft.kept, sizeof kept);
+    memcpy(replaced, ft.replaced, sizeof replaced);
+    if (!quiet) features_warn(pos[0], out_names, kept, replaced);
+    goto summary;
+  }
   if (cli_read_cloud(pos[0], &c)) goto done;
   if (cli_build_neighbors(pos[0], &c, kmax, fo.threads, quiet, &nb)) goto done;
   cli_progress prog;
   bsurf_status st;
-  const size_t n = c.point_count;
+  n = c.point_count;
+  h = nb.h;
   feat = malloc(n);
   score = malloc(n * sizeof(double));
   if (!feat || !score) {
@@ -91,7 +231,6 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   }
   fo.progress = cli_progress_cb;
   fo.progress_user = &prog;
-  bsurf_feature_report rep;
   cli_progress_init(&prog, "features", quiet);
   st = bsurf_detect_features(c.xyz, &nb, &fo, feat, score, &rep);
   cli_progress_done(&prog);
@@ -99,35 +238,16 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
     goto done;
   }
-  const char *score_name = fo.method == BSURF_FEATURES_DISTANCE ? "feature_dist" : "normal_var";
-  const char *out_names[2] = {"feature", score_name};
-  int kept[2] = {0, 0}, replaced[2] = {0, 0};
-  for (int t = 0; t < 2; t++) {
-    bsurf_field *old = bsurf_cloud_field(&c, out_names[t]);
-    if (!old) continue;
-    char in_name[BSURF_FIELD_NAME_MAX];
-    snprintf(in_name, sizeof in_name, "%s_in", out_names[t]);
-    if (bsurf_cloud_field(&c, in_name)) {
-      replaced[t] = 1;
-      if (!quiet)
-        cli_warn("%s: replacing the input's %s (%s is kept)", pos[0], out_names[t], in_name);
-    } else {
-      strcpy(old->name, in_name);
-      kept[t] = 1;
-      if (!quiet) cli_warn("%s: the input's %s is kept as %s", pos[0], out_names[t], in_name);
-    }
-  }
-  /* adding a field may move the field array: look both up once both exist */
-  bsurf_field *fs = bsurf_cloud_add_field(&c, score_name, BSURF_FLOAT32);
-  bsurf_field *ff = fs ? bsurf_cloud_add_field(&c, "feature", BSURF_UINT8) : NULL;
-  if (ff) fs = bsurf_cloud_field(&c, score_name);
-  if (!fs || !ff) {
+  if (features_fields(&c, out_names, kept, replaced) != BSURF_OK) {
     cli_error("out of memory");
     goto done;
   }
-  memcpy(fs->values, score, n * sizeof(double));
-  for (size_t i = 0; i < n; i++) ff->values[i] = feat[i];
+  if (!quiet) features_warn(pos[0], out_names, kept, replaced);
+  memcpy(bsurf_cloud_field(&c, score_name)->values, score, n * sizeof(double));
+  double *fv = bsurf_cloud_field(&c, "feature")->values;
+  for (size_t i = 0; i < n; i++) fv[i] = feat[i];
   if (cli_write_cloud(output, &c, ascii)) goto done;
+summary:;
   double secs = cli_now() - t0;
   if (json) {
     cli_json j;
@@ -136,7 +256,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     json_str(&j, "input", pos[0]);
     json_str(&j, "output", output);
     json_int(&j, "points", (long long)n);
-    json_num(&j, "h", nb.h);
+    json_num(&j, "h", h);
     json_str(&j, "method", method);
     json_obj(&j, "parameters");
     if (fo.method == BSURF_FEATURES_DISTANCE) {
@@ -176,10 +296,15 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     json_num(&j, "threshold", rep.threshold);
     json_int(&j, "feature_points", (long long)rep.feature_points);
     json_int(&j, "threads", bsurf_threads_resolve(fo.threads));
+    if (plan) {
+      json_int(&j, "tile_points", (long long)plan);
+      json_int(&j, "tiles", (long long)tiles);
+      json_int(&j, "ranks", cli_mpi_ranks());
+    }
     json_num(&j, "seconds", secs);
     json_end(&j);
   } else if (!quiet) {
-    printf("features: %zu points, h = %.6g, method %s, %.2f s\n", n, nb.h, method, secs);
+    printf("features: %zu points, h = %.6g, method %s, %.2f s\n", n, h, method, secs);
     printf("  threshold %.6g on %s (%s): %zu feature points (%.2f%%)\n", rep.threshold, score_name,
            isnan(fo.threshold) ? "auto" : "given", rep.feature_points,
            n ? 100.0 * (double)rep.feature_points / (double)n : 0.0);

@@ -121,6 +121,22 @@ int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bs
   return cli_error("%s: %s", input, msg);
 }
 
+int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, const bsurf_tile_values *values,
+                  bsurf_tile_map_fn map, const char *label, int quiet) {
+  cli_progress prog;
+  cli_progress_init(&prog, label, quiet || cli_mpi_rank() != 0);
+  ops->progress = cli_progress_cb;
+  ops->progress_user = &prog;
+  ops->comm = cli_mpi_comm();
+  bsurf_error err = {0, -1, ""};
+  bsurf_status st = bsurf_tiles_map(input, output, ops, values, map, &err);
+  cli_progress_done(&prog);
+  if (st == BSURF_OK) return 0;
+  if (cli_mpi_rank() != 0) return 1;
+  return cli_error("%s: %s", input,
+                   cli_interrupted() ? "interrupted" : err.message[0] ? err.message : bsurf_strerror(st));
+}
+
 /* ---- MPI ---------------------------------------------------------------------- */
 
 #ifdef BSURF_MPI

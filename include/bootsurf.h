@@ -470,6 +470,33 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
                           const bsurf_smooth_options *opts, double *out_xyz,
                           bsurf_smooth_fields *fields, bsurf_smooth_report *report);
 
+/* Tiled smoothing (bsurf_tiles_run, docs/scaling.md): naive and bilateral in
+ * parallel order as two stages with the bits of bsurf_smooth.
+ * Stage 1, per point from its own K-neighbourhood: err_632, err_632plus,
+ * then naive's projection of Eq. 6.1 (3 doubles) or bilateral's fit (frame,
+ * scale and coefficients). The doubles per point; 0: the method and order
+ * are not local enough to tile (sequential order, multipass). */
+size_t bsurf_smooth_stage_values(const bsurf_smooth_options *opts);
+/* Which of the first two values is W_i (0: err_632, 1: err_632plus). */
+int bsurf_smooth_w_column(const bsurf_smooth_options *opts);
+/* Stage 1 for the nb->point_count rows of nb (row r is the point nb->idx[r k];
+ * opts->error.point_index keys the draws): values out, rows x
+ * bsurf_smooth_stage_values. report: the bootstrap counters (may be NULL). */
+bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb, const bsurf_smooth_options *opts,
+                                 double *values, bsurf_error_report *report);
+/* The sigmas and the threshold bsurf_smooth applies, from h (mean spacing)
+ * and |W| (the mean of W_i over the cloud, summed in index order): sets
+ * opts->h1, opts->h2 and opts->threshold. */
+void bsurf_smooth_resolve(bsurf_smooth_options *opts, double h, double mean_w);
+/* Stage 2 with resolved options, for `count` points at the local indices
+ * point[] (NULL: 0..count-1) of xyz; values: stage 1's of every local point.
+ * Bilateral: rev[rev_off[r] .. rev_off[r + 1]) are the local indices
+ * (increasing global order) of every neighbourhood containing point r;
+ * naive: rev NULL. out_xyz: count x 3; moved: count. */
+bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const double *values, size_t count,
+                                 const uint32_t *point, const size_t *rev_off, const uint32_t *rev,
+                                 const bsurf_smooth_options *opts, double *out_xyz, double *moved);
+
 /* ------------------------------------------------------------------------ */
 /* Feature detection (thesis chapter 7)                                      */
 /* ------------------------------------------------------------------------ */
@@ -957,7 +984,31 @@ typedef struct bsurf_tile {
                                     point first, exactly the rows the whole
                                     cloud gives (nb->h is 0: see report) */
   double halo;                   /* the widest halo the tile needed */
+  /* Two-stage runs (bsurf_tile_ops.values_in / nvalues; docs/scaling.md): */
+  const double *values;          /* values_in: local_count x values_in->nvalues,
+                                    the first stage's values of every local point */
+  double *values_out;            /* nvalues > 0: core_count x nvalues to fill */
+  /* reverse: for core point r, the local indices (increasing) of every
+   * point whose K-neighbourhood in the whole cloud contains it (itself
+   * included): rev[rev_off[r] .. rev_off[r + 1]) */
+  const size_t *rev_off;
+  const uint32_t *rev;
 } bsurf_tile;
+
+/* Per-point values of a first tiled stage, kept by global index in a scratch
+ * file beside the output (removed on every exit: it is unlinked while open)
+ * for the reductions and the second stage of a two-stage run. */
+typedef struct bsurf_tile_values {
+  int fd;          /* -1: none */
+  size_t count;    /* points */
+  size_t nvalues;  /* the stage's values per point (a last column, the
+                      squared distance to the K-th neighbour, is the
+                      engine's: it bounds the reverse neighbourhoods) */
+} bsurf_tile_values;
+
+/* Values [first, first + count) x nvalues into out, in index order. */
+bsurf_status bsurf_tile_values_read(const bsurf_tile_values *v, size_t first, size_t count, double *out);
+void bsurf_tile_values_close(bsurf_tile_values *v);
 
 /* Messages between the processes of a distributed run (MPI in the CLI; the
  * library itself never links MPI). All calls are collective. */
@@ -993,6 +1044,18 @@ typedef struct bsurf_tile_ops {
    * (record + 8 bytes each in memory); 0: the larger of tile_points and
    * 32 MiB of them. */
   size_t range_points;
+  /* A first stage: run() fills tile->values_out with nvalues doubles per
+   * core point; they are kept in index order in *values_out (which the
+   * caller closes). prepare NULL: no output file (`output` then only names
+   * where the scratch files go). */
+  size_t nvalues;
+  bsurf_tile_values *values_out;
+  /* A second stage: the first stage's values, given for every local point
+   * (tile->values); with `reverse`, tiles also get every point whose exact
+   * K-neighbourhood contains a tile point (tile->rev_off, rev: the halo of
+   * reverse neighbours, proven from the first stage's K-th distances). */
+  const bsurf_tile_values *values_in;
+  int reverse;
 } bsurf_tile_ops;
 
 typedef struct bsurf_tile_report {
@@ -1019,6 +1082,16 @@ typedef struct bsurf_tile_report {
  * Errors name the file and place in err (as bsurf_read). */
 bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
                              bsurf_tile_report *report, bsurf_error *err);
+
+/* A pointwise second stage: the input is streamed in index order, range by
+ * range (ops->range_points), with the first stage's values; each range's
+ * points (every input property, prepared by ops->prepare) go to map, which
+ * fills the outputs; the rows are written as bsurf_tiles_run writes them.
+ * With ops->comm, rank 0 writes and the others wait. Uses prepare, map,
+ * range_points, comm and progress of ops. */
+typedef bsurf_status (*bsurf_tile_map_fn)(void *user, size_t first, bsurf_cloud *points, const double *values);
+bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_tile_ops *ops,
+                             const bsurf_tile_values *values, bsurf_tile_map_fn map, bsurf_error *err);
 
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */

@@ -306,6 +306,268 @@ static void test_big_endian(void **state) {
   check_tiles(tmp_path("be.ply"), &j, sizes, 2);
 }
 
+/* ---- two-stage runs (first-stage values, reverse-neighbour halos) ---- */
+
+static const char *const smooth_names[3] = {"err_632", "err_632plus", "moved"};
+
+typedef struct smooth_job {
+  bsurf_smooth_options so; /* resolved before the second stage */
+  size_t nv;
+  double threshold; /* features: t_h */
+} smooth_job;
+
+static bsurf_status smooth_prepare(void *user, bsurf_cloud *c) {
+  (void)user;
+  for (int f = 0; f < 3; f++)
+    if (!bsurf_cloud_add_field(c, smooth_names[f], BSURF_FLOAT32)) return BSURF_ERR_NOMEM;
+  return BSURF_OK;
+}
+
+static bsurf_status smooth_run1(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
+  const smooth_job *j = user;
+  (void)core;
+  sums[0] += (double)t->core_count;
+  bsurf_smooth_options so = j->so;
+  so.error.point_index = t->point_index;
+  return bsurf_smooth_stage1(t->xyz, t->nb, &so, t->values_out, NULL);
+}
+
+static void smooth_fill(const smooth_job *j, bsurf_cloud *c, const double *values, const uint32_t *point,
+                        const double *out, const double *moved) {
+  for (size_t r = 0; r < c->point_count; r++) {
+    const double *v = &values[(point ? (size_t)point[r] : r) * j->nv];
+    memcpy(&c->xyz[3 * r], &out[3 * r], 3 * sizeof(double));
+    bsurf_cloud_field(c, smooth_names[0])->values[r] = v[0];
+    bsurf_cloud_field(c, smooth_names[1])->values[r] = v[1];
+    bsurf_cloud_field(c, smooth_names[2])->values[r] = moved[r];
+  }
+}
+
+static bsurf_status smooth_run2(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
+  const smooth_job *j = user;
+  sums[0] += (double)t->core_count;
+  const size_t n = t->core_count;
+  uint32_t *point = malloc(n * sizeof *point);
+  double *out = malloc(3 * n * sizeof(double));
+  /* every tile point lies in its own neighbourhood: its own list holds it */
+  for (size_t r = 0; r < n; r++) {
+    point[r] = t->nb->idx[r * (size_t)t->nb->k];
+    int self = 0;
+    for (size_t e = t->rev_off[r]; e < t->rev_off[r + 1]; e++) self |= t->rev[e] == point[r];
+    assert_true(self);
+  }
+  bsurf_status st =
+      bsurf_smooth_stage2(t->xyz, t->local_count, t->values, n, point, t->rev_off, t->rev, &j->so, out, t->values_out);
+  if (st == BSURF_OK) smooth_fill(j, core, t->values, point, out, t->values_out);
+  free(point);
+  free(out);
+  return st;
+}
+
+static bsurf_status smooth_map(void *user, size_t first, bsurf_cloud *c, const double *values) {
+  const smooth_job *j = user;
+  (void)first;
+  size_t n = c->point_count;
+  double *out = malloc(3 * n * sizeof(double)), *moved = malloc(n * sizeof(double));
+  bsurf_status st = bsurf_smooth_stage2(c->xyz, n, values, n, NULL, NULL, NULL, &j->so, out, moved);
+  if (st == BSURF_OK) smooth_fill(j, c, values, NULL, out, moved);
+  free(out);
+  free(moved);
+  return st;
+}
+
+static bsurf_tile_ops stage_ops(void *user, int k, size_t tile_points) {
+  bsurf_tile_ops ops;
+  memset(&ops, 0, sizeof ops);
+  ops.tile_points = tile_points;
+  ops.k = k;
+  ops.threads = 2;
+  ops.user = user;
+  ops.nsums = 1;
+  return ops;
+}
+
+/* Tiled naive and bilateral (parallel order) smoothing: the in-memory
+ * bsurf_smooth's file, byte for byte, for every tile size. */
+static void check_smooth(const char *path, bsurf_smooth_options so, const size_t *sizes, int nsizes) {
+  char in[1200]; /* tmp_path's buffers are reused */
+  snprintf(in, sizeof in, "%s", path);
+  bsurf_cloud c;
+  bsurf_error err;
+  assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, so.error.k, 2, NULL, NULL), BSURF_OK);
+  assert_int_equal(smooth_prepare(NULL, &c), BSURF_OK);
+  bsurf_smooth_fields sf = {bsurf_cloud_field(&c, smooth_names[0])->values,
+                            bsurf_cloud_field(&c, smooth_names[1])->values,
+                            bsurf_cloud_field(&c, smooth_names[2])->values, NULL, NULL};
+  double *out = malloc(3 * c.point_count * sizeof(double));
+  bsurf_smooth_report ref;
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &so, out, &sf, &ref), BSURF_OK);
+  memcpy(c.xyz, out, 3 * c.point_count * sizeof(double));
+  assert_int_equal(bsurf_write(tmp_path("sref.ply"), &c, NULL, &err), BSURF_OK);
+  const size_t n = c.point_count;
+  free(out);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+  for (int s = 0; s < nsizes; s++) {
+    smooth_job j = {so, bsurf_smooth_stage_values(&so), 0};
+    bsurf_tile_values vals = {-1, 0, 0}, moved = {-1, 0, 0};
+    bsurf_tile_ops ops = stage_ops(&j, so.error.k, sizes[s]);
+    ops.run = smooth_run1;
+    ops.nvalues = j.nv;
+    ops.values_out = &vals;
+    bsurf_tile_report rep;
+    double sums[1] = {0};
+    rep.sums = sums;
+    assert_int_equal(bsurf_tiles_run(in, tmp_path("stage1"), &ops, &rep, &err), BSURF_OK);
+    assert_true(rep.h == ref.h);
+    assert_int_equal((size_t)sums[0], n);
+    /* |W| in index order, as bsurf_smooth sums it */
+    double *v = malloc(n * j.nv * sizeof(double)), sw = 0;
+    assert_int_equal(bsurf_tile_values_read(&vals, 0, n, v), BSURF_OK);
+    for (size_t i = 0; i < n; i++) sw += v[i * j.nv + (size_t)bsurf_smooth_w_column(&so)];
+    free(v);
+    assert_true(sw / (double)n == ref.mean_error);
+    bsurf_smooth_resolve(&j.so, rep.h, sw / (double)n);
+    ops.prepare = smooth_prepare;
+    if (so.method == BSURF_SMOOTH_NAIVE) {
+      ops.range_points = 97;
+      assert_int_equal(bsurf_tiles_map(in, tmp_path("stiled.ply"), &ops, &vals, smooth_map, &err), BSURF_OK);
+    } else {
+      ops.run = smooth_run2;
+      ops.values_in = &vals;
+      ops.reverse = 1;
+      ops.nvalues = 1;
+      ops.values_out = &moved;
+      sums[0] = 0;
+      assert_int_equal(bsurf_tiles_run(in, tmp_path("stiled.ply"), &ops, &rep, &err), BSURF_OK);
+      assert_int_equal((size_t)sums[0], n);
+      assert_int_equal(moved.count, n);
+      if (sizes[s] < n / 4) assert_true(rep.tiles > 2);
+    }
+    assert_same_file(tmp_path("sref.ply"), tmp_path("stiled.ply"));
+    bsurf_tile_values_close(&vals);
+    bsurf_tile_values_close(&moved);
+  }
+}
+
+static void test_smooth_two_stage(void **state) {
+  (void)state;
+  write_uniform(tmp_path("uniform.ply"), 4000);
+  write_nonuniform(tmp_path("nonuniform.ply"));
+  bsurf_smooth_options so = bsurf_smooth_options_default();
+  so.error.k = 12;
+  so.error.degree = 2;
+  so.error.bootstrap = 5;
+  so.error.threads = 2;
+  const size_t sizes[] = {24, 90, 700};
+  for (int m = 0; m < 2; m++) {
+    so.method = m ? BSURF_SMOOTH_BILATERAL : BSURF_SMOOTH_NAIVE;
+    check_smooth(tmp_path("uniform.ply"), so, sizes, 3);
+    check_smooth(tmp_path("nonuniform.ply"), so, sizes, 3);
+  }
+  /* a wider distance sigma: more of the reverse neighbours weigh */
+  so.h1 = 0.05;
+  check_smooth(tmp_path("nonuniform.ply"), so, sizes, 2);
+  /* not tiled: the sequential sweep and the multipass */
+  so.order = BSURF_ORDER_SEQUENTIAL;
+  assert_int_equal(bsurf_smooth_stage_values(&so), 0);
+  so.order = BSURF_ORDER_PARALLEL;
+  so.method = BSURF_SMOOTH_MULTIPASS;
+  assert_int_equal(bsurf_smooth_stage_values(&so), 0);
+}
+
+/* features --method variance: normal_var per tile, the automatic tail
+ * threshold over every value, feature at a streamed second stage. */
+static bsurf_status var_run1(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
+  const smooth_job *j = user;
+  (void)core;
+  sums[0] += (double)t->core_count;
+  bsurf_normal_options no = bsurf_normal_options_default();
+  no.k = j->so.error.k;
+  no.bootstrap = 6;
+  no.threads = 2;
+  no.point_index = t->point_index;
+  bsurf_normal_fields nf = {NULL, t->values_out, NULL};
+  return bsurf_estimate_normals(t->xyz, t->nb, NULL, &no, &nf, NULL);
+}
+
+static bsurf_status var_prepare(void *user, bsurf_cloud *c) {
+  (void)user;
+  return bsurf_cloud_add_field(c, "normal_var", BSURF_FLOAT32) && bsurf_cloud_add_field(c, "feature", BSURF_UINT8)
+             ? BSURF_OK
+             : BSURF_ERR_NOMEM;
+}
+
+static bsurf_status var_map(void *user, size_t first, bsurf_cloud *c, const double *values) {
+  const smooth_job *j = user;
+  (void)first;
+  for (size_t i = 0; i < c->point_count; i++) {
+    bsurf_cloud_field(c, "normal_var")->values[i] = values[i];
+    bsurf_cloud_field(c, "feature")->values[i] = values[i] > j->threshold;
+  }
+  return BSURF_OK;
+}
+
+static void test_features_two_stage(void **state) {
+  (void)state;
+  write_nonuniform(tmp_path("nonuniform.ply"));
+  char in[1200]; /* tmp_path's buffers are reused */
+  snprintf(in, sizeof in, "%s", tmp_path("nonuniform.ply"));
+  bsurf_cloud c;
+  bsurf_error err;
+  assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 14, 2, NULL, NULL), BSURF_OK);
+  bsurf_feature_options fo = bsurf_feature_options_default();
+  fo.method = BSURF_FEATURES_VARIANCE;
+  fo.normals.k = 14;
+  fo.normals.bootstrap = 6;
+  fo.threads = 2;
+  const size_t n = c.point_count;
+  uint8_t *feat = malloc(n);
+  double *score = malloc(n * sizeof(double));
+  bsurf_feature_report ref;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &fo, feat, score, &ref), BSURF_OK);
+  assert_int_equal(var_prepare(NULL, &c), BSURF_OK);
+  for (size_t i = 0; i < n; i++) {
+    bsurf_cloud_field(&c, "normal_var")->values[i] = score[i];
+    bsurf_cloud_field(&c, "feature")->values[i] = feat[i];
+  }
+  assert_int_equal(bsurf_write(tmp_path("fref.ply"), &c, NULL, &err), BSURF_OK);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+  const size_t sizes[] = {28, 333};
+  for (int s = 0; s < 2; s++) {
+    smooth_job j;
+    memset(&j, 0, sizeof j);
+    j.so.error.k = 14;
+    bsurf_tile_values vals = {-1, 0, 0};
+    bsurf_tile_ops ops = stage_ops(&j, 14, sizes[s]);
+    ops.run = var_run1;
+    ops.nvalues = 1;
+    ops.values_out = &vals;
+    bsurf_tile_report rep;
+    double sums[1] = {0};
+    rep.sums = sums;
+    assert_int_equal(bsurf_tiles_run(in, tmp_path("stage1"), &ops, &rep, &err), BSURF_OK);
+    assert_int_equal(bsurf_tile_values_read(&vals, 0, n, score), BSURF_OK);
+    assert_int_equal(bsurf_tail_threshold(score, n, fo.tail_rule, &j.threshold), BSURF_OK);
+    assert_true(j.threshold == ref.threshold);
+    ops.prepare = var_prepare;
+    assert_int_equal(bsurf_tiles_map(in, tmp_path("ftiled.ply"), &ops, &vals, var_map, &err), BSURF_OK);
+    assert_same_file(tmp_path("fref.ply"), tmp_path("ftiled.ply"));
+    /* a second stage refuses values of another input */
+    vals.count--;
+    assert_int_equal(bsurf_tiles_map(in, tmp_path("fbad.ply"), &ops, &vals, var_map, &err), BSURF_ERR_INVALID_ARG);
+    assert_int_equal(access(tmp_path("fbad.ply"), F_OK), -1);
+    bsurf_tile_values_close(&vals);
+  }
+  free(feat);
+  free(score);
+}
+
 /* Bad inputs: the reader's errors, nothing written. */
 static void test_refusals(void **state) {
   (void)state;
@@ -374,7 +636,8 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_uniform_error), cmocka_unit_test(test_uniform_normals),
       cmocka_unit_test(test_nonuniform),    cmocka_unit_test(test_big_endian),
-      cmocka_unit_test(test_refusals),
+      cmocka_unit_test(test_refusals),     cmocka_unit_test(test_smooth_two_stage),
+      cmocka_unit_test(test_features_two_stage),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

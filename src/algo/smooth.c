@@ -175,8 +175,9 @@ typedef struct smooth_ctx {
   double h1, h2, k_error;
   double inv_h1sq_global; /* bilateral: 1 / h1^2 */
   /* reverse neighbourhoods: the i whose neighbourhood contains p */
-  size_t *rev_off;    /* n + 1 */
-  uint32_t *rev;      /* rev_off[n] */
+  const size_t *rev_off; /* n + 1 */
+  const uint32_t *rev;   /* rev_off[n] */
+  const uint32_t *self;  /* tiled stage 2: point p's row in cur (NULL: p) */
   const double *cur;  /* positions a pass reads */
   double *next;       /* positions a pass writes */
   /* multipass: the pairs that can have a weight, rebuilt as points move */
@@ -194,17 +195,35 @@ static void boot_task(void *vc, int thread, size_t i) {
   ef.err_632 = c->err_632;
   ef.err_632plus = c->err_632plus;
   bsurf_error_fit fit;
-  bsurf_error_point(c->xyz, &c->nb->idx[i * (size_t)c->nb->k], NULL, &c->o.error, i, &c->scr[thread],
-                    &ef, &fit);
-  const double *p = &c->xyz[3 * i];
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  bsurf_error_point(c->xyz, idx, NULL, &c->o.error, i, &c->scr[thread], &ef, &fit);
+  const double *p = &c->xyz[3 * (size_t)idx[0]]; /* row i's point (i itself in a whole cloud) */
   if (c->o.method == BSURF_SMOOTH_NAIVE) {
     /* Eq. 6.1: the centre has local coordinates (0, 0, 0) (the frame's
      * origin is the point), so it moves by boot_center along n. */
     for (int t = 0; t < 3; t++) c->out[3 * i + t] = p[t] + fit.boot_center * fit.frame.rot[2][t];
   } else if (c->fits) {
     fit_store(&c->fits[i * (size_t)c->stride], &fit.frame, fit.inv_scale, fit.coef, c->m);
-    c->fit_degree[i] = c->degree;
+    if (c->fit_degree) c->fit_degree[i] = c->degree;
   }
+}
+
+/* theta_2(W_i) = G(W_i, h2) of Eq. 6.2: its exponent and its value. */
+static void set_theta2(smooth_ctx *c, size_t i, double W) {
+  c->e2[i] = gauss_exponent(W, c->h2);
+  c->w2[i] = c->e2[i] == 0 ? 1.0 : exp(-c->e2[i]);
+}
+
+/* Naive (6.2): Eq. 6.1's projection stands where W_i < threshold; elsewhere
+ * the point stays at x. 1 when projected. */
+static int naive_select(double W, double threshold, const double *x, double *out) {
+  if (W < threshold) return 1;
+  for (int t = 0; t < 3; t++) out[t] = x[t];
+  return 0;
+}
+
+static double moved_of(const double *a, const double *b) {
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
 }
 
 /* Multipass stage 2: K_i (Eqs. 6.3-6.4), d_L and the fit of the K_i points. */
@@ -242,14 +261,13 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
 
   double h1 = c->o.a * c->dl[i];
   c->inv_h1sq[i] = h1 > 0 ? 1.0 / (h1 * h1) : 0.0;
-  c->e2[i] = gauss_exponent(c->W[i], c->h2);
-  c->w2[i] = c->e2[i] == 0 ? 1.0 : exp(-c->e2[i]);
+  set_theta2(c, i, c->W[i]);
 }
 
 /* One point's gathered update (parallel order): the moves of every
  * neighbourhood i that contains p, from the positions `cur`. */
 static double gather_update(const smooth_ctx *c, size_t p, int multipass) {
-  const double *x = &c->cur[3 * p];
+  const double *x = &c->cur[3 * (c->self ? (size_t)c->self[p] : p)];
   double P = 1.0, S = 0.0, T[3] = {0, 0, 0};
   const uint32_t *list = multipass ? &c->act[c->rev_off[p]] : &c->rev[c->rev_off[p]];
   const size_t count = multipass ? c->act_n[p] : c->rev_off[p + 1] - c->rev_off[p];
@@ -270,7 +288,7 @@ static double gather_update(const smooth_ctx *c, size_t p, int multipass) {
       w = c->w2[i];
     }
     const double *F = &c->fits[(size_t)i * c->stride];
-    double delta = fit_delta(F, c->fit_degree[i], c->m, x);
+    double delta = fit_delta(F, c->fit_degree ? c->fit_degree[i] : c->degree, c->m, x);
     if (isnan(delta)) continue;
     P *= 1.0 - w;
     S += w;
@@ -327,27 +345,29 @@ static void active_task(void *vc, int thread, size_t p) {
 static bsurf_status build_reverse(smooth_ctx *c, const int *size, const uint32_t *perm, const uint32_t *rank) {
   const size_t n = c->n;
   const int stride = c->nb->k;
-  c->rev_off = bsurf_calloc_array(n + 1, sizeof(size_t));
-  if (!c->rev_off) return BSURF_ERR_NOMEM;
+  size_t *rev_off = bsurf_calloc_array(n + 1, sizeof(size_t));
+  c->rev_off = rev_off;
+  if (!rev_off) return BSURF_ERR_NOMEM;
   for (size_t r = 0; r < n; r++) {
     const size_t i = perm ? perm[r] : r;
     int kk = size ? size[i] : c->k;
     const uint32_t *idx = &c->nb->idx[i * (size_t)stride];
-    for (int j = 0; j < kk; j++) c->rev_off[(rank ? rank[idx[j]] : idx[j]) + 1]++;
+    for (int j = 0; j < kk; j++) rev_off[(rank ? rank[idx[j]] : idx[j]) + 1]++;
   }
-  for (size_t p = 0; p < n; p++) c->rev_off[p + 1] += c->rev_off[p];
-  c->rev = bsurf_alloc_array(c->rev_off[n] ? c->rev_off[n] : 1, sizeof(uint32_t));
+  for (size_t p = 0; p < n; p++) rev_off[p + 1] += rev_off[p];
+  uint32_t *rev = bsurf_alloc_array(rev_off[n] ? rev_off[n] : 1, sizeof(uint32_t));
+  c->rev = rev;
   size_t *pos = bsurf_alloc_array(n ? n : 1, sizeof(size_t));
-  if (!c->rev || !pos) {
+  if (!rev || !pos) {
     free(pos);
     return BSURF_ERR_NOMEM;
   }
-  memcpy(pos, c->rev_off, n * sizeof(size_t));
+  memcpy(pos, rev_off, n * sizeof(size_t));
   for (size_t r = 0; r < n; r++) {
     const size_t i = perm ? perm[r] : r;
     int kk = size ? size[i] : c->k;
     const uint32_t *idx = &c->nb->idx[i * (size_t)stride];
-    for (int j = 0; j < kk; j++) c->rev[pos[rank ? rank[idx[j]] : idx[j]]++] = (uint32_t)r;
+    for (int j = 0; j < kk; j++) rev[pos[rank ? rank[idx[j]] : idx[j]]++] = (uint32_t)r;
   }
   free(pos);
   return BSURF_OK;
@@ -428,6 +448,17 @@ static void multipass_sequential_pass(smooth_ctx *c) {
   }
 }
 
+static void ctx_init(smooth_ctx *c, const double *xyz, const bsurf_neighbors *nb, const bsurf_smooth_options *o) {
+  memset(c, 0, sizeof *c);
+  c->xyz = xyz;
+  c->nb = nb;
+  c->n = nb ? nb->point_count : 0;
+  c->k = o->error.k;
+  c->degree = o->error.degree;
+  c->m = bsurf_poly_terms(c->degree);
+  c->stride = FIT_HEAD + c->m;
+}
+
 static void ctx_free(smooth_ctx *c, int T) {
   if (c->scr)
     for (int t = 0; t < T; t++) bsurf_error_scratch_free(&c->scr[t]);
@@ -439,8 +470,8 @@ static void ctx_free(smooth_ctx *c, int T) {
   free(c->e2);
   free(c->w2);
   free(c->inv_h1sq);
-  free(c->rev_off);
-  free(c->rev);
+  free((void *)c->rev_off);
+  free((void *)c->rev);
   free(c->act);
   free(c->act_n);
   free(c->reach2);
@@ -465,14 +496,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
   }
 
   smooth_ctx c;
-  memset(&c, 0, sizeof c);
-  c.xyz = xyz;
-  c.nb = nb;
-  c.n = nb->point_count;
-  c.k = o.error.k;
-  c.degree = o.error.degree;
-  c.m = bsurf_poly_terms(c.degree);
-  c.stride = FIT_HEAD + c.m;
+  ctx_init(&c, xyz, nb, &o);
   c.out = out_xyz;
   const size_t n = c.n;
   const int T = bsurf_threads_resolve(o.error.threads);
@@ -524,20 +548,14 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       report->error.center_unestimated += c.scr[t].center_unestimated;
     }
   }
-  bsurf_smooth_estimator est = o.estimator;
-  if (est == BSURF_SMOOTH_EST_DEFAULT)
-    est = o.method == BSURF_SMOOTH_NAIVE ? BSURF_SMOOTH_EST_632PLUS : BSURF_SMOOTH_EST_632;
-  c.W = est == BSURF_SMOOTH_EST_632PLUS ? c.err_632plus : c.err_632;
+  c.W = bsurf_smooth_w_column(&o) ? c.err_632plus : c.err_632;
   double sumW = 0;
   for (size_t i = 0; i < n; i++) sumW += c.W[i];
   const double meanW = n ? sumW / (double)n : 0.0; /* |W| (Algorithm 4 step 2) */
-  /* h2 defaults: 0.3 |W| for multipass (6.4.1); 2 |W| for bilateral, where
-   * the thesis shows 0.5-1 |W| (Figs. 6.4-6.6): on fandisk and the cube at
-   * noise 0.25 and 0.5 the distance to the true surface keeps falling up to
-   * about 2 |W|, feature points included (docs/smoothing.md) */
-  double frac = o.h2_fraction > 0 ? o.h2_fraction : (o.method == BSURF_SMOOTH_MULTIPASS ? 0.3 : 2.0);
-  c.h1 = o.h1 > 0 ? o.h1 : nb->h;
-  c.h2 = o.h2 > 0 ? o.h2 : frac * meanW;
+  bsurf_smooth_options ro = o;
+  bsurf_smooth_resolve(&ro, nb->h, meanW);
+  c.h1 = ro.h1;
+  c.h2 = ro.h2;
   if (report) {
     report->h = nb->h;
     report->mean_error = meanW;
@@ -545,15 +563,9 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
 
   if (o.method == BSURF_SMOOTH_NAIVE) {
     /* Eq. 6.1 only where W_i < threshold (6.2, Figs. 6.2-6.3) */
-    double thr = isnan(o.threshold) ? meanW : o.threshold;
+    double thr = ro.threshold;
     size_t projected = 0;
-    for (size_t i = 0; i < n; i++) {
-      if (c.W[i] < thr) {
-        projected++;
-      } else {
-        for (int t = 0; t < 3; t++) out_xyz[3 * i + t] = xyz[3 * i + t];
-      }
-    }
+    for (size_t i = 0; i < n; i++) projected += naive_select(c.W[i], thr, &xyz[3 * i], &out_xyz[3 * i]);
     if (report) {
       report->threshold = thr;
       report->projected = projected;
@@ -565,10 +577,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       st = BSURF_ERR_NOMEM;
       goto done;
     }
-    for (size_t i = 0; i < n; i++) {
-      c.e2[i] = gauss_exponent(c.W[i], c.h2);
-      c.w2[i] = c.e2[i] == 0 ? 1.0 : exp(-c.e2[i]);
-    }
+    for (size_t i = 0; i < n; i++) set_theta2(&c, i, c.W[i]);
     c.inv_h1sq_global = 1.0 / (c.h1 * c.h1);
     sp.stage = 1;
     if (seq) {
@@ -696,9 +705,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     double sum = 0, mx = 0;
     size_t count = 0;
     for (size_t i = 0; i < n; i++) {
-      const double *a = &xyz[3 * i], *b = &out_xyz[3 * i];
-      double d = sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
-                      (a[2] - b[2]) * (a[2] - b[2]));
+      double d = moved_of(&xyz[3 * i], &out_xyz[3 * i]);
       moved[i] = d;
       sum += d;
       if (d > mx) mx = d;
@@ -717,5 +724,135 @@ done:
   free(own632p);
   free(own_moved);
   free(visit_owned);
+  return st;
+}
+
+/* ---- tiled smoothing: the two stages (src/tile/tiles.c, docs/scaling.md) ----
+ * bsurf_smooth above is stage 1 (boot_task at every point), the mean |W|
+ * (an index-order sum) and stage 2 (naive_select, or gather_update over the
+ * reverse neighbourhoods). A tiled run makes the same calls on pieces: stage 1
+ * per tile, |W| summed in index order from the values kept by the engine,
+ * stage 2 per tile (bilateral: with the reverse neighbours' stage 1 values)
+ * or per range of points (naive). Sequential order and multipass are not
+ * offered: the sweep makes each fit depend on the moves of every earlier
+ * neighbourhood of the whole cloud (a chain as long as the cloud), and the
+ * multipass runs `iterations` passes, each one ring further. */
+
+size_t bsurf_smooth_stage_values(const bsurf_smooth_options *o) {
+  if (!o || o->method == BSURF_SMOOTH_MULTIPASS) return 0;
+  if (o->method == BSURF_SMOOTH_NAIVE) return 2 + 3;
+  if (o->order != BSURF_ORDER_PARALLEL) return 0;
+  return 2 + FIT_HEAD + (size_t)bsurf_poly_terms(o->error.degree);
+}
+
+int bsurf_smooth_w_column(const bsurf_smooth_options *o) {
+  bsurf_smooth_estimator est = o->estimator;
+  if (est == BSURF_SMOOTH_EST_DEFAULT)
+    est = o->method == BSURF_SMOOTH_NAIVE ? BSURF_SMOOTH_EST_632PLUS : BSURF_SMOOTH_EST_632;
+  return est == BSURF_SMOOTH_EST_632PLUS;
+}
+
+void bsurf_smooth_resolve(bsurf_smooth_options *o, double h, double mean_w) {
+  /* h2 defaults: 0.3 |W| for multipass (6.4.1); 2 |W| for bilateral, where
+   * the thesis shows 0.5-1 |W| (Figs. 6.4-6.6): on fandisk and the cube at
+   * noise 0.25 and 0.5 the distance to the true surface keeps falling up to
+   * about 2 |W|, feature points included (docs/smoothing.md) */
+  double frac = o->h2_fraction > 0 ? o->h2_fraction : (o->method == BSURF_SMOOTH_MULTIPASS ? 0.3 : 2.0);
+  o->h1 = o->h1 > 0 ? o->h1 : h;
+  o->h2 = o->h2 > 0 ? o->h2 : frac * mean_w;
+  /* naive: Eq. 6.1 only where W_i < threshold (6.2, Figs. 6.2-6.3) */
+  if (isnan(o->threshold)) o->threshold = mean_w;
+}
+
+bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb, const bsurf_smooth_options *opts,
+                                 double *values, bsurf_error_report *report) {
+  if (report) memset(report, 0, sizeof *report);
+  const size_t nv = bsurf_smooth_stage_values(opts);
+  if (!xyz || !values || !nv) return BSURF_ERR_INVALID_ARG;
+  bsurf_smooth_options o = *opts;
+  bsurf_status st = bsurf_error_check(&o.error, nb);
+  if (st != BSURF_OK) return st;
+  smooth_ctx c;
+  ctx_init(&c, xyz, nb, &o);
+  o.error.progress = NULL;
+  c.o = o;
+  const size_t n = c.n;
+  const int T = bsurf_threads_resolve(o.error.threads);
+  c.err_632 = bsurf_alloc_array(n, sizeof(double));
+  c.err_632plus = bsurf_alloc_array(n, sizeof(double));
+  c.scr = calloc((size_t)T, sizeof *c.scr);
+  if (o.method == BSURF_SMOOTH_NAIVE)
+    c.out = bsurf_alloc_array(n, 3 * sizeof(double));
+  else
+    c.fits = bsurf_alloc_array(n, (size_t)c.stride * sizeof(double));
+  if (!c.err_632 || !c.err_632plus || !c.scr || !(c.out || c.fits)) st = BSURF_ERR_NOMEM;
+  for (int t = 0; t < T && st == BSURF_OK; t++)
+    st = bsurf_error_scratch_alloc(&c.scr[t], c.k, o.error.bootstrap, c.degree);
+  if (st == BSURF_OK) st = bsurf_parallel_sweep(n, T, boot_task, &c);
+  if (st == BSURF_OK) {
+    const double *rest = c.out ? c.out : c.fits;
+    const size_t w = nv - 2;
+    for (size_t i = 0; i < n; i++) {
+      values[i * nv] = c.err_632[i];
+      values[i * nv + 1] = c.err_632plus[i];
+      memcpy(&values[i * nv + 2], &rest[i * w], w * sizeof(double));
+    }
+    if (report) {
+      report->replicates_total = n * (size_t)o.error.bootstrap;
+      for (int t = 0; t < T; t++) {
+        report->replicates_skipped += c.scr[t].skipped;
+        report->degree_reduced += c.scr[t].reduced;
+        report->center_unestimated += c.scr[t].center_unestimated;
+      }
+    }
+  }
+  free(c.err_632);
+  free(c.err_632plus);
+  free(c.out);
+  ctx_free(&c, c.scr ? T : 0);
+  return st;
+}
+
+bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const double *values, size_t count,
+                                 const uint32_t *point, const size_t *rev_off, const uint32_t *rev,
+                                 const bsurf_smooth_options *o, double *out_xyz, double *moved) {
+  const size_t nv = bsurf_smooth_stage_values(o);
+  if (!xyz || !values || !o || !out_xyz || !moved || !nv || (o->method == BSURF_SMOOTH_BILATERAL && !rev_off))
+    return BSURF_ERR_INVALID_ARG;
+  const int wc = bsurf_smooth_w_column(o);
+  bsurf_status st = BSURF_OK;
+  if (o->method == BSURF_SMOOTH_NAIVE) {
+    for (size_t r = 0; r < count; r++) {
+      const size_t p = point ? point[r] : r;
+      const double *v = &values[p * nv];
+      memcpy(&out_xyz[3 * r], &v[2], 3 * sizeof(double));
+      naive_select(v[wc], o->threshold, &xyz[3 * p], &out_xyz[3 * r]);
+    }
+  } else {
+    smooth_ctx c;
+    ctx_init(&c, xyz, NULL, o);
+    c.n = count;
+    c.stride = (int)nv;
+    c.fits = (double *)values + 2; /* read only */
+    c.h1 = o->h1;
+    c.h2 = o->h2;
+    c.inv_h1sq_global = 1.0 / (c.h1 * c.h1);
+    c.rev_off = rev_off;
+    c.rev = rev;
+    c.self = point;
+    c.cur = xyz;
+    c.next = out_xyz;
+    c.e2 = bsurf_alloc_array(local_count ? local_count : 1, sizeof(double));
+    c.w2 = bsurf_alloc_array(local_count ? local_count : 1, sizeof(double));
+    if (!c.e2 || !c.w2) st = BSURF_ERR_NOMEM;
+    for (size_t i = 0; i < local_count && st == BSURF_OK; i++) set_theta2(&c, i, values[i * nv + (size_t)wc]);
+    if (st == BSURF_OK) st = bsurf_parallel_sweep(count, bsurf_threads_resolve(o->error.threads), gather_bilateral_task, &c);
+    c.fits = NULL;
+    c.rev_off = NULL;
+    c.rev = NULL;
+    ctx_free(&c, 0);
+  }
+  for (size_t r = 0; r < count && st == BSURF_OK; r++)
+    moved[r] = moved_of(&xyz[3 * (point ? (size_t)point[r] : r)], &out_xyz[3 * r]);
   return st;
 }

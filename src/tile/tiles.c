@@ -226,6 +226,13 @@ typedef struct tiles_ctx {
   size_t nranges;
   size_t *block; /* ntiles + 1 offsets */
   double *tile_sums; /* ntiles x (nsums + 1): the accumulators, then duplicates */
+  /* two-stage runs (docs/scaling.md) */
+  size_t vcols;   /* values per point written: nvalues + the K-th squared distance; 0: none */
+  int vfd;        /* the values file in index order (every rank has it open), -1 */
+  tile_map vin;   /* values_in, mapped read-only */
+  size_t vin_cols; /* its columns (values_in->nvalues + 1) */
+  double *cellmax; /* reverse: per cell, the largest K-th squared distance of its points */
+  double rmax2;   /* the largest of all */
 } tiles_ctx;
 
 static void xyz_of(const tiles_ctx *c, uint64_t i, double p[3]) {
@@ -522,12 +529,13 @@ typedef struct search_ctx {
   const double *gx;  /* their coordinates */
   size_t m;
   const bsurf_knn_index *index;
-  const uint64_t *core;
-  size_t *pending; /* core positions to search */
+  const uint64_t *core; /* the points searched (the tile's, and in reverse mode its candidates) */
+  size_t *pending; /* their positions to search */
   double rlo[3], rhi[3];
   int complete; /* the region holds the whole cloud */
   uint64_t *rows;  /* core x k global indices */
   double *nn2;     /* core */
+  double *kth2;    /* core: squared distance to the K-th (the row's last) */
   uint8_t *done, *dup;
   uint32_t *qidx; /* threads x k */
   double *qd2;    /* threads x k */
@@ -539,6 +547,7 @@ static void search_point(void *vctx, int thread, size_t t) {
   const int k = s->c->k;
   size_t j = s->pending[t];
   size_t self = find_u64(s->G, s->m, s->core[j]);
+  if (self >= s->m || s->G[self] != s->core[j]) return; /* not loaded yet: a wider region */
   const double *p = s->gx + 3 * self;
   uint32_t *qi = s->qidx + (size_t)thread * (size_t)k;
   double *qd = s->qd2 + (size_t)thread * (size_t)k;
@@ -571,6 +580,7 @@ static void search_point(void *vctx, int thread, size_t t) {
   if (!ok) return;
   s->done[j] = 1;
   s->nn2[j] = k > 1 ? first : 0.0;
+  s->kth2[j] = r2;
   if (k > 1) {
     const double *q = s->gx + 3 * find_u64(s->G, s->m, row[1]);
     s->dup[j] = p[0] == q[0] && p[1] == q[1] && p[2] == q[2];
@@ -628,9 +638,14 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
 
 typedef struct tile_work {
   u64vec core, G;
+  u64vec cand, S; /* reverse mode: candidates; the points searched (core + candidates) */
   double *gx;
   uint64_t *rows;
-  double *nn2;
+  double *nn2, *kth2;
+  size_t *cpos; /* core j -> its position in S */
+  size_t *rev_off;
+  uint32_t *rev;
+  double *lvals, *vout, *vblock; /* values_in of the local points; values_out; the block's */
   uint8_t *done, *dup, *mark;
   size_t *pending;
   uint32_t *qidx;
@@ -644,9 +659,18 @@ typedef struct tile_work {
 static void work_free(tile_work *w) {
   free(w->core.v);
   free(w->G.v);
+  free(w->cand.v);
+  free(w->S.v);
   free(w->gx);
   free(w->rows);
   free(w->nn2);
+  free(w->kth2);
+  free(w->cpos);
+  free(w->rev_off);
+  free(w->rev);
+  free(w->lvals);
+  free(w->vout);
+  free(w->vblock);
   free(w->done);
   free(w->dup);
   free(w->mark);
@@ -669,7 +693,9 @@ static void work_free(tile_work *w) {
  * sequential write:
  *   cuts[0 .. R]   uint64: cuts[r] = the tile's rows with index < r x range
  *   entries        per row, in increasing index: uint64 index, double nn2
- *                  (squared nearest-other distance, for h), the encoded row
+ *                  (squared nearest-other distance, for h), in a first
+ *                  stage its values and its squared K-th distance, the
+ *                  encoded row (if there is an output file)
  * and after the tiles rank 0 assembles the output range by range (R ranges
  * of `range` consecutive indices, each held in memory once): from every tile
  * the entries [cuts[r], cuts[r + 1]) of its block are read and placed, and
@@ -679,13 +705,13 @@ static void work_free(tile_work *w) {
 
 #define BLOCK_CHUNK ((size_t)1 << 20) /* bytes per read or write of entries */
 
-static size_t entry_bytes(const tiles_ctx *c) { return 16 + c->record; }
+static size_t entry_bytes(const tiles_ctx *c) { return 16 + c->vcols * sizeof(double) + c->record; }
 
 /* range, nranges and every tile's block offset (ntiles + 1 of them) */
 static bsurf_status plan_blocks(tiles_ctx *c) {
   /* a range holds at least a tile's points (a tile's memory is many times
    * its rows') and at least 32 MiB, so that R x tiles reads stay few */
-  size_t by_bytes = ((size_t)32 << 20) / (c->record + sizeof(double));
+  size_t by_bytes = ((size_t)32 << 20) / (c->record + (c->vcols + 1) * sizeof(double));
   c->range = c->ops->tile_points > by_bytes ? c->ops->tile_points : by_bytes;
   if (c->ops->range_points) c->range = c->ops->range_points;
   if (c->range > c->n) c->range = c->n;
@@ -703,10 +729,10 @@ static bsurf_status scratch_error(bsurf_error *err, const char *what, int e) {
                     strerror(e));
 }
 
-/* Tile t's block: core (increasing global indices), nn2 and the encoded rows
- * of its nc points. */
+/* Tile t's block: core (increasing global indices), nn2, the values (vcols
+ * each) and the encoded rows of its nc points. */
 static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *core, const double *nn2,
-                                const unsigned char *enc, size_t nc, bsurf_error *err) {
+                                const double *vals, const unsigned char *enc, size_t nc, bsurf_error *err) {
   assert(nc == c->tiles[t].count);
   const size_t eb = entry_bytes(c), per = BLOCK_CHUNK / eb ? BLOCK_CHUNK / eb : 1;
   uint64_t *cuts = bsurf_alloc_array(c->nranges + 1, sizeof *cuts);
@@ -727,7 +753,8 @@ static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *co
       unsigned char *p = buf + q * eb;
       memcpy(p, &core[j + q], 8);
       memcpy(p + 8, &nn2[j + q], 8);
-      memcpy(p + 16, enc + (j + q) * c->record, c->record);
+      if (c->vcols) memcpy(p + 16, vals + (j + q) * c->vcols, c->vcols * sizeof(double));
+      if (c->record) memcpy(p + 16 + c->vcols * sizeof(double), enc + (j + q) * c->record, c->record);
     }
     e = pwrite_all(c->scr, buf, m * eb, off);
     off += m * eb;
@@ -747,6 +774,7 @@ typedef struct assembler {
   size_t lo, hi; /* the range in memory: points [lo, hi) */
   unsigned char *rows; /* range x record */
   double *nn; /* range */
+  double *vals; /* range x vcols */
   unsigned char *buf; /* entries read */
   size_t per; /* entries per read */
   bsurf_status st;
@@ -756,8 +784,11 @@ typedef struct assembler {
 static void asm_flush(assembler *a) {
   const tiles_ctx *c = a->c;
   if (a->st != BSURF_OK || a->hi == a->lo) return;
-  int e = pwrite_all(a->out, a->rows, (a->hi - a->lo) * c->record, c->header + a->lo * c->record);
+  int e = c->record ? pwrite_all(a->out, a->rows, (a->hi - a->lo) * c->record, c->header + a->lo * c->record) : 0;
   if (e) a->st = bsurf_fail(a->err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(e));
+  const size_t vb = c->vcols * sizeof(double);
+  if (!e && vb && (e = pwrite_all(c->vfd, a->vals, (a->hi - a->lo) * vb, a->lo * vb)))
+    a->st = bsurf_fail(a->err, BSURF_ERR_IO, 0, -1, "cannot write the scratch file of the values: %s", strerror(e));
   a->lo = a->hi;
 }
 
@@ -793,7 +824,9 @@ static void asm_load(assembler *a) {
           break;
         }
         memcpy(&a->nn[i - a->lo], p + 8, 8);
-        memcpy(a->rows + (i - a->lo) * c->record, p + 16, c->record);
+        if (c->vcols) memcpy(a->vals + (i - a->lo) * c->vcols, p + 16, c->vcols * sizeof(double));
+        if (c->record)
+          memcpy(a->rows + (i - a->lo) * c->record, p + 16 + c->vcols * sizeof(double), c->record);
       }
       placed += m;
     }
@@ -811,8 +844,132 @@ static double nn_at(assembler *a, size_t i) {
   return a->st == BSURF_OK ? a->nn[i - a->lo] : 0.0;
 }
 
+/* ---- reverse neighbours (the second stage of a two-stage run) ------------- */
+
+/* A bound on how far a point can lie outside the box of its cell (the
+ * rounding of floor((p - origin) / cell)), used with a relative margin of
+ * 1e-9 on the distances. */
+static double cell_slack(const tiles_ctx *c) {
+  double m = 0;
+  for (int a = 0; a < 3; a++) m = fmax(m, fmax(fabs(c->lo[a]), fabs(c->hi[a])));
+  return 1e-9 * c->cell + 1e-12 * m;
+}
+
+/* The extent on axis a of the cells [lo, hi), widened by slack; the outer
+ * cells reach to infinity (the grid clamps points beyond it into them). */
+static void cells_span(const tiles_ctx *c, int a, uint32_t lo, uint32_t hi, double slack, double *blo,
+                       double *bhi) {
+  *blo = lo == 0 ? -INFINITY : c->origin[a] + c->cell * lo - slack;
+  *bhi = hi >= c->dim[a] ? INFINITY : c->origin[a] + c->cell * hi + slack;
+}
+
+/* Squared distance from p to a box (0 inside). */
+static double box_dist2(const double p[3], const double lo[3], const double hi[3]) {
+  double d2 = 0;
+  for (int a = 0; a < 3; a++) {
+    double g = fmax(0.0, fmax(lo[a] - p[a], p[a] - hi[a]));
+    d2 += g * g;
+  }
+  return d2;
+}
+
+static double values_kth2(const tiles_ctx *c, uint64_t i) {
+  const double *v = (const double *)c->vin.data;
+  return v[(size_t)i * c->vin_cols + c->vin_cols - 1];
+}
+
+/* Before the tiles of a reverse run: per cell, the largest squared distance
+ * r_i^2 from a point i to its K-th neighbour (the first stage's last
+ * column), streaming the input and the values in index order. */
+static bsurf_status cell_maxima(tiles_ctx *c) {
+  c->cellmax = bsurf_calloc_array(c->cells, sizeof *c->cellmax);
+  if (!c->cellmax) return BSURF_ERR_NOMEM;
+  double p[3];
+  uint32_t cc[3];
+  bsurf_status st = BSURF_OK;
+  for (size_t i = 0; i < c->n && st == BSURF_OK; i++) {
+    double r2 = values_kth2(c, i);
+    xyz_of(c, i, p);
+    cell_coords(c, p, cc);
+    size_t j = cell_id(c, cc);
+    if (!(r2 >= 0)) st = BSURF_ERR_INVALID_VALUE; /* not a first stage of this input */
+    if (r2 > c->cellmax[j]) c->cellmax[j] = r2;
+    if (r2 > c->rmax2) c->rmax2 = r2;
+    if ((i + 1) % PASS_DROP == 0) {
+      drop_pages(&c->in, 0, c->in.size);
+      drop_pages(&c->vin, 0, c->vin.size);
+      if (pass_cancelled(c)) st = BSURF_ERR_CANCELLED;
+    }
+  }
+  drop_pages(&c->in, 0, c->in.size);
+  drop_pages(&c->vin, 0, c->vin.size);
+  return st;
+}
+
+/* The points outside tile b whose K-neighbourhood can contain a point of
+ * the tile: p in N_K(i) gives |p - i| <= r_i, and p lies in the tile's
+ * cells, so dist(i, tile) <= r_i. Cells farther from the tile than the
+ * largest r_i of their points are skipped, then every point of the others
+ * is tested with its own r_i. A superset (margins for rounding): the exact
+ * K-neighbourhoods of the candidates, searched with the tile's, decide.
+ * *r2max: the candidates' largest r_i^2. */
+static bsurf_status reverse_candidates(const tiles_ctx *c, const tile_box *b, u64vec *cand, double *r2max) {
+  const double slack = cell_slack(c), reach = sqrt(c->rmax2) * (1 + 1e-9) + 2 * slack;
+  double blo[3], bhi[3];
+  uint32_t clo[3], chi[3];
+  for (int a = 0; a < 3; a++) {
+    cells_span(c, a, b->lo[a], b->hi[a], slack, &blo[a], &bhi[a]);
+    double w = ceil(reach / c->cell) + 1, l = (double)b->lo[a] - w, h = (double)b->hi[a] + w;
+    clo[a] = l > 0 ? (uint32_t)l : 0;
+    chi[a] = h < (double)c->dim[a] ? (uint32_t)h : c->dim[a];
+  }
+  const uint64_t *sorted = (const uint64_t *)c->sorted.data;
+  cand->n = 0;
+  *r2max = 0;
+  for (uint32_t z = clo[2]; z < chi[2]; z++)
+    for (uint32_t y = clo[1]; y < chi[1]; y++)
+      for (uint32_t x = clo[0]; x < chi[0]; x++) {
+        uint32_t cc[3] = {x, y, z};
+        size_t j = cell_id(c, cc);
+        if (c->cell_start[j] == c->cell_start[j + 1]) continue;
+        if (x >= b->lo[0] && x < b->hi[0] && y >= b->lo[1] && y < b->hi[1] && z >= b->lo[2] && z < b->hi[2])
+          continue; /* the tile's own */
+        double d2 = 0;
+        for (int a = 0; a < 3; a++) {
+          double lo, hi;
+          cells_span(c, a, cc[a], cc[a] + 1, slack, &lo, &hi);
+          double g = fmax(0.0, fmax(lo - bhi[a], blo[a] - hi));
+          d2 += g * g;
+        }
+        double r = sqrt(c->cellmax[j]) * (1 + 1e-9) + slack;
+        if (d2 > r * r) continue;
+        for (uint64_t s = c->cell_start[j]; s < c->cell_start[j + 1]; s++)
+          if (u64_push(cand, sorted[s])) return BSURF_ERR_NOMEM;
+      }
+  if (cand->n > 1) qsort(cand->v, cand->n, sizeof *cand->v, cmp_u64);
+  sweep sw = {&c->in, 0}, sv = {&c->vin, 0};
+  size_t kept = 0;
+  for (size_t q = 0; q < cand->n; q++) {
+    uint64_t i = cand->v[q];
+    double p[3], r2 = values_kth2(c, i);
+    xyz_of(c, i, p);
+    sweep_at(&sw, c->layout.body + (size_t)i * c->layout.record);
+    sweep_at(&sv, (size_t)i * c->vin_cols * sizeof(double));
+    double r = sqrt(r2) * (1 + 1e-9) + slack;
+    if (box_dist2(p, blo, bhi) <= r * r) {
+      cand->v[kept++] = i;
+      if (r2 > *r2max) *r2max = r2;
+    }
+  }
+  cand->n = kept;
+  drop_pages(&c->vin, 0, c->vin.size);
+  return BSURF_OK;
+}
+
 /* The exact K-neighbourhoods of a tile's points (growing the halo until they
- * are proven), then the command's run and the output rows. */
+ * are proven), then the command's run and the output rows. In reverse mode
+ * the candidates of reverse_candidates are searched with them, and the
+ * reverse lists follow from their exact rows. */
 static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_error *err) {
   const tile_box *b = &c->tiles[t];
   const int k = c->k;
@@ -832,6 +989,8 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
         for (uint64_t s = c->cell_start[j]; s < c->cell_start[j + 1]; s++)
           if (u64_push(&w.core, sorted[s])) st = BSURF_ERR_NOMEM;
       }
+  double r2cand = 0;
+  if (st == BSURF_OK && c->ops->reverse) st = reverse_candidates(c, b, &w.cand, &r2cand);
   if (st != BSURF_OK) goto out;
   /* searched in cell order (neighbouring queries share the tree's leaves),
    * stored in index order */
@@ -842,24 +1001,38 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
   }
   if (w.core.n) memcpy(by_cell, w.core.v, w.core.n * sizeof *by_cell);
   if (w.core.n > 1) qsort(w.core.v, w.core.n, sizeof *w.core.v, cmp_u64);
-  const size_t nc = w.core.n;
-  w.rows = bsurf_alloc_array(nc, (size_t)k * sizeof *w.rows);
-  w.nn2 = bsurf_alloc_array(nc, sizeof *w.nn2);
-  w.done = bsurf_calloc_array(nc, 1);
-  w.dup = bsurf_calloc_array(nc, 1);
-  w.pending = bsurf_alloc_array(nc, sizeof *w.pending);
+  const size_t nc = w.core.n, ns = nc + w.cand.n;
+  /* the points searched: the core and the candidates (outside the tile's
+   * cells: disjoint), in increasing index */
+  w.S.v = bsurf_alloc_array(ns, sizeof *w.S.v);
+  w.rows = bsurf_alloc_array(ns, (size_t)k * sizeof *w.rows);
+  w.nn2 = bsurf_alloc_array(ns, sizeof *w.nn2);
+  w.kth2 = bsurf_alloc_array(ns, sizeof *w.kth2);
+  w.done = bsurf_calloc_array(ns, 1);
+  w.dup = bsurf_calloc_array(ns, 1);
+  w.pending = bsurf_alloc_array(ns, sizeof *w.pending);
+  w.cpos = bsurf_alloc_array(nc, sizeof *w.cpos);
   w.qidx = bsurf_alloc_array((size_t)T, (size_t)k * sizeof *w.qidx);
   w.qd2 = bsurf_alloc_array((size_t)T, (size_t)k * sizeof *w.qd2);
-  if (!w.rows || !w.nn2 || !w.done || !w.dup || !w.pending || !w.qidx || !w.qd2) {
+  if (!w.S.v || !w.rows || !w.nn2 || !w.kth2 || !w.done || !w.dup || !w.pending || !w.cpos || !w.qidx ||
+      !w.qd2) {
     free(by_cell);
     st = BSURF_ERR_NOMEM;
     goto out;
   }
-  size_t npend = nc;
-  for (size_t j = 0; j < nc; j++) w.pending[j] = find_u64(w.core.v, nc, by_cell[j]);
+  for (size_t q = 0, a = 0, e = 0; q < ns; q++)
+    w.S.v[q] = e >= w.cand.n || (a < nc && w.core.v[a] < w.cand.v[e]) ? w.core.v[a++] : w.cand.v[e++];
+  w.S.n = w.S.cap = ns;
+  size_t npend = ns;
+  for (size_t j = 0; j < nc; j++) w.pending[j] = find_u64(w.S.v, ns, by_cell[j]);
+  for (size_t q = 0; q < w.cand.n; q++) w.pending[nc + q] = find_u64(w.S.v, ns, w.cand.v[q]);
+  for (size_t j = 0; j < nc; j++) w.cpos[j] = find_u64(w.S.v, ns, w.core.v[j]);
   free(by_cell);
 
+  /* the candidates lie within r_i of the tile and their balls within 2 r_i:
+   * a halo that holds them at once (a narrower one is only slower) */
   double halo = c->cell, box_lo[3], box_hi[3];
+  if (w.cand.n) halo = fmax(halo, 2 * sqrt(r2cand) * (1 + 1e-6) + 4 * cell_slack(c));
   for (int a = 0; a < 3; a++) {
     box_lo[a] = c->origin[a] + c->cell * b->lo[a];
     box_hi[a] = c->origin[a] + c->cell * b->hi[a];
@@ -895,10 +1068,11 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
     s.gx = w.gx;
     s.m = w.G.n;
     s.index = index;
-    s.core = w.core.v;
+    s.core = w.S.v;
     s.pending = w.pending;
     s.rows = w.rows;
     s.nn2 = w.nn2;
+    s.kth2 = w.kth2;
     s.done = w.done;
     s.dup = w.dup;
     s.qidx = w.qidx;
@@ -915,23 +1089,36 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
     halo *= 2;
   }
 
-  /* The tile's cloud: its points and every neighbour they use, in
-   * increasing global index (a subset of the last region's points). */
+  /* The tile's cloud: its points, every neighbour they use and, in reverse
+   * mode, every point whose row contains one of them, in increasing global
+   * index (a subset of the last region's points). */
   const size_t m = w.G.n;
   w.mark = bsurf_calloc_array(m, 1);
   w.local = bsurf_alloc_array(m, sizeof *w.local);
   w.idx = bsurf_alloc_array(nc, (size_t)k * sizeof *w.idx);
-  if (!w.mark || !w.local || !w.idx) {
+  if (c->ops->reverse) w.rev_off = bsurf_calloc_array(nc + 1, sizeof *w.rev_off);
+  if (!w.mark || !w.local || !w.idx || (c->ops->reverse && !w.rev_off)) {
     st = BSURF_ERR_NOMEM;
     goto out;
   }
-  for (size_t e = 0; e < nc * (size_t)k; e++) {
-    size_t pos = find_u64(w.G.v, m, w.rows[e]);
-    w.idx[e] = (uint32_t)pos;
-    w.mark[pos] = 1;
+  for (size_t j = 0; j < nc; j++)
+    for (int e = 0; e < k; e++) {
+      size_t pos = find_u64(w.G.v, m, w.rows[w.cpos[j] * (size_t)k + (size_t)e]);
+      w.idx[j * (size_t)k + (size_t)e] = (uint32_t)pos;
+      w.mark[pos] = 1;
+    }
+  if (c->ops->reverse) { /* how many rows contain each core point */
+    for (size_t q = 0; q < ns; q++)
+      for (int e = 0; e < k; e++) {
+        uint64_t u = w.rows[q * (size_t)k + (size_t)e];
+        size_t j = find_u64(w.core.v, nc, u);
+        if (j < nc && w.core.v[j] == u) {
+          w.rev_off[j + 1]++;
+          w.mark[find_u64(w.G.v, m, w.S.v[q])] = 1;
+        }
+      }
+    for (size_t j = 0; j < nc; j++) w.rev_off[j + 1] += w.rev_off[j];
   }
-  free(w.rows);
-  w.rows = NULL;
   size_t nl = 0;
   for (size_t j = 0; j < m; j++)
     if (w.mark[j]) w.local[j] = (uint32_t)nl++;
@@ -943,8 +1130,51 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
   for (size_t j = 0; j < m; j++)
     if (w.mark[j]) memcpy(w.lxyz + 3 * (size_t)w.local[j], w.gx + 3 * j, 3 * sizeof(double));
   for (size_t e = 0; e < nc * (size_t)k; e++) w.idx[e] = w.local[w.idx[e]];
+  if (c->ops->reverse) { /* the lists, each in increasing index (S is) */
+    size_t *fill = bsurf_alloc_array(nc + 1, sizeof *fill);
+    w.rev = bsurf_alloc_array(w.rev_off[nc] + 1, sizeof *w.rev);
+    if (!fill || !w.rev) {
+      free(fill);
+      st = BSURF_ERR_NOMEM;
+      goto out;
+    }
+    memcpy(fill, w.rev_off, (nc + 1) * sizeof *fill);
+    for (size_t q = 0; q < ns; q++) {
+      uint32_t lq = w.local[find_u64(w.G.v, m, w.S.v[q])];
+      for (int e = 0; e < k; e++) {
+        uint64_t u = w.rows[q * (size_t)k + (size_t)e];
+        size_t j = find_u64(w.core.v, nc, u);
+        if (j < nc && w.core.v[j] == u) w.rev[fill[j]++] = lq;
+      }
+    }
+    free(fill);
+  }
+  if (c->ops->values_in) { /* the first stage's values of every local point */
+    const size_t nv = c->vin_cols - 1;
+    w.lvals = bsurf_alloc_array(nl ? nl : 1, (nv ? nv : 1) * sizeof(double));
+    if (!w.lvals) {
+      st = BSURF_ERR_NOMEM;
+      goto out;
+    }
+    sweep sv = {&c->vin, 0};
+    for (size_t j = 0; j < m; j++)
+      if (w.mark[j]) {
+        size_t off = (size_t)w.G.v[j] * c->vin_cols * sizeof(double);
+        memcpy(w.lvals + (size_t)w.local[j] * nv, c->vin.data + off, nv * sizeof(double));
+        sweep_at(&sv, off);
+      }
+    drop_pages(&c->vin, 0, c->vin.size);
+  }
+  free(w.rows);
+  w.rows = NULL;
   free(w.gx);
   w.gx = NULL;
+  /* the core's entries of S, in place (cpos increases, cpos[j] >= j) */
+  for (size_t j = 0; j < nc; j++) {
+    w.nn2[j] = w.nn2[w.cpos[j]];
+    w.kth2[j] = w.kth2[w.cpos[j]];
+    w.dup[j] = w.dup[w.cpos[j]];
+  }
 
   /* the core points with every input property, prepared by the command */
   st = cloud_like(&c->schema, nc, &core);
@@ -955,11 +1185,15 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
     sweep_at(&sw, c->layout.body + (size_t)w.core.v[j] * c->layout.record);
   }
   drop_pages(&c->in, 0, c->in.size);
-  st = c->ops->prepare(c->ops->user, &core);
+  if (c->ops->prepare) st = c->ops->prepare(c->ops->user, &core);
   if (st != BSURF_OK) goto out;
+  if (c->ops->nvalues && !(w.vout = bsurf_calloc_array(nc, c->ops->nvalues * sizeof(double)))) {
+    st = BSURF_ERR_NOMEM;
+    goto out;
+  }
 
   bsurf_neighbors nb = {nc, k, w.idx, 0.0, NULL};
-  bsurf_tile tile = {t, c->ntiles, nc, nl, w.lxyz, w.core.v, &nb, halo};
+  bsurf_tile tile = {t, c->ntiles, nc, nl, w.lxyz, w.core.v, &nb, halo, w.lvals, w.vout, w.rev_off, w.rev};
   double *sums = c->tile_sums + t * (c->ops->nsums + 1);
   st = c->ops->run(c->ops->user, &tile, &core, sums);
   if (st != BSURF_OK) goto out;
@@ -967,15 +1201,29 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
   for (size_t j = 0; j < nc; j++) dups += w.dup[j];
   sums[c->ops->nsums] = (double)dups;
 
-  /* the rows and squared nearest distances (for h) to the tile's block */
-  w.enc = bsurf_alloc_array(nc, c->record);
-  if (!w.enc) {
-    st = BSURF_ERR_NOMEM;
-    goto out;
+  /* the rows, values and squared nearest distances (for h) to the block */
+  if (c->record) {
+    w.enc = bsurf_alloc_array(nc, c->record);
+    if (!w.enc) {
+      st = BSURF_ERR_NOMEM;
+      goto out;
+    }
+    st = io_ply_encode(&core, w.enc);
+    if (st != BSURF_OK) goto out;
   }
-  st = io_ply_encode(&core, w.enc);
-  if (st != BSURF_OK) goto out;
-  st = write_block(c, t, w.core.v, w.nn2, w.enc, nc, err);
+  if (c->vcols) {
+    const size_t nv = c->ops->nvalues;
+    w.vblock = bsurf_alloc_array(nc, c->vcols * sizeof(double));
+    if (!w.vblock) {
+      st = BSURF_ERR_NOMEM;
+      goto out;
+    }
+    for (size_t j = 0; j < nc; j++) {
+      memcpy(w.vblock + j * c->vcols, w.vout + j * nv, nv * sizeof(double));
+      w.vblock[j * c->vcols + nv] = w.kth2[j];
+    }
+  }
+  st = write_block(c, t, w.core.v, w.nn2, w.vblock, w.enc, nc, err);
   if (st != BSURF_OK) goto out;
   if (nc > rep->max_tile_points) rep->max_tile_points = nc;
   if (nl > rep->max_local_points) rep->max_local_points = nl;
@@ -1007,17 +1255,19 @@ static bsurf_status assemble(tiles_ctx *c, double *h, bsurf_error *err) {
   assembler a;
   memset(&a, 0, sizeof a);
   a.c = c;
-  a.out = fileno(c->af.f);
+  a.out = c->af_open ? fileno(c->af.f) : -1;
   a.err = err;
   a.per = BLOCK_CHUNK / entry_bytes(c) ? BLOCK_CHUNK / entry_bytes(c) : 1;
-  a.rows = bsurf_alloc_array(c->range, c->record);
+  a.rows = c->record ? bsurf_alloc_array(c->range, c->record) : NULL;
+  a.vals = c->vcols ? bsurf_alloc_array(c->range, c->vcols * sizeof(double)) : NULL;
   a.nn = bsurf_alloc_array(c->range, sizeof *a.nn);
   a.buf = bsurf_alloc_array(a.per, entry_bytes(c));
-  if (!a.rows || !a.nn || !a.buf) a.st = BSURF_ERR_NOMEM;
+  if ((c->record && !a.rows) || (c->vcols && !a.vals) || !a.nn || !a.buf) a.st = BSURF_ERR_NOMEM;
   double s = a.st == BSURF_OK ? sum_sqrt_asm(&a, 0, c->n) : 0.0;
   asm_flush(&a);
   assert(a.st != BSURF_OK || a.next == c->nranges);
   free(a.rows);
+  free(a.vals);
   free(a.nn);
   free(a.buf);
   if (a.st == BSURF_OK) *h = s / (double)c->n;
@@ -1031,63 +1281,127 @@ static bsurf_status agree(const bsurf_tile_comm *cm, bsurf_status st) {
   return cm ? (bsurf_status)cm->max(cm->user, (int)st) : st;
 }
 
-/* Rank 0 creates the output (temporary name, header, space for every
- * record) and the scratch file of the tiles' blocks; every rank opens the
- * scratch file, then its name is removed (nothing is left behind on any
- * exit, however abrupt). */
-static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_error *err) {
+/* Rank 0 creates a scratch file of `bytes` beside the output (when every
+ * rank's st is BSURF_OK); every rank opens it as *fd, then its name is
+ * removed, so nothing is left behind on any exit, however abrupt. */
+static bsurf_status share_scratch(tiles_ctx *c, const char *output, size_t bytes, bsurf_status st, int *fd,
+                                  bsurf_error *err) {
   const bsurf_tile_comm *cm = c->comm;
   const int rank = cm ? cm->rank : 0;
   char name[TILE_PATH_MAX];
   memset(name, 0, sizeof name);
-  bsurf_status st = BSURF_OK;
-  c->record = 3 * io_type_size(c->out_schema.xyz_type);
-  if (c->out_schema.normals) c->record += 3 * io_type_size(c->out_schema.normal_type);
-  for (size_t f = 0; f < c->out_schema.field_count; f++) c->record += io_type_size(c->out_schema.fields[f].type);
-  st = plan_blocks(c);
+  st = agree(cm, st);
   if (rank == 0 && st == BSURF_OK) {
-    st = bsurf_atomic_open(&c->af, output, err);
-    if (st == BSURF_OK) {
-      c->af_open = 1;
-      io_writer w = {c->af.f, 0, 0};
-      size_t record = 0;
-      st = io_ply_write_header(&w, &c->out_schema, c->n, &record);
-      assert(st != BSURF_OK || record == c->record);
-      if (fflush(c->af.f) != 0) w.failed = 1, w.err_no = errno;
-      long pos = ftell(c->af.f);
-      if (w.failed || pos < 0)
-        st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write: %s", strerror(w.err_no ? w.err_no : EIO));
-      c->header = (size_t)pos;
-    }
-    if (st == BSURF_OK) {
-      size_t total = c->header + c->n * c->record;
-      int e = posix_fallocate(fileno(c->af.f), 0, (off_t)total);
-      if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write %zu bytes: %s", total, strerror(e));
-    }
-    if (st == BSURF_OK) {
-      tile_map m;
-      st = scratch_create(output, c->block[c->ntiles], 0, &m, name, err);
-      if (st == BSURF_OK) c->scr = m.fd;
-    }
+    tile_map m;
+    st = scratch_create(output, bytes, 0, &m, name, err);
+    if (st == BSURF_OK) *fd = m.fd;
   }
   st = agree(cm, st);
-  if (st != BSURF_OK) return st;
-  if (cm) cm->broadcast(cm->user, name, sizeof name);
-  if (rank != 0) {
-    c->scr = open(name, O_RDWR);
-    if (c->scr < 0) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", name, strerror(errno));
+  if (st == BSURF_OK && cm) cm->broadcast(cm->user, name, sizeof name);
+  if (st == BSURF_OK && rank != 0) {
+    *fd = open(name, O_RDWR);
+    if (*fd < 0) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", name, strerror(errno));
   }
   st = agree(cm, st);
-  /* every rank has the scratch file open: its name can go */
+  /* every rank has it open (or the run fails): its name can go */
   if (rank == 0 && name[0]) unlink(name);
   return st;
+}
+
+/* The bytes of a record of the output. */
+static size_t record_of(const bsurf_cloud *schema) {
+  size_t record = 3 * io_type_size(schema->xyz_type);
+  if (schema->normals) record += 3 * io_type_size(schema->normal_type);
+  for (size_t f = 0; f < schema->field_count; f++) record += io_type_size(schema->fields[f].type);
+  return record;
+}
+
+/* Rank 0: the output under a temporary name, its header, and the space of
+ * every record reserved (a full disk fails here, not later). */
+static bsurf_status create_output(tiles_ctx *c, const char *output, bsurf_error *err) {
+  bsurf_status st = bsurf_atomic_open(&c->af, output, err);
+  if (st != BSURF_OK) return st;
+  c->af_open = 1;
+  io_writer w = {c->af.f, 0, 0};
+  size_t record = 0;
+  st = io_ply_write_header(&w, &c->out_schema, c->n, &record);
+  assert(st != BSURF_OK || record == c->record);
+  if (fflush(c->af.f) != 0) w.failed = 1, w.err_no = errno;
+  long pos = ftell(c->af.f);
+  if (w.failed || pos < 0)
+    st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write: %s", strerror(w.err_no ? w.err_no : EIO));
+  c->header = (size_t)pos;
+  if (st == BSURF_OK) {
+    size_t total = c->header + c->n * c->record;
+    int e = posix_fallocate(fileno(c->af.f), 0, (off_t)total);
+    if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write %zu bytes: %s", total, strerror(e));
+  }
+  return st;
+}
+
+/* Rank 0 creates the output (temporary name, header, space for every
+ * record) unless the run has none (a first stage), then the scratch files
+ * of the tiles' blocks and of the values. */
+static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_error *err) {
+  const int rank = c->comm ? c->comm->rank : 0;
+  c->record = 0;
+  c->record = c->ops->prepare ? record_of(&c->out_schema) : 0;
+  bsurf_status st = plan_blocks(c);
+  if (rank == 0 && st == BSURF_OK && c->ops->prepare) st = create_output(c, output, err);
+  st = share_scratch(c, output, c->block ? c->block[c->ntiles] : 0, st, &c->scr, err);
+  if (c->vcols) st = share_scratch(c, output, c->n * c->vcols * sizeof(double), st, &c->vfd, err);
+  return st;
+}
+
+/* ---- the values of a first stage ----------------------------------------- */
+
+static size_t values_bytes(const bsurf_tile_values *v) { return v->count * (v->nvalues + 1) * sizeof(double); }
+
+/* The values of a first stage over the same input (n points), mapped
+ * read-only (the descriptor stays the caller's). */
+static bsurf_status map_values(const bsurf_tile_values *v, size_t n, tile_map *m, bsurf_error *err) {
+  m->fd = -1;
+  m->data = NULL;
+  m->size = 0;
+  if (v->fd < 0 || v->count != n)
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "the first stage's values are of %zu points, not %zu",
+                      v->count, n);
+  m->data = mmap(NULL, values_bytes(v), PROT_READ, MAP_SHARED, v->fd, 0);
+  if (m->data == MAP_FAILED) {
+    m->data = NULL;
+    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot map the scratch file of the values: %s", strerror(errno));
+  }
+  m->size = values_bytes(v);
+  return BSURF_OK;
+}
+
+bsurf_status bsurf_tile_values_read(const bsurf_tile_values *v, size_t first, size_t count, double *out) {
+  if (!v || v->fd < 0 || first > v->count || count > v->count - first || (count && !out))
+    return BSURF_ERR_INVALID_ARG;
+  const size_t cols = v->nvalues + 1, per = 65536;
+  double *buf = bsurf_alloc_array(per, cols * sizeof(double));
+  if (!buf) return BSURF_ERR_NOMEM;
+  int e = 0;
+  for (size_t j = 0; j < count && !e; j += per) {
+    size_t m = count - j < per ? count - j : per;
+    e = pread_all(v->fd, buf, m * cols * sizeof(double), (first + j) * cols * sizeof(double));
+    for (size_t q = 0; q < m && !e; q++)
+      memcpy(out + (j + q) * v->nvalues, buf + q * cols, v->nvalues * sizeof(double));
+  }
+  free(buf);
+  return e ? BSURF_ERR_IO : BSURF_OK;
+}
+
+void bsurf_tile_values_close(bsurf_tile_values *v) {
+  if (v && v->fd >= 0) close(v->fd);
+  if (v) v->fd = -1;
 }
 
 bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
                              bsurf_tile_report *report, bsurf_error *err) {
   if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
-  if (!input || !output || !ops || !report || !ops->prepare || !ops->run || ops->k < 1 ||
-      (ops->nsums && !report->sums))
+  if (!input || !output || !ops || !report || !ops->run || ops->k < 1 || (ops->nsums && !report->sums) ||
+      (!ops->prepare && !ops->nvalues) || (ops->nvalues && !ops->values_out) || (ops->reverse && !ops->values_in))
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
   double *user_sums = report->sums;
   memset(report, 0, sizeof *report);
@@ -1097,7 +1411,9 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   c.ops = ops;
   c.comm = ops->comm;
   c.k = ops->k;
-  c.in.fd = c.sorted.fd = c.scr = -1;
+  c.in.fd = c.sorted.fd = c.scr = c.vfd = c.vin.fd = -1;
+  c.vcols = ops->nvalues ? ops->nvalues + 1 : 0;
+  if (ops->values_out) ops->values_out->fd = -1;
   bsurf_cloud_init(&c.schema);
   bsurf_cloud_init(&c.out_schema);
   const int rank = c.comm ? c.comm->rank : 0, ranks = c.comm ? c.comm->ranks : 1;
@@ -1115,7 +1431,11 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   }
   if (st == BSURF_OK) {
     st = cloud_like(&c.schema, 1, &c.out_schema);
-    if (st == BSURF_OK) st = ops->prepare(ops->user, &c.out_schema);
+    if (st == BSURF_OK && ops->prepare) st = ops->prepare(ops->user, &c.out_schema);
+  }
+  if (st == BSURF_OK && ops->values_in) {
+    st = map_values(ops->values_in, c.n, &c.vin, err);
+    c.vin_cols = ops->values_in->nvalues + 1;
   }
   if (st == BSURF_OK) {
     st = pass_bounds(&c, report);
@@ -1128,6 +1448,8 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
     st = pass_sort(&c, output, err);
   }
   if (st == BSURF_OK) st = make_tiles(&c);
+  if (st == BSURF_OK && ops->reverse && (st = cell_maxima(&c)) == BSURF_ERR_INVALID_VALUE)
+    bsurf_fail(err, st, 0, -1, "the first stage's values are not of this input");
   if (st == BSURF_OK) {
     report->tiles = c.ntiles;
     c.tile_sums = bsurf_calloc_array(c.ntiles, (ops->nsums + 1) * sizeof(double));
@@ -1191,10 +1513,19 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
     }
   }
   if (c.comm) st = agree(c.comm, st);
+  if (st == BSURF_OK && c.vcols) { /* the values go to the caller */
+    ops->values_out->fd = c.vfd;
+    ops->values_out->count = c.n;
+    ops->values_out->nvalues = ops->nvalues;
+    c.vfd = -1;
+  }
 
   map_close(&c.in);
   map_close(&c.sorted);
+  map_close(&c.vin);
+  free(c.cellmax);
   if (c.scr >= 0) close(c.scr);
+  if (c.vfd >= 0) close(c.vfd);
   free(c.block);
   io_ply_layout_free(&c.layout);
   bsurf_cloud_free(&c.schema);
@@ -1202,5 +1533,87 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   free(c.cell_start);
   free(c.tiles);
   free(c.tile_sums);
+  return st;
+}
+
+/* ---- a pointwise second stage ------------------------------------------------ */
+
+bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_tile_ops *ops,
+                             const bsurf_tile_values *values, bsurf_tile_map_fn map, bsurf_error *err) {
+  if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
+  if (!input || !output || !ops || !ops->prepare || !values || !map)
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
+  tiles_ctx c;
+  memset(&c, 0, sizeof c);
+  c.ops = ops;
+  c.comm = ops->comm;
+  c.in.fd = c.sorted.fd = c.scr = c.vfd = c.vin.fd = -1;
+  bsurf_cloud_init(&c.schema);
+  bsurf_cloud_init(&c.out_schema);
+  bsurf_cloud part;
+  bsurf_cloud_init(&part);
+  unsigned char *enc = NULL;
+  double *vals = NULL;
+  bsurf_status st = BSURF_OK;
+  if (!c.comm || c.comm->rank == 0) { /* the others wait */
+    st = map_input(input, &c.in, err);
+    if (st == BSURF_OK) st = io_ply_map(c.in.data, c.in.size, &c.layout, &c.schema, err);
+    if (st == BSURF_OK) c.n = c.layout.count;
+    if (st == BSURF_OK) st = map_values(values, c.n, &c.vin, err);
+    if (st == BSURF_OK) st = cloud_like(&c.schema, 1, &c.out_schema);
+    if (st == BSURF_OK) st = ops->prepare(ops->user, &c.out_schema);
+    if (st == BSURF_OK) {
+      c.record = record_of(&c.out_schema);
+      st = create_output(&c, output, err);
+    }
+    const size_t nv = values->nvalues, cols = nv + 1;
+    size_t range = ((size_t)32 << 20) / (c.record + cols * sizeof(double));
+    if (ops->range_points) range = ops->range_points;
+    if (range > c.n) range = c.n;
+    if (st == BSURF_OK && c.n) {
+      enc = bsurf_alloc_array(range, c.record);
+      vals = bsurf_alloc_array(range, (nv ? nv : 1) * sizeof(double));
+      if (!enc || !vals) st = BSURF_ERR_NOMEM;
+    }
+    const double *v = (const double *)c.vin.data;
+    for (size_t first = 0; first < c.n && st == BSURF_OK; first += range) {
+      size_t m = c.n - first < range ? c.n - first : range;
+      if (ops->progress && ops->progress(ops->progress_user, first, c.n)) {
+        st = BSURF_ERR_CANCELLED;
+        break;
+      }
+      bsurf_cloud_free(&part);
+      st = cloud_like(&c.schema, m, &part);
+      for (size_t j = 0; j < m && st == BSURF_OK; j++) {
+        io_ply_decode(&c.layout, c.in.data, first + j, &part, j);
+        memcpy(vals + j * nv, v + (first + j) * cols, nv * sizeof(double));
+      }
+      if (st == BSURF_OK) st = ops->prepare(ops->user, &part);
+      if (st == BSURF_OK) st = map(ops->user, first, &part, vals);
+      if (st == BSURF_OK) st = io_ply_encode(&part, enc);
+      int e = st == BSURF_OK ? pwrite_all(fileno(c.af.f), enc, m * c.record, c.header + first * c.record) : 0;
+      if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(e));
+      drop_pages(&c.in, c.layout.body + first * c.layout.record, c.layout.body + (first + m) * c.layout.record);
+      drop_pages(&c.vin, first * cols * sizeof(double), (first + m) * cols * sizeof(double));
+    }
+    if (st == BSURF_ERR_NOMEM && err && !err->message[0]) bsurf_fail(err, st, 0, -1, "out of memory");
+    if (c.af_open) {
+      bsurf_error cerr;
+      bsurf_status cst = bsurf_atomic_close(&c.af, st, 0, &cerr);
+      if (st == BSURF_OK && cst != BSURF_OK) {
+        st = cst;
+        if (err) *err = cerr;
+      }
+    }
+  }
+  st = agree(c.comm, st);
+  bsurf_cloud_free(&part);
+  free(enc);
+  free(vals);
+  map_close(&c.in);
+  map_close(&c.vin);
+  io_ply_layout_free(&c.layout);
+  bsurf_cloud_free(&c.schema);
+  bsurf_cloud_free(&c.out_schema);
   return st;
 }

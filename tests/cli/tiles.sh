@@ -29,6 +29,45 @@ for args in "-k 20 -B 10" "--fit poly -d 2 -k 15 -B 5" "-k 10 -B 0"; do
   expect 0 "normals $args tiles" -- "$BSURF" normals "$T/c.ply" $args -o "$T/mt.ply" --tile-points 100 -q
   cmp -s "$T/m.ply" "$T/mt.ply" && ok || fail "normals $args: tiled output differs"
 done
+# smooth (naive; bilateral in parallel order) and features --method variance run
+# in two stages (a first tiled pass for the global means / threshold, then
+# the local pass; bilateral's with a halo of reverse neighbours): the same bytes
+# and the same summary numbers as in memory
+for m in naive bilateral; do
+  for args in "-k 15 -B 6" "-k 12 -d 2 -B 4 --h1 2h --h2 1W --threshold 0.5h"; do
+    expect 0 "smooth $m $args" -- "$BSURF" smooth "$T/n.ply" --method $m $args -o "$T/sm.ply" --json
+    cp "$T/out" "$T/sm.json"
+    for tp in 60 3000; do
+      expect 0 "smooth $m $args tiles $tp" -- "$BSURF" smooth "$T/n.ply" --method $m $args -o "$T/st.ply" \
+        --tile-points $tp --json
+      cmp -s "$T/sm.ply" "$T/st.ply" && ok || fail "smooth $m $args --tile-points $tp: output differs from the in-memory run"
+      for key in h mean_error threshold projected h1 h2 moved_points moved_mean moved_max replicates_skipped mean; do
+        grep -o "\"$key\":[^,]*" "$T/out" | cmp -s - <(grep -o "\"$key\":[^,]*" "$T/sm.json") && ok ||
+          fail "smooth $m --tile-points $tp: $key differs"
+      done
+    done
+  done
+done
+# the cube: sharp edges, an input with fields of its own; automatic tiling
+expect 0 "smooth cube" -- "$BSURF" smooth "$T/c.ply" -k 10 -d 2 -B 4 -o "$T/sc.ply" -q
+expect 0 "smooth cube tiles" -- "$BSURF" smooth "$T/c.ply" -k 10 -d 2 -B 4 -o "$T/sct.ply" --memory-limit 1M -q
+stderr_has "tiles of" "smooth: automatic tiling warns"
+cmp -s "$T/sc.ply" "$T/sct.ply" && ok || fail "smooth cube --memory-limit 1M: output differs"
+for f in c n; do
+  for args in "" "--tail-rule mad" "--threshold 0.002"; do
+    expect 0 "features $f $args" -- "$BSURF" features "$T/$f.ply" --method variance -k 15 -B 5 $args -o "$T/fm.ply" --json
+    cp "$T/out" "$T/fm.json"
+    cp "$T/err" "$T/fm.err"
+    expect 0 "features $f $args tiles" -- "$BSURF" features "$T/$f.ply" --method variance -k 15 -B 5 $args \
+      -o "$T/ft.ply" --tile-points 70 --json
+    cmp -s "$T/fm.ply" "$T/ft.ply" && ok || fail "features $f $args --tile-points 70: output differs"
+    cmp -s "$T/fm.err" "$T/err" && ok || fail "features $f $args: tiled warnings differ"
+    for key in threshold feature_points h kept_input_fields; do
+      grep -o "\"$key\":[^,]*" "$T/out" | cmp -s - <(grep -o "\"$key\":[^,]*" "$T/fm.json") && ok ||
+        fail "features $f --tile-points 70: $key differs"
+    done
+  done
+done
 expect 0 "normals without input normals" -- "$BSURF" error "$T/n.ply" -k 10 -B 2 -o "$T/nn.ply" -q
 
 # refused: exit 1, a message, nothing written
@@ -43,6 +82,14 @@ for opt in "--orient mst" "--test-error" "--select-k 10:20:5" "--smooth-iteratio
   expect 1 "normals $opt" -- "$BSURF" normals "$T/n.ply" -k 10 $opt -o "$T/x.ply" --tile-points 100
   stderr_has "not available in tiled runs" "normals $opt refused"
 done
+expect 1 "smooth sequential" -- "$BSURF" smooth "$T/n.ply" -k 10 --order sequential -o "$T/x.ply" --tile-points 100
+stderr_has "sequential is not available in tiled runs: its sweep" "smooth --order sequential refused with the reason"
+expect 1 "smooth multipass" -- "$BSURF" smooth "$T/n.ply" -k 10 --method multipass -o "$T/x.ply" --tile-points 100
+stderr_has "multipass is not available in tiled runs: it runs --iterations passes" "smooth multipass refused with the reason"
+expect 1 "features distance" -- "$BSURF" features "$T/n.ply" -o "$T/x.ply" --tile-points 100
+stderr_has "distance is not available in tiled runs" "features --method distance refused with the reason"
+expect 1 "smooth ascii input" -- "$BSURF" smooth "$T/ascii.ply" -k 10 -o "$T/x.ply" --tile-points 100
+stderr_has "binary PLY" "smooth: ascii input refused"
 printf 'ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\nend_header\n' >"$T/short.ply"
 printf 'abcd' >>"$T/short.ply"
 expect 1 "truncated input" -- "$BSURF" error "$T/short.ply" -k 3 -d 1 -B 2 -o "$T/x.ply" --tile-points 100
@@ -50,8 +97,10 @@ stderr_has "short.ply: byte" "truncated input names the byte"
 expect 2 "bad memory limit" -- "$BSURF" error "$T/n.ply" -o "$T/x.ply" --memory-limit lots
 [ -e "$T/x.ply" ] && fail "output left after refusals" || ok
 ls -A "$T" | grep -q "bootsurf-tiles\|\.tmp\." && fail "scratch or temporary files left" || ok
-expect 0 "help names the option" -- "$BSURF" help error
-grep -q -- "--tile-points" "$T/out" && ok || fail "help error lacks --tile-points"
+for c in error smooth features; do
+  expect 0 "help $c names the option" -- "$BSURF" help $c
+  grep -q -- "--tile-points" "$T/out" && ok || fail "help $c lacks --tile-points"
+done
 
 # MPI: 1, 2 and 4 ranks give the serial bytes (when built with MPI)
 if ! command -v mpirun >/dev/null 2>&1; then
@@ -81,6 +130,17 @@ else
       -o "$T/mpin.ply" -q
     expect 0 "normals serial" -- "$BSURF" normals "$T/c.ply" -k 10 -B 0 -o "$T/sern.ply" -q
     cmp -s "$T/sern.ply" "$T/mpin.ply" && ok || fail "mpirun normals: output differs"
+    # two stages under MPI: the values of the first are shared by every rank
+    for m in naive bilateral; do
+      expect 0 "smooth $m serial" -- "$BSURF" smooth "$T/n.ply" --method $m -k 12 -B 4 -o "$T/sser.ply" -q
+      expect 0 "mpirun smooth $m" -- mpirun "${root[@]}" --oversubscribe -n 3 "$BSURF" smooth "$T/n.ply" --method $m \
+        -k 12 -B 4 -j 1 -o "$T/smpi.ply" --tile-points 900 -q
+      cmp -s "$T/sser.ply" "$T/smpi.ply" && ok || fail "mpirun smooth $m: output differs"
+    done
+    expect 0 "features serial" -- "$BSURF" features "$T/n.ply" --method variance -k 12 -B 4 -o "$T/fser.ply" -q
+    expect 0 "mpirun features" -- mpirun "${root[@]}" --oversubscribe -n 2 "$BSURF" features "$T/n.ply" \
+      --method variance -k 12 -B 4 -j 1 -o "$T/fmpi.ply" -q
+    cmp -s "$T/fser.ply" "$T/fmpi.ply" && ok || fail "mpirun features: output differs"
     expect 1 "mpirun bad input" -- mpirun "${root[@]}" --oversubscribe -n 2 "$BSURF" error "$T/short.ply" -k 3 -d 1 -o "$T/x.ply"
     [ -e "$T/x.ply" ] && fail "mpirun: output left after a failure" || ok
   fi
