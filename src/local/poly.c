@@ -221,6 +221,14 @@ static void gemm_plain(int b0, int b1, int c0, int c1, int k, int nc, const doub
 }
 
 #ifdef HAVE_V4D
+typedef long long v4l_idx __attribute__((vector_size(32)));
+/* The lanes (i, j, k, l) of the 8-lane concatenation of a and b. */
+#if defined(__clang__)
+#define SHUF2(a, b, i, j, k, l) __builtin_shufflevector(a, b, i, j, k, l)
+#else
+#define SHUF2(a, b, i, j, k, l) __builtin_shuffle(a, b, (v4l_idx){i, j, k, l})
+#endif
+
 /* One 4 x 8 block of W A: rows w[0..3] (k weights each) times columns
  * c..c+7 of A; acc[2 r + h] holds row r, columns c + 4h .. c + 4h + 3. */
 static inline __attribute__((always_inline)) void gemm_block(const double *const w[4], int k,
@@ -290,8 +298,19 @@ void bsurf_gemm_lanes(int R, int k, int nc, const double *restrict W, const doub
     for (int c = 0; c < nc; c += 8) {
       v4d acc[8];
       gemm_block(w, k, nc, A, c, acc);
-      for (int r = 0; r < 4; r++)
-        for (int h = 0; h < 8; h++) o[(size_t)(c + h) * 4 + r] = acc[2 * r + h / 4][h % 4];
+      /* two 4 x 4 transposes: column c + 4h + l of rows 0..3 is one vector */
+      for (int h = 0; h < 2; h++) {
+        const v4d r0 = acc[h], r1 = acc[2 + h], r2 = acc[4 + h], r3 = acc[6 + h];
+        const v4d t0 = SHUF2(r0, r1, 0, 4, 2, 6), t1 = SHUF2(r0, r1, 1, 5, 3, 7);
+        const v4d t2 = SHUF2(r2, r3, 0, 4, 2, 6), t3 = SHUF2(r2, r3, 1, 5, 3, 7);
+        const v4d c0 = SHUF2(t0, t2, 0, 1, 4, 5), c1 = SHUF2(t1, t3, 0, 1, 4, 5);
+        const v4d c2 = SHUF2(t0, t2, 2, 3, 6, 7), c3 = SHUF2(t1, t3, 2, 3, 6, 7);
+        double *oc = &o[(size_t)(c + 4 * h) * 4];
+        memcpy(oc, &c0, sizeof c0);
+        memcpy(oc + 4, &c1, sizeof c1);
+        memcpy(oc + 8, &c2, sizeof c2);
+        memcpy(oc + 12, &c3, sizeof c3);
+      }
     }
   }
 #else
