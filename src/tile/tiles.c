@@ -50,6 +50,7 @@
 #define _DEFAULT_SOURCE /* madvise */
 #include "common/common.h"
 #include "io/io.h"
+#include "search/search.h"
 
 #include <assert.h>
 #include <errno.h>
@@ -220,10 +221,12 @@ typedef struct tiles_ctx {
   size_t header, record;
   bsurf_atomic_file af; /* rank 0 */
   int af_open;
+  int out; /* the output's (temporary) file: every rank, -1 */
   /* the tiles' results (assemble below): one block per tile at block[t] */
   int scr; /* file descriptor, -1 */
-  size_t range; /* points per range of the output (the last may be shorter) */
+  size_t range; /* at most this many points per range of the output */
   size_t nranges;
+  size_t *range_lo; /* nranges + 1: range r is the points [range_lo[r], range_lo[r + 1]) */
   size_t *block; /* ntiles + 1 offsets */
   double *tile_sums; /* ntiles x (nsums + 1): the accumulators, then duplicates */
 } tiles_ctx;
@@ -254,7 +257,67 @@ static size_t cell_id(const tiles_ctx *c, const uint32_t cc[3]) {
   return ((size_t)cc[2] * c->dim[1] + cc[1]) * c->dim[0] + cc[0];
 }
 
+/* ---- the ranks --------------------------------------------------------------- */
+
+static int rank_of(const tiles_ctx *c) { return c->comm ? c->comm->rank : 0; }
+static int ranks_of(const tiles_ctx *c) { return c->comm ? c->comm->ranks : 1; }
+
+/* The first of rank r's share of n items in order (contiguous shares that
+ * differ by at most one; r = ranks gives n). */
+static size_t share_start(size_t n, int r, int ranks) {
+  size_t q = n / (size_t)ranks, m = n % (size_t)ranks;
+  return q * (size_t)r + ((size_t)r < m ? (size_t)r : m);
+}
+
+/* The worst status of all ranks (every rank must call it at the same place). */
+static bsurf_status agree(const bsurf_tile_comm *cm, bsurf_status st) {
+  return cm ? (bsurf_status)cm->max(cm->user, (int)st) : st;
+}
+
+/* Opens (and maps, when `map`) the scratch file `name` another rank made. */
+static bsurf_status scratch_open(const char *name, size_t bytes, int map, tile_map *m, bsurf_error *err) {
+  m->data = NULL;
+  m->size = bytes;
+  m->fd = open(name, O_RDWR);
+  int e = m->fd < 0 ? errno : 0;
+  if (!e && bytes && map) {
+    m->data = mmap(NULL, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, m->fd, 0);
+    if (m->data == MAP_FAILED) m->data = NULL, e = errno;
+  }
+  if (e) {
+    map_close(m);
+    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open the scratch file %s: %s", name, strerror(e));
+  }
+  return BSURF_OK;
+}
+
+/* A scratch file every rank shares (collective): rank 0 creates it beside
+ * `near`, the others open it by name, and the name is removed as soon as
+ * every rank has it open, so no exit, however abrupt, leaves it behind. */
+static bsurf_status shared_scratch(const tiles_ctx *c, const char *near, size_t bytes, int map, tile_map *m,
+                                   bsurf_error *err) {
+  const bsurf_tile_comm *cm = c->comm;
+  m->data = NULL;
+  m->size = 0;
+  m->fd = -1;
+  if (!cm) return scratch_create(near, bytes, map, m, NULL, err);
+  char name[TILE_PATH_MAX];
+  memset(name, 0, sizeof name);
+  bsurf_status st = cm->rank == 0 ? scratch_create(near, bytes, map, m, name, err) : BSURF_OK;
+  st = agree(cm, st);
+  if (st != BSURF_OK) return st; /* rank 0's failure: it made nothing */
+  cm->broadcast(cm->user, name, sizeof name);
+  if (cm->rank != 0) st = scratch_open(name, bytes, map, m, err);
+  st = agree(cm, st);
+  if (cm->rank == 0) unlink(name);
+  return st;
+}
+
 /* ---- passes over the input ------------------------------------------------- */
+
+/* Each pass is split over the ranks: rank r sweeps its share [a, b) of the
+ * point indices (share_start), and the results are combined so that they
+ * are the one-process pass's, bit for bit. */
 
 #define PASS_DROP ((size_t)1 << 20) /* points between page drops */
 
@@ -264,36 +327,70 @@ static int pass_cancelled(const tiles_ctx *c) {
   return c->ops->progress && c->ops->progress(c->ops->progress_user, 0, c->n);
 }
 
-/* Pass 1: every coordinate (and normal) finite, bounding box. */
+/* One rank's pass 1: its box, and its first failure (a bad point, or what
+ * stopped it). */
+typedef struct bounds_part {
+  double lo[3], hi[3];
+  uint64_t bad;
+  int32_t st, pad;
+} bounds_part;
+
+/* Pass 1: every coordinate (and normal) finite, bounding box. The ranks'
+ * boxes are combined in rank order with the comparisons of the sweep (the
+ * first of equal values stays), and the first rank that failed gives the
+ * status: its bad point is the lowest index of any. */
 static bsurf_status pass_bounds(tiles_ctx *c, bsurf_tile_report *rep) {
+  const size_t a = share_start(c->n, rank_of(c), ranks_of(c)), b = share_start(c->n, rank_of(c) + 1, ranks_of(c));
+  bounds_part mine;
+  memset(&mine, 0, sizeof mine);
+  for (int d = 0; d < 3; d++) mine.lo[d] = INFINITY, mine.hi[d] = -INFINITY;
   bsurf_cloud one;
   bsurf_status st = cloud_like(&c->schema, 1, &one);
-  if (st != BSURF_OK) return st;
-  for (int a = 0; a < 3; a++) c->lo[a] = INFINITY, c->hi[a] = -INFINITY;
-  for (size_t i = 0; i < c->n; i++) {
+  for (size_t i = a; i < b && st == BSURF_OK; i++) {
     io_ply_decode(&c->layout, c->in.data, i, &one, 0);
     const double *p = one.xyz, *q = one.normals;
     if (!(isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])) ||
         (q && !(isfinite(q[0]) && isfinite(q[1]) && isfinite(q[2])))) {
-      rep->bad_point = i;
+      mine.bad = i;
       st = BSURF_ERR_INVALID_VALUE;
       break;
     }
-    for (int a = 0; a < 3; a++) {
-      if (p[a] < c->lo[a]) c->lo[a] = p[a];
-      if (p[a] > c->hi[a]) c->hi[a] = p[a];
+    for (int d = 0; d < 3; d++) {
+      if (p[d] < mine.lo[d]) mine.lo[d] = p[d];
+      if (p[d] > mine.hi[d]) mine.hi[d] = p[d];
     }
-    if ((i + 1) % PASS_DROP == 0) {
+    if ((i + 1 - a) % PASS_DROP == 0) {
       drop_pages(&c->in, c->layout.body + (i + 1 - PASS_DROP) * c->layout.record,
                  c->layout.body + (i + 1) * c->layout.record);
-      if (pass_cancelled(c)) {
-        st = BSURF_ERR_CANCELLED;
-        break;
-      }
+      if (pass_cancelled(c)) st = BSURF_ERR_CANCELLED;
     }
   }
   drop_pages(&c->in, 0, c->in.size);
   bsurf_cloud_free(&one);
+  mine.st = (int32_t)st;
+  const int ranks = ranks_of(c);
+  bounds_part *all = &mine;
+  if (c->comm) {
+    /* every rank takes part even when it failed */
+    all = bsurf_alloc_array((size_t)ranks, sizeof *all);
+    int ok = agree(c->comm, all ? BSURF_OK : BSURF_ERR_NOMEM) == BSURF_OK;
+    if (!ok) {
+      free(all);
+      return BSURF_ERR_NOMEM;
+    }
+    c->comm->allgather(c->comm->user, &mine, all, sizeof mine);
+  }
+  for (int d = 0; d < 3; d++) c->lo[d] = INFINITY, c->hi[d] = -INFINITY;
+  st = BSURF_OK;
+  for (int r = 0; r < ranks && st == BSURF_OK; r++) {
+    st = (bsurf_status)all[r].st;
+    if (st == BSURF_ERR_INVALID_VALUE) rep->bad_point = (size_t)all[r].bad;
+    for (int d = 0; d < 3; d++) {
+      if (all[r].lo[d] < c->lo[d]) c->lo[d] = all[r].lo[d];
+      if (all[r].hi[d] > c->hi[d]) c->hi[d] = all[r].hi[d];
+    }
+  }
+  if (all != &mine) free(all);
   return st;
 }
 
@@ -329,41 +426,53 @@ static void make_grid(tiles_ctx *c) {
 }
 
 /* Passes 2 and 3: counts per cell, then the point indices sorted by cell
- * (increasing inside each cell) into the scratch file. */
+ * (increasing inside each cell) into a scratch file every rank shares.
+ * Rank r counts its share; the counts are summed over the ranks (the cells'
+ * starts) and their exclusive prefix over the ranks places rank r's points
+ * of a cell after those of ranks 0 .. r-1, so the file is the one-process
+ * pass's whatever the rank count. */
 static bsurf_status pass_sort(tiles_ctx *c, const char *output, bsurf_error *err) {
+  const size_t a = share_start(c->n, rank_of(c), ranks_of(c)), b = share_start(c->n, rank_of(c) + 1, ranks_of(c));
   c->cell_start = bsurf_calloc_array(c->cells + 1, sizeof *c->cell_start);
-  uint64_t *cursor = bsurf_alloc_array(c->cells, sizeof *cursor);
-  if (!c->cell_start || !cursor) {
-    free(cursor);
-    return BSURF_ERR_NOMEM;
-  }
+  uint64_t *cursor = bsurf_calloc_array(c->cells, sizeof *cursor);
+  bsurf_status st = c->cell_start && cursor ? BSURF_OK : BSURF_ERR_NOMEM;
   double p[3];
   uint32_t cc[3];
-  for (size_t i = 0; i < c->n; i++) {
+  for (size_t i = a; i < b && st == BSURF_OK; i++) {
     xyz_of(c, i, p);
     cell_coords(c, p, cc);
-    c->cell_start[cell_id(c, cc) + 1]++;
-    if ((i + 1) % PASS_DROP == 0) {
+    cursor[cell_id(c, cc)]++;
+    if ((i + 1 - a) % PASS_DROP == 0) {
       drop_pages(&c->in, 0, c->in.size);
-      if (pass_cancelled(c)) {
-        free(cursor);
-        return BSURF_ERR_CANCELLED;
-      }
+      if (pass_cancelled(c)) st = BSURF_ERR_CANCELLED;
     }
   }
-  for (size_t j = 0; j < c->cells; j++) c->cell_start[j + 1] += c->cell_start[j];
-  memcpy(cursor, c->cell_start, c->cells * sizeof *cursor);
-  bsurf_status st = scratch_create(output, c->n * sizeof(uint64_t), 1, &c->sorted, NULL, err);
+  drop_pages(&c->in, 0, c->in.size);
+  st = agree(c->comm, st);
+  if (st == BSURF_OK) {
+    memcpy(c->cell_start + 1, cursor, c->cells * sizeof *cursor);
+    if (c->comm) {
+      c->comm->sum_u64(c->comm->user, c->cell_start + 1, c->cells);
+      c->comm->exscan_u64(c->comm->user, cursor, c->cells);
+    } else {
+      memset(cursor, 0, c->cells * sizeof *cursor);
+    }
+    for (size_t j = 0; j < c->cells; j++) {
+      c->cell_start[j + 1] += c->cell_start[j];
+      cursor[j] += c->cell_start[j];
+    }
+    st = shared_scratch(c, output, c->n * sizeof(uint64_t), 1, &c->sorted, err);
+  }
   if (st == BSURF_OK) {
     uint64_t *sorted = (uint64_t *)c->sorted.data;
-    for (size_t i = 0; i < c->n; i++) {
+    for (size_t i = a; i < b; i++) {
       xyz_of(c, i, p);
       cell_coords(c, p, cc);
       sorted[cursor[cell_id(c, cc)]++] = i;
       /* the writes land all over the file: drop them often (they stay in
        * the page cache, not in this process) */
-      if ((i + 1) % (PASS_DROP / 16) == 0) drop_pages(&c->sorted, 0, c->sorted.size);
-      if ((i + 1) % PASS_DROP == 0) {
+      if ((i + 1 - a) % (PASS_DROP / 16) == 0) drop_pages(&c->sorted, 0, c->sorted.size);
+      if ((i + 1 - a) % PASS_DROP == 0) {
         drop_pages(&c->in, 0, c->in.size);
         if (pass_cancelled(c)) {
           st = BSURF_ERR_CANCELLED;
@@ -681,17 +790,47 @@ static void work_free(tile_work *w) {
 
 static size_t entry_bytes(const tiles_ctx *c) { return 16 + c->record; }
 
-/* range, nranges and every tile's block offset (ntiles + 1 of them) */
+/* The ranges are the subtrees of bsurf_sum_sqrt's cascade (halves, the
+ * lower n / 2 first) that hold at most c->range points, in index order: each
+ * range's sum for h is a whole subtree, computed by whichever rank assembles
+ * the range, and the top of the tree combines them (cascade_top), so h is
+ * the one-process double for any rank count. With lo NULL, the ranges are
+ * counted in *next; otherwise their first points are stored in lo. */
+static void range_cut(const tiles_ctx *c, size_t first, size_t n, size_t *next, size_t *lo) {
+  if (n <= c->range) {
+    if (lo) lo[*next] = first;
+    ++*next;
+    return;
+  }
+  range_cut(c, first, n / 2, next, lo);
+  range_cut(c, first + n / 2, n - n / 2, next, lo);
+}
+
+/* sum_i sqrt(nn2_i) over all points by the cascade, from the ranges' sums */
+static double cascade_top(const tiles_ctx *c, const double *range_sum, size_t n, size_t *next) {
+  if (n <= c->range) return range_sum[(*next)++];
+  return cascade_top(c, range_sum, n / 2, next) + cascade_top(c, range_sum, n - n / 2, next);
+}
+
+/* the ranges and every tile's block offset (ntiles + 1 of them) */
 static bsurf_status plan_blocks(tiles_ctx *c) {
   /* a range holds at least a tile's points (a tile's memory is many times
-   * its rows') and at least 32 MiB, so that R x tiles reads stay few */
+   * its rows') and at least 32 MiB, so that R x tiles reads stay few; with
+   * several ranks, at most n / ranks, so that every rank has a share */
   size_t by_bytes = ((size_t)32 << 20) / (c->record + sizeof(double));
   c->range = c->ops->tile_points > by_bytes ? c->ops->tile_points : by_bytes;
   if (c->ops->range_points) c->range = c->ops->range_points;
-  if (c->range > c->n) c->range = c->n;
-  c->nranges = (c->n + c->range - 1) / c->range;
+  size_t per_rank = (c->n + (size_t)ranks_of(c) - 1) / (size_t)ranks_of(c);
+  if (c->range > per_rank) c->range = per_rank;
+  if (c->range < 64) c->range = 64; /* a leaf of the cascade is never cut */
+  c->nranges = 0;
+  range_cut(c, 0, c->n, &c->nranges, NULL);
+  c->range_lo = bsurf_alloc_array(c->nranges + 1, sizeof *c->range_lo);
   c->block = bsurf_alloc_array(c->ntiles + 1, sizeof *c->block);
-  if (!c->block) return BSURF_ERR_NOMEM;
+  if (!c->range_lo || !c->block) return BSURF_ERR_NOMEM;
+  size_t r = 0;
+  range_cut(c, 0, c->n, &r, c->range_lo);
+  c->range_lo[c->nranges] = c->n;
   c->block[0] = 0;
   for (size_t t = 0; t < c->ntiles; t++)
     c->block[t + 1] = c->block[t] + (c->nranges + 1) * sizeof(uint64_t) + c->tiles[t].count * entry_bytes(c);
@@ -716,7 +855,7 @@ static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *co
     free(buf);
     return BSURF_ERR_NOMEM;
   }
-  for (size_t r = 0; r < c->nranges; r++) cuts[r] = find_u64(core, nc, (uint64_t)(r * c->range));
+  for (size_t r = 0; r < c->nranges; r++) cuts[r] = find_u64(core, nc, (uint64_t)c->range_lo[r]);
   cuts[c->nranges] = nc;
   size_t off = c->block[t];
   int e = pwrite_all(c->scr, cuts, (c->nranges + 1) * sizeof *cuts, off);
@@ -737,39 +876,12 @@ static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *co
   return e ? scratch_error(err, "write", e) : BSURF_OK;
 }
 
-/* Rank 0's assembly, pulled by the sum for h (which visits the points in
- * index order): nn_at(i) loads the range of i after writing the previous
- * one to the output. */
-typedef struct assembler {
-  const tiles_ctx *c;
-  int out; /* the output's descriptor */
-  size_t next; /* the next range to load */
-  size_t lo, hi; /* the range in memory: points [lo, hi) */
-  unsigned char *rows; /* range x record */
-  double *nn; /* range */
-  unsigned char *buf; /* entries read */
-  size_t per; /* entries per read */
-  bsurf_status st;
-  bsurf_error *err;
-} assembler;
-
-static void asm_flush(assembler *a) {
-  const tiles_ctx *c = a->c;
-  if (a->st != BSURF_OK || a->hi == a->lo) return;
-  int e = pwrite_all(a->out, a->rows, (a->hi - a->lo) * c->record, c->header + a->lo * c->record);
-  if (e) a->st = bsurf_fail(a->err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(e));
-  a->lo = a->hi;
-}
-
-static void asm_load(assembler *a) {
-  const tiles_ctx *c = a->c;
-  const size_t eb = entry_bytes(c), r = a->next++;
-  if (pass_cancelled(c)) {
-    a->st = BSURF_ERR_CANCELLED;
-    return;
-  }
-  a->lo = r * c->range;
-  a->hi = a->lo + c->range < c->n ? a->lo + c->range : c->n;
+/* Range r of the output: every tile's entries of it, read from the blocks
+ * and placed in rows (record bytes each) and nn (squared nearest distances);
+ * buf holds `per` entries. */
+static bsurf_status load_range(const tiles_ctx *c, size_t r, unsigned char *rows, double *nn,
+                               unsigned char *buf, size_t per, bsurf_error *err) {
+  const size_t eb = entry_bytes(c), lo = c->range_lo[r], hi = c->range_lo[r + 1];
   size_t placed = 0;
   int e = 0;
   for (size_t t = 0; t < c->ntiles && !e; t++) {
@@ -781,34 +893,54 @@ static void asm_load(assembler *a) {
       e = EIO;
       break;
     }
-    for (uint64_t j = cut[0]; j < cut[1] && !e; j += a->per) {
-      size_t m = cut[1] - j < a->per ? (size_t)(cut[1] - j) : a->per;
-      e = pread_all(c->scr, a->buf, m * eb, base + (size_t)j * eb);
+    for (uint64_t j = cut[0]; j < cut[1] && !e; j += per) {
+      size_t m = cut[1] - j < per ? (size_t)(cut[1] - j) : per;
+      e = pread_all(c->scr, buf, m * eb, base + (size_t)j * eb);
       for (size_t q = 0; q < m && !e; q++) {
-        const unsigned char *p = a->buf + q * eb;
+        const unsigned char *p = buf + q * eb;
         uint64_t i;
         memcpy(&i, p, 8);
-        if (i < a->lo || i >= a->hi) {
+        if (i < lo || i >= hi) {
           e = EIO;
           break;
         }
-        memcpy(&a->nn[i - a->lo], p + 8, 8);
-        memcpy(a->rows + (i - a->lo) * c->record, p + 16, c->record);
+        memcpy(&nn[i - lo], p + 8, 8);
+        memcpy(rows + (i - lo) * c->record, p + 16, c->record);
       }
       placed += m;
     }
   }
   /* the tiles partition the points: every row of the range exactly once */
-  if (!e && placed != a->hi - a->lo) e = EIO;
-  if (e) a->st = scratch_error(a->err, "read", e);
+  if (!e && placed != hi - lo) e = EIO;
+  return e ? scratch_error(err, "read", e) : BSURF_OK;
 }
 
-static double nn_at(assembler *a, size_t i) {
-  while (a->st == BSURF_OK && i >= a->hi) {
-    asm_flush(a);
-    if (a->st == BSURF_OK) asm_load(a);
+/* This rank's share of the ranges (contiguous, share_start): each one
+ * assembled in memory, written at its offset in the output (pwrite, one
+ * sequential write), and its sum for h stored in range_sum[r] (bsurf_sum_sqrt
+ * over the range: a subtree of the cascade). The ranges are independent, so
+ * the ranks assemble theirs at the same time. */
+static bsurf_status assemble(const tiles_ctx *c, double *range_sum, bsurf_error *err) {
+  const size_t r0 = share_start(c->nranges, rank_of(c), ranks_of(c));
+  const size_t r1 = share_start(c->nranges, rank_of(c) + 1, ranks_of(c));
+  const size_t per = BLOCK_CHUNK / entry_bytes(c) ? BLOCK_CHUNK / entry_bytes(c) : 1;
+  unsigned char *rows = bsurf_alloc_array(c->range, c->record);
+  double *nn = bsurf_alloc_array(c->range, sizeof *nn);
+  unsigned char *buf = bsurf_alloc_array(per, entry_bytes(c));
+  bsurf_status st = rows && nn && buf ? BSURF_OK : BSURF_ERR_NOMEM;
+  for (size_t r = r0; r < r1 && st == BSURF_OK; r++) {
+    const size_t lo = c->range_lo[r], m = c->range_lo[r + 1] - lo;
+    if (pass_cancelled(c)) st = BSURF_ERR_CANCELLED;
+    if (st == BSURF_OK) st = load_range(c, r, rows, nn, buf, per, err);
+    if (st != BSURF_OK) break;
+    range_sum[r] = bsurf_sum_sqrt(nn, m);
+    int e = pwrite_all(c->out, rows, m * c->record, c->header + lo * c->record);
+    if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(e));
   }
-  return a->st == BSURF_OK ? a->nn[i - a->lo] : 0.0;
+  free(rows);
+  free(nn);
+  free(buf);
+  return st;
 }
 
 /* The exact K-neighbourhoods of a tile's points (growing the halo until they
@@ -988,58 +1120,14 @@ out:
   return st;
 }
 
-/* ---- h: the cascade of src/search/neighbors.c over the assembled values --- */
-
-/* sum_i sqrt(v[i]) in the binary-tree order of sum_sqrt in neighbors.c:
- * halves down to 64 values, each summed left to right. The leaves are
- * visited in index order, which drives the assembly of the output. */
-static double sum_sqrt_asm(assembler *a, size_t first, size_t n) {
-  if (n <= 64) {
-    double s = 0.0;
-    for (size_t i = 0; i < n; i++) s += sqrt(nn_at(a, first + i));
-    return s;
-  }
-  return sum_sqrt_asm(a, first, n / 2) + sum_sqrt_asm(a, first + n / 2, n - n / 2);
-}
-
-/* Rank 0: the output's records in index order and h. */
-static bsurf_status assemble(tiles_ctx *c, double *h, bsurf_error *err) {
-  assembler a;
-  memset(&a, 0, sizeof a);
-  a.c = c;
-  a.out = fileno(c->af.f);
-  a.err = err;
-  a.per = BLOCK_CHUNK / entry_bytes(c) ? BLOCK_CHUNK / entry_bytes(c) : 1;
-  a.rows = bsurf_alloc_array(c->range, c->record);
-  a.nn = bsurf_alloc_array(c->range, sizeof *a.nn);
-  a.buf = bsurf_alloc_array(a.per, entry_bytes(c));
-  if (!a.rows || !a.nn || !a.buf) a.st = BSURF_ERR_NOMEM;
-  double s = a.st == BSURF_OK ? sum_sqrt_asm(&a, 0, c->n) : 0.0;
-  asm_flush(&a);
-  assert(a.st != BSURF_OK || a.next == c->nranges);
-  free(a.rows);
-  free(a.nn);
-  free(a.buf);
-  if (a.st == BSURF_OK) *h = s / (double)c->n;
-  return a.st;
-}
-
 /* ---- the run ---------------------------------------------------------------- */
 
-/* The worst status of all ranks (every rank must call it at the same place). */
-static bsurf_status agree(const bsurf_tile_comm *cm, bsurf_status st) {
-  return cm ? (bsurf_status)cm->max(cm->user, (int)st) : st;
-}
-
 /* Rank 0 creates the output (temporary name, header, space for every
- * record) and the scratch file of the tiles' blocks; every rank opens the
- * scratch file, then its name is removed (nothing is left behind on any
- * exit, however abrupt). */
+ * record) and every rank opens it to write its ranges; then the scratch
+ * file of the tiles' blocks, shared (shared_scratch). */
 static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_error *err) {
   const bsurf_tile_comm *cm = c->comm;
-  const int rank = cm ? cm->rank : 0;
-  char name[TILE_PATH_MAX];
-  memset(name, 0, sizeof name);
+  const int rank = rank_of(c);
   bsurf_status st = BSURF_OK;
   c->record = 3 * io_type_size(c->out_schema.xyz_type);
   if (c->out_schema.normals) c->record += 3 * io_type_size(c->out_schema.normal_type);
@@ -1049,6 +1137,7 @@ static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_error *
     st = bsurf_atomic_open(&c->af, output, err);
     if (st == BSURF_OK) {
       c->af_open = 1;
+      c->out = fileno(c->af.f);
       io_writer w = {c->af.f, 0, 0};
       size_t record = 0;
       st = io_ply_write_header(&w, &c->out_schema, c->n, &record);
@@ -1061,25 +1150,39 @@ static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_error *
     }
     if (st == BSURF_OK) {
       size_t total = c->header + c->n * c->record;
-      int e = posix_fallocate(fileno(c->af.f), 0, (off_t)total);
+      int e = posix_fallocate(c->out, 0, (off_t)total);
       if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write %zu bytes: %s", total, strerror(e));
     }
-    if (st == BSURF_OK) {
-      tile_map m;
-      st = scratch_create(output, c->block[c->ntiles], 0, &m, name, err);
-      if (st == BSURF_OK) c->scr = m.fd;
+  }
+  st = agree(cm, st);
+  if (st == BSURF_OK && cm) {
+    /* the other ranks write their ranges through the temporary name */
+    struct {
+      uint64_t header;
+      char name[TILE_PATH_MAX];
+    } out;
+    memset(&out, 0, sizeof out);
+    if (rank == 0) {
+      out.header = c->header;
+      if (strlen(c->af.tmp) < sizeof out.name)
+        strcpy(out.name, c->af.tmp);
+      else
+        st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "the output's path is too long for a distributed run");
     }
+    st = agree(cm, st);
+    if (st == BSURF_OK) cm->broadcast(cm->user, &out, sizeof out);
+    if (st == BSURF_OK && rank != 0) {
+      c->header = (size_t)out.header;
+      c->out = open(out.name, O_WRONLY);
+      if (c->out < 0) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", out.name, strerror(errno));
+    }
+    st = agree(cm, st);
   }
-  st = agree(cm, st);
-  if (st != BSURF_OK) return st;
-  if (cm) cm->broadcast(cm->user, name, sizeof name);
-  if (rank != 0) {
-    c->scr = open(name, O_RDWR);
-    if (c->scr < 0) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", name, strerror(errno));
+  if (st == BSURF_OK) {
+    tile_map m;
+    st = shared_scratch(c, output, c->block[c->ntiles], 0, &m, err);
+    c->scr = m.fd;
   }
-  st = agree(cm, st);
-  /* every rank has the scratch file open: its name can go */
-  if (rank == 0 && name[0]) unlink(name);
   return st;
 }
 
@@ -1097,7 +1200,7 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   c.ops = ops;
   c.comm = ops->comm;
   c.k = ops->k;
-  c.in.fd = c.sorted.fd = c.scr = -1;
+  c.in.fd = c.sorted.fd = c.scr = c.out = -1;
   bsurf_cloud_init(&c.schema);
   bsurf_cloud_init(&c.out_schema);
   const int rank = c.comm ? c.comm->rank : 0, ranks = c.comm ? c.comm->ranks : 1;
@@ -1117,6 +1220,8 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
     st = cloud_like(&c.schema, 1, &c.out_schema);
     if (st == BSURF_OK) st = ops->prepare(ops->user, &c.out_schema);
   }
+  /* the passes are collective: every rank starts them or none */
+  st = agree(c.comm, st);
   if (st == BSURF_OK) {
     st = pass_bounds(&c, report);
     if (st == BSURF_ERR_INVALID_VALUE)
@@ -1176,12 +1281,35 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
     }
   }
   /* every rank's blocks are written (the agreement above follows every
-   * rank's last write): rank 0 assembles the output and h */
-  if (st == BSURF_OK && rank == 0) st = assemble(&c, &report->h, err);
-  if (c.comm) {
-    st = agree(c.comm, st);
-    if (st == BSURF_OK) c.comm->broadcast(c.comm->user, &report->h, sizeof report->h);
+   * rank's last write): each rank assembles and writes its ranges */
+  double *range_sum = NULL;
+  if (st == BSURF_OK) {
+    range_sum = bsurf_calloc_array(c.nranges * ((size_t)ranks + 1), sizeof *range_sum);
+    st = range_sum ? assemble(&c, range_sum, err) : BSURF_ERR_NOMEM;
   }
+  /* the other ranks' writes are done (closed: on a network file system,
+   * flushed) before rank 0 syncs and renames the output */
+  if (rank != 0 && c.out >= 0) {
+    if (close(c.out) != 0 && st == BSURF_OK)
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(errno));
+    c.out = -1;
+  }
+  st = agree(c.comm, st);
+  if (st == BSURF_OK) {
+    /* the ranges' sums, each from the rank that assembled it, then h by the
+     * top of the cascade */
+    if (c.comm) {
+      double *all = range_sum + c.nranges;
+      c.comm->allgather(c.comm->user, range_sum, all, c.nranges * sizeof *range_sum);
+      for (int r = 0; r < ranks; r++)
+        for (size_t q = share_start(c.nranges, r, ranks); q < share_start(c.nranges, r + 1, ranks); q++)
+          range_sum[q] = all[(size_t)r * c.nranges + q];
+    }
+    size_t next = 0;
+    report->h = cascade_top(&c, range_sum, c.n, &next) / (double)c.n;
+    assert(next == c.nranges);
+  }
+  free(range_sum);
   if (rank == 0 && c.af_open) {
     bsurf_error cerr;
     bsurf_status cst = bsurf_atomic_close(&c.af, st, 0, &cerr);
@@ -1196,6 +1324,7 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   map_close(&c.sorted);
   if (c.scr >= 0) close(c.scr);
   free(c.block);
+  free(c.range_lo);
   io_ply_layout_free(&c.layout);
   bsurf_cloud_free(&c.schema);
   bsurf_cloud_free(&c.out_schema);
