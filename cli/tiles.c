@@ -46,6 +46,8 @@ static size_t ply_vertex_count(const char *path) {
   return n;
 }
 
+size_t cli_range_points = 0;
+
 int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
                    size_t tile_points, const char *memory_limit, int k, int out_fields, size_t *plan) {
   *plan = 0;
@@ -100,6 +102,7 @@ int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bs
   ops->progress = cli_progress_cb;
   ops->progress_user = &prog;
   ops->comm = cli_mpi_comm();
+  ops->range_points = cli_range_points;
   if (ops->comm && ops->tile_points > 0) {
     /* at least two tiles per rank */
     size_t n = ply_vertex_count(input), per = (n + 2 * (size_t)ops->comm->ranks - 1) / (2 * (size_t)ops->comm->ranks);
