@@ -997,9 +997,11 @@ typedef struct bsurf_tile_ops {
   const bsurf_tile_comm *comm; /* NULL: one process */
   bsurf_progress_fn progress;  /* points done of all (this rank's share) */
   void *progress_user;
-  /* The output is assembled in index order this many points at a time
-   * (record + 8 bytes each in memory); 0: the larger of tile_points and
-   * 32 MiB of them. */
+  /* The output is assembled in ranges of at most this many points (record
+   * + 8 bytes each in memory), at least 64; 0: the larger of tile_points
+   * and 32 MiB of them, and with comm at most points / ranks. The ranges
+   * are the subtrees of the cascade that sums h (each between half and all
+   * of this size), split over the ranks. */
   size_t range_points;
 } bsurf_tile_ops;
 

@@ -18,7 +18,8 @@
  *    counts on a grid of cells (at most 2^22); a counting sort of the point
  *    indices by cell into a scratch file next to the output (8 bytes per
  *    point on disk), so the points of any box of cells are found without
- *    reading the others.
+ *    reading the others. With several ranks each sweeps its share of the
+ *    indices and the results are combined into the one-process pass's bits.
  *  - Tiles: the grid is cut recursively (k-d style, along the widest side, at
  *    the cell plane nearest the median count) until a box holds at most
  *    tile_points points; no side of a cut gets fewer than K points.
@@ -39,13 +40,16 @@
  *    records, space reserved first, renamed when complete) is assembled in
  *    index order, one range of indices in memory at a time, and written
  *    sequentially: about once, whatever the tile count and the file's order.
- *  - h (mean nearest-neighbour distance) is global: the squared distances are
- *    summed during the assembly, in index order with the cascade of
- *    src/search/neighbors.c, so it is bit-identical.
- *  - Distributed: the ranks compute the same grid and tiles (deterministic),
- *    take tiles round-robin, write their blocks at known offsets of the one
- *    scratch file, and rank 0 assembles the output, h and the per-tile
- *    accumulators in tile order.
+ *  - h (mean nearest-neighbour distance) is global: the ranges of the
+ *    assembly are subtrees of the cascade of bsurf_sum_sqrt
+ *    (src/search/neighbors.c), each summed where it is assembled and
+ *    combined by the top of the tree, so it is bit-identical.
+ *  - Distributed: the ranks split the passes, compute the same grid and
+ *    tiles (deterministic), take tiles round-robin, write their blocks at
+ *    known offsets of the one scratch file, then each assembles its share of
+ *    the ranges and writes them at their offsets of the output; rank 0 writes
+ *    the header and renames the file. The per-tile accumulators are reduced
+ *    in tile order.
  */
 #define _DEFAULT_SOURCE /* madvise */
 #include "common/common.h"
@@ -924,6 +928,7 @@ static bsurf_status assemble(const tiles_ctx *c, double *range_sum, bsurf_error 
   const size_t r0 = share_start(c->nranges, rank_of(c), ranks_of(c));
   const size_t r1 = share_start(c->nranges, rank_of(c) + 1, ranks_of(c));
   const size_t per = BLOCK_CHUNK / entry_bytes(c) ? BLOCK_CHUNK / entry_bytes(c) : 1;
+  if (r0 == r1) return BSURF_OK; /* more ranks than ranges */
   unsigned char *rows = bsurf_alloc_array(c->range, c->record);
   double *nn = bsurf_alloc_array(c->range, sizeof *nn);
   unsigned char *buf = bsurf_alloc_array(per, entry_bytes(c));
