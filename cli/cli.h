@@ -50,7 +50,11 @@ extern int cli_drop_invalid;
    "out of core: tiles of about N points with proven halos, same bytes as in memory "             \
    "(binary PLY in and out; 0 = only above --memory-limit)", 0, 4294967295.0},                     \
       {0, "memory-limit", ARG_STRING, &(memory_limit), "SIZE",                                      \
-       "inputs needing more memory (e.g. 8G; auto = 3/4 of RAM; none) are tiled", 1, 0}
+       "inputs needing more memory (e.g. 8G; auto = 3/4 of RAM; none) are tiled", 1, 0},            \
+      {0, "range-points", ARG_SIZE, &cli_range_points, "N",                                         \
+       "tiled runs: the output is assembled at most N points at a time, at least 64 "               \
+       "(0 = the larger of the tile size and 32 MiB of rows; with mpirun, at most points / ranks)", \
+       0, 4294967295.0}
 
 #define CLI_PARSED 0
 #define CLI_HELP_SHOWN (-1)
@@ -106,6 +110,9 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
  * interrupted, no memory) prints the reason and returns 1. */
 int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
                         bsurf_neighbors *nb);
+
+/* --range-points (bsurf_tile_ops.range_points; 0: the library's choice) */
+extern size_t cli_range_points;
 
 /* --tile-points / --memory-limit: *plan = the tile size, or 0 for the
  * in-memory run (always tiles under mpirun with several ranks). Checks that a

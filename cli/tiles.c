@@ -46,6 +46,8 @@ static size_t ply_vertex_count(const char *path) {
   return n;
 }
 
+size_t cli_range_points = 0;
+
 int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
                    size_t tile_points, const char *memory_limit, int k, int out_fields, size_t *plan) {
   *plan = 0;
@@ -100,6 +102,7 @@ int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bs
   ops->progress = cli_progress_cb;
   ops->progress_user = &prog;
   ops->comm = cli_mpi_comm();
+  ops->range_points = cli_range_points;
   if (ops->comm && ops->tile_points > 0) {
     /* at least two tiles per rank */
     size_t n = ply_vertex_count(input), per = (n + 2 * (size_t)ops->comm->ranks - 1) / (2 * (size_t)ops->comm->ranks);
@@ -149,12 +152,56 @@ static void mpi_barrier(void *u) {
   MPI_Barrier(MPI_COMM_WORLD);
 }
 
+/* MPI counts are ints: long arrays go in chunks of 2^24 elements */
+#define MPI_CHUNK ((size_t)1 << 24)
+
 static void mpi_sum(void *u, double *v, size_t n) {
   (void)u;
-  for (size_t i = 0; i < n; i += (size_t)1 << 24) {
-    size_t m = n - i < ((size_t)1 << 24) ? n - i : (size_t)1 << 24;
+  for (size_t i = 0; i < n; i += MPI_CHUNK) {
+    size_t m = n - i < MPI_CHUNK ? n - i : MPI_CHUNK;
     MPI_Allreduce(MPI_IN_PLACE, v + i, (int)m, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
   }
+}
+
+static void mpi_sum_u64(void *u, uint64_t *v, size_t n) {
+  (void)u;
+  for (size_t i = 0; i < n; i += MPI_CHUNK) {
+    size_t m = n - i < MPI_CHUNK ? n - i : MPI_CHUNK;
+    MPI_Allreduce(MPI_IN_PLACE, v + i, (int)m, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+  }
+}
+
+static void mpi_exscan_u64(void *u, uint64_t *v, size_t n) {
+  (void)u;
+  for (size_t i = 0; i < n; i += MPI_CHUNK) {
+    size_t m = n - i < MPI_CHUNK ? n - i : MPI_CHUNK;
+    MPI_Exscan(MPI_IN_PLACE, v + i, (int)m, MPI_UINT64_T, MPI_SUM, MPI_COMM_WORLD);
+  }
+  /* MPI leaves rank 0's buffer undefined */
+  if (mpi_rank == 0) memset(v, 0, n * sizeof *v);
+}
+
+static void mpi_allgather(void *u, const void *mine, void *all, size_t bytes) {
+  (void)u;
+  size_t chunk = MPI_CHUNK / (size_t)mpi_size;
+  if (bytes <= chunk) {
+    MPI_Allgather(mine, (int)bytes, MPI_BYTE, all, (int)bytes, MPI_BYTE, MPI_COMM_WORLD);
+    return;
+  }
+  /* in chunks (at most 16 MiB gathered at a time), each put in its place of
+   * every rank's part */
+  char *tmp = malloc((size_t)mpi_size * chunk);
+  if (!tmp) {
+    fprintf(stderr, "bootsurf: out of memory\n");
+    MPI_Abort(MPI_COMM_WORLD, 1);
+    return;
+  }
+  for (size_t i = 0; i < bytes; i += chunk) {
+    size_t m = bytes - i < chunk ? bytes - i : chunk;
+    MPI_Allgather((const char *)mine + i, (int)m, MPI_BYTE, tmp, (int)m, MPI_BYTE, MPI_COMM_WORLD);
+    for (int r = 0; r < mpi_size; r++) memcpy((char *)all + (size_t)r * bytes + i, tmp + (size_t)r * m, m);
+  }
+  free(tmp);
 }
 
 static int mpi_max(void *u, int v) {
@@ -178,7 +225,15 @@ void cli_mpi_init(int *argc, char ***argv) {
   mpi_on = 1;
   MPI_Comm_rank(MPI_COMM_WORLD, &mpi_rank);
   MPI_Comm_size(MPI_COMM_WORLD, &mpi_size);
-  mpi_comm = (bsurf_tile_comm){mpi_rank, mpi_size, NULL, mpi_barrier, mpi_sum, mpi_max, mpi_bcast};
+  mpi_comm = (bsurf_tile_comm){.rank = mpi_rank,
+                               .ranks = mpi_size,
+                               .barrier = mpi_barrier,
+                               .sum = mpi_sum,
+                               .max = mpi_max,
+                               .broadcast = mpi_bcast,
+                               .allgather = mpi_allgather,
+                               .sum_u64 = mpi_sum_u64,
+                               .exscan_u64 = mpi_exscan_u64};
   /* one summary: the other ranks say nothing on stdout */
   if (mpi_rank != 0 && !freopen("/dev/null", "w", stdout)) mpi_rank = mpi_rank;
 }

@@ -1022,6 +1022,14 @@ typedef struct bsurf_tile_comm {
   int (*max)(void *user, int value);
   /* bytes from rank 0 to every rank */
   void (*broadcast)(void *user, void *data, size_t bytes);
+  /* every rank's `bytes` bytes of `mine`, in rank order, to `all` (ranks x
+   * bytes) on every rank */
+  void (*allgather)(void *user, const void *mine, void *all, size_t bytes);
+  /* element-wise sum over the ranks of count uint64 values, on every rank */
+  void (*sum_u64)(void *user, uint64_t *values, size_t count);
+  /* element-wise exclusive prefix sum over the ranks, in place: rank r gets
+   * the sum of ranks 0 .. r-1 (rank 0: zeros) */
+  void (*exscan_u64)(void *user, uint64_t *values, size_t count);
 } bsurf_tile_comm;
 
 typedef struct bsurf_tile_ops {
@@ -1040,9 +1048,11 @@ typedef struct bsurf_tile_ops {
   const bsurf_tile_comm *comm; /* NULL: one process */
   bsurf_progress_fn progress;  /* points done of all (this rank's share) */
   void *progress_user;
-  /* The output is assembled in index order this many points at a time
-   * (record + 8 bytes each in memory); 0: the larger of tile_points and
-   * 32 MiB of them. */
+  /* The output is assembled in ranges of at most this many points (record
+   * + 8 bytes each in memory), at least 64; 0: the larger of tile_points
+   * and 32 MiB of them, and with comm at most points / ranks. The ranges
+   * are the subtrees of the cascade that sums h (each between half and all
+   * of this size), split over the ranks. */
   size_t range_points;
   /* A first stage: run() fills tile->values_out with nvalues doubles per
    * core point; they are kept in index order in *values_out (which the
@@ -1076,9 +1086,11 @@ typedef struct bsurf_tile_report {
  * file renamed at the end; nothing on failure). The tiles' rows go to a
  * scratch file beside the output (removed on every exit) and the output is
  * then written once in index order. report->sums must point to ops->nsums
- * doubles. With ops->comm, every rank calls it with the same arguments;
- * tiles are dealt round-robin, each rank writes its tiles' rows to the
- * scratch file and rank 0 writes the output.
+ * doubles. With ops->comm, every rank calls it with the same arguments:
+ * the streaming passes over the input are split by index range, tiles are
+ * dealt round-robin, each rank writes its tiles' rows to the scratch file,
+ * then assembles its share of the output's ranges and writes them at their
+ * offsets; rank 0 writes the header and renames the file.
  * Errors name the file and place in err (as bsurf_read). */
 bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
                              bsurf_tile_report *report, bsurf_error *err);

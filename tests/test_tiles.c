@@ -11,6 +11,7 @@
 #include <cmocka.h>
 
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -36,6 +37,16 @@ typedef struct job {
   int cancel_after;
   int calls;
 } job;
+
+/* error with K, degree, B and threads */
+static job error_job(int k, int degree, int bootstrap, int threads) {
+  job j = {bsurf_error_options_default(), 0, 0, 0};
+  j.eo.k = k;
+  j.eo.degree = degree;
+  j.eo.bootstrap = bootstrap;
+  j.eo.threads = threads;
+  return j;
+}
 
 static bsurf_status prepare(void *user, bsurf_cloud *c) {
   const job *j = user;
@@ -263,11 +274,7 @@ static void test_uniform_normals(void **state) {
 static void test_nonuniform(void **state) {
   (void)state;
   write_nonuniform(tmp_path("nonuniform.ply"));
-  job j = {bsurf_error_options_default(), 0, 0, 0};
-  j.eo.k = 12;
-  j.eo.degree = 2;
-  j.eo.bootstrap = 5;
-  j.eo.threads = 2;
+  job j = error_job(12, 2, 5, 2);
   const size_t sizes[] = {24, 90, 500, 3000};
   check_tiles(tmp_path("nonuniform.ply"), &j, sizes, 4);
   job jn = {bsurf_error_options_default(), 1, 0, 0};
@@ -630,6 +637,220 @@ static void test_refusals(void **state) {
   bsurf_cloud_free(&c);
 }
 
+/* ---- ranks as threads: the collectives of bsurf_tile_comm over shared
+ * memory, so that the distributed code paths (split passes, split assembly)
+ * run here, under the sanitizers, and are compared bit for bit ---------- */
+
+#define MAX_RANKS 5
+
+typedef struct fake_world {
+  int ranks;
+  pthread_barrier_t bar;
+  const void *slot[MAX_RANKS];
+} fake_world;
+
+typedef struct fake_rank {
+  fake_world *w;
+  int rank;
+  bsurf_tile_comm comm;
+  /* the run */
+  const char *in, *out;
+  job j;
+  size_t tile_points, range_points;
+  bsurf_tile_report rep;
+  double sums[1];
+  bsurf_error err;
+  bsurf_status st;
+} fake_rank;
+
+static void fake_barrier(void *u) {
+  fake_rank *r = u;
+  pthread_barrier_wait(&r->w->bar);
+}
+
+/* every rank's pointer in the slots, between two barriers */
+static void publish(fake_rank *r, const void *p) {
+  r->w->slot[r->rank] = p;
+  pthread_barrier_wait(&r->w->bar);
+}
+
+static void fake_sum(void *u, double *v, size_t n) {
+  fake_rank *r = u;
+  publish(r, v);
+  double *t = calloc(n ? n : 1, sizeof *t);
+  for (int q = 0; q < r->w->ranks; q++)
+    for (size_t i = 0; i < n; i++) t[i] += ((const double *)r->w->slot[q])[i];
+  pthread_barrier_wait(&r->w->bar);
+  memcpy(v, t, n * sizeof *v);
+  free(t);
+}
+
+/* sum over ranks [0, upto) of count uint64 */
+static void fake_u64(fake_rank *r, uint64_t *v, size_t n, int upto) {
+  publish(r, v);
+  uint64_t *t = calloc(n ? n : 1, sizeof *t);
+  for (int q = 0; q < upto; q++)
+    for (size_t i = 0; i < n; i++) t[i] += ((const uint64_t *)r->w->slot[q])[i];
+  pthread_barrier_wait(&r->w->bar);
+  memcpy(v, t, n * sizeof *v);
+  free(t);
+}
+
+static void fake_sum_u64(void *u, uint64_t *v, size_t n) {
+  fake_rank *r = u;
+  fake_u64(r, v, n, r->w->ranks);
+}
+
+static void fake_exscan_u64(void *u, uint64_t *v, size_t n) {
+  fake_rank *r = u;
+  fake_u64(r, v, n, r->rank);
+}
+
+static int fake_max(void *u, int v) {
+  fake_rank *r = u;
+  publish(r, &v);
+  int m = v;
+  for (int q = 0; q < r->w->ranks; q++)
+    if (*(const int *)r->w->slot[q] > m) m = *(const int *)r->w->slot[q];
+  pthread_barrier_wait(&r->w->bar);
+  return m;
+}
+
+static void fake_broadcast(void *u, void *data, size_t bytes) {
+  fake_rank *r = u;
+  publish(r, data);
+  if (r->rank != 0) memcpy(data, r->w->slot[0], bytes);
+  pthread_barrier_wait(&r->w->bar);
+}
+
+static void fake_allgather(void *u, const void *mine, void *all, size_t bytes) {
+  fake_rank *r = u;
+  publish(r, mine);
+  for (int q = 0; q < r->w->ranks; q++) memcpy((char *)all + (size_t)q * bytes, r->w->slot[q], bytes);
+  pthread_barrier_wait(&r->w->bar);
+}
+
+static void *fake_main(void *u) {
+  fake_rank *r = u;
+  bsurf_tile_ops ops;
+  memset(&ops, 0, sizeof ops);
+  ops.tile_points = r->tile_points;
+  ops.range_points = r->range_points;
+  ops.k = r->j.eo.k;
+  ops.threads = 1;
+  ops.user = &r->j;
+  ops.prepare = prepare;
+  ops.run = run;
+  ops.nsums = 1;
+  ops.comm = &r->comm;
+  r->rep.sums = r->sums;
+  r->st = bsurf_tiles_run(r->in, r->out, &ops, &r->rep, &r->err);
+  return NULL;
+}
+
+/* bsurf_tiles_run on `ranks` threads sharing a fake_world; rank 0's report,
+ * status and error in *rep, return and *err; every rank's report must agree */
+static bsurf_status tiled_ranks(int ranks, const char *in, const char *out, const job *j, size_t tile_points,
+                                size_t range_points, bsurf_tile_report *rep, double *sum, bsurf_error *err) {
+  fake_world w;
+  memset(&w, 0, sizeof w);
+  w.ranks = ranks;
+  assert_int_equal(pthread_barrier_init(&w.bar, NULL, (unsigned)ranks), 0);
+  fake_rank r[MAX_RANKS];
+  pthread_t th[MAX_RANKS];
+  for (int q = 0; q < ranks; q++) {
+    memset(&r[q], 0, sizeof r[q]);
+    r[q].w = &w;
+    r[q].rank = q;
+    r[q].comm = (bsurf_tile_comm){.rank = q,
+                                  .ranks = ranks,
+                                  .user = &r[q],
+                                  .barrier = fake_barrier,
+                                  .sum = fake_sum,
+                                  .max = fake_max,
+                                  .broadcast = fake_broadcast,
+                                  .allgather = fake_allgather,
+                                  .sum_u64 = fake_sum_u64,
+                                  .exscan_u64 = fake_exscan_u64};
+    r[q].in = in;
+    r[q].out = out;
+    r[q].j = *j;
+    r[q].tile_points = tile_points;
+    r[q].range_points = range_points;
+    assert_int_equal(pthread_create(&th[q], NULL, fake_main, &r[q]), 0);
+  }
+  for (int q = 0; q < ranks; q++) assert_int_equal(pthread_join(th[q], NULL), 0);
+  pthread_barrier_destroy(&w.bar);
+  for (int q = 1; q < ranks; q++) {
+    assert_int_equal(r[q].st, r[0].st);
+    if (r[0].st == BSURF_OK) {
+      assert_true(r[q].rep.h == r[0].rep.h);
+      assert_true(r[q].sums[0] == r[0].sums[0]);
+      assert_int_equal(r[q].rep.duplicates, r[0].rep.duplicates);
+    }
+  }
+  *rep = r[0].rep;
+  *sum = r[0].sums[0];
+  *err = r[0].err;
+  return r[0].st;
+}
+
+/* 1 to 5 ranks, with many ranges per rank: the serial run's bytes, h (the
+ * same double), duplicates and sums; a NaN at a late point is reported as
+ * in one process (the lowest bad index, the same message), nothing written. */
+static void test_ranks(void **state) {
+  (void)state;
+  write_nonuniform(tmp_path("ranks.ply"));
+  job j = error_job(12, 2, 3, 1);
+  double h;
+  size_t dups;
+  reference(tmp_path("ranks.ply"), tmp_path("ranks_ref.ply"), &j, &h, &dups);
+  bsurf_tile_report serial;
+  double serial_sum[1] = {0};
+  assert_int_equal(tiled_ranges(tmp_path("ranks.ply"), tmp_path("ranks_ser.ply"), &j, 300, 100, &serial, serial_sum),
+                   BSURF_OK);
+  assert_same_file(tmp_path("ranks_ref.ply"), tmp_path("ranks_ser.ply"));
+  const size_t ranges[] = {0, 100, 64};
+  for (int ranks = 1; ranks <= MAX_RANKS; ranks++)
+    for (int g = 0; g < 3; g++) {
+      bsurf_tile_report rep;
+      double sum;
+      bsurf_error err;
+      unlink(tmp_path("ranks_out.ply"));
+      assert_int_equal(tiled_ranks(ranks, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &j, 300, ranges[g], &rep,
+                                   &sum, &err),
+                       BSURF_OK);
+      assert_same_file(tmp_path("ranks_ref.ply"), tmp_path("ranks_out.ply"));
+      assert_true(rep.h == h);
+      assert_int_equal(rep.duplicates, dups);
+      assert_true(sum == serial_sum[0]); /* summed per tile in tile order */
+      assert_int_equal(rep.tiles, serial.tiles);
+    }
+  /* NaNs at two late points: the first is named, by every rank count */
+  bsurf_cloud c;
+  bsurf_error err;
+  assert_int_equal(bsurf_read(tmp_path("ranks.ply"), &c, &err), BSURF_OK);
+  const size_t bad = c.point_count - 300;
+  c.xyz[3 * bad + 2] = NAN;
+  c.xyz[3 * (c.point_count - 5)] = INFINITY;
+  assert_int_equal(bsurf_write(tmp_path("ranks_nan.ply"), &c, NULL, &err), BSURF_OK);
+  bsurf_cloud_free(&c);
+  bsurf_tile_report rep;
+  double sum;
+  bsurf_error serr;
+  assert_int_equal(tiled_ranks(1, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0, &rep, &sum, &serr),
+                   BSURF_ERR_INVALID_VALUE);
+  assert_int_equal(rep.bad_point, bad);
+  for (int ranks = 2; ranks <= MAX_RANKS; ranks++) {
+    unlink(tmp_path("ranks_out.ply"));
+    assert_int_equal(tiled_ranks(ranks, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0, &rep, &sum, &err),
+                     BSURF_ERR_INVALID_VALUE);
+    assert_int_equal(rep.bad_point, bad);
+    assert_string_equal(err.message, serr.message);
+    assert_int_equal(access(tmp_path("ranks_out.ply"), F_OK), -1);
+  }
+}
+
 int main(void) {
   const char *t = getenv("BSURF_TMP");
   snprintf(tmp_dir, sizeof tmp_dir, "%s", t ? t : "/tmp");
@@ -637,7 +858,7 @@ int main(void) {
       cmocka_unit_test(test_uniform_error), cmocka_unit_test(test_uniform_normals),
       cmocka_unit_test(test_nonuniform),    cmocka_unit_test(test_big_endian),
       cmocka_unit_test(test_refusals),     cmocka_unit_test(test_smooth_two_stage),
-      cmocka_unit_test(test_features_two_stage),
+      cmocka_unit_test(test_features_two_stage), cmocka_unit_test(test_ranks),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

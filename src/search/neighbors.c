@@ -17,15 +17,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* sum_i sqrt(v[i]) in a fixed binary-tree order (accurate and deterministic). */
-static double sum_sqrt(const double *v, size_t n) {
+double bsurf_sum_sqrt(const double *v, size_t n) {
   if (n <= 64) {
     double s = 0.0;
     for (size_t i = 0; i < n; i++)
       s += sqrt(v[i]);
     return s;
   }
-  return sum_sqrt(v, n / 2) + sum_sqrt(v + n / 2, n - n / 2);
+  return bsurf_sum_sqrt(v, n / 2) + bsurf_sum_sqrt(v + n / 2, n - n / 2);
 }
 
 /* Builds a temporary index and runs the all-kNN; idx may be NULL; order
@@ -45,7 +44,7 @@ static bsurf_status knn_with_spacing(const double *xyz, size_t point_count, int 
     if (order) memcpy(order, bsurf_knn_tree_ids(index), point_count * sizeof *order);
     bsurf_knn_free(index);
   }
-  if (st == BSURF_OK) *h = sum_sqrt(nn, point_count) / (double)point_count;
+  if (st == BSURF_OK) *h = bsurf_sum_sqrt(nn, point_count) / (double)point_count;
   free(nn);
   return st;
 }

@@ -37,4 +37,11 @@ const uint32_t *bsurf_visit_order(const bsurf_neighbors *nb, const double *xyz, 
  * entries), freed by the caller. */
 bsurf_status bsurf_spatial_order(const double *xyz, size_t n, uint32_t **perm, uint32_t **rank);
 
+/* sum_i sqrt(v[i]) in a fixed binary-tree order (accurate and deterministic):
+ * halves (n / 2 first) down to 64 values, each run summed left to right. h
+ * of bsurf_neighbors_build is this sum over the nearest-other distances
+ * divided by n; the tiled runs (src/tile/tiles.c) sum subtrees of the same
+ * tree and combine them by its top. */
+double bsurf_sum_sqrt(const double *v, size_t n);
+
 #endif

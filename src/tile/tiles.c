@@ -18,7 +18,8 @@
  *    counts on a grid of cells (at most 2^22); a counting sort of the point
  *    indices by cell into a scratch file next to the output (8 bytes per
  *    point on disk), so the points of any box of cells are found without
- *    reading the others.
+ *    reading the others. With several ranks each sweeps its share of the
+ *    indices and the results are combined into the one-process pass's bits.
  *  - Tiles: the grid is cut recursively (k-d style, along the widest side, at
  *    the cell plane nearest the median count) until a box holds at most
  *    tile_points points; no side of a cut gets fewer than K points.
@@ -39,17 +40,21 @@
  *    records, space reserved first, renamed when complete) is assembled in
  *    index order, one range of indices in memory at a time, and written
  *    sequentially: about once, whatever the tile count and the file's order.
- *  - h (mean nearest-neighbour distance) is global: the squared distances are
- *    summed during the assembly, in index order with the cascade of
- *    src/search/neighbors.c, so it is bit-identical.
- *  - Distributed: the ranks compute the same grid and tiles (deterministic),
- *    take tiles round-robin, write their blocks at known offsets of the one
- *    scratch file, and rank 0 assembles the output, h and the per-tile
- *    accumulators in tile order.
+ *  - h (mean nearest-neighbour distance) is global: the ranges of the
+ *    assembly are subtrees of the cascade of bsurf_sum_sqrt
+ *    (src/search/neighbors.c), each summed where it is assembled and
+ *    combined by the top of the tree, so it is bit-identical.
+ *  - Distributed: the ranks split the passes, compute the same grid and
+ *    tiles (deterministic), take tiles round-robin, write their blocks at
+ *    known offsets of the one scratch file, then each assembles its share of
+ *    the ranges and writes them at their offsets of the output; rank 0 writes
+ *    the header and renames the file. The per-tile accumulators are reduced
+ *    in tile order.
  */
 #define _DEFAULT_SOURCE /* madvise */
 #include "common/common.h"
 #include "io/io.h"
+#include "search/search.h"
 
 #include <assert.h>
 #include <errno.h>
@@ -220,10 +225,12 @@ typedef struct tiles_ctx {
   size_t header, record;
   bsurf_atomic_file af; /* rank 0 */
   int af_open;
+  int out; /* the output's (temporary) file: every rank, -1 */
   /* the tiles' results (assemble below): one block per tile at block[t] */
   int scr; /* file descriptor, -1 */
-  size_t range; /* points per range of the output (the last may be shorter) */
+  size_t range; /* at most this many points per range of the output */
   size_t nranges;
+  size_t *range_lo; /* nranges + 1: range r is the points [range_lo[r], range_lo[r + 1]) */
   size_t *block; /* ntiles + 1 offsets */
   double *tile_sums; /* ntiles x (nsums + 1): the accumulators, then duplicates */
   /* two-stage runs (docs/scaling.md) */
@@ -261,7 +268,67 @@ static size_t cell_id(const tiles_ctx *c, const uint32_t cc[3]) {
   return ((size_t)cc[2] * c->dim[1] + cc[1]) * c->dim[0] + cc[0];
 }
 
+/* ---- the ranks --------------------------------------------------------------- */
+
+static int rank_of(const tiles_ctx *c) { return c->comm ? c->comm->rank : 0; }
+static int ranks_of(const tiles_ctx *c) { return c->comm ? c->comm->ranks : 1; }
+
+/* The first of rank r's share of n items in order (contiguous shares that
+ * differ by at most one; r = ranks gives n). */
+static size_t share_start(size_t n, int r, int ranks) {
+  size_t q = n / (size_t)ranks, m = n % (size_t)ranks;
+  return q * (size_t)r + ((size_t)r < m ? (size_t)r : m);
+}
+
+/* The worst status of all ranks (every rank must call it at the same place). */
+static bsurf_status agree(const bsurf_tile_comm *cm, bsurf_status st) {
+  return cm ? (bsurf_status)cm->max(cm->user, (int)st) : st;
+}
+
+/* Opens (and maps, when `map`) the scratch file `name` another rank made. */
+static bsurf_status scratch_open(const char *name, size_t bytes, int map, tile_map *m, bsurf_error *err) {
+  m->data = NULL;
+  m->size = bytes;
+  m->fd = open(name, O_RDWR);
+  int e = m->fd < 0 ? errno : 0;
+  if (!e && bytes && map) {
+    m->data = mmap(NULL, bytes, PROT_READ | PROT_WRITE, MAP_SHARED, m->fd, 0);
+    if (m->data == MAP_FAILED) m->data = NULL, e = errno;
+  }
+  if (e) {
+    map_close(m);
+    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open the scratch file %s: %s", name, strerror(e));
+  }
+  return BSURF_OK;
+}
+
+/* A scratch file every rank shares (collective): rank 0 creates it beside
+ * `near`, the others open it by name, and the name is removed as soon as
+ * every rank has it open, so no exit, however abrupt, leaves it behind. */
+static bsurf_status shared_scratch(const tiles_ctx *c, const char *near, size_t bytes, int map, tile_map *m,
+                                   bsurf_error *err) {
+  const bsurf_tile_comm *cm = c->comm;
+  m->data = NULL;
+  m->size = 0;
+  m->fd = -1;
+  if (!cm) return scratch_create(near, bytes, map, m, NULL, err);
+  char name[TILE_PATH_MAX];
+  memset(name, 0, sizeof name);
+  bsurf_status st = cm->rank == 0 ? scratch_create(near, bytes, map, m, name, err) : BSURF_OK;
+  st = agree(cm, st);
+  if (st != BSURF_OK) return st; /* rank 0's failure: it made nothing */
+  cm->broadcast(cm->user, name, sizeof name);
+  if (cm->rank != 0) st = scratch_open(name, bytes, map, m, err);
+  st = agree(cm, st);
+  if (cm->rank == 0) unlink(name);
+  return st;
+}
+
 /* ---- passes over the input ------------------------------------------------- */
+
+/* Each pass is split over the ranks: rank r sweeps its share [a, b) of the
+ * point indices (share_start), and the results are combined so that they
+ * are the one-process pass's, bit for bit. */
 
 #define PASS_DROP ((size_t)1 << 20) /* points between page drops */
 
@@ -271,36 +338,70 @@ static int pass_cancelled(const tiles_ctx *c) {
   return c->ops->progress && c->ops->progress(c->ops->progress_user, 0, c->n);
 }
 
-/* Pass 1: every coordinate (and normal) finite, bounding box. */
+/* One rank's pass 1: its box, and its first failure (a bad point, or what
+ * stopped it). */
+typedef struct bounds_part {
+  double lo[3], hi[3];
+  uint64_t bad;
+  int32_t st, pad;
+} bounds_part;
+
+/* Pass 1: every coordinate (and normal) finite, bounding box. The ranks'
+ * boxes are combined in rank order with the comparisons of the sweep (the
+ * first of equal values stays), and the first rank that failed gives the
+ * status: its bad point is the lowest index of any. */
 static bsurf_status pass_bounds(tiles_ctx *c, bsurf_tile_report *rep) {
+  const size_t a = share_start(c->n, rank_of(c), ranks_of(c)), b = share_start(c->n, rank_of(c) + 1, ranks_of(c));
+  bounds_part mine;
+  memset(&mine, 0, sizeof mine);
+  for (int d = 0; d < 3; d++) mine.lo[d] = INFINITY, mine.hi[d] = -INFINITY;
   bsurf_cloud one;
   bsurf_status st = cloud_like(&c->schema, 1, &one);
-  if (st != BSURF_OK) return st;
-  for (int a = 0; a < 3; a++) c->lo[a] = INFINITY, c->hi[a] = -INFINITY;
-  for (size_t i = 0; i < c->n; i++) {
+  for (size_t i = a; i < b && st == BSURF_OK; i++) {
     io_ply_decode(&c->layout, c->in.data, i, &one, 0);
     const double *p = one.xyz, *q = one.normals;
     if (!(isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])) ||
         (q && !(isfinite(q[0]) && isfinite(q[1]) && isfinite(q[2])))) {
-      rep->bad_point = i;
+      mine.bad = i;
       st = BSURF_ERR_INVALID_VALUE;
       break;
     }
-    for (int a = 0; a < 3; a++) {
-      if (p[a] < c->lo[a]) c->lo[a] = p[a];
-      if (p[a] > c->hi[a]) c->hi[a] = p[a];
+    for (int d = 0; d < 3; d++) {
+      if (p[d] < mine.lo[d]) mine.lo[d] = p[d];
+      if (p[d] > mine.hi[d]) mine.hi[d] = p[d];
     }
-    if ((i + 1) % PASS_DROP == 0) {
+    if ((i + 1 - a) % PASS_DROP == 0) {
       drop_pages(&c->in, c->layout.body + (i + 1 - PASS_DROP) * c->layout.record,
                  c->layout.body + (i + 1) * c->layout.record);
-      if (pass_cancelled(c)) {
-        st = BSURF_ERR_CANCELLED;
-        break;
-      }
+      if (pass_cancelled(c)) st = BSURF_ERR_CANCELLED;
     }
   }
   drop_pages(&c->in, 0, c->in.size);
   bsurf_cloud_free(&one);
+  mine.st = (int32_t)st;
+  const int ranks = ranks_of(c);
+  bounds_part *all = &mine;
+  if (c->comm) {
+    /* every rank takes part even when it failed */
+    all = bsurf_alloc_array((size_t)ranks, sizeof *all);
+    int ok = agree(c->comm, all ? BSURF_OK : BSURF_ERR_NOMEM) == BSURF_OK;
+    if (!ok) {
+      free(all);
+      return BSURF_ERR_NOMEM;
+    }
+    c->comm->allgather(c->comm->user, &mine, all, sizeof mine);
+  }
+  for (int d = 0; d < 3; d++) c->lo[d] = INFINITY, c->hi[d] = -INFINITY;
+  st = BSURF_OK;
+  for (int r = 0; r < ranks && st == BSURF_OK; r++) {
+    st = (bsurf_status)all[r].st;
+    if (st == BSURF_ERR_INVALID_VALUE) rep->bad_point = (size_t)all[r].bad;
+    for (int d = 0; d < 3; d++) {
+      if (all[r].lo[d] < c->lo[d]) c->lo[d] = all[r].lo[d];
+      if (all[r].hi[d] > c->hi[d]) c->hi[d] = all[r].hi[d];
+    }
+  }
+  if (all != &mine) free(all);
   return st;
 }
 
@@ -336,41 +437,53 @@ static void make_grid(tiles_ctx *c) {
 }
 
 /* Passes 2 and 3: counts per cell, then the point indices sorted by cell
- * (increasing inside each cell) into the scratch file. */
+ * (increasing inside each cell) into a scratch file every rank shares.
+ * Rank r counts its share; the counts are summed over the ranks (the cells'
+ * starts) and their exclusive prefix over the ranks places rank r's points
+ * of a cell after those of ranks 0 .. r-1, so the file is the one-process
+ * pass's whatever the rank count. */
 static bsurf_status pass_sort(tiles_ctx *c, const char *output, bsurf_error *err) {
+  const size_t a = share_start(c->n, rank_of(c), ranks_of(c)), b = share_start(c->n, rank_of(c) + 1, ranks_of(c));
   c->cell_start = bsurf_calloc_array(c->cells + 1, sizeof *c->cell_start);
-  uint64_t *cursor = bsurf_alloc_array(c->cells, sizeof *cursor);
-  if (!c->cell_start || !cursor) {
-    free(cursor);
-    return BSURF_ERR_NOMEM;
-  }
+  uint64_t *cursor = bsurf_calloc_array(c->cells, sizeof *cursor);
+  bsurf_status st = c->cell_start && cursor ? BSURF_OK : BSURF_ERR_NOMEM;
   double p[3];
   uint32_t cc[3];
-  for (size_t i = 0; i < c->n; i++) {
+  for (size_t i = a; i < b && st == BSURF_OK; i++) {
     xyz_of(c, i, p);
     cell_coords(c, p, cc);
-    c->cell_start[cell_id(c, cc) + 1]++;
-    if ((i + 1) % PASS_DROP == 0) {
+    cursor[cell_id(c, cc)]++;
+    if ((i + 1 - a) % PASS_DROP == 0) {
       drop_pages(&c->in, 0, c->in.size);
-      if (pass_cancelled(c)) {
-        free(cursor);
-        return BSURF_ERR_CANCELLED;
-      }
+      if (pass_cancelled(c)) st = BSURF_ERR_CANCELLED;
     }
   }
-  for (size_t j = 0; j < c->cells; j++) c->cell_start[j + 1] += c->cell_start[j];
-  memcpy(cursor, c->cell_start, c->cells * sizeof *cursor);
-  bsurf_status st = scratch_create(output, c->n * sizeof(uint64_t), 1, &c->sorted, NULL, err);
+  drop_pages(&c->in, 0, c->in.size);
+  st = agree(c->comm, st);
+  if (st == BSURF_OK) {
+    memcpy(c->cell_start + 1, cursor, c->cells * sizeof *cursor);
+    if (c->comm) {
+      c->comm->sum_u64(c->comm->user, c->cell_start + 1, c->cells);
+      c->comm->exscan_u64(c->comm->user, cursor, c->cells);
+    } else {
+      memset(cursor, 0, c->cells * sizeof *cursor);
+    }
+    for (size_t j = 0; j < c->cells; j++) {
+      c->cell_start[j + 1] += c->cell_start[j];
+      cursor[j] += c->cell_start[j];
+    }
+    st = shared_scratch(c, output, c->n * sizeof(uint64_t), 1, &c->sorted, err);
+  }
   if (st == BSURF_OK) {
     uint64_t *sorted = (uint64_t *)c->sorted.data;
-    for (size_t i = 0; i < c->n; i++) {
+    for (size_t i = a; i < b; i++) {
       xyz_of(c, i, p);
       cell_coords(c, p, cc);
       sorted[cursor[cell_id(c, cc)]++] = i;
       /* the writes land all over the file: drop them often (they stay in
        * the page cache, not in this process) */
-      if ((i + 1) % (PASS_DROP / 16) == 0) drop_pages(&c->sorted, 0, c->sorted.size);
-      if ((i + 1) % PASS_DROP == 0) {
+      if ((i + 1 - a) % (PASS_DROP / 16) == 0) drop_pages(&c->sorted, 0, c->sorted.size);
+      if ((i + 1 - a) % PASS_DROP == 0) {
         drop_pages(&c->in, 0, c->in.size);
         if (pass_cancelled(c)) {
           st = BSURF_ERR_CANCELLED;
@@ -707,17 +820,47 @@ static void work_free(tile_work *w) {
 
 static size_t entry_bytes(const tiles_ctx *c) { return 16 + c->vcols * sizeof(double) + c->record; }
 
-/* range, nranges and every tile's block offset (ntiles + 1 of them) */
+/* The ranges are the subtrees of bsurf_sum_sqrt's cascade (halves, the
+ * lower n / 2 first) that hold at most c->range points, in index order: each
+ * range's sum for h is a whole subtree, computed by whichever rank assembles
+ * the range, and the top of the tree combines them (cascade_top), so h is
+ * the one-process double for any rank count. With lo NULL, the ranges are
+ * counted in *next; otherwise their first points are stored in lo. */
+static void range_cut(const tiles_ctx *c, size_t first, size_t n, size_t *next, size_t *lo) {
+  if (n <= c->range) {
+    if (lo) lo[*next] = first;
+    ++*next;
+    return;
+  }
+  range_cut(c, first, n / 2, next, lo);
+  range_cut(c, first + n / 2, n - n / 2, next, lo);
+}
+
+/* sum_i sqrt(nn2_i) over all points by the cascade, from the ranges' sums */
+static double cascade_top(const tiles_ctx *c, const double *range_sum, size_t n, size_t *next) {
+  if (n <= c->range) return range_sum[(*next)++];
+  return cascade_top(c, range_sum, n / 2, next) + cascade_top(c, range_sum, n - n / 2, next);
+}
+
+/* the ranges and every tile's block offset (ntiles + 1 of them) */
 static bsurf_status plan_blocks(tiles_ctx *c) {
   /* a range holds at least a tile's points (a tile's memory is many times
-   * its rows') and at least 32 MiB, so that R x tiles reads stay few */
+   * its rows') and at least 32 MiB, so that R x tiles reads stay few; with
+   * several ranks, at most n / ranks, so that every rank has a share */
   size_t by_bytes = ((size_t)32 << 20) / (c->record + (c->vcols + 1) * sizeof(double));
   c->range = c->ops->tile_points > by_bytes ? c->ops->tile_points : by_bytes;
   if (c->ops->range_points) c->range = c->ops->range_points;
-  if (c->range > c->n) c->range = c->n;
-  c->nranges = (c->n + c->range - 1) / c->range;
+  size_t per_rank = (c->n + (size_t)ranks_of(c) - 1) / (size_t)ranks_of(c);
+  if (c->range > per_rank) c->range = per_rank;
+  if (c->range < 64) c->range = 64; /* a leaf of the cascade is never cut */
+  c->nranges = 0;
+  range_cut(c, 0, c->n, &c->nranges, NULL);
+  c->range_lo = bsurf_alloc_array(c->nranges + 1, sizeof *c->range_lo);
   c->block = bsurf_alloc_array(c->ntiles + 1, sizeof *c->block);
-  if (!c->block) return BSURF_ERR_NOMEM;
+  if (!c->range_lo || !c->block) return BSURF_ERR_NOMEM;
+  size_t r = 0;
+  range_cut(c, 0, c->n, &r, c->range_lo);
+  c->range_lo[c->nranges] = c->n;
   c->block[0] = 0;
   for (size_t t = 0; t < c->ntiles; t++)
     c->block[t + 1] = c->block[t] + (c->nranges + 1) * sizeof(uint64_t) + c->tiles[t].count * entry_bytes(c);
@@ -742,7 +885,7 @@ static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *co
     free(buf);
     return BSURF_ERR_NOMEM;
   }
-  for (size_t r = 0; r < c->nranges; r++) cuts[r] = find_u64(core, nc, (uint64_t)(r * c->range));
+  for (size_t r = 0; r < c->nranges; r++) cuts[r] = find_u64(core, nc, (uint64_t)c->range_lo[r]);
   cuts[c->nranges] = nc;
   size_t off = c->block[t];
   int e = pwrite_all(c->scr, cuts, (c->nranges + 1) * sizeof *cuts, off);
@@ -764,43 +907,13 @@ static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *co
   return e ? scratch_error(err, "write", e) : BSURF_OK;
 }
 
-/* Rank 0's assembly, pulled by the sum for h (which visits the points in
- * index order): nn_at(i) loads the range of i after writing the previous
- * one to the output. */
-typedef struct assembler {
-  const tiles_ctx *c;
-  int out; /* the output's descriptor */
-  size_t next; /* the next range to load */
-  size_t lo, hi; /* the range in memory: points [lo, hi) */
-  unsigned char *rows; /* range x record */
-  double *nn; /* range */
-  double *vals; /* range x vcols */
-  unsigned char *buf; /* entries read */
-  size_t per; /* entries per read */
-  bsurf_status st;
-  bsurf_error *err;
-} assembler;
-
-static void asm_flush(assembler *a) {
-  const tiles_ctx *c = a->c;
-  if (a->st != BSURF_OK || a->hi == a->lo) return;
-  int e = c->record ? pwrite_all(a->out, a->rows, (a->hi - a->lo) * c->record, c->header + a->lo * c->record) : 0;
-  if (e) a->st = bsurf_fail(a->err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(e));
-  const size_t vb = c->vcols * sizeof(double);
-  if (!e && vb && (e = pwrite_all(c->vfd, a->vals, (a->hi - a->lo) * vb, a->lo * vb)))
-    a->st = bsurf_fail(a->err, BSURF_ERR_IO, 0, -1, "cannot write the scratch file of the values: %s", strerror(e));
-  a->lo = a->hi;
-}
-
-static void asm_load(assembler *a) {
-  const tiles_ctx *c = a->c;
-  const size_t eb = entry_bytes(c), r = a->next++;
-  if (pass_cancelled(c)) {
-    a->st = BSURF_ERR_CANCELLED;
-    return;
-  }
-  a->lo = r * c->range;
-  a->hi = a->lo + c->range < c->n ? a->lo + c->range : c->n;
+/* Range r of the output: every tile's entries of it, read from the blocks
+ * and placed in rows (record bytes each), vals (vcols doubles each: a first
+ * stage's values) and nn (squared nearest distances); buf holds `per`
+ * entries. */
+static bsurf_status load_range(const tiles_ctx *c, size_t r, unsigned char *rows, double *vals, double *nn,
+                               unsigned char *buf, size_t per, bsurf_error *err) {
+  const size_t eb = entry_bytes(c), lo = c->range_lo[r], hi = c->range_lo[r + 1];
   size_t placed = 0;
   int e = 0;
   for (size_t t = 0; t < c->ntiles && !e; t++) {
@@ -812,36 +925,62 @@ static void asm_load(assembler *a) {
       e = EIO;
       break;
     }
-    for (uint64_t j = cut[0]; j < cut[1] && !e; j += a->per) {
-      size_t m = cut[1] - j < a->per ? (size_t)(cut[1] - j) : a->per;
-      e = pread_all(c->scr, a->buf, m * eb, base + (size_t)j * eb);
+    for (uint64_t j = cut[0]; j < cut[1] && !e; j += per) {
+      size_t m = cut[1] - j < per ? (size_t)(cut[1] - j) : per;
+      e = pread_all(c->scr, buf, m * eb, base + (size_t)j * eb);
       for (size_t q = 0; q < m && !e; q++) {
-        const unsigned char *p = a->buf + q * eb;
+        const unsigned char *p = buf + q * eb;
         uint64_t i;
         memcpy(&i, p, 8);
-        if (i < a->lo || i >= a->hi) {
+        if (i < lo || i >= hi) {
           e = EIO;
           break;
         }
-        memcpy(&a->nn[i - a->lo], p + 8, 8);
-        if (c->vcols) memcpy(a->vals + (i - a->lo) * c->vcols, p + 16, c->vcols * sizeof(double));
-        if (c->record)
-          memcpy(a->rows + (i - a->lo) * c->record, p + 16 + c->vcols * sizeof(double), c->record);
+        memcpy(&nn[i - lo], p + 8, 8);
+        if (c->vcols) memcpy(vals + (i - lo) * c->vcols, p + 16, c->vcols * sizeof(double));
+        if (c->record) memcpy(rows + (i - lo) * c->record, p + 16 + c->vcols * sizeof(double), c->record);
       }
       placed += m;
     }
   }
   /* the tiles partition the points: every row of the range exactly once */
-  if (!e && placed != a->hi - a->lo) e = EIO;
-  if (e) a->st = scratch_error(a->err, "read", e);
+  if (!e && placed != hi - lo) e = EIO;
+  return e ? scratch_error(err, "read", e) : BSURF_OK;
 }
 
-static double nn_at(assembler *a, size_t i) {
-  while (a->st == BSURF_OK && i >= a->hi) {
-    asm_flush(a);
-    if (a->st == BSURF_OK) asm_load(a);
+/* This rank's share of the ranges (contiguous, share_start): each one
+ * assembled in memory, written at its offset in the output (pwrite, one
+ * sequential write) and, for a first stage, its values at their offset in
+ * the values file; its sum for h stored in range_sum[r] (bsurf_sum_sqrt
+ * over the range: a subtree of the cascade). The ranges are independent, so
+ * the ranks assemble theirs at the same time. */
+static bsurf_status assemble(const tiles_ctx *c, double *range_sum, bsurf_error *err) {
+  const size_t r0 = share_start(c->nranges, rank_of(c), ranks_of(c));
+  const size_t r1 = share_start(c->nranges, rank_of(c) + 1, ranks_of(c));
+  const size_t per = BLOCK_CHUNK / entry_bytes(c) ? BLOCK_CHUNK / entry_bytes(c) : 1;
+  const size_t vb = c->vcols * sizeof(double);
+  if (r0 == r1) return BSURF_OK; /* more ranks than ranges */
+  unsigned char *rows = c->record ? bsurf_alloc_array(c->range, c->record) : NULL;
+  double *vals = vb ? bsurf_alloc_array(c->range, vb) : NULL;
+  double *nn = bsurf_alloc_array(c->range, sizeof *nn);
+  unsigned char *buf = bsurf_alloc_array(per, entry_bytes(c));
+  bsurf_status st = (rows || !c->record) && (vals || !vb) && nn && buf ? BSURF_OK : BSURF_ERR_NOMEM;
+  for (size_t r = r0; r < r1 && st == BSURF_OK; r++) {
+    const size_t lo = c->range_lo[r], m = c->range_lo[r + 1] - lo;
+    if (pass_cancelled(c)) st = BSURF_ERR_CANCELLED;
+    if (st == BSURF_OK) st = load_range(c, r, rows, vals, nn, buf, per, err);
+    if (st != BSURF_OK) break;
+    range_sum[r] = bsurf_sum_sqrt(nn, m);
+    int e = c->record ? pwrite_all(c->out, rows, m * c->record, c->header + lo * c->record) : 0;
+    if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(e));
+    if (st == BSURF_OK && vb && (e = pwrite_all(c->vfd, vals, m * vb, lo * vb)))
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the scratch file of the values: %s", strerror(e));
   }
-  return a->st == BSURF_OK ? a->nn[i - a->lo] : 0.0;
+  free(rows);
+  free(vals);
+  free(nn);
+  free(buf);
+  return st;
 }
 
 /* ---- reverse neighbours (the second stage of a two-stage run) ------------- */
@@ -1236,77 +1375,7 @@ out:
   return st;
 }
 
-/* ---- h: the cascade of src/search/neighbors.c over the assembled values --- */
-
-/* sum_i sqrt(v[i]) in the binary-tree order of sum_sqrt in neighbors.c:
- * halves down to 64 values, each summed left to right. The leaves are
- * visited in index order, which drives the assembly of the output. */
-static double sum_sqrt_asm(assembler *a, size_t first, size_t n) {
-  if (n <= 64) {
-    double s = 0.0;
-    for (size_t i = 0; i < n; i++) s += sqrt(nn_at(a, first + i));
-    return s;
-  }
-  return sum_sqrt_asm(a, first, n / 2) + sum_sqrt_asm(a, first + n / 2, n - n / 2);
-}
-
-/* Rank 0: the output's records in index order and h. */
-static bsurf_status assemble(tiles_ctx *c, double *h, bsurf_error *err) {
-  assembler a;
-  memset(&a, 0, sizeof a);
-  a.c = c;
-  a.out = c->af_open ? fileno(c->af.f) : -1;
-  a.err = err;
-  a.per = BLOCK_CHUNK / entry_bytes(c) ? BLOCK_CHUNK / entry_bytes(c) : 1;
-  a.rows = c->record ? bsurf_alloc_array(c->range, c->record) : NULL;
-  a.vals = c->vcols ? bsurf_alloc_array(c->range, c->vcols * sizeof(double)) : NULL;
-  a.nn = bsurf_alloc_array(c->range, sizeof *a.nn);
-  a.buf = bsurf_alloc_array(a.per, entry_bytes(c));
-  if ((c->record && !a.rows) || (c->vcols && !a.vals) || !a.nn || !a.buf) a.st = BSURF_ERR_NOMEM;
-  double s = a.st == BSURF_OK ? sum_sqrt_asm(&a, 0, c->n) : 0.0;
-  asm_flush(&a);
-  assert(a.st != BSURF_OK || a.next == c->nranges);
-  free(a.rows);
-  free(a.vals);
-  free(a.nn);
-  free(a.buf);
-  if (a.st == BSURF_OK) *h = s / (double)c->n;
-  return a.st;
-}
-
 /* ---- the run ---------------------------------------------------------------- */
-
-/* The worst status of all ranks (every rank must call it at the same place). */
-static bsurf_status agree(const bsurf_tile_comm *cm, bsurf_status st) {
-  return cm ? (bsurf_status)cm->max(cm->user, (int)st) : st;
-}
-
-/* Rank 0 creates a scratch file of `bytes` beside the output (when every
- * rank's st is BSURF_OK); every rank opens it as *fd, then its name is
- * removed, so nothing is left behind on any exit, however abrupt. */
-static bsurf_status share_scratch(tiles_ctx *c, const char *output, size_t bytes, bsurf_status st, int *fd,
-                                  bsurf_error *err) {
-  const bsurf_tile_comm *cm = c->comm;
-  const int rank = cm ? cm->rank : 0;
-  char name[TILE_PATH_MAX];
-  memset(name, 0, sizeof name);
-  st = agree(cm, st);
-  if (rank == 0 && st == BSURF_OK) {
-    tile_map m;
-    st = scratch_create(output, bytes, 0, &m, name, err);
-    if (st == BSURF_OK) *fd = m.fd;
-  }
-  st = agree(cm, st);
-  if (st == BSURF_OK && cm) cm->broadcast(cm->user, name, sizeof name);
-  if (st == BSURF_OK && rank != 0) {
-    *fd = open(name, O_RDWR);
-    if (*fd < 0) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", name, strerror(errno));
-  }
-  st = agree(cm, st);
-  /* every rank has it open (or the run fails): its name can go */
-  if (rank == 0 && name[0]) unlink(name);
-  return st;
-}
 
 /* The bytes of a record of the output. */
 static size_t record_of(const bsurf_cloud *schema) {
@@ -1340,16 +1409,51 @@ static bsurf_status create_output(tiles_ctx *c, const char *output, bsurf_error 
 }
 
 /* Rank 0 creates the output (temporary name, header, space for every
- * record) unless the run has none (a first stage), then the scratch files
- * of the tiles' blocks and of the values. */
+ * record) unless the run has none (a first stage), and every rank opens it
+ * to write its ranges; then the scratch files, shared by every rank
+ * (shared_scratch): the tiles' blocks, and the values of a first stage. */
 static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_error *err) {
-  const int rank = c->comm ? c->comm->rank : 0;
-  c->record = 0;
+  const bsurf_tile_comm *cm = c->comm;
+  const int rank = rank_of(c);
   c->record = c->ops->prepare ? record_of(&c->out_schema) : 0;
   bsurf_status st = plan_blocks(c);
-  if (rank == 0 && st == BSURF_OK && c->ops->prepare) st = create_output(c, output, err);
-  st = share_scratch(c, output, c->block ? c->block[c->ntiles] : 0, st, &c->scr, err);
-  if (c->vcols) st = share_scratch(c, output, c->n * c->vcols * sizeof(double), st, &c->vfd, err);
+  if (rank == 0 && st == BSURF_OK && c->ops->prepare) {
+    st = create_output(c, output, err);
+    if (st == BSURF_OK) c->out = fileno(c->af.f);
+  }
+  st = agree(cm, st);
+  if (st == BSURF_OK && cm && c->ops->prepare) {
+    /* the other ranks write their ranges through the temporary name */
+    struct {
+      uint64_t header;
+      char name[TILE_PATH_MAX];
+    } out;
+    memset(&out, 0, sizeof out);
+    if (rank == 0) {
+      out.header = c->header;
+      if (strlen(c->af.tmp) < sizeof out.name)
+        strcpy(out.name, c->af.tmp);
+      else
+        st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "the output's path is too long for a distributed run");
+    }
+    st = agree(cm, st);
+    if (st == BSURF_OK) cm->broadcast(cm->user, &out, sizeof out);
+    if (st == BSURF_OK && rank != 0) {
+      c->header = (size_t)out.header;
+      c->out = open(out.name, O_WRONLY);
+      if (c->out < 0) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", out.name, strerror(errno));
+    }
+    st = agree(cm, st);
+  }
+  tile_map m;
+  if (st == BSURF_OK) {
+    st = shared_scratch(c, output, c->block[c->ntiles], 0, &m, err);
+    c->scr = m.fd;
+  }
+  if (st == BSURF_OK && c->vcols) {
+    st = shared_scratch(c, output, c->n * c->vcols * sizeof(double), 0, &m, err);
+    c->vfd = m.fd;
+  }
   return st;
 }
 
@@ -1411,7 +1515,7 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   c.ops = ops;
   c.comm = ops->comm;
   c.k = ops->k;
-  c.in.fd = c.sorted.fd = c.scr = c.vfd = c.vin.fd = -1;
+  c.in.fd = c.sorted.fd = c.scr = c.vfd = c.vin.fd = c.out = -1;
   c.vcols = ops->nvalues ? ops->nvalues + 1 : 0;
   if (ops->values_out) ops->values_out->fd = -1;
   bsurf_cloud_init(&c.schema);
@@ -1437,6 +1541,8 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
     st = map_values(ops->values_in, c.n, &c.vin, err);
     c.vin_cols = ops->values_in->nvalues + 1;
   }
+  /* the passes are collective: every rank starts them or none */
+  st = agree(c.comm, st);
   if (st == BSURF_OK) {
     st = pass_bounds(&c, report);
     if (st == BSURF_ERR_INVALID_VALUE)
@@ -1498,12 +1604,35 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
     }
   }
   /* every rank's blocks are written (the agreement above follows every
-   * rank's last write): rank 0 assembles the output and h */
-  if (st == BSURF_OK && rank == 0) st = assemble(&c, &report->h, err);
-  if (c.comm) {
-    st = agree(c.comm, st);
-    if (st == BSURF_OK) c.comm->broadcast(c.comm->user, &report->h, sizeof report->h);
+   * rank's last write): each rank assembles and writes its ranges */
+  double *range_sum = NULL;
+  if (st == BSURF_OK) {
+    range_sum = bsurf_calloc_array(c.nranges * ((size_t)ranks + 1), sizeof *range_sum);
+    st = range_sum ? assemble(&c, range_sum, err) : BSURF_ERR_NOMEM;
   }
+  /* the other ranks' writes are done (closed: on a network file system,
+   * flushed) before rank 0 syncs and renames the output */
+  if (rank != 0 && c.out >= 0) {
+    if (close(c.out) != 0 && st == BSURF_OK)
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(errno));
+    c.out = -1;
+  }
+  st = agree(c.comm, st);
+  if (st == BSURF_OK) {
+    /* the ranges' sums, each from the rank that assembled it, then h by the
+     * top of the cascade */
+    if (c.comm) {
+      double *all = range_sum + c.nranges;
+      c.comm->allgather(c.comm->user, range_sum, all, c.nranges * sizeof *range_sum);
+      for (int r = 0; r < ranks; r++)
+        for (size_t q = share_start(c.nranges, r, ranks); q < share_start(c.nranges, r + 1, ranks); q++)
+          range_sum[q] = all[(size_t)r * c.nranges + q];
+    }
+    size_t next = 0;
+    report->h = cascade_top(&c, range_sum, c.n, &next) / (double)c.n;
+    assert(next == c.nranges);
+  }
+  free(range_sum);
   if (rank == 0 && c.af_open) {
     bsurf_error cerr;
     bsurf_status cst = bsurf_atomic_close(&c.af, st, 0, &cerr);
@@ -1527,6 +1656,7 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   if (c.scr >= 0) close(c.scr);
   if (c.vfd >= 0) close(c.vfd);
   free(c.block);
+  free(c.range_lo);
   io_ply_layout_free(&c.layout);
   bsurf_cloud_free(&c.schema);
   bsurf_cloud_free(&c.out_schema);

@@ -126,6 +126,40 @@ else
       [ "$(grep -c '"command":"error"' "$T/out")" = 1 ] && ok || fail "mpirun -n $P: one summary expected"
       grep -o '"h":[^,]*' "$T/out" | cmp -s - <(grep -o '"h":[^,]*' "$T/e.json") && ok || fail "mpirun -n $P: h differs"
     done
+    # The passes and the assembly split over the ranks, several ranges per
+    # rank (tiles of 200 points, ranges of at most 300: 64 ranges): the
+    # serial bytes, and the summary of a serial run with the same tiles
+    # (every field but the output's name, ranks and time: h, the counters and
+    # the field means).
+    summary() { tr ',' '\n' <"$1" | grep -v -E '^"(output|ranks|seconds)"'; }
+    expect 0 "serial ranges" -- "$BSURF" error "$T/n.ply" -k 20 -B 8 -j 1 -o "$T/sr.ply" --tile-points 200 \
+      --range-points 300 --json
+    cp "$T/out" "$T/sr.json"
+    cmp -s "$T/e.ply" "$T/sr.ply" && ok || fail "--range-points 300: output differs from the in-memory run"
+    for P in 2 3 4; do
+      expect 0 "mpirun -n $P ranges" -- mpirun "${root[@]}" --oversubscribe -n $P "$BSURF" error "$T/n.ply" -k 20 -B 8 \
+        -j 1 -o "$T/mr$P.ply" --tile-points 200 --range-points 300 --json
+      cmp -s "$T/e.ply" "$T/mr$P.ply" && ok || fail "mpirun -n $P --range-points 300: output differs"
+      summary "$T/out" | cmp -s - <(summary "$T/sr.json") && ok ||
+        fail "mpirun -n $P --range-points 300: summary differs: $(diff <(summary "$T/out") <(summary "$T/sr.json") | head -4)"
+    done
+    # a NaN and an infinity late in the file (points 10,500 and 11,990 of
+    # 12,000: in the last rank's share): the serial message, nothing written
+    cp "$T/n.ply" "$T/nan.ply"
+    body=$(($(grep -abo end_header "$T/nan.ply" | head -1 | cut -d: -f1) + 11))
+    record=$((($(stat -c %s "$T/nan.ply") - body) / 12000))
+    printf '\000\000\000\000\000\000\370\177' | dd of="$T/nan.ply" bs=1 seek=$((body + 10500 * record + 8)) conv=notrunc status=none
+    printf '\000\000\000\000\000\000\360\177' | dd of="$T/nan.ply" bs=1 seek=$((body + 11990 * record)) conv=notrunc status=none
+    expect 1 "serial NaN" -- "$BSURF" error "$T/nan.ply" -k 20 -B 8 -o "$T/x.ply" --tile-points 200
+    cp "$T/err" "$T/nan.err"
+    stderr_has "nan.ply: point 10500 (0-based) has a NaN" "serial NaN names the point"
+    for P in 2 4; do
+      expect 1 "mpirun -n $P NaN" -- mpirun "${root[@]}" --oversubscribe -n $P "$BSURF" error "$T/nan.ply" -k 20 -B 8 \
+        -o "$T/x.ply" --tile-points 200
+      grep "nan.ply" "$T/err" | cmp -s - "$T/nan.err" && ok ||
+        fail "mpirun -n $P NaN: message differs: $(grep nan.ply "$T/err" | head -2)"
+      [ -e "$T/x.ply" ] && fail "mpirun -n $P NaN: output left" || ok
+    done
     expect 0 "mpirun normals" -- mpirun "${root[@]}" --oversubscribe -n 3 "$BSURF" normals "$T/c.ply" -k 10 -B 0 -j 1 \
       -o "$T/mpin.ply" -q
     expect 0 "normals serial" -- "$BSURF" normals "$T/c.ply" -k 10 -B 0 -o "$T/sern.ply" -q
@@ -143,6 +177,7 @@ else
     cmp -s "$T/fser.ply" "$T/fmpi.ply" && ok || fail "mpirun features: output differs"
     expect 1 "mpirun bad input" -- mpirun "${root[@]}" --oversubscribe -n 2 "$BSURF" error "$T/short.ply" -k 3 -d 1 -o "$T/x.ply"
     [ -e "$T/x.ply" ] && fail "mpirun: output left after a failure" || ok
+    ls -A "$T" | grep -q "bootsurf-tiles\|\.tmp\." && fail "mpirun: scratch or temporary files left" || ok
   fi
 fi
 finish
