@@ -127,7 +127,7 @@ static int features_tiled(const char *input, const char *output, const bsurf_fea
 }
 
 /* The tiled distance method: the library's chain of tiled stages
- * (bsurf_features_distance_tiled, src/algo/features_tiled.c). 0 or 1. */
+ * (bsurf_features_distance_tiled, src/tile/features_tiled.c). 0 or 1. */
 typedef struct features_distance_arg {
   const bsurf_feature_options *fo;
   bsurf_feature_report *rep;

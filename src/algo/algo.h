@@ -1,6 +1,7 @@
-/* Internal to src/algo: the per-point bootstrap fit of chapter 4, shared by
- * the error estimates (error.c) and the smoothing of chapter 6 (smooth.c),
- * so both run the very same fits. */
+/* Internal to src/algo (and src/tile/features_tiled.c): the per-point
+ * bootstrap fit of chapter 4, shared by the error estimates (error.c) and
+ * the smoothing of chapter 6 (smooth.c), so both run the very same fits;
+ * the stages of features --method distance. */
 #ifndef BSURF_ALGO_H
 #define BSURF_ALGO_H
 
@@ -50,7 +51,7 @@ bsurf_status bsurf_error_check(const bsurf_error_options *o, const bsurf_neighbo
 
 /* ---- features --method distance (7.1) in stages (features.c), run on the
  * whole cloud by bsurf_detect_features and tile by tile by
- * bsurf_features_distance_tiled (features_tiled.c): the same functions on
+ * bsurf_features_distance_tiled (src/tile/features_tiled.c): the same functions on
  * the same values, hence the same bits. Rows of nb: row r's point is
  * nb->idx[r k] (r itself on the whole cloud, a local index in a tile). ---- */
 

@@ -586,7 +586,7 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
     if (st == BSURF_OK)
       for (size_t i = 0; i < n; i++) feature[i] = sc[i] > thr;
   } else {
-    /* the stages of the tiled run (features_tiled.c), on the whole cloud */
+    /* the stages of the tiled run (src/tile/features_tiled.c), on the whole cloud */
     state = bsurf_alloc_array(n, 1);
     st = state ? distance_raw(xyz, nb, &o, sc, NULL, &R, &imm, &t_kmin, state) : BSURF_ERR_NOMEM;
     const int passes = bsurf_fdist_filter_passes(&o, R);
