@@ -187,6 +187,14 @@ static bsurf_status stage(const char *input, const char *output, fd_run *f, int 
   return bsurf_tiles_run(input, output, &ops, rep, err);
 }
 
+/* A step every rank runs on its own (reading the values back): the ranks
+ * agree on its failure before the next collective run. */
+static bsurf_status agree_local(const bsurf_tile_comm *cm, bsurf_status st) {
+  if (!cm) return st;
+  int failed = cm->max(cm->user, st != BSURF_OK);
+  return failed && st == BSURF_OK ? BSURF_ERR_IO : st;
+}
+
 /* The vertex count of a binary PLY file (0 when it cannot be read: the
  * first tiled run then says why, with the reader's message). */
 static size_t ply_points(const char *path) {
@@ -236,12 +244,15 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
   if (!f.T) st = BSURF_ERR_NOMEM;
 
   /* (a) T_{a/c} per size: the medians of the sample's f(K), or T alone */
+  const size_t n = f.o.noise_factor > 0 ? ply_points(input) : 0;
   if (st == BSURF_OK && f.o.noise_factor > 0) {
-    const size_t n = ply_points(input);
     bsurf_fdist_sample(&f.o, n, &f.stride, &f.m);
     f.sample = bsurf_calloc_array(f.m ? f.m * (size_t)sizes : 1, sizeof(double));
     if (!f.sample) st = BSURF_ERR_NOMEM;
-    if (st == BSURF_OK) st = stage(input, output, &f, f.o.k_max, 1, run_sample, NULL, &cur, &rep, err);
+  }
+  st = agree_local(cm, st); /* the allocations, before the first collective run */
+  if (st == BSURF_OK && f.o.noise_factor > 0) {
+    st = stage(input, output, &f, f.o.k_max, 1, run_sample, NULL, &cur, &rep, err);
     bsurf_tile_values_close(&cur);
     if (st == BSURF_OK && rep.points != n) /* the file changed under us */
       st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "the input changed during the run");
@@ -255,7 +266,7 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
 
   /* (b) the raw map and the states; (c) R and the points stopped at once */
   if (st == BSURF_OK) st = stage(input, output, &f, f.o.k_max, 2, run_raw, NULL, &cur, tiles, err);
-  if (st == BSURF_OK) st = values_scan(&f, &cur, scan_radius);
+  if (st == BSURF_OK) st = agree_local(cm, values_scan(&f, &cur, scan_radius));
   f.h = tiles->h;
   f.fixup = 1;
 
@@ -270,6 +281,7 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
   }
 
   /* (e) T_h over the final map, the feature count, the output */
+  const bsurf_status passed = st; /* the same on every rank (the runs agree) */
   if (st == BSURF_OK && isnan(f.o.threshold) && !(f.pos = bsurf_alloc_array(cur.count ? cur.count : 1, sizeof(double))))
     st = BSURF_ERR_NOMEM;
   f.mx = -INFINITY;
@@ -278,6 +290,7 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
   free(f.pos);
   f.pos = NULL;
   if (st == BSURF_OK) st = values_scan(&f, &cur, scan_count);
+  if (passed == BSURF_OK) st = agree_local(cm, st);
   if (st == BSURF_OK) {
     bsurf_tile_ops mo = *ops;
     mo.user = &f;
