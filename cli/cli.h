@@ -123,6 +123,12 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
  * naming the file and place. 0 or 1 (printed). */
 int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep,
                   int quiet);
+/* The same around any run of tiled runs with bsurf_tiles_run's arguments
+ * (a library's chain of stages, e.g. bsurf_features_distance_tiled). */
+typedef bsurf_status (*cli_tiles_fn)(void *arg, const char *input, const char *output, bsurf_tile_ops *ops,
+                                     bsurf_tile_report *rep, bsurf_error *err);
+int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep, int quiet,
+                   cli_tiles_fn fn, void *arg);
 /* bsurf_tiles_map (a pointwise second stage) with a progress bar, MPI when
  * started by mpirun, messages naming the file. 0 or 1 (printed). */
 int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, const bsurf_tile_values *values,

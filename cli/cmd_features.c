@@ -126,6 +126,40 @@ static int features_tiled(const char *input, const char *output, const bsurf_fea
   return rc;
 }
 
+/* The tiled distance method: the library's chain of tiled stages
+ * (bsurf_features_distance_tiled, src/tile/features_tiled.c). 0 or 1. */
+typedef struct features_distance_arg {
+  const bsurf_feature_options *fo;
+  bsurf_feature_report *rep;
+} features_distance_arg;
+
+static bsurf_status features_distance_fn(void *arg, const char *input, const char *output, bsurf_tile_ops *ops,
+                                         bsurf_tile_report *rep, bsurf_error *err) {
+  const features_distance_arg *a = arg;
+  return bsurf_features_distance_tiled(input, output, ops, a->fo, a->rep, rep, err);
+}
+
+static int features_distance_tiled(const char *input, const char *output, const bsurf_feature_options *fo,
+                                   size_t *plan, int quiet, features_tiles *ft, size_t *tiles, size_t *n, double *h,
+                                   bsurf_feature_report *rep) {
+  bsurf_tile_ops ops;
+  memset(&ops, 0, sizeof ops);
+  ops.tile_points = *plan;
+  ops.k = fo->k_max;
+  ops.threads = fo->threads;
+  ops.user = ft;
+  ops.prepare = features_prepare;
+  bsurf_tile_report tr;
+  memset(&tr, 0, sizeof tr);
+  features_distance_arg arg = {fo, rep};
+  int rc = cli_tiles_call(input, output, &ops, &tr, quiet, features_distance_fn, &arg);
+  *plan = ops.tile_points;
+  *tiles = tr.tiles;
+  *n = tr.points;
+  *h = tr.h;
+  return rc;
+}
+
 int cmd_features(const cli_command *cmd, int argc, char **argv) {
   bsurf_feature_options fo = bsurf_feature_options_default();
   const char *method = "distance", *output = NULL, *threshold_s = "auto", *tail = "otsu";
@@ -133,7 +167,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
-      {0, "method", ARG_STRING, &method, "M", "distance (PCA distance map, 7.1; not tiled) or variance (7.2; tiled in two stages)", 1, 0},
+      {0, "method", ARG_STRING, &method, "M", "distance (PCA distance map, 7.1; tiled in stages) or variance (7.2; tiled in two stages)", 1, 0},
       {'k', "neighbors", ARG_INT, &fo.normals.k, "K", "variance: neighbourhood of the normals", 3, 65535},
       {'B', "bootstrap", ARG_INT, &fo.normals.bootstrap, "B", "variance: bootstrap replicates (>= 2)", 2, 100000},
       {0, "k-min", ARG_INT, &fo.k_min, "K", "distance: smallest neighbourhood", 3, 65535},
@@ -185,13 +219,6 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   size_t plan = 0, tiles = 0;
   rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 2, &plan);
   if (rc) return rc;
-  if (plan && fo.method == BSURF_FEATURES_DISTANCE)
-    return cli_error("%s: features --method distance is not available in tiled runs: its bilateral filter "
-                     "(--iterations passes) reaches that many neighbourhood rings, and its thresholds are "
-                     "global (per-size medians of lambda0/lambda2 for --noise-factor, Otsu's split of the "
-                     "whole map); --method variance is tiled",
-                     pos[0]);
-
   double t0 = cli_now();
   bsurf_cloud c;
   bsurf_cloud_init(&c);
@@ -211,7 +238,10 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     memset(&ft, 0, sizeof ft);
     ft.names[0] = out_names[0];
     ft.names[1] = out_names[1];
-    if (features_tiled(pos[0], output, &fo, &plan, quiet, &ft, &tiles, &n, &h, &rep)) goto done;
+    if (fo.method == BSURF_FEATURES_DISTANCE
+            ? features_distance_tiled(pos[0], output, &fo, &plan, quiet, &ft, &tiles, &n, &h, &rep)
+            : features_tiled(pos[0], output, &fo, &plan, quiet, &ft, &tiles, &n, &h, &rep))
+      goto done;
     memcpy(kept, ft.kept, sizeof kept);
     memcpy(replaced, ft.replaced, sizeof replaced);
     if (!quiet) features_warn(pos[0], out_names, kept, replaced);

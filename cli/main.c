@@ -46,7 +46,7 @@ static const cli_command commands[] = {
      "Out of core: --tile-points N (or an input above --memory-limit), and mpirun,\n"
      "as for error: same bytes as in memory, for the normals and normal_var; not with\n"
      "--test-error, --select-k, --smooth-iterations or --orient (they reach beyond\n"
-     "the K-neighbourhood). smooth and features are not tiled. docs/scaling.md.",
+     "the K-neighbourhood). smooth and features are tiled in stages. docs/scaling.md.",
      cmd_normals},
     {"sample", "Points from a triangle mesh with ground-truth normals and feature labels.",
      "MESH -o OUTPUT [options]",
@@ -116,7 +116,11 @@ static const cli_command commands[] = {
      "distribution's tail). Writes feature (0/1) and the score (feature_dist or\n"
      "normal_var); input fields of those names (e.g. ground truth from generate or\n"
      "sample) are kept as feature_in and feature_dist_in / normal_var_in, or, when\n"
-     "those exist already, replaced (they were an earlier result).",
+     "those exist already, replaced (they were an earlier result).\n"
+     "Out of core: --tile-points N (or an input above --memory-limit), and mpirun:\n"
+     "both methods in tiled stages with the in-memory bytes (distance: the sample's\n"
+     "medians, the raw map, one run per filter pass; --threshold auto keeps 8 bytes\n"
+     "per point in memory). docs/scaling.md.",
      cmd_features},
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);

@@ -92,8 +92,19 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
   return 0;
 }
 
+static bsurf_status tiles_run_fn(void *arg, const char *input, const char *output, bsurf_tile_ops *ops,
+                                 bsurf_tile_report *rep, bsurf_error *err) {
+  (void)arg;
+  return bsurf_tiles_run(input, output, ops, rep, err);
+}
+
 int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep,
                   int quiet) {
+  return cli_tiles_call(input, output, ops, rep, quiet, tiles_run_fn, NULL);
+}
+
+int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep, int quiet,
+                   cli_tiles_fn fn, void *arg) {
   struct stat sb;
   if (stat(input, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size == 0)
     return cli_error("%s: the file is empty", input);
@@ -109,7 +120,7 @@ int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bs
     if (n && per < ops->tile_points) ops->tile_points = per < 2 * (size_t)ops->k ? 2 * (size_t)ops->k : per;
   }
   bsurf_error err = {0, -1, ""};
-  bsurf_status st = bsurf_tiles_run(input, output, ops, rep, &err);
+  bsurf_status st = fn(arg, input, output, ops, rep, &err);
   cli_progress_done(&prog);
   if (st == BSURF_OK) {
     cli_set_duplicates(rep->duplicates);

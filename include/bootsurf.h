@@ -1105,6 +1105,23 @@ typedef bsurf_status (*bsurf_tile_map_fn)(void *user, size_t first, bsurf_cloud 
 bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_tile_ops *ops,
                              const bsurf_tile_values *values, bsurf_tile_map_fn map, bsurf_error *err);
 
+/* Feature detection by the distance method (7.1) tile by tile: the file
+ * bsurf_detect_features gives (its feature_dist and feature, the other
+ * properties of the input), byte for byte, and its report (threshold, the
+ * feature count, max radius, the points stopped at once, T_{a/c} at k_min).
+ * Stages, each a tiled run: the sample's f(K) for the medians of
+ * noise_factor (skipped when it is 0), the raw map, then `iterations`
+ * passes of the bilateral filter (Eq. 7.1), each reading the previous
+ * pass's values of the tile's neighbours; T_h over every value read back in
+ * index order (auto: 8 bytes per point in memory); the output by a
+ * pointwise stage (bsurf_tiles_map). ops: tile_points, threads, comm,
+ * progress, range_points, and prepare (with user), which must add the
+ * fields "feature_dist" and "feature" to the input's; the rest is set per
+ * stage. tiles out: the raw map's run (points, tiles, h, duplicates). */
+bsurf_status bsurf_features_distance_tiled(const char *input, const char *output, const bsurf_tile_ops *ops,
+                                           const bsurf_feature_options *opts, bsurf_feature_report *report,
+                                           bsurf_tile_report *tiles, bsurf_error *err);
+
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */
 /* ------------------------------------------------------------------------ */

@@ -575,6 +575,147 @@ static void test_features_two_stage(void **state) {
   free(score);
 }
 
+/* features --method distance (7.1): bsurf_features_distance_tiled gives
+ * bsurf_detect_features's file and report, byte for byte and bit for bit. */
+static bsurf_status fd_prepare(void *user, bsurf_cloud *c) {
+  (void)user;
+  static const char *const fd_names[2] = {"feature_dist", "feature"};
+  for (int t = 0; t < 2; t++) { /* an input's fields are kept as NAME_in, as the CLI does */
+    bsurf_field *old = bsurf_cloud_field(c, fd_names[t]);
+    if (old) snprintf(old->name, sizeof old->name, "%s_in", fd_names[t]);
+  }
+  return bsurf_cloud_add_field(c, fd_names[0], BSURF_FLOAT32) && bsurf_cloud_add_field(c, fd_names[1], BSURF_UINT8)
+             ? BSURF_OK
+             : BSURF_ERR_NOMEM;
+}
+
+static int fd_cancel(void *user, size_t done, size_t total) {
+  (void)done;
+  (void)total;
+  return --*(int *)user < 0;
+}
+
+/* returns the feature count */
+static size_t check_distance(const char *path, const bsurf_feature_options *fo, const size_t *sizes, int nsizes) {
+  char in[1200], ref_path[1200]; /* tmp_path's buffers are reused */
+  snprintf(in, sizeof in, "%s", path);
+  snprintf(ref_path, sizeof ref_path, "%s", tmp_path("dref.ply"));
+  bsurf_cloud c;
+  bsurf_error err;
+  assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, fo->k_max, 2, NULL, NULL), BSURF_OK);
+  const size_t n = c.point_count;
+  uint8_t *feat = malloc(n);
+  double *score = malloc(n * sizeof(double));
+  bsurf_feature_report ref;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, fo, feat, score, &ref), BSURF_OK);
+  assert_int_equal(fd_prepare(NULL, &c), BSURF_OK);
+  for (size_t i = 0; i < n; i++) {
+    bsurf_cloud_field(&c, "feature_dist")->values[i] = score[i];
+    bsurf_cloud_field(&c, "feature")->values[i] = feat[i];
+  }
+  assert_int_equal(bsurf_write(ref_path, &c, NULL, &err), BSURF_OK);
+  const double h = nb.h;
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+  free(feat);
+  free(score);
+  for (int s = 0; s < nsizes; s++) {
+    bsurf_tile_ops ops = stage_ops(NULL, 0, sizes[s]);
+    ops.prepare = fd_prepare;
+    ops.range_points = s % 2 ? 97 : 0;
+    bsurf_tile_report tr;
+    bsurf_feature_report rep;
+    assert_int_equal(bsurf_features_distance_tiled(in, tmp_path("dtiled.ply"), &ops, fo, &rep, &tr, &err), BSURF_OK);
+    assert_same_file(ref_path, tmp_path("dtiled.ply"));
+    assert_true(tr.h == h);
+    assert_int_equal(tr.points, n);
+    if (sizes[s] < n / 4) assert_true(tr.tiles > 2);
+    assert_true(rep.threshold == ref.threshold);
+    assert_true(rep.max_radius == ref.max_radius);
+    assert_true(rep.ratio_threshold_kmin == ref.ratio_threshold_kmin);
+    assert_int_equal(rep.feature_points, ref.feature_points);
+    assert_int_equal(rep.immediate, ref.immediate);
+  }
+  return ref.feature_points;
+}
+
+static void test_features_distance(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  bsurf_error err;
+  /* the cube: sharp edges, noise 0.5 h (its feature fields are kept as _in) */
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_UNIFORM, 0.5, 0.04, 4), BSURF_OK);
+  assert_int_equal(bsurf_write(tmp_path("dcube.ply"), &c, NULL, &err), BSURF_OK);
+  bsurf_cloud_free(&c);
+  write_uniform(tmp_path("uniform.ply"), 3000);
+  write_nonuniform(tmp_path("nonuniform.ply"));
+  bsurf_feature_options fo = bsurf_feature_options_default();
+  fo.k_min = 6;
+  fo.k_max = 24;
+  fo.k_step = 3;
+  fo.threads = 2;
+  const size_t sizes[] = {48, 700, 300};
+  const size_t edges = check_distance(tmp_path("dcube.ply"), &fo, sizes, 2);
+  assert_true(edges > 100 && edges < 1500); /* the cube's edges, not everything */
+  check_distance(tmp_path("uniform.ply"), &fo, sizes + 2, 1);
+  check_distance(tmp_path("nonuniform.ply"), &fo, sizes, 2);
+  /* non-default filters: more passes and neighbours, one neighbour (the
+   * point alone), none; a fixed T_h; no noise factor with the derivative */
+  fo.iterations = 4;
+  fo.filter_k = 20;
+  fo.alpha = 0.9;
+  check_distance(tmp_path("dcube.ply"), &fo, sizes, 1);
+  check_distance(tmp_path("nonuniform.ply"), &fo, sizes + 2, 1);
+  fo.iterations = 1;
+  fo.filter_k = 1;
+  check_distance(tmp_path("dcube.ply"), &fo, sizes + 2, 1);
+  fo.iterations = 0;
+  fo.threshold = 0.3;
+  check_distance(tmp_path("dcube.ply"), &fo, sizes + 2, 1);
+  fo.iterations = 3;
+  fo.filter_k = 0;
+  fo.noise_factor = 0;
+  fo.derivative = 0.5;
+  check_distance(tmp_path("nonuniform.ply"), &fo, sizes, 1);
+  /* refused: bad options, a cancelled chain; nothing written */
+  fo = bsurf_feature_options_default();
+  bsurf_tile_ops ops = stage_ops(NULL, 0, 400);
+  ops.prepare = fd_prepare;
+  bsurf_tile_report tr;
+  bsurf_feature_report rep;
+  char out[1200];
+  snprintf(out, sizeof out, "%s", tmp_path("drefused.ply"));
+  unlink(out);
+  fo.k_min = 2;
+  assert_int_equal(bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
+                   BSURF_ERR_INVALID_ARG);
+  fo.k_min = 15;
+  fo.method = BSURF_FEATURES_VARIANCE;
+  assert_int_equal(bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
+                   BSURF_ERR_INVALID_ARG);
+  fo.method = BSURF_FEATURES_DISTANCE;
+  /* the progress calls of a whole chain (one per tile and per range of
+   * every stage), then cancelled in the first stage, in the middle (a
+   * filter pass) and at the last call (the output's stage) */
+  int left = 1 << 30;
+  ops.progress = fd_cancel;
+  ops.progress_user = &left;
+  assert_int_equal(bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err), BSURF_OK);
+  assert_int_equal(remove(out), 0);
+  const int calls = (1 << 30) - left;
+  assert_true(calls > 7 * (int)tr.tiles);
+  const int at[3] = {0, calls / 2, calls - 1};
+  for (int a = 0; a < 3; a++) {
+    left = at[a];
+    assert_int_equal(bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
+                     BSURF_ERR_CANCELLED);
+    assert_int_equal(access(out, F_OK), -1);
+  }
+}
+
 /* Bad inputs: the reader's errors, nothing written. */
 static void test_refusals(void **state) {
   (void)state;
@@ -859,6 +1000,7 @@ int main(void) {
       cmocka_unit_test(test_nonuniform),    cmocka_unit_test(test_big_endian),
       cmocka_unit_test(test_refusals),     cmocka_unit_test(test_smooth_two_stage),
       cmocka_unit_test(test_features_two_stage), cmocka_unit_test(test_ranks),
+      cmocka_unit_test(test_features_distance),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,6 +1,7 @@
-/* Internal to src/algo: the per-point bootstrap fit of chapter 4, shared by
- * the error estimates (error.c) and the smoothing of chapter 6 (smooth.c),
- * so both run the very same fits. */
+/* Internal to src/algo (and src/tile/features_tiled.c): the per-point
+ * bootstrap fit of chapter 4, shared by the error estimates (error.c) and
+ * the smoothing of chapter 6 (smooth.c), so both run the very same fits;
+ * the stages of features --method distance. */
 #ifndef BSURF_ALGO_H
 #define BSURF_ALGO_H
 
@@ -47,5 +48,51 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
 
 /* Validates error options against the neighbourhoods (as bsurf_estimate_error). */
 bsurf_status bsurf_error_check(const bsurf_error_options *o, const bsurf_neighbors *nb);
+
+/* ---- features --method distance (7.1) in stages (features.c), run on the
+ * whole cloud by bsurf_detect_features and tile by tile by
+ * bsurf_features_distance_tiled (src/tile/features_tiled.c): the same functions on
+ * the same values, hence the same bits. Rows of nb: row r's point is
+ * nb->idx[r k] (r itself on the whole cloud, a local index in a tile). ---- */
+
+/* Options against neighbourhoods of k points in a cloud of n. */
+bsurf_status bsurf_fdist_check(const bsurf_feature_options *o, int k, size_t n);
+/* The neighbourhood sizes k_min, k_min + k_step, ... <= k_max. */
+int bsurf_fdist_sizes(const bsurf_feature_options *o);
+/* The sample of the noise_factor medians: every stride-th point (global
+ * index), m of them, at most ~4M values in all. */
+void bsurf_fdist_sample(const bsurf_feature_options *o, size_t n, size_t *stride, size_t *m);
+/* f(K) = lambda0 / lambda2 at every size of the sampled rows:
+ * vals[j m + g / stride] for the point of global index g. point_index NULL:
+ * the whole cloud (the m samples); else the tile's rows, each with its
+ * global index, of which the multiples of stride are written. */
+bsurf_status bsurf_fdist_sample_ratios(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
+                                       const uint64_t *point_index, size_t stride, size_t m, double *vals);
+/* T_{a/c} per size: max(ratio_threshold, noise_factor x the median of the
+ * sample's f(K)); vals (sizes x m) is sorted in place. */
+void bsurf_fdist_thresholds(const bsurf_feature_options *o, size_t m, double *vals, double *T);
+/* The raw map of every row (the radius where the growth stops) and its
+ * state (0 reached k_max, 1 exceeded T_{a/c} later, 2 at k_min); ksel may
+ * be NULL. */
+bsurf_status bsurf_fdist_raw(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
+                             const double *T, double *dist, int *ksel, uint8_t *state);
+/* *R = max(*R, dist[0..n)), in index order. */
+void bsurf_fdist_max_radius(const double *dist, size_t n, double *R);
+/* The map after the points that stopped at once get -max(radius). */
+static inline double bsurf_fdist_fixed(double dist, int state, double R) { return state == 2 ? -R : dist; }
+/* The filter's neighbours (filter_k, 0 = k_min) and passes (0 when off). */
+int bsurf_fdist_filter_k(const bsurf_feature_options *o);
+int bsurf_fdist_filter_passes(const bsurf_feature_options *o, double R);
+/* One Jacobi pass of Eq. 7.1 over the rows of nb: out[r] from the values
+ * `in` of the points of xyz (sigma_a = h, or R when h is 0; sigma_b =
+ * sigma_range x R). */
+bsurf_status bsurf_fdist_filter(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
+                                double h, double R, const double *in, double *out);
+/* Otsu's split of the m positive values of the map (sorted in place); 0
+ * when m < 2. */
+double bsurf_fdist_otsu_positive(double *pos, size_t m);
+/* feature of a point of map value v and state, with the absolute T_h thr;
+ * threshold: the option (NAN = auto). */
+int bsurf_fdist_feature(double v, int state, double thr, double threshold);
 
 #endif

@@ -86,8 +86,8 @@
  * smallest to the largest) was also tried and not kept: F1 0.33 / 0.90 /
  * 0.57 on the cube and 0.20 / 0.19 / 0.21 on Fandisk at noise 0 / 0.5 / 1.0
  * (0.17 / 0.84 / 0.73 and 0.05 / 0.45 / 0.47 on log values). */
+#include "algo/algo.h"
 #include "common/common.h"
-#include "local/local.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -201,12 +201,13 @@ typedef struct dist_ctx {
   uint8_t *state; /* 0 reached k_max, 1 exceeded T_{a/c} later, 2 at k_min */
 } dist_ctx;
 
+/* Row i of nb (its point is idx[0]: i in memory, a local index in a tile). */
 static void dist_point(void *vctx, int thread, size_t i) {
   (void)thread;
   dist_ctx *c = vctx;
   const bsurf_feature_options *o = c->o;
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
-  const double *p = &c->xyz[3 * i];
+  const double *p = &c->xyz[3 * (size_t)idx[0]];
   pca_sums s;
   memset(&s, 0, sizeof s);
   double f_prev = NAN;
@@ -231,6 +232,13 @@ static void dist_point(void *vctx, int thread, size_t i) {
   c->state[i] = (uint8_t)(exceeded ? (stop == o->k_min ? 2 : 1) : 0);
 }
 
+bsurf_status bsurf_fdist_raw(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
+                             const double *T, double *dist, int *ksel, uint8_t *state) {
+  dist_ctx ctx = {xyz, nb, o, T, dist, ksel, state};
+  return bsurf_parallel_points(nb->point_count, bsurf_threads_resolve(o->threads), dist_point, &ctx, o->progress,
+                               o->progress_user);
+}
+
 /* ---- noise-adapted T_{a/c} ----
  * f(K) of every sampled point at every size: the per-size medians give the
  * flat-area level of f, which noise raises (uniform noise t h, t in
@@ -242,17 +250,16 @@ typedef struct ratio_ctx {
   const double *xyz;
   const bsurf_neighbors *nb;
   const bsurf_feature_options *o;
+  const uint64_t *point_index; /* NULL: row i is point i */
   size_t stride, m;
   double *vals; /* [size j][sample s] */
 } ratio_ctx;
 
-static void ratio_point(void *vctx, int thread, size_t s) {
-  (void)thread;
-  ratio_ctx *c = vctx;
+/* f(K) at every size of one row of nb, into the sample's column s. */
+static void ratio_row(const ratio_ctx *c, size_t row, size_t s) {
   const bsurf_feature_options *o = c->o;
-  const size_t i = s * c->stride;
-  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
-  const double *p = &c->xyz[3 * i];
+  const uint32_t *idx = &c->nb->idx[row * (size_t)c->nb->k];
+  const double *p = &c->xyz[3 * (size_t)idx[0]];
   pca_sums sm;
   memset(&sm, 0, sizeof sm);
   int m = 0, j = 0;
@@ -262,41 +269,83 @@ static void ratio_point(void *vctx, int thread, size_t s) {
   }
 }
 
+/* the whole cloud: over the samples s (row s x stride) */
+static void ratio_sample(void *vctx, int thread, size_t s) {
+  (void)thread;
+  const ratio_ctx *c = vctx;
+  ratio_row(c, s * c->stride, s);
+}
+
+/* a tile: over its rows, those whose global index is a multiple of stride */
+static void ratio_tile_row(void *vctx, int thread, size_t r) {
+  (void)thread;
+  const ratio_ctx *c = vctx;
+  const uint64_t g = c->point_index[r];
+  if (g % c->stride == 0) ratio_row(c, r, (size_t)(g / c->stride));
+}
+
 static int cmp_double(const void *pa, const void *pb);
 
-static bsurf_status ratio_thresholds(const double *xyz, const bsurf_neighbors *nb,
-                                     const bsurf_feature_options *o, int sizes, double *T) {
-  for (int j = 0; j < sizes; j++) T[j] = o->ratio_threshold;
-  if (!(o->noise_factor > 0)) return BSURF_OK;
-  const size_t n = nb->point_count;
-  size_t cap = (size_t)4000000 / (size_t)sizes;
+int bsurf_fdist_sizes(const bsurf_feature_options *o) { return (o->k_max - o->k_min) / o->k_step + 1; }
+
+void bsurf_fdist_sample(const bsurf_feature_options *o, size_t n, size_t *stride, size_t *m) {
+  const size_t sizes = (size_t)bsurf_fdist_sizes(o);
+  size_t cap = (size_t)4000000 / sizes;
   if (cap < 1024) cap = 1024;
-  size_t stride = n > cap ? (n + cap - 1) / cap : 1;
-  size_t m = (n + stride - 1) / stride;
-  double *vals = bsurf_alloc_array(m * (size_t)sizes, sizeof(double));
-  if (!vals) return BSURF_ERR_NOMEM;
-  ratio_ctx rc = {xyz, nb, o, stride, m, vals};
-  bsurf_status st =
-      bsurf_parallel_points(m, bsurf_threads_resolve(o->threads), ratio_point, &rc, NULL, NULL);
-  for (int j = 0; j < sizes && st == BSURF_OK; j++) {
+  *stride = n > cap ? (n + cap - 1) / cap : 1;
+  *m = (n + *stride - 1) / *stride;
+}
+
+bsurf_status bsurf_fdist_sample_ratios(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
+                                       const uint64_t *point_index, size_t stride, size_t m, double *vals) {
+  ratio_ctx rc = {xyz, nb, o, point_index, stride, m, vals};
+  const int threads = bsurf_threads_resolve(o->threads);
+  if (!point_index) return bsurf_parallel_points(m, threads, ratio_sample, &rc, NULL, NULL);
+  return bsurf_parallel_points(nb->point_count, threads, ratio_tile_row, &rc, NULL, NULL);
+}
+
+void bsurf_fdist_thresholds(const bsurf_feature_options *o, size_t m, double *vals, double *T) {
+  const int sizes = bsurf_fdist_sizes(o);
+  for (int j = 0; j < sizes; j++) T[j] = o->ratio_threshold;
+  if (!(o->noise_factor > 0) || !vals || !m) return;
+  for (int j = 0; j < sizes; j++) {
     double *v = &vals[(size_t)j * m];
     qsort(v, m, sizeof(double), cmp_double);
     double med = m % 2 ? v[m / 2] : 0.5 * (v[m / 2 - 1] + v[m / 2]);
     if (o->noise_factor * med > T[j]) T[j] = o->noise_factor * med;
   }
+}
+
+static bsurf_status ratio_thresholds(const double *xyz, const bsurf_neighbors *nb,
+                                     const bsurf_feature_options *o, double *T) {
+  if (!(o->noise_factor > 0)) {
+    bsurf_fdist_thresholds(o, 0, NULL, T);
+    return BSURF_OK;
+  }
+  size_t stride, m;
+  bsurf_fdist_sample(o, nb->point_count, &stride, &m);
+  double *vals = bsurf_alloc_array(m * (size_t)bsurf_fdist_sizes(o), sizeof(double));
+  if (!vals) return BSURF_ERR_NOMEM;
+  bsurf_status st = bsurf_fdist_sample_ratios(xyz, nb, o, NULL, stride, m, vals);
+  if (st == BSURF_OK) bsurf_fdist_thresholds(o, m, vals, T);
   free(vals);
   return st;
 }
 
-static bsurf_status check_distance_opts(const bsurf_neighbors *nb, const bsurf_feature_options *o) {
+bsurf_status bsurf_fdist_check(const bsurf_feature_options *o, int k, size_t n) {
   if (o->k_min < 3 || o->k_max < o->k_min || o->k_step < 1) return BSURF_ERR_INVALID_ARG;
-  if (o->k_max > nb->k) return BSURF_ERR_INVALID_ARG;
+  if (o->k_max > k) return BSURF_ERR_INVALID_ARG;
   if (!(o->ratio_threshold >= 0) || !isfinite(o->derivative)) return BSURF_ERR_INVALID_ARG;
   if (!(o->noise_factor >= 0) || !isfinite(o->noise_factor)) return BSURF_ERR_INVALID_ARG;
   if (!(o->alpha >= 0 && o->alpha <= 1) || o->iterations < 0) return BSURF_ERR_INVALID_ARG;
-  if (o->filter_k < 0 || o->filter_k > nb->k || !(o->sigma_range > 0)) return BSURF_ERR_INVALID_ARG;
-  if ((size_t)o->k_max > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
+  if (o->filter_k < 0 || o->filter_k > k || !(o->sigma_range > 0)) return BSURF_ERR_INVALID_ARG;
+  if ((size_t)o->k_max > n) return BSURF_ERR_TOO_FEW_POINTS;
   return BSURF_OK;
+}
+
+void bsurf_fdist_max_radius(const double *dist, size_t n, double *R) {
+  for (size_t i = 0; i < n; i++)
+    if (dist[i] > *R) *R = dist[i];
 }
 
 /* state out (may be NULL): per point 0 = reached k_max without exceeding
@@ -307,33 +356,27 @@ static bsurf_status distance_raw(const double *xyz, const bsurf_neighbors *nb,
                                  uint8_t *state) {
   bsurf_feature_options o = opts ? *opts : bsurf_feature_options_default();
   if (!xyz || !nb || !nb->idx || !dist) return BSURF_ERR_INVALID_ARG;
-  bsurf_status st = check_distance_opts(nb, &o);
+  bsurf_status st = bsurf_fdist_check(&o, nb->k, nb->point_count);
   if (st != BSURF_OK) return st;
   const size_t n = nb->point_count;
-  const int sizes = (o.k_max - o.k_min) / o.k_step + 1;
   uint8_t *imm = state ? state : bsurf_alloc_array(n, 1);
-  double *T = bsurf_alloc_array((size_t)sizes, sizeof(double));
+  double *T = bsurf_alloc_array((size_t)bsurf_fdist_sizes(&o), sizeof(double));
   if (!imm || !T) {
     if (!state) free(imm);
     free(T);
     return BSURF_ERR_NOMEM;
   }
-  st = ratio_thresholds(xyz, nb, &o, sizes, T);
+  st = ratio_thresholds(xyz, nb, &o, T);
   if (t_kmin) *t_kmin = T[0];
-  dist_ctx ctx = {xyz, nb, &o, T, dist, ksel, imm};
-  if (st == BSURF_OK)
-    st = bsurf_parallel_points(n, bsurf_threads_resolve(o.threads), dist_point, &ctx, o.progress,
-                               o.progress_user);
+  if (st == BSURF_OK) st = bsurf_fdist_raw(xyz, nb, &o, T, dist, ksel, imm);
   if (st == BSURF_OK) {
     double R = 0;
     size_t ni = 0;
-    for (size_t i = 0; i < n; i++)
-      if (dist[i] > R) R = dist[i];
-    for (size_t i = 0; i < n; i++)
-      if (imm[i] == 2) {
-        dist[i] = -R;
-        ni++;
-      }
+    bsurf_fdist_max_radius(dist, n, &R);
+    for (size_t i = 0; i < n; i++) {
+      ni += imm[i] == 2;
+      dist[i] = bsurf_fdist_fixed(dist[i], imm[i], R);
+    }
     if (max_radius) *max_radius = R;
     if (immediate) *immediate = ni;
   }
@@ -348,6 +391,8 @@ bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors
   return distance_raw(xyz, nb, opts, dist, ksel, max_radius, immediate, NULL, NULL);
 }
 
+/* ---- the bilateral filter of Eq. 7.1 ---- */
+
 typedef struct filter_ctx {
   const double *xyz;
   const bsurf_neighbors *nb;
@@ -357,12 +402,14 @@ typedef struct filter_ctx {
   double *out;
 } filter_ctx;
 
+/* Row j of nb (its point idx[0]; in memory j itself): out[j] from the
+ * values `in` of the points of xyz. */
 static void filter_point(void *vctx, int thread, size_t j) {
   (void)thread;
   filter_ctx *c = vctx;
   const uint32_t *idx = &c->nb->idx[j * (size_t)c->nb->k];
-  const double *pj = &c->xyz[3 * j];
-  const double hj = c->in[j];
+  const double *pj = &c->xyz[3 * (size_t)idx[0]];
+  const double hj = c->in[idx[0]];
   double num = 0, den = 0;
   for (int t = 0; t < c->k; t++) {
     size_t i = idx[t];
@@ -374,6 +421,19 @@ static void filter_point(void *vctx, int thread, size_t j) {
     den += w;
   }
   c->out[j] = den > 0 ? (1 - c->alpha) * hj + c->alpha * num / den : hj;
+}
+
+int bsurf_fdist_filter_k(const bsurf_feature_options *o) { return o->filter_k ? o->filter_k : o->k_min; }
+
+int bsurf_fdist_filter_passes(const bsurf_feature_options *o, double R) {
+  return o->iterations > 0 && o->alpha > 0 && R > 0 ? o->iterations : 0;
+}
+
+bsurf_status bsurf_fdist_filter(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
+                                double h, double R, const double *in, double *out) {
+  const double sa = h > 0 ? h : R, sb = o->sigma_range * R;
+  filter_ctx fc = {xyz, nb, bsurf_fdist_filter_k(o), o->alpha, 1 / (2 * sa * sa), 1 / (2 * sb * sb), in, out};
+  return bsurf_parallel_points(nb->point_count, bsurf_threads_resolve(o->threads), filter_point, &fc, NULL, NULL);
 }
 
 /* ---- automatic tail threshold ---- */
@@ -425,17 +485,19 @@ static double otsu_sorted(const double *l, size_t count) {
  * values (the points <= 0 are features whatever it is); 0 when fewer than
  * two are positive. Only points that exceeded T_{a/c} somewhere (state > 0)
  * are features below it (see bsurf_detect_features). */
+double bsurf_fdist_otsu_positive(double *pos, size_t m) {
+  if (m < 2) return 0;
+  qsort(pos, m, sizeof(double), cmp_double);
+  return otsu_sorted(pos, m);
+}
+
 static bsurf_status distance_auto_threshold(const double *map, size_t n, double *t) {
   double *v = bsurf_alloc_array(n ? n : 1, sizeof(double));
   if (!v) return BSURF_ERR_NOMEM;
   size_t m = 0;
   for (size_t i = 0; i < n; i++)
     if (map[i] > 0) v[m++] = map[i];
-  *t = 0;
-  if (m >= 2) {
-    qsort(v, m, sizeof(double), cmp_double);
-    *t = otsu_sorted(v, m);
-  }
+  *t = bsurf_fdist_otsu_positive(v, m);
   free(v);
   return BSURF_OK;
 }
@@ -481,6 +543,14 @@ bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail
   return BSURF_OK;
 }
 
+/* feature = feature_dist <= T_h; auto (threshold NAN): a point whose
+ * neighbourhoods never exceeded T_{a/c} (state 0) has seen no feature up to
+ * k_max, whatever its radius (on a featureless surface the split would
+ * otherwise cut the density variations of the k_max radii) */
+int bsurf_fdist_feature(double v, int state, double thr, double threshold) {
+  return v <= thr && (v <= 0 || !isnan(threshold) || state != 0);
+}
+
 /* ---- the entry point ---- */
 
 bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
@@ -516,37 +586,27 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
     if (st == BSURF_OK)
       for (size_t i = 0; i < n; i++) feature[i] = sc[i] > thr;
   } else {
+    /* the stages of the tiled run (src/tile/features_tiled.c), on the whole cloud */
     state = bsurf_alloc_array(n, 1);
     st = state ? distance_raw(xyz, nb, &o, sc, NULL, &R, &imm, &t_kmin, state) : BSURF_ERR_NOMEM;
-    int fk = o.filter_k ? o.filter_k : o.k_min;
-    if (st == BSURF_OK && o.iterations > 0 && o.alpha > 0 && R > 0) {
+    const int passes = bsurf_fdist_filter_passes(&o, R);
+    if (st == BSURF_OK && passes > 0) {
       tmp = bsurf_alloc_array(n, sizeof(double));
       if (!tmp) st = BSURF_ERR_NOMEM;
-      double sa = nb->h > 0 ? nb->h : R, sb = o.sigma_range * R;
-      filter_ctx fc = {xyz, nb, fk, o.alpha, 1 / (2 * sa * sa), 1 / (2 * sb * sb), NULL, NULL};
-      for (int it = 0; it < o.iterations && st == BSURF_OK; it++) {
-        fc.in = it % 2 ? tmp : sc;
-        fc.out = it % 2 ? sc : tmp;
-        st = bsurf_parallel_points(n, bsurf_threads_resolve(o.threads), filter_point, &fc, NULL,
-                                   NULL);
-      }
-      if (st == BSURF_OK && o.iterations % 2) memcpy(sc, tmp, n * sizeof(double));
+      for (int it = 0; it < passes && st == BSURF_OK; it++)
+        st = bsurf_fdist_filter(xyz, nb, &o, nb->h, R, it % 2 ? tmp : sc, it % 2 ? sc : tmp);
+      if (st == BSURF_OK && passes % 2) memcpy(sc, tmp, n * sizeof(double));
     }
     if (st == BSURF_OK) {
       double mx = -INFINITY;
-      for (size_t i = 0; i < n; i++)
-        if (sc[i] > mx) mx = sc[i];
+      bsurf_fdist_max_radius(sc, n, &mx);
       if (isnan(o.threshold))
         st = distance_auto_threshold(sc, n, &thr);
       else
         thr = o.threshold * mx;
     }
-    /* auto: a point whose neighbourhoods never exceeded T_{a/c} has seen no
-     * feature up to k_max, whatever its radius (on a featureless surface the
-     * split would otherwise cut the density variations of the k_max radii) */
     if (st == BSURF_OK)
-      for (size_t i = 0; i < n; i++)
-        feature[i] = sc[i] <= thr && (sc[i] <= 0 || !isnan(o.threshold) || state[i] != 0);
+      for (size_t i = 0; i < n; i++) feature[i] = (uint8_t)bsurf_fdist_feature(sc[i], state[i], thr, o.threshold);
   }
   if (st == BSURF_OK && report) {
     report->threshold = thr;
