@@ -798,6 +798,7 @@ typedef struct fake_rank {
   const char *in, *out;
   job j;
   size_t tile_points, range_points;
+  int cancels; /* this rank's progress callback cancels (j.cancel_after) */
   bsurf_tile_report rep;
   double sums[1];
   bsurf_error err;
@@ -884,15 +885,21 @@ static void *fake_main(void *u) {
   ops.run = run;
   ops.nsums = 1;
   ops.comm = &r->comm;
+  if (r->cancels) {
+    ops.progress = cancel_progress;
+    ops.progress_user = &r->j;
+  }
   r->rep.sums = r->sums;
   r->st = bsurf_tiles_run(r->in, r->out, &ops, &r->rep, &r->err);
   return NULL;
 }
 
 /* bsurf_tiles_run on `ranks` threads sharing a fake_world; rank 0's report,
- * status and error in *rep, return and *err; every rank's report must agree */
+ * status and error in *rep, return and *err; every rank's report must agree.
+ * Rank cancel_rank (-1: none) cancels after j->cancel_after progress calls. */
 static bsurf_status tiled_ranks(int ranks, const char *in, const char *out, const job *j, size_t tile_points,
-                                size_t range_points, bsurf_tile_report *rep, double *sum, bsurf_error *err) {
+                                size_t range_points, int cancel_rank, bsurf_tile_report *rep, double *sum,
+                                bsurf_error *err) {
   fake_world w;
   memset(&w, 0, sizeof w);
   w.ranks = ranks;
@@ -918,6 +925,7 @@ static bsurf_status tiled_ranks(int ranks, const char *in, const char *out, cons
     r[q].j = *j;
     r[q].tile_points = tile_points;
     r[q].range_points = range_points;
+    r[q].cancels = q == cancel_rank;
     assert_int_equal(pthread_create(&th[q], NULL, fake_main, &r[q]), 0);
   }
   for (int q = 0; q < ranks; q++) assert_int_equal(pthread_join(th[q], NULL), 0);
@@ -958,7 +966,7 @@ static void test_ranks(void **state) {
       double sum;
       bsurf_error err;
       unlink(tmp_path("ranks_out.ply"));
-      assert_int_equal(tiled_ranks(ranks, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &j, 300, ranges[g], &rep,
+      assert_int_equal(tiled_ranks(ranks, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &j, 300, ranges[g], -1, &rep,
                                    &sum, &err),
                        BSURF_OK);
       assert_same_file(tmp_path("ranks_ref.ply"), tmp_path("ranks_out.ply"));
@@ -979,17 +987,32 @@ static void test_ranks(void **state) {
   bsurf_tile_report rep;
   double sum;
   bsurf_error serr;
-  assert_int_equal(tiled_ranks(1, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0, &rep, &sum, &serr),
+  assert_int_equal(tiled_ranks(1, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0, -1, &rep, &sum, &serr),
                    BSURF_ERR_INVALID_VALUE);
   assert_int_equal(rep.bad_point, bad);
   for (int ranks = 2; ranks <= MAX_RANKS; ranks++) {
     unlink(tmp_path("ranks_out.ply"));
-    assert_int_equal(tiled_ranks(ranks, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0, &rep, &sum, &err),
+    assert_int_equal(tiled_ranks(ranks, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0, -1, &rep, &sum, &err),
                      BSURF_ERR_INVALID_VALUE);
     assert_int_equal(rep.bad_point, bad);
     assert_string_equal(err.message, serr.message);
     assert_int_equal(access(tmp_path("ranks_out.ply"), F_OK), -1);
   }
+  /* rank 1 of 3 stops at its second range (one progress call per tile of
+   * its own, then one per range): every rank fails, nothing is written */
+  size_t own = 0;
+  for (size_t t = 1; t < serial.tiles; t += 3) own++;
+  job jc = j;
+  jc.cancel_after = (int)own + 1;
+  unlink(tmp_path("ranks_out.ply"));
+  assert_int_equal(tiled_ranks(3, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &jc, 300, 100, 1, &rep, &sum, &err),
+                   BSURF_ERR_CANCELLED);
+  assert_int_equal(access(tmp_path("ranks_out.ply"), F_OK), -1);
+  /* the same with a cancel after the last range: the run completes */
+  jc.cancel_after = 1 << 30;
+  assert_int_equal(tiled_ranks(3, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &jc, 300, 100, 1, &rep, &sum, &err),
+                   BSURF_OK);
+  assert_same_file(tmp_path("ranks_ref.ply"), tmp_path("ranks_out.ply"));
 }
 
 int main(void) {

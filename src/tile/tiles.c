@@ -804,15 +804,17 @@ static void work_free(tile_work *w) {
  * would dirty nearly every page of it (the kernel writing the file back once
  * per tile). Instead each tile appends one block to a scratch file, in one
  * sequential write:
- *   cuts[0 .. R]   uint64: cuts[r] = the tile's rows with index < r x range
+ *   cuts[0 .. R]   uint64: cuts[r] = the tile's rows with index < range_lo[r]
  *   entries        per row, in increasing index: uint64 index, double nn2
  *                  (squared nearest-other distance, for h), in a first
  *                  stage its values and its squared K-th distance, the
  *                  encoded row (if there is an output file)
- * and after the tiles rank 0 assembles the output range by range (R ranges
- * of `range` consecutive indices, each held in memory once): from every tile
- * the entries [cuts[r], cuts[r + 1]) of its block are read and placed, and
- * the range is written to the output sequentially. The blocks' offsets
+ * and after the tiles the ranks assemble the output range by range (R ranges
+ * of at most `range` consecutive indices, each held in memory once, split
+ * over the ranks): from every tile the entries [cuts[r], cuts[r + 1]) of its
+ * block are read and placed, and the range is written at its offset in the
+ * output in one pwrite (a first stage's values at theirs in the values
+ * file). The blocks' offsets
  * follow from the tiles' point counts, which every rank knows, so ranks write
  * their blocks into the one scratch file without exchanging anything. */
 
