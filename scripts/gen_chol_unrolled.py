@@ -29,6 +29,14 @@ def moment_index(a, b):
     return d * (d + 1) // 2 + ja + jb
 
 
+def load_subtract(w, var, column, terms):
+    """var = a column of the lanes, minus each product a * b in order."""
+    w(f"  v4d {var};")
+    w(f"  LD4({var}, {column});")
+    for a, b in terms:
+        w(f"  {var} -= {a} * {b};")
+
+
 def emit(m, out):
     H = (0, 1)
     w = out.append
@@ -54,17 +62,13 @@ def emit(m, out):
             w(f"  const v4d i{h}_{j} = one / r{h}_{j};")
         for i in range(j + 1, m):
             for h in H:
-                w(f"  v4d a{h}_{i}_{j};")
-                w(f"  LD4(a{h}_{i}_{j}, g{h}, {moment_index(j, i)});")
-                for t in range(j):
-                    w(f"  a{h}_{i}_{j} -= L{h}_{i}_{t} * L{h}_{j}_{t};")
+                load_subtract(w, f"a{h}_{i}_{j}", f"g{h}, {moment_index(j, i)}",
+                              [(f"L{h}_{i}_{t}", f"L{h}_{j}_{t}") for t in range(j)])
                 w(f"  const v4d L{h}_{i}_{j} = a{h}_{i}_{j} * i{h}_{j};")
     for i in range(m):
         for h in H:
-            w(f"  v4d y{h}_{i};")
-            w(f"  LD4(y{h}_{i}, g{h}, p + {i});")
-            for t in range(i):
-                w(f"  y{h}_{i} -= L{h}_{i}_{t} * y{h}_{t};")
+            load_subtract(w, f"y{h}_{i}", f"g{h}, p + {i}",
+                          [(f"L{h}_{i}_{t}", f"y{h}_{t}") for t in range(i)])
             w(f"  y{h}_{i} = y{h}_{i} * i{h}_{i};")
     for i in range(m - 1, -1, -1):
         for h in H:
