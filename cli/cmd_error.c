@@ -106,7 +106,8 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   if (plan) {
     error_tiles et = {eo, nfields};
     double sums[ERROR_SUMS] = {0};
-    bsurf_tile_ops ops = {plan, eo.k, eo.threads, &et, error_prepare, error_run, ERROR_SUMS, NULL, NULL, NULL, 0, 0, NULL, NULL, 0};
+    bsurf_tile_ops ops = {.tile_points = plan, .k = eo.k, .threads = eo.threads, .user = &et,
+                          .prepare = error_prepare, .run = error_run, .nsums = ERROR_SUMS};
     bsurf_tile_report tr;
     tr.sums = sums;
     int trc = cli_tiles_run(pos[0], output, &ops, &tr, quiet);

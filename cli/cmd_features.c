@@ -94,8 +94,8 @@ static int features_tiled(const char *input, const char *output, const bsurf_fea
   bsurf_tile_values vals = {-1, 0, 0};
   ft->no = fo->normals;
   ft->no.threads = fo->threads;
-  bsurf_tile_ops ops = {*plan, fo->normals.k, fo->threads, ft, NULL, features_stage1_run, 0, NULL,
-                        NULL, NULL, 0, 1, &vals, NULL, 0};
+  bsurf_tile_ops ops = {.tile_points = *plan, .k = fo->normals.k, .threads = fo->threads, .user = ft,
+                        .run = features_stage1_run, .nvalues = 1, .values_out = &vals};
   bsurf_tile_report tr;
   tr.sums = NULL;
   int rc = cli_tiles_run(input, output, &ops, &tr, quiet);

@@ -344,7 +344,8 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   rc = 1;
   if (plan) {
     double sums[NORMALS_SUMS] = {0};
-    bsurf_tile_ops ops = {plan, kmax, no.threads, &job, normals_prepare, normals_run, NORMALS_SUMS, NULL, NULL, NULL, 0, 0, NULL, NULL, 0};
+    bsurf_tile_ops ops = {.tile_points = plan, .k = kmax, .threads = no.threads, .user = &job,
+                          .prepare = normals_prepare, .run = normals_run, .nsums = NORMALS_SUMS};
     bsurf_tile_report tr;
     tr.sums = sums;
     int trc = cli_tiles_run(pos[0], output, &ops, &tr, quiet);

@@ -287,8 +287,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     st1.nv = nv;
     bsurf_tile_values vals = {-1, 0, 0}, moved = {-1, 0, 0};
     double sums[SMOOTH_SUMS] = {0}, vs[64];
-    bsurf_tile_ops ops = {plan, so.error.k, so.error.threads, &st1, NULL, smooth_stage1_run, SMOOTH_SUMS, NULL,
-                          NULL, NULL, 0, nv, &vals, NULL, 0};
+    bsurf_tile_ops ops = {.tile_points = plan, .k = so.error.k, .threads = so.error.threads, .user = &st1,
+                          .run = smooth_stage1_run, .nsums = SMOOTH_SUMS, .nvalues = nv, .values_out = &vals};
     bsurf_tile_report tr;
     tr.sums = sums;
     size_t positive;
@@ -320,8 +320,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       if (rc) goto tiled_done;
       rep.projected = st1.projected;
     } else {
-      bsurf_tile_ops ops2 = {plan, so.error.k, so.error.threads, &st1, smooth_prepare, smooth_stage2_run, 0, NULL,
-                             NULL, NULL, 0, 1, &moved, &vals, 1};
+      bsurf_tile_ops ops2 = {.tile_points = plan, .k = so.error.k, .threads = so.error.threads, .user = &st1,
+                             .prepare = smooth_prepare, .run = smooth_stage2_run, .nvalues = 1,
+                             .values_out = &moved, .values_in = &vals, .reverse = 1};
       bsurf_tile_report tr2;
       tr2.sums = NULL;
       rc = cli_tiles_run(pos[0], output, &ops2, &tr2, quiet);
