@@ -1057,7 +1057,8 @@ typedef struct bsurf_tile_ops {
   /* A first stage: run() fills tile->values_out with nvalues doubles per
    * core point; they are kept in index order in *values_out (which the
    * caller closes). prepare NULL: no output file (`output` then only names
-   * where the scratch files go). */
+   * where the scratch files go); with nvalues 0 too, the tiles keep what they
+   * compute in `user` themselves (the report's h and sums are still made). */
   size_t nvalues;
   bsurf_tile_values *values_out;
   /* A second stage: the first stage's values, given for every local point

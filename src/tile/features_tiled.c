@@ -69,7 +69,7 @@ static bsurf_status run_sample(void *user, const bsurf_tile *t, bsurf_cloud *cor
   (void)core;
   (void)sums;
   fd_run *f = user;
-  /* the stage's one value per point stays 0: the sample is kept by index */
+  /* no values per point: the sample is kept by sample number in f->sample */
   return bsurf_fdist_sample_ratios(t->xyz, t->nb, &f->o, t->point_index, f->stride, f->m, f->sample);
 }
 
@@ -168,7 +168,7 @@ static bsurf_status map_out(void *user, size_t first, bsurf_cloud *c, const doub
 }
 
 /* One tiled run of a stage: K = k, values in (NULL: none) and out
- * (nvalues per point). */
+ * (nvalues per point; 0 and out NULL: the tiles keep their results in f). */
 static bsurf_status stage(const char *input, const char *output, fd_run *f, int k, size_t nvalues,
                           bsurf_status (*run)(void *, const bsurf_tile *, bsurf_cloud *, double *),
                           const bsurf_tile_values *in, bsurf_tile_values *out, bsurf_tile_report *rep,
@@ -252,8 +252,7 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
   }
   st = agree_local(cm, st); /* the allocations, before the first collective run */
   if (st == BSURF_OK && f.o.noise_factor > 0) {
-    st = stage(input, output, &f, f.o.k_max, 1, run_sample, NULL, &cur, &rep, err);
-    bsurf_tile_values_close(&cur);
+    st = stage(input, output, &f, f.o.k_max, 0, run_sample, NULL, NULL, &rep, err);
     if (st == BSURF_OK && rep.points != n) /* the file changed under us */
       st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "the input changed during the run");
     /* each sampled value comes from the one tile holding its point: the
