@@ -121,10 +121,12 @@ static inline __attribute__((always_inline)) double fit_delta(const double *F, i
     if (m > 3) f += a[3] * uu + a[4] * uv + a[5] * vv;
     if (m > 6) f += a[6] * (uu * u) + a[7] * (uu * v) + a[8] * (u * vv) + a[9] * (vv * v);
   } else {
+    /* the fit's own degree: a multipass fit of lower degree has only its
+     * terms' values in phi (the coefficients beyond are zero) */
     double phi[BSURF_TERMS_MAX];
     bsurf_poly_basis(degree, u, v, phi);
     f = 0;
-    for (int t = 0; t < m; t++) f += phi[t] * a[t];
+    for (int t = 0; t < bsurf_poly_terms(degree); t++) f += phi[t] * a[t];
   }
   return f - z;
 }
