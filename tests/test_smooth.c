@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "bootsurf.h"
+#include "algo/algo.h" /* bsurf_smooth_block_passes */
 
 static const bsurf_smooth_method methods[3] = {BSURF_SMOOTH_NAIVE, BSURF_SMOOTH_BILATERAL,
                                                BSURF_SMOOTH_MULTIPASS};
@@ -270,6 +271,37 @@ static void test_thread_determinism(void **state) {
   bsurf_cloud_free(&c);
 }
 
+/* The multipass passes in blocks, pairs in vector lanes, give the bits of
+ * the point-by-point passes: degrees 1-3, a noisy cube (edges, where fits
+ * leave their discs) and a wide h1 (--a, more pairs within the cut), on
+ * one and two threads. */
+static void test_multipass_block_passes(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  (void)noisy_shape(&c, BSURF_SHAPE_CUBE, 5000, 4, 2, 0.5, 8);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
+  const size_t n = c.point_count;
+  double *a = malloc(n * 3 * sizeof(double)), *b = malloc(n * 3 * sizeof(double));
+  for (int degree = 1; degree <= 3; degree++)
+    for (int wide = 0; wide < 2; wide++) {
+      bsurf_smooth_options o = options(BSURF_SMOOTH_MULTIPASS, 30, degree, 20);
+      o.iterations = 25;
+      o.a = wide ? 0.6 : 0.1;
+      o.error.threads = 1 + wide;
+      bsurf_smooth_block_passes(0);
+      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, a, NULL, NULL), BSURF_OK);
+      bsurf_smooth_block_passes(1);
+      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, b, NULL, NULL), BSURF_OK);
+      assert_memory_equal(a, b, n * 3 * sizeof(double));
+      assert_true(max_move(c.xyz, b, n) > 0);
+    }
+  free(a);
+  free(b);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
 static void test_arguments(void **state) {
   (void)state;
   bsurf_cloud c;
@@ -299,6 +331,7 @@ int main(void) {
       cmocka_unit_test(test_plane_does_not_move),   cmocka_unit_test(test_quadric_does_not_move),
       cmocka_unit_test(test_noisy_plane_gets_flatter), cmocka_unit_test(test_naive_threshold),
       cmocka_unit_test(test_multipass_neighbourhoods), cmocka_unit_test(test_thread_determinism),
+      cmocka_unit_test(test_multipass_block_passes),
       cmocka_unit_test(test_arguments),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

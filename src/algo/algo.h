@@ -24,6 +24,12 @@ typedef struct bsurf_error_scratch {
   size_t skipped, reduced, center_unestimated;
 } bsurf_error_scratch;
 
+/* For tests only (not thread-safe): 0 runs the multipass passes point by
+ * point (smooth.c, gather_update) instead of in blocks with the pairs in
+ * vector lanes, so the two can be compared bit for bit; 1 (the default)
+ * restores the blocks. */
+void bsurf_smooth_block_passes(int on);
+
 bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int degree);
 void bsurf_error_scratch_free(bsurf_error_scratch *s);
 

@@ -89,6 +89,7 @@ static double weight_of(double e) { return e > GAUSS_CUT ? 0.0 : (e == 0 ? 1.0 :
 /* ---- a fit kept for later passes: frame, scale, coefficients ----------- */
 /* Layout of one stored fit: origin[3], rot[9] (row-major), inv_scale, coef[m]. */
 #define FIT_HEAD 13
+#define MP_EXTRA 3 /* multipass: e2, inv_h1sq, w2 after the coefficients */
 
 static void fit_store(double *F, const bsurf_frame *fr, double inv_scale, const double *coef, int m) {
   for (int t = 0; t < 3; t++) F[t] = fr->origin[t];
@@ -187,6 +188,12 @@ typedef struct smooth_ctx {
   uint32_t *act_n;    /* n */
   double *reach2;     /* n: (cut distance of theta_1 + 2 margin)^2 */
   double *tmax;       /* threads x 8: largest move of a pass, per thread */
+  /* multipass passes in blocks (gather_multipass_block): per thread, room
+   * for the pairs of any block (mp_cap = the largest block's slot count) */
+  size_t mp_cap;
+  uint32_t *mp_idx;   /* threads x mp_cap: the pairs' p */
+  size_t *act_off;    /* n + 1: the active lists compacted, point p's at act[act_off[p]] */
+  double *mp_val;     /* threads x 4 mp_cap: w, target (3) */
 } smooth_ctx;
 
 /* Stage 1: Algorithm 1 at every point (and the naive projection). */
@@ -264,6 +271,21 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
   double h1 = c->o.a * c->dl[i];
   c->inv_h1sq[i] = h1 > 0 ? 1.0 / (h1 * h1) : 0.0;
   set_theta2(c, i, c->W[i]);
+  double *rec = &c->fits[i * (size_t)c->stride + FIT_HEAD + (size_t)c->m];
+  rec[0] = c->e2[i];
+  rec[1] = c->inv_h1sq[i];
+  rec[2] = c->w2[i];
+}
+
+/* The combined move of one point from its gathered sums: o = P x + (1 - P)
+ * T / S (x where no weight reached it). Returns |o - x|^2. */
+static inline double update_finish(const double *x, double P, double S, const double T[3], double *o) {
+  if (S > 0) {
+    for (int t = 0; t < 3; t++) o[t] = P * x[t] + (1.0 - P) * (T[t] / S);
+  } else {
+    for (int t = 0; t < 3; t++) o[t] = x[t];
+  }
+  return (o[0] - x[0]) * (o[0] - x[0]) + (o[1] - x[1]) * (o[1] - x[1]) + (o[2] - x[2]) * (o[2] - x[2]);
 }
 
 /* One point's gathered update (parallel order): the moves of every
@@ -296,13 +318,7 @@ static double gather_update(const smooth_ctx *c, size_t p, int multipass) {
     S += w;
     for (int t = 0; t < 3; t++) T[t] += w * (x[t] + delta * F[9 + t]);
   }
-  double *o = &c->next[3 * p];
-  if (S > 0) {
-    for (int t = 0; t < 3; t++) o[t] = P * x[t] + (1.0 - P) * (T[t] / S);
-  } else {
-    for (int t = 0; t < 3; t++) o[t] = x[t];
-  }
-  return (o[0] - x[0]) * (o[0] - x[0]) + (o[1] - x[1]) * (o[1] - x[1]) + (o[2] - x[2]) * (o[2] - x[2]);
+  return update_finish(x, P, S, T, &c->next[3 * p]);
 }
 
 static void gather_bilateral_task(void *vc, int thread, size_t p) {
@@ -315,6 +331,136 @@ static void gather_multipass_task(void *vc, int thread, size_t p) {
   double step2 = gather_update(c, p, 1);
   if (step2 > c->tmax[8 * thread]) c->tmax[8 * thread] = step2;
 }
+
+/* ---- multipass passes in blocks of points, pairs in vector lanes ------
+ * The arithmetic of gather_update, operation for operation (no contraction),
+ * arranged for throughput: a block's active pairs (p, i) are listed flat;
+ * every pair's weight w and target x + delta n are computed four pairs at a
+ * time in vector lanes (the exponential by glibc's exp per lane, as in
+ * gather_update); then each point sums its pairs in its list's order. A
+ * pair without a weight (theta beyond the cut, or p outside fit i's disc)
+ * gets w = 0 and target 0: P (1 - 0), S + 0 and T + 0 x 0 leave the sums'
+ * bits as they were (T starts at +0 and cannot become -0), so the output is
+ * gather_update's, bit for bit. For the bases up to degree 3 (m <= 10) with
+ * GCC/clang vector extensions; otherwise the passes use gather_update. */
+#define MP_BLOCK 32 /* points per block */
+static int mp_blocks_on = 1;
+void bsurf_smooth_block_passes(int on) { mp_blocks_on = on; }
+#if defined(__GNUC__)
+#define MP_LANES 1
+typedef double mp_v4d __attribute__((vector_size(32)));
+typedef long long mp_v4l __attribute__((vector_size(32)));
+/* lanes of field k of the four records A[0..3] */
+#define MP_GATHER(A, k) ((mp_v4d){(A)[0][k], (A)[1][k], (A)[2][k], (A)[3][k]})
+/* mask ? a : b, lane by lane */
+#define MP_SELECT(mask, a, b) ((mp_v4d)(((mp_v4l)(mask) & (mp_v4l)(a)) | (~(mp_v4l)(mask) & (mp_v4l)(b))))
+
+/* w[e] and tg[3e..3e+2] of the pairs e0..e0+3 (lanes past np repeat pair e0
+ * and are not stored); M = the number of terms, a constant per call site. */
+static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c, int M, const uint32_t *pi,
+                                                            const uint32_t *pp, size_t e0, size_t np, double *w,
+                                                            double *tg) {
+  const double *X[4], *C[4], *F[4];
+  uint32_t I[4];
+  const int L = np - e0 < 4 ? (int)(np - e0) : 4;
+  for (int l = 0; l < 4; l++) {
+    const size_t e = e0 + (size_t)(l < L ? l : 0);
+    I[l] = pi[e];
+    X[l] = &c->cur[3 * (size_t)pp[e]];
+    C[l] = &c->cur[3 * (size_t)I[l]];
+    F[l] = &c->fits[(size_t)I[l] * c->stride];
+  }
+  const mp_v4d x0 = MP_GATHER(X, 0), x1 = MP_GATHER(X, 1), x2 = MP_GATHER(X, 2);
+  const mp_v4d c0 = MP_GATHER(C, 0), c1 = MP_GATHER(C, 1), c2 = MP_GATHER(C, 2);
+  const mp_v4d d2 = (x0 - c0) * (x0 - c0) + (x1 - c1) * (x1 - c1) + (x2 - c2) * (x2 - c2);
+  const mp_v4d e2 = MP_GATHER(F, FIT_HEAD + M), inv = MP_GATHER(F, FIT_HEAD + M + 1);
+  const mp_v4d zero = {0, 0, 0, 0}, inf = {INFINITY, INFINITY, INFINITY, INFINITY};
+  /* d > 0: e2 + d^2 / h1^2 (h1 = 0: infinite); d = 0: e2 */
+  const mp_v4d ex = MP_SELECT(d2 > zero, MP_SELECT(inv > zero, e2 + d2 * inv, inf), e2);
+  /* fit_delta */
+  const mp_v4d q0 = x0 - MP_GATHER(F, 0), q1 = x1 - MP_GATHER(F, 1), q2 = x2 - MP_GATHER(F, 2);
+  const mp_v4d lx = MP_GATHER(F, 3) * q0 + MP_GATHER(F, 4) * q1 + MP_GATHER(F, 5) * q2;
+  const mp_v4d ly = MP_GATHER(F, 6) * q0 + MP_GATHER(F, 7) * q1 + MP_GATHER(F, 8) * q2;
+  const mp_v4d n0 = MP_GATHER(F, 9), n1 = MP_GATHER(F, 10), n2 = MP_GATHER(F, 11);
+  const mp_v4d lz = n0 * q0 + n1 * q1 + n2 * q2;
+  const mp_v4d sc = MP_GATHER(F, 12);
+  const mp_v4d u = lx * sc, v = ly * sc;
+  const mp_v4d one = {1, 1, 1, 1};
+  const mp_v4l outside = u * u + v * v > one;
+  const mp_v4d uu = u * u, uv = u * v, vv = v * v;
+  mp_v4d f = MP_GATHER(F, FIT_HEAD + 0);
+  if (M > 1) f += MP_GATHER(F, FIT_HEAD + 1) * u + MP_GATHER(F, FIT_HEAD + 2) * v;
+  if (M > 3) f += MP_GATHER(F, FIT_HEAD + 3) * uu + MP_GATHER(F, FIT_HEAD + 4) * uv + MP_GATHER(F, FIT_HEAD + 5) * vv;
+  if (M > 6)
+    f += MP_GATHER(F, FIT_HEAD + 6) * (uu * u) + MP_GATHER(F, FIT_HEAD + 7) * (uu * v) +
+         MP_GATHER(F, FIT_HEAD + 8) * (u * vv) + MP_GATHER(F, FIT_HEAD + 9) * (vv * v);
+  const mp_v4d delta = f - lz;
+  const mp_v4d cut = {GAUSS_CUT, GAUSS_CUT, GAUSS_CUT, GAUSS_CUT};
+  const mp_v4l ok = (ex <= cut) & ~outside & (delta == delta);
+  const mp_v4d t0 = MP_SELECT(ok, x0 + delta * n0, zero), t1 = MP_SELECT(ok, x1 + delta * n1, zero),
+               t2 = MP_SELECT(ok, x2 + delta * n2, zero);
+  for (int l = 0; l < L; l++) {
+    double we = 0.0;
+    if (ok[l]) we = ex[l] == 0 ? 1.0 : (d2[l] == 0 ? F[l][FIT_HEAD + M + 2] : exp(-ex[l]));
+    w[e0 + (size_t)l] = we;
+    tg[3 * (e0 + (size_t)l)] = t0[l];
+    tg[3 * (e0 + (size_t)l) + 1] = t1[l];
+    tg[3 * (e0 + (size_t)l) + 2] = t2[l];
+  }
+}
+
+BSURF_CLONES
+static void mp_pairs(const smooth_ctx *c, const uint32_t *pi, const uint32_t *pp, size_t np, double *w,
+                     double *tg) {
+#define MP_PAIRS(M)                                                                                \
+  for (size_t e0 = 0; e0 < np; e0 += 4) mp_pairs4(c, M, pi, pp, e0, np, w, tg)
+  switch (c->m) {
+  case 3: MP_PAIRS(3); break;
+  case 6: MP_PAIRS(6); break;
+  default: MP_PAIRS(10); break;
+  }
+#undef MP_PAIRS
+}
+
+/* One block of points of a multipass pass. */
+static void gather_multipass_block(void *vc, int thread, size_t blk) {
+  smooth_ctx *c = vc;
+  const size_t p0 = blk * MP_BLOCK, p1 = p0 + MP_BLOCK < c->n ? p0 + MP_BLOCK : c->n;
+  uint32_t *pp = &c->mp_idx[(size_t)thread * c->mp_cap];
+  double *w = &c->mp_val[(size_t)thread * 4 * c->mp_cap], *tg = w + c->mp_cap;
+  const uint32_t *pi = &c->act[c->act_off[p0]]; /* the block's pairs' i, compacted */
+  const size_t np = c->act_off[p1] - c->act_off[p0];
+  for (size_t p = p0, e = 0; p < p1; p++)
+    for (uint32_t q = 0; q < c->act_n[p]; q++) pp[e++] = (uint32_t)p;
+  {
+    /* ask for the records and positions of the next block's pairs now */
+    const size_t q1 = p1 + MP_BLOCK < c->n ? p1 + MP_BLOCK : c->n;
+    for (size_t e = c->act_off[p1], e1 = c->act_off[q1]; e < e1; e++) {
+      const double *f = &c->fits[(size_t)c->act[e] * c->stride];
+      __builtin_prefetch(f);
+      __builtin_prefetch(f + 8);
+      __builtin_prefetch(f + 16);
+      __builtin_prefetch(f + c->stride - 1);
+      __builtin_prefetch(&c->cur[3 * (size_t)c->act[e]]);
+    }
+  }
+  mp_pairs(c, pi, pp, np, w, tg);
+  double mx = c->tmax[8 * thread];
+  size_t e = 0;
+  for (size_t p = p0; p < p1; p++) {
+    double P = 1.0, S = 0.0, T[3] = {0, 0, 0};
+    for (uint32_t q = 0; q < c->act_n[p]; q++, e++) {
+      const double we = w[e];
+      P *= 1.0 - we;
+      S += we;
+      for (int t = 0; t < 3; t++) T[t] += we * tg[3 * e + t];
+    }
+    double step2 = update_finish(&c->cur[3 * p], P, S, T, &c->next[3 * p]);
+    if (step2 > mx) mx = step2;
+  }
+  c->tmax[8 * thread] = mx;
+}
+#endif
 
 /* The pairs (p, i) of the multipass that can carry a weight while no point
  * moves by more than the margin: i = p, or |p - i| < cut_i + 2 margin at the
@@ -478,6 +624,9 @@ static void ctx_free(smooth_ctx *c, int T) {
   free(c->act_n);
   free(c->reach2);
   free(c->tmax);
+  free(c->mp_idx);
+  free(c->act_off);
+  free(c->mp_val);
 }
 
 bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
@@ -522,6 +671,9 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     st = bsurf_error_scratch_alloc(&c.scr[t], c.k, o.error.bootstrap, c.degree);
   if (st != BSURF_OK) goto done;
   if ((o.method == BSURF_SMOOTH_BILATERAL && !seq) || o.method == BSURF_SMOOTH_MULTIPASS) {
+    /* multipass: each fit also carries its point's e2, 1 / h1^2 and w2 (one
+     * record per neighbourhood for the passes to read) */
+    if (o.method == BSURF_SMOOTH_MULTIPASS) c.stride += MP_EXTRA;
     c.fits = bsurf_alloc_array(n * (size_t)c.stride, sizeof(double));
     c.fit_degree = bsurf_alloc_array(n, sizeof(int));
     if (!c.fits || !c.fit_degree) {
@@ -651,6 +803,18 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
           double r = c.inv_h1sq[i] > 0 && room > 0 ? sqrt(room / c.inv_h1sq[i]) + 2 * margin : 0.0;
           c.reach2[i] = r * r;
         }
+#ifdef MP_LANES
+      if (st == BSURF_OK && c.m <= 10 && mp_blocks_on) {
+        for (size_t p0 = 0; p0 < n; p0 += MP_BLOCK) {
+          const size_t p1 = p0 + MP_BLOCK < n ? p0 + MP_BLOCK : n;
+          if (c.rev_off[p1] - c.rev_off[p0] > c.mp_cap) c.mp_cap = c.rev_off[p1] - c.rev_off[p0];
+        }
+        c.mp_idx = bsurf_alloc_array((size_t)T * (c.mp_cap ? c.mp_cap : 1), sizeof(uint32_t));
+        c.mp_val = bsurf_alloc_array((size_t)T * 4 * (c.mp_cap ? c.mp_cap : 1), sizeof(double));
+        c.act_off = bsurf_alloc_array(n + 1, sizeof(size_t));
+        if (!c.mp_idx || !c.mp_val || !c.act_off) st = BSURF_ERR_NOMEM;
+      }
+#endif
     }
     int it = 0;
     for (; st == BSURF_OK && it < o.iterations; it++) {
@@ -663,10 +827,26 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
         if (drift > margin) {
           st = bsurf_parallel_sweep(n, T, active_task, &c);
           drift = 0;
+          if (c.act_off) {
+            /* the lists side by side, for the block passes: each moves down
+             * (its start is at most its slot range's) */
+            size_t off = 0;
+            for (size_t p = 0; p < n; p++) {
+              c.act_off[p] = off;
+              memmove(&c.act[off], &c.act[c.rev_off[p]], c.act_n[p] * sizeof(uint32_t));
+              off += c.act_n[p];
+            }
+            c.act_off[n] = off;
+          }
         }
         if (st == BSURF_OK) {
           for (int t = 0; t < T; t++) c.tmax[8 * t] = 0;
-          st = bsurf_parallel_sweep(n, T, gather_multipass_task, &c);
+#ifdef MP_LANES
+          if (c.mp_idx)
+            st = bsurf_parallel_sweep_chunk((n + MP_BLOCK - 1) / MP_BLOCK, T, 16, gather_multipass_block, &c);
+          else
+#endif
+            st = bsurf_parallel_sweep(n, T, gather_multipass_task, &c);
           double mx = 0;
           for (int t = 0; t < T; t++)
             if (c.tmax[8 * t] > mx) mx = c.tmax[8 * t];

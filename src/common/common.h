@@ -77,5 +77,8 @@ bsurf_status bsurf_parallel_points_ordered(size_t n, const uint32_t *order, int 
 /* The same in one parallel region, without progress or cancellation: for
  * short sweeps repeated many times (the smoothing passes). */
 bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void *ctx);
+/* The same with OpenMP's dynamic chunks of `chunk` steps (512 above): for
+ * steps that are blocks of points. */
+bsurf_status bsurf_parallel_sweep_chunk(size_t n, int threads, int chunk, bsurf_point_fn fn, void *ctx);
 
 #endif

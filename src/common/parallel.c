@@ -49,10 +49,15 @@ bsurf_status bsurf_parallel_points_ordered(size_t n, const uint32_t *order, int 
 }
 
 bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void *ctx) {
+  return bsurf_parallel_sweep_chunk(n, threads, 512, fn, ctx);
+}
+
+bsurf_status bsurf_parallel_sweep_chunk(size_t n, int threads, int chunk, bsurf_point_fn fn, void *ctx) {
   const int T = bsurf_threads_resolve(threads);
   long long nn = (long long)n;
+  if (chunk < 1) chunk = 1;
 #ifdef _OPENMP
-#pragma omp parallel for num_threads(T) schedule(dynamic, 512)
+#pragma omp parallel for num_threads(T) schedule(dynamic, chunk)
 #endif
   for (long long i = 0; i < nn; i++) {
 #ifdef _OPENMP
@@ -62,5 +67,6 @@ bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void
 #endif
   }
   (void)T;
+  (void)chunk;
   return BSURF_OK;
 }
