@@ -129,6 +129,7 @@ static inline int knn_before(double d1, uint32_t i1, double d2, uint32_t i2) {
 typedef struct knn_entry {
   double d;
   uint32_t i;
+  uint32_t pos; /* the point's position in the tree's arrays (a warm start's candidates) */
 } knn_entry;
 
 typedef struct knn_list {
@@ -148,7 +149,7 @@ static void knn_list_reset(knn_list *l) {
 /* Inserts (d, id) if it is among the k best so far. Insertion from the end:
  * the shift loop is branch-predictable, which measured faster (K = 10..100)
  * than a binary search + memmove and than a max-heap sorted at the end. */
-static inline void knn_list_insert(knn_list *l, double d, uint32_t id) {
+static inline void knn_list_insert(knn_list *l, double d, uint32_t id, uint32_t pos) {
   knn_entry *e = l->e;
   int j;
   if (l->nan_count == 0 && !isnan(d)) {
@@ -187,6 +188,7 @@ static inline void knn_list_insert(knn_list *l, double d, uint32_t id) {
   }
   e[j].d = d;
   e[j].i = id;
+  e[j].pos = pos;
   if (l->count == l->k) l->worst = e[l->k - 1].d;
 }
 
@@ -401,7 +403,7 @@ static void knn_visit(knn_search *s, uint32_t node) {
     for (uint32_t j = nd->begin; j < end; j++) {
       const double d = knn_dist2(s->q, s->pts + 3 * (size_t)j);
       if (d > s->list.worst || j == s->skip) continue;
-      knn_list_insert(&s->list, d, s->ids[j]);
+      knn_list_insert(&s->list, d, s->ids[j], j);
     }
     return;
   }
@@ -473,9 +475,38 @@ bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3]
   return BSURF_OK;
 }
 
+/* A warm start: an upper bound on the m-th smallest distance from the point
+ * at tree position j to the others, from the m results of the same thread's
+ * previous query (tree position prev, usually j's neighbour in tree order):
+ * those points, with prev itself standing in for j when j is among them, are
+ * m candidates, so the largest of their distances (knn_dist2, the search's
+ * own expression) is at least the m-th smallest. The search then starts with
+ * this bound instead of none and prunes from its first leaf; the k nearest
+ * and their order are the same, since no candidate within the bound (ties
+ * included: the tests are d > bound) is skipped. NaN when it cannot help. */
+static double knn_warm_bound(const bsurf_knn_index *ix, size_t j, size_t prev, const knn_entry *e, int m) {
+  const double *q = ix->pts + 3 * j;
+  double bound = -INFINITY;
+  int used = 0;
+  for (int c = 0; c < m; c++) {
+    if (e[c].pos == j) continue;
+    const double d = knn_dist2(q, ix->pts + 3 * (size_t)e[c].pos);
+    if (d > bound) bound = d;
+    used++;
+    if (isnan(d)) return NAN;
+  }
+  if (used < m) {
+    const double d = knn_dist2(q, ix->pts + 3 * prev);
+    if (d > bound) bound = d;
+    if (isnan(d)) return NAN;
+  }
+  return bound;
+}
+
 /* Row of the point at tree position j: itself, then its k - 1 nearest others.
- * `scratch` holds k - 1 entries. */
-static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_entry *scratch, uint32_t *idx,
+ * `scratch` holds k - 1 entries; *prev is the tree position of the query
+ * whose results scratch holds (SIZE_MAX: none), and becomes j. */
+static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_entry *scratch, size_t *prev, uint32_t *idx,
                     double *dist2, double *nn_dist2) {
   const uint32_t self = ix->ids[j];
   const size_t row = (size_t)self * (size_t)k;
@@ -493,8 +524,11 @@ static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_entry *scrat
     s.off[0] = s.off[1] = s.off[2] = 0.0; /* the query is inside the root box */
     s.list.e = scratch;
     s.list.k = m;
+    const double warm = *prev != SIZE_MAX ? knn_warm_bound(ix, j, *prev, scratch, m) : NAN;
     knn_list_reset(&s.list);
+    s.list.worst = warm;
     knn_visit(&s, 0);
+    *prev = j;
   }
   if (idx) {
     idx[row] = self;
@@ -530,7 +564,13 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
   /* Per-thread result lists, allocated once for the whole call. */
   m = k > 1 ? (size_t)(k - 1) : 1;
   scratch = bsurf_alloc_array((size_t)nt * m, sizeof *scratch);
-  if (!scratch) return BSURF_ERR_NOMEM;
+  size_t *prev = bsurf_alloc_array((size_t)nt, sizeof *prev);
+  if (!scratch || !prev) {
+    free(scratch);
+    free(prev);
+    return BSURF_ERR_NOMEM;
+  }
+  for (int t = 0; t < nt; t++) prev[t] = SIZE_MAX;
 
   chunk = progress ? BSURF_PROGRESS_CHUNK : n;
   for (size_t start = 0; start < n; start += chunk) {
@@ -546,14 +586,16 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
 #else
       const size_t t = 0;
 #endif
-      knn_row(index, (size_t)j, k, scratch + t * m, idx, dist2, nn_dist2);
+      knn_row(index, (size_t)j, k, scratch + t * m, &prev[t], idx, dist2, nn_dist2);
     }
     if (progress && progress(progress_user, (size_t)last, n)) {
       free(scratch);
+      free(prev);
       return BSURF_ERR_CANCELLED;
     }
   }
   free(scratch);
+  free(prev);
   return BSURF_OK;
 }
 
@@ -588,7 +630,7 @@ bsurf_status bsurf_knn_all_brute(const double *xyz, size_t point_count, int k, u
         if (j == i) continue;
         d = knn_dist2(xyz + 3 * i, xyz + 3 * j);
         if (d > l.worst) continue;
-        knn_list_insert(&l, d, (uint32_t)j);
+        knn_list_insert(&l, d, (uint32_t)j, (uint32_t)j);
       }
     idx[row] = (uint32_t)i;
     if (dist2) dist2[row] = 0.0;
