@@ -55,18 +55,23 @@ void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *d
 
 int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_tol,
                             double *c) {
-  /* G = L L^T, L lower triangular stored row-major in a full m x m array;
-   * inv[j] = 1 / L[j][j], so each column costs one division. */
-  double L[BSURF_TERMS_MAX * BSURF_TERMS_MAX], inv[BSURF_TERMS_MAX];
+  /* G = L D L^T with L unit lower triangular (LDL^T: no square roots), by
+   * columns: A[i][j] = G[i][j] - sum_t L[i][t] A[j][t] (t < j) is L[i][j]
+   * D[j], D[j] = A[j][j], L[i][j] = A[i][j] inv[j] with inv[j] = 1 / D[j],
+   * so each column costs one division. L and A row-major in full m x m
+   * arrays. */
+  double L[BSURF_TERMS_MAX * BSURF_TERMS_MAX], A[BSURF_TERMS_MAX * BSURF_TERMS_MAX];
+  double inv[BSURF_TERMS_MAX];
   for (int j = 0; j < m; j++) {
     const double gjj = G[bsurf_packed_index(j, j)];
     double s = gjj;
-    for (int t = 0; t < j; t++) s -= L[j * m + t] * L[j * m + t];
+    for (int t = 0; t < j; t++) s -= L[j * m + t] * A[j * m + t];
     if (!(s > rel_tol * gjj) || !(gjj > 0)) return -1; /* also catches NaN */
-    inv[j] = 1.0 / sqrt(s);
+    inv[j] = 1.0 / s;
     for (int i = j + 1; i < m; i++) {
       double a = G[bsurf_packed_index(j, i)];
-      for (int t = 0; t < j; t++) a -= L[i * m + t] * L[j * m + t];
+      for (int t = 0; t < j; t++) a -= L[i * m + t] * A[j * m + t];
+      A[i * m + j] = a;
       L[i * m + j] = a * inv[j];
     }
   }
@@ -74,12 +79,12 @@ int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_
   for (int i = 0; i < m; i++) { /* L y = r */
     double a = r[i];
     for (int t = 0; t < i; t++) a -= L[i * m + t] * y[t];
-    y[i] = a * inv[i];
+    y[i] = a;
   }
-  for (int i = m - 1; i >= 0; i--) { /* L^T c = y */
-    double a = y[i];
+  for (int i = m - 1; i >= 0; i--) { /* L^T c = D^-1 y */
+    double a = y[i] * inv[i];
     for (int t = i + 1; t < m; t++) a -= L[t * m + i] * c[t];
-    c[i] = a * inv[i];
+    c[i] = a;
   }
   return 0;
 }
@@ -330,12 +335,11 @@ void bsurf_lanes_row(int nc, const double *lanes, int r, double *row) {
 #ifdef HAVE_V4D
 typedef long long v4l __attribute__((vector_size(32)));
 
-/* Cholesky solves in vector lanes, two groups of four at once (g4[0],
+/* LDL^T solves in vector lanes, two groups of four at once (g4[0],
  * g4[1]: groups of bsurf_gemm_lanes, column c of a group's four rows at
  * [4c .. 4c+3]), with exactly the operations of bsurf_chol_solve_packed in
  * each lane (so the same bits). The two independent groups are interleaved
- * statement by statement to hide the latency of the square roots and
- * divisions. A lane whose pivot fails is given pivot 1 to keep the others
+ * statement by statement to hide the latency of the divisions. A lane whose pivot fails is given pivot 1 to keep the others
  * going and is reported in the returned bit mask of failures (lane 4h + l
  * for group h); lanes not in `want` are not stored. Inlined with a constant
  * m (chol_solve8_m) so that the compiler unrolls the small loops. */
@@ -344,6 +348,7 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
                                                              double rel_tol, int want,
                                                              double *const coef[8]) {
   v4d G[2][BSURF_PACKED_MAX], r[2][BSURF_TERMS_MAX], L[2][BSURF_TERMS_MAX * BSURF_TERMS_MAX];
+  v4d A[2][BSURF_TERMS_MAX * BSURF_TERMS_MAX];
   v4d inv[2][BSURF_TERMS_MAX], y[2][BSURF_TERMS_MAX], c[2][BSURF_TERMS_MAX];
   const int pm = m * (m + 1) / 2;
   const unsigned char *map = moment_map();
@@ -358,18 +363,17 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
     for (int h = 0; h < 2; h++) {
       const v4d gjj = G[h][bsurf_packed_index(j, j)];
       v4d s = gjj;
-      for (int t = 0; t < j; t++) s -= L[h][j * m + t] * L[h][j * m + t];
+      for (int t = 0; t < j; t++) s -= L[h][j * m + t] * A[h][j * m + t];
       v4l ok = (s > tol * gjj) & (gjj > zero);
       failed[h] |= ~ok;
       s = (v4d)(((v4l)s & ok) | ((v4l)one & ~ok));
-      v4d root;
-      for (int l = 0; l < 4; l++) root[l] = sqrt(s[l]);
-      inv[h][j] = one / root;
+      inv[h][j] = one / s;
     }
     for (int i = j + 1; i < m; i++)
       for (int h = 0; h < 2; h++) {
         v4d a = G[h][bsurf_packed_index(j, i)];
-        for (int t = 0; t < j; t++) a -= L[h][i * m + t] * L[h][j * m + t];
+        for (int t = 0; t < j; t++) a -= L[h][i * m + t] * A[h][j * m + t];
+        A[h][i * m + j] = a;
         L[h][i * m + j] = a * inv[h][j];
       }
   }
@@ -377,13 +381,13 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
     for (int h = 0; h < 2; h++) {
       v4d a = r[h][i];
       for (int t = 0; t < i; t++) a -= L[h][i * m + t] * y[h][t];
-      y[h][i] = a * inv[h][i];
+      y[h][i] = a;
     }
   for (int i = m - 1; i >= 0; i--)
     for (int h = 0; h < 2; h++) {
-      v4d a = y[h][i];
+      v4d a = y[h][i] * inv[h][i];
       for (int t = i + 1; t < m; t++) a -= L[h][t * m + i] * c[h][t];
-      c[h][i] = a * inv[h][i];
+      c[h][i] = a;
     }
   int mask = 0;
   for (int l = 0; l < 8; l++) {
@@ -396,10 +400,6 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
 
 /* dst = column `col` of a group of four rows (bsurf_gemm_lanes layout) */
 #define LD4(dst, g, col) memcpy(&(dst), &(g)[4 * (col)], sizeof(v4d))
-/* square roots lane by lane (one vector instruction) */
-#define ROOT4(dst, s)                                                                              \
-  for (int l_ = 0; l_ < 4; l_++) (dst)[l_] = sqrt((s)[l_])
-
 /* chol_solve8 for m = 3, 6, 10 as straight-line code (generated). */
 #include "local/chol_unrolled.h"
 
