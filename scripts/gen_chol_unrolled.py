@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
-"""Writes src/local/chol_unrolled.h: the Cholesky solves of chol_solve8
+"""Writes src/local/chol_unrolled.h: the LDL^T solves of chol_solve8
 (src/local/poly.c) for a fixed number of unknowns m, as straight-line code
-with one named variable per entry of L, so that the compiler schedules the
-two groups' latency chains (square roots, divisions, dependent subtractions)
-without loops, loads through the moment map, or a stack copy of G.
+with one named variable per entry of L (and of A = L D), so that the
+compiler schedules the two groups' latency chains (divisions, dependent
+subtractions) without loops, loads through the moment map, or a stack copy
+of G.
 
 Every entry is computed with exactly the operations, in the order, of
 bsurf_chol_solve_packed (one multiply and one subtract per term, terms in
@@ -53,29 +54,25 @@ def emit(m, out):
             w(f"  LD4(s{h}_{j}, g{h}, {moment_index(j, j)});")
             w(f"  const v4d d{h}_{j} = s{h}_{j};")
             for t in range(j):
-                w(f"  s{h}_{j} -= L{h}_{j}_{t} * L{h}_{j}_{t};")
+                w(f"  s{h}_{j} -= L{h}_{j}_{t} * A{h}_{j}_{t};")
             w(f"  const v4l ok{h}_{j} = (s{h}_{j} > tol * d{h}_{j}) & (d{h}_{j} > zero);")
             w(f"  f{h} |= ~ok{h}_{j};")
             w(f"  s{h}_{j} = (v4d)(((v4l)s{h}_{j} & ok{h}_{j}) | ((v4l)one & ~ok{h}_{j}));")
-            w(f"  v4d r{h}_{j};")
-            w(f"  ROOT4(r{h}_{j}, s{h}_{j});")
-            w(f"  const v4d i{h}_{j} = one / r{h}_{j};")
+            w(f"  const v4d i{h}_{j} = one / s{h}_{j};")
         for i in range(j + 1, m):
             for h in H:
-                load_subtract(w, f"a{h}_{i}_{j}", f"g{h}, {moment_index(j, i)}",
-                              [(f"L{h}_{i}_{t}", f"L{h}_{j}_{t}") for t in range(j)])
-                w(f"  const v4d L{h}_{i}_{j} = a{h}_{i}_{j} * i{h}_{j};")
+                load_subtract(w, f"A{h}_{i}_{j}", f"g{h}, {moment_index(j, i)}",
+                              [(f"L{h}_{i}_{t}", f"A{h}_{j}_{t}") for t in range(j)])
+                w(f"  const v4d L{h}_{i}_{j} = A{h}_{i}_{j} * i{h}_{j};")
     for i in range(m):
         for h in H:
             load_subtract(w, f"y{h}_{i}", f"g{h}, p + {i}",
                           [(f"L{h}_{i}_{t}", f"y{h}_{t}") for t in range(i)])
-            w(f"  y{h}_{i} = y{h}_{i} * i{h}_{i};")
     for i in range(m - 1, -1, -1):
         for h in H:
-            w(f"  v4d c{h}_{i} = y{h}_{i};")
+            w(f"  v4d c{h}_{i} = y{h}_{i} * i{h}_{i};")
             for t in range(i + 1, m):
                 w(f"  c{h}_{i} -= L{h}_{t}_{i} * c{h}_{t};")
-            w(f"  c{h}_{i} = c{h}_{i} * i{h}_{i};")
     for h in H:
         w(f"  const v4d c{h}[{m}] = {{" + ", ".join(f"c{h}_{i}" for i in range(m)) + "};")
     w("  const v4l failed[2] = {f0, f1};")

@@ -155,23 +155,20 @@ static void test_counts(void **state) {
 }
 
 /* Four replicates in vector lanes give exactly the scalar counts, also when
- * draws are rejected (k = 60000: about one rejection per replicate, taken by
- * the scalar fallback) and for a partial group. */
-/* How many halves resample.c's scalar draw rejects for one replicate. */
+ * draws are rejected (k = 300: about half the replicates meet a rejection,
+ * so groups mix redone and kept lanes; k = 60000: every replicate, redone by
+ * the scalar code) and for a partial group. */
+/* How many 16-bit chunks resample.c's scalar draw rejects for one replicate
+ * (the first k chunks; replacements not counted). */
 static int scalar_rejections(uint64_t seed, uint64_t point, uint32_t rep, int k) {
   bsurf_rng rng;
   bsurf_rng_init(&rng, seed, point, rep);
-  const uint32_t threshold = (uint32_t)(-(uint32_t)k) % (uint32_t)k;
-  int t = 0, rejected = 0;
-  while (t < k) {
-    uint64_t x = bsurf_rng_next(&rng);
-    for (int half = 0; half < 2 && t < k; half++, t++) {
-      uint64_t m = (half ? (x & 0xffffffffu) : (x >> 32)) * (uint64_t)k;
-      while ((uint32_t)m < threshold) {
-        rejected++;
-        m = (bsurf_rng_next(&rng) >> 32) * (uint64_t)k;
-      }
-    }
+  const uint32_t threshold = 65536u % (uint32_t)k;
+  int rejected = 0;
+  for (int t = 0; t < k; t += 4) {
+    const uint64_t x = bsurf_rng_next(&rng);
+    for (int c = 0; c < 4 && t + c < k; c++)
+      rejected += ((uint32_t)(x >> (16 * c) & 0xffffu) * (uint32_t)k & 0xffffu) < threshold;
   }
   return rejected;
 }
@@ -179,13 +176,17 @@ static int scalar_rejections(uint64_t seed, uint64_t point, uint32_t rep, int k)
 static void test_counts4_equal_scalar(void **state) {
   (void)state;
   static uint16_t four[4 * 60000], one[60000];
-  /* the lane fallback is exercised: some of the k = 60000 replicates below
-   * meet a rejection */
-  int rejections = 0;
+  /* the lane fallback is exercised: every k = 60000 replicate below meets a
+   * rejection, some but not all of the k = 300 ones do */
+  int rejections = 0, kept = 0;
   for (uint32_t b0 = 0; b0 < 12; b0 += 4)
-    for (uint32_t l = 0; l < 4; l++) rejections += scalar_rejections(5, 77 + b0, b0 + l, 60000);
-  assert_true(rejections > 0);
-  const int ks[] = {2, 3, 30, 50, 51, 60000};
+    for (uint32_t l = 0; l < 4; l++) {
+      rejections += scalar_rejections(5, 77 + b0, b0 + l, 60000) > 0;
+      kept += scalar_rejections(5, 77 + b0, b0 + l, 300) == 0;
+    }
+  assert_int_equal(rejections, 12);
+  assert_true(kept > 0 && kept < 12);
+  const int ks[] = {2, 3, 30, 50, 51, 300, 60000};
   for (size_t t = 0; t < sizeof ks / sizeof ks[0]; t++) {
     const int k = ks[t];
     for (uint32_t b0 = 0; b0 < 12; b0 += 4)

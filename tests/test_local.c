@@ -167,6 +167,67 @@ static void test_poly_exact_recovery(void **state) {
   }
 }
 
+/* The replicates' residual sums (vector blocks of 8 points, the last one
+ * overlapping, one, two or four replicates at a time) give the bits of the
+ * plain loop: for every point the replicates in order b = 0..B-1, the terms
+ * of each prediction in order from 0. For K below, at and above multiples
+ * of 8, B with every remainder modulo 4, and replicates marked invalid. */
+static void test_residual_sums_equal_plain(void **state) {
+  (void)state;
+  enum { KMAX = 29, BMAX = 11 };
+  const int ks[] = {4, 7, 8, 13, 16, 21, 29}, Bs[] = {1, 2, 3, 4, 5, 7, 11};
+  bsurf_rng rng;
+  bsurf_rng_init(&rng, 5, 1, 2);
+  double xyz[3 * KMAX];
+  uint32_t idx[KMAX];
+  for (int j = 0; j < KMAX; j++) {
+    for (int t = 0; t < 3; t++) xyz[3 * j + t] = bsurf_rng_uniform(&rng) * 2 - 1;
+    idx[j] = (uint32_t)j;
+  }
+  bsurf_frame f;
+  identity_frame(&f);
+  bsurf_localfit lf;
+  assert_int_equal(bsurf_localfit_alloc(&lf, KMAX, 4), BSURF_OK);
+  double coef[BMAX * 15], weights[BMAX * KMAX], got[3][KMAX], want[3][KMAX];
+  unsigned char valid[BMAX];
+  int cases = 0;
+  for (size_t ik = 0; ik < sizeof ks / sizeof *ks; ik++)
+    for (int M = 1; M <= 4; M++) {
+      const int k = ks[ik], m = bsurf_poly_terms(M);
+      if (k < m) continue;
+      bsurf_localfit_setup(&lf, xyz, idx, k, &f, M);
+      for (size_t ib = 0; ib < sizeof Bs / sizeof *Bs; ib++)
+        for (int mask = 0; mask < 3; mask++) {
+          const int B = Bs[ib];
+          for (int i = 0; i < B * m; i++) coef[i] = bsurf_rng_uniform(&rng) * 2 - 1;
+          for (int i = 0; i < B * k; i++) weights[i] = (double)(bsurf_rng_next(&rng) % 3);
+          /* none, every third, or one in the middle invalid */
+          for (int b = 0; b < B; b++) valid[b] = mask == 1 ? b % 3 != 1 : mask == 2 ? b != B / 2 : 1;
+          const unsigned char *v = mask ? valid : NULL;
+          bsurf_localfit_residual_sums(&lf, M, B, coef, v, weights, got[0], got[1], got[2]);
+          for (int j = 0; j < k; j++) {
+            double s = 0, o = 0, c = 0;
+            for (int b = 0; b < B; b++) {
+              if (v && !v[b]) continue;
+              double p = 0;
+              for (int a = 0; a < m; a++) p += coef[b * m + a] * lf.phit[(size_t)a * lf.kp + j];
+              const double e = fabs(p - lf.z[j]), w = weights[b * k + j] == 0 ? 1.0 : 0.0;
+              s += e;
+              o += w * e;
+              c += w;
+            }
+            want[0][j] = s;
+            want[1][j] = o;
+            want[2][j] = c;
+          }
+          for (int t = 0; t < 3; t++) assert_memory_equal(got[t], want[t], (size_t)k * sizeof(double));
+          cases++;
+        }
+    }
+  assert_true(cases > 300);
+  bsurf_localfit_free(&lf);
+}
+
 /* The normal equations of many weighted fits as one matrix product in
  * vector lanes (the bootstrap's path) give the same bits as the row
  * product and as one fit at a time, and the lane solver the same
@@ -309,6 +370,7 @@ int main(void) {
       cmocka_unit_test(test_poly_exact_recovery),
       cmocka_unit_test(test_rank_deficient_detected),
       cmocka_unit_test(test_lanes_equal_rows),
+      cmocka_unit_test(test_residual_sums_equal_plain),
       cmocka_unit_test(test_pca_noisy_plane),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

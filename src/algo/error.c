@@ -17,7 +17,7 @@
  *
  * The normal equations of every fit are sums of per-neighbour products that
  * are computed once per point (src/local/poly.c); those of all B replicates
- * are one B x K by K x (p + m) matrix product, then a Cholesky solve each. Points are
+ * are one B x K by K x (p + m) matrix product, then an LDL^T solve each. Points are
  * independent, so the loop is parallel; results do not depend on threads. */
 #include "algo/algo.h"
 #include "common/common.h"

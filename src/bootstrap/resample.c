@@ -8,30 +8,52 @@
 
 #include <string.h>
 
+/* Draws from 16-bit chunks: Lemire's multiply-shift m = c k of a chunk c
+ * (k <= 65535, so m < 2^32), index m >> 16, exact with rejection of the
+ * chunks whose low half (m & 0xffff) is below 2^16 mod k. The first k
+ * chunks of the stream (four per 64-bit output, bits 0-15 first) are the
+ * draws; each one rejected is replaced by the next accepted chunk after
+ * them, starting with the output that follows (the counts do not depend on
+ * which draw a replacement stands for). */
+static uint32_t chunk_threshold(int k) { return 65536u % (uint32_t)k; }
+
+/* The replacements of `rejected` draws, continuing the stream rng. */
+static void boot_replace(bsurf_rng *rng, int k, int rejected, uint16_t *counts) {
+  const uint32_t threshold = chunk_threshold(k);
+  while (rejected > 0) {
+    const uint64_t x = bsurf_rng_next(rng);
+    for (int c = 0; c < 4 && rejected > 0; c++) {
+      const uint32_t m = (uint32_t)(x >> (16 * c) & 0xffffu) * (uint32_t)k;
+      if ((m & 0xffffu) < threshold) continue;
+      counts[m >> 16]++;
+      rejected--;
+    }
+  }
+}
+
 void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
                        uint16_t *counts) {
   bsurf_rng rng;
   bsurf_rng_init(&rng, seed, point, replicate);
   memset(counts, 0, (size_t)k * sizeof *counts);
-  /* Two draws from each 64-bit output: Lemire's multiply-shift on each
-   * 32-bit half, exact with rejection (a rejected half is replaced by the
-   * high half of a fresh output). */
-  const uint64_t n = (uint64_t)k;
-  const uint32_t threshold = (uint32_t)(-(uint32_t)k) % (uint32_t)k;
-  int t = 0;
-  while (t < k) {
-    uint64_t x = bsurf_rng_next(&rng);
-    for (int half = 0; half < 2 && t < k; half++) {
-      uint64_t m = (half ? (x & 0xffffffffu) : (x >> 32)) * n;
-      while ((uint32_t)m < threshold) m = (bsurf_rng_next(&rng) >> 32) * n;
-      counts[m >> 32]++;
-      t++;
+  const uint32_t threshold = chunk_threshold(k);
+  int rejected = 0;
+  for (int t = 0; t < k; t += 4) {
+    const uint64_t x = bsurf_rng_next(&rng);
+    for (int c = 0; c < 4 && t + c < k; c++) {
+      const uint32_t m = (uint32_t)(x >> (16 * c) & 0xffffu) * (uint32_t)k;
+      if ((m & 0xffffu) < threshold)
+        rejected++;
+      else
+        counts[m >> 16]++;
     }
   }
+  boot_replace(&rng, k, rejected, counts);
 }
 
 #if defined(__GNUC__)
 typedef uint64_t v4u __attribute__((vector_size(32)));
+typedef uint32_t v8u __attribute__((vector_size(32)));
 
 /* xoshiro256** (common/rng.c) in four independent lanes. */
 #define ROTL4(x, r) (((x) << (r)) | ((x) >> (64 - (r))))
@@ -43,10 +65,11 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
 #if defined(__GNUC__)
   if (nrep == 4) {
     /* The streams of four replicates side by side in vector lanes; each
-     * lane runs exactly the scalar generator and the same two draws per
-     * output. A lane that meets a rejection (probability below k / 2^32 per
-     * draw) is redone by the scalar code at the end, so the counts are
-     * always those of bsurf_boot_counts. */
+     * lane runs exactly the scalar generator and takes the same chunks, 16
+     * draws a step (32-bit element 2 l + h of lane l holds chunks 2 h and
+     * 2 h + 1: each times k, separately). A lane that meets a rejection
+     * (below k / 2^16 per draw) is redone by the scalar code at the end, so
+     * the counts are always those of bsurf_boot_counts. */
     bsurf_rng r[4];
     for (int l = 0; l < 4; l++) bsurf_rng_init(&r[l], seed, point, replicate + (uint32_t)l);
     v4u s0 = {r[0].s[0], r[1].s[0], r[2].s[0], r[3].s[0]};
@@ -54,13 +77,12 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
     v4u s2 = {r[0].s[2], r[1].s[2], r[2].s[2], r[3].s[2]};
     v4u s3 = {r[0].s[3], r[1].s[3], r[2].s[3], r[3].s[3]};
     memset(counts, 0, 4 * (size_t)k * sizeof *counts);
-    uint16_t *c0 = counts, *c1 = counts + k, *c2 = counts + 2 * (size_t)k,
-             *c3 = counts + 3 * (size_t)k;
-    const uint64_t kk = (uint64_t)k, threshold = (uint32_t)(-(uint32_t)k) % (uint32_t)k;
-    const v4u K = {kk, kk, kk, kk}, lo = {0xffffffffu, 0xffffffffu, 0xffffffffu, 0xffffffffu};
-    const v4u thr = {threshold, threshold, threshold, threshold};
-    v4u reject = {0, 0, 0, 0};
-    for (int t = 0; t < k; t += 2) {
+    uint16_t *const c[4] = {counts, counts + k, counts + 2 * (size_t)k, counts + 3 * (size_t)k};
+    const uint32_t kk = (uint32_t)k, th = chunk_threshold(k), f = 0xffffu;
+    const v8u K = {kk, kk, kk, kk, kk, kk, kk, kk}, thr = {th, th, th, th, th, th, th, th};
+    const v8u lo = {f, f, f, f, f, f, f, f};
+    v8u reject = {0, 0, 0, 0, 0, 0, 0, 0};
+    for (int t = 0; t < k; t += 4) {
       const v4u x1 = (s1 << 2) + s1; /* s1 * 5 */
       const v4u x2 = ROTL4(x1, 7);
       const v4u res = (x2 << 3) + x2; /* * 9 */
@@ -71,23 +93,27 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
       s0 ^= s3;
       s2 ^= tt;
       s3 = ROTL4(s3, 45);
-      const v4u mh = (res >> 32) * K;
-      reject |= (v4u)((mh & lo) < thr);
-      c0[mh[0] >> 32]++;
-      c1[mh[1] >> 32]++;
-      c2[mh[2] >> 32]++;
-      c3[mh[3] >> 32]++;
-      if (t + 1 < k) {
-        const v4u ml = (res & lo) * K;
-        reject |= (v4u)((ml & lo) < thr);
-        c0[ml[0] >> 32]++;
-        c1[ml[1] >> 32]++;
-        c2[ml[2] >> 32]++;
-        c3[ml[3] >> 32]++;
+      const v8u x = (v8u)res, ma = (x & lo) * K, mb = (x >> 16) * K;
+      /* the four indices of lane l in its 16-bit quarters, chunk order */
+      const v4u idx = (v4u)((ma >> 16) | (mb & ~lo));
+      /* (in a last, partial step also chunks not drawn: a needless redo) */
+      reject |= (v8u)((ma & lo) < thr) | (v8u)((mb & lo) < thr);
+      if (k - t >= 4) {
+        for (int l = 0; l < 4; l++) {
+          const uint64_t u = idx[l];
+          c[l][u & 0xffffu]++;
+          c[l][u >> 16 & 0xffffu]++;
+          c[l][u >> 32 & 0xffffu]++;
+          c[l][u >> 48]++;
+        }
+      } else { /* the first k - t chunks */
+        for (int l = 0; l < 4; l++)
+          for (int ch = 0; ch < k - t; ch++) c[l][idx[l] >> (16 * ch) & 0xffffu]++;
       }
     }
     for (int l = 0; l < 4; l++)
-      if (reject[l]) bsurf_boot_counts(seed, point, replicate + (uint32_t)l, k, counts + l * (size_t)k);
+      if (reject[2 * l] | reject[2 * l + 1])
+        bsurf_boot_counts(seed, point, replicate + (uint32_t)l, k, c[l]);
     return;
   }
 #endif

@@ -34,7 +34,7 @@ void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *d
 /* Index in column-packed upper-triangular storage: (i, j), i <= j. */
 static inline int bsurf_packed_index(int i, int j) { return j * (j + 1) / 2 + i; }
 
-/* Solves G c = r for a symmetric positive definite m x m system by Cholesky
+/* Solves G c = r for a symmetric positive definite m x m system by LDL^T
  * (G in column-packed upper storage; its leading m(m+1)/2 entries are used).
  * A pivot that falls below rel_tol times its original diagonal entry means
  * the columns of the design are (numerically) dependent: returns -1 and
@@ -79,7 +79,7 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
 
 /* out = W (R x k) * A (k x nc) with R a multiple of 4 and nc of 8, stored
  * in groups of four rows interleaved by column: entry (r, c) at
- * out[(r / 4) * 4 nc + 4 c + r % 4], the layout of four Cholesky solves
+ * out[(r / 4) * 4 nc + 4 c + r % 4], the layout of four LDL^T solves
  * in vector lanes. Same sums, in the same order, as bsurf_gemm_rows. */
 void bsurf_gemm_lanes(int R, int k, int nc, const double *W, const double *A, double *out);
 /* Row r of a bsurf_gemm_lanes result, contiguous (nc entries). */

@@ -55,18 +55,23 @@ void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *d
 
 int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_tol,
                             double *c) {
-  /* G = L L^T, L lower triangular stored row-major in a full m x m array;
-   * inv[j] = 1 / L[j][j], so each column costs one division. */
-  double L[BSURF_TERMS_MAX * BSURF_TERMS_MAX], inv[BSURF_TERMS_MAX];
+  /* G = L D L^T with L unit lower triangular (LDL^T: no square roots), by
+   * columns: A[i][j] = G[i][j] - sum_t L[i][t] A[j][t] (t < j) is L[i][j]
+   * D[j], D[j] = A[j][j], L[i][j] = A[i][j] inv[j] with inv[j] = 1 / D[j],
+   * so each column costs one division. L and A row-major in full m x m
+   * arrays. */
+  double L[BSURF_TERMS_MAX * BSURF_TERMS_MAX], A[BSURF_TERMS_MAX * BSURF_TERMS_MAX];
+  double inv[BSURF_TERMS_MAX];
   for (int j = 0; j < m; j++) {
     const double gjj = G[bsurf_packed_index(j, j)];
     double s = gjj;
-    for (int t = 0; t < j; t++) s -= L[j * m + t] * L[j * m + t];
+    for (int t = 0; t < j; t++) s -= L[j * m + t] * A[j * m + t];
     if (!(s > rel_tol * gjj) || !(gjj > 0)) return -1; /* also catches NaN */
-    inv[j] = 1.0 / sqrt(s);
+    inv[j] = 1.0 / s;
     for (int i = j + 1; i < m; i++) {
       double a = G[bsurf_packed_index(j, i)];
-      for (int t = 0; t < j; t++) a -= L[i * m + t] * L[j * m + t];
+      for (int t = 0; t < j; t++) a -= L[i * m + t] * A[j * m + t];
+      A[i * m + j] = a;
       L[i * m + j] = a * inv[j];
     }
   }
@@ -74,12 +79,12 @@ int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_
   for (int i = 0; i < m; i++) { /* L y = r */
     double a = r[i];
     for (int t = 0; t < i; t++) a -= L[i * m + t] * y[t];
-    y[i] = a * inv[i];
+    y[i] = a;
   }
-  for (int i = m - 1; i >= 0; i--) { /* L^T c = y */
-    double a = y[i];
+  for (int i = m - 1; i >= 0; i--) { /* L^T c = D^-1 y */
+    double a = y[i] * inv[i];
     for (int t = i + 1; t < m; t++) a -= L[t * m + i] * c[t];
-    c[i] = a * inv[i];
+    c[i] = a;
   }
   return 0;
 }
@@ -330,12 +335,11 @@ void bsurf_lanes_row(int nc, const double *lanes, int r, double *row) {
 #ifdef HAVE_V4D
 typedef long long v4l __attribute__((vector_size(32)));
 
-/* Cholesky solves in vector lanes, two groups of four at once (g4[0],
+/* LDL^T solves in vector lanes, two groups of four at once (g4[0],
  * g4[1]: groups of bsurf_gemm_lanes, column c of a group's four rows at
  * [4c .. 4c+3]), with exactly the operations of bsurf_chol_solve_packed in
  * each lane (so the same bits). The two independent groups are interleaved
- * statement by statement to hide the latency of the square roots and
- * divisions. A lane whose pivot fails is given pivot 1 to keep the others
+ * statement by statement to hide the latency of the divisions. A lane whose pivot fails is given pivot 1 to keep the others
  * going and is reported in the returned bit mask of failures (lane 4h + l
  * for group h); lanes not in `want` are not stored. Inlined with a constant
  * m (chol_solve8_m) so that the compiler unrolls the small loops. */
@@ -344,6 +348,7 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
                                                              double rel_tol, int want,
                                                              double *const coef[8]) {
   v4d G[2][BSURF_PACKED_MAX], r[2][BSURF_TERMS_MAX], L[2][BSURF_TERMS_MAX * BSURF_TERMS_MAX];
+  v4d A[2][BSURF_TERMS_MAX * BSURF_TERMS_MAX];
   v4d inv[2][BSURF_TERMS_MAX], y[2][BSURF_TERMS_MAX], c[2][BSURF_TERMS_MAX];
   const int pm = m * (m + 1) / 2;
   const unsigned char *map = moment_map();
@@ -358,18 +363,17 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
     for (int h = 0; h < 2; h++) {
       const v4d gjj = G[h][bsurf_packed_index(j, j)];
       v4d s = gjj;
-      for (int t = 0; t < j; t++) s -= L[h][j * m + t] * L[h][j * m + t];
+      for (int t = 0; t < j; t++) s -= L[h][j * m + t] * A[h][j * m + t];
       v4l ok = (s > tol * gjj) & (gjj > zero);
       failed[h] |= ~ok;
       s = (v4d)(((v4l)s & ok) | ((v4l)one & ~ok));
-      v4d root;
-      for (int l = 0; l < 4; l++) root[l] = sqrt(s[l]);
-      inv[h][j] = one / root;
+      inv[h][j] = one / s;
     }
     for (int i = j + 1; i < m; i++)
       for (int h = 0; h < 2; h++) {
         v4d a = G[h][bsurf_packed_index(j, i)];
-        for (int t = 0; t < j; t++) a -= L[h][i * m + t] * L[h][j * m + t];
+        for (int t = 0; t < j; t++) a -= L[h][i * m + t] * A[h][j * m + t];
+        A[h][i * m + j] = a;
         L[h][i * m + j] = a * inv[h][j];
       }
   }
@@ -377,13 +381,13 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
     for (int h = 0; h < 2; h++) {
       v4d a = r[h][i];
       for (int t = 0; t < i; t++) a -= L[h][i * m + t] * y[h][t];
-      y[h][i] = a * inv[h][i];
+      y[h][i] = a;
     }
   for (int i = m - 1; i >= 0; i--)
     for (int h = 0; h < 2; h++) {
-      v4d a = y[h][i];
+      v4d a = y[h][i] * inv[h][i];
       for (int t = i + 1; t < m; t++) a -= L[h][t * m + i] * c[h][t];
-      c[h][i] = a * inv[h][i];
+      c[h][i] = a;
     }
   int mask = 0;
   for (int l = 0; l < 8; l++) {
@@ -396,10 +400,6 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
 
 /* dst = column `col` of a group of four rows (bsurf_gemm_lanes layout) */
 #define LD4(dst, g, col) memcpy(&(dst), &(g)[4 * (col)], sizeof(v4d))
-/* square roots lane by lane (one vector instruction) */
-#define ROOT4(dst, s)                                                                              \
-  for (int l_ = 0; l_ < 4; l_++) (dst)[l_] = sqrt((s)[l_])
-
 /* chol_solve8 for m = 3, 6, 10 as straight-line code (generated). */
 #include "local/chol_unrolled.h"
 
@@ -476,21 +476,29 @@ int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *c
 }
 
 #ifdef HAVE_V4D
-/* The predictions of one fit (coefficients cb) at points j0..j0+7, the
- * terms added in order a = 0..m-1 from 0, as the plain loop. */
-static inline __attribute__((always_inline)) void predict8(int m, int kp, const double *phit, int j0,
-                                                           const double *cb, v4d *p0, v4d *p1) {
-  v4d a0 = {0, 0, 0, 0}, a1 = a0;
+/* The predictions of R <= 4 fits (coefficients c[r]) at 8 points whose basis
+ * values are ph[a * stride + 0..7]: p[2 r], p[2 r + 1] for fit r, the terms
+ * added in order a = 0..m-1 from 0, as the plain loop. The fits share each
+ * load of the basis, and their 2 R chains of additions are independent. */
+static inline __attribute__((always_inline)) void predict8(int m, int R, const double *ph,
+                                                           size_t stride, const double *const *c,
+                                                           v4d p[8]) {
+  v4d acc[8];
+  for (int i = 0; i < 2 * R; i++) acc[i] = (v4d){0, 0, 0, 0};
+  /* kept a loop: unrolled (m = 10), GCC hoisted all 4 m broadcasts and
+   * spilled the accumulators */
+#pragma GCC unroll 1
   for (int a = 0; a < m; a++) {
     v4d x0, x1;
-    memcpy(&x0, &phit[(size_t)a * kp + j0], sizeof x0);
-    memcpy(&x1, &phit[(size_t)a * kp + j0 + 4], sizeof x1);
-    const v4d ca = {cb[a], cb[a], cb[a], cb[a]};
-    a0 += ca * x0;
-    a1 += ca * x1;
+    memcpy(&x0, &ph[(size_t)a * stride], sizeof x0);
+    memcpy(&x1, &ph[(size_t)a * stride + 4], sizeof x1);
+    for (int r = 0; r < R; r++) {
+      const v4d ca = {c[r][a], c[r][a], c[r][a], c[r][a]};
+      acc[2 * r] += ca * x0;
+      acc[2 * r + 1] += ca * x1;
+    }
   }
-  *p0 = a0;
-  *p1 = a1;
+  for (int i = 0; i < 2 * R; i++) p[i] = acc[i];
 }
 #endif
 
@@ -504,11 +512,12 @@ void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const d
   for (int b = 0; b < B; b++) {
     if (valid && !valid[b]) continue;
     for (int j0 = 0; j0 < k; j0 += 8) {
-      v4d p0, p1;
+      v4d p[8];
       double t[8];
-      predict8(m, kp, lf->phit, j0, &coef[(size_t)b * m], &p0, &p1);
-      memcpy(t, &p0, 32);
-      memcpy(t + 4, &p1, 32);
+      const double *cb = &coef[(size_t)b * m];
+      predict8(m, 1, &lf->phit[j0], (size_t)kp, &cb, p);
+      memcpy(t, &p[0], 32);
+      memcpy(t + 4, &p[1], 32);
       memcpy(&pred[(size_t)b * k + j0], t, (size_t)(k - j0 < 8 ? k - j0 : 8) * sizeof *t);
     }
   }
@@ -528,54 +537,105 @@ void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const d
 }
 
 #ifdef HAVE_V4D
-/* The residual sums of bsurf_localfit_residual_sums for points j0..j0+7. */
-static inline __attribute__((always_inline)) void residual_block(
-    int m, int k, int kp, const double *phit, const double *z, int j0, int B, const double *coef,
-    const unsigned char *valid, const double *weights, double *all, double *out, double *cnt) {
-  const int n = k - j0 < 8 ? k - j0 : 8;
-  double yb[8] = {0, 0, 0, 0, 0, 0, 0, 0}, wb[8] = {1, 1, 1, 1, 1, 1, 1, 1};
-  memcpy(yb, &z[j0], (size_t)n * sizeof *yb);
-  v4d y0, y1;
-  memcpy(&y0, yb, 32);
-  memcpy(&y1, yb + 4, 32);
+/* The residuals' sums at the points of one block, in registers: all (s),
+ * out (o, left-out points only) and cnt (c), 4 points per vector. */
+typedef struct res_acc {
+  v4d s, o, c;
+} res_acc;
+
+/* Adds the residual of one prediction p at heights y, weights at wr
+ * (0: left out): the operations of one replicate, in order. */
+static inline __attribute__((always_inline)) void res_add(const v4d *p, const v4d *y,
+                                                          const double *wr, res_acc *acc) {
   const v4d zero = {0, 0, 0, 0}, one = {1, 1, 1, 1};
-  v4d s0 = zero, s1 = zero, o0 = zero, o1 = zero, c0 = zero, c1 = zero;
-  for (int b = 0; b < B; b++) {
-    if (valid && !valid[b]) continue;
-    v4d p0, p1;
-    predict8(m, kp, phit, j0, &coef[(size_t)b * m], &p0, &p1);
-    const double *wrow = &weights[(size_t)b * k + j0];
-    if (n < 8) { /* padding: weight 1, not missing */
-      memcpy(wb, wrow, (size_t)n * sizeof *wb);
-      wrow = wb;
-    }
-    v4d m0, m1;
-    memcpy(&m0, wrow, 32);
-    memcpy(&m1, wrow + 4, 32);
-    /* 1.0 where the weight is 0 (the point is not in replicate b), else 0 */
-    const v4d w0 = (v4d)((v4l)(m0 == zero) & (v4l)one), w1 = (v4d)((v4l)(m1 == zero) & (v4l)one);
-    v4d e0 = p0 - y0, e1 = p1 - y1;
-    for (int l = 0; l < 4; l++) { /* fabs, lane by lane (vectorised) */
-      e0[l] = fabs(e0[l]);
-      e1[l] = fabs(e1[l]);
-    }
-    s0 += e0;
-    s1 += e1;
-    o0 += w0 * e0;
-    o1 += w1 * e1;
-    c0 += w0;
-    c1 += w1;
+  v4d mw;
+  memcpy(&mw, wr, sizeof mw);
+  /* 1.0 where the weight is 0 (the point is not in replicate b), else 0 */
+  const v4d w = (v4d)((v4l)(mw == zero) & (v4l)one);
+  v4d e = *p - *y;
+  for (int l = 0; l < 4; l++) e[l] = fabs(e[l]); /* lane by lane (vectorised) */
+  acc->s += e;
+  acc->o += w * e;
+  acc->c += w;
+}
+
+/* The residuals of R fits (coefficients c[r], weight rows w[r]) at the 8
+ * points of a block (basis values ph, packed m x 8; heights y) added to the
+ * sums, fit after fit. */
+static inline __attribute__((always_inline)) void res_fits(int m, int R, const double *ph,
+                                                           const double *const *c,
+                                                           const double *const *w, const v4d y[2],
+                                                           res_acc *acc0, res_acc *acc1) {
+  v4d p[8];
+  predict8(m, R, ph, 8, c, p);
+  for (int r = 0; r < R; r++) {
+    res_add(&p[2 * r], &y[0], w[r], acc0);
+    res_add(&p[2 * r + 1], &y[1], w[r] + 4, acc1);
   }
-  double t[8];
-  memcpy(t, &s0, 32);
-  memcpy(t + 4, &s1, 32);
-  memcpy(&all[j0], t, (size_t)n * sizeof *t);
-  memcpy(t, &o0, 32);
-  memcpy(t + 4, &o1, 32);
-  memcpy(&out[j0], t, (size_t)n * sizeof *t);
-  memcpy(t, &c0, 32);
-  memcpy(t + 4, &c1, 32);
-  memcpy(&cnt[j0], t, (size_t)n * sizeof *t);
+}
+
+/* The residual sums of bsurf_localfit_residual_sums for points j0..j0+7,
+ * four (else two) valid replicates at a time where they follow each other;
+ * for every point the replicates are added in order b = 0..B-1 as one at a
+ * time. With pad (only when k < 8) the n = k - j0 points are padded to 8. */
+static inline __attribute__((always_inline)) void residual_block(
+    int m, int pad, int k, int kp, const double *phit, const double *z, int j0, int B,
+    const double *coef, const unsigned char *valid, const double *weights, double *all, double *out,
+    double *cnt) {
+  const int n = pad ? k - j0 : 8;
+  /* the block's basis values packed (constant offsets, not m row pointers);
+   * phit is zero-padded to kp, a multiple of 8 */
+  double ph[BSURF_TERMS_MAX][8];
+  for (int a = 0; a < m; a++) { /* by vectors: a memcpy loop became rep movsq */
+    v4d x0, x1;
+    memcpy(&x0, &phit[(size_t)a * kp + j0], sizeof x0);
+    memcpy(&x1, &phit[(size_t)a * kp + j0 + 4], sizeof x1);
+    memcpy(&ph[a][0], &x0, sizeof x0);
+    memcpy(&ph[a][4], &x1, sizeof x1);
+  }
+  double yb[8] = {0, 0, 0, 0, 0, 0, 0, 0}, wb[4][8];
+  for (int l = 0; l < n; l++) yb[l] = z[j0 + l];
+  for (int r = 0; r < 4; r++)
+    for (int l = 0; l < 8; l++) wb[r][l] = 1; /* padding: weight 1, not missing */
+  v4d y[2];
+  memcpy(&y[0], yb, 32);
+  memcpy(&y[1], yb + 4, 32);
+  const v4d zero = {0, 0, 0, 0};
+  res_acc acc0 = {zero, zero, zero}, acc1 = acc0;
+  for (int b = 0; b < B;) {
+    /* four valid replicates in a row, else two, else one */
+    int R = 1;
+    if (b + 3 < B && (!valid || (valid[b] && valid[b + 1] && valid[b + 2] && valid[b + 3])))
+      R = 4;
+    else if (b + 1 < B && (!valid || (valid[b] && valid[b + 1])))
+      R = 2;
+    else if (valid && !valid[b]) {
+      b++;
+      continue;
+    }
+    const double *c[4], *w[4];
+    for (int r = 0; r < R; r++) {
+      c[r] = &coef[(size_t)(b + r) * m];
+      w[r] = &weights[(size_t)(b + r) * k + j0];
+      if (pad) {
+        for (int l = 0; l < n; l++) wb[r][l] = w[r][l];
+        w[r] = wb[r];
+      }
+    }
+    if (R == 4)
+      res_fits(m, 4, ph[0], c, w, y, &acc0, &acc1);
+    else if (R == 2)
+      res_fits(m, 2, ph[0], c, w, y, &acc0, &acc1);
+    else
+      res_fits(m, 1, ph[0], c, w, y, &acc0, &acc1);
+    b += R;
+  }
+  const res_acc *acc[2] = {&acc0, &acc1};
+  for (int l = 0; l < n; l++) {
+    all[j0 + l] = acc[l / 4]->s[l % 4];
+    out[j0 + l] = acc[l / 4]->o[l % 4];
+    cnt[j0 + l] = acc[l / 4]->c[l % 4];
+  }
 }
 #endif
 
@@ -585,10 +645,16 @@ void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, c
                                   double *out, double *cnt) {
   const int m = bsurf_poly_terms(degree), k = lf->k, kp = lf->kp;
 #ifdef HAVE_V4D
-  /* with a constant term count the compiler unrolls the sum over terms */
+  /* a constant term count specialises the blocks; the last block ends at k,
+   * overlapping the one before (its points come out the same again), so
+   * no weights need padding */
 #define RESIDUAL_BLOCKS(M)                                                                         \
-  for (int j0 = 0; j0 < k; j0 += 8)                                                                \
-    residual_block(M, k, kp, lf->phit, lf->z, j0, B, coef, valid, weights, all, out, cnt)
+  if (k < 8)                                                                                       \
+    residual_block(M, 1, k, kp, lf->phit, lf->z, 0, B, coef, valid, weights, all, out, cnt);        \
+  else                                                                                             \
+    for (int j0 = 0; j0 < k; j0 += 8)                                                              \
+      residual_block(M, 0, k, kp, lf->phit, lf->z, j0 + 8 > k ? k - 8 : j0, B, coef, valid, weights, \
+                     all, out, cnt)
   switch (m) {
   case 3: RESIDUAL_BLOCKS(3); break;
   case 6: RESIDUAL_BLOCKS(6); break;
