@@ -302,6 +302,24 @@ static void test_multipass_block_passes(void **state) {
   bsurf_cloud_free(&c);
 }
 
+/* The multipass weights' exponential: within 1e-15 relative of libm's exp
+ * over its whole range [-GAUSS_CUT, 0] (37.43), exact at 0, and monotone. */
+static void test_multipass_exp(void **state) {
+  (void)state;
+  double worst = 0, prev = 0;
+  assert_true(bsurf_smooth_exp(0.0) == 1.0);
+  for (int i = 0; i <= 400000; i++) {
+    const double x = -37.43 + 37.43 * (double)i / 400000.0;
+    const double e = bsurf_smooth_exp(x), ref = exp(x);
+    const double rel = fabs(e - ref) / ref;
+    if (rel > worst) worst = rel;
+    assert_true(e >= prev);
+    prev = e;
+  }
+  print_message("multipass exp: largest relative difference from exp %.3g\n", worst);
+  assert_true(worst < 1e-15);
+}
+
 static void test_arguments(void **state) {
   (void)state;
   bsurf_cloud c;
@@ -331,7 +349,7 @@ int main(void) {
       cmocka_unit_test(test_plane_does_not_move),   cmocka_unit_test(test_quadric_does_not_move),
       cmocka_unit_test(test_noisy_plane_gets_flatter), cmocka_unit_test(test_naive_threshold),
       cmocka_unit_test(test_multipass_neighbourhoods), cmocka_unit_test(test_thread_determinism),
-      cmocka_unit_test(test_multipass_block_passes),
+      cmocka_unit_test(test_multipass_block_passes), cmocka_unit_test(test_multipass_exp),
       cmocka_unit_test(test_arguments),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -29,6 +29,8 @@ typedef struct bsurf_error_scratch {
  * vector lanes, so the two can be compared bit for bit; 1 (the default)
  * restores the blocks. */
 void bsurf_smooth_block_passes(int on);
+/* The multipass weights' e^x (-37.5 <= x <= 0), exposed for its test. */
+double bsurf_smooth_exp(double x);
 
 bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int degree);
 void bsurf_error_scratch_free(bsurf_error_scratch *s);

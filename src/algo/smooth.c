@@ -86,6 +86,57 @@ static double gauss_exponent(double a, double b) {
 /* A weight exp(-e), cut to 0 below 2^-54. */
 static double weight_of(double e) { return e > GAUSS_CUT ? 0.0 : (e == 0 ? 1.0 : exp(-e)); }
 
+/* e^x for the multipass weights (-GAUSS_CUT <= x <= 0), written once for
+ * scalars and once for vector lanes with the same operations in the same
+ * order, so both give the same bits: x = n ln2 + r (Cody-Waite: ln2 split in
+ * a high part with 11 trailing zero bits, so n ln2_hi is exact, and a low
+ * part; |r| <= ln2 / 2), e^r by its Taylor polynomial to degree 13 (the
+ * remainder, below |r|^14 / 14! < 2^-57, is under the last bit), times 2^n
+ * set in the exponent bits. n is rounded to nearest by adding and
+ * subtracting 1.5 x 2^52, whose low bits then hold n. Within a few units in
+ * the last place of glibc's exp (tests/test_smooth.c checks 1e-15
+ * relative). */
+#define MPX_LOG2E 1.4426950408889634
+#define MPX_LN2_HI 6.93147180369123816490e-01 /* 0x3fe62e42fee00000 */
+#define MPX_LN2_LO 1.90821492927058770002e-10 /* 0x3dea39ef35793c76 */
+#define MPX_MAGIC 6755399441055744.0          /* 1.5 x 2^52 */
+#define MPX_C13 (1.0 / 6227020800.0) /* 1 / 13! */
+/* p = C13 on entry */
+#define MPX_POLY(p, r)                                                                             \
+  do {                                                                                             \
+    p = p * r + 1.0 / 479001600.0;                                                                 \
+    p = p * r + 1.0 / 39916800.0;                                                                  \
+    p = p * r + 1.0 / 3628800.0;                                                                   \
+    p = p * r + 1.0 / 362880.0;                                                                    \
+    p = p * r + 1.0 / 40320.0;                                                                     \
+    p = p * r + 1.0 / 5040.0;                                                                      \
+    p = p * r + 1.0 / 720.0;                                                                       \
+    p = p * r + 1.0 / 120.0;                                                                       \
+    p = p * r + 1.0 / 24.0;                                                                        \
+    p = p * r + 1.0 / 6.0;                                                                         \
+    p = p * r + 0.5;                                                                               \
+    p = p * r + 1.0;                                                                               \
+    p = p * r + 1.0;                                                                               \
+  } while (0)
+
+static inline double mp_exp1(double x) {
+  const double t = x * MPX_LOG2E + MPX_MAGIC;
+  const double n = t - MPX_MAGIC;
+  const double r = (x - n * MPX_LN2_HI) - n * MPX_LN2_LO;
+  double p = MPX_C13;
+  MPX_POLY(p, r);
+  int64_t tb, mb;
+  memcpy(&tb, &t, sizeof tb);
+  const double magic = MPX_MAGIC;
+  memcpy(&mb, &magic, sizeof mb);
+  const int64_t bits = (tb - mb + 1023) * ((int64_t)1 << 52);
+  double scale;
+  memcpy(&scale, &bits, sizeof scale);
+  return p * scale;
+}
+
+double bsurf_smooth_exp(double x) { return mp_exp1(x); }
+
 /* ---- a fit kept for later passes: frame, scale, coefficients ----------- */
 /* Layout of one stored fit: origin[3], rot[9] (row-major), inv_scale, coef[m]. */
 #define FIT_HEAD 13
@@ -306,7 +357,7 @@ static double gather_update(const smooth_ctx *c, size_t p, int multipass) {
       double inv = multipass ? c->inv_h1sq[i] : c->inv_h1sq_global;
       ex = inv > 0 ? ex + d2 * inv : INFINITY; /* h1 = 0: only the point itself */
       if (!(ex <= GAUSS_CUT)) continue;
-      w = ex == 0 ? 1.0 : exp(-ex);
+      w = ex == 0 ? 1.0 : (multipass ? mp_exp1(-ex) : exp(-ex));
     } else { /* the point itself (or a duplicate): theta_1 = 1, precomputed */
       if (!(ex <= GAUSS_CUT)) continue;
       w = c->w2[i];
@@ -355,6 +406,19 @@ typedef long long mp_v4l __attribute__((vector_size(32)));
 /* mask ? a : b, lane by lane */
 #define MP_SELECT(mask, a, b) ((mp_v4d)(((mp_v4l)(mask) & (mp_v4l)(a)) | (~(mp_v4l)(mask) & (mp_v4l)(b))))
 
+/* out = mp_exp1(x) in four lanes (a statement: no vector-valued calls) */
+#define MP_EXP4(out, x)                                                                            \
+  do {                                                                                             \
+    const mp_v4d magic_ = {MPX_MAGIC, MPX_MAGIC, MPX_MAGIC, MPX_MAGIC};                            \
+    const mp_v4d t_ = (x) * MPX_LOG2E + magic_;                                                    \
+    const mp_v4d n_ = t_ - magic_;                                                                 \
+    const mp_v4d r_ = ((x) - n_ * MPX_LN2_HI) - n_ * MPX_LN2_LO;                                   \
+    mp_v4d p_ = {MPX_C13, MPX_C13, MPX_C13, MPX_C13};                                              \
+    MPX_POLY(p_, r_);                                                                              \
+    const mp_v4l bits_ = ((mp_v4l)t_ - (mp_v4l)magic_ + 1023) * ((long long)1 << 52);              \
+    (out) = p_ * (mp_v4d)bits_;                                                                    \
+  } while (0)
+
 /* w[e] and tg[3e..3e+2] of the pairs e0..e0+3 (lanes past np repeat pair e0
  * and are not stored); M = the number of terms, a constant per call site. */
 static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c, int M, const uint32_t *pi,
@@ -399,10 +463,13 @@ static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c,
   const mp_v4l ok = (ex <= cut) & ~outside & (delta == delta);
   const mp_v4d t0 = MP_SELECT(ok, x0 + delta * n0, zero), t1 = MP_SELECT(ok, x1 + delta * n1, zero),
                t2 = MP_SELECT(ok, x2 + delta * n2, zero);
+  /* d > 0: e^-ex (1 at ex = 0); d = 0: theta_2, kept in the record */
+  const mp_v4d w2 = MP_GATHER(F, FIT_HEAD + M + 2);
+  mp_v4d ee;
+  MP_EXP4(ee, -ex);
+  const mp_v4d we = MP_SELECT(ok, MP_SELECT(ex == zero, one, MP_SELECT(d2 == zero, w2, ee)), zero);
   for (int l = 0; l < L; l++) {
-    double we = 0.0;
-    if (ok[l]) we = ex[l] == 0 ? 1.0 : (d2[l] == 0 ? F[l][FIT_HEAD + M + 2] : exp(-ex[l]));
-    w[e0 + (size_t)l] = we;
+    w[e0 + (size_t)l] = we[l];
     tg[3 * (e0 + (size_t)l)] = t0[l];
     tg[3 * (e0 + (size_t)l) + 1] = t1[l];
     tg[3 * (e0 + (size_t)l) + 2] = t2[l];
