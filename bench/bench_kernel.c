@@ -51,8 +51,8 @@ static double clock_hz(void) {
   return best;
 }
 
-/* flops of one LDL^T solve of m unknowns as chol_solve8 does it */
-static double chol_flops(int m) {
+/* flops of one LDL^T solve of m unknowns as ldl_solve8 does it */
+static double ldl_flops(int m) {
   double f = 0;
   for (int j = 0; j < m; j++) {
     f += 2.0 * j + 1;                    /* pivot: j multiply-subtracts, reciprocal */
@@ -118,7 +118,7 @@ int main(int argc, char **argv) {
   bsurf_error_point(xyz, idx, NULL, &o, 0, &s, &out, NULL);
   const bsurf_localfit *lf = &s.lf;
   const int nc = lf->ncols;
-  const double f_gemm = 2.0 * R * K * nc, f_chol = B * chol_flops(m);
+  const double f_gemm = 2.0 * R * K * nc, f_ldl = B * ldl_flops(m);
   const double f_resid = (double)B * K * (2.0 * m + 5);
   const double f_setup = K * (15.0 + bsurf_poly_terms(2 * D) + m);
   size_t calls = 0;
@@ -126,7 +126,7 @@ int main(int argc, char **argv) {
   while (now() - t0 < budget)
     for (int r = 0; r < 100; r++, calls++) bsurf_error_point(xyz, idx, NULL, &o, 0, &s, &out, NULL);
   timing whole = {"bsurf_error_point (all of it)", (now() - t0) / (double)calls,
-                  f_gemm + f_chol + f_resid + f_setup};
+                  f_gemm + f_ldl + f_resid + f_setup};
 
   /* each kernel alone, on the state the last point left */
   timing t_gemm = {"normal equations (gemm_lanes)", 0, f_gemm};
@@ -136,7 +136,7 @@ int main(int argc, char **argv) {
     for (int r = 0; r < 100; r++, calls++) bsurf_localfit_normal_eq_lanes(lf, R, s.weights, s.rows);
   t_gemm.seconds_per_call = (now() - t0) / (double)calls;
 
-  timing t_chol = {"LDL^T solves (solve_lanes)", 0, f_chol};
+  timing t_ldl = {"LDL^T solves (solve_lanes)", 0, f_ldl};
   unsigned char *valid = malloc((size_t)B);
   calls = 0;
   t0 = now();
@@ -145,7 +145,7 @@ int main(int argc, char **argv) {
       memset(valid, 1, (size_t)B);
       bsurf_localfit_solve_lanes(lf, D, B, s.rows, valid, s.coefs);
     }
-  t_chol.seconds_per_call = (now() - t0) / (double)calls;
+  t_ldl.seconds_per_call = (now() - t0) / (double)calls;
 
   timing t_res = {"predictions + residual sums", 0, f_resid};
   double *sums = malloc(sizeof(double) * 3 * (size_t)K);
@@ -170,7 +170,7 @@ int main(int argc, char **argv) {
          16e-9 * hz);
   report(&whole, hz);
   report(&t_gemm, hz);
-  report(&t_chol, hz);
+  report(&t_ldl, hz);
   report(&t_res, hz);
   printf("  %-34s %10.3f us (%d draws, integer work)\n", t_counts.name, 1e6 * t_counts.seconds_per_call,
          B * K);

@@ -39,7 +39,7 @@ static inline int bsurf_packed_index(int i, int j) { return j * (j + 1) / 2 + i;
  * A pivot that falls below rel_tol times its original diagonal entry means
  * the columns of the design are (numerically) dependent: returns -1 and
  * leaves c undefined; 0 on success. */
-int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_tol,
+int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol,
                             double *c);
 
 /* Default relative pivot tolerance for rank detection. */

@@ -53,7 +53,7 @@ void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *d
     }
 }
 
-int bsurf_chol_solve_packed(int m, const double *G, const double *r, double rel_tol,
+int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol,
                             double *c) {
   /* G = L D L^T with L unit lower triangular (LDL^T: no square roots), by
    * columns: A[i][j] = G[i][j] - sum_t L[i][t] A[j][t] (t < j) is L[i][j]
@@ -337,13 +337,14 @@ typedef long long v4l __attribute__((vector_size(32)));
 
 /* LDL^T solves in vector lanes, two groups of four at once (g4[0],
  * g4[1]: groups of bsurf_gemm_lanes, column c of a group's four rows at
- * [4c .. 4c+3]), with exactly the operations of bsurf_chol_solve_packed in
+ * [4c .. 4c+3]), with exactly the operations of bsurf_ldl_solve_packed in
  * each lane (so the same bits). The two independent groups are interleaved
- * statement by statement to hide the latency of the divisions. A lane whose pivot fails is given pivot 1 to keep the others
- * going and is reported in the returned bit mask of failures (lane 4h + l
- * for group h); lanes not in `want` are not stored. Inlined with a constant
- * m (chol_solve8_m) so that the compiler unrolls the small loops. */
-static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
+ * statement by statement to hide the latency of the divisions. A lane
+ * whose pivot fails is given pivot 1 to keep the others going and is
+ * reported in the returned bit mask of failures (lane 4h + l for group h);
+ * lanes not in `want` are not stored. Inlined with a constant m
+ * (ldl_solve8_m) so that the compiler unrolls the small loops. */
+static inline __attribute__((always_inline)) int ldl_solve8(int m, int p,
                                                              const double *const g4[2],
                                                              double rel_tol, int want,
                                                              double *const coef[8]) {
@@ -400,17 +401,17 @@ static inline __attribute__((always_inline)) int chol_solve8(int m, int p,
 
 /* dst = column `col` of a group of four rows (bsurf_gemm_lanes layout) */
 #define LD4(dst, g, col) memcpy(&(dst), &(g)[4 * (col)], sizeof(v4d))
-/* chol_solve8 for m = 3, 6, 10 as straight-line code (generated). */
-#include "local/chol_unrolled.h"
+/* ldl_solve8 for m = 3, 6, 10 as straight-line code (generated). */
+#include "local/ldl_unrolled.h"
 
 BSURF_CLONES
-static int chol_solve8_m(int m, int p, const double *const g4[2], double rel_tol, int want,
+static int ldl_solve8_m(int m, int p, const double *const g4[2], double rel_tol, int want,
                          double *const coef[8]) {
   switch (m) {
-  case 3: return chol_solve8_3(p, g4, rel_tol, want, coef);
-  case 6: return chol_solve8_6(p, g4, rel_tol, want, coef);
-  case 10: return chol_solve8_10(p, g4, rel_tol, want, coef);
-  default: return chol_solve8(m, p, g4, rel_tol, want, coef);
+  case 3: return ldl_solve8_3(p, g4, rel_tol, want, coef);
+  case 6: return ldl_solve8_6(p, g4, rel_tol, want, coef);
+  case 10: return ldl_solve8_10(p, g4, rel_tol, want, coef);
+  default: return ldl_solve8(m, p, g4, rel_tol, want, coef);
   }
 }
 #endif
@@ -428,7 +429,7 @@ void bsurf_localfit_solve_lanes(const bsurf_localfit *lf, int degree, int B, con
     const double *g4[2] = {&lanes[(size_t)b0 * nc], &lanes[(size_t)(b0 + 4 < B ? b0 + 4 : b0) * nc]};
     double *cp[8];
     for (int l = 0; l < 8; l++) cp[l] = &coefs[(size_t)(want & (1 << l) ? b0 + l : b0) * m];
-    int failed = chol_solve8_m(m, lf->p, g4, BSURF_RANK_TOL, want, cp) & want;
+    int failed = ldl_solve8_m(m, lf->p, g4, BSURF_RANK_TOL, want, cp) & want;
     for (int l = 0; l < 8; l++)
       if (failed & (1 << l)) valid[b0 + l] = 0;
 #else
@@ -456,7 +457,7 @@ int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double 
   const int m = bsurf_poly_terms(degree);
   double G[BSURF_PACKED_MAX];
   gram_from_moments(m, row, G);
-  return bsurf_chol_solve_packed(m, G, row + lf->p, BSURF_RANK_TOL, coef);
+  return bsurf_ldl_solve_packed(m, G, row + lf->p, BSURF_RANK_TOL, coef);
 }
 
 int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *counts,
