@@ -241,34 +241,57 @@ static void test_multipass_neighbourhoods(void **state) {
   bsurf_cloud_free(&c);
 }
 
+/* A noisy shape, its K = 30 neighbourhoods and two outputs, for tests that
+ * compare two runs bit for bit. */
+typedef struct twin_runs {
+  bsurf_cloud c;
+  bsurf_neighbors nb;
+  size_t n;
+  double *a, *b;
+} twin_runs;
+
+static void twins_open(twin_runs *t, bsurf_shape shape, size_t n, uint64_t seed, double feature_width,
+                       uint64_t noise_seed) {
+  (void)noisy_shape(&t->c, shape, n, seed, feature_width, 0.5, noise_seed);
+  assert_int_equal(bsurf_neighbors_build(&t->nb, t->c.xyz, t->c.point_count, 30, 2, NULL, NULL), BSURF_OK);
+  t->n = t->c.point_count;
+  t->a = malloc(t->n * 3 * sizeof(double));
+  t->b = malloc(t->n * 3 * sizeof(double));
+}
+
+/* Both outputs equal, and the points moved. */
+static void twins_check(const twin_runs *t) {
+  assert_memory_equal(t->a, t->b, t->n * 3 * sizeof(double));
+  assert_true(max_move(t->c.xyz, t->a, t->n) > 0);
+}
+
+static void twins_close(twin_runs *t) {
+  free(t->a);
+  free(t->b);
+  bsurf_neighbors_free(&t->nb);
+  bsurf_cloud_free(&t->c);
+}
+
 /* 1 thread == 2 threads, bit for bit, for every method and order; and the
  * multipass at degree 4, where the points of small K_i get fits of lower
  * degree (a past bug evaluated those with the degree-4 basis's unset
  * values: no point moved on one thread, and two runs differed). */
 static void test_thread_determinism(void **state) {
   (void)state;
-  bsurf_cloud c;
-  (void)noisy_shape(&c, BSURF_SHAPE_TORUS, 4000, 9, 0, 0.5, 5);
-  bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
-  const size_t n = c.point_count;
-  double *a = malloc(n * 3 * sizeof(double)), *b = malloc(n * 3 * sizeof(double));
+  twin_runs t;
+  twins_open(&t, BSURF_SHAPE_TORUS, 4000, 9, 0, 5);
   for (int m = 0; m < 4; m++)
     for (int order = 0; order < 2; order++) {
       bsurf_smooth_options o = options(methods[m < 3 ? m : 2], 30, m < 3 ? 3 : 4, 20);
       o.order = (bsurf_smooth_order)order;
       o.h2_fraction = 1.0;
       o.error.threads = 1;
-      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, a, NULL, NULL), BSURF_OK);
+      assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.a, NULL, NULL), BSURF_OK);
       o.error.threads = 2;
-      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, b, NULL, NULL), BSURF_OK);
-      assert_memory_equal(a, b, n * 3 * sizeof(double));
-      assert_true(max_move(c.xyz, a, n) > 0);
+      assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.b, NULL, NULL), BSURF_OK);
+      twins_check(&t);
     }
-  free(a);
-  free(b);
-  bsurf_neighbors_free(&nb);
-  bsurf_cloud_free(&c);
+  twins_close(&t);
 }
 
 /* The multipass passes in blocks, pairs in vector lanes, give the bits of
@@ -277,12 +300,8 @@ static void test_thread_determinism(void **state) {
  * one and two threads. */
 static void test_multipass_block_passes(void **state) {
   (void)state;
-  bsurf_cloud c;
-  (void)noisy_shape(&c, BSURF_SHAPE_CUBE, 5000, 4, 2, 0.5, 8);
-  bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
-  const size_t n = c.point_count;
-  double *a = malloc(n * 3 * sizeof(double)), *b = malloc(n * 3 * sizeof(double));
+  twin_runs t;
+  twins_open(&t, BSURF_SHAPE_CUBE, 5000, 4, 2, 8);
   for (int degree = 1; degree <= 3; degree++)
     for (int wide = 0; wide < 2; wide++) {
       bsurf_smooth_options o = options(BSURF_SMOOTH_MULTIPASS, 30, degree, 20);
@@ -290,16 +309,12 @@ static void test_multipass_block_passes(void **state) {
       o.a = wide ? 0.6 : 0.1;
       o.error.threads = 1 + wide;
       bsurf_smooth_block_passes(0);
-      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, a, NULL, NULL), BSURF_OK);
+      assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.a, NULL, NULL), BSURF_OK);
       bsurf_smooth_block_passes(1);
-      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, b, NULL, NULL), BSURF_OK);
-      assert_memory_equal(a, b, n * 3 * sizeof(double));
-      assert_true(max_move(c.xyz, b, n) > 0);
+      assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.b, NULL, NULL), BSURF_OK);
+      twins_check(&t);
     }
-  free(a);
-  free(b);
-  bsurf_neighbors_free(&nb);
-  bsurf_cloud_free(&c);
+  twins_close(&t);
 }
 
 /* The multipass weights' exponential: within 1e-15 relative of libm's exp
