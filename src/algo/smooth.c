@@ -242,7 +242,7 @@ typedef struct smooth_ctx {
   /* multipass passes in blocks (gather_multipass_block): per thread, room
    * for the pairs of any block (mp_cap = the largest block's slot count) */
   size_t mp_cap;
-  uint32_t *mp_idx;   /* threads x mp_cap: the pairs' p */
+  uint32_t *mp_point;   /* threads x mp_cap: the pairs' p */
   size_t *act_off;    /* n + 1: the active lists compacted, point p's at act[act_off[p]] */
   double *mp_val;     /* threads x 4 mp_cap: w, target (3) */
 } smooth_ctx;
@@ -493,7 +493,7 @@ static void mp_pairs(const smooth_ctx *c, const uint32_t *pi, const uint32_t *pp
 static void gather_multipass_block(void *vc, int thread, size_t blk) {
   smooth_ctx *c = vc;
   const size_t p0 = blk * MP_BLOCK, p1 = p0 + MP_BLOCK < c->n ? p0 + MP_BLOCK : c->n;
-  uint32_t *pp = &c->mp_idx[(size_t)thread * c->mp_cap];
+  uint32_t *pp = &c->mp_point[(size_t)thread * c->mp_cap];
   double *w = &c->mp_val[(size_t)thread * 4 * c->mp_cap], *tg = w + c->mp_cap;
   const uint32_t *pi = &c->act[c->act_off[p0]]; /* the block's pairs' i, compacted */
   const size_t np = c->act_off[p1] - c->act_off[p0];
@@ -691,7 +691,7 @@ static void ctx_free(smooth_ctx *c, int T) {
   free(c->act_n);
   free(c->reach2);
   free(c->tmax);
-  free(c->mp_idx);
+  free(c->mp_point);
   free(c->act_off);
   free(c->mp_val);
 }
@@ -876,10 +876,10 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
           const size_t p1 = p0 + MP_BLOCK < n ? p0 + MP_BLOCK : n;
           if (c.rev_off[p1] - c.rev_off[p0] > c.mp_cap) c.mp_cap = c.rev_off[p1] - c.rev_off[p0];
         }
-        c.mp_idx = bsurf_alloc_array((size_t)T * (c.mp_cap ? c.mp_cap : 1), sizeof(uint32_t));
+        c.mp_point = bsurf_alloc_array((size_t)T * (c.mp_cap ? c.mp_cap : 1), sizeof(uint32_t));
         c.mp_val = bsurf_alloc_array((size_t)T * 4 * (c.mp_cap ? c.mp_cap : 1), sizeof(double));
         c.act_off = bsurf_alloc_array(n + 1, sizeof(size_t));
-        if (!c.mp_idx || !c.mp_val || !c.act_off) st = BSURF_ERR_NOMEM;
+        if (!c.mp_point || !c.mp_val || !c.act_off) st = BSURF_ERR_NOMEM;
       }
 #endif
     }
@@ -909,7 +909,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
         if (st == BSURF_OK) {
           for (int t = 0; t < T; t++) c.tmax[8 * t] = 0;
 #ifdef MP_LANES
-          if (c.mp_idx)
+          if (c.mp_point)
             st = bsurf_parallel_sweep_chunk((n + MP_BLOCK - 1) / MP_BLOCK, T, 16, gather_multipass_block, &c);
           else
 #endif
