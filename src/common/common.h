@@ -32,6 +32,10 @@
 /* malloc of n * size bytes with an overflow check; NULL on failure or n == 0. */
 void *bsurf_alloc_array(size_t n, size_t size);
 void *bsurf_calloc_array(size_t n, size_t size);
+/* bsurf_alloc_array on a 64-byte boundary (a cache line), for arrays read
+ * by 32-byte vector loads at multiples of 32 bytes from the start: none of
+ * them then straddles two lines (a split load costs two). free() frees it. */
+void *bsurf_alloc_aligned(size_t n, size_t size);
 
 /* Fills an optional error record (printf-style message). Returns `status`. */
 bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line, long long byte,

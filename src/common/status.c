@@ -40,6 +40,11 @@ void *bsurf_alloc_array(size_t n, size_t size) {
   return malloc(n * size);
 }
 
+void *bsurf_alloc_aligned(size_t n, size_t size) {
+  if (n == 0 || size == 0 || n > ((size_t)-1 - 63) / size) return NULL;
+  return aligned_alloc(64, (n * size + 63) / 64 * 64); /* C11: a multiple of the alignment */
+}
+
 void *bsurf_calloc_array(size_t n, size_t size) {
   if (n == 0 || size == 0 || n > (size_t)-1 / size) return NULL;
   return calloc(n, size);

@@ -99,8 +99,8 @@ bsurf_status bsurf_localfit_alloc(bsurf_localfit *lf, int kmax, int degree_max) 
   lf->u = bsurf_alloc_array((size_t)kmax, 3 * sizeof(double));
   /* phit rows are padded to a multiple of 8 points (zeros) for the
    * register blocks of bsurf_localfit_predict */
-  lf->phit = bsurf_alloc_array((size_t)(kmax + 7) / 8 * 8 * m, sizeof(double));
-  lf->op = bsurf_alloc_array((size_t)kmax * ncols, sizeof(double));
+  lf->phit = bsurf_alloc_aligned((size_t)(kmax + 7) / 8 * 8 * m, sizeof(double));
+  lf->op = bsurf_alloc_aligned((size_t)kmax * ncols, sizeof(double));
   if (!lf->u || !lf->phit || !lf->op) {
     bsurf_localfit_free(lf);
     return BSURF_ERR_NOMEM;
