@@ -118,7 +118,9 @@ int main(int argc, char **argv) {
   bsurf_error_point(xyz, idx, NULL, &o, 0, &s, &out, NULL);
   const bsurf_localfit *lf = &s.lf;
   const int nc = lf->ncols;
-  const double f_gemm = 2.0 * R * K * nc, f_ldl = B * ldl_flops(m);
+  /* the dense product counts a multiply and an add per weight; the draws'
+   * sums (what bsurf_error_point runs) one add per draw, plus row B */
+  const double f_gemm = 2.0 * R * K * nc, f_draws = (B + 1.0) * K * nc, f_ldl = B * ldl_flops(m);
   const double f_resid = (double)B * K * (2.0 * m + 5);
   const double f_setup = K * (15.0 + bsurf_poly_terms(2 * D) + m);
   size_t calls = 0;
@@ -126,15 +128,28 @@ int main(int argc, char **argv) {
   while (now() - t0 < budget)
     for (int r = 0; r < 100; r++, calls++) bsurf_error_point(xyz, idx, NULL, &o, 0, &s, &out, NULL);
   timing whole = {"bsurf_error_point (all of it)", (now() - t0) / (double)calls,
-                  f_gemm + f_ldl + f_resid + f_setup};
+                  f_draws + f_ldl + f_resid + f_setup};
 
-  /* each kernel alone, on the state the last point left */
+  /* each kernel alone, on the state the last point left; the dense
+   * product (normals with PCA, tests) on that point's counts as weights */
+  double *W = calloc((size_t)R * K, sizeof(double));
+  if (!W) return 1;
+  for (int b = 0; b <= B; b++)
+    for (int j = 0; j < K; j++) W[(size_t)b * K + j] = b < B ? s.counts[(size_t)b * K + j] : 1.0;
   timing t_gemm = {"normal equations (gemm_lanes)", 0, f_gemm};
   calls = 0;
   t0 = now();
   while (now() - t0 < budget)
-    for (int r = 0; r < 100; r++, calls++) bsurf_localfit_normal_eq_lanes(lf, R, s.weights, s.rows);
+    for (int r = 0; r < 100; r++, calls++) bsurf_localfit_normal_eq_lanes(lf, R, W, s.rows);
   t_gemm.seconds_per_call = (now() - t0) / (double)calls;
+
+  /* the error pass's product: one add per draw and column (half the flop) */
+  timing t_draws = {"normal equations from draws", 0, f_draws};
+  calls = 0;
+  t0 = now();
+  while (now() - t0 < budget)
+    for (int r = 0; r < 100; r++, calls++) bsurf_localfit_normal_eq_draws(lf, B, s.draws, s.rows);
+  t_draws.seconds_per_call = (now() - t0) / (double)calls;
 
   timing t_ldl = {"LDL^T solves (solve_lanes)", 0, f_ldl};
   unsigned char *valid = malloc((size_t)B);
@@ -153,15 +168,15 @@ int main(int argc, char **argv) {
   t0 = now();
   while (now() - t0 < budget)
     for (int r = 0; r < 100; r++, calls++)
-      bsurf_localfit_residual_sums(lf, D, B, s.coefs, valid, s.weights, sums, sums + K, sums + 2 * K);
+      bsurf_localfit_residual_sums(lf, D, B, s.coefs, valid, s.counts, sums, sums + K, sums + 2 * K);
   t_res.seconds_per_call = (now() - t0) / (double)calls;
 
-  timing t_counts = {"resampling (counts4 + weights)", 0, 0};
+  timing t_counts = {"resampling (counts + draws)", 0, 0};
   calls = 0;
   t0 = now();
   while (now() - t0 < budget)
     for (int r = 0; r < 100; r++, calls++)
-      bsurf_boot_weight_rows(1, calls, B, K, m, s.counts, s.weights, NULL, valid);
+      bsurf_boot_draw_rows(1, calls, B, K, m, s.counts, s.draws, valid);
   t_counts.seconds_per_call = (now() - t0) / (double)calls;
 
   printf("bench_kernel: K=%d B=%d degree=%d (m=%d terms, %d normal-equation columns, %d rows)\n", K, B, D,
@@ -170,6 +185,7 @@ int main(int argc, char **argv) {
          16e-9 * hz);
   report(&whole, hz);
   report(&t_gemm, hz);
+  report(&t_draws, hz);
   report(&t_ldl, hz);
   report(&t_res, hz);
   printf("  %-34s %10.3f us (%d draws, integer work)\n", t_counts.name, 1e6 * t_counts.seconds_per_call,
@@ -178,6 +194,7 @@ int main(int argc, char **argv) {
          1.0 / whole.seconds_per_call);
   free(sums);
   free(valid);
+  free(W);
   bsurf_error_scratch_free(&s);
   free(xyz);
   free(idx);

@@ -175,7 +175,7 @@ static int scalar_rejections(uint64_t seed, uint64_t point, uint32_t rep, int k)
 
 static void test_counts4_equal_scalar(void **state) {
   (void)state;
-  static uint16_t four[4 * 60000], one[60000];
+  static uint16_t four[4 * 60000], one[60000], draws[4 * 60000], hist[60000];
   /* the lane fallback is exercised: every k = 60000 replicate below meets a
    * rejection, some but not all of the k = 300 ones do */
   int rejections = 0, kept = 0;
@@ -191,10 +191,22 @@ static void test_counts4_equal_scalar(void **state) {
     const int k = ks[t];
     for (uint32_t b0 = 0; b0 < 12; b0 += 4)
       for (int nrep = 1; nrep <= 4; nrep++) {
-        bsurf_boot_counts4(5, 77 + b0, b0, nrep, k, four);
+        bsurf_boot_counts4(5, 77 + b0, b0, nrep, k, four, NULL);
         for (int l = 0; l < nrep; l++) {
           bsurf_boot_counts(5, 77 + b0, b0 + (uint32_t)l, k, one);
           assert_memory_equal(one, four + (size_t)l * k, (size_t)k * sizeof *one);
+        }
+        /* with the draws: the same counts, and the draws' histogram is them */
+        bsurf_boot_counts4(5, 77 + b0, b0, nrep, k, four, draws);
+        for (int l = 0; l < nrep; l++) {
+          bsurf_boot_counts(5, 77 + b0, b0 + (uint32_t)l, k, one);
+          assert_memory_equal(one, four + (size_t)l * k, (size_t)k * sizeof *one);
+          memset(hist, 0, (size_t)k * sizeof *hist);
+          for (int t = 0; t < k; t++) {
+            assert_true(draws[(size_t)l * k + t] < k);
+            hist[draws[(size_t)l * k + t]]++;
+          }
+          assert_memory_equal(one, hist, (size_t)k * sizeof *one);
         }
       }
   }

@@ -188,7 +188,8 @@ static void test_residual_sums_equal_plain(void **state) {
   identity_frame(&f);
   bsurf_localfit lf;
   assert_int_equal(bsurf_localfit_alloc(&lf, KMAX, 4), BSURF_OK);
-  double coef[BMAX * 15], weights[BMAX * KMAX], got[3][KMAX], want[3][KMAX];
+  double coef[BMAX * 15], got[3][KMAX], want[3][KMAX];
+  uint16_t counts[BMAX * KMAX];
   unsigned char valid[BMAX];
   int cases = 0;
   for (size_t ik = 0; ik < sizeof ks / sizeof *ks; ik++)
@@ -200,18 +201,18 @@ static void test_residual_sums_equal_plain(void **state) {
         for (int mask = 0; mask < 3; mask++) {
           const int B = Bs[ib];
           for (int i = 0; i < B * m; i++) coef[i] = bsurf_rng_uniform(&rng) * 2 - 1;
-          for (int i = 0; i < B * k; i++) weights[i] = (double)(bsurf_rng_next(&rng) % 3);
+          for (int i = 0; i < B * k; i++) counts[i] = (uint16_t)(bsurf_rng_next(&rng) % 3);
           /* none, every third, or one in the middle invalid */
           for (int b = 0; b < B; b++) valid[b] = mask == 1 ? b % 3 != 1 : mask == 2 ? b != B / 2 : 1;
           const unsigned char *v = mask ? valid : NULL;
-          bsurf_localfit_residual_sums(&lf, M, B, coef, v, weights, got[0], got[1], got[2]);
+          bsurf_localfit_residual_sums(&lf, M, B, coef, v, counts, got[0], got[1], got[2]);
           for (int j = 0; j < k; j++) {
             double s = 0, o = 0, c = 0;
             for (int b = 0; b < B; b++) {
               if (v && !v[b]) continue;
               double p = 0;
               for (int a = 0; a < m; a++) p += coef[b * m + a] * lf.phit[(size_t)a * lf.kp + j];
-              const double e = fabs(p - lf.z[j]), w = weights[b * k + j] == 0 ? 1.0 : 0.0;
+              const double e = fabs(p - lf.z[j]), w = counts[b * k + j] == 0 ? 1.0 : 0.0;
               s += e;
               o += w * e;
               c += w;
@@ -228,6 +229,21 @@ static void test_residual_sums_equal_plain(void **state) {
   bsurf_localfit_free(&lf);
 }
 
+/* K random points of a flat patch (|z| <= 0.1, x and y in [-1, 1]) from
+ * the stream (seed, 2, 3), the identity frame, and a fit allocated for K
+ * points up to degree 4; rng continues the stream. */
+static void flat_patch(uint64_t seed, int K, double *xyz, uint32_t *idx, bsurf_rng *rng,
+                       bsurf_frame *f, bsurf_localfit *lf) {
+  bsurf_rng_init(rng, seed, 2, 3);
+  for (int j = 0; j < K; j++) {
+    for (int t = 0; t < 3; t++) xyz[3 * j + t] = bsurf_rng_uniform(rng) * 2 - 1;
+    xyz[3 * j + 2] *= 0.1;
+    idx[j] = (uint32_t)j;
+  }
+  identity_frame(f);
+  assert_int_equal(bsurf_localfit_alloc(lf, K, 4), BSURF_OK);
+}
+
 /* The normal equations of many weighted fits as one matrix product in
  * vector lanes (the bootstrap's path) give the same bits as the row
  * product and as one fit at a time, and the lane solver the same
@@ -238,16 +254,9 @@ static void test_lanes_equal_rows(void **state) {
   double xyz[3 * K];
   uint32_t idx[K];
   bsurf_rng rng;
-  bsurf_rng_init(&rng, 11, 2, 3);
-  for (int j = 0; j < K; j++) {
-    for (int t = 0; t < 3; t++) xyz[3 * j + t] = bsurf_rng_uniform(&rng) * 2 - 1;
-    xyz[3 * j + 2] *= 0.1;
-    idx[j] = (uint32_t)j;
-  }
   bsurf_frame f;
-  identity_frame(&f);
   bsurf_localfit lf;
-  assert_int_equal(bsurf_localfit_alloc(&lf, K, 4), BSURF_OK);
+  flat_patch(11, K, xyz, idx, &rng, &f, &lf);
   for (int D = 1; D <= 4; D++) {
     bsurf_localfit_setup(&lf, xyz, idx, K, &f, D);
     const int nc = lf.ncols, m = bsurf_poly_terms(D);
@@ -278,6 +287,64 @@ static void test_lanes_equal_rows(void **state) {
     }
     assert_int_equal(valid[5], 0);
   }
+  bsurf_localfit_free(&lf);
+}
+
+/* The normal equations from draws (the bootstrap's path): each row is the
+ * sum of the drawn rows of A in the order drawn, bit for bit what a plain
+ * loop gives; row B is the dense product's with weights 1, bit for bit;
+ * the rows past B are zero; and every row equals the dense product of the
+ * draws' counts up to rounding. For every degree (column counts 16, 24, 40,
+ * 64), odd and even B and k, and k below 8. */
+static void test_draw_sums(void **state) {
+  (void)state;
+  enum { KMAX = 53, BMAX = 9 };
+  double xyz[3 * KMAX];
+  uint32_t idx[KMAX];
+  bsurf_rng rng;
+  bsurf_frame f;
+  bsurf_localfit lf;
+  flat_patch(12, KMAX, xyz, idx, &rng, &f, &lf);
+  const int ks[] = {5, 37, 53}, Bs[] = {1, 6, 7, 8, 9};
+  for (int D = 1; D <= 4; D++)
+    for (size_t ik = 0; ik < sizeof ks / sizeof ks[0]; ik++)
+      for (size_t ib = 0; ib < sizeof Bs / sizeof Bs[0]; ib++) {
+        const int K = ks[ik], B = Bs[ib], R = (B + 4) / 4 * 4;
+        bsurf_localfit_setup(&lf, xyz, idx, K, &f, D);
+        const int nc = lf.ncols;
+        uint16_t draws[BMAX * KMAX];
+        double W[(BMAX + 4) * KMAX], lanes[(BMAX + 4) * 64], dense[(BMAX + 4) * 64], row[64];
+        for (int b = 0; b < R; b++)
+          for (int j = 0; j < K; j++) W[b * K + j] = b == B ? 1.0 : 0.0;
+        for (int b = 0; b < B; b++)
+          for (int t = 0; t < K; t++) {
+            const uint16_t j = (uint16_t)(bsurf_rng_next(&rng) % (uint64_t)K);
+            draws[b * K + t] = j;
+            W[b * K + j] += 1.0;
+          }
+        bsurf_draw_sums_lanes(B, K, nc, draws, lf.op, lanes);
+        bsurf_gemm_lanes(R, K, nc, W, lf.op, dense);
+        for (int b = 0; b < R; b++) {
+          bsurf_lanes_row(nc, lanes, b, row);
+          double ref[64], dref[64];
+          bsurf_lanes_row(nc, dense, b, dref);
+          for (int c = 0; c < nc; c++) {
+            double x = 0;
+            if (b < B)
+              for (int t = 0; t < K; t++) x += lf.op[(size_t)draws[b * K + t] * nc + c];
+            ref[c] = x;
+            if (b < B) {
+              double mag = 0;
+              for (int j = 0; j < K; j++) mag += W[b * K + j] * fabs(lf.op[(size_t)j * nc + c]);
+              assert_true(fabs(row[c] - dref[c]) <= 1e-14 * mag);
+            }
+          }
+          if (b < B)
+            assert_memory_equal(row, ref, (size_t)nc * sizeof *row);
+          else /* the whole neighbourhood, and zero rows */
+            assert_memory_equal(row, dref, (size_t)nc * sizeof *row);
+        }
+      }
   bsurf_localfit_free(&lf);
 }
 
@@ -370,6 +437,7 @@ int main(void) {
       cmocka_unit_test(test_poly_exact_recovery),
       cmocka_unit_test(test_rank_deficient_detected),
       cmocka_unit_test(test_lanes_equal_rows),
+      cmocka_unit_test(test_draw_sums),
       cmocka_unit_test(test_residual_sums_equal_plain),
       cmocka_unit_test(test_pca_noisy_plane),
   };

@@ -13,11 +13,11 @@ typedef struct bsurf_error_scratch {
   bsurf_localfit lf;
   double *pred_full; /* k */
   double *pred_boot; /* B x k */
-  uint16_t *counts;  /* 4 x k: four replicates' multiplicities */
-  double *weights;   /* R x k, R = B + 1 rounded up to 4: counts as doubles,
-                        row B all ones (the full fit), then zero rows */
+  uint16_t *counts;  /* B x k: the replicates' multiplicities */
   double *missing;   /* B x k: 1 where the point is not in the replicate */
-  double *rows;      /* R x ncols: normal equations (bsurf_gemm_lanes layout) */
+  uint16_t *draws;   /* B x k: each replicate's indices in the order drawn */
+  double *rows;      /* R x ncols, R = B + 1 rounded up to 4: normal
+                        equations (bsurf_gemm_lanes layout), row B the full fit */
   double *coefs;     /* B x terms */
   unsigned char *valid; /* B */
   double *est_scratch;  /* 6k + 1 */

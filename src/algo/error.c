@@ -45,8 +45,8 @@ void bsurf_error_scratch_free(bsurf_error_scratch *s) {
   free(s->pred_full);
   free(s->pred_boot);
   free(s->counts);
-  free(s->weights);
   free(s->missing);
+  free(s->draws);
   free(s->rows);
   free(s->coefs);
   free(s->valid);
@@ -63,14 +63,14 @@ bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int
   size_t nr = (size_t)bsurf_boot_rows(B);
   s->pred_full = bsurf_alloc_array((size_t)k, sizeof(double));
   s->pred_boot = bsurf_alloc_array(nb * k, sizeof(double));
-  s->counts = bsurf_alloc_array(4 * (size_t)k, sizeof(uint16_t));
-  s->weights = bsurf_alloc_array(nr * k, sizeof(double));
+  s->counts = bsurf_alloc_array(nb * k, sizeof(uint16_t));
   s->missing = bsurf_alloc_array(nb * k, sizeof(double));
-  s->rows = bsurf_alloc_array(nr * BSURF_NCOLS_MAX, sizeof(double));
-  s->coefs = bsurf_alloc_array(nb * BSURF_TERMS_MAX, sizeof(double));
+  s->draws = bsurf_alloc_array(nb * k, sizeof(uint16_t));
+  s->rows = bsurf_alloc_aligned(nr * BSURF_NCOLS_MAX, sizeof(double));
+  s->coefs = bsurf_alloc_aligned(nb * BSURF_TERMS_MAX, sizeof(double));
   s->valid = bsurf_alloc_array(nb, 1);
   s->est_scratch = bsurf_alloc_array(6 * (size_t)k + 1, sizeof(double));
-  if (!s->pred_full || !s->pred_boot || !s->counts || !s->weights || !s->missing || !s->rows || !s->coefs ||
+  if (!s->pred_full || !s->pred_boot || !s->counts || !s->missing || !s->draws || !s->rows || !s->coefs ||
       !s->valid || !s->est_scratch) {
     bsurf_error_scratch_free(s);
     return BSURF_ERR_NOMEM;
@@ -92,16 +92,12 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
   bsurf_localfit_setup(lf, xyz, idx, k, &frame, o->degree);
 
   /* The normal equations of the B resamples (4.1.1) and of the fit to the
-   * whole neighbourhood (row B, every weight 1) are one matrix product; then
-   * one small solve each. */
+   * whole neighbourhood (row B, every weight 1): sums of the per-neighbour
+   * terms picked by each replicate's draws; then one small solve each. */
   /* fewer distinct points than terms: singular */
-  /* the rows of points left out (b in C_j) are needed as an array only by
-   * the estimators of gamma mean / max; the residual sums form them from
-   * the weights */
-  double *missing = o->gamma == BSURF_GAMMA_FIT ? NULL : s->missing;
-  bsurf_boot_weight_rows(o->seed, o->point_index ? o->point_index[i] : i, B, k,
-                         bsurf_poly_terms(o->degree), s->counts, s->weights, missing, s->valid);
-  bsurf_localfit_normal_eq_lanes(lf, bsurf_boot_rows(B), s->weights, s->rows);
+  bsurf_boot_draw_rows(o->seed, o->point_index ? o->point_index[i] : i, B, k,
+                       bsurf_poly_terms(o->degree), s->counts, s->draws, s->valid);
+  bsurf_localfit_normal_eq_draws(lf, B, s->draws, s->rows);
 
   double coef[BSURF_TERMS_MAX], row[BSURF_NCOLS_MAX];
   bsurf_lanes_row(lf->ncols, s->rows, B, row);
@@ -115,7 +111,7 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
   if (degree != o->degree) /* a lower degree needs fewer distinct points */
     for (int b = 0; b < B; b++) {
       int distinct = 0;
-      for (int j = 0; j < k; j++) distinct += s->weights[(size_t)b * k + j] != 0;
+      for (int j = 0; j < k; j++) distinct += s->counts[(size_t)b * k + j] != 0;
       s->valid[b] = distinct >= m;
     }
   bsurf_localfit_solve_lanes(lf, degree, B, s->rows, s->valid, s->coefs);
@@ -127,14 +123,16 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
      * (Eqs. 4.3, 4.4): summed as the predictions are made, never stored */
     double *sums = s->est_scratch + 3 * (size_t)k + 1;
     double *boot_j = sums, *loo_sum = sums + k, *loo_cnt = sums + 2 * (size_t)k;
-    bsurf_localfit_residual_sums(lf, degree, B, s->coefs, s->valid, s->weights, boot_j, loo_sum,
+    bsurf_localfit_residual_sums(lf, degree, B, s->coefs, s->valid, s->counts, boot_j, loo_sum,
                                  loo_cnt);
     int nvalid = 0;
     for (int b = 0; b < B; b++) nvalid += s->valid[b];
     bsurf_boot_estimate_sums(k, nvalid, lf->z, s->pred_full, boot_j, loo_sum, loo_cnt, 0, 0,
                              o->gamma, s->est_scratch, &r);
   } else {
-    /* mean or max of Eq. 4.10 over the replicates: every prediction */
+    /* mean or max of Eq. 4.10 over the replicates: every prediction, and
+     * the rows of points left out (b in C_j) as an array */
+    for (size_t t = 0; t < (size_t)B * k; t++) s->missing[t] = s->counts[t] == 0;
     bsurf_localfit_predict(lf, degree, B, s->coefs, s->valid, s->pred_boot);
     bsurf_boot_estimate(k, B, lf->z, s->pred_full, s->pred_boot, s->missing, s->valid, o->gamma,
                         s->est_scratch, &r);

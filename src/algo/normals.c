@@ -60,6 +60,7 @@ typedef struct normal_scratch {
   double *rows;    /* the same count x max(PCA_COLS, ncols): PCA rows, or the fits' lanes */
   double *coefs;   /* (B + 1) x terms */
   uint16_t *counts; /* 4 x k */
+  uint16_t *draws;  /* B x k: each replicate's indices in the order drawn */
   unsigned char *valid; /* B */
   double *bn;      /* B x 3 bootstrap normals */
   size_t skipped, reduced, degenerate;
@@ -72,6 +73,7 @@ static void scratch_free(normal_scratch *s) {
   free(s->rows);
   free(s->coefs);
   free(s->counts);
+  free(s->draws);
   free(s->valid);
   free(s->bn);
   memset(s, 0, sizeof *s);
@@ -84,12 +86,13 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
   size_t nb = (size_t)bsurf_boot_rows(B);
   s->terms = bsurf_alloc_array((size_t)k, PCA_COLS * sizeof(double));
   s->weights = bsurf_alloc_array(nb * k, sizeof(double));
-  s->rows = bsurf_alloc_array(nb, BSURF_NCOLS_MAX * sizeof(double));
-  s->coefs = bsurf_alloc_array(nb, BSURF_TERMS_MAX * sizeof(double));
+  s->rows = bsurf_alloc_aligned(nb, BSURF_NCOLS_MAX * sizeof(double));
+  s->coefs = bsurf_alloc_aligned(nb, BSURF_TERMS_MAX * sizeof(double));
   s->counts = bsurf_alloc_array(4 * (size_t)k, sizeof(uint16_t));
+  s->draws = bsurf_alloc_array(nb * k, sizeof(uint16_t));
   s->valid = bsurf_alloc_array(nb, 1);
   s->bn = bsurf_alloc_array(nb, 3 * sizeof(double));
-  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->valid || !s->bn) {
+  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws || !s->valid || !s->bn) {
     scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -133,16 +136,18 @@ static void normals_point(void *vctx, int thread, size_t i) {
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const double *xyz = c->xyz;
 
-  /* multiplicities of the B resamples as weights; row B is the whole P */
+  /* the B resamples: for PCA their multiplicities as weights (row B is the
+   * whole P), for a polynomial their draws */
+  const int pca = o->fit == BSURF_NORMAL_PCA;
   double *W = s->weights;
   bsurf_boot_weight_rows(o->seed, o->point_index ? o->point_index[i] : i, B, k,
-                         o->fit == BSURF_NORMAL_PCA ? 3 : bsurf_poly_terms(o->degree), s->counts, W, NULL,
-                         s->valid);
+                         pca ? 3 : bsurf_poly_terms(o->degree), s->counts, pca ? W : NULL, NULL,
+                         s->valid, pca ? NULL : s->draws);
 
   double nP[3];
   bsurf_frame frame;
   int degree = o->degree;
-  if (o->fit == BSURF_NORMAL_PCA) {
+  if (pca) {
     const double *d = &xyz[3 * (size_t)idx[0]];
     for (int j = 0; j < k; j++) {
       const double *p = &xyz[3 * (size_t)idx[j]];
@@ -169,8 +174,8 @@ static void normals_point(void *vctx, int thread, size_t i) {
     if (!(frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2])) s->degenerate++;
     bsurf_localfit *lf = &s->lf;
     bsurf_localfit_setup(lf, xyz, idx, k, &frame, o->degree);
-    /* as lanes: four solves at a time (same sums, same bits as row by row) */
-    bsurf_localfit_normal_eq_lanes(lf, bsurf_boot_rows(B), W, s->rows);
+    /* as lanes: four solves at a time (same bits as row by row) */
+    bsurf_localfit_normal_eq_draws(lf, B, s->draws, s->rows);
     double row[BSURF_NCOLS_MAX];
     bsurf_lanes_row(lf->ncols, s->rows, B, row);
     while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, s->coefs) != 0) degree--;

@@ -17,8 +17,10 @@
  * which draw a replacement stands for). */
 static uint32_t chunk_threshold(int k) { return 65536u % (uint32_t)k; }
 
-/* The replacements of `rejected` draws, continuing the stream rng. */
-static void boot_replace(bsurf_rng *rng, int k, int rejected, uint16_t *counts) {
+/* The replacements of `rejected` draws, continuing the stream rng; the
+ * indices drawn are appended at draws[n..] (draws may be NULL). */
+static void boot_replace(bsurf_rng *rng, int k, int rejected, uint16_t *counts, uint16_t *draws,
+                         int n) {
   const uint32_t threshold = chunk_threshold(k);
   while (rejected > 0) {
     const uint64_t x = bsurf_rng_next(rng);
@@ -26,29 +28,39 @@ static void boot_replace(bsurf_rng *rng, int k, int rejected, uint16_t *counts) 
       const uint32_t m = (uint32_t)(x >> (16 * c) & 0xffffu) * (uint32_t)k;
       if ((m & 0xffffu) < threshold) continue;
       counts[m >> 16]++;
+      if (draws) draws[n++] = (uint16_t)(m >> 16);
       rejected--;
     }
   }
 }
 
-void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
-                       uint16_t *counts) {
+/* bsurf_boot_counts, and the k indices in the order drawn (draws may be
+ * NULL): the accepted chunks among the first k, then the replacements. */
+static void boot_counts_draws(uint64_t seed, uint64_t point, uint32_t replicate, int k,
+                              uint16_t *counts, uint16_t *draws) {
   bsurf_rng rng;
   bsurf_rng_init(&rng, seed, point, replicate);
   memset(counts, 0, (size_t)k * sizeof *counts);
   const uint32_t threshold = chunk_threshold(k);
-  int rejected = 0;
+  int rejected = 0, n = 0;
   for (int t = 0; t < k; t += 4) {
     const uint64_t x = bsurf_rng_next(&rng);
     for (int c = 0; c < 4 && t + c < k; c++) {
       const uint32_t m = (uint32_t)(x >> (16 * c) & 0xffffu) * (uint32_t)k;
-      if ((m & 0xffffu) < threshold)
+      if ((m & 0xffffu) < threshold) {
         rejected++;
-      else
+      } else {
         counts[m >> 16]++;
+        if (draws) draws[n++] = (uint16_t)(m >> 16);
+      }
     }
   }
-  boot_replace(&rng, k, rejected, counts);
+  boot_replace(&rng, k, rejected, counts, draws, n);
+}
+
+void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
+                       uint16_t *counts) {
+  boot_counts_draws(seed, point, replicate, k, counts, NULL);
 }
 
 #if defined(__GNUC__)
@@ -61,7 +73,7 @@ typedef uint32_t v8u __attribute__((vector_size(32)));
 
 BSURF_CLONES
 void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
-                        uint16_t *counts) {
+                        uint16_t *counts, uint16_t *draws) {
 #if defined(__GNUC__)
   if (nrep == 4) {
     /* The streams of four replicates side by side in vector lanes; each
@@ -78,6 +90,9 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
     v4u s3 = {r[0].s[3], r[1].s[3], r[2].s[3], r[3].s[3]};
     memset(counts, 0, 4 * (size_t)k * sizeof *counts);
     uint16_t *const c[4] = {counts, counts + k, counts + 2 * (size_t)k, counts + 3 * (size_t)k};
+    uint16_t *d[4] = {NULL, NULL, NULL, NULL};
+    if (draws)
+      for (int l = 0; l < 4; l++) d[l] = draws + l * (size_t)k;
     const uint32_t kk = (uint32_t)k, th = chunk_threshold(k), f = 0xffffu;
     const v8u K = {kk, kk, kk, kk, kk, kk, kk, kk}, thr = {th, th, th, th, th, th, th, th};
     const v8u lo = {f, f, f, f, f, f, f, f};
@@ -105,32 +120,44 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
           c[l][u >> 16 & 0xffffu]++;
           c[l][u >> 32 & 0xffffu]++;
           c[l][u >> 48]++;
+          if (draws) {
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+            memcpy(&d[l][t], &u, sizeof u); /* the four in chunk order */
+#else
+            for (int ch = 0; ch < 4; ch++) d[l][t + ch] = (uint16_t)(u >> (16 * ch) & 0xffffu);
+#endif
+          }
         }
       } else { /* the first k - t chunks */
         for (int l = 0; l < 4; l++)
-          for (int ch = 0; ch < k - t; ch++) c[l][idx[l] >> (16 * ch) & 0xffffu]++;
+          for (int ch = 0; ch < k - t; ch++) {
+            const uint16_t j = (uint16_t)(idx[l] >> (16 * ch) & 0xffffu);
+            c[l][j]++;
+            if (draws) d[l][t + ch] = j;
+          }
       }
     }
     for (int l = 0; l < 4; l++)
       if (reject[2 * l] | reject[2 * l + 1])
-        bsurf_boot_counts(seed, point, replicate + (uint32_t)l, k, c[l]);
+        boot_counts_draws(seed, point, replicate + (uint32_t)l, k, c[l], draws ? d[l] : NULL);
     return;
   }
 #endif
   for (int l = 0; l < nrep; l++)
-    bsurf_boot_counts(seed, point, replicate + (uint32_t)l, k, counts + l * (size_t)k);
+    boot_counts_draws(seed, point, replicate + (uint32_t)l, k, counts + l * (size_t)k,
+                      draws ? draws + l * (size_t)k : NULL);
 }
 
-/* A replicate's multiplicities as fit weights (w) and, if missing is not
- * NULL, 1.0 where a point was not drawn; the number of distinct points. */
+/* A replicate's multiplicities as fit weights (w, may be NULL) and, if
+ * missing is not NULL, 1.0 where a point was not drawn; the number of
+ * distinct points. */
 BSURF_CLONES
 static int boot_weights(int k, const uint16_t *restrict counts, double *restrict w,
                         double *restrict missing) {
   int distinct = 0;
-  for (int j = 0; j < k; j++) {
-    w[j] = counts[j];
-    distinct += counts[j] != 0;
-  }
+  for (int j = 0; j < k; j++) distinct += counts[j] != 0;
+  if (w)
+    for (int j = 0; j < k; j++) w[j] = counts[j];
   if (missing)
     for (int j = 0; j < k; j++) missing[j] = counts[j] == 0;
   return distinct;
@@ -139,14 +166,28 @@ static int boot_weights(int k, const uint16_t *restrict counts, double *restrict
 int bsurf_boot_rows(int B) { return (B + 1 + 3) / 4 * 4; }
 
 void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
-                            uint16_t *counts, double *W, double *missing, unsigned char *valid) {
+                            uint16_t *counts, double *W, double *missing, unsigned char *valid,
+                            uint16_t *draws) {
   for (int b0 = 0; b0 < B; b0 += 4) {
     const int nrep = B - b0 < 4 ? B - b0 : 4;
-    bsurf_boot_counts4(seed, point, (uint32_t)b0, nrep, k, counts);
+    bsurf_boot_counts4(seed, point, (uint32_t)b0, nrep, k, counts,
+                       draws ? &draws[(size_t)b0 * k] : NULL);
     for (int b = b0; b < b0 + nrep; b++)
-      valid[b] = boot_weights(k, &counts[(size_t)(b - b0) * k], &W[(size_t)b * k],
+      valid[b] = boot_weights(k, &counts[(size_t)(b - b0) * k], W ? &W[(size_t)b * k] : NULL,
                               missing ? &missing[(size_t)b * k] : NULL) >= min_distinct;
   }
+  if (!W) return;
   for (int j = 0; j < k; j++) W[(size_t)B * k + j] = 1.0;
   for (size_t t = (size_t)(B + 1) * k; t < (size_t)bsurf_boot_rows(B) * k; t++) W[t] = 0.0;
+}
+
+void bsurf_boot_draw_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
+                          uint16_t *counts, uint16_t *draws, unsigned char *valid) {
+  for (int b0 = 0; b0 < B; b0 += 4) {
+    const int nrep = B - b0 < 4 ? B - b0 : 4;
+    bsurf_boot_counts4(seed, point, (uint32_t)b0, nrep, k, &counts[(size_t)b0 * k],
+                       &draws[(size_t)b0 * k]);
+    for (int b = b0; b < b0 + nrep; b++)
+      valid[b] = boot_weights(k, &counts[(size_t)b * k], NULL, NULL) >= min_distinct;
+  }
 }

@@ -82,6 +82,14 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
  * out[(r / 4) * 4 nc + 4 c + r % 4], the layout of four LDL^T solves
  * in vector lanes. Same sums, in the same order, as bsurf_gemm_rows. */
 void bsurf_gemm_lanes(int R, int k, int nc, const double *W, const double *A, double *out);
+/* The same product for integer weights given as draws: row b < B of out
+ * (bsurf_boot_rows(B) rows, the lanes layout above) is the sum of the rows
+ * A[draws[b k + t]], t = 0..k-1 in that order (so the count of j times
+ * A[j], up to rounding); row B the sum of all k rows in order j = 0..k-1
+ * (the bits of bsurf_gemm_lanes with weights 1); the rest zero. Needs
+ * nc <= BSURF_NCOLS_MAX, a multiple of 8. */
+void bsurf_draw_sums_lanes(int B, int k, int nc, const uint16_t *draws, const double *A,
+                           double *out);
 /* Row r of a bsurf_gemm_lanes result, contiguous (nc entries). */
 void bsurf_lanes_row(int nc, const double *lanes, int r, double *row);
 
@@ -91,6 +99,13 @@ void bsurf_lanes_row(int nc, const double *lanes, int r, double *row);
  * (W: R x k, row-major). The sum over the points runs in index order, so a
  * row equals what a point-by-point sum gives. */
 void bsurf_localfit_normal_eq_lanes(const bsurf_localfit *lf, int R, const double *W,
+                                    double *lanes);
+
+/* The normal equations of B resamples given by their draws
+ * (bsurf_boot_weight_rows) and of the whole neighbourhood (row B), as
+ * bsurf_localfit_normal_eq_lanes gives them for the weight rows up to the
+ * order of the sums (bsurf_draw_sums_lanes): bsurf_boot_rows(B) rows. */
+void bsurf_localfit_normal_eq_draws(const bsurf_localfit *lf, int B, const uint16_t *draws,
                                     double *lanes);
 
 /* Solves one row (bsurf_lanes_row) of bsurf_localfit_normal_eq_lanes for a fit of degree `degree`
@@ -122,13 +137,13 @@ void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const d
  * may be NULL), the absolute residuals e_bj = |f_b(x_j) - z_j| at the k
  * neighbourhood points, summed over b in increasing order: all[j] = sum_b
  * e_bj, out[j] = sum_b w_bj e_bj and cnt[j] = sum_b w_bj, with w_bj = 1 where
- * weights[b k + j] = 0 and 0 elsewhere (weights: B x k, the replicates'
+ * counts[b k + j] = 0 and 0 elsewhere (counts: B x k, the replicates'
  * multiplicities: w is the bootstrap's b in C_j, the `missing` rows of
  * bsurf_boot_weight_rows, formed in registers instead of read). The
  * predictions are those of bsurf_localfit_predict and the sums those of
  * bsurf_boot_estimate (same bits), without storing the B x k predictions. */
 void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, const double *coef,
-                                  const unsigned char *valid, const double *weights, double *all,
+                                  const unsigned char *valid, const uint16_t *counts, double *all,
                                   double *out, double *cnt);
 
 /* The unit normal (global coordinates, Eq. 5.9 rotated back by Eq. 3.6) of

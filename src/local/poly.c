@@ -332,6 +332,144 @@ void bsurf_lanes_row(int nc, const double *lanes, int r, double *row) {
   for (int c = 0; c < nc; c++) row[c] = g[(size_t)c * 4 + r % 4];
 }
 
+/* Normal equations from the draws (thesis 4.1.2, Eq. 3.9 on a resample):
+ * sum_j c_bj a_j, c_bj the number of times replicate b drew point j, is
+ * the sum of the k rows a_{d_b1} + ... + a_{d_bk} picked by its draws. One
+ * add per draw and column where the dense product has a multiply and an
+ * add per point. On a core whose multiplies and adds issue on separate
+ * pipes (AMD Zen) both run at about the same speed, bound by the loads
+ * (docs/performance.md, fourth round); what the draws save is the weights:
+ * no B x k doubles to write and read, so the per-point working set shrinks
+ * by a fifth and the residual sums read 16-bit counts. The terms are added
+ * in the order drawn, so the sums' last bits differ from
+ * bsurf_gemm_lanes's (same terms, another order). */
+#ifdef HAVE_V4D
+#define DRAW_VMAX 10 /* accumulators per pass: 40 columns (a cubic's) */
+
+/* acc[h][0..NV-1] += columns c0 .. c0 + 4 NV - 1 of A's rows idx[h][t]
+ * (idx[h] NULL: row t), t = 0..n-1 in order, for H (1 or 2) rows at once
+ * (two independent chains of adds hide the adds' latency when NV is small). */
+static inline __attribute__((always_inline)) void draw_sum(int H, int NV, int n, int nc,
+                                                           const uint16_t *const idx[2],
+                                                           const double *A, int c0,
+                                                           v4d acc[2][DRAW_VMAX]) {
+  v4d a0[DRAW_VMAX], a1[DRAW_VMAX];
+  for (int v = 0; v < NV; v++) a0[v] = a1[v] = (v4d){0, 0, 0, 0};
+  for (int t = 0; t < n; t++) {
+    const double *r0 = &A[(size_t)(idx[0] ? idx[0][t] : t) * nc + c0];
+    for (int v = 0; v < NV; v++) {
+      v4d x;
+      memcpy(&x, r0 + 4 * v, sizeof x);
+      a0[v] += x;
+    }
+    if (H == 2) {
+      const double *r1 = &A[(size_t)(idx[1] ? idx[1][t] : t) * nc + c0];
+      for (int v = 0; v < NV; v++) {
+        v4d x;
+        memcpy(&x, r1 + 4 * v, sizeof x);
+        a1[v] += x;
+      }
+    }
+  }
+  for (int v = 0; v < NV; v++) {
+    acc[0][v] = a0[v];
+    acc[1][v] = a1[v];
+  }
+}
+
+/* Two rows of a group (stage0, stage1: nc each) from their draws (idx[h]
+ * NULL: every point once; zero[h]: a zero row), NV vectors per pass over
+ * the draws, both rows in one pass when H = 2. */
+static inline __attribute__((always_inline)) void draw_rows2(int H, int NV, int k, int nc,
+                                                             const uint16_t *const idx[2],
+                                                             const int zero[2], const double *A,
+                                                             double *stage0, double *stage1) {
+  v4d acc[2][DRAW_VMAX];
+  double *st[2] = {stage0, stage1};
+  for (int c0 = 0; c0 < nc; c0 += 4 * NV) {
+    if (H == 2 && !zero[1]) {
+      draw_sum(2, NV, k, nc, idx, A, c0, acc);
+    } else {
+      draw_sum(1, NV, k, nc, idx, A, c0, acc);
+      if (!zero[1]) {
+        const uint16_t *const idx1[2] = {idx[1], NULL};
+        v4d acc1[2][DRAW_VMAX];
+        draw_sum(1, NV, k, nc, idx1, A, c0, acc1);
+        for (int v = 0; v < NV; v++) acc[1][v] = acc1[0][v];
+      }
+    }
+    for (int h = 0; h < 2; h++)
+      for (int v = 0; v < NV; v++) {
+        if (zero[h]) acc[h][v] = (v4d){0, 0, 0, 0};
+        memcpy(&st[h][c0 + 4 * v], &acc[h][v], sizeof acc[h][v]);
+      }
+  }
+}
+#endif
+
+BSURF_CLONES
+void bsurf_draw_sums_lanes(int B, int k, int nc, const uint16_t *restrict draws,
+                           const double *restrict A, double *restrict out) {
+  const int R = (B + 4) / 4 * 4; /* bsurf_boot_rows(B): B + 1 rounded up to 4 */
+#ifdef HAVE_V4D
+  double stage[4][BSURF_NCOLS_MAX];
+  for (int g = 0; g < R; g += 4) {
+    for (int r = 0; r < 4; r += 2) {
+      const uint16_t *idx[2];
+      int zero[2];
+      for (int h = 0; h < 2; h++) {
+        const int b = g + r + h;
+        idx[h] = b < B ? &draws[(size_t)b * k] : NULL;
+        zero[h] = b > B;
+      }
+      if (zero[0]) {
+        memset(stage[r], 0, (size_t)nc * sizeof(double));
+        memset(stage[r + 1], 0, (size_t)nc * sizeof(double));
+        continue;
+      }
+      /* a constant column count keeps the accumulators in registers (at
+       * most 12 of the 16): degrees 1 and 2 two rows of 4 or 6 vectors at
+       * once, a cubic one row of 10, a quartic two passes of 8 */
+      switch (nc) {
+      case 16: draw_rows2(2, 4, k, nc, idx, zero, A, stage[r], stage[r + 1]); break;
+      case 24: draw_rows2(2, 6, k, nc, idx, zero, A, stage[r], stage[r + 1]); break;
+      case 40: draw_rows2(1, 10, k, nc, idx, zero, A, stage[r], stage[r + 1]); break;
+      case 64: draw_rows2(1, 8, k, nc, idx, zero, A, stage[r], stage[r + 1]); break;
+      default: draw_rows2(1, 2, k, nc, idx, zero, A, stage[r], stage[r + 1]); break;
+      }
+    }
+    /* 4 x 4 transposes into the lanes layout: column c of rows g..g+3 */
+    double *o = &out[(size_t)g * nc];
+    for (int c = 0; c < nc; c += 4) {
+      v4d r0, r1, r2, r3;
+      memcpy(&r0, &stage[0][c], sizeof r0);
+      memcpy(&r1, &stage[1][c], sizeof r1);
+      memcpy(&r2, &stage[2][c], sizeof r2);
+      memcpy(&r3, &stage[3][c], sizeof r3);
+      const v4d t0 = SHUF2(r0, r1, 0, 4, 2, 6), t1 = SHUF2(r0, r1, 1, 5, 3, 7);
+      const v4d t2 = SHUF2(r2, r3, 0, 4, 2, 6), t3 = SHUF2(r2, r3, 1, 5, 3, 7);
+      const v4d c0 = SHUF2(t0, t2, 0, 1, 4, 5), c1 = SHUF2(t1, t3, 0, 1, 4, 5);
+      const v4d c2 = SHUF2(t0, t2, 2, 3, 6, 7), c3 = SHUF2(t1, t3, 2, 3, 6, 7);
+      double *oc = &o[(size_t)c * 4];
+      memcpy(oc, &c0, sizeof c0);
+      memcpy(oc + 4, &c1, sizeof c1);
+      memcpy(oc + 8, &c2, sizeof c2);
+      memcpy(oc + 12, &c3, sizeof c3);
+    }
+  }
+#else
+  for (int b = 0; b < R; b++) {
+    double *g = &out[(size_t)(b / 4) * 4 * nc];
+    for (int c = 0; c < nc; c++) {
+      double x = 0;
+      if (b <= B)
+        for (int t = 0; t < k; t++) x += A[(size_t)(b < B ? draws[(size_t)b * k + t] : t) * nc + c];
+      g[(size_t)c * 4 + b % 4] = x;
+    }
+  }
+#endif
+}
+
 #ifdef HAVE_V4D
 typedef long long v4l __attribute__((vector_size(32)));
 
@@ -449,6 +587,11 @@ void bsurf_localfit_normal_eq_lanes(const bsurf_localfit *lf, int R, const doubl
   bsurf_gemm_lanes(R, lf->k, lf->ncols, W, lf->op, lanes);
 }
 
+void bsurf_localfit_normal_eq_draws(const bsurf_localfit *lf, int B, const uint16_t *draws,
+                                    double *lanes) {
+  bsurf_draw_sums_lanes(B, lf->k, lf->ncols, draws, lf->op, lanes);
+}
+
 int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row,
                              double *coef) {
   /* G from the moments (a lower degree uses a subset of them); the
@@ -544,15 +687,14 @@ typedef struct res_acc {
   v4d s, o, c;
 } res_acc;
 
-/* Adds the residual of one prediction p at heights y, weights at wr
- * (0: left out): the operations of one replicate, in order. */
+/* Adds the residual of one prediction p at heights y, multiplicities at
+ * cr (0: left out): the operations of one replicate, in order. */
 static inline __attribute__((always_inline)) void res_add(const v4d *p, const v4d *y,
-                                                          const double *wr, res_acc *acc) {
-  const v4d zero = {0, 0, 0, 0}, one = {1, 1, 1, 1};
-  v4d mw;
-  memcpy(&mw, wr, sizeof mw);
-  /* 1.0 where the weight is 0 (the point is not in replicate b), else 0 */
-  const v4d w = (v4d)((v4l)(mw == zero) & (v4l)one);
+                                                          const uint16_t *cr, res_acc *acc) {
+  const v4d one = {1, 1, 1, 1};
+  const v4l mc = {cr[0], cr[1], cr[2], cr[3]}, zero = {0, 0, 0, 0};
+  /* 1.0 where the count is 0 (the point is not in replicate b), else 0 */
+  const v4d w = (v4d)((mc == zero) & (v4l)one);
   v4d e = *p - *y;
   for (int l = 0; l < 4; l++) e[l] = fabs(e[l]); /* lane by lane (vectorised) */
   acc->s += e;
@@ -560,12 +702,12 @@ static inline __attribute__((always_inline)) void res_add(const v4d *p, const v4
   acc->c += w;
 }
 
-/* The residuals of R fits (coefficients c[r], weight rows w[r]) at the 8
- * points of a block (basis values ph, packed m x 8; heights y) added to the
- * sums, fit after fit. */
+/* The residuals of R fits (coefficients c[r], multiplicity rows w[r]) at
+ * the 8 points of a block (basis values ph, packed m x 8; heights y) added
+ * to the sums, fit after fit. */
 static inline __attribute__((always_inline)) void res_fits(int m, int R, const double *ph,
                                                            const double *const *c,
-                                                           const double *const *w, const v4d y[2],
+                                                           const uint16_t *const *w, const v4d y[2],
                                                            res_acc *acc0, res_acc *acc1) {
   v4d p[8];
   predict8(m, R, ph, 8, c, p);
@@ -581,7 +723,7 @@ static inline __attribute__((always_inline)) void res_fits(int m, int R, const d
  * time. With pad (only when k < 8) the n = k - j0 points are padded to 8. */
 static inline __attribute__((always_inline)) void residual_block(
     int m, int pad, int k, int kp, const double *phit, const double *z, int j0, int B,
-    const double *coef, const unsigned char *valid, const double *weights, double *all, double *out,
+    const double *coef, const unsigned char *valid, const uint16_t *counts, double *all, double *out,
     double *cnt) {
   const int n = pad ? k - j0 : 8;
   /* the block's basis values packed (constant offsets, not m row pointers);
@@ -594,10 +736,11 @@ static inline __attribute__((always_inline)) void residual_block(
     memcpy(&ph[a][0], &x0, sizeof x0);
     memcpy(&ph[a][4], &x1, sizeof x1);
   }
-  double yb[8] = {0, 0, 0, 0, 0, 0, 0, 0}, wb[4][8];
+  double yb[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  uint16_t wb[4][8];
   for (int l = 0; l < n; l++) yb[l] = z[j0 + l];
   for (int r = 0; r < 4; r++)
-    for (int l = 0; l < 8; l++) wb[r][l] = 1; /* padding: weight 1, not missing */
+    for (int l = 0; l < 8; l++) wb[r][l] = 1; /* padding: drawn once, not missing */
   v4d y[2];
   memcpy(&y[0], yb, 32);
   memcpy(&y[1], yb + 4, 32);
@@ -614,10 +757,11 @@ static inline __attribute__((always_inline)) void residual_block(
       b++;
       continue;
     }
-    const double *c[4], *w[4];
+    const double *c[4];
+    const uint16_t *w[4];
     for (int r = 0; r < R; r++) {
       c[r] = &coef[(size_t)(b + r) * m];
-      w[r] = &weights[(size_t)(b + r) * k + j0];
+      w[r] = &counts[(size_t)(b + r) * k + j0];
       if (pad) {
         for (int l = 0; l < n; l++) wb[r][l] = w[r][l];
         w[r] = wb[r];
@@ -642,19 +786,19 @@ static inline __attribute__((always_inline)) void residual_block(
 
 BSURF_CLONES
 void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, const double *coef,
-                                  const unsigned char *valid, const double *weights, double *all,
+                                  const unsigned char *valid, const uint16_t *counts, double *all,
                                   double *out, double *cnt) {
   const int m = bsurf_poly_terms(degree), k = lf->k, kp = lf->kp;
 #ifdef HAVE_V4D
   /* a constant term count specialises the blocks; the last block ends at k,
    * overlapping the one before (its points come out the same again), so
-   * no weights need padding */
+   * no counts need padding */
 #define RESIDUAL_BLOCKS(M)                                                                         \
   if (k < 8)                                                                                       \
-    residual_block(M, 1, k, kp, lf->phit, lf->z, 0, B, coef, valid, weights, all, out, cnt);        \
+    residual_block(M, 1, k, kp, lf->phit, lf->z, 0, B, coef, valid, counts, all, out, cnt);        \
   else                                                                                             \
     for (int j0 = 0; j0 < k; j0 += 8)                                                              \
-      residual_block(M, 0, k, kp, lf->phit, lf->z, j0 + 8 > k ? k - 8 : j0, B, coef, valid, weights, \
+      residual_block(M, 0, k, kp, lf->phit, lf->z, j0 + 8 > k ? k - 8 : j0, B, coef, valid, counts,  \
                      all, out, cnt)
   switch (m) {
   case 3: RESIDUAL_BLOCKS(3); break;
@@ -671,7 +815,7 @@ void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, c
     for (int j = 0; j < k; j++) {
       double p = 0;
       for (int a = 0; a < m; a++) p += cb[a] * lf->phit[(size_t)a * kp + j];
-      const double e = fabs(p - lf->z[j]), w = weights[(size_t)b * k + j] == 0 ? 1.0 : 0.0;
+      const double e = fabs(p - lf->z[j]), w = counts[(size_t)b * k + j] == 0 ? 1.0 : 0.0;
       all[j] += e;
       out[j] += w * e;
       cnt[j] += w;
