@@ -82,9 +82,15 @@ typedef struct knn_node {
   int32_t dim;    /* inner: split dimension 0..2; leaf: -1 */
 } knn_node;
 
+/* The coordinates are stored as three arrays (x, y, z in tree order, each
+ * padded with KNN_PAD zeros): a leaf's x, y and z are each contiguous, so a
+ * leaf's distances are computed KNN_LANES at a time (knn_scan_leaf). */
+#define KNN_LANES 4
+#define KNN_PAD (KNN_LANES - 1)
+
 struct bsurf_knn_index {
   size_t n;
-  double *pts;   /* n x 3, tree order */
+  double *xyz[3]; /* x, y, z: n (+ KNN_PAD) each, tree order; one block at xyz[0] */
   uint32_t *ids; /* n: original index of each tree position */
   knn_node *nodes;
   size_t node_count;
@@ -102,6 +108,14 @@ static inline double knn_dist2(const double *q, const double *p) {
   const double dx = q[0] - p[0];
   const double dy = q[1] - p[1];
   const double dz = q[2] - p[2];
+  return dx * dx + dy * dy + dz * dz;
+}
+
+/* knn_dist2 to the point at tree position j of the coordinate arrays c. */
+static inline double knn_dist2_at(const double *q, const double *const c[3], size_t j) {
+  const double dx = q[0] - c[0][j];
+  const double dy = q[1] - c[1][j];
+  const double dz = q[2] - c[2][j];
   return dx * dx + dy * dy + dz * dz;
 }
 
@@ -203,17 +217,17 @@ static inline int coord_less(double a, double b) {
   return a < b || (isnan(b) && !isnan(a));
 }
 
-static inline void swap_points(double *pts, uint32_t *ids, size_t a, size_t b) {
-  double t0 = pts[3 * a], t1 = pts[3 * a + 1], t2 = pts[3 * a + 2];
-  uint32_t ti = ids[a];
-  pts[3 * a] = pts[3 * b];
-  pts[3 * a + 1] = pts[3 * b + 1];
-  pts[3 * a + 2] = pts[3 * b + 2];
-  ids[a] = ids[b];
-  pts[3 * b] = t0;
-  pts[3 * b + 1] = t1;
-  pts[3 * b + 2] = t2;
-  ids[b] = ti;
+static inline void swap_points(double *const c[3], uint32_t *ids, size_t a, size_t b) {
+  for (int d = 0; d < 3; d++) {
+    const double t = c[d][a];
+    c[d][a] = c[d][b];
+    c[d][b] = t;
+  }
+  {
+    const uint32_t ti = ids[a];
+    ids[a] = ids[b];
+    ids[b] = ti;
+  }
 }
 
 /* Rearranges points [lo, hi] (inclusive) so that position nth holds the point
@@ -221,27 +235,28 @@ static inline void swap_points(double *pts, uint32_t *ids, size_t a, size_t b) {
  * before it and no smaller one after (nth_element). Wirth's variant of Hoare's
  * selection; the scans stop on equal keys, which keeps the partitions balanced
  * on grids with many equal coordinates. Deterministic. */
-static void select_nth(double *pts, uint32_t *ids, int64_t lo, int64_t hi, int64_t nth, int dim) {
+static void select_nth(double *const c[3], uint32_t *ids, int64_t lo, int64_t hi, int64_t nth, int dim) {
+  const double *key = c[dim];
   while (lo < hi) {
     const int64_t mid = lo + (hi - lo) / 2;
     /* Median of three into position nth (the pivot). */
-    if (coord_less(pts[3 * mid + dim], pts[3 * lo + dim]))
-      swap_points(pts, ids, (size_t)mid, (size_t)lo);
-    if (coord_less(pts[3 * hi + dim], pts[3 * lo + dim]))
-      swap_points(pts, ids, (size_t)hi, (size_t)lo);
-    if (coord_less(pts[3 * hi + dim], pts[3 * mid + dim]))
-      swap_points(pts, ids, (size_t)hi, (size_t)mid);
-    if (mid != nth) swap_points(pts, ids, (size_t)mid, (size_t)nth);
+    if (coord_less(key[mid], key[lo]))
+      swap_points(c, ids, (size_t)mid, (size_t)lo);
+    if (coord_less(key[hi], key[lo]))
+      swap_points(c, ids, (size_t)hi, (size_t)lo);
+    if (coord_less(key[hi], key[mid]))
+      swap_points(c, ids, (size_t)hi, (size_t)mid);
+    if (mid != nth) swap_points(c, ids, (size_t)mid, (size_t)nth);
     {
-      const double x = pts[3 * nth + dim];
+      const double x = key[nth];
       int64_t i = lo, j = hi;
       do {
-        while (coord_less(pts[3 * i + dim], x))
+        while (coord_less(key[i], x))
           i++;
-        while (coord_less(x, pts[3 * j + dim]))
+        while (coord_less(x, key[j]))
           j--;
         if (i <= j) {
-          if (i != j) swap_points(pts, ids, (size_t)i, (size_t)j);
+          if (i != j) swap_points(c, ids, (size_t)i, (size_t)j);
           i++;
           j--;
         }
@@ -261,7 +276,7 @@ static size_t count_nodes(size_t n) {
 }
 
 typedef struct knn_builder {
-  double *pts;
+  double *c[3];
   uint32_t *ids;
   knn_node *nodes;
   size_t count;
@@ -284,13 +299,12 @@ static uint32_t build_node(knn_builder *b, size_t begin, size_t end) {
   if (end - begin <= KNN_LEAF_MAX) return id;
 
   /* Widest dimension; NaN coordinates are ignored (comparisons are false). */
-  for (j = begin; j < end; j++) {
-    const double *p = b->pts + 3 * j;
+  for (j = begin; j < end; j++)
     for (int d = 0; d < 3; d++) {
-      if (p[d] < lo[d]) lo[d] = p[d];
-      if (p[d] > hi[d]) hi[d] = p[d];
+      const double v = b->c[d][j];
+      if (v < lo[d]) lo[d] = v;
+      if (v > hi[d]) hi[d] = v;
     }
-  }
   for (int d = 0; d < 3; d++) {
     const double extent = hi[d] - lo[d]; /* NaN for inf - inf: never chosen */
     if (extent > best) {
@@ -301,13 +315,14 @@ static uint32_t build_node(knn_builder *b, size_t begin, size_t end) {
   if (dim < 0) return id; /* all points coincide (or have no finite extent) */
 
   mid = begin + (end - begin) / 2;
-  select_nth(b->pts, b->ids, (int64_t)begin, (int64_t)end - 1, (int64_t)mid, dim);
+  select_nth(b->c, b->ids, (int64_t)begin, (int64_t)end - 1, (int64_t)mid, dim);
   {
     double lmax = -INFINITY, rmin = INFINITY;
+    const double *key = b->c[dim];
     for (j = begin; j < mid; j++)
-      if (b->pts[3 * j + dim] > lmax) lmax = b->pts[3 * j + dim];
+      if (key[j] > lmax) lmax = key[j];
     for (j = mid; j < end; j++)
-      if (b->pts[3 * j + dim] < rmin) rmin = b->pts[3 * j + dim];
+      if (key[j] < rmin) rmin = key[j];
     nd->lo = lmax;
     nd->hi = rmin;
   }
@@ -336,16 +351,20 @@ bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz, size_t 
   if (!ix) return BSURF_ERR_NOMEM;
   max_nodes = count_nodes(point_count);
   ix->n = point_count;
-  ix->pts = bsurf_alloc_array(point_count, 3 * sizeof(double));
+  ix->xyz[0] = bsurf_calloc_array(point_count + KNN_PAD, 3 * sizeof(double));
   ix->ids = bsurf_alloc_array(point_count, sizeof(uint32_t));
   ix->nodes = bsurf_alloc_array(max_nodes, sizeof(knn_node));
-  if (!ix->pts || !ix->ids || !ix->nodes) {
+  if (!ix->xyz[0] || !ix->ids || !ix->nodes) {
     bsurf_knn_free(ix);
     return BSURF_ERR_NOMEM;
   }
-  memcpy(ix->pts, xyz, point_count * 3 * sizeof(double));
-  for (size_t i = 0; i < point_count; i++)
+  ix->xyz[1] = ix->xyz[0] + (point_count + KNN_PAD);
+  ix->xyz[2] = ix->xyz[1] + (point_count + KNN_PAD);
+  for (size_t i = 0; i < point_count; i++) {
+    for (int d = 0; d < 3; d++)
+      ix->xyz[d][i] = xyz[3 * i + d];
     ix->ids[i] = (uint32_t)i;
+  }
 
   for (int d = 0; d < 3; d++) {
     ix->box_lo[d] = INFINITY;
@@ -358,7 +377,8 @@ bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz, size_t 
       if (v > ix->box_hi[d]) ix->box_hi[d] = v;
     }
 
-  b.pts = ix->pts;
+  for (int d = 0; d < 3; d++)
+    b.c[d] = ix->xyz[d];
   b.ids = ix->ids;
   b.nodes = ix->nodes;
   b.count = 0;
@@ -376,7 +396,7 @@ const uint32_t *bsurf_knn_tree_ids(const bsurf_knn_index *index) { return index-
 
 void bsurf_knn_free(bsurf_knn_index *index) {
   if (!index) return;
-  free(index->pts);
+  free(index->xyz[0]);
   free(index->ids);
   free(index->nodes);
   free(index);
@@ -387,7 +407,7 @@ void bsurf_knn_free(bsurf_knn_index *index) {
 /* ------------------------------------------------------------------------ */
 
 typedef struct knn_search {
-  const double *pts;
+  const double *c[3]; /* the index's coordinate arrays */
   const uint32_t *ids;
   const knn_node *nodes;
   double q[3];
@@ -396,15 +416,75 @@ typedef struct knn_search {
   knn_list list;
 } knn_search;
 
+#if defined(__GNUC__)
+typedef double knn_v4d __attribute__((vector_size(KNN_LANES * sizeof(double))));
+typedef long long knn_v4l __attribute__((vector_size(KNN_LANES * sizeof(double))));
+#define KNN_HAVE_V4D 1
+#endif
+
+/* Points per block of knn_scan_leaf: a leaf holds at most KNN_LEAF_MAX
+ * points unless they all coincide (then it takes several blocks). */
+#define KNN_BLOCK 16
+
+/* Offers the points [begin, end) of a leaf to the list. The distances of a
+ * block are computed KNN_LANES at a time (GCC vector types: SSE2 pairs or
+ * AVX2), lane by lane the same operations in the same order as knn_dist2, so
+ * the same bits; the lanes are then tested against the bound of the block's
+ * start into a bit mask, and only the points left in it are looked at one by
+ * one: about half the points scanned in an all-kNN are rejected, and
+ * rejecting them in lanes saves the mispredicted branches of a point-by-point
+ * test. A point kept by the mask is tested again against the current bound
+ * (it may have tightened since), so the list sees exactly the candidates the
+ * point-by-point loop gave it, in the same order. */
+static inline void knn_scan_leaf(knn_search *s, uint32_t begin, uint32_t end) {
+#ifdef KNN_HAVE_V4D
+  const knn_v4d qx = {s->q[0], s->q[0], s->q[0], s->q[0]};
+  const knn_v4d qy = {s->q[1], s->q[1], s->q[1], s->q[1]};
+  const knn_v4d qz = {s->q[2], s->q[2], s->q[2], s->q[2]};
+  for (uint32_t b = begin; b < end; b += KNN_BLOCK) {
+    const uint32_t cnt = end - b < KNN_BLOCK ? end - b : KNN_BLOCK;
+    const double worst = s->list.worst;
+    const knn_v4d w = {worst, worst, worst, worst};
+    double dd[KNN_BLOCK];
+    unsigned keep = 0;
+    /* Lanes past `end` read the next leaf or the arrays' padding: masked. */
+    for (uint32_t t = 0; t < cnt; t += KNN_LANES) {
+      knn_v4d x, y, z, d;
+      knn_v4l gt;
+      memcpy(&x, s->c[0] + b + t, sizeof x);
+      memcpy(&y, s->c[1] + b + t, sizeof y);
+      memcpy(&z, s->c[2] + b + t, sizeof z);
+      x = qx - x;
+      y = qy - y;
+      z = qz - z;
+      d = x * x + y * y + z * z;
+      memcpy(dd + t, &d, sizeof d);
+      gt = d > w; /* -1 where rejected; false for NaN (kept, like the scalar test) */
+      keep |= (unsigned)((gt[0] + 1) | (gt[1] + 1) << 1 | (gt[2] + 1) << 2 | (gt[3] + 1) << 3) << t;
+    }
+    keep &= (1u << cnt) - 1u;
+    if (s->skip - b < cnt) keep &= ~(1u << (s->skip - b));
+    while (keep) {
+      const unsigned t = (unsigned)__builtin_ctz(keep);
+      const double d = dd[t];
+      keep &= keep - 1u;
+      if (d > s->list.worst) continue;
+      knn_list_insert(&s->list, d, s->ids[b + t], b + t);
+    }
+  }
+#else
+  for (uint32_t j = begin; j < end; j++) {
+    const double d = knn_dist2_at(s->q, s->c, j);
+    if (d > s->list.worst || j == s->skip) continue;
+    knn_list_insert(&s->list, d, s->ids[j], j);
+  }
+#endif
+}
+
 static void knn_visit(knn_search *s, uint32_t node) {
   const knn_node *nd = &s->nodes[node];
   if (nd->dim < 0) {
-    const uint32_t end = nd->end;
-    for (uint32_t j = nd->begin; j < end; j++) {
-      const double d = knn_dist2(s->q, s->pts + 3 * (size_t)j);
-      if (d > s->list.worst || j == s->skip) continue;
-      knn_list_insert(&s->list, d, s->ids[j], j);
-    }
+    knn_scan_leaf(s, nd->begin, nd->end);
     return;
   }
   {
@@ -446,7 +526,8 @@ bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3]
   if (!index || !query || !idx) return BSURF_ERR_INVALID_ARG;
   if (k < 1 || (size_t)k > index->n) return BSURF_ERR_INVALID_ARG;
 
-  s.pts = index->pts;
+  for (int d = 0; d < 3; d++)
+    s.c[d] = index->xyz[d];
   s.ids = index->ids;
   s.nodes = index->nodes;
   s.skip = SIZE_MAX;
@@ -485,18 +566,19 @@ bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3]
  * and their order are the same, since no candidate within the bound (ties
  * included: the tests are d > bound) is skipped. NaN when it cannot help. */
 static double knn_warm_bound(const bsurf_knn_index *ix, size_t j, size_t prev, const knn_entry *e, int m) {
-  const double *q = ix->pts + 3 * j;
+  const double *const *xyz = (const double *const *)ix->xyz;
+  const double q[3] = {xyz[0][j], xyz[1][j], xyz[2][j]};
   double bound = -INFINITY;
   int used = 0;
   for (int c = 0; c < m; c++) {
     if (e[c].pos == j) continue;
-    const double d = knn_dist2(q, ix->pts + 3 * (size_t)e[c].pos);
+    const double d = knn_dist2_at(q, xyz, e[c].pos);
     if (d > bound) bound = d;
     used++;
     if (isnan(d)) return NAN;
   }
   if (used < m) {
-    const double d = knn_dist2(q, ix->pts + 3 * prev);
+    const double d = knn_dist2_at(q, xyz, prev);
     if (d > bound) bound = d;
     if (isnan(d)) return NAN;
   }
@@ -514,13 +596,13 @@ static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_entry *scrat
   knn_search s;
 
   if (m > 0) {
-    s.pts = ix->pts;
+    for (int d = 0; d < 3; d++)
+      s.c[d] = ix->xyz[d];
     s.ids = ix->ids;
     s.nodes = ix->nodes;
     s.skip = j;
-    s.q[0] = ix->pts[3 * j];
-    s.q[1] = ix->pts[3 * j + 1];
-    s.q[2] = ix->pts[3 * j + 2];
+    for (int d = 0; d < 3; d++)
+      s.q[d] = ix->xyz[d][j];
     s.off[0] = s.off[1] = s.off[2] = 0.0; /* the query is inside the root box */
     s.list.e = scratch;
     s.list.k = m;
