@@ -206,6 +206,106 @@ static inline void knn_list_insert(knn_list *l, double d, uint32_t id, uint32_t 
   if (l->count == l->k) l->worst = e[l->k - 1].d;
 }
 
+/* The all-kNN's candidates (buffered selection): every point within the
+ * bound is appended, unsorted, and the buffer is sorted only when it fills
+ * and at the end of the query, where the list above shifts its tail at every
+ * insertion (at 1M points, K = 50: 72 insertions and about 800 shifts per
+ * query, each insertion ending in a mispredicted branch). The bound is then
+ * looser between sorts (the warm start's, or the k-th distance of the last
+ * sort), so more points are appended than the list would take, but an append
+ * costs a few stores. */
+typedef struct knn_buffer {
+  knn_entry *e;   /* cap entries; after knn_buffer_sort, the first min(count, k) in order */
+  knn_entry *tmp; /* cap: the bucket pass's output */
+  uint32_t *hist; /* cap + 1 bucket counts */
+  uint32_t *key;  /* cap: each entry's bucket */
+  int cap;
+  int k;
+  int count;
+} knn_buffer;
+
+/* Sorts e[0, n) by knn_before (ties by index, NaN last) by insertion. */
+static void knn_insertion_sort(knn_entry *e, int n) {
+  for (int i = 1; i < n; i++) {
+    const knn_entry x = e[i];
+    int j = i;
+    while (j > 0 && knn_before(x.d, x.i, e[j - 1].d, e[j - 1].i)) {
+      e[j] = e[j - 1];
+      j--;
+    }
+    e[j] = x;
+  }
+}
+
+/* Sorts the buffer by knn_before and keeps its first k entries (all when
+ * fewer); returns the k-th distance then, NaN when fewer than k are left.
+ * A counting pass first puts the entries in n buckets of equal width between
+ * the smallest and the largest distance: the bucket of d is
+ * (uint32_t)((d - lo) * scale), which never decreases as d grows (each step
+ * rounds monotonically) and is the same for equal distances, so every entry
+ * of a bucket comes before every entry of a later bucket in the exact order.
+ * Only the buckets that hold the first k entries are then sorted, by an
+ * insertion sort that has little to move and predictable branches. With a
+ * NaN or a range that gives no finite scale, the insertion sort alone (same
+ * result, slower). */
+static double knn_buffer_sort(knn_buffer *b) {
+  const int n = b->count, k = b->k;
+  knn_entry *e = b->e;
+  double lo = INFINITY, hi = -INFINITY;
+  int nan = 0, keep = n;
+  for (int i = 0; i < n; i++) {
+    const double d = e[i].d;
+    lo = d < lo ? d : lo;
+    hi = d > hi ? d : hi;
+    nan |= isnan(d);
+  }
+  const double scale = (double)n / (hi - lo);
+  if (!nan && n > 1 && scale < INFINITY) {
+    uint32_t *hist = b->hist, *key = b->key;
+    knn_entry *t = b->tmp;
+    const uint32_t top = (uint32_t)n - 1u;
+    uint32_t cut = top;
+    memset(hist, 0, ((size_t)n + 1) * sizeof *hist);
+    for (int i = 0; i < n; i++) {
+      const uint32_t c = (uint32_t)((e[i].d - lo) * scale);
+      key[i] = c < top ? c : top;
+      hist[key[i] + 1]++;
+    }
+    /* hist[c] becomes the start of bucket c, up to the first bucket `cut`
+     * that completes k entries; hist[cut + 1] = keep is then the start of
+     * the rest, scattered after them unsorted. */
+    for (uint32_t c = 0; c < top; c++) {
+      hist[c + 1] += hist[c];
+      if (hist[c + 1] >= (uint32_t)k) {
+        cut = c;
+        break;
+      }
+    }
+    keep = cut < top ? (int)hist[cut + 1] : n;
+    for (int i = 0; i < n; i++) {
+      const uint32_t c = key[i] <= cut ? key[i] : cut + 1;
+      t[hist[c]++] = e[i];
+    }
+    /* Insertion sort of the nearly sorted first buckets, numbers only:
+     * distance, then index. */
+    for (int i = 1; i < keep; i++) {
+      const knn_entry x = t[i];
+      int j = i;
+      while (j > 0 && (t[j - 1].d > x.d || (t[j - 1].d == x.d && t[j - 1].i > x.i))) {
+        t[j] = t[j - 1];
+        j--;
+      }
+      t[j] = x;
+    }
+    b->tmp = e;
+    b->e = t;
+  } else {
+    knn_insertion_sort(e, n);
+  }
+  b->count = keep < k ? keep : k;
+  return b->count == k ? b->e[k - 1].d : NAN;
+}
+
 /* ------------------------------------------------------------------------ */
 /* Build                                                                      */
 /* ------------------------------------------------------------------------ */
@@ -413,7 +513,8 @@ typedef struct knn_search {
   double q[3];
   double off[3]; /* per-dimension offset from q to the current node's box */
   size_t skip;   /* tree position to leave out (the query itself), or SIZE_MAX */
-  knn_list list;
+  knn_list list; /* the candidates; with buf, only list.worst (the bound) */
+  knn_buffer *buf; /* all-kNN: the candidates buffered (NULL: in list) */
 } knn_search;
 
 #if defined(__GNUC__)
@@ -425,6 +526,9 @@ typedef long long knn_v4l __attribute__((vector_size(KNN_LANES * sizeof(double))
 /* Points per block of knn_scan_leaf: a leaf holds at most KNN_LEAF_MAX
  * points unless they all coincide (then it takes several blocks). */
 #define KNN_BLOCK 16
+#ifndef KNN_CAP_MUL
+#define KNN_CAP_MUL 2
+#endif
 
 /* Offers the points [begin, end) of a leaf to the list. The distances of a
  * block are computed KNN_LANES at a time (GCC vector types: SSE2 pairs or
@@ -443,6 +547,8 @@ static inline void knn_scan_leaf(knn_search *s, uint32_t begin, uint32_t end) {
   const knn_v4d qz = {s->q[2], s->q[2], s->q[2], s->q[2]};
   for (uint32_t b = begin; b < end; b += KNN_BLOCK) {
     const uint32_t cnt = end - b < KNN_BLOCK ? end - b : KNN_BLOCK;
+    knn_buffer *buf = s->buf;
+    if (buf && buf->count > buf->cap - KNN_BLOCK) s->list.worst = knn_buffer_sort(buf);
     const double worst = s->list.worst;
     const knn_v4d w = {worst, worst, worst, worst};
     double dd[KNN_BLOCK];
@@ -464,6 +570,19 @@ static inline void knn_scan_leaf(knn_search *s, uint32_t begin, uint32_t end) {
     }
     keep &= (1u << cnt) - 1u;
     if (s->skip - b < cnt) keep &= ~(1u << (s->skip - b));
+    if (buf) {
+      knn_entry *e = buf->e + buf->count;
+      while (keep) {
+        const unsigned t = (unsigned)__builtin_ctz(keep);
+        keep &= keep - 1u;
+        e->d = dd[t];
+        e->i = s->ids[b + t];
+        e->pos = b + t;
+        e++;
+      }
+      buf->count = (int)(e - buf->e);
+      continue;
+    }
     while (keep) {
       const unsigned t = (unsigned)__builtin_ctz(keep);
       const double d = dd[t];
@@ -476,7 +595,19 @@ static inline void knn_scan_leaf(knn_search *s, uint32_t begin, uint32_t end) {
   for (uint32_t j = begin; j < end; j++) {
     const double d = knn_dist2_at(s->q, s->c, j);
     if (d > s->list.worst || j == s->skip) continue;
-    knn_list_insert(&s->list, d, s->ids[j], j);
+    if (s->buf) {
+      knn_buffer *buf = s->buf;
+      if (buf->count == buf->cap) {
+        s->list.worst = knn_buffer_sort(buf);
+        if (d > s->list.worst) continue;
+      }
+      buf->e[buf->count].d = d;
+      buf->e[buf->count].i = s->ids[j];
+      buf->e[buf->count].pos = j;
+      buf->count++;
+    } else {
+      knn_list_insert(&s->list, d, s->ids[j], j);
+    }
   }
 #endif
 }
@@ -523,6 +654,7 @@ bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3]
   knn_entry buf[128];
   knn_search s;
 
+  s.buf = NULL;
   if (!index || !query || !idx) return BSURF_ERR_INVALID_ARG;
   if (k < 1 || (size_t)k > index->n) return BSURF_ERR_INVALID_ARG;
 
@@ -586,13 +718,15 @@ static double knn_warm_bound(const bsurf_knn_index *ix, size_t j, size_t prev, c
 }
 
 /* Row of the point at tree position j: itself, then its k - 1 nearest others.
- * `scratch` holds k - 1 entries; *prev is the tree position of the query
- * whose results scratch holds (SIZE_MAX: none), and becomes j. */
-static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_entry *scratch, size_t *prev, uint32_t *idx,
+ * `buf` is the thread's buffer (k - 1 = buf->k); *prev is the tree position
+ * of the query whose results the buffer holds (SIZE_MAX: none), and becomes
+ * j. */
+static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_buffer *buf, size_t *prev, uint32_t *idx,
                     double *dist2, double *nn_dist2) {
   const uint32_t self = ix->ids[j];
   const size_t row = (size_t)self * (size_t)k;
   const int m = k - 1;
+  const knn_entry *scratch;
   knn_search s;
 
   if (m > 0) {
@@ -604,14 +738,18 @@ static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_entry *scrat
     for (int d = 0; d < 3; d++)
       s.q[d] = ix->xyz[d][j];
     s.off[0] = s.off[1] = s.off[2] = 0.0; /* the query is inside the root box */
-    s.list.e = scratch;
+    s.list.e = NULL;
     s.list.k = m;
-    const double warm = *prev != SIZE_MAX ? knn_warm_bound(ix, j, *prev, scratch, m) : NAN;
+    const double warm = *prev != SIZE_MAX ? knn_warm_bound(ix, j, *prev, buf->e, m) : NAN;
     knn_list_reset(&s.list);
     s.list.worst = warm;
+    s.buf = buf;
+    buf->count = 0;
     knn_visit(&s, 0);
+    knn_buffer_sort(buf);
     *prev = j;
   }
+  scratch = buf->e;
   if (idx) {
     idx[row] = self;
     for (int c = 0; c < m; c++)
@@ -628,9 +766,11 @@ static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_entry *scrat
 bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,
                               double *dist2, double *nn_dist2, bsurf_progress_fn progress,
                               void *progress_user) {
-  size_t n, chunk, m;
+  size_t n, chunk, m, cap;
   int nt;
   knn_entry *scratch;
+  uint32_t *hist;
+  knn_buffer *bufs;
 
   if (!index) return BSURF_ERR_INVALID_ARG;
   n = index->n;
@@ -643,16 +783,32 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
    * result). */
   if ((size_t)nt > (n + KNN_DYNAMIC_CHUNK - 1) / KNN_DYNAMIC_CHUNK)
     nt = (int)((n + KNN_DYNAMIC_CHUNK - 1) / KNN_DYNAMIC_CHUNK);
-  /* Per-thread result lists, allocated once for the whole call. */
+  /* Per-thread buffers, allocated once for the whole call. Room for twice
+   * the k - 1 results (at least 64) beside a block: fewer sorts per query
+   * than a tighter buffer, and still within L1 for K = 50 (4 KB). */
   m = k > 1 ? (size_t)(k - 1) : 1;
-  scratch = bsurf_alloc_array((size_t)nt * m, sizeof *scratch);
+  cap = (m > 32 ? KNN_CAP_MUL * m : 64) + KNN_BLOCK;
+  scratch = bsurf_alloc_array((size_t)nt * 2 * cap, sizeof *scratch);
+  hist = bsurf_alloc_array((size_t)nt * (2 * cap + 1), sizeof *hist);
+  bufs = bsurf_alloc_array((size_t)nt, sizeof *bufs);
   size_t *prev = bsurf_alloc_array((size_t)nt, sizeof *prev);
-  if (!scratch || !prev) {
+  if (!scratch || !hist || !bufs || !prev) {
     free(scratch);
+    free(hist);
+    free(bufs);
     free(prev);
     return BSURF_ERR_NOMEM;
   }
-  for (int t = 0; t < nt; t++) prev[t] = SIZE_MAX;
+  for (int t = 0; t < nt; t++) {
+    prev[t] = SIZE_MAX;
+    bufs[t].e = scratch + (size_t)t * 2 * cap;
+    bufs[t].tmp = bufs[t].e + cap;
+    bufs[t].hist = hist + (size_t)t * (2 * cap + 1);
+    bufs[t].key = bufs[t].hist + cap + 1;
+    bufs[t].cap = (int)cap;
+    bufs[t].k = (int)m;
+    bufs[t].count = 0;
+  }
 
   chunk = progress ? BSURF_PROGRESS_CHUNK : n;
   for (size_t start = 0; start < n; start += chunk) {
@@ -668,15 +824,19 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
 #else
       const size_t t = 0;
 #endif
-      knn_row(index, (size_t)j, k, scratch + t * m, &prev[t], idx, dist2, nn_dist2);
+      knn_row(index, (size_t)j, k, &bufs[t], &prev[t], idx, dist2, nn_dist2);
     }
     if (progress && progress(progress_user, (size_t)last, n)) {
       free(scratch);
+      free(hist);
+      free(bufs);
       free(prev);
       return BSURF_ERR_CANCELLED;
     }
   }
   free(scratch);
+  free(hist);
+  free(bufs);
   free(prev);
   return BSURF_OK;
 }
