@@ -214,10 +214,15 @@ static inline void knn_list_insert(knn_list *l, double d, uint32_t id, uint32_t 
  * looser between sorts (the warm start's, or the k-th distance of the last
  * sort), so more points are appended than the list would take, but an append
  * costs a few stores. */
+/* Buckets per entry in knn_buffer_sort. */
+#ifndef KNN_SPREAD
+#define KNN_SPREAD 2
+#endif
+
 typedef struct knn_buffer {
   knn_entry *e;   /* cap entries; after knn_buffer_sort, the first min(count, k) in order */
   knn_entry *tmp; /* cap: the bucket pass's output */
-  uint32_t *hist; /* cap + 1 bucket counts */
+  uint32_t *hist; /* KNN_SPREAD * cap + 1 bucket counts */
   uint32_t *key;  /* cap: each entry's bucket */
   int cap;
   int k;
@@ -259,33 +264,34 @@ static double knn_buffer_sort(knn_buffer *b) {
     hi = d > hi ? d : hi;
     nan |= isnan(d);
   }
-  const double scale = (double)n / (hi - lo);
+  /* KNN_SPREAD buckets per entry: fewer entries share a bucket, so fewer
+   * are out of order for the insertion sort. */
+  const uint32_t nb = KNN_SPREAD * (uint32_t)n;
+  const double scale = (double)nb / (hi - lo);
   if (!nan && n > 1 && scale < INFINITY) {
     uint32_t *hist = b->hist, *key = b->key;
     knn_entry *t = b->tmp;
-    const uint32_t top = (uint32_t)n - 1u;
-    uint32_t cut = top;
-    memset(hist, 0, ((size_t)n + 1) * sizeof *hist);
+    const uint32_t top = nb - 1u;
+    memset(hist, 0, (size_t)nb * sizeof *hist);
     for (int i = 0; i < n; i++) {
       const uint32_t c = (uint32_t)((e[i].d - lo) * scale);
       key[i] = c < top ? c : top;
-      hist[key[i] + 1]++;
+      hist[key[i]]++;
     }
-    /* hist[c] becomes the start of bucket c, up to the first bucket `cut`
-     * that completes k entries; hist[cut + 1] = keep is then the start of
-     * the rest, scattered after them unsorted. */
-    for (uint32_t c = 0; c < top; c++) {
-      hist[c + 1] += hist[c];
-      if (hist[c + 1] >= (uint32_t)k) {
-        cut = c;
-        break;
-      }
+    /* hist[c] becomes the start of bucket c (the running sum in a register:
+     * through memory, each step waited for the previous store); keep, the
+     * end of the first bucket that completes k entries: only [0, keep) needs
+     * sorting. */
+    keep = 0;
+    for (uint32_t c = 0, run = 0; c < nb; c++) {
+      const uint32_t count = hist[c];
+      hist[c] = run;
+      run += count;
+      keep = keep == 0 && run >= (uint32_t)k ? (int)run : keep;
     }
-    keep = cut < top ? (int)hist[cut + 1] : n;
-    for (int i = 0; i < n; i++) {
-      const uint32_t c = key[i] <= cut ? key[i] : cut + 1;
-      t[hist[c]++] = e[i];
-    }
+    if (keep == 0) keep = n;
+    for (int i = 0; i < n; i++)
+      t[hist[key[i]]++] = e[i];
     /* Insertion sort of the nearly sorted first buckets, numbers only:
      * distance, then index. */
     for (int i = 1; i < keep; i++) {
@@ -529,6 +535,7 @@ typedef long long knn_v4l __attribute__((vector_size(KNN_LANES * sizeof(double))
 #ifndef KNN_CAP_MUL
 #define KNN_CAP_MUL 2
 #endif
+
 
 /* Offers the points [begin, end) of a leaf to the list. The distances of a
  * block are computed KNN_LANES at a time (GCC vector types: SSE2 pairs or
@@ -822,7 +829,7 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
   m = k > 1 ? (size_t)(k - 1) : 1;
   cap = (m > 32 ? KNN_CAP_MUL * m : 64) + KNN_BLOCK;
   scratch = bsurf_alloc_array((size_t)nt * 2 * cap, sizeof *scratch);
-  hist = bsurf_alloc_array((size_t)nt * (2 * cap + 1), sizeof *hist);
+  hist = bsurf_alloc_array((size_t)nt * ((KNN_SPREAD + 1) * cap + 1), sizeof *hist);
   bufs = bsurf_alloc_array((size_t)nt, sizeof *bufs);
   size_t *prev = bsurf_alloc_array((size_t)nt, sizeof *prev);
   if (!scratch || !hist || !bufs || !prev) {
@@ -836,8 +843,8 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
     prev[t] = SIZE_MAX;
     bufs[t].e = scratch + (size_t)t * 2 * cap;
     bufs[t].tmp = bufs[t].e + cap;
-    bufs[t].hist = hist + (size_t)t * (2 * cap + 1);
-    bufs[t].key = bufs[t].hist + cap + 1;
+    bufs[t].hist = hist + (size_t)t * ((KNN_SPREAD + 1) * cap + 1);
+    bufs[t].key = bufs[t].hist + KNN_SPREAD * cap + 1;
     bufs[t].cap = (int)cap;
     bufs[t].k = (int)m;
     bufs[t].count = 0;
