@@ -244,14 +244,14 @@ static void knn_insertion_sort(knn_entry *e, int n) {
 
 /* Sorts the buffer by knn_before and keeps its first k entries (all when
  * fewer); returns the k-th distance then, NaN when fewer than k are left.
- * A counting pass first puts the entries in n buckets of equal width between
- * the smallest and the largest distance: the bucket of d is
+ * A counting pass first puts the entries in KNN_SPREAD * n buckets of equal
+ * width between the smallest and the largest distance: the bucket of d is
  * (uint32_t)((d - lo) * scale), which never decreases as d grows (each step
  * rounds monotonically) and is the same for equal distances, so every entry
  * of a bucket comes before every entry of a later bucket in the exact order.
  * Only the buckets that hold the first k entries are then sorted, by an
  * insertion sort that has little to move and predictable branches. With a
- * NaN or a range that gives no finite scale, the insertion sort alone (same
+ * NaN, an infinite distance or a zero range, the insertion sort alone (same
  * result, slower). */
 static double knn_buffer_sort(knn_buffer *b) {
   const int n = b->count, k = b->k;
@@ -267,8 +267,12 @@ static double knn_buffer_sort(knn_buffer *b) {
   /* KNN_SPREAD buckets per entry: fewer entries share a bucket, so fewer
    * are out of order for the insertion sort. */
   const uint32_t nb = KNN_SPREAD * (uint32_t)n;
-  const double scale = (double)nb / (hi - lo);
-  if (!nan && n > 1 && scale < INFINITY) {
+  const double range = hi - lo, scale = (double)nb / range;
+  /* A finite range (an infinite distance would make a bucket of inf * 0)
+   * and a finite scale (not so for a zero range, or a subnormal one): every
+   * bucket is then a number in [0, nb] up to rounding, converted without
+   * overflow and clamped to the last bucket. */
+  if (!nan && n > 1 && range < INFINITY && scale < INFINITY) {
     uint32_t *hist = b->hist, *key = b->key;
     knn_entry *t = b->tmp;
     const uint32_t top = nb - 1u;
