@@ -751,7 +751,7 @@ KNN_NOIPA static void knn_prefetch(const void *p, size_t len) {
 /* Fetches the output rows of the point at tree position j. The rows are in
  * input order, so consecutive queries (tree order) write far apart: without
  * this, the first writes of a row missed the cache and filled the store
- * buffer (a fifth of the all-kNN's time at 1M points, K = 50, in perf). */
+ * buffer (about 12% of the all-kNN's time at 1M points, K = 50, in perf). */
 static inline void knn_prefetch_row(const bsurf_knn_index *ix, size_t j, int k, const uint32_t *idx,
                                     const double *dist2) {
 #if defined(__GNUC__)
