@@ -654,6 +654,32 @@ static void test_knn_degenerate_collinear(void **state) {
   free(xyz);
 }
 
+/* Distances over hundreds of orders of magnitude, exact ties at every scale
+ * and distances that overflow to infinity (no NaN): the all-kNN sorts its
+ * candidates in buckets between the smallest and largest distance, with an
+ * insertion sort alone where that range is zero or infinite; every path must
+ * give the brute force's rows, order included. */
+static void test_knn_all_wide_range(void **state) {
+  const size_t n = 1500;
+  double *xyz = alloc_xyz(n);
+  bsurf_rng r;
+  (void)state;
+  bsurf_rng_init(&r, 11, 0, 0);
+  for (size_t i = 0; i < n; i++) {
+    /* Clusters of spacing 1e-150, 1, 1e150 on small integer grids (ties),
+     * far apart, and a few points near 1e200 (squared distances to them
+     * overflow). */
+    static const double scale[] = {1e-150, 1.0, 1e150, 1e200};
+    const size_t c = i % 10 < 4 ? 0 : i % 10 < 7 ? 1 : i % 10 < 9 ? 2 : 3;
+    for (int d = 0; d < 3; d++)
+      xyz[3 * i + d] = scale[c] * (double)bsurf_rng_below(&r, 6) + (double)c * 1e3 * (c < 3);
+  }
+  check_all(xyz, n, 16);
+  check_all(xyz, n, 50);
+  check_all(xyz, n, 200);
+  free(xyz);
+}
+
 /* NaN and infinite coordinates are the caller's to reject, but the search must
  * terminate, and it still gives exactly the brute-force answer (NaN distances
  * sort last). */
@@ -700,6 +726,7 @@ int main(void) {
       cmocka_unit_test(test_knn_all_cancellation),
       cmocka_unit_test(test_knn_degenerate_identical),
       cmocka_unit_test(test_knn_degenerate_collinear),
+      cmocka_unit_test(test_knn_all_wide_range),
       cmocka_unit_test(test_knn_nonfinite_terminates),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
