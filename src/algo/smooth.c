@@ -420,19 +420,20 @@ typedef long long mp_v4l __attribute__((vector_size(32)));
   } while (0)
 
 /* w[e] and tg[3e..3e+2] of the pairs e0..e0+3 (lanes past np repeat pair e0
- * and are not stored); M = the number of terms, a constant per call site. */
-static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c, int M, const uint32_t *pi,
+ * and are not stored): pair e is point pp[e] (its row in pos) with the
+ * centre pi[e] (its row in pos) and that centre's fit record pf[e]; M = the
+ * number of terms, a constant per call site. */
+static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c, int M, const double *pos,
+                                                            const uint32_t *pi, const uint32_t *pf,
                                                             const uint32_t *pp, size_t e0, size_t np, double *w,
                                                             double *tg) {
   const double *X[4], *C[4], *F[4];
-  uint32_t I[4];
   const int L = np - e0 < 4 ? (int)(np - e0) : 4;
   for (int l = 0; l < 4; l++) {
     const size_t e = e0 + (size_t)(l < L ? l : 0);
-    I[l] = pi[e];
-    X[l] = &c->cur[3 * (size_t)pp[e]];
-    C[l] = &c->cur[3 * (size_t)I[l]];
-    F[l] = &c->fits[(size_t)I[l] * c->stride];
+    X[l] = &pos[3 * (size_t)pp[e]];
+    C[l] = &pos[3 * (size_t)pi[e]];
+    F[l] = &c->fits[(size_t)pf[e] * c->stride];
   }
   const mp_v4d x0 = MP_GATHER(X, 0), x1 = MP_GATHER(X, 1), x2 = MP_GATHER(X, 2);
   const mp_v4d c0 = MP_GATHER(C, 0), c1 = MP_GATHER(C, 1), c2 = MP_GATHER(C, 2);
@@ -477,10 +478,10 @@ static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c,
 }
 
 BSURF_CLONES
-static void mp_pairs(const smooth_ctx *c, const uint32_t *pi, const uint32_t *pp, size_t np, double *w,
-                     double *tg) {
+static void mp_pairs(const smooth_ctx *c, const double *pos, const uint32_t *pi, const uint32_t *pf,
+                     const uint32_t *pp, size_t np, double *w, double *tg) {
 #define MP_PAIRS(M)                                                                                \
-  for (size_t e0 = 0; e0 < np; e0 += 4) mp_pairs4(c, M, pi, pp, e0, np, w, tg)
+  for (size_t e0 = 0; e0 < np; e0 += 4) mp_pairs4(c, M, pos, pi, pf, pp, e0, np, w, tg)
   switch (c->m) {
   case 3: MP_PAIRS(3); break;
   case 6: MP_PAIRS(6); break;
@@ -489,43 +490,60 @@ static void mp_pairs(const smooth_ctx *c, const uint32_t *pi, const uint32_t *pp
 #undef MP_PAIRS
 }
 
-/* One block of points of a multipass pass. */
-static void gather_multipass_block(void *vc, int thread, size_t blk) {
-  smooth_ctx *c = vc;
-  const size_t p0 = blk * MP_BLOCK, p1 = p0 + MP_BLOCK < c->n ? p0 + MP_BLOCK : c->n;
+/* The points of one pass as the blocks see them: the whole cloud (rows =
+ * ranks, pairs = the compacted active lists) or a time block's local rows
+ * (mp_tblock_task). */
+typedef struct mp_view {
+  const double *cur;   /* rows read */
+  double *next;        /* rows written */
+  size_t n;            /* rows computed */
+  const size_t *off;   /* row p's pairs: off[p] .. off[p + 1] - 1 */
+  const uint32_t *ctr; /* per pair: its centre's row in cur */
+  const uint32_t *fit; /* per pair: its centre's fit record (the centre's rank) */
+} mp_view;
+
+/* Rows p0..p1-1 of a view, one block of a multipass pass; returns the
+ * largest squared move, mx or above. */
+static double mp_block(const smooth_ctx *c, const mp_view *v, size_t p0, size_t p1, int thread, double mx) {
   uint32_t *pp = &c->mp_point[(size_t)thread * c->mp_cap];
   double *w = &c->mp_val[(size_t)thread * 4 * c->mp_cap], *tg = w + c->mp_cap;
-  const uint32_t *pi = &c->act[c->act_off[p0]]; /* the block's pairs' i, compacted */
-  const size_t np = c->act_off[p1] - c->act_off[p0];
+  const size_t base = v->off[p0], np = v->off[p1] - base; /* the block's pairs, side by side */
   for (size_t p = p0, e = 0; p < p1; p++)
-    for (uint32_t q = 0; q < c->act_n[p]; q++) pp[e++] = (uint32_t)p;
+    for (size_t q = v->off[p]; q < v->off[p + 1]; q++) pp[e++] = (uint32_t)p;
   {
     /* ask for the records and positions of the next block's pairs now */
-    const size_t q1 = p1 + MP_BLOCK < c->n ? p1 + MP_BLOCK : c->n;
-    for (size_t e = c->act_off[p1], e1 = c->act_off[q1]; e < e1; e++) {
-      const double *f = &c->fits[(size_t)c->act[e] * c->stride];
+    const size_t q1 = p1 + MP_BLOCK < v->n ? p1 + MP_BLOCK : v->n;
+    for (size_t e = v->off[p1], e1 = v->off[q1]; e < e1; e++) {
+      const double *f = &c->fits[(size_t)v->fit[e] * c->stride];
       __builtin_prefetch(f);
       __builtin_prefetch(f + 8);
       __builtin_prefetch(f + 16);
       __builtin_prefetch(f + c->stride - 1);
-      __builtin_prefetch(&c->cur[3 * (size_t)c->act[e]]);
+      __builtin_prefetch(&v->cur[3 * (size_t)v->ctr[e]]);
     }
   }
-  mp_pairs(c, pi, pp, np, w, tg);
-  double mx = c->tmax[8 * thread];
+  mp_pairs(c, v->cur, &v->ctr[base], &v->fit[base], pp, np, w, tg);
   size_t e = 0;
   for (size_t p = p0; p < p1; p++) {
     double P = 1.0, S = 0.0, T[3] = {0, 0, 0};
-    for (uint32_t q = 0; q < c->act_n[p]; q++, e++) {
+    for (size_t q = v->off[p]; q < v->off[p + 1]; q++, e++) {
       const double we = w[e];
       P *= 1.0 - we;
       S += we;
       for (int t = 0; t < 3; t++) T[t] += we * tg[3 * e + t];
     }
-    double step2 = update_finish(&c->cur[3 * p], P, S, T, &c->next[3 * p]);
+    double step2 = update_finish(&v->cur[3 * p], P, S, T, &v->next[3 * p]);
     if (step2 > mx) mx = step2;
   }
-  c->tmax[8 * thread] = mx;
+  return mx;
+}
+
+/* One block of points of a multipass pass over the whole cloud. */
+static void gather_multipass_block(void *vc, int thread, size_t blk) {
+  smooth_ctx *c = vc;
+  const size_t p0 = blk * MP_BLOCK, p1 = p0 + MP_BLOCK < c->n ? p0 + MP_BLOCK : c->n;
+  const mp_view v = {c->cur, c->next, c->n, c->act_off, c->act, c->act};
+  c->tmax[8 * thread] = mp_block(c, &v, p0, p1, thread, c->tmax[8 * thread]);
 }
 #endif
 
