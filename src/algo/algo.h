@@ -29,6 +29,10 @@ typedef struct bsurf_error_scratch {
  * vector lanes, so the two can be compared bit for bit; 1 (the default)
  * restores the blocks. */
 void bsurf_smooth_block_passes(int on);
+/* For tests only (not thread-safe): the multipass passes per time block
+ * (smooth.c, mp_tblock_task), 1 to 16; 1 runs them pass by pass, so the two
+ * can be compared bit for bit. The default is 8. */
+void bsurf_smooth_time_blocks(int passes);
 /* The multipass weights' e^x (-37.5 <= x <= 0), exposed for its test. */
 double bsurf_smooth_exp(double x);
 
