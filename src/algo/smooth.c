@@ -1099,7 +1099,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     }
     int it = 0;
     double *from = pos, *to = buf; /* the passes read from and write to; swapped after each */
-    double last = 0;               /* the largest move of the last pass */
+    double last = INFINITY;        /* the largest move of the last pass (none yet) */
     while (st == BSURF_OK && it < o.iterations) {
       int s = 1; /* passes done in this round */
       if (seq) {
@@ -1107,11 +1107,6 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       } else {
         c.cur = from;
         c.next = to;
-        /* a time block of s passes: only while every point is expected to
-         * stay within the margin until its last pass (at most s - 1 more
-         * moves of 1.5 times the last pass's largest) */
-        int tb = c.reg ? (o.iterations - it < c.tb_S ? o.iterations - it : c.tb_S) : 1;
-        if (tb > 1 && drift + (tb - 1) * 1.5 * last > margin) drift = INFINITY; /* rebuild first */
         if (drift > margin) {
           st = bsurf_parallel_sweep(n, T, active_task, &c);
           drift = 0;
@@ -1128,7 +1123,12 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
           }
           if (st == BSURF_OK && c.reg) st = mp_regions_build(&c, T);
         }
-        while (tb > 1 && (tb - 1) * 1.5 * last > margin) tb--;
+        /* a time block of tb passes: only as long as every point is
+         * expected to stay within the margin until its last pass starts (at
+         * most tb - 1 more moves of 1.5 times the last pass's largest);
+         * else pass by pass, up to the rebuild */
+        int tb = c.reg ? (o.iterations - it < c.tb_S ? o.iterations - it : c.tb_S) : 1;
+        while (tb > 1 && !(drift + (tb - 1) * 1.5 * last <= margin)) tb--;
         if (st == BSURF_OK && tb > 1) {
           c.tb_s = tb;
           for (int t = 0; t < T; t++)
