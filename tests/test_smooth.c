@@ -321,8 +321,9 @@ static void test_multipass_block_passes(void **state) {
  * points, the halo rows computed again) give the bits of the passes one by
  * one: 5000 points (five regions, so halos cross them), blocks of 8 and of
  * 3 passes (37 passes: a shorter last block), more pairs per point (h2 =
- * 1W, a wide h1) and few, degrees 1-3, one and two threads. A halo one
- * level short, or a block run on lists that miss a pair, would differ. */
+ * 1W, a wide h1; blocks allowed however wide their halos) and few,
+ * degrees 1-3, one and two threads. A halo one level short, or a block run
+ * on lists that miss a pair, would differ. */
 static void test_multipass_time_blocks(void **state) {
   (void)state;
   twin_runs t;
@@ -334,16 +335,16 @@ static void test_multipass_time_blocks(void **state) {
       o.a = variant & 1 ? 0.6 : 0.1;
       o.h2_fraction = variant & 2 ? 1.0 : 0.3;
       o.error.threads = 1;
-      bsurf_smooth_time_blocks(1);
+      bsurf_smooth_time_blocks(1, 0);
       assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.a, NULL, NULL), BSURF_OK);
       for (int threads = 1; threads <= 2; threads++)
         for (int passes = 3; passes <= 8; passes += 5) {
           o.error.threads = threads;
-          bsurf_smooth_time_blocks(passes);
+          bsurf_smooth_time_blocks(passes, 1);
           assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.b, NULL, NULL), BSURF_OK);
           twins_check(&t);
         }
-      bsurf_smooth_time_blocks(8);
+      bsurf_smooth_time_blocks(8, 0);
     }
   twins_close(&t);
 }

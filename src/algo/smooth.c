@@ -250,6 +250,7 @@ typedef struct smooth_ctx {
   struct mp_region *reg; /* nreg */
   size_t nreg;
   int tb_S, tb_s;     /* passes the regions are built for; passes of the running block */
+  int tb_max;         /* passes per block that the current lists' halos allow (1: none) */
   uint32_t *lmap;     /* threads x n: rank -> local row while a region is built (UINT32_MAX: none) */
   size_t tb_cap;      /* rows of the largest region */
   double *tb_pos;     /* threads x 2 tb_cap x 3: a block's local positions, two passes */
@@ -577,9 +578,10 @@ static void gather_multipass_block(void *vc, int thread, size_t blk) {
 #define MP_REGION 1024 /* ranks per region */
 #define MP_SMAX 16     /* passes per block, at most */
 #define MP_TSTRIDE 32  /* doubles per thread in tb_step (>= MP_SMAX, its own cache lines) */
-static int mp_tblock_passes = 8;
-void bsurf_smooth_time_blocks(int passes) {
+static int mp_tblock_passes = 8, mp_tblock_any_halo = 0;
+void bsurf_smooth_time_blocks(int passes, int any_halo) {
   mp_tblock_passes = passes < 1 ? 1 : (passes > MP_SMAX ? MP_SMAX : passes);
+  mp_tblock_any_halo = any_halo;
 }
 
 typedef struct mp_region {
@@ -706,6 +708,17 @@ static bsurf_status mp_regions_build(smooth_ctx *c, int T) {
     if (c->reg[r].sub_max > sub) sub = c->reg[r].sub_max;
   }
   if (st != BSURF_OK) return st;
+  /* blocks of at most tb_max passes: the halo rows they compute again are
+   * at most a tenth of the rows (many pairs per point, as with h2 = 1W,
+   * give wide halos: there the blocks would cost more than the cache gives) */
+  c->tb_max = 1;
+  for (int s = 2; s <= c->tb_S; s++) {
+    size_t rows_s = 0;
+    for (size_t r = 0; r < c->nreg; r++)
+      for (int j = c->tb_S - s + 1; j <= c->tb_S; j++) rows_s += c->reg[r].len[j];
+    if (!mp_tblock_any_halo && (double)rows_s > 1.1 * (double)s * (double)c->n) break;
+    c->tb_max = s;
+  }
   if (sub > c->mp_cap) {
     free(c->mp_point);
     free(c->mp_val);
@@ -1127,7 +1140,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
          * expected to stay within the margin until its last pass starts (at
          * most tb - 1 more moves of 1.5 times the last pass's largest);
          * else pass by pass, up to the rebuild */
-        int tb = c.reg ? (o.iterations - it < c.tb_S ? o.iterations - it : c.tb_S) : 1;
+        int tb = c.reg ? (o.iterations - it < c.tb_max ? o.iterations - it : c.tb_max) : 1;
         while (tb > 1 && !(drift + (tb - 1) * 1.5 * last <= margin)) tb--;
         if (st == BSURF_OK && tb > 1) {
           c.tb_s = tb;
