@@ -46,7 +46,8 @@
  * All of it is deterministic for a given seed, whatever the thread count:
  * every point is updated by gathering its contributions in a fixed order.
  * The multipass's parallel passes run over the points in Morton order (cache
- * locality; the order of a point's sums follows it). */
+ * locality; the order of a point's sums follows it), several passes at a
+ * time per region of points (time blocks, mp_tblock_task: the same bits). */
 #include "algo/algo.h"
 #include "search/search.h"
 #include "common/common.h"
@@ -574,7 +575,10 @@ static void gather_multipass_block(void *vc, int thread, size_t blk) {
  * without a weight adds exactly nothing), so rebuilding them earlier than
  * the pass-by-pass loop would does not change the output. A block is
  * therefore run only when the points are expected to stay within the
- * margin, and is discarded and run again after a rebuild if they did not. */
+ * margin, and is discarded and run again after a rebuild if they did not.
+ * Blocks are kept to the passes whose halo rows are at most a tenth of the
+ * rows computed (mp_regions_build): wide halos cost more than the cache
+ * gives. */
 #define MP_REGION 1024 /* ranks per region */
 #define MP_SMAX 16     /* passes per block, at most */
 #define MP_TSTRIDE 32  /* doubles per thread in tb_step (>= MP_SMAX, its own cache lines) */
@@ -1102,7 +1106,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
           c.tb_S = mp_tblock_passes;
           c.nreg = (n + MP_REGION - 1) / MP_REGION;
           c.reg = bsurf_calloc_array(c.nreg ? c.nreg : 1, sizeof *c.reg);
-          c.lmap = bsurf_alloc_array((size_t)T * n, sizeof(uint32_t));
+          c.lmap = bsurf_alloc_array((size_t)T * (n ? n : 1), sizeof(uint32_t));
           c.tb_step = bsurf_alloc_array((size_t)T * MP_TSTRIDE, sizeof(double));
           if (!c.reg || !c.lmap || !c.tb_step) st = BSURF_ERR_NOMEM;
           else memset(c.lmap, 0xff, (size_t)T * n * sizeof(uint32_t));
