@@ -317,6 +317,38 @@ static void test_multipass_block_passes(void **state) {
   twins_close(&t);
 }
 
+/* The multipass passes in time blocks (several passes per region of 1024
+ * points, the halo rows computed again) give the bits of the passes one by
+ * one: 5000 points (five regions, so halos cross them), blocks of 8 and of
+ * 3 passes (37 passes: a shorter last block), more pairs per point (h2 =
+ * 1W, a wide h1; blocks allowed however wide their halos) and few,
+ * degrees 1-3, one and two threads. A halo one level short, or a block run
+ * on lists that miss a pair, would differ. */
+static void test_multipass_time_blocks(void **state) {
+  (void)state;
+  twin_runs t;
+  twins_open(&t, BSURF_SHAPE_CUBE, 5000, 6, 2, 3);
+  for (int degree = 1; degree <= 3; degree++)
+    for (int variant = 0; variant < 4; variant++) {
+      bsurf_smooth_options o = options(BSURF_SMOOTH_MULTIPASS, 30, degree, 20);
+      o.iterations = 37;
+      o.a = variant & 1 ? 0.6 : 0.1;
+      o.h2_fraction = variant & 2 ? 1.0 : 0.3;
+      o.error.threads = 1;
+      bsurf_smooth_time_blocks(1, 0);
+      assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.a, NULL, NULL), BSURF_OK);
+      for (int threads = 1; threads <= 2; threads++)
+        for (int passes = 3; passes <= 8; passes += 5) {
+          o.error.threads = threads;
+          bsurf_smooth_time_blocks(passes, 1);
+          assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.b, NULL, NULL), BSURF_OK);
+          twins_check(&t);
+        }
+      bsurf_smooth_time_blocks(8, 0);
+    }
+  twins_close(&t);
+}
+
 /* The multipass weights' exponential: within 1e-15 relative of libm's exp
  * over its whole range [-GAUSS_CUT, 0] (37.43), exact at 0, and monotone. */
 static void test_multipass_exp(void **state) {
@@ -364,7 +396,8 @@ int main(void) {
       cmocka_unit_test(test_plane_does_not_move),   cmocka_unit_test(test_quadric_does_not_move),
       cmocka_unit_test(test_noisy_plane_gets_flatter), cmocka_unit_test(test_naive_threshold),
       cmocka_unit_test(test_multipass_neighbourhoods), cmocka_unit_test(test_thread_determinism),
-      cmocka_unit_test(test_multipass_block_passes), cmocka_unit_test(test_multipass_exp),
+      cmocka_unit_test(test_multipass_block_passes), cmocka_unit_test(test_multipass_time_blocks),
+      cmocka_unit_test(test_multipass_exp),
       cmocka_unit_test(test_arguments),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -29,6 +29,12 @@ typedef struct bsurf_error_scratch {
  * vector lanes, so the two can be compared bit for bit; 1 (the default)
  * restores the blocks. */
 void bsurf_smooth_block_passes(int on);
+/* For tests only (not thread-safe): the multipass passes per time block
+ * (smooth.c, mp_tblock_task), 1 to 16; 1 runs them pass by pass, so the two
+ * can be compared bit for bit. any_halo = 1 runs blocks however wide their
+ * halos (by default a block's halo rows are at most a tenth of its rows).
+ * The defaults are (8, 0). */
+void bsurf_smooth_time_blocks(int passes, int any_halo);
 /* The multipass weights' e^x (-37.5 <= x <= 0), exposed for its test. */
 double bsurf_smooth_exp(double x);
 

@@ -46,7 +46,8 @@
  * All of it is deterministic for a given seed, whatever the thread count:
  * every point is updated by gathering its contributions in a fixed order.
  * The multipass's parallel passes run over the points in Morton order (cache
- * locality; the order of a point's sums follows it). */
+ * locality; the order of a point's sums follows it), several passes at a
+ * time per region of points (time blocks, mp_tblock_task: the same bits). */
 #include "algo/algo.h"
 #include "search/search.h"
 #include "common/common.h"
@@ -245,6 +246,16 @@ typedef struct smooth_ctx {
   uint32_t *mp_point;   /* threads x mp_cap: the pairs' p */
   size_t *act_off;    /* n + 1: the active lists compacted, point p's at act[act_off[p]] */
   double *mp_val;     /* threads x 4 mp_cap: w, target (3) */
+  /* multipass time blocks (mp_tblock_task): a region's rows and pairs,
+   * rebuilt with the active lists, for blocks of up to tb_S passes */
+  struct mp_region *reg; /* nreg */
+  size_t nreg;
+  int tb_S, tb_s;     /* passes the regions are built for; passes of the running block */
+  int tb_max;         /* passes per block that the current lists' halos allow (1: none) */
+  uint32_t *lmap;     /* threads x n: rank -> local row while a region is built (UINT32_MAX: none) */
+  size_t tb_cap;      /* rows of the largest region */
+  double *tb_pos;     /* threads x 2 tb_cap x 3: a block's local positions, two passes */
+  double *tb_step;    /* threads x MP_TSTRIDE: the largest squared move of each pass of a block */
 } smooth_ctx;
 
 /* Stage 1: Algorithm 1 at every point (and the naive projection). */
@@ -420,19 +431,20 @@ typedef long long mp_v4l __attribute__((vector_size(32)));
   } while (0)
 
 /* w[e] and tg[3e..3e+2] of the pairs e0..e0+3 (lanes past np repeat pair e0
- * and are not stored); M = the number of terms, a constant per call site. */
-static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c, int M, const uint32_t *pi,
+ * and are not stored): pair e is point pp[e] (its row in pos) with the
+ * centre pi[e] (its row in pos) and that centre's fit record pf[e]; M = the
+ * number of terms, a constant per call site. */
+static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c, int M, const double *pos,
+                                                            const uint32_t *pi, const uint32_t *pf,
                                                             const uint32_t *pp, size_t e0, size_t np, double *w,
                                                             double *tg) {
   const double *X[4], *C[4], *F[4];
-  uint32_t I[4];
   const int L = np - e0 < 4 ? (int)(np - e0) : 4;
   for (int l = 0; l < 4; l++) {
     const size_t e = e0 + (size_t)(l < L ? l : 0);
-    I[l] = pi[e];
-    X[l] = &c->cur[3 * (size_t)pp[e]];
-    C[l] = &c->cur[3 * (size_t)I[l]];
-    F[l] = &c->fits[(size_t)I[l] * c->stride];
+    X[l] = &pos[3 * (size_t)pp[e]];
+    C[l] = &pos[3 * (size_t)pi[e]];
+    F[l] = &c->fits[(size_t)pf[e] * c->stride];
   }
   const mp_v4d x0 = MP_GATHER(X, 0), x1 = MP_GATHER(X, 1), x2 = MP_GATHER(X, 2);
   const mp_v4d c0 = MP_GATHER(C, 0), c1 = MP_GATHER(C, 1), c2 = MP_GATHER(C, 2);
@@ -477,10 +489,10 @@ static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c,
 }
 
 BSURF_CLONES
-static void mp_pairs(const smooth_ctx *c, const uint32_t *pi, const uint32_t *pp, size_t np, double *w,
-                     double *tg) {
+static void mp_pairs(const smooth_ctx *c, const double *pos, const uint32_t *pi, const uint32_t *pf,
+                     const uint32_t *pp, size_t np, double *w, double *tg) {
 #define MP_PAIRS(M)                                                                                \
-  for (size_t e0 = 0; e0 < np; e0 += 4) mp_pairs4(c, M, pi, pp, e0, np, w, tg)
+  for (size_t e0 = 0; e0 < np; e0 += 4) mp_pairs4(c, M, pos, pi, pf, pp, e0, np, w, tg)
   switch (c->m) {
   case 3: MP_PAIRS(3); break;
   case 6: MP_PAIRS(6); break;
@@ -489,43 +501,243 @@ static void mp_pairs(const smooth_ctx *c, const uint32_t *pi, const uint32_t *pp
 #undef MP_PAIRS
 }
 
-/* One block of points of a multipass pass. */
-static void gather_multipass_block(void *vc, int thread, size_t blk) {
-  smooth_ctx *c = vc;
-  const size_t p0 = blk * MP_BLOCK, p1 = p0 + MP_BLOCK < c->n ? p0 + MP_BLOCK : c->n;
+/* The points of one pass as the blocks see them: the whole cloud (rows =
+ * ranks, pairs = the compacted active lists) or a time block's local rows
+ * (mp_tblock_task). */
+typedef struct mp_view {
+  const double *cur;   /* rows read */
+  double *next;        /* rows written */
+  size_t n;            /* rows computed */
+  const size_t *off;   /* row p's pairs: off[p] .. off[p + 1] - 1 */
+  const uint32_t *ctr; /* per pair: its centre's row in cur */
+  const uint32_t *fit; /* per pair: its centre's fit record (the centre's rank) */
+} mp_view;
+
+/* Rows p0..p1-1 of a view, one block of a multipass pass; returns the
+ * largest squared move, mx or above. */
+static double mp_block(const smooth_ctx *c, const mp_view *v, size_t p0, size_t p1, int thread, double mx) {
   uint32_t *pp = &c->mp_point[(size_t)thread * c->mp_cap];
   double *w = &c->mp_val[(size_t)thread * 4 * c->mp_cap], *tg = w + c->mp_cap;
-  const uint32_t *pi = &c->act[c->act_off[p0]]; /* the block's pairs' i, compacted */
-  const size_t np = c->act_off[p1] - c->act_off[p0];
+  const size_t base = v->off[p0], np = v->off[p1] - base; /* the block's pairs, side by side */
   for (size_t p = p0, e = 0; p < p1; p++)
-    for (uint32_t q = 0; q < c->act_n[p]; q++) pp[e++] = (uint32_t)p;
+    for (size_t q = v->off[p]; q < v->off[p + 1]; q++) pp[e++] = (uint32_t)p;
   {
     /* ask for the records and positions of the next block's pairs now */
-    const size_t q1 = p1 + MP_BLOCK < c->n ? p1 + MP_BLOCK : c->n;
-    for (size_t e = c->act_off[p1], e1 = c->act_off[q1]; e < e1; e++) {
-      const double *f = &c->fits[(size_t)c->act[e] * c->stride];
+    const size_t q1 = p1 + MP_BLOCK < v->n ? p1 + MP_BLOCK : v->n;
+    for (size_t e = v->off[p1], e1 = v->off[q1]; e < e1; e++) {
+      const double *f = &c->fits[(size_t)v->fit[e] * c->stride];
       __builtin_prefetch(f);
       __builtin_prefetch(f + 8);
       __builtin_prefetch(f + 16);
       __builtin_prefetch(f + c->stride - 1);
-      __builtin_prefetch(&c->cur[3 * (size_t)c->act[e]]);
+      __builtin_prefetch(&v->cur[3 * (size_t)v->ctr[e]]);
     }
   }
-  mp_pairs(c, pi, pp, np, w, tg);
-  double mx = c->tmax[8 * thread];
+  mp_pairs(c, v->cur, &v->ctr[base], &v->fit[base], pp, np, w, tg);
   size_t e = 0;
   for (size_t p = p0; p < p1; p++) {
     double P = 1.0, S = 0.0, T[3] = {0, 0, 0};
-    for (uint32_t q = 0; q < c->act_n[p]; q++, e++) {
+    for (size_t q = v->off[p]; q < v->off[p + 1]; q++, e++) {
       const double we = w[e];
       P *= 1.0 - we;
       S += we;
       for (int t = 0; t < 3; t++) T[t] += we * tg[3 * e + t];
     }
-    double step2 = update_finish(&c->cur[3 * p], P, S, T, &c->next[3 * p]);
+    double step2 = update_finish(&v->cur[3 * p], P, S, T, &v->next[3 * p]);
     if (step2 > mx) mx = step2;
   }
-  c->tmax[8 * thread] = mx;
+  return mx;
+}
+
+/* One block of points of a multipass pass over the whole cloud. */
+static void gather_multipass_block(void *vc, int thread, size_t blk) {
+  smooth_ctx *c = vc;
+  const size_t p0 = blk * MP_BLOCK, p1 = p0 + MP_BLOCK < c->n ? p0 + MP_BLOCK : c->n;
+  const mp_view v = {c->cur, c->next, c->n, c->act_off, c->act, c->act};
+  c->tmax[8 * thread] = mp_block(c, &v, p0, p1, thread, c->tmax[8 * thread]);
+}
+
+/* ---- multipass time blocks: several passes per cache-sized region ------
+ * A pass maps the positions x^t to x^(t+1); point p's x^(t+1) reads only
+ * x^t at p and at the centres i of p's active pairs (and the fixed records
+ * of those i). So s passes over a region R of MP_REGION consecutive ranks
+ * (Morton order) need x^(t+s-1) on R, x^(t+s-2) on R and its pairs'
+ * centres, and so on: levels of halo, each the centres of the level
+ * before's pairs. A block reads x^t of all these rows from the whole
+ * cloud's array, computes every pass on its own local rows (the halo rows
+ * again, as their owners do: the same inputs give the same bits) while the
+ * region's records stay in cache, and writes x^(t+s) of R only. Every row
+ * is computed by mp_block with its pairs in its list's order, so the output
+ * is the pass-by-pass output bit for bit, for any thread count (regions
+ * read x^t and write disjoint rows of x^(t+s)).
+ * The active lists must hold every pair with a weight at every pass of a
+ * block; the lists are only a superset of those pairs (a listed pair
+ * without a weight adds exactly nothing), so rebuilding them earlier than
+ * the pass-by-pass loop would does not change the output. A block is
+ * therefore run only when the points are expected to stay within the
+ * margin, and is discarded and run again after a rebuild if they did not.
+ * Blocks are kept to the passes whose halo rows are at most a tenth of the
+ * rows computed (mp_regions_build): wide halos cost more than the cache
+ * gives. */
+#define MP_REGION 1024 /* ranks per region */
+#define MP_SMAX 16     /* passes per block, at most */
+#define MP_TSTRIDE 32  /* doubles per thread in tb_step (>= MP_SMAX, its own cache lines) */
+static int mp_tblock_passes = 8, mp_tblock_any_halo = 0;
+void bsurf_smooth_time_blocks(int passes, int any_halo) {
+  mp_tblock_passes = passes < 1 ? 1 : (passes > MP_SMAX ? MP_SMAX : passes);
+  mp_tblock_any_halo = any_halo;
+}
+
+typedef struct mp_region {
+  uint32_t *row;  /* local row -> rank: the region's own ranks, then each level of halo (in rank order) */
+  size_t *off;    /* len[1] + 1: the pairs of the rows a block computes */
+  uint32_t *ctr;  /* per pair: its centre's local row */
+  uint32_t *fit;  /* per pair: its centre's rank (fit record) */
+  size_t len[MP_SMAX + 1]; /* pass j of a block of S passes computes rows 0..len[j]-1 (len[S]: own rows) */
+  size_t row_cap, off_cap, pair_cap;
+  size_t sub_max; /* the most pairs of MP_BLOCK consecutive rows */
+  int failed;     /* out of memory */
+} mp_region;
+
+/* *a with room for `need` elements of `size` bytes (grown by half); NULL
+ * (and *a untouched) when memory is short. */
+static void *mp_grow(void *a, size_t *cap, size_t need, size_t size) {
+  if (need <= *cap) return a;
+  const size_t nc = need + need / 2 + 64;
+  void *b = realloc(a, nc * size);
+  if (b) *cap = nc;
+  return b;
+}
+
+static int cmp_u32(const void *a, const void *b) {
+  const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+  return (x > y) - (x < y);
+}
+
+/* Region r's rows and pairs for blocks of up to tb_S passes, from the
+ * compacted active lists: its own ranks, then the centres of their pairs
+ * (the rows pass S - 1 must give), then the centres of those rows' pairs,
+ * and so on down to the rows a block reads (level 0). */
+static void mp_region_task(void *vc, int thread, size_t r) {
+  smooth_ctx *c = vc;
+  mp_region *g = &c->reg[r];
+  uint32_t *map = &c->lmap[(size_t)thread * c->n];
+  const int S = c->tb_S;
+  const size_t r0 = r * MP_REGION, r1 = r0 + MP_REGION < c->n ? r0 + MP_REGION : c->n;
+  size_t nrow = 0, np = 0;
+  void *q;
+  g->failed = 1;
+  if (!(q = mp_grow(g->row, &g->row_cap, r1 - r0, sizeof *g->row))) return;
+  g->row = q;
+  for (size_t p = r0; p < r1; p++) {
+    map[p] = (uint32_t)nrow;
+    g->row[nrow++] = (uint32_t)p;
+  }
+  g->len[S] = nrow;
+  size_t beg = 0;
+  for (int j = S - 1; j >= 0; j--) {
+    const size_t end = nrow;
+    for (size_t l = beg; l < end; l++)
+      for (size_t e = c->act_off[g->row[l]]; e < c->act_off[g->row[l] + 1]; e++) {
+        const uint32_t i = c->act[e];
+        if (map[i] != UINT32_MAX) continue;
+        if (!(q = mp_grow(g->row, &g->row_cap, nrow + 1, sizeof *g->row))) goto out;
+        g->row = q;
+        map[i] = 0; /* seen; its row is set below */
+        g->row[nrow++] = i;
+      }
+    qsort(&g->row[end], nrow - end, sizeof *g->row, cmp_u32);
+    for (size_t l = end; l < nrow; l++) map[g->row[l]] = (uint32_t)l;
+    g->len[j] = nrow;
+    beg = end;
+  }
+  const size_t nc = g->len[1];
+  for (size_t l = 0; l < nc; l++) np += c->act_off[g->row[l] + 1] - c->act_off[g->row[l]];
+  if (!(q = mp_grow(g->off, &g->off_cap, nc + 1, sizeof *g->off))) goto out;
+  g->off = q;
+  if (!(q = mp_grow(g->ctr, &g->pair_cap, np ? np : 1, sizeof *g->ctr))) goto out;
+  g->ctr = q;
+  g->pair_cap = 0; /* ctr and fit grow together */
+  if (!(q = mp_grow(g->fit, &g->pair_cap, np ? np : 1, sizeof *g->fit))) goto out;
+  g->fit = q;
+  np = 0;
+  for (size_t l = 0; l < nc; l++) {
+    g->off[l] = np;
+    for (size_t e = c->act_off[g->row[l]]; e < c->act_off[g->row[l] + 1]; e++, np++) {
+      g->ctr[np] = map[c->act[e]];
+      g->fit[np] = c->act[e];
+    }
+  }
+  g->off[nc] = np;
+  g->sub_max = 0;
+  for (size_t l = 0; l < nc; l += MP_BLOCK) {
+    const size_t l1 = l + MP_BLOCK < nc ? l + MP_BLOCK : nc;
+    if (g->off[l1] - g->off[l] > g->sub_max) g->sub_max = g->off[l1] - g->off[l];
+  }
+  g->failed = 0;
+out:
+  for (size_t l = 0; l < nrow; l++) map[g->row[l]] = UINT32_MAX;
+}
+
+/* One region's block of tb_s passes (the last tb_s of the tb_S it is built
+ * for): x^t of the rows it reads, then pass after pass on the local rows,
+ * the last one written to the region's own rows of `next`. */
+static void mp_tblock_task(void *vc, int thread, size_t r) {
+  smooth_ctx *c = vc;
+  const mp_region *g = &c->reg[r];
+  const int S = c->tb_S, j0 = S - c->tb_s;
+  double *a = &c->tb_pos[(size_t)thread * 6 * c->tb_cap], *b = a + 3 * c->tb_cap;
+  double *step = &c->tb_step[(size_t)thread * MP_TSTRIDE];
+  for (size_t l = 0; l < g->len[j0]; l++) memcpy(&a[3 * l], &c->cur[3 * (size_t)g->row[l]], 3 * sizeof(double));
+  for (int j = j0 + 1; j <= S; j++) {
+    const mp_view v = {a, j == S ? &c->next[3 * (size_t)g->row[0]] : b, g->len[j], g->off, g->ctr, g->fit};
+    double mx = step[j - j0 - 1];
+    for (size_t p0 = 0; p0 < v.n; p0 += MP_BLOCK)
+      mx = mp_block(c, &v, p0, p0 + MP_BLOCK < v.n ? p0 + MP_BLOCK : v.n, thread, mx);
+    step[j - j0 - 1] = mx;
+    double *t = a;
+    a = b;
+    b = t;
+  }
+}
+
+/* The regions for the current active lists (after a rebuild); room in the
+ * per-thread scratch for their rows and blocks. */
+static bsurf_status mp_regions_build(smooth_ctx *c, int T) {
+  bsurf_status st = bsurf_parallel_sweep_chunk(c->nreg, T, 1, mp_region_task, c);
+  size_t rows = 0, sub = c->mp_cap;
+  for (size_t r = 0; r < c->nreg && st == BSURF_OK; r++) {
+    if (c->reg[r].failed) return BSURF_ERR_NOMEM;
+    if (c->reg[r].len[0] > rows) rows = c->reg[r].len[0];
+    if (c->reg[r].sub_max > sub) sub = c->reg[r].sub_max;
+  }
+  if (st != BSURF_OK) return st;
+  /* blocks of at most tb_max passes: the halo rows they compute again are
+   * at most a tenth of the rows (many pairs per point, as with h2 = 1W,
+   * give wide halos: there the blocks would cost more than the cache gives) */
+  c->tb_max = 1;
+  for (int s = 2; s <= c->tb_S; s++) {
+    size_t rows_s = 0;
+    for (size_t r = 0; r < c->nreg; r++)
+      for (int j = c->tb_S - s + 1; j <= c->tb_S; j++) rows_s += c->reg[r].len[j];
+    if (!mp_tblock_any_halo && (double)rows_s > 1.1 * (double)s * (double)c->n) break;
+    c->tb_max = s;
+  }
+  if (sub > c->mp_cap) {
+    free(c->mp_point);
+    free(c->mp_val);
+    c->mp_cap = sub;
+    c->mp_point = bsurf_alloc_array((size_t)T * sub, sizeof(uint32_t));
+    c->mp_val = bsurf_alloc_array((size_t)T * 4 * sub, sizeof(double));
+    if (!c->mp_point || !c->mp_val) return BSURF_ERR_NOMEM;
+  }
+  if (rows > c->tb_cap) {
+    free(c->tb_pos);
+    c->tb_cap = rows;
+    c->tb_pos = bsurf_alloc_array((size_t)T * 6 * rows, sizeof(double));
+    if (!c->tb_pos) return BSURF_ERR_NOMEM;
+  }
+  return BSURF_OK;
 }
 #endif
 
@@ -694,6 +906,16 @@ static void ctx_free(smooth_ctx *c, int T) {
   free(c->mp_point);
   free(c->act_off);
   free(c->mp_val);
+  for (size_t r = 0; c->reg && r < c->nreg; r++) {
+    free(c->reg[r].row);
+    free(c->reg[r].off);
+    free(c->reg[r].ctr);
+    free(c->reg[r].fit);
+  }
+  free(c->reg);
+  free(c->lmap);
+  free(c->tb_pos);
+  free(c->tb_step);
 }
 
 bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
@@ -880,17 +1102,28 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
         c.mp_val = bsurf_alloc_array((size_t)T * 4 * (c.mp_cap ? c.mp_cap : 1), sizeof(double));
         c.act_off = bsurf_alloc_array(n + 1, sizeof(size_t));
         if (!c.mp_point || !c.mp_val || !c.act_off) st = BSURF_ERR_NOMEM;
+        if (st == BSURF_OK && mp_tblock_passes > 1 && o.iterations > 1) {
+          c.tb_S = mp_tblock_passes;
+          c.nreg = (n + MP_REGION - 1) / MP_REGION;
+          c.reg = bsurf_calloc_array(c.nreg ? c.nreg : 1, sizeof *c.reg);
+          c.lmap = bsurf_alloc_array((size_t)T * (n ? n : 1), sizeof(uint32_t));
+          c.tb_step = bsurf_alloc_array((size_t)T * MP_TSTRIDE, sizeof(double));
+          if (!c.reg || !c.lmap || !c.tb_step) st = BSURF_ERR_NOMEM;
+          else memset(c.lmap, 0xff, (size_t)T * n * sizeof(uint32_t));
+        }
       }
 #endif
     }
     int it = 0;
-    for (; st == BSURF_OK && it < o.iterations; it++) {
+    double *from = pos, *to = buf; /* the passes read from and write to; swapped after each */
+    double last = INFINITY;        /* the largest move of the last pass (none yet) */
+    while (st == BSURF_OK && it < o.iterations) {
+      int s = 1; /* passes done in this round */
       if (seq) {
         multipass_sequential_pass(&c);
       } else {
-        /* even passes read pos and write buf, odd ones the reverse */
-        c.cur = (it % 2 == 0) ? pos : buf;
-        c.next = (it % 2 == 0) ? buf : pos;
+        c.cur = from;
+        c.next = to;
         if (drift > margin) {
           st = bsurf_parallel_sweep(n, T, active_task, &c);
           drift = 0;
@@ -905,8 +1138,39 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
             }
             c.act_off[n] = off;
           }
+          if (st == BSURF_OK && c.reg) st = mp_regions_build(&c, T);
         }
-        if (st == BSURF_OK) {
+        /* a time block of tb passes: only as long as every point is
+         * expected to stay within the margin until its last pass starts (at
+         * most tb - 1 more moves of 1.5 times the last pass's largest);
+         * else pass by pass, up to the rebuild */
+        int tb = c.reg ? (o.iterations - it < c.tb_max ? o.iterations - it : c.tb_max) : 1;
+        while (tb > 1 && !(drift + (tb - 1) * 1.5 * last <= margin)) tb--;
+        if (st == BSURF_OK && tb > 1) {
+          c.tb_s = tb;
+          for (int t = 0; t < T; t++)
+            for (int j = 0; j < tb; j++) c.tb_step[(size_t)t * MP_TSTRIDE + (size_t)j] = 0;
+          st = bsurf_parallel_sweep_chunk(c.nreg, T, 1, mp_tblock_task, &c);
+          /* the lists held every weighted pair if no pass of the block
+           * started beyond the margin */
+          double d = drift, mx = 0;
+          int ok = 1;
+          for (int j = 0; j < tb && st == BSURF_OK; j++) {
+            double m = 0;
+            for (int t = 0; t < T; t++)
+              if (c.tb_step[(size_t)t * MP_TSTRIDE + (size_t)j] > m) m = c.tb_step[(size_t)t * MP_TSTRIDE + (size_t)j];
+            if (d > margin) ok = 0;
+            d += sqrt(m);
+            if (m > mx) mx = m;
+          }
+          last = sqrt(mx);
+          if (!ok) { /* discarded: run again after a rebuild, in fewer passes */
+            drift = INFINITY;
+            continue;
+          }
+          drift = d;
+          s = tb;
+        } else if (st == BSURF_OK) {
           for (int t = 0; t < T; t++) c.tmax[8 * t] = 0;
 #ifdef MP_LANES
           if (c.mp_point)
@@ -917,15 +1181,19 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
           double mx = 0;
           for (int t = 0; t < T; t++)
             if (c.tmax[8 * t] > mx) mx = c.tmax[8 * t];
-          drift += sqrt(mx);
+          last = sqrt(mx);
+          drift += last;
         }
+        double *t = from;
+        from = to;
+        to = t;
       }
-      if (st == BSURF_OK && sp.fn && staged_cb(&sp, (size_t)it + 1, (size_t)o.iterations))
+      it += s;
+      if (st == BSURF_OK && sp.fn && staged_cb(&sp, (size_t)it, (size_t)o.iterations))
         st = BSURF_ERR_CANCELLED;
     }
     if (st == BSURF_OK && !seq) {
-      const double *fin = (o.iterations % 2 == 1) ? buf : pos;
-      for (size_t r = 0; r < n; r++) memcpy(&out_xyz[3 * (size_t)perm[r]], &fin[3 * r], 3 * sizeof(double));
+      for (size_t r = 0; r < n; r++) memcpy(&out_xyz[3 * (size_t)perm[r]], &from[3 * r], 3 * sizeof(double));
     }
     free(buf);
     if (pos != out_xyz) free(pos);
