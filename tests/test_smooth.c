@@ -349,6 +349,34 @@ static void test_multipass_time_blocks(void **state) {
   twins_close(&t);
 }
 
+/* The default 300 passes with h2 = 1W on a noisy cube: the active lists are
+ * rebuilt many times and each region's pair arrays are refilled with
+ * growing and shrinking sizes. A first version kept one capacity for two
+ * arrays and wrote past one of them (`smooth --method multipass --h2 1W`
+ * aborted in malloc; ASan: heap-buffer-overflow in mp_region_task). Same
+ * bits as the passes one by one, on two threads. */
+static void test_multipass_time_blocks_long(void **state) {
+  (void)state;
+  twin_runs t; /* as `generate cube -n 3000`, `noise --level 0.5` and the command's K = 50, B = 50 */
+  double h;
+  assert_int_equal(bsurf_generate(&t.c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_REGULAR, 1, 2), BSURF_OK);
+  assert_int_equal(bsurf_mean_spacing(t.c.xyz, t.c.point_count, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(t.c.xyz, t.c.normals, t.c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 1), BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(&t.nb, t.c.xyz, t.c.point_count, 50, 2, NULL, NULL), BSURF_OK);
+  t.n = t.c.point_count;
+  t.a = malloc(t.n * 3 * sizeof(double));
+  t.b = malloc(t.n * 3 * sizeof(double));
+  bsurf_smooth_options o = options(BSURF_SMOOTH_MULTIPASS, 50, 3, 50);
+  o.iterations = 300;
+  o.h2_fraction = 1.0;
+  bsurf_smooth_time_blocks(1, 0);
+  assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.a, NULL, NULL), BSURF_OK);
+  bsurf_smooth_time_blocks(8, 0);
+  assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.b, NULL, NULL), BSURF_OK);
+  twins_check(&t);
+  twins_close(&t);
+}
+
 /* The multipass weights' exponential: within 1e-15 relative of libm's exp
  * over its whole range [-GAUSS_CUT, 0] (37.43), exact at 0, and monotone. */
 static void test_multipass_exp(void **state) {
@@ -397,7 +425,7 @@ int main(void) {
       cmocka_unit_test(test_noisy_plane_gets_flatter), cmocka_unit_test(test_naive_threshold),
       cmocka_unit_test(test_multipass_neighbourhoods), cmocka_unit_test(test_thread_determinism),
       cmocka_unit_test(test_multipass_block_passes), cmocka_unit_test(test_multipass_time_blocks),
-      cmocka_unit_test(test_multipass_exp),
+      cmocka_unit_test(test_multipass_time_blocks_long), cmocka_unit_test(test_multipass_exp),
       cmocka_unit_test(test_arguments),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -594,7 +594,7 @@ typedef struct mp_region {
   uint32_t *ctr;  /* per pair: its centre's local row */
   uint32_t *fit;  /* per pair: its centre's rank (fit record) */
   size_t len[MP_SMAX + 1]; /* pass j of a block of S passes computes rows 0..len[j]-1 (len[S]: own rows) */
-  size_t row_cap, off_cap, pair_cap;
+  size_t row_cap, off_cap, ctr_cap, fit_cap; /* each array's own capacity */
   size_t sub_max; /* the most pairs of MP_BLOCK consecutive rows */
   int failed;     /* out of memory */
 } mp_region;
@@ -655,10 +655,11 @@ static void mp_region_task(void *vc, int thread, size_t r) {
   for (size_t l = 0; l < nc; l++) np += c->act_off[g->row[l] + 1] - c->act_off[g->row[l]];
   if (!(q = mp_grow(g->off, &g->off_cap, nc + 1, sizeof *g->off))) goto out;
   g->off = q;
-  if (!(q = mp_grow(g->ctr, &g->pair_cap, np ? np : 1, sizeof *g->ctr))) goto out;
+  /* two capacities: a shared one, reset before growing fit, let a later,
+   * larger np skip growing ctr past its real size (found by ASan) */
+  if (!(q = mp_grow(g->ctr, &g->ctr_cap, np ? np : 1, sizeof *g->ctr))) goto out;
   g->ctr = q;
-  g->pair_cap = 0; /* ctr and fit grow together */
-  if (!(q = mp_grow(g->fit, &g->pair_cap, np ? np : 1, sizeof *g->fit))) goto out;
+  if (!(q = mp_grow(g->fit, &g->fit_cap, np ? np : 1, sizeof *g->fit))) goto out;
   g->fit = q;
   np = 0;
   for (size_t l = 0; l < nc; l++) {
