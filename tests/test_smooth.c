@@ -41,16 +41,22 @@ static void surface(bsurf_cloud *c, size_t n, double qa, double qb, double qc, d
   }
 }
 
-/* Random points on a generated shape with gaussian noise of `level` h along
- * the normals; returns h, the clean sample's mean spacing. */
-static double noisy_shape(bsurf_cloud *c, bsurf_shape shape, size_t n, uint64_t seed, double feature_width,
-                          double level, uint64_t noise_seed) {
-  assert_int_equal(bsurf_generate(c, shape, n, BSURF_SAMPLING_RANDOM, seed, feature_width), BSURF_OK);
+/* Points on a generated shape (`sampling`) with gaussian noise of `level` h
+ * along the normals; returns h, the clean sample's mean spacing. */
+static double noisy_sample(bsurf_cloud *c, bsurf_shape shape, size_t n, bsurf_sampling sampling, uint64_t seed,
+                           double feature_width, double level, uint64_t noise_seed) {
+  assert_int_equal(bsurf_generate(c, shape, n, sampling, seed, feature_width), BSURF_OK);
   double h;
   assert_int_equal(bsurf_mean_spacing(c->xyz, c->point_count, 2, &h), BSURF_OK);
   assert_int_equal(bsurf_add_noise(c->xyz, c->normals, c->point_count, BSURF_NOISE_GAUSSIAN, level, h, noise_seed),
                    BSURF_OK);
   return h;
+}
+
+/* noisy_sample with random sampling. */
+static double noisy_shape(bsurf_cloud *c, bsurf_shape shape, size_t n, uint64_t seed, double feature_width,
+                          double level, uint64_t noise_seed) {
+  return noisy_sample(c, shape, n, BSURF_SAMPLING_RANDOM, seed, feature_width, level, noise_seed);
 }
 
 static double max_move(const double *a, const double *b, size_t n) {
@@ -250,13 +256,18 @@ typedef struct twin_runs {
   double *a, *b;
 } twin_runs;
 
-static void twins_open(twin_runs *t, bsurf_shape shape, size_t n, uint64_t seed, double feature_width,
-                       uint64_t noise_seed) {
-  (void)noisy_shape(&t->c, shape, n, seed, feature_width, 0.5, noise_seed);
-  assert_int_equal(bsurf_neighbors_build(&t->nb, t->c.xyz, t->c.point_count, 30, 2, NULL, NULL), BSURF_OK);
+/* t->c's K-neighbourhoods and the two outputs. */
+static void twins_finish(twin_runs *t, int K) {
+  assert_int_equal(bsurf_neighbors_build(&t->nb, t->c.xyz, t->c.point_count, K, 2, NULL, NULL), BSURF_OK);
   t->n = t->c.point_count;
   t->a = malloc(t->n * 3 * sizeof(double));
   t->b = malloc(t->n * 3 * sizeof(double));
+}
+
+static void twins_open(twin_runs *t, bsurf_shape shape, size_t n, uint64_t seed, double feature_width,
+                       uint64_t noise_seed) {
+  (void)noisy_shape(&t->c, shape, n, seed, feature_width, 0.5, noise_seed);
+  twins_finish(t, 30);
 }
 
 /* Both outputs equal, and the points moved. */
@@ -358,14 +369,8 @@ static void test_multipass_time_blocks(void **state) {
 static void test_multipass_time_blocks_long(void **state) {
   (void)state;
   twin_runs t; /* as `generate cube -n 3000`, `noise --level 0.5` and the command's K = 50, B = 50 */
-  double h;
-  assert_int_equal(bsurf_generate(&t.c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_REGULAR, 1, 2), BSURF_OK);
-  assert_int_equal(bsurf_mean_spacing(t.c.xyz, t.c.point_count, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(t.c.xyz, t.c.normals, t.c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 1), BSURF_OK);
-  assert_int_equal(bsurf_neighbors_build(&t.nb, t.c.xyz, t.c.point_count, 50, 2, NULL, NULL), BSURF_OK);
-  t.n = t.c.point_count;
-  t.a = malloc(t.n * 3 * sizeof(double));
-  t.b = malloc(t.n * 3 * sizeof(double));
+  (void)noisy_sample(&t.c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_REGULAR, 1, 2, 0.5, 1);
+  twins_finish(&t, 50);
   bsurf_smooth_options o = options(BSURF_SMOOTH_MULTIPASS, 50, 3, 50);
   o.iterations = 300;
   o.h2_fraction = 1.0;
