@@ -59,7 +59,7 @@ typedef struct normal_scratch {
   double *weights; /* bsurf_boot_rows(B) x k: the replicates, then P (all ones) */
   double *rows;    /* the same count x max(PCA_COLS, ncols): PCA rows, or the fits' lanes */
   double *coefs;   /* (B + 1) x terms */
-  uint16_t *counts; /* 4 x k */
+  uint16_t *counts; /* max(4, B) x k */
   uint16_t *draws;  /* B x k: each replicate's indices in the order drawn */
   unsigned char *valid; /* B */
   double *bn;      /* B x 3 bootstrap normals */
@@ -88,7 +88,8 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
   s->weights = bsurf_alloc_array(nb * k, sizeof(double));
   s->rows = bsurf_alloc_aligned(nb, BSURF_NCOLS_MAX * sizeof(double));
   s->coefs = bsurf_alloc_aligned(nb, BSURF_TERMS_MAX * sizeof(double));
-  s->counts = bsurf_alloc_array(4 * (size_t)k, sizeof(uint16_t));
+  /* four replicates' multiplicities (PCA), or all B (a polynomial's draws) */
+  s->counts = bsurf_alloc_array((size_t)(B > 4 ? B : 4) * k, sizeof(uint16_t));
   s->draws = bsurf_alloc_array(nb * k, sizeof(uint16_t));
   s->valid = bsurf_alloc_array(nb, 1);
   s->bn = bsurf_alloc_array(nb, 3 * sizeof(double));
@@ -140,9 +141,11 @@ static void normals_point(void *vctx, int thread, size_t i) {
    * whole P), for a polynomial their draws */
   const int pca = o->fit == BSURF_NORMAL_PCA;
   double *W = s->weights;
-  bsurf_boot_weight_rows(o->seed, o->point_index ? o->point_index[i] : i, B, k,
-                         pca ? 3 : bsurf_poly_terms(o->degree), s->counts, pca ? W : NULL, NULL,
-                         s->valid, pca ? NULL : s->draws);
+  const uint64_t key = o->point_index ? o->point_index[i] : i;
+  if (pca)
+    bsurf_boot_weight_rows(o->seed, key, B, k, 3, s->counts, W, NULL, s->valid);
+  else
+    bsurf_boot_draw_rows(o->seed, key, B, k, bsurf_poly_terms(o->degree), s->counts, s->draws, s->valid);
 
   double nP[3];
   bsurf_frame frame;

@@ -20,15 +20,13 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
 
 /* The weight rows of B resamples and of the whole neighbourhood, laid out
  * for one normal-equation product (bsurf_gemm_rows / bsurf_gemm_lanes):
- * W (bsurf_boot_rows(B) x k, may be NULL): row b < B the multiplicities of
- * replicate b (stream (seed, point, b)), row B all ones, the rest zero; missing (B x k,
+ * W (bsurf_boot_rows(B) x k): row b < B the multiplicities of replicate b
+ * (stream (seed, point, b)), row B all ones, the rest zero; missing (B x k,
  * may be NULL): 1.0 where point j is not in replicate b (b in C_j, Eq. 4.4),
  * else 0.0; valid[b]: replicate b drew at least min_distinct distinct points.
- * counts: 4k scratch; draws (B x k, may be NULL): replicate b's indices in
- * the order drawn (bsurf_boot_counts4), for bsurf_localfit_normal_eq_draws. */
+ * counts: 4k scratch. (The polynomial fits use bsurf_boot_draw_rows.) */
 void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
-                            uint16_t *counts, double *W, double *missing, unsigned char *valid,
-                            uint16_t *draws);
+                            uint16_t *counts, double *W, double *missing, unsigned char *valid);
 /* The B resamples of bsurf_boot_weight_rows as integers only: counts (B x
  * k) the multiplicities, draws (B x k) the indices in the order drawn,
  * valid[b] as there. For the fits from draws (bsurf_localfit_normal_eq_draws)

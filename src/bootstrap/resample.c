@@ -166,17 +166,14 @@ static int boot_weights(int k, const uint16_t *restrict counts, double *restrict
 int bsurf_boot_rows(int B) { return (B + 1 + 3) / 4 * 4; }
 
 void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
-                            uint16_t *counts, double *W, double *missing, unsigned char *valid,
-                            uint16_t *draws) {
+                            uint16_t *counts, double *W, double *missing, unsigned char *valid) {
   for (int b0 = 0; b0 < B; b0 += 4) {
     const int nrep = B - b0 < 4 ? B - b0 : 4;
-    bsurf_boot_counts4(seed, point, (uint32_t)b0, nrep, k, counts,
-                       draws ? &draws[(size_t)b0 * k] : NULL);
+    bsurf_boot_counts4(seed, point, (uint32_t)b0, nrep, k, counts, NULL);
     for (int b = b0; b < b0 + nrep; b++)
-      valid[b] = boot_weights(k, &counts[(size_t)(b - b0) * k], W ? &W[(size_t)b * k] : NULL,
+      valid[b] = boot_weights(k, &counts[(size_t)(b - b0) * k], &W[(size_t)b * k],
                               missing ? &missing[(size_t)b * k] : NULL) >= min_distinct;
   }
-  if (!W) return;
   for (int j = 0; j < k; j++) W[(size_t)B * k + j] = 1.0;
   for (size_t t = (size_t)(B + 1) * k; t < (size_t)bsurf_boot_rows(B) * k; t++) W[t] = 0.0;
 }

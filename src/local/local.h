@@ -102,7 +102,7 @@ void bsurf_localfit_normal_eq_lanes(const bsurf_localfit *lf, int R, const doubl
                                     double *lanes);
 
 /* The normal equations of B resamples given by their draws
- * (bsurf_boot_weight_rows) and of the whole neighbourhood (row B), as
+ * (bsurf_boot_draw_rows) and of the whole neighbourhood (row B), as
  * bsurf_localfit_normal_eq_lanes gives them for the weight rows up to the
  * order of the sums (bsurf_draw_sums_lanes): bsurf_boot_rows(B) rows. */
 void bsurf_localfit_normal_eq_draws(const bsurf_localfit *lf, int B, const uint16_t *draws,
