@@ -109,11 +109,7 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
 
   const int m = bsurf_poly_terms(degree);
   if (degree != o->degree) /* a lower degree needs fewer distinct points */
-    for (int b = 0; b < B; b++) {
-      int distinct = 0;
-      for (int j = 0; j < k; j++) distinct += s->counts[(size_t)b * k + j] != 0;
-      s->valid[b] = distinct >= m;
-    }
+    for (int b = 0; b < B; b++) s->valid[b] = bsurf_boot_distinct(k, &s->counts[(size_t)b * k]) >= m;
   bsurf_localfit_solve_lanes(lf, degree, B, s->rows, s->valid, s->coefs);
   for (int b = 0; b < B; b++) s->skipped += !s->valid[b];
 

@@ -34,6 +34,8 @@ void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min
  * weights: a quarter of the bytes. */
 void bsurf_boot_draw_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
                           uint16_t *counts, uint16_t *draws, unsigned char *valid);
+/* The number of distinct points of a resample: its nonzero counts (k). */
+int bsurf_boot_distinct(int k, const uint16_t *counts);
 /* B + 1 rows rounded up to a multiple of 4 (whole groups of vector lanes). */
 int bsurf_boot_rows(int B);
 

@@ -148,19 +148,22 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
                       draws ? draws + l * (size_t)k : NULL);
 }
 
-/* A replicate's multiplicities as fit weights (w, may be NULL) and, if
- * missing is not NULL, 1.0 where a point was not drawn; the number of
- * distinct points. */
+BSURF_CLONES
+int bsurf_boot_distinct(int k, const uint16_t *counts) {
+  int distinct = 0;
+  for (int j = 0; j < k; j++) distinct += counts[j] != 0;
+  return distinct;
+}
+
+/* A replicate's multiplicities as fit weights (w) and, if missing is not
+ * NULL, 1.0 where a point was not drawn; the number of distinct points. */
 BSURF_CLONES
 static int boot_weights(int k, const uint16_t *restrict counts, double *restrict w,
                         double *restrict missing) {
-  int distinct = 0;
-  for (int j = 0; j < k; j++) distinct += counts[j] != 0;
-  if (w)
-    for (int j = 0; j < k; j++) w[j] = counts[j];
+  for (int j = 0; j < k; j++) w[j] = counts[j];
   if (missing)
     for (int j = 0; j < k; j++) missing[j] = counts[j] == 0;
-  return distinct;
+  return bsurf_boot_distinct(k, counts);
 }
 
 int bsurf_boot_rows(int B) { return (B + 1 + 3) / 4 * 4; }
@@ -185,6 +188,6 @@ void bsurf_boot_draw_rows(uint64_t seed, uint64_t point, int B, int k, int min_d
     bsurf_boot_counts4(seed, point, (uint32_t)b0, nrep, k, &counts[(size_t)b0 * k],
                        &draws[(size_t)b0 * k]);
     for (int b = b0; b < b0 + nrep; b++)
-      valid[b] = boot_weights(k, &counts[(size_t)b * k], NULL, NULL) >= min_distinct;
+      valid[b] = bsurf_boot_distinct(k, &counts[(size_t)b * k]) >= min_distinct;
   }
 }

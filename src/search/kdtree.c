@@ -542,7 +542,6 @@ typedef long long knn_v4l __attribute__((vector_size(KNN_LANES * sizeof(double))
  * points unless they all coincide (then it takes several blocks). */
 #define KNN_BLOCK 16
 
-
 /* Offers the points [begin, end) of a leaf to the list. The distances of a
  * block are computed KNN_LANES at a time (GCC vector types: SSE2 pairs or
  * AVX2), lane by lane the same operations in the same order as knn_dist2, so
