@@ -229,37 +229,44 @@ static void test_residual_sums_equal_plain(void **state) {
   bsurf_localfit_free(&lf);
 }
 
+/* A flat patch of at most PATCH_MAX points, its frame and a fit for it. */
+enum { PATCH_MAX = 64 };
+typedef struct flat_patch_t {
+  double xyz[3 * PATCH_MAX];
+  uint32_t idx[PATCH_MAX];
+  bsurf_rng rng; /* continues the stream the points came from */
+  bsurf_frame f;
+  bsurf_localfit lf;
+} flat_patch_t;
+
 /* K random points of a flat patch (|z| <= 0.1, x and y in [-1, 1]) from
  * the stream (seed, 2, 3), the identity frame, and a fit allocated for K
- * points up to degree 4; rng continues the stream. */
-static void flat_patch(uint64_t seed, int K, double *xyz, uint32_t *idx, bsurf_rng *rng,
-                       bsurf_frame *f, bsurf_localfit *lf) {
-  bsurf_rng_init(rng, seed, 2, 3);
+ * points up to degree 4. */
+static void flat_patch(uint64_t seed, int K, flat_patch_t *p) {
+  assert_true(K <= PATCH_MAX);
+  bsurf_rng_init(&p->rng, seed, 2, 3);
   for (int j = 0; j < K; j++) {
-    for (int t = 0; t < 3; t++) xyz[3 * j + t] = bsurf_rng_uniform(rng) * 2 - 1;
-    xyz[3 * j + 2] *= 0.1;
-    idx[j] = (uint32_t)j;
+    for (int t = 0; t < 3; t++) p->xyz[3 * j + t] = bsurf_rng_uniform(&p->rng) * 2 - 1;
+    p->xyz[3 * j + 2] *= 0.1;
+    p->idx[j] = (uint32_t)j;
   }
-  identity_frame(f);
-  assert_int_equal(bsurf_localfit_alloc(lf, K, 4), BSURF_OK);
+  identity_frame(&p->f);
+  assert_int_equal(bsurf_localfit_alloc(&p->lf, K, 4), BSURF_OK);
 }
 
 /* The normal equations of many weighted fits as one matrix product in
- * vector lanes (the bootstrap's path) give the same bits as the row
+ * vector lanes (the dense reference that the bootstrap's sums from draws
+ * are checked against, test_draw_sums) give the same bits as the row
  * product and as one fit at a time, and the lane solver the same
  * coefficients (or the same rank-deficiency) as the row solver. */
 static void test_lanes_equal_rows(void **state) {
   (void)state;
   enum { K = 37, R = 12 };
-  double xyz[3 * K];
-  uint32_t idx[K];
-  bsurf_rng rng;
-  bsurf_frame f;
-  bsurf_localfit lf;
-  flat_patch(11, K, xyz, idx, &rng, &f, &lf);
+  flat_patch_t pt;
+  flat_patch(11, K, &pt);
   for (int D = 1; D <= 4; D++) {
-    bsurf_localfit_setup(&lf, xyz, idx, K, &f, D);
-    const int nc = lf.ncols, m = bsurf_poly_terms(D);
+    bsurf_localfit_setup(&pt.lf, pt.xyz, pt.idx, K, &pt.f, D);
+    const int nc = pt.lf.ncols, m = bsurf_poly_terms(D);
     double W[R * K], rows[R * 64], lanes[R * 64], row[64];
     uint16_t counts[R][K];
     for (int b = 0; b < R; b++)
@@ -268,8 +275,8 @@ static void test_lanes_equal_rows(void **state) {
         counts[b][j] = b == 5 ? (uint16_t)(j < 2 ? 5 : 0) : (uint16_t)((j * 7 + b * 3) % 4);
         W[b * K + j] = counts[b][j];
       }
-    bsurf_gemm_rows(R, K, nc, W, lf.op, rows);
-    bsurf_localfit_normal_eq_lanes(&lf, R, W, lanes);
+    bsurf_gemm_rows(R, K, nc, W, pt.lf.op, rows);
+    bsurf_localfit_normal_eq_lanes(&pt.lf, R, W, lanes);
     unsigned char valid[R];
     double coefs[R * 15];
     for (int b = 0; b < R; b++) {
@@ -277,17 +284,17 @@ static void test_lanes_equal_rows(void **state) {
       assert_memory_equal(row, &rows[b * nc], (size_t)nc * sizeof *row);
       valid[b] = b != 7; /* a replicate the caller skips */
     }
-    bsurf_localfit_solve_lanes(&lf, D, R, lanes, valid, coefs);
+    bsurf_localfit_solve_lanes(&pt.lf, D, R, lanes, valid, coefs);
     for (int b = 0; b < R; b++) {
       double c[15];
-      int st = bsurf_localfit_solve(&lf, D, counts[b], c);
+      int st = bsurf_localfit_solve(&pt.lf, D, counts[b], c);
       if (b == 7) continue;
       assert_int_equal(valid[b], st == 0);
       if (st == 0) assert_memory_equal(c, &coefs[b * m], (size_t)m * sizeof *c);
     }
     assert_int_equal(valid[5], 0);
   }
-  bsurf_localfit_free(&lf);
+  bsurf_localfit_free(&pt.lf);
 }
 
 /* The normal equations from draws (the bootstrap's path): each row is the
@@ -299,31 +306,27 @@ static void test_lanes_equal_rows(void **state) {
 static void test_draw_sums(void **state) {
   (void)state;
   enum { KMAX = 53, BMAX = 9 };
-  double xyz[3 * KMAX];
-  uint32_t idx[KMAX];
-  bsurf_rng rng;
-  bsurf_frame f;
-  bsurf_localfit lf;
-  flat_patch(12, KMAX, xyz, idx, &rng, &f, &lf);
+  flat_patch_t pt;
+  flat_patch(12, KMAX, &pt);
   const int ks[] = {5, 37, 53}, Bs[] = {1, 6, 7, 8, 9};
   for (int D = 1; D <= 4; D++)
     for (size_t ik = 0; ik < sizeof ks / sizeof ks[0]; ik++)
       for (size_t ib = 0; ib < sizeof Bs / sizeof Bs[0]; ib++) {
         const int K = ks[ik], B = Bs[ib], R = (B + 4) / 4 * 4;
-        bsurf_localfit_setup(&lf, xyz, idx, K, &f, D);
-        const int nc = lf.ncols;
+        bsurf_localfit_setup(&pt.lf, pt.xyz, pt.idx, K, &pt.f, D);
+        const int nc = pt.lf.ncols;
         uint16_t draws[BMAX * KMAX];
         double W[(BMAX + 4) * KMAX], lanes[(BMAX + 4) * 64], dense[(BMAX + 4) * 64], row[64];
         for (int b = 0; b < R; b++)
           for (int j = 0; j < K; j++) W[b * K + j] = b == B ? 1.0 : 0.0;
         for (int b = 0; b < B; b++)
           for (int t = 0; t < K; t++) {
-            const uint16_t j = (uint16_t)(bsurf_rng_next(&rng) % (uint64_t)K);
+            const uint16_t j = (uint16_t)(bsurf_rng_next(&pt.rng) % (uint64_t)K);
             draws[b * K + t] = j;
             W[b * K + j] += 1.0;
           }
-        bsurf_draw_sums_lanes(B, K, nc, draws, lf.op, lanes);
-        bsurf_gemm_lanes(R, K, nc, W, lf.op, dense);
+        bsurf_draw_sums_lanes(B, K, nc, draws, pt.lf.op, lanes);
+        bsurf_gemm_lanes(R, K, nc, W, pt.lf.op, dense);
         for (int b = 0; b < R; b++) {
           bsurf_lanes_row(nc, lanes, b, row);
           double ref[64], dref[64];
@@ -331,11 +334,11 @@ static void test_draw_sums(void **state) {
           for (int c = 0; c < nc; c++) {
             double x = 0;
             if (b < B)
-              for (int t = 0; t < K; t++) x += lf.op[(size_t)draws[b * K + t] * nc + c];
+              for (int t = 0; t < K; t++) x += pt.lf.op[(size_t)draws[b * K + t] * nc + c];
             ref[c] = x;
             if (b < B) {
               double mag = 0;
-              for (int j = 0; j < K; j++) mag += W[b * K + j] * fabs(lf.op[(size_t)j * nc + c]);
+              for (int j = 0; j < K; j++) mag += W[b * K + j] * fabs(pt.lf.op[(size_t)j * nc + c]);
               assert_true(fabs(row[c] - dref[c]) <= 1e-14 * mag);
             }
           }
@@ -345,7 +348,7 @@ static void test_draw_sums(void **state) {
             assert_memory_equal(row, dref, (size_t)nc * sizeof *row);
         }
       }
-  bsurf_localfit_free(&lf);
+  bsurf_localfit_free(&pt.lf);
 }
 
 /* Collinear points (all on the x axis) cannot determine a surface: every
