@@ -38,6 +38,7 @@ static int parse_degrees(const char *s, int *ds, int max) {
 typedef struct normals_job {
   bsurf_normal_options no;
   int test_error, selecting, select_k, select_degree, k_ref;
+  bsurf_kselect_options ksel; /* rule MSE: bsurf_select_k chooses K */
   int ks[MAX_CANDIDATES], nk, ds[4], nd;
   int quiet;
 } normals_job;
@@ -67,7 +68,7 @@ static int normals_bufs_alloc(normals_bufs *b, const normals_job *job, size_t n)
   b->var = calloc(n, sizeof(double));
   b->err = calloc(n, sizeof(double));
   int ok = b->normals && b->var && b->err;
-  if (job->test_error) ok = ok && (b->ref = malloc(n * 3 * sizeof(double)));
+  if (job->test_error && job->ksel.rule != BSURF_KSELECT_MSE) ok = ok && (b->ref = malloc(n * 3 * sizeof(double)));
   if (job->selecting) {
     b->cand_n = malloc(n * 3 * sizeof(double));
     b->cand_v = calloc(n, sizeof(double));
@@ -96,7 +97,7 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
   bsurf_normal_report rep;
   bsurf_status st;
   memset(total, 0, sizeof *total);
-  if (job->test_error) {
+  if (b->ref) {
     /* reference normals n_j of Eq. 5.10: single PCA fits on a fixed K */
     bsurf_normal_options ro = no;
     ro.fit = BSURF_NORMAL_PCA;
@@ -109,6 +110,23 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
     if (st != BSURF_OK) return st;
   }
   const int selecting = job->selecting;
+  int *kmse = NULL; /* rule MSE: the chosen K; the candidates' loop below then keeps it */
+  if (job->ksel.rule == BSURF_KSELECT_MSE) {
+    bsurf_kselect_options ko = job->ksel;
+    ko.progress = no.progress;
+    ko.progress_user = prog;
+    int bootstrap = no.bootstrap >= 2;
+    if (!(kmse = malloc(n * sizeof(int)))) return BSURF_ERR_NOMEM;
+    bsurf_kselect_fields kf = {bootstrap ? NULL : b->normals, kmse, b->err, NULL};
+    if (prog) cli_progress_init(prog, "select K", job->quiet);
+    st = bsurf_select_k(xyz, nb, &ko, &kf, NULL);
+    if (prog) cli_progress_done(prog);
+    for (size_t i = 0; i < n; i++) b->ksel[i] = kmse[i];
+    if (st != BSURF_OK || !bootstrap) {
+      free(kmse);
+      return st;
+    }
+  }
   for (int a = 0; a < job->nk; a++) {
     for (int d = 0; d < job->nd; d++) {
       bsurf_normal_options o = no;
@@ -121,7 +139,10 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
       if (prog) cli_progress_init(prog, label, job->quiet);
       st = bsurf_estimate_normals(xyz, nb, b->ref, &o, &out, &rep);
       if (prog) cli_progress_done(prog);
-      if (st != BSURF_OK) return st;
+      if (st != BSURF_OK) {
+        free(kmse);
+        return st;
+      }
       total->replicates_total += rep.replicates_total;
       total->replicates_skipped += rep.replicates_skipped;
       total->degree_reduced += rep.degree_reduced;
@@ -129,6 +150,13 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
       if (!selecting) continue;
       double se = 0, sv = 0, sa = 0;
       for (size_t i = 0; i < n; i++) {
+        if (kmse) { /* rule MSE: the normal (and variance) of the chosen K */
+          if (kmse[i] == o.k) {
+            memcpy(&b->normals[3 * i], &b->cand_n[3 * i], 3 * sizeof(double));
+            b->var[i] = b->cand_v[i];
+          }
+          continue;
+        }
         se += b->cand_e[i];
         sv += b->cand_v[i];
         if (truth) sa += bsurf_normal_angle(&b->cand_n[3 * i], &truth->normals[3 * i]);
@@ -141,13 +169,14 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
           b->dsel[i] = o.degree;
         }
       }
-      if (cf) {
+      if (cf && !kmse) {
         fprintf(cf, "%d,%d,%.10g,%.10g", o.k, no.fit == BSURF_NORMAL_POLY ? o.degree : 1, se / n, sv / n);
         if (truth) fprintf(cf, ",%.10g", sa / n);
         fprintf(cf, "\n");
       }
     }
   }
+  free(kmse);
   return BSURF_OK;
 }
 
@@ -220,6 +249,8 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   bsurf_normal_options no = bsurf_normal_options_default();
   const char *fit = "pca", *center = "centroid", *output = NULL, *select_k = NULL, *select_degree = NULL;
   const char *curve = NULL, *truth_path = NULL, *sigma_nu_s = "auto", *orient = "none";
+  const char *select_rule = "test-error";
+  bsurf_kselect_options ksel = bsurf_kselect_options_default();
   int k_ref = 0, test_error = 0, iterations = 0, ascii = 0, json = 0, quiet = 0, force = 0;
   double alpha = 0.1, sigma_d = 0;
   const char *memory_limit = "auto";
@@ -236,6 +267,10 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       {0, "k-ref", ARG_INT, &k_ref, "K", "neighbourhood of the reference PCA normals of Eq. 5.10 (0 = -k)", 0,
        65535},
       {0, "select-k", ARG_STRING, &select_k, "A:B:STEP", "per point, the K with the smallest normal_err", 1, 0},
+      {0, "select-rule", ARG_STRING, &select_rule, "R",
+       "test-error (Eq. 5.10) or mse (estimated variance + bias^2 of the PCA normal)", 1, 0},
+      {0, "noise-k", ARG_INT, &ksel.noise_k, "K", "with --select-rule mse: neighbourhood of the noise estimate", 12,
+       65535},
       {0, "select-degree", ARG_STRING, &select_degree, "LIST", "with --fit poly: also choose the degree, e.g. 1,2,3",
        1, 0},
       {0, "curve", ARG_STRING, &curve, "FILE.csv", "with --select-k: mean errors against K (figs. 5.6-5.11)", 1, 0},
@@ -284,12 +319,24 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       return cli_usage_error(cmd, "--select-degree needs a list of degrees 1..4 like 1,2,3");
   }
   if (curve && !select_k) return cli_usage_error(cmd, "--curve needs --select-k");
+  static const char *const rules[] = {"test-error", "mse"};
+  int sr = cli_choice(select_rule, rules, 2);
+  if (sr < 0) return cli_usage_error(cmd, "--select-rule must be test-error or mse, not '%s'", select_rule);
+  ksel.rule = (bsurf_kselect_rule)sr;
+  if (ksel.rule == BSURF_KSELECT_MSE) {
+    if (!select_k) return cli_usage_error(cmd, "--select-rule mse needs --select-k");
+    if (no.fit != BSURF_NORMAL_PCA || select_degree)
+      return cli_usage_error(cmd, "--select-rule mse chooses K for PCA normals: not with --fit poly or --select-degree");
+    if (curve) return cli_usage_error(cmd, "--curve needs --select-rule test-error");
+    if (ks[0] < 12) return cli_usage_error(cmd, "--select-rule mse needs candidates K >= 12 (a quadric per K), not %d", ks[0]);
+  }
   if (truth_path && !curve) return cli_usage_error(cmd, "--truth is used by --curve");
   const int selecting = select_k || select_degree;
   if (selecting) test_error = 1;
   if (k_ref == 0) k_ref = no.k;
   if (k_ref < 3) return cli_usage_error(cmd, "--k-ref must be at least 3");
   int kmax = k_ref > no.k ? k_ref : no.k;
+  if (ksel.rule == BSURF_KSELECT_MSE && ksel.noise_k > kmax) kmax = ksel.noise_k;
   for (int a = 0; a < nk; a++) {
     if (ks[a] > kmax) kmax = ks[a];
     for (int b = 0; b < nd; b++)
@@ -313,6 +360,10 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   memcpy(job.ds, ds, sizeof ds);
   job.nk = nk;
   job.nd = nd;
+  job.ksel = ksel;
+  job.ksel.ks = job.ks;
+  job.ksel.nk = nk;
+  job.ksel.threads = no.threads;
   job.quiet = quiet;
   size_t plan = 0, tiles = 0;
   rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 4, &plan);
@@ -440,6 +491,8 @@ summary:;
     json_int(&j, "threads", bsurf_threads_resolve(no.threads));
     if (test_error) json_int(&j, "k_ref", k_ref);
     if (select_k) json_str(&j, "select_k", select_k);
+    if (select_k) json_str(&j, "select_rule", select_rule);
+    if (ksel.rule == BSURF_KSELECT_MSE) json_int(&j, "noise_k", ksel.noise_k);
     if (select_degree) json_str(&j, "select_degree", select_degree);
     if (iterations > 0) {
       json_int(&j, "smooth_iterations", iterations);

@@ -370,6 +370,54 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
                                     const bsurf_normal_options *opts,
                                     bsurf_normal_fields *out, bsurf_normal_report *report);
 
+/* Per-point choice of the neighbourhood size K (docs/normals.md, "Choosing
+ * K"). BSURF_KSELECT_TEST_ERROR is the thesis's rule (5.5, Eq. 5.10): per
+ * point the candidate whose bootstrap test error against reference normals
+ * is smallest (bsurf_estimate_normals with ref_normals, once per candidate,
+ * compared by the caller). BSURF_KSELECT_MSE minimises an estimate of the
+ * PCA normal's mean squared angle error, variance + squared bias, with the
+ * noise and the curvature from local quadrics (bsurf_select_k). */
+typedef enum bsurf_kselect_rule {
+  BSURF_KSELECT_TEST_ERROR = 0,
+  BSURF_KSELECT_MSE
+} bsurf_kselect_rule;
+
+typedef struct bsurf_kselect_options {
+  bsurf_kselect_rule rule; /* MSE (bsurf_select_k accepts only MSE) */
+  const int *ks;           /* candidate K, strictly ascending, each >= 12 */
+  int nk;                  /* number of candidates */
+  int noise_k;             /* neighbourhood of the quadric noise fits and of
+                              their pooling (20; >= 12) */
+  int threads;             /* 0 = all cores */
+  bsurf_progress_fn progress;
+  void *progress_user;
+} bsurf_kselect_options;
+
+bsurf_kselect_options bsurf_kselect_options_default(void);
+
+/* Per-point outputs, point_count long (x 3 for normals) or NULL. */
+typedef struct bsurf_kselect_fields {
+  double *normals;    /* unit, unoriented: the PCA normal (about the
+                         centroid, single fit) of the chosen K */
+  int *k_selected;    /* the chosen K */
+  double *rmse;       /* the estimated root mean squared angle error of
+                         that normal (rad): sqrt(variance + bias^2) */
+  double *noise;      /* the estimated noise standard deviation along the
+                         normal (length) */
+} bsurf_kselect_fields;
+
+typedef struct bsurf_kselect_report {
+  size_t unassessed; /* points where no candidate could be assessed (the
+                        noise exceeds the tangent spread of every K, or
+                        the quadrics are rank-deficient): the largest K */
+} bsurf_kselect_report;
+
+/* K selection by BSURF_KSELECT_MSE for every point; nb->k must be at least
+ * the largest candidate and noise_k. Deterministic, any thread count. */
+bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
+                            const bsurf_kselect_options *opts, bsurf_kselect_fields *out,
+                            bsurf_kselect_report *report);
+
 /* Bilateral normal smoothing (5.3, Eqs. 5.6-5.8), `iterations` Jacobi-style
  * passes (every point from the previous pass's normals, so order-free):
  *   n_i <- (1 - alpha) n_i + alpha / c_i sum_{p in N_i} G(nu_p, sigma_nu)

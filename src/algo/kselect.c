@@ -1,0 +1,309 @@
+/* Per-point neighbourhood size by the estimated mean squared error of the
+ * PCA normal (docs/normals.md, "Choosing K"; issue 24).
+ *
+ * The thesis chooses K by the bootstrap test error of Eq. 5.10, which
+ * compares each candidate's normal with reference normals of the
+ * neighbours; it is blind where the references are wrong together (thin
+ * parts, fine detail). Here the choice follows the bias-variance
+ * decomposition the thesis invokes in 5.5.1 (Error^2 = Bias^2 + Variance),
+ * with both terms estimated from the neighbourhood itself:
+ *
+ *  - Variance. For K points with noise of variance s2 along the normal and
+ *    tangent eigenvalues l1 <= l2 of the covariance (PCA, 5.2), the
+ *    first-order perturbation of the smallest eigenvector gives the
+ *    variance of the normal's tilt towards e_i as s2 l_i / (K (l_i - s2)^2)
+ *    (the asymptotic covariance of a sample eigenvector, Anderson 1963;
+ *    for normals, Mitra & Nguyen 2003, Sec. 3):
+ *        V(K) = s2 / K * sum_{i=1,2} l_i / (l_i - s2)^2.
+ *  - Bias. The PCA plane passes through the centroid, so on a curved
+ *    surface its normal is, to first order, the true normal at the
+ *    centroid's tangential position t, not at the point: the tilt is H t,
+ *    H the Hessian of the surface's height function. H comes from a
+ *    least-squares quadric (thesis 3.3, Eqs. 3.4-3.6) fitted to the same K
+ *    points in a fixed frame; since E|H^ t|^2 = |H t|^2 + tr(Cov(H^ t)),
+ *    the squared tilt is estimated without the noise's share:
+ *        Bias2(K) = max(0, |H^ t|^2 - s2 tr(A (G^-1)_HH A^T)),
+ *    A the linear map from the quadric's Hessian coefficients to H t and G
+ *    the normal equations' matrix (Cov(c) = s2 G^-1).
+ *  - Noise s2. The residual variance of a quadric height fit on noise_k
+ *    neighbours with its degrees of freedom, RSS / (noise_k - 6) (unbiased
+ *    where the surface is locally a quadric), pooled as the median over the
+ *    point's noise_k neighbours (robust to the inflated values of
+ *    neighbourhoods that cross an edge) and divided by the median of
+ *    chi^2_nu / nu, (1 - 2 / (9 nu))^3 (Wilson-Hilferty), nu = noise_k - 6,
+ *    so that it estimates the variance rather than its median.
+ *
+ * The chosen K minimises V + Bias2; the point's output normal is the PCA
+ * normal of that K, and sqrt(V + Bias2) its estimated RMS angle error.
+ *
+ * Candidates' centroids and covariances come from one pass over the sorted
+ * neighbours (bsurf_nested_moments); the quadrics' normal equations likewise
+ * from running sums of the monomials u^i v^j (i + j <= 4) and of z times the
+ * basis, in the frame of the noise fit, so a point costs about one K_max
+ * sum plus a 6 x 6 solve per candidate. Deterministic: no random draws, and
+ * every point's result depends on its own neighbourhood only. */
+#include "common/common.h"
+#include "local/local.h"
+#include "search/search.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define QT 6  /* quadric terms 1, u, v, u^2, uv, v^2 */
+#define QM 15 /* monomials of degree <= 4 */
+
+bsurf_kselect_options bsurf_kselect_options_default(void) {
+  bsurf_kselect_options o;
+  memset(&o, 0, sizeof o);
+  o.rule = BSURF_KSELECT_MSE;
+  o.noise_k = 20;
+  return o;
+}
+
+/* exponents of the quadric basis (graded order of bsurf_poly_basis) */
+static const int QE[QT][2] = {{0, 0}, {1, 0}, {0, 1}, {2, 0}, {1, 1}, {0, 2}};
+
+/* index of u^i v^j in the graded order */
+static int mono_index(int i, int j) {
+  const int d = i + j;
+  return d * (d + 1) / 2 + j;
+}
+
+/* Running sums of a quadric height fit: the monomials (G's entries), z times
+ * the basis, z^2. */
+typedef struct quad_sums {
+  double mono[QM], phiz[QT], zz;
+  int n;
+} quad_sums;
+
+static void quad_add(quad_sums *q, double u, double v, double z) {
+  double m[QM];
+  bsurf_poly_basis(4, u, v, m);
+  for (int a = 0; a < QM; a++) q->mono[a] += m[a];
+  for (int a = 0; a < QT; a++) q->phiz[a] += m[a] * z;
+  q->zz += z * z;
+  q->n++;
+}
+
+/* Solves the quadric from the sums: coef (QT), the residual sum of squares,
+ * and, when ginv_hh is not NULL, the 3 x 3 block of G^-1 of the Hessian
+ * coefficients (3, 4, 5). Returns 0, or -1 when rank-deficient. */
+static int quad_solve(const quad_sums *q, double coef[QT], double *rss, double ginv_hh[3][3]) {
+  double G[QT * (QT + 1) / 2];
+  for (int b = 0; b < QT; b++)
+    for (int a = 0; a <= b; a++) G[bsurf_packed_index(a, b)] = q->mono[mono_index(QE[a][0] + QE[b][0], QE[a][1] + QE[b][1])];
+  if (bsurf_ldl_solve_packed(QT, G, q->phiz, BSURF_RANK_TOL, coef) != 0) return -1;
+  double r = q->zz;
+  for (int a = 0; a < QT; a++) r -= coef[a] * q->phiz[a];
+  *rss = r > 0 ? r : 0;
+  if (ginv_hh)
+    for (int c = 0; c < 3; c++) {
+      double e[QT] = {0}, x[QT];
+      e[3 + c] = 1;
+      if (bsurf_ldl_solve_packed(QT, G, e, BSURF_RANK_TOL, x) != 0) return -1;
+      for (int r2 = 0; r2 < 3; r2++) ginv_hh[r2][c] = x[3 + r2];
+    }
+  return 0;
+}
+
+/* The frame of the noise fit and the point's neighbours in it: local x, y
+ * scaled by 1 / scale, heights unscaled. */
+static double local_coords(const double *xyz, const uint32_t *idx, int kn, int kmax, bsurf_frame *f, double *u,
+                           double *v, double *z) {
+  bsurf_local_frame(xyz, idx, kn, BSURF_PCA_CENTROID, f);
+  double r2 = 0;
+  for (int j = 0; j < kmax; j++) {
+    double l[3];
+    bsurf_frame_to_local(f, &xyz[3 * (size_t)idx[j]], l);
+    u[j] = l[0];
+    v[j] = l[1];
+    z[j] = l[2];
+    if (j < kn && l[0] * l[0] + l[1] * l[1] > r2) r2 = l[0] * l[0] + l[1] * l[1];
+  }
+  const double s = r2 > 0 ? sqrt(r2) : 1.0;
+  for (int j = 0; j < kmax; j++) {
+    u[j] /= s;
+    v[j] /= s;
+  }
+  return s;
+}
+
+typedef struct ksel_scratch {
+  double *u, *v, *z; /* kmax */
+  double *mu, *cov;  /* nk x 3, nk x 6 */
+  double *pool;      /* noise_k */
+  size_t unfit, none;
+} ksel_scratch;
+
+typedef struct ksel_ctx {
+  const double *xyz;
+  const bsurf_neighbors *nb;
+  const bsurf_kselect_options *o;
+  int kmax;
+  ksel_scratch *scr;
+  double *s2;    /* pass 1: the point's residual variance (NAN: no fit) */
+  double *noise; /* pass 2: the pooled noise variance */
+  bsurf_kselect_fields *out;
+} ksel_ctx;
+
+/* Pass 1: residual variance of the quadric on noise_k neighbours. */
+static void noise_point(void *vctx, int thread, size_t i) {
+  ksel_ctx *c = vctx;
+  ksel_scratch *s = &c->scr[thread];
+  const int kn = c->o->noise_k;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  bsurf_frame f;
+  local_coords(c->xyz, idx, kn, kn, &f, s->u, s->v, s->z);
+  quad_sums q;
+  memset(&q, 0, sizeof q);
+  for (int j = 0; j < kn; j++) quad_add(&q, s->u[j], s->v[j], s->z[j]);
+  double coef[QT], rss;
+  c->s2[i] = quad_solve(&q, coef, &rss, NULL) == 0 ? rss / (kn - QT) : NAN;
+}
+
+static int cmp_double(const void *a, const void *b) {
+  const double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+/* Pass 2: the median of the neighbours' residual variances, made an
+ * estimate of the variance (Wilson-Hilferty median of chi^2_nu / nu). */
+static void pool_point(void *vctx, int thread, size_t i) {
+  ksel_ctx *c = vctx;
+  ksel_scratch *s = &c->scr[thread];
+  const int kn = c->o->noise_k, nu = kn - QT;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  int m = 0;
+  for (int j = 0; j < kn; j++)
+    if (!isnan(c->s2[idx[j]])) s->pool[m++] = c->s2[idx[j]];
+  if (m == 0) {
+    c->noise[i] = 0;
+    return;
+  }
+  qsort(s->pool, (size_t)m, sizeof(double), cmp_double);
+  const double med = m % 2 ? s->pool[m / 2] : 0.5 * (s->pool[m / 2 - 1] + s->pool[m / 2]);
+  const double w = 1.0 - 2.0 / (9.0 * nu);
+  c->noise[i] = med / (w * w * w);
+}
+
+/* Pass 3: every candidate's V + Bias2, the smallest kept. */
+static void select_point(void *vctx, int thread, size_t i) {
+  ksel_ctx *c = vctx;
+  ksel_scratch *s = &c->scr[thread];
+  const bsurf_kselect_options *o = c->o;
+  const int nk = o->nk, kn = o->noise_k;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  const double s2 = c->noise[i];
+  bsurf_nested_moments(c->xyz, idx, o->ks, nk, s->mu, s->cov);
+  bsurf_frame f;
+  const double scale = local_coords(c->xyz, idx, kn, c->kmax, &f, s->u, s->v, s->z);
+  quad_sums q;
+  memset(&q, 0, sizeof q);
+  int j = 0, best = -1;
+  double best_mse = INFINITY, best_n[3] = {0, 0, 1}, last_n[3] = {0, 0, 1};
+  for (int a = 0; a < nk; a++) {
+    const int K = o->ks[a];
+    for (; j < K; j++) quad_add(&q, s->u[j], s->v[j], s->z[j]);
+    const double *cv = &s->cov[6 * a], *mu = &s->mu[3 * a];
+    double C[3][3] = {{cv[0], cv[1], cv[2]}, {cv[1], cv[3], cv[4]}, {cv[2], cv[4], cv[5]}};
+    double ev[3], V[3][3];
+    bsurf_eigen_sym3(C, ev, V);
+    for (int t = 0; t < 3; t++) last_n[t] = V[0][t];
+    /* variance of the normal (first order) */
+    if (!(ev[1] > s2) || !(ev[2] > 0)) continue;
+    const double var =
+        s2 / K * (ev[1] / ((ev[1] - s2) * (ev[1] - s2)) + ev[2] / ((ev[2] - s2) * (ev[2] - s2)));
+    /* bias: the quadric's Hessian times the centroid's tangential offset */
+    double coef[QT], rss, gi[3][3];
+    if (quad_solve(&q, coef, &rss, gi) != 0) continue;
+    const double tu = (f.rot[0][0] * mu[0] + f.rot[0][1] * mu[1] + f.rot[0][2] * mu[2]) / scale;
+    const double tv = (f.rot[1][0] * mu[0] + f.rot[1][1] * mu[1] + f.rot[1][2] * mu[2]) / scale;
+    /* H t (scaled coordinates; f = ... + c3 u^2 + c4 u v + c5 v^2, the
+     * slope's unit is height per 1/scale): A c_H with
+     * A = [[2 tu, tv, 0], [0, tu, 2 tv]] / scale */
+    const double A[2][3] = {{2 * tu / scale, tv / scale, 0}, {0, tu / scale, 2 * tv / scale}};
+    double b2 = 0, tr = 0;
+    for (int r = 0; r < 2; r++) {
+      double br = 0;
+      for (int t = 0; t < 3; t++) br += A[r][t] * coef[3 + t];
+      b2 += br * br;
+      for (int t = 0; t < 3; t++)
+        for (int w = 0; w < 3; w++) tr += A[r][t] * gi[t][w] * A[r][w];
+    }
+    double bias2 = b2 - s2 * tr;
+    if (bias2 < 0) bias2 = 0;
+    const double mse = var + bias2;
+    if (mse < best_mse) { /* ties keep the smaller K */
+      best_mse = mse;
+      best = a;
+      for (int t = 0; t < 3; t++) best_n[t] = V[0][t];
+    }
+  }
+  if (best < 0) {
+    /* no candidate could be assessed (noise above the tangent spread, or
+     * rank-deficient quadrics): the largest K, the most stable plane */
+    s->none++;
+    best = nk - 1;
+    for (int t = 0; t < 3; t++) best_n[t] = last_n[t];
+  }
+  bsurf_kselect_fields *out = c->out;
+  if (out->normals)
+    for (int t = 0; t < 3; t++) out->normals[3 * i + t] = best_n[t];
+  if (out->k_selected) out->k_selected[i] = o->ks[best];
+  if (out->rmse) out->rmse[i] = isfinite(best_mse) ? sqrt(best_mse) : INFINITY;
+  if (out->noise) out->noise[i] = sqrt(s2);
+}
+
+bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb, const bsurf_kselect_options *opts,
+                            bsurf_kselect_fields *out, bsurf_kselect_report *report) {
+  if (report) memset(report, 0, sizeof *report);
+  if (!xyz || !nb || !nb->idx || !opts || !out || !opts->ks || opts->nk < 1) return BSURF_ERR_INVALID_ARG;
+  const bsurf_kselect_options *o = opts;
+  if (o->rule != BSURF_KSELECT_MSE) return BSURF_ERR_INVALID_ARG;
+  if (o->noise_k < 2 * QT || o->noise_k > nb->k) return BSURF_ERR_INVALID_ARG;
+  for (int a = 0; a < o->nk; a++)
+    if (o->ks[a] < 2 * QT || o->ks[a] > nb->k || (a > 0 && o->ks[a] <= o->ks[a - 1])) return BSURF_ERR_INVALID_ARG;
+  const int kmax = o->ks[o->nk - 1] > o->noise_k ? o->ks[o->nk - 1] : o->noise_k;
+  if ((size_t)kmax > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
+  const size_t n = nb->point_count;
+  const int T = bsurf_threads_resolve(o->threads);
+  ksel_scratch *scr = calloc((size_t)T, sizeof *scr);
+  double *s2 = bsurf_alloc_array(n, sizeof(double)), *noise = bsurf_alloc_array(n, sizeof(double));
+  bsurf_status st = scr && s2 && noise ? BSURF_OK : BSURF_ERR_NOMEM;
+  for (int t = 0; t < T && st == BSURF_OK; t++) {
+    ksel_scratch *s = &scr[t];
+    s->u = bsurf_alloc_array((size_t)kmax, sizeof(double));
+    s->v = bsurf_alloc_array((size_t)kmax, sizeof(double));
+    s->z = bsurf_alloc_array((size_t)kmax, sizeof(double));
+    s->mu = bsurf_alloc_array((size_t)o->nk, 3 * sizeof(double));
+    s->cov = bsurf_alloc_array((size_t)o->nk, 6 * sizeof(double));
+    s->pool = bsurf_alloc_array((size_t)o->noise_k, sizeof(double));
+    if (!s->u || !s->v || !s->z || !s->mu || !s->cov || !s->pool) st = BSURF_ERR_NOMEM;
+  }
+  uint32_t *owned = NULL;
+  const uint32_t *order = NULL;
+  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
+  ksel_ctx ctx = {xyz, nb, o, kmax, scr, s2, noise, out};
+  /* three passes; progress is reported for the last (the bulk of the work) */
+  if (st == BSURF_OK) st = bsurf_parallel_points_ordered(n, order, T, noise_point, &ctx, NULL, NULL);
+  if (st == BSURF_OK) st = bsurf_parallel_points_ordered(n, order, T, pool_point, &ctx, NULL, NULL);
+  if (st == BSURF_OK)
+    st = bsurf_parallel_points_ordered(n, order, T, select_point, &ctx, o->progress, o->progress_user);
+  if (report && st == BSURF_OK)
+    for (int t = 0; t < T; t++) report->unassessed += scr[t].none;
+  free(owned);
+  if (scr)
+    for (int t = 0; t < T; t++) {
+      free(scr[t].u);
+      free(scr[t].v);
+      free(scr[t].z);
+      free(scr[t].mu);
+      free(scr[t].cov);
+      free(scr[t].pool);
+    }
+  free(scr);
+  free(s2);
+  free(noise);
+  return st;
+}
