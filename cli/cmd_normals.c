@@ -328,7 +328,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     if (no.fit != BSURF_NORMAL_PCA || select_degree)
       return cli_usage_error(cmd, "--select-rule mse chooses K for PCA normals: not with --fit poly or --select-degree");
     if (curve) return cli_usage_error(cmd, "--curve needs --select-rule test-error");
-    if (ks[0] < 12) return cli_usage_error(cmd, "--select-rule mse needs candidates K >= 12 (a quadric per K), not %d", ks[0]);
+    if (ks[0] < 7) return cli_usage_error(cmd, "--select-rule mse needs candidates K >= 7 (a quadric per K), not %d", ks[0]);
   }
   if (truth_path && !curve) return cli_usage_error(cmd, "--truth is used by --curve");
   const int selecting = select_k || select_degree;

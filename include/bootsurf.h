@@ -384,7 +384,7 @@ typedef enum bsurf_kselect_rule {
 
 typedef struct bsurf_kselect_options {
   bsurf_kselect_rule rule; /* MSE (bsurf_select_k accepts only MSE) */
-  const int *ks;           /* candidate K, strictly ascending, each >= 12 */
+  const int *ks;           /* candidate K, strictly ascending, each >= 7 */
   int nk;                  /* number of candidates */
   int noise_k;             /* neighbourhood of the quadric noise fits and of
                               their pooling (20; >= 12) */

@@ -32,7 +32,8 @@ void bsurf_nested_moments(const double *xyz, const uint32_t *idx, const int *ks,
     }
     const double inv = 1.0 / ks[a];
     double *m = &mu[3 * a], *c = &cov[6 * a];
-    for (int t = 0; t < 3; t++) m[t] = s1[t] * inv;
+    for (int t = 0; t < 3; t++)
+      m[t] = s1[t] * inv;
     c[0] = s2[0] * inv - m[0] * m[0];
     c[1] = s2[1] * inv - m[0] * m[1];
     c[2] = s2[2] * inv - m[0] * m[2];

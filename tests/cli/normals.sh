@@ -20,6 +20,13 @@ grep -a -q "property ushort k_selected$" "$T/s.ply" && ok || fail "k_selected wr
 head -1 "$T/curve.csv" | grep -q "k,degree,mean_normal_err,mean_normal_var,mean_angle_err" && ok || fail "curve header"
 expect 0 "select-degree" -- "$BSURF" normals "$T/n.ply" --fit poly -k 20 -B 5 --select-k 15:20:5 --select-degree 1,2 -o "$T/sd.ply" -q
 grep -a -q "property uchar degree_selected$" "$T/sd.ply" && ok || fail "degree_selected written"
+expect 0 "select-rule mse -j1" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 --select-rule mse -j 1 -o "$T/m1.ply" -q
+expect 0 "select-rule mse -j2" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 --select-rule mse -j 2 -o "$T/m2.ply" --json
+cmp -s "$T/m1.ply" "$T/m2.ply" && ok || fail "select-rule mse -j 1 and -j 2 differ"
+grep -qF '"select_rule":"mse"' "$T/out" && grep -qF '"noise_k":20' "$T/out" && ok || fail "mse json"
+grep -a -q "property ushort k_selected$" "$T/m1.ply" && grep -a -q "property float normal_err$" "$T/m1.ply" && ok || fail "mse fields"
+expect 0 "select-rule mse with B" -- "$BSURF" normals "$T/n.ply" -B 5 --select-k 15:25:5 --select-rule mse -o "$T/mb.ply" -q
+grep -a -q "property float normal_var$" "$T/mb.ply" && ok || fail "mse with -B writes normal_var"
 expect 0 "smooth + orient" -- "$BSURF" normals "$T/n.ply" -k 20 -B 10 --smooth-iterations 3 --orient mst -o "$T/o.ply" --json
 grep -qF '"smooth_iterations":3' "$T/out" && grep -qF '"orient":"mst"' "$T/out" && ok || fail "smooth/orient json"
 expect 0 "single gaussian" -- "$BSURF" normals "$T/n.ply" -k 20 -B 0 --smooth-iterations 2 --sigma-nu inf -o "$T/g.ply" -q
@@ -32,6 +39,12 @@ expect 2 "bad select-k" -- "$BSURF" normals "$T/n.ply" --select-k 30:10:5 -o "$T
 expect 2 "select-degree without poly" -- "$BSURF" normals "$T/n.ply" --select-degree 1,2 -o "$T/x.ply"
 expect 2 "curve without select-k" -- "$BSURF" normals "$T/n.ply" --curve "$T/x.csv" -o "$T/x.ply"
 expect 2 "K too small for degree" -- "$BSURF" normals "$T/n.ply" --fit poly -d 4 -k 10 -o "$T/x.ply"
+expect 2 "bad select-rule" -- "$BSURF" normals "$T/n.ply" --select-k 15:30:5 --select-rule best -o "$T/x.ply"
+expect 2 "mse without select-k" -- "$BSURF" normals "$T/n.ply" --select-rule mse -o "$T/x.ply"
+expect 2 "mse with poly" -- "$BSURF" normals "$T/n.ply" --fit poly --select-k 15:30:5 --select-rule mse -o "$T/x.ply"
+expect 2 "mse with curve" -- "$BSURF" normals "$T/n.ply" --select-k 15:30:5 --select-rule mse --curve "$T/x.csv" -o "$T/x.ply"
+expect 2 "mse candidates too small" -- "$BSURF" normals "$T/n.ply" --select-k 5:30:5 --select-rule mse -o "$T/x.ply"
+expect 2 "noise-k too small" -- "$BSURF" normals "$T/n.ply" --select-k 15:30:5 --select-rule mse --noise-k 8 -o "$T/x.ply"
 expect 2 "bad sigma-nu" -- "$BSURF" normals "$T/n.ply" --sigma-nu -1 -o "$T/x.ply"
 expect 1 "fewer points than K" -- "$BSURF" normals "$T/tiny.xyz" -k 30 -o "$T/x.ply"
 [ -e "$T/x.ply" ] && fail "output left after failures" || ok

@@ -1,0 +1,265 @@
+/* K selection by the estimated mean squared error of the PCA normal
+ * (src/algo/kselect.c): the nested moments against direct sums, the noise
+ * estimate, statistical checks at a fixed seed on generated shapes,
+ * determinism across thread counts, bad options. */
+#include <cmocka.h>
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bootsurf.h"
+#include "local/local.h"
+
+static const int KS[] = {15, 20, 25, 30, 40, 50, 60, 70, 80};
+#define NKS ((int)(sizeof KS / sizeof KS[0]))
+
+static double angle_u(const double *a, const double *b) {
+  double d = fabs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+  double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d);
+}
+
+/* A generated shape with noise along its normals (level in units of the
+ * clean cloud's spacing h), its neighbourhoods (K_max = 80) and h. */
+typedef struct noisy_shape {
+  bsurf_cloud c;
+  double *clean_normals;
+  bsurf_neighbors nb;
+  double h;
+} noisy_shape;
+
+static void shape_make(noisy_shape *s, bsurf_shape shape, size_t n, bsurf_noise_model model,
+                       double level) {
+  assert_int_equal(bsurf_generate(&s->c, shape, n, BSURF_SAMPLING_RANDOM, 3, 2), BSURF_OK);
+  bsurf_neighbors nb0;
+  assert_int_equal(bsurf_neighbors_build(&nb0, s->c.xyz, s->c.point_count, 2, 2, NULL, NULL),
+                   BSURF_OK);
+  s->h = nb0.h;
+  bsurf_neighbors_free(&nb0);
+  s->clean_normals = malloc(3 * s->c.point_count * sizeof(double));
+  memcpy(s->clean_normals, s->c.normals, 3 * s->c.point_count * sizeof(double));
+  assert_int_equal(bsurf_add_noise(s->c.xyz, s->c.normals, s->c.point_count, model, level, s->h, 7),
+                   BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(&s->nb, s->c.xyz, s->c.point_count, 80, 2, NULL, NULL),
+                   BSURF_OK);
+}
+
+static void shape_free(noisy_shape *s) {
+  bsurf_neighbors_free(&s->nb);
+  bsurf_cloud_free(&s->c);
+  free(s->clean_normals);
+}
+
+typedef struct sel_out {
+  double *normals, *rmse, *noise;
+  int *k;
+} sel_out;
+
+static void select_run(const noisy_shape *s, int threads, sel_out *r) {
+  const size_t n = s->c.point_count;
+  r->normals = malloc(3 * n * sizeof(double));
+  r->rmse = malloc(n * sizeof(double));
+  r->noise = malloc(n * sizeof(double));
+  r->k = malloc(n * sizeof(int));
+  bsurf_kselect_options o = bsurf_kselect_options_default();
+  o.ks = KS;
+  o.nk = NKS;
+  o.threads = threads;
+  bsurf_kselect_fields f = {r->normals, r->k, r->rmse, r->noise};
+  assert_int_equal(bsurf_select_k(s->c.xyz, &s->nb, &o, &f, NULL), BSURF_OK);
+}
+
+static void sel_free(sel_out *r) {
+  free(r->normals);
+  free(r->rmse);
+  free(r->noise);
+  free(r->k);
+}
+
+static double mean_k(const sel_out *r, size_t n) {
+  double s = 0;
+  for (size_t i = 0; i < n; i++)
+    s += r->k[i];
+  return s / n;
+}
+
+/* One pass of running sums gives each prefix's centroid and covariance as
+ * a direct two-pass computation does. */
+static void test_nested_moments(void **state) {
+  (void)state;
+  noisy_shape s;
+  shape_make(&s, BSURF_SHAPE_TORUS, 3000, BSURF_NOISE_GAUSSIAN, 0.5);
+  const int ks[] = {12, 20, 33, 80};
+  double mu[4 * 3], cov[4 * 6];
+  for (size_t i = 0; i < s.c.point_count; i += 97) {
+    const uint32_t *idx = &s.nb.idx[i * (size_t)s.nb.k];
+    bsurf_nested_moments(s.c.xyz, idx, ks, 4, mu, cov);
+    for (int a = 0; a < 4; a++) {
+      const double *d = &s.c.xyz[3 * (size_t)idx[0]];
+      double m[3] = {0, 0, 0}, C[6] = {0};
+      for (int j = 0; j < ks[a]; j++)
+        for (int t = 0; t < 3; t++)
+          m[t] += (s.c.xyz[3 * (size_t)idx[j] + t] - d[t]) / ks[a];
+      for (int j = 0; j < ks[a]; j++) {
+        double q[3];
+        for (int t = 0; t < 3; t++)
+          q[t] = s.c.xyz[3 * (size_t)idx[j] + t] - d[t] - m[t];
+        C[0] += q[0] * q[0] / ks[a], C[1] += q[0] * q[1] / ks[a], C[2] += q[0] * q[2] / ks[a];
+        C[3] += q[1] * q[1] / ks[a], C[4] += q[1] * q[2] / ks[a], C[5] += q[2] * q[2] / ks[a];
+      }
+      for (int t = 0; t < 3; t++)
+        assert_true(fabs(mu[3 * a + t] - m[t]) < 1e-12);
+      for (int t = 0; t < 6; t++)
+        assert_true(fabs(cov[6 * a + t] - C[t]) < 1e-12);
+    }
+  }
+  shape_free(&s);
+}
+
+/* The pooled noise estimate against the noise put in, on a plane: small
+ * noise (sigma = 0.3 h, the quadric on 20 neighbours) and large (sigma =
+ * 2 h, where 20 neighbours are a truncated sample and the fit moves to
+ * larger K). */
+static void test_noise_estimate(void **state) {
+  (void)state;
+  const double levels[] = {0.3, 2.0}, tol[] = {0.1, 0.2};
+  for (int l = 0; l < 2; l++) {
+    noisy_shape s;
+    shape_make(&s, BSURF_SHAPE_PLANE, 20000, BSURF_NOISE_GAUSSIAN, levels[l]);
+    sel_out r;
+    select_run(&s, 2, &r);
+    double m = 0;
+    for (size_t i = 0; i < s.c.point_count; i++)
+      m += r.noise[i];
+    m /= s.c.point_count;
+    const double sigma = levels[l] * s.h;
+    assert_true(fabs(m / sigma - 1) < tol[l]);
+    sel_free(&r);
+    shape_free(&s);
+  }
+}
+
+/* On a sphere the chosen K grows with the noise (the variance term) and
+ * stays below K_max at low noise (the curvature's bias). */
+static void test_k_grows_with_noise(void **state) {
+  (void)state;
+  const double levels[] = {0.05, 0.3, 1.0};
+  double prev = 0;
+  for (int l = 0; l < 3; l++) {
+    noisy_shape s;
+    shape_make(&s, BSURF_SHAPE_SPHERE, 4000, BSURF_NOISE_GAUSSIAN, levels[l]);
+    sel_out r;
+    select_run(&s, 2, &r);
+    const double mk = mean_k(&r, s.c.point_count);
+    if (l == 0) assert_true(mk < 60);
+    assert_true(mk > prev);
+    prev = mk;
+    sel_free(&r);
+    shape_free(&s);
+  }
+}
+
+/* On a noisy cube, points near the edges get smaller neighbourhoods than
+ * the faces' interiors, and the selection's mean angle error is no worse
+ * than the best single candidate K's (chosen in hindsight). */
+static void test_cube_edges(void **state) {
+  (void)state;
+  noisy_shape s;
+  shape_make(&s, BSURF_SHAPE_CUBE, 20000, BSURF_NOISE_GAUSSIAN, 0.3);
+  sel_out r;
+  select_run(&s, 2, &r);
+  const bsurf_field *fe = bsurf_cloud_field(&s.c, "feature");
+  assert_non_null(fe);
+  double kf = 0, kn = 0, nf = 0, nn = 0, err = 0;
+  const size_t n = s.c.point_count;
+  for (size_t i = 0; i < n; i++) {
+    if (fe->values[i] > 0.5)
+      kf += r.k[i], nf++;
+    else
+      kn += r.k[i], nn++;
+    err += angle_u(&r.normals[3 * i], &s.clean_normals[3 * i]);
+  }
+  assert_true(nf > 100 && nn > 100);
+  assert_true(kf / nf < 0.8 * (kn / nn));
+  err /= n;
+  double *fixed = malloc(3 * n * sizeof(double)), best = INFINITY;
+  for (int a = 0; a < NKS; a++) {
+    bsurf_normal_options o = bsurf_normal_options_default();
+    o.k = KS[a];
+    o.bootstrap = 0;
+    bsurf_normal_fields out = {fixed, NULL, NULL};
+    assert_int_equal(bsurf_estimate_normals(s.c.xyz, &s.nb, NULL, &o, &out, NULL), BSURF_OK);
+    double e = 0;
+    for (size_t i = 0; i < n; i++)
+      e += angle_u(&fixed[3 * i], &s.clean_normals[3 * i]);
+    if (e / n < best) best = e / n;
+  }
+  assert_true(err <= best);
+  free(fixed);
+  sel_free(&r);
+  shape_free(&s);
+}
+
+/* Same bits with one thread and with two. */
+static void test_determinism(void **state) {
+  (void)state;
+  noisy_shape s;
+  shape_make(&s, BSURF_SHAPE_TORUS, 5000, BSURF_NOISE_UNIFORM, 0.5);
+  sel_out a, b;
+  select_run(&s, 1, &a);
+  select_run(&s, 2, &b);
+  const size_t n = s.c.point_count;
+  assert_memory_equal(a.normals, b.normals, 3 * n * sizeof(double));
+  assert_memory_equal(a.k, b.k, n * sizeof(int));
+  assert_memory_equal(a.rmse, b.rmse, n * sizeof(double));
+  assert_memory_equal(a.noise, b.noise, n * sizeof(double));
+  sel_free(&a);
+  sel_free(&b);
+  shape_free(&s);
+}
+
+static void test_bad_options(void **state) {
+  (void)state;
+  noisy_shape s;
+  shape_make(&s, BSURF_SHAPE_SPHERE, 500, BSURF_NOISE_GAUSSIAN, 0.1);
+  double nrm[3 * 500];
+  int k[500];
+  bsurf_kselect_fields f = {nrm, k, NULL, NULL};
+  bsurf_kselect_options o = bsurf_kselect_options_default();
+  o.ks = KS;
+  o.nk = NKS;
+  assert_int_equal(bsurf_select_k(NULL, &s.nb, &o, &f, NULL), BSURF_ERR_INVALID_ARG);
+  assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, NULL, &f, NULL), BSURF_ERR_INVALID_ARG);
+  const int small[] = {6, 20}, unsorted[] = {30, 20}, big[] = {20, 81};
+  o.ks = small;
+  o.nk = 2;
+  assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_ERR_INVALID_ARG);
+  o.ks = unsorted;
+  assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_ERR_INVALID_ARG);
+  o.ks = big; /* beyond the neighbourhoods' K_max */
+  assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_ERR_INVALID_ARG);
+  o.ks = KS;
+  o.nk = 0;
+  assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_ERR_INVALID_ARG);
+  o.nk = NKS;
+  o.noise_k = 11;
+  assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_ERR_INVALID_ARG);
+  o.noise_k = 20;
+  o.rule = BSURF_KSELECT_TEST_ERROR; /* the caller's loop, not this function */
+  assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_ERR_INVALID_ARG);
+  shape_free(&s);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_nested_moments),     cmocka_unit_test(test_noise_estimate),
+      cmocka_unit_test(test_k_grows_with_noise), cmocka_unit_test(test_cube_edges),
+      cmocka_unit_test(test_determinism),        cmocka_unit_test(test_bad_options),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
