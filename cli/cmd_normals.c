@@ -266,7 +266,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       {0, "test-error", ARG_FLAG, &test_error, "", "write normal_err, the bootstrap test error (Eq. 5.10)", 1, 0},
       {0, "k-ref", ARG_INT, &k_ref, "K", "neighbourhood of the reference PCA normals of Eq. 5.10 (0 = -k)", 0,
        65535},
-      {0, "select-k", ARG_STRING, &select_k, "A:B:STEP", "per point, the K with the smallest normal_err", 1, 0},
+      {0, "select-k", ARG_STRING, &select_k, "A:B:STEP", "per point, the K chosen by --select-rule", 1, 0},
       {0, "select-rule", ARG_STRING, &select_rule, "R",
        "test-error (Eq. 5.10) or mse (estimated variance + bias^2 of the PCA normal)", 1, 0},
       {0, "noise-k", ARG_INT, &ksel.noise_k, "K", "with --select-rule mse: neighbourhood of the noise estimate", 12,

@@ -401,7 +401,8 @@ typedef struct bsurf_kselect_fields {
                          centroid, single fit) of the chosen K */
   int *k_selected;    /* the chosen K */
   double *rmse;       /* the estimated root mean squared angle error of
-                         that normal (rad): sqrt(variance + bias^2) */
+                         that normal (rad): sqrt(variance + bias^2);
+                         pi / 2 where no candidate could be assessed */
   double *noise;      /* the estimated noise standard deviation along the
                          normal (length) */
 } bsurf_kselect_fields;

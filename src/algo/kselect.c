@@ -317,7 +317,8 @@ static void select_point(void *vctx, int thread, size_t i) {
     for (int t = 0; t < 3; t++)
       out->normals[3 * i + t] = nrm[3 * best + t];
   if (out->k_selected) out->k_selected[i] = o->ks[best];
-  if (out->rmse) out->rmse[i] = isfinite(best_mse) ? sqrt(best_mse) : INFINITY;
+  /* pi / 2, the largest unoriented angle, where no candidate was assessed */
+  if (out->rmse) out->rmse[i] = isfinite(best_mse) ? sqrt(best_mse) : 1.57079632679489661923;
   if (out->noise) out->noise[i] = sqrt(s2);
 }
 
