@@ -3,13 +3,11 @@
  * cases of the readers (PCD COUNT > 1, packed rgb, binary_compressed LZF;
  * LAS formats 1 and 3 with scale and offset, extra bytes), detection by
  * content, and bad input with its message. */
-// clang-format off: cmocka.h needs these first
-#include <cmocka.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
 #include <stdint.h>
-// clang-format on
+#include <cmocka.h>
 
 #include <errno.h>
 #include <math.h>

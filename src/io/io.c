@@ -877,8 +877,17 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) 
   bsurf_format declared = bsurf_format_detect(buf, n);
   if (declared != BSURF_FORMAT_UNKNOWN && !(declared == BSURF_FORMAT_OFF && format == BSURF_FORMAT_OBJ))
     format = declared;
-  else if (format == BSURF_FORMAT_UNKNOWN)
-    format = sniff_text(buf, n);
+  else if (format == BSURF_FORMAT_UNKNOWN) {
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    const char *dot = strrchr(base, '.');
+    if (dot && dot != base) { /* an extension bootsurf does not know, and no signature */
+      free(buf);
+      return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "%s; the content is not PLY, PCD, LAS or OFF either",
+                        k_unknown_ext);
+    }
+    format = sniff_text(buf, n); /* no extension (or standard input): text */
+  }
   bsurf_status st = bsurf_read_buffer(buf, n, format, cloud, err);
   free(buf);
   return st;
