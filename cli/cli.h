@@ -40,13 +40,16 @@ typedef struct cli_command {
 extern const char *cli_out_format;
 extern int cli_float32;
 extern const char *cli_ply_names;
+extern const char *cli_las_version;
 #define CLI_OPTS_FORMATS                                                                            \
   {0, "format", ARG_STRING, &cli_out_format, "FMT",                                                 \
    "output format whatever the extension: ply pcd las csv asc xyz off obj (needed for -)", 1, 0},  \
       {0, "float32", ARG_FLAG, &cli_float32, "",                                                    \
        "write double coordinates, normals and fields as float (PCL's typed loaders)", 1, 0},      \
       {0, "ply-names", ARG_STRING, &cli_ply_names, "NAMES",                                         \
-       "PLY field names: plain, cloudcompare (scalar_ prefix) or meshlab (+ quality)", 1, 0}
+       "PLY field names: plain, cloudcompare (scalar_ prefix) or meshlab (+ quality)", 1, 0},       \
+      {0, "las-version", ARG_STRING, &cli_las_version, "V",                                         \
+       "LAS output: 1.4 (point formats 6-8) or 1.2 (formats 1, 3: readers stopping at 1.3)", 1, 0}
 /* -o - anywhere in argv. */
 int cli_output_is_stdout(int argc, char **argv);
 /* From now on standard output carries a cloud: what is printed for people

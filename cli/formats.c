@@ -11,6 +11,7 @@
 const char *cli_out_format = NULL;
 int cli_float32 = 0;
 const char *cli_ply_names = NULL;
+const char *cli_las_version = NULL;
 
 /* the real standard output while it carries data; -1: not redirected */
 static int data_fd = -1;
@@ -46,6 +47,12 @@ int cli_write_options(const char *path, int ascii, bsurf_write_options *wo) {
   } else if (path && !strcmp(path, "-")) {
     return cli_error(
         "-: writing to standard output needs --format (ply, pcd, las, csv, xyz, off, obj)");
+  }
+  if (cli_las_version) {
+    if (!strcmp(cli_las_version, "1.2"))
+      wo->las_legacy = 1;
+    else if (strcmp(cli_las_version, "1.4") != 0)
+      return cli_error("--las-version %s: expected 1.2 or 1.4", cli_las_version);
   }
   if (cli_ply_names) {
     int k = cli_choice(cli_ply_names, k_ply_names, 3);

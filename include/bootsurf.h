@@ -179,6 +179,7 @@ typedef struct bsurf_write_options {
   bsurf_format format;    /* BSURF_FORMAT_UNKNOWN (0): from the path's extension */
   int float32;            /* float64 coordinates, normals and fields as float32 */
   bsurf_ply_names ply_names;
+  int las_legacy;         /* LAS 1.2 (point format 1 or 3) instead of 1.4 (6-8) */
 } bsurf_write_options;
 
 /* Writes a cloud; the format comes from opts->format, else the extension. The

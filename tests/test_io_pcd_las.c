@@ -139,6 +139,11 @@ static void test_roundtrip_chain(void **state) {
   /* scale: the smallest power of ten with the half-extent in 2^31 - 2 steps */
   same_fields(&a, &las, 0.5e-8 * 1.000001, "las");
   assert_string_equal(las.shape, "cube");
+  bsurf_cloud las12;
+  bsurf_write_options legacy = {.las_legacy = 1};
+  roundtrip(&pcd, "chain12.las", &legacy, &las12);
+  same_fields(&a, &las12, 0.5e-8 * 1.000001, "las 1.2");
+  bsurf_cloud_free(&las12);
   roundtrip(&las, "chain.csv", NULL, &csv);
   same_fields(&las, &csv, 0, "csv");
   roundtrip(&csv, "chain.ply", &bin, &ply);

@@ -994,7 +994,7 @@ bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
   case BSURF_FORMAT_OFF: st = bsurf_io_write_off(&w, &view, err); break;
   case BSURF_FORMAT_OBJ: st = bsurf_io_write_obj(&w, &view, err); break;
   case BSURF_FORMAT_PCD: st = bsurf_io_write_pcd(&w, &view, ascii, err); break;
-  case BSURF_FORMAT_LAS: st = bsurf_io_write_las(&w, &view, err); break;
+  case BSURF_FORMAT_LAS: st = bsurf_io_write_las(&w, &view, opts && opts->las_legacy, err); break;
   case BSURF_FORMAT_CSV: {
     const char *dot = strrchr(path, '.');
     st = bsurf_io_write_csv(&w, &view, dot && ext_is(dot + 1, "asc"), err);

@@ -239,6 +239,7 @@ bsurf_status bsurf_io_write_pcd(io_writer *w, const bsurf_cloud *cloud, int asci
                                 bsurf_error *err);
 /* Checks before anything is written: finite coordinates, names that fit. */
 bsurf_status bsurf_io_las_check(const bsurf_cloud *cloud, bsurf_error *err);
-bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
+/* legacy: LAS 1.2, point format 1 or 3 (else 1.4, 6-8) */
+bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy, bsurf_error *err);
 
 #endif

@@ -15,7 +15,8 @@
  * refused with a message.
  *
  * Writing: LAS 1.4, point format 6, or 7 with red green blue, or 8 with nir
- * too. A field named as a standard attribute goes into its slot when the slot
+ * too (or, asked for, LAS 1.2 with point format 1 or 3 for readers that stop
+ * at 1.3; overlap, scanner_channel, scan_angle and nir are then extra bytes). A field named as a standard attribute goes into its slot when the slot
  * holds every value exactly (and some value is not zero); any other field,
  * and the normals (nx ny nz), go into extra bytes of the field's type, so that
  * reading the file back gives every field with the same values. Scale and
@@ -573,18 +574,21 @@ bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud
 
 /* ---- writing ---------------------------------------------------------------------- */
 
-/* The standard slot of point format 6-8 a field called `name` would go to. */
-static int slot_of(const char *name) {
+/* The standard slot a field called `name` would go to: in point formats
+ * 6-8, or (legacy) 1 and 3. */
+static int slot_of(const char *name, int legacy) {
   for (int a = 0; a < A_COUNT; a++)
     if (!strcmp(name, k_attr[a].name)) {
-      if (a == A_ANGLE_RANK || a >= A_WP_INDEX) return -1;
+      if (a >= A_WP_INDEX) return -1;
+      if (legacy ? (a == A_OVERLAP || a == A_CHANNEL || a == A_ANGLE || a == A_NIR) : a == A_ANGLE_RANK)
+        return -1;
       return a;
     }
   return -1;
 }
 
 /* 1 if the slot of attribute a holds every value exactly and some is not 0. */
-static int slot_holds(int a, const double *v, size_t n) {
+static int slot_holds(int a, const double *v, size_t n, int legacy) {
   double hi;
   switch (a) {
   case A_GPS: {
@@ -593,7 +597,7 @@ static int slot_holds(int a, const double *v, size_t n) {
     return 0;
   }
   case A_RETURN:
-  case A_NRETURNS: hi = 15; break;
+  case A_NRETURNS: hi = legacy ? 7 : 15; break;
   case A_SYNTHETIC:
   case A_KEYPOINT:
   case A_WITHHELD:
@@ -601,12 +605,13 @@ static int slot_holds(int a, const double *v, size_t n) {
   case A_SCANDIR:
   case A_EDGE: hi = 1; break;
   case A_CHANNEL: hi = 3; break;
-  case A_CLASS:
+  case A_CLASS: hi = legacy ? 31 : 255; break;
   case A_USERDATA: hi = 255; break;
   case A_ANGLE: hi = 32767; break;
+  case A_ANGLE_RANK: hi = 127; break;
   default: hi = 65535; break;
   }
-  double lo = a == A_ANGLE ? -32768 : 0;
+  double lo = a == A_ANGLE ? -32768 : a == A_ANGLE_RANK ? -128 : 0;
   int nonzero = 0;
   for (size_t i = 0; i < n; i++) {
     if (!(v[i] >= lo && v[i] <= hi && v[i] == floor(v[i])) || (v[i] == 0 && signbit(v[i])))
@@ -713,23 +718,25 @@ typedef struct las_col {
   const char *name;
 } las_col;
 
-bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err) {
+bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy, bsurf_error *err) {
   size_t n = cloud->point_count, nf = cloud->field_count;
+  if (legacy && n > 0xffffffffu)
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "LAS 1.2 counts at most 2^32 - 1 points; write LAS 1.4");
   const double *slot[A_COUNT] = {0};
   las_col *eb = bsurf_alloc_array(nf + 3, sizeof *eb);
   if (!eb) return nomem(err);
   size_t neb = 0;
   for (size_t i = 0; i < nf; i++) {
     const bsurf_field *f = &cloud->fields[i];
-    int a = slot_of(f->name);
-    if (a >= 0 && !slot[a] && slot_holds(a, f->values, n)) {
+    int a = slot_of(f->name, legacy);
+    if (a >= 0 && !slot[a] && slot_holds(a, f->values, n, legacy)) {
       slot[a] = f->values;
       continue;
     }
     eb[neb++] = (las_col){f->values, 1, f->type, f->name};
   }
-  int fmt = 6;
-  if (slot[A_RED] && slot[A_GREEN] && slot[A_BLUE]) fmt = slot[A_NIR] ? 8 : 7;
+  int rgb = slot[A_RED] && slot[A_GREEN] && slot[A_BLUE];
+  int fmt = legacy ? (rgb ? 3 : 1) : rgb ? (slot[A_NIR] ? 8 : 7) : 6;
   /* colour components that do not make a full RGB go to extra bytes too */
   static const int colour[4] = {A_RED, A_GREEN, A_BLUE, A_NIR};
   for (int q = 0; q < 4; q++) {
@@ -781,22 +788,23 @@ bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, bsurf_er
     }
     if (slot[A_RETURN]) {
       int r = (int)slot[A_RETURN][i];
-      if (r >= 1 && r <= 15) by_return[r - 1]++;
+      if (r >= 1 && r <= (legacy ? 5 : 15)) by_return[r - 1]++;
     } else {
       by_return[0]++;
     }
   }
 
   unsigned char hdr[LAS_HEADER_14];
+  size_t hsize = legacy ? LAS_HEADER_12 : LAS_HEADER_14;
   memset(hdr, 0, sizeof hdr);
   memcpy(hdr, "LASF", 4);
-  put_u16(hdr + 6, 0x10); /* global encoding: WKT (required for formats 6-10) */
+  if (!legacy) put_u16(hdr + 6, 0x10); /* global encoding: WKT (required for formats 6-10) */
   hdr[24] = 1;
-  hdr[25] = 4;
+  hdr[25] = legacy ? 2 : 4;
   memcpy(hdr + 26, "bootsurf", 8);
   snprintf((char *)hdr + 58, 32, "bootsurf %s", BSURF_VERSION_STRING);
-  put_u16(hdr + 94, LAS_HEADER_14);
-  put_u32(hdr + 96, (uint32_t)(LAS_HEADER_14 + vlr_bytes));
+  put_u16(hdr + 94, (unsigned)hsize);
+  put_u32(hdr + 96, (uint32_t)(hsize + vlr_bytes));
   put_u32(hdr + 100, nvlr);
   hdr[104] = (unsigned char)fmt;
   put_u16(hdr + 105, (unsigned)record);
@@ -806,10 +814,14 @@ bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, bsurf_er
     put_f64(hdr + 179 + 16 * k, bhi[k]);
     put_f64(hdr + 187 + 16 * k, blo[k]);
   }
-  put_u64(hdr + 247, n);
-  for (int r = 0; r < 15; r++)
-    put_u64(hdr + 255 + 8 * r, by_return[r]);
-  io_write_bytes(w, hdr, sizeof hdr);
+  if (legacy) {
+    put_u32(hdr + 107, (uint32_t)n);
+    for (int r = 0; r < 5; r++) put_u32(hdr + 111 + 4 * r, (uint32_t)by_return[r]);
+  } else {
+    put_u64(hdr + 247, n);
+    for (int r = 0; r < 15; r++) put_u64(hdr + 255 + 8 * r, by_return[r]);
+  }
+  io_write_bytes(w, hdr, hsize);
 
   if (neb) {
     unsigned char vh[LAS_VLR_HEADER];
@@ -859,6 +871,22 @@ bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, bsurf_er
       }
 #define SV(a) (slot[a] ? slot[a][i] : 0.0)
       put_u16(r + 12, (unsigned)SV(A_INTENSITY));
+      if (legacy) {
+        r[14] = (unsigned char)((unsigned)SV(A_RETURN) | (unsigned)SV(A_NRETURNS) << 3 | (unsigned)SV(A_SCANDIR) << 6 |
+                                (unsigned)SV(A_EDGE) << 7);
+        r[15] = (unsigned char)((unsigned)SV(A_CLASS) | (unsigned)SV(A_SYNTHETIC) << 5 |
+                                (unsigned)SV(A_KEYPOINT) << 6 | (unsigned)SV(A_WITHHELD) << 7);
+        r[16] = (unsigned char)(int8_t)SV(A_ANGLE_RANK);
+        r[17] = (unsigned char)SV(A_USERDATA);
+        put_u16(r + 18, (unsigned)SV(A_SOURCE));
+        put_f64(r + 20, SV(A_GPS));
+        if (fmt == 3) {
+          put_u16(r + 28, (unsigned)SV(A_RED));
+          put_u16(r + 30, (unsigned)SV(A_GREEN));
+          put_u16(r + 32, (unsigned)SV(A_BLUE));
+        }
+        goto extra_bytes;
+      }
       r[14] = (unsigned char)((unsigned)SV(A_RETURN) | (unsigned)SV(A_NRETURNS) << 4);
       r[15] = (unsigned char)((unsigned)SV(A_SYNTHETIC) | (unsigned)SV(A_KEYPOINT) << 1 |
                               (unsigned)SV(A_WITHHELD) << 2 | (unsigned)SV(A_OVERLAP) << 3 |
@@ -876,6 +904,7 @@ bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, bsurf_er
       }
       if (fmt == 8) put_u16(r + 36, (unsigned)SV(A_NIR));
 #undef SV
+    extra_bytes:;
       unsigned char *q = r + k_record_size[fmt];
       for (size_t e = 0; e < neb; e++)
         q = io_put_le(q, eb[e].src[i * eb[e].stride], eb[e].type);
