@@ -73,7 +73,7 @@ if command -v pcl_pcd2ply >/dev/null 2>&1 && command -v pcl_ply2pcd >/dev/null 2
   expect 0 "rgb back" -- "$BSURF" convert "$T/rgb.ply" "$T/rgb_back.csv" -q
   cmp -s "$T/rgb_back.csv" "$T/rgb.csv" && ok || fail "packed rgb through PCL differs"
 else
-  echo "SKIP PCL: pcl_pcd2ply / pcl_ply2pcd not installed (apt-get install pcl-tools)"
+  echo "SKIP: PCL: pcl_pcd2ply / pcl_ply2pcd not installed (apt-get install pcl-tools)"
 fi
 
 # ---- Open3D ----
@@ -98,20 +98,20 @@ assert np.array_equal(n, ref[:, 3:6]), "normals"
 PY
   done
 else
-  echo "SKIP Open3D: '$O3D_PY -c \"import open3d\"' failed (apt-get install python3-open3d)"
+  echo "SKIP: Open3D: '$O3D_PY -c \"import open3d\"' failed (apt-get install python3-open3d)"
 fi
 
 # ---- an independent LAS reader: @loaders.gl/las (npm) ----
 NPM_DIR=${BSURF_NPM_CACHE:-$(dirname "$T")/npm-las}
 if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
-  echo "SKIP @loaders.gl/las: node or npm not installed"
+  echo "SKIP: @loaders.gl/las: node or npm not installed"
 else
   if [ ! -d "$NPM_DIR/node_modules/@loaders.gl/las" ]; then
     mkdir -p "$NPM_DIR"
     timeout 300 npm install --no-audit --no-fund --prefix "$NPM_DIR" @loaders.gl/las @loaders.gl/core >"$NPM_DIR/npm.log" 2>&1 || true
   fi
   if [ ! -d "$NPM_DIR/node_modules/@loaders.gl/las" ]; then
-    echo "SKIP @loaders.gl/las: npm install failed (no registry access?): $(tail -1 "$NPM_DIR/npm.log")"
+    echo "SKIP: @loaders.gl/las: npm install failed (no registry access?): $(tail -1 "$NPM_DIR/npm.log")"
   else
     # @loaders.gl/las (4.x) reads LAS up to 1.3: bootsurf's LAS 1.2 output
     # (--las-version 1.2, point format 1 or 3) with standard attributes
