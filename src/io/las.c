@@ -129,6 +129,20 @@ static int has_attr(int f, int a) {
   }
 }
 
+/* The 29 bytes of a wave packet descriptor (formats 4, 5, 9, 10); an offset
+ * beyond 2^53 becomes NaN, which the reader refuses. */
+static void decode_wave(const unsigned char *p, double *v) {
+  v[A_WP_INDEX] = p[0];
+  int ok = 1;
+  v[A_WP_OFFSET] = io_u64_exact(io_le64(p + 1), &ok);
+  if (!ok) v[A_WP_OFFSET] = NAN;
+  v[A_WP_SIZE] = io_le32(p + 9);
+  v[A_WP_LOCATION] = io_le_f32(p + 13);
+  v[A_WP_XT] = io_le_f32(p + 17);
+  v[A_WP_YT] = io_le_f32(p + 21);
+  v[A_WP_ZT] = io_le_f32(p + 25);
+}
+
 /* The attributes of record p (format f) into v[A_COUNT]. */
 static void decode_attrs(const unsigned char *p, int f, double *v) {
   v[A_INTENSITY] = io_le16(p + 12);
@@ -156,17 +170,7 @@ static void decode_attrs(const unsigned char *p, int f, double *v) {
       v[A_BLUE] = io_le16(p + at + 4);
       at += 6;
     }
-    if (has_attr(f, A_WP_INDEX)) {
-      v[A_WP_INDEX] = p[at];
-      int ok = 1;
-      v[A_WP_OFFSET] = io_u64_exact(io_le64(p + at + 1), &ok);
-      if (!ok) v[A_WP_OFFSET] = NAN;
-      v[A_WP_SIZE] = io_le32(p + at + 9);
-      v[A_WP_LOCATION] = io_le_f32(p + at + 13);
-      v[A_WP_XT] = io_le_f32(p + at + 17);
-      v[A_WP_YT] = io_le_f32(p + at + 21);
-      v[A_WP_ZT] = io_le_f32(p + at + 25);
-    }
+    if (has_attr(f, A_WP_INDEX)) decode_wave(p + at, v);
     return;
   }
   unsigned b = p[14], c = p[15];
@@ -195,17 +199,7 @@ static void decode_attrs(const unsigned char *p, int f, double *v) {
     v[A_NIR] = io_le16(p + 36);
     at = 38;
   }
-  if (has_attr(f, A_WP_INDEX)) {
-    v[A_WP_INDEX] = p[at];
-    int ok = 1;
-    v[A_WP_OFFSET] = io_u64_exact(io_le64(p + at + 1), &ok);
-    if (!ok) v[A_WP_OFFSET] = NAN;
-    v[A_WP_SIZE] = io_le32(p + at + 9);
-    v[A_WP_LOCATION] = io_le_f32(p + at + 13);
-    v[A_WP_XT] = io_le_f32(p + at + 17);
-    v[A_WP_YT] = io_le_f32(p + at + 21);
-    v[A_WP_ZT] = io_le_f32(p + at + 25);
-  }
+  if (has_attr(f, A_WP_INDEX)) decode_wave(p + at, v);
 }
 
 /* ---- extra bytes ------------------------------------------------------------- */
