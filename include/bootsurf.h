@@ -434,6 +434,11 @@ typedef struct bsurf_smooth_options {
   int k_min;         /* 10 */
   double k_error;    /* 0 */
   double k_error_fraction; /* 1 */
+  /* every method: a neighbourhood whose fit is biased at its centre (two
+   * sheets, a sharp edge: a t test on its nearest points' residuals) is
+   * fitted again from fewer points, or moves nothing (docs/smoothing.md,
+   * "The guard"). 1 (on) by default; 0: the thesis's methods as written. */
+  int guard;
 } bsurf_smooth_options;
 
 bsurf_smooth_options bsurf_smooth_options_default(void);
