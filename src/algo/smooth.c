@@ -329,7 +329,10 @@ static double median_of(double *v, int n) {
   return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-static int guard_near(int k) { return k / 4 > 6 ? k / 4 : (k < 6 ? k : 6); }
+/* n_s: a quarter of the neighbourhood, and at least 12 points (two per
+ * coefficient of a quadric, the lowest degree that follows curvature: the
+ * first fit of an exact surface is then exact) */
+static int guard_near(int k) { return k / 4 > 12 ? k / 4 : (k < 12 ? k : 12); }
 
 /* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the
  * positions xyz: F (fit_store's record) and *degree out. Returns the
