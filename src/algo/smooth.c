@@ -26,8 +26,8 @@
  *     and does not depend on the order (sums run in increasing i).
  *
  * multipass (6.4, Algorithm 5, Eqs. 6.3-6.5): per point, K_i = max{k_min, y}
- *   with y = (k_min - K) / k_error * W_i + K (Eq. 6.4, k_error = mean W by
- *   default, or a multiple of it, y rounded to the nearest integer); d_L, the local average
+ *   with y = (k_min - K) / k_error * W_i + K (Eq. 6.4, k_error = 3 mean W by
+ *   default (the thesis: mean W), or a multiple of it, y rounded to the nearest integer); d_L, the local average
  *   distance between points, taken as the mean distance from the point to the
  *   other K_i - 1 (for a uniformly sampled disc the mean over all pairs is
  *   about 1.36 times this; it would cost K_i^2 instead of K_i); the frame and
@@ -38,6 +38,9 @@
  *   each pass projects the current positions onto the fixed fitted surfaces,
  *   with weights from the current distances. The passes combine as the
  *   bilateral orders above.
+ *
+ * Every method's fits pass the guard (guard_fit below, docs/smoothing.md "The
+ * guard"): a fit of the centre's own sheet, moving only that sheet's points.
  *
  * Gaussian weights below 2^-54 are taken as 0: 1 - w rounds to 1 there, so
  * such a weight cannot move a point by itself; this cut (a^2/b^2 > 54 ln 2)
@@ -284,13 +287,13 @@ typedef struct smooth_ctx {
  * between them, and every point it moves goes off its own surface. The guard
  * makes each neighbourhood's fit a fit of its centre's sheet, and moves with
  * it only the points of that sheet:
- *  1. the centre's sheet: the n_s = max(K/4, 6) points nearest the centre;
- *     their residuals about the fit give the sheet's offset m (median) and
+ *  1. the centre's sheet: the n_s = max(K/4, 12) points nearest the centre,
+ *     fitted first; their residuals give the sheet's offset m (median) and
  *     noise scale s (1.4826 x the median absolute deviation, robust to the
  *     few points of another sheet among them);
  *  2. a point belongs to the sheet when its residual lies in the prediction
- *     interval |r - m| <= t s sqrt(1 + 1/n_s) (t: Student's quantile at level
- *     BSURF_GUARD_ALPHA, n_s - 1 degrees of freedom); the fit is made again
+ *     interval |r - m| <= t s sqrt(1 + 1/n_s) (t: Student's quantile at
+ *     two-sided level 1%, n_s - 1 degrees of freedom); the fit is made again
  *     from these points only, and 1-2 repeat until the set stops changing
  *     (at most GUARD_ROUNDS times);
  *  3. the fit must be unbiased at the centre: Student's one-sample t test
@@ -299,8 +302,8 @@ typedef struct smooth_ctx {
  *     nearest K/2 points (the degree drops so that there are two points per
  *     coefficient), down to k_min points; a neighbourhood whose smallest fit
  *     still fails moves no point.
- * The fit then moves only points within its prediction interval (fit_delta's
- * bound). The level is the tests' false-alarm rate on a single sheet: a false
+ * The fit then moves only points within GUARD_MOVE prediction half-widths of
+ * it (fit_delta's bound). The level is the tests' false-alarm rate on a single sheet: a false
  * alarm costs a fit from fewer points, or one point left to other fits. */
 #define BSURF_GUARD_Z 2.5758293035489 /* the normal quantile of 1 - 0.01 / 2 */
 #define GUARD_ROUNDS 6
@@ -1235,7 +1238,7 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     }
   } else {
     /* ---- multipass: K_i, d_L and the fits, once ---- */
-    /* |W| by default; errors below 1e-9 h are rounding, not noise, and their
+    /* 3 |W| by default (the thesis: |W|); errors below 1e-9 h are rounding, not noise, and their
      * ratios carry no information (exact data keeps K_i = K) */
     double kf = o.k_error_fraction > 0 ? o.k_error_fraction : 3.0;
     c.k_error = o.k_error > 0 ? o.k_error : fmax(kf * meanW, 1e-9 * nb->h);
@@ -1465,10 +1468,13 @@ int bsurf_smooth_w_column(const bsurf_smooth_options *o) {
 }
 
 void bsurf_smooth_resolve(bsurf_smooth_options *o, double h, double mean_w) {
-  /* h2 defaults: 0.3 |W| for multipass (6.4.1); 2 |W| for bilateral, where
-   * the thesis shows 0.5-1 |W| (Figs. 6.4-6.6): on fandisk and the cube at
-   * noise 0.25 and 0.5 the distance to the true surface keeps falling up to
-   * about 2 |W|, feature points included (docs/smoothing.md) */
+  /* h2 default: 2 |W|. Bilateral: the thesis shows 0.5-1 |W| (Figs.
+   * 6.4-6.6), but on fandisk and the cube at noise 0.25 and 0.5 the distance
+   * to the true surface keeps falling up to about 2 |W|, feature points
+   * included. Multipass: the thesis's 0.3 |W| (6.4.1) gives a point at the
+   * mean error theta_2 = e^-11 per pass, so 300 passes move it 0.5% of the
+   * way to its fit (docs/smoothing.md, "Why the thesis's multipass barely
+   * moves points") */
   double frac = o->h2_fraction > 0 ? o->h2_fraction : 2.0;
   o->h1 = o->h1 > 0 ? o->h1 : h;
   o->h2 = o->h2 > 0 ? o->h2 : frac * mean_w;
