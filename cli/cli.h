@@ -31,9 +31,38 @@ typedef struct cli_command {
 #define CLI_OPT_THREADS(var) {'j', "threads", ARG_INT, &(var), "N", "threads, 0 = all cores", 0, 4096}
 #define CLI_OPT_SEED(var) {0, "seed", ARG_U64, &(var), "S", "random seed", 1, 0}
 #define CLI_OPTS_OUTPUT(out, ascii, force)                                                         \
-  {'o', "output", ARG_STRING, &(out), "FILE", "output file (.ply keeps every field)", 1, 0},      \
+  {'o', "output", ARG_STRING, &(out), "FILE",                                                       \
+   "output file (.ply .pcd .las .csv keep every field; - = standard output)", 1, 0},               \
       {0, "ascii", ARG_FLAG, &(ascii), "", "write ascii PLY (default: binary little-endian)", 1, 0}, \
-      {0, "force", ARG_FLAG, &(force), "", "allow the output to be the input file", 1, 0}
+      {0, "force", ARG_FLAG, &(force), "", "allow the output to be the input file", 1, 0},          \
+      CLI_OPTS_FORMATS
+/* --format, --float32, --ply-names (cli/formats.c, docs/formats.md) */
+extern const char *cli_out_format;
+extern int cli_float32;
+extern const char *cli_ply_names;
+extern const char *cli_las_version;
+#define CLI_OPTS_FORMATS                                                                            \
+  {0, "format", ARG_STRING, &cli_out_format, "FMT",                                                 \
+   "output format whatever the extension: ply pcd las csv asc xyz off obj (needed for -)", 1, 0},  \
+      {0, "float32", ARG_FLAG, &cli_float32, "",                                                    \
+       "write double coordinates, normals and fields as float (PCL's typed loaders)", 1, 0},      \
+      {0, "ply-names", ARG_STRING, &cli_ply_names, "NAMES",                                         \
+       "PLY field names: plain, cloudcompare (scalar_ prefix) or meshlab (+ quality)", 1, 0},       \
+      {0, "las-version", ARG_STRING, &cli_las_version, "V",                                         \
+       "LAS output: 1.4 (point formats 6-8) or 1.2 (formats 1, 3: readers stopping at 1.3)", 1, 0}
+/* -o - anywhere in argv. */
+int cli_output_is_stdout(int argc, char **argv);
+/* From now on standard output carries a cloud: what is printed for people
+ * goes to standard error. */
+void cli_stdout_data_begin(void);
+/* bsurf_write_options from the options (ascii, --format, ...); 0, or prints
+ * and returns 1. */
+int cli_write_options(const char *path, int ascii, bsurf_write_options *wo);
+/* The format a path will be written in (--format, else the extension). */
+bsurf_format cli_output_format(const char *path);
+/* bsurf_write, "-" to the real standard output. */
+bsurf_status cli_write_to(const char *path, const bsurf_cloud *cloud, const bsurf_write_options *wo,
+                          bsurf_error *err);
 /* For every command that reads clouds: cli_read_cloud() then drops points
  * with a NaN or infinite coordinate or normal instead of rejecting the file. */
 extern int cli_drop_invalid;
@@ -212,6 +241,7 @@ int cli_write_png(const char *path, const uint8_t *rgb, int w, int h);
 double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn progress, void *user, double *h,
                        bsurf_status *status);
 int cmd_features(const cli_command *cmd, int argc, char **argv);
+int cmd_convert(const cli_command *cmd, int argc, char **argv);
 int cmd_smooth(const cli_command *cmd, int argc, char **argv);
 
 #endif

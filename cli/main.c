@@ -122,6 +122,15 @@ static const cli_command commands[] = {
      "medians, the raw map, one run per filter pass; --threshold auto keeps 8 bytes\n"
      "per point in memory). docs/scaling.md.",
      cmd_features},
+    {"convert", "Convert between formats, keeping every field the output can hold.", "INPUT OUTPUT [options]",
+     "Formats: .ply, .pcd (PCL; ascii, binary, binary_compressed read), .las (1.0-1.4,\n"
+     "point formats 0-10; written as LAS 1.4 with the fields as extra bytes), .csv/.asc\n"
+     "(a header line names the columns), .xyz/.txt/.pts, .off, .obj. The input's format\n"
+     "comes from its content (ply, PCD, LASF, OFF signatures), else its extension; the\n"
+     "output's from --format, else its extension. - is standard input or output (with\n"
+     "--format). PLY, PCD, LAS and CSV keep every field with its values (LAS coordinates\n"
+     "within their scale); OFF, OBJ and XYZ keep points, normals and faces. docs/formats.md.",
+     cmd_convert},
 };
 static const int command_count = (int)(sizeof commands / sizeof commands[0]);
 
@@ -135,8 +144,9 @@ static void usage(FILE *f) {
   for (int i = 0; i < command_count; i++)
     fprintf(f, "  %-10s %s\n", commands[i].name, commands[i].summary);
   fprintf(f,
-          "\nFiles: .ply (ascii or binary), .off, .obj, .xyz/.txt. Output PLY is binary\n"
-          "little-endian unless --ascii. Exit codes: 0 ok, 1 bad input or failure, 2 bad usage.\n");
+          "\nFiles: .ply (ascii or binary), .pcd, .las, .csv/.asc, .off, .obj, .xyz/.txt; - is\n"
+          "standard input or output (--format FMT). Output PLY is binary little-endian unless\n"
+          "--ascii. Exit codes: 0 ok, 1 bad input or failure, 2 bad usage.\n");
 }
 
 static const cli_command *find(const char *name) {
@@ -180,6 +190,7 @@ int main(int argc, char **argv) {
     return 2;
   }
   cli_install_signals();
+  if (cli_output_is_stdout(argc - 1, argv + 1)) cli_stdout_data_begin(); /* -o -: text to stderr */
   cli_mpi_init(&argc, &argv);
   int rc = c->run(c, argc - 1, argv + 1);
   if (rc == CLI_HELP_SHOWN) rc = 0;

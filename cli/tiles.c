@@ -71,8 +71,10 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
   int automatic = !tile_points && !distributed && limit > 0 && need > limit;
   if (!tile_points && !automatic && !distributed) return 0;
   if (!output) return cli_error("%s: tiled runs write their points to a file: give -o FILE.ply", input);
-  if (bsurf_format_from_path(output) != BSURF_FORMAT_PLY || ascii)
-    return cli_error("%s: tiled runs write binary PLY (not --ascii, .xyz, .off or .obj)", output);
+  if (bsurf_format_from_path(output) != BSURF_FORMAT_PLY || ascii || cli_output_format(output) != BSURF_FORMAT_PLY ||
+      cli_float32 || cli_ply_names || cli_las_version)
+    return cli_error("%s: tiled runs write binary PLY (not --ascii, --format, --float32, --ply-names, other "
+                     "formats or -)", output);
   if (bsurf_format_from_path(input) != BSURF_FORMAT_PLY)
     return cli_error("%s: tiled runs read binary PLY files (write one with any command's -o FILE.ply)",
                      input);

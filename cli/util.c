@@ -65,10 +65,9 @@ static size_t drop_invalid_points(bsurf_cloud *c) {
 
 int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
   bsurf_error err = {0, -1, ""};
-  if (bsurf_format_from_path(path) == BSURF_FORMAT_UNKNOWN)
-    return cli_error("%s: unknown file type (use .ply, .off, .obj, .xyz or .txt)", path);
+  /* the format: the content's signature, else the extension (docs/formats.md) */
   struct stat sb;
-  if (stat(path, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size == 0)
+  if (strcmp(path, "-") != 0 && stat(path, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size == 0)
     return cli_error("%s: the file is empty", path);
   bsurf_status st = bsurf_read(path, cloud, &err);
   if (st != BSURF_OK) {
@@ -107,8 +106,10 @@ void cli_print_input_report(FILE *f) {
 }
 
 int cli_check_output(const char *output, const char *input, int force) {
-  if (bsurf_format_from_path(output) == BSURF_FORMAT_UNKNOWN)
-    return cli_error("%s: unknown output file type (use .ply, .off, .obj, .xyz or .txt)", output);
+  if (!strcmp(output, "-")) return cli_out_format ? 0 : cli_error("-: standard output needs --format");
+  if (cli_output_format(output) == BSURF_FORMAT_UNKNOWN)
+    return cli_error("%s: unknown output file type (use .ply, .pcd, .las, .csv, .asc, .off, .obj, .xyz or .txt, "
+                     "or --format)", output);
   return cli_check_writable(output, input, force);
 }
 
@@ -143,15 +144,17 @@ int cli_check_writable(const char *output, const char *input, int force) {
 }
 
 int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii) {
-  bsurf_format fmt = bsurf_format_from_path(path);
+  bsurf_write_options wo;
+  if (cli_write_options(path, ascii, &wo)) return 1;
+  bsurf_format fmt = wo.format ? wo.format : bsurf_format_from_path(path);
   if (!bsurf_format_keeps_fields(fmt) && cloud->field_count > 0) {
-    cli_warn("%s: this format cannot store the %zu scalar field(s) (first: %s); write .ply to keep them",
+    cli_warn("%s: this format cannot store the %zu scalar field(s) (first: %s); write .ply, .pcd, .las or .csv "
+             "to keep them",
              path, cloud->field_count, cloud->fields[0].name);
   }
   if (cli_interrupted()) return cli_error("%s: interrupted; nothing written", path);
-  bsurf_write_options wo = {ascii};
   bsurf_error err = {0, -1, ""};
-  bsurf_status st = bsurf_write(path, cloud, &wo, &err);
+  bsurf_status st = cli_write_to(path, cloud, &wo, &err);
   if (st != BSURF_OK)
     return cli_error("%s: %s", path, err.message[0] ? err.message : bsurf_strerror(st));
   return 0;

@@ -89,7 +89,7 @@ static const char *g_roundtrip_dir;
 static void fuzz_roundtrip(const bsurf_cloud *c, int ascii) {
   char path[4096];
   snprintf(path, sizeof path, "%s/bsurf-fuzz-%ld.ply", g_roundtrip_dir, (long)getpid());
-  bsurf_write_options o = {ascii};
+  bsurf_write_options o = {.ascii = ascii};
   bsurf_error err;
   bsurf_status st = bsurf_write(path, c, &o, &err);
   if (st != BSURF_OK) fprintf(stderr, "write: %s\n", err.message);

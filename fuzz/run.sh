@@ -5,7 +5,7 @@
 #   fuzz/run.sh all [SECONDS]        every target in turn, SECONDS each
 #   fuzz/run.sh build                only build every target
 #
-# TARGET: ply_ascii ply_binary off obj xyz cli_args (with or without "fuzz_").
+# TARGET: ply_ascii ply_binary off obj xyz pcd las csv cli_args (with or without "fuzz_").
 # SECONDS defaults to 60. One fuzzer process at a time (no -jobs/-workers).
 # The committed seeds in fuzz/corpus/fuzz_TARGET are only read; new inputs go
 # to $BUILD/corpus/fuzz_TARGET and crashes, leaks and timeouts to
@@ -15,7 +15,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BUILD=${BSURF_FUZZ_BUILD:-$ROOT/build-fuzz}
 CC_FUZZ=${CC_FUZZ:-clang}
-TARGETS="ply_ascii ply_binary off obj xyz cli_args"
+TARGETS="ply_ascii ply_binary off obj xyz pcd las csv cli_args"
 
 usage() {
   echo "usage: fuzz/run.sh TARGET|all|build [SECONDS] [libFuzzer options...]" >&2

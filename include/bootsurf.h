@@ -137,31 +137,60 @@ typedef enum bsurf_format {
   BSURF_FORMAT_PLY,
   BSURF_FORMAT_OFF,
   BSURF_FORMAT_OBJ,
-  BSURF_FORMAT_XYZ /* .xyz, .txt, .pts: x y z [nx ny nz] per line */
+  BSURF_FORMAT_XYZ, /* .xyz, .txt, .pts: x y z [nx ny nz] per line */
+  BSURF_FORMAT_PCD, /* .pcd: PCL's point cloud data v0.7 */
+  BSURF_FORMAT_LAS, /* .las: ASPRS LAS 1.0-1.4, point formats 0-10 */
+  BSURF_FORMAT_CSV  /* .csv, .asc: text with a header line naming the columns */
 } bsurf_format;
 
 /* The format named by a path's extension (case-insensitive). */
 bsurf_format bsurf_format_from_path(const char *path);
+/* The format called `name` ("ply", "pcd", "las", "csv", "xyz", "off", "obj";
+ * also "txt", "pts", "asc"), or BSURF_FORMAT_UNKNOWN. */
+bsurf_format bsurf_format_from_name(const char *name);
+/* The lower-case name of a format ("ply", ...; "" for UNKNOWN). */
+const char *bsurf_format_name(bsurf_format format);
+/* The format a file's first bytes declare: PLY ("ply"), PCD ("# .PCD" or a
+ * "VERSION" line), LAS ("LASF"), OFF (a first word ending in "OFF"); else
+ * BSURF_FORMAT_UNKNOWN (text formats have no signature). bsurf_read() trusts
+ * it over the extension, so a missing or wrong extension still reads. */
+bsurf_format bsurf_format_detect(const void *data, size_t size);
 
-/* Reads a cloud or mesh; the format comes from the extension. On failure the
- * cloud is left empty and `err` (optional) says where and why. */
+/* Reads a cloud or mesh; the format comes from the content when it declares
+ * one (bsurf_format_detect), else from the extension, else (no extension)
+ * text is read as CSV/XYZ and "v ..." lines as OBJ. "-" reads standard input.
+ * On failure the cloud is left empty and `err` (optional) says where and why. */
 bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err);
 /* The same from a buffer already in memory (used by the fuzzers). */
 bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format format,
                                bsurf_cloud *cloud, bsurf_error *err);
 
+/* PLY property names for the fields (docs/formats.md): as they are, with
+ * CloudCompare's "scalar_" prefix (which it loads and strips), or as they are
+ * plus a float "quality" copy of the first field (MeshLab's one scalar). */
+typedef enum bsurf_ply_names {
+  BSURF_PLY_NAMES_PLAIN = 0,
+  BSURF_PLY_NAMES_CLOUDCOMPARE,
+  BSURF_PLY_NAMES_MESHLAB
+} bsurf_ply_names;
+
 typedef struct bsurf_write_options {
-  int ascii; /* PLY: write ascii instead of binary little-endian */
+  int ascii;              /* PLY, PCD: write ascii instead of binary little-endian */
+  bsurf_format format;    /* BSURF_FORMAT_UNKNOWN (0): from the path's extension */
+  int float32;            /* float64 coordinates, normals and fields as float32 */
+  bsurf_ply_names ply_names;
+  int las_legacy;         /* LAS 1.2 (point format 1 or 3) instead of 1.4 (6-8) */
 } bsurf_write_options;
 
-/* Writes a cloud; the format comes from the extension. The data go to a
- * temporary file in the same directory which is renamed to `path` only when
- * everything was written: a failed write leaves no partial file. `opts` may be
- * NULL (binary PLY). Formats that cannot carry every field (OFF, OBJ, XYZ)
- * write what they can; see bsurf_format_keeps_fields(). */
+/* Writes a cloud; the format comes from opts->format, else the extension. The
+ * data go to a temporary file in the same directory which is renamed to `path`
+ * only when everything was written: a failed write leaves no partial file.
+ * "-" writes standard output (opts->format required). `opts` may be NULL
+ * (binary PLY). Formats that cannot carry every field (OFF, OBJ, XYZ) write
+ * what they can; see bsurf_format_keeps_fields(). */
 bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
                          const bsurf_write_options *opts, bsurf_error *err);
-/* 1 if the format stores named scalar fields (PLY only). */
+/* 1 if the format stores named scalar fields (PLY, PCD, LAS, CSV). */
 int bsurf_format_keeps_fields(bsurf_format format);
 
 /* ------------------------------------------------------------------------ */

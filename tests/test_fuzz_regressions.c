@@ -140,6 +140,9 @@ static void test_replay_corpora(void **state) {
   assert_true(replay_dir("fuzz_off", BSURF_FORMAT_OFF) > 0);
   assert_true(replay_dir("fuzz_obj", BSURF_FORMAT_OBJ) > 0);
   assert_true(replay_dir("fuzz_xyz", BSURF_FORMAT_XYZ) > 0);
+  assert_true(replay_dir("fuzz_pcd", BSURF_FORMAT_PCD) > 0);
+  assert_true(replay_dir("fuzz_las", BSURF_FORMAT_LAS) > 0);
+  assert_true(replay_dir("fuzz_csv", BSURF_FORMAT_CSV) > 0);
 }
 
 int main(void) {

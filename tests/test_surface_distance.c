@@ -579,7 +579,7 @@ static void test_shape_in_ply(void **state) {
   char path[4096];
   for (int ascii = 0; ascii < 2; ascii++) {
     tmp_path(path, sizeof path, ascii ? "cube_ascii.ply" : "cube.ply");
-    bsurf_write_options wo = {ascii};
+    bsurf_write_options wo = {.ascii = ascii};
     assert_int_equal(bsurf_write(path, &c, &wo, NULL), BSURF_OK);
     assert_int_equal(bsurf_read(path, &r, NULL), BSURF_OK);
     assert_string_equal(r.shape, "cube");

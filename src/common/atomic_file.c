@@ -35,6 +35,11 @@ static mode_t current_umask(void) {
 
 bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_error *err) {
   memset(af, 0, sizeof *af);
+  if (strcmp(path, "-") == 0) { /* standard output: no temporary (tmp stays NULL) */
+    af->f = stdout;
+    af->path = path;
+    return BSURF_OK;
+  }
   const char *slash = strrchr(path, '/');
   const char *base = slash ? slash + 1 : path;
   if (!*base)
@@ -82,6 +87,18 @@ bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_er
 bsurf_status bsurf_atomic_close(bsurf_atomic_file *af, bsurf_status status, int write_errno,
                                 bsurf_error *err) {
   int failed = status != BSURF_OK || write_errno != 0, e = write_errno;
+  if (!af->tmp) { /* standard output: flushed, never closed; a failure may
+                     leave part of the data in the pipe (docs/formats.md) */
+    errno = 0;
+    if (fflush(af->f) != 0 && !failed) {
+      failed = 1;
+      e = errno ? errno : EIO;
+    }
+    memset(af, 0, sizeof *af);
+    if (status != BSURF_OK) return status;
+    return failed ? bsurf_fail(err, BSURF_ERR_IO, 0, -1, "write to standard output failed: %s", strerror(e))
+                  : BSURF_OK;
+  }
   if (!failed) {
     errno = 0;
     if (fflush(af->f) != 0) {

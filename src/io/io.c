@@ -680,10 +680,82 @@ bsurf_format bsurf_format_from_path(const char *path) {
   if (ext_is(ext, "off")) return BSURF_FORMAT_OFF;
   if (ext_is(ext, "obj")) return BSURF_FORMAT_OBJ;
   if (ext_is(ext, "xyz") || ext_is(ext, "txt") || ext_is(ext, "pts")) return BSURF_FORMAT_XYZ;
+  return bsurf_format_from_name(ext);
+}
+
+/* ---- formats by name and by content (docs/formats.md) ---- */
+
+bsurf_format bsurf_format_from_name(const char *name) {
+  static const struct {
+    const char *name;
+    bsurf_format format;
+  } names[] = {{"ply", BSURF_FORMAT_PLY}, {"off", BSURF_FORMAT_OFF}, {"obj", BSURF_FORMAT_OBJ},
+               {"xyz", BSURF_FORMAT_XYZ}, {"txt", BSURF_FORMAT_XYZ}, {"pts", BSURF_FORMAT_XYZ},
+               {"pcd", BSURF_FORMAT_PCD}, {"las", BSURF_FORMAT_LAS}, {"laz", BSURF_FORMAT_LAS},
+               {"csv", BSURF_FORMAT_CSV}, {"asc", BSURF_FORMAT_CSV}};
+  if (!name) return BSURF_FORMAT_UNKNOWN;
+  for (size_t i = 0; i < sizeof names / sizeof names[0]; i++)
+    if (ext_is(name, names[i].name)) return names[i].format;
   return BSURF_FORMAT_UNKNOWN;
 }
 
-int bsurf_format_keeps_fields(bsurf_format format) { return format == BSURF_FORMAT_PLY; }
+const char *bsurf_format_name(bsurf_format format) {
+  static const char *const names[] = {"", "ply", "off", "obj", "xyz", "pcd", "las", "csv"};
+  return (unsigned)format < sizeof names / sizeof names[0] ? names[format] : "";
+}
+
+/* The first line of the data (at most 64 bytes of it) starts with `word`
+ * followed by the end of the line or a blank. */
+static int starts_with_word(const char *p, size_t size, const char *word) {
+  size_t n = strlen(word);
+  if (size < n || memcmp(p, word, n) != 0) return 0;
+  return size == n || p[n] == '\n' || p[n] == '\r' || p[n] == ' ' || p[n] == '\t';
+}
+
+bsurf_format bsurf_format_detect(const void *data, size_t size) {
+  const char *p = data;
+  if (!p) return BSURF_FORMAT_UNKNOWN;
+  if (size >= 3 && memcmp(p, "\xEF\xBB\xBF", 3) == 0) { /* a UTF-8 byte order mark */
+    p += 3;
+    size -= 3;
+  }
+  if (size >= 4 && memcmp(p, "LASF", 4) == 0) return BSURF_FORMAT_LAS;
+  if (starts_with_word(p, size, "ply")) return BSURF_FORMAT_PLY;
+  if (size >= 6 && memcmp(p, "# .PCD", 6) == 0) return BSURF_FORMAT_PCD;
+  if (starts_with_word(p, size, "VERSION")) return BSURF_FORMAT_PCD;
+  /* OFF's keyword, after comment and blank lines: OFF NOFF COFF STOFF ... */
+  size_t i = 0;
+  while (i < size) {
+    while (i < size && (p[i] == ' ' || p[i] == '\t' || p[i] == '\r' || p[i] == '\n')) i++;
+    if (i < size && p[i] == '#') {
+      while (i < size && p[i] != '\n') i++;
+      continue;
+    }
+    break;
+  }
+  size_t j = i;
+  while (j < size && j - i < 16 && p[j] >= 'A' && p[j] <= 'Z') j++;
+  if (j - i >= 3 && memcmp(p + j - 3, "OFF", 3) == 0 &&
+      (j == size || p[j] == '\n' || p[j] == '\r' || p[j] == ' ' || p[j] == '\t' ||
+       (p[j] >= '0' && p[j] <= '9')))
+    return BSURF_FORMAT_OFF;
+  return BSURF_FORMAT_UNKNOWN;
+}
+
+/* Text without a signature or a known extension: OBJ when a line starts
+ * with "v ", else a point list (CSV/XYZ, header line or not). */
+static bsurf_format sniff_text(const char *p, size_t size) {
+  size_t n = size < 65536 ? size : 65536;
+  for (size_t i = 0; i + 1 < n; i++)
+    if ((i == 0 || p[i - 1] == '\n') && p[i] == 'v' && (p[i + 1] == ' ' || p[i + 1] == '\t'))
+      return BSURF_FORMAT_OBJ;
+  return BSURF_FORMAT_CSV;
+}
+
+int bsurf_format_keeps_fields(bsurf_format format) {
+  return format == BSURF_FORMAT_PLY || format == BSURF_FORMAT_PCD || format == BSURF_FORMAT_LAS ||
+         format == BSURF_FORMAT_CSV;
+}
 
 static void clear_error(bsurf_error *err) {
   if (err) {
@@ -694,7 +766,7 @@ static void clear_error(bsurf_error *err) {
 }
 
 static const char k_unknown_ext[] =
-    "unknown file extension (use .ply, .off, .obj, .xyz, .txt or .pts)";
+    "unknown file extension (use .ply, .pcd, .las, .csv, .asc, .off, .obj, .xyz, .txt or .pts)";
 
 /* ------------------------------------------------------------------------ */
 /* Reading                                                                   */
@@ -709,7 +781,8 @@ bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format forma
   const char *p = data ? (const char *)data : "";
   /* Text files saved by Windows tools may start with a UTF-8 byte order
    * mark (PLY keeps every byte: binary offsets must stay exact). */
-  if (format != BSURF_FORMAT_PLY && size >= 3 && memcmp(p, "\xEF\xBB\xBF", 3) == 0) {
+  if (format != BSURF_FORMAT_PLY && format != BSURF_FORMAT_LAS && size >= 3 &&
+      memcmp(p, "\xEF\xBB\xBF", 3) == 0) {
     p += 3;
     size -= 3;
   }
@@ -720,7 +793,10 @@ bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format forma
   case BSURF_FORMAT_PLY: st = bsurf_io_read_ply(p, size, &c, err); break;
   case BSURF_FORMAT_OFF: st = bsurf_io_read_off(p, size, &c, err); break;
   case BSURF_FORMAT_OBJ: st = bsurf_io_read_obj(p, size, &c, err); break;
-  case BSURF_FORMAT_XYZ: st = bsurf_io_read_xyz(p, size, &c, err); break;
+  case BSURF_FORMAT_XYZ:
+  case BSURF_FORMAT_CSV: st = bsurf_io_read_xyz(p, size, &c, err); break;
+  case BSURF_FORMAT_PCD: st = bsurf_io_read_pcd(p, size, &c, err); break;
+  case BSURF_FORMAT_LAS: st = bsurf_io_read_las(p, size, &c, err); break;
   case BSURF_FORMAT_UNKNOWN:
   default: st = bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "unknown file format"); break;
   }
@@ -739,21 +815,20 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) 
   bsurf_cloud_init(cloud);
   if (!path) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no path given");
   bsurf_format format = bsurf_format_from_path(path);
-  if (format == BSURF_FORMAT_UNKNOWN)
-    return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "%s", k_unknown_ext);
+  int is_stdin = strcmp(path, "-") == 0;
 
-  FILE *f = fopen(path, "rb");
+  FILE *f = is_stdin ? stdin : fopen(path, "rb");
   if (!f) return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open: %s", strerror(errno));
   struct stat sb;
   size_t cap = 1 << 16;
   if (fstat(fileno(f), &sb) == 0) {
     if (S_ISDIR(sb.st_mode)) {
-      fclose(f);
+      if (!is_stdin) fclose(f);
       return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot read: it is a directory");
     }
     if (S_ISREG(sb.st_mode)) {
       if ((unsigned long long)sb.st_size >= (unsigned long long)((size_t)-1 / 2)) {
-        fclose(f);
+        if (!is_stdin) fclose(f);
         return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "the file is too large (%lld bytes)",
                           (long long)sb.st_size);
       }
@@ -763,7 +838,7 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) 
   char *buf = malloc(cap);
   size_t n = 0;
   if (!buf) {
-    fclose(f);
+    if (!is_stdin) fclose(f);
     return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1,
                       "out of memory reading the file (%zu bytes)", cap);
   }
@@ -771,13 +846,13 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) 
     if (n == cap) {
       if (cap > (size_t)-1 / 4) {
         free(buf);
-        fclose(f);
+        if (!is_stdin) fclose(f);
         return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "the file is too large");
       }
       char *nb = realloc(buf, cap * 2);
       if (!nb) {
         free(buf);
-        fclose(f);
+        if (!is_stdin) fclose(f);
         return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory reading the file");
       }
       buf = nb;
@@ -789,14 +864,30 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) 
       if (ferror(f)) {
         int e = errno;
         free(buf);
-        fclose(f);
+        if (!is_stdin) fclose(f);
         return bsurf_fail(err, BSURF_ERR_IO, 0, (long long)n, "read failed: %s",
                           strerror(e ? e : EIO));
       }
       if (feof(f)) break;
     }
   }
-  fclose(f);
+  if (!is_stdin) fclose(f);
+  /* the content's own signature wins over the extension; text without one
+   * and without a known extension is sniffed (docs/formats.md) */
+  bsurf_format declared = bsurf_format_detect(buf, n);
+  if (declared != BSURF_FORMAT_UNKNOWN && !(declared == BSURF_FORMAT_OFF && format == BSURF_FORMAT_OBJ))
+    format = declared;
+  else if (format == BSURF_FORMAT_UNKNOWN) {
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    const char *dot = strrchr(base, '.');
+    if (dot && dot != base) { /* an extension bootsurf does not know, and no signature */
+      free(buf);
+      return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "%s; the content is not PLY, PCD, LAS or OFF either",
+                        k_unknown_ext);
+    }
+    format = sniff_text(buf, n); /* no extension (or standard input): text */
+  }
   bsurf_status st = bsurf_read_buffer(buf, n, format, cloud, err);
   free(buf);
   return st;
@@ -823,30 +914,97 @@ static bsurf_status check_cloud(const bsurf_cloud *cloud, bsurf_error *err) {
   return BSURF_OK;
 }
 
+/* The fields of `view` (an array of field_count + 1) from the cloud's, with
+ * float32 types (opts->float32) and PLY names for a viewer (opts->ply_names:
+ * docs/formats.md). */
+static bsurf_status write_view(bsurf_cloud *view, const bsurf_cloud *cloud,
+                               const bsurf_write_options *opts, bsurf_format format,
+                               bsurf_error *err) {
+  bsurf_field *fields = view->fields;
+  if (cloud->field_count) memcpy(fields, cloud->fields, cloud->field_count * sizeof *fields);
+  if (opts->float32) {
+    if (view->xyz_type == BSURF_FLOAT64) view->xyz_type = BSURF_FLOAT32;
+    if (view->normal_type == BSURF_FLOAT64) view->normal_type = BSURF_FLOAT32;
+    for (size_t i = 0; i < cloud->field_count; i++)
+      if (fields[i].type == BSURF_FLOAT64) fields[i].type = BSURF_FLOAT32;
+  }
+  if (format != BSURF_FORMAT_PLY) return BSURF_OK;
+  if (opts->ply_names == BSURF_PLY_NAMES_CLOUDCOMPARE) {
+    /* CloudCompare loads a vertex property as a scalar field only when its
+     * name contains "scal" (or "intensity", "gray", "grey"), and removes a
+     * leading "scalar_" when it does */
+    for (size_t i = 0; i < cloud->field_count; i++) {
+      char name[2 * BSURF_FIELD_NAME_MAX];
+      snprintf(name, sizeof name, "scalar_%s", fields[i].name);
+      if (strlen(name) >= BSURF_FIELD_NAME_MAX)
+        return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
+                          "field '%s': with the prefix scalar_ the name is longer than %d characters",
+                          fields[i].name, BSURF_FIELD_NAME_MAX - 1);
+      memcpy(fields[i].name, name, strlen(name) + 1);
+    }
+  } else if (opts->ply_names == BSURF_PLY_NAMES_MESHLAB && cloud->field_count &&
+             !bsurf_cloud_field(cloud, "quality")) {
+    /* MeshLab (vcglib's PLY importer) keeps one per-vertex scalar, "quality" */
+    fields[cloud->field_count] = fields[0];
+    snprintf(fields[cloud->field_count].name, BSURF_FIELD_NAME_MAX, "quality");
+    fields[cloud->field_count].type = BSURF_FLOAT32;
+    view->field_count = cloud->field_count + 1;
+  }
+  return BSURF_OK;
+}
+
 bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
                          const bsurf_write_options *opts, bsurf_error *err) {
   clear_error(err);
   if (!path || !cloud)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no path or no cloud given");
-  bsurf_format format = bsurf_format_from_path(path);
+  bsurf_format format = opts && opts->format ? opts->format : bsurf_format_from_path(path);
   if (format == BSURF_FORMAT_UNKNOWN)
-    return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "%s", k_unknown_ext);
+    return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "%s",
+                      strcmp(path, "-") == 0 ? "standard output needs a format (--format)" : k_unknown_ext);
   bsurf_status st = check_cloud(cloud, err);
-  if (st == BSURF_OK && format == BSURF_FORMAT_PLY) st = bsurf_io_ply_check(cloud, err);
   if (st != BSURF_OK) return st;
+  /* --float32 and --ply-names: a view of the cloud with other field types and
+   * names (the values are shared, not copied) */
+  bsurf_cloud view = *cloud;
+  bsurf_field *fields = NULL;
+  if (opts && (opts->float32 || (format == BSURF_FORMAT_PLY && opts->ply_names))) {
+    fields = bsurf_alloc_array(cloud->field_count + 1, sizeof *fields);
+    if (!fields) return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
+    view.fields = fields;
+    st = write_view(&view, cloud, opts, format, err);
+  }
+  if (st == BSURF_OK && bsurf_format_keeps_fields(format)) st = bsurf_io_ply_check(&view, err);
+  if (st == BSURF_OK && format == BSURF_FORMAT_LAS) st = bsurf_io_las_check(&view, err);
+  if (st != BSURF_OK) {
+    free(fields);
+    return st;
+  }
 
   bsurf_atomic_file af;
   st = bsurf_atomic_open(&af, path, err);
-  if (st != BSURF_OK) return st;
+  if (st != BSURF_OK) {
+    free(fields);
+    return st;
+  }
   io_writer w = {af.f, 0, 0};
+  int ascii = opts && opts->ascii;
   switch (format) {
-  case BSURF_FORMAT_PLY: st = bsurf_io_write_ply(&w, cloud, opts && opts->ascii, err); break;
-  case BSURF_FORMAT_OFF: st = bsurf_io_write_off(&w, cloud, err); break;
-  case BSURF_FORMAT_OBJ: st = bsurf_io_write_obj(&w, cloud, err); break;
+  case BSURF_FORMAT_PLY: st = bsurf_io_write_ply(&w, &view, ascii, err); break;
+  case BSURF_FORMAT_OFF: st = bsurf_io_write_off(&w, &view, err); break;
+  case BSURF_FORMAT_OBJ: st = bsurf_io_write_obj(&w, &view, err); break;
+  case BSURF_FORMAT_PCD: st = bsurf_io_write_pcd(&w, &view, ascii, err); break;
+  case BSURF_FORMAT_LAS: st = bsurf_io_write_las(&w, &view, opts && opts->las_legacy, err); break;
+  case BSURF_FORMAT_CSV: {
+    const char *dot = strrchr(path, '.');
+    st = bsurf_io_write_csv(&w, &view, dot && ext_is(dot + 1, "asc"), err);
+    break;
+  }
   case BSURF_FORMAT_XYZ:
   case BSURF_FORMAT_UNKNOWN:
-  default: st = bsurf_io_write_xyz(&w, cloud, err); break;
+  default: st = bsurf_io_write_xyz(&w, &view, err); break;
   }
+  free(fields);
   return bsurf_atomic_close(&af, st, w.failed ? (w.err_no ? w.err_no : EIO) : 0, err);
 }
 

@@ -150,8 +150,35 @@ bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud
                                bsurf_error *err);
 bsurf_status bsurf_io_read_obj(const char *data, size_t size, bsurf_cloud *cloud,
                                bsurf_error *err);
+/* .xyz/.txt/.pts and .csv/.asc: one reader (a header line naming the
+ * columns is used when present). */
 bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud,
                                bsurf_error *err);
+bsurf_status bsurf_io_read_pcd(const char *data, size_t size, bsurf_cloud *cloud,
+                               bsurf_error *err);
+bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud,
+                               bsurf_error *err);
+
+/* ---- shared by the binary readers ----------------------------------------- */
+
+/* Little-endian loads from unaligned bytes. */
+uint16_t io_le16(const unsigned char *p);
+uint32_t io_le32(const unsigned char *p);
+uint64_t io_le64(const unsigned char *p);
+double io_le_f64(const unsigned char *p);
+float io_le_f32(const unsigned char *p);
+/* The value of `type` stored little-endian at p. */
+double io_le_value(const unsigned char *p, bsurf_type type);
+/* Stores v as `type` little-endian (rounded and clamped as io_type_convert);
+ * returns p + the type's size. */
+unsigned char *io_put_le(unsigned char *p, double v, bsurf_type type);
+/* A 64-bit integer as a double, or 0 when a double cannot hold it exactly
+ * (beyond 2^53): *ok is cleared then. */
+double io_i64_exact(int64_t v, int *ok);
+double io_u64_exact(uint64_t v, int *ok);
+/* The field called `name` made unique among the cloud's ("name_1", ...)
+ * into out. */
+void io_unique_name(const bsurf_cloud *cloud, const char *name, char out[BSURF_FIELD_NAME_MAX]);
 
 /* ---- binary PLY by offset (the tiled runs of src/tile) ------------------ */
 
@@ -204,5 +231,15 @@ bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int asci
 bsurf_status bsurf_io_write_off(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
 bsurf_status bsurf_io_write_obj(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
 bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
+/* A header line then comma-separated rows; cloudcompare: "//X,Y,Z,Nx,..." as
+ * CloudCompare's ASCII export, else "x,y,z,nx,...". */
+bsurf_status bsurf_io_write_csv(io_writer *w, const bsurf_cloud *cloud, int cloudcompare,
+                                bsurf_error *err);
+bsurf_status bsurf_io_write_pcd(io_writer *w, const bsurf_cloud *cloud, int ascii,
+                                bsurf_error *err);
+/* Checks before anything is written: finite coordinates, names that fit. */
+bsurf_status bsurf_io_las_check(const bsurf_cloud *cloud, bsurf_error *err);
+/* legacy: LAS 1.2, point format 1 or 3 (else 1.4, 6-8) */
+bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy, bsurf_error *err);
 
 #endif

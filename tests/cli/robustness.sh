@@ -282,4 +282,72 @@ for what in gen noise unoise error normals smooth feat sample; do
 done
 cmp -s "$T/d.gen.1.ply" "$T/d.gen.2.ply" && ok || fail "generate random differs between runs"
 
+# ---- PCD and LAS (docs/robustness.md, docs/formats.md) -------------------------
+# every case through convert: exit 1, one message naming the file and the
+# line or byte, nothing written
+pcd_head() { # pcd_head FIELDS SIZE TYPE COUNT POINTS DATA
+  printf 'VERSION 0.7\nFIELDS %s\nSIZE %s\nTYPE %s\nCOUNT %s\nWIDTH %s\nHEIGHT 1\nPOINTS %s\nDATA %s\n' \
+    "$1" "$2" "$3" "$4" "$5" "$5" "$6"
+}
+pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 2 ascii >"$IN/good.pcd"
+printf '1 2 3\n4 5 6\n' >>"$IN/good.pcd"
+expect 0 "good pcd" -- "$BSURF" convert "$IN/good.pcd" "$T/good_pcd.csv" -q
+printf 'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\n' >"$IN/p_trunc.pcd"
+bad 1 "pcd truncated header" "$IN/p_trunc.pcd:3:" "without a DATA line" -- "$BSURF" convert "$IN/p_trunc.pcd" "$OUT"
+{ pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 100 binary; head -c 240 /dev/zero; } >"$IN/p_count.pcd"
+bad 1 "pcd points beyond the file" "$IN/p_count.pcd: byte" "POINTS 100 needs 1200 bytes" -- "$BSURF" convert "$IN/p_count.pcd" "$OUT"
+{ pcd_head "x y z" "4 4 4" "F F F" "1 0 1" 1 ascii; echo "1 2 3"; } >"$IN/p_count0.pcd"
+bad 1 "pcd COUNT 0" "$IN/p_count0.pcd:5:" "COUNT '0' of field 2" -- "$BSURF" convert "$IN/p_count0.pcd" "$OUT"
+{ pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 1 zipped; echo "1 2 3"; } >"$IN/p_data.pcd"
+bad 1 "pcd bad DATA kind" "$IN/p_data.pcd:9:" "unknown DATA kind 'zipped'" -- "$BSURF" convert "$IN/p_data.pcd" "$OUT"
+{ pcd_head "x y z" "4 2 4" "F F F" "1 1 1" 1 ascii; echo "1 2 3"; } >"$IN/p_sizetype.pcd"
+bad 1 "pcd SIZE/TYPE mismatch" "$IN/p_sizetype.pcd:9:" "TYPE F needs SIZE 4 or 8" -- "$BSURF" convert "$IN/p_sizetype.pcd" "$OUT"
+{ pcd_head "x y z" "4 4" "F F F" "1 1 1" 1 ascii; echo "1 2 3"; } >"$IN/p_sizes.pcd"
+bad 1 "pcd SIZE entries" "$IN/p_sizes.pcd:3:" "SIZE has 2 entries for 3 FIELDS" -- "$BSURF" convert "$IN/p_sizes.pcd" "$OUT"
+{ pcd_head "x y" "4 4" "F F" "1 1" 1 ascii; echo "1 2"; } >"$IN/p_noz.pcd"
+bad 1 "pcd without z" "$IN/p_noz.pcd:" "needs one each of the fields x, y and z" -- "$BSURF" convert "$IN/p_noz.pcd" "$OUT"
+{ pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 3 ascii; printf '1 2 3\n4 5 6\n'; } >"$IN/p_short.pcd"
+bad 1 "pcd ascii points missing" "$IN/p_short.pcd:12:" "POINTS 3 but the data end after 2 points" -- "$BSURF" convert "$IN/p_short.pcd" "$OUT"
+{ pcd_head "x y z" "1 1 1" "U U U" "1 1 1" 1 ascii; echo "1 2 300"; } >"$IN/p_range.pcd"
+bad 1 "pcd value out of its type" "$IN/p_range.pcd:10:" "'300' is not a U1 integer" -- "$BSURF" convert "$IN/p_range.pcd" "$OUT"
+{ pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 1 binary_compressed; printf '\005\000\000\000\014\000\000\000\001\001\001\001\001'; } >"$IN/p_lzf.pcd"
+bad 1 "pcd corrupt LZF" "$IN/p_lzf.pcd: byte" "corrupt LZF data" -- "$BSURF" convert "$IN/p_lzf.pcd" "$OUT"
+printf 'VERSION 0.7\nFIELDS x y z\nCOLOUR red\n' >"$IN/p_kw.pcd"
+bad 1 "pcd unknown keyword" "$IN/p_kw.pcd:3:" "unknown keyword 'COLOUR'" -- "$BSURF" convert "$IN/p_kw.pcd" "$OUT"
+
+# LAS: a good file written by bootsurf (1.4, format 6, extra bytes), then
+# one byte or length changed at a time
+expect 0 "good las" -- "$BSURF" convert "$IN/good.pcd" "$IN/good.las" -q
+las_patch() { # las_patch NAME OFFSET BYTES(printf): a copy of good.las with bytes replaced
+  cp "$IN/good.las" "$IN/$1"
+  printf "$3" | dd of="$IN/$1" bs=1 seek="$2" conv=notrunc status=none
+}
+head -c 120 "$IN/good.las" >"$IN/l_trunc.las"
+bad 1 "las truncated header" "$IN/l_trunc.las: byte 120:" "truncated header" -- "$BSURF" convert "$IN/l_trunc.las" "$OUT"
+las_patch l_fmt.las 104 '\014'
+bad 1 "las unknown point format" "$IN/l_fmt.las: byte 104:" "unknown point data record format 12" -- "$BSURF" convert "$IN/l_fmt.las" "$OUT"
+las_patch l_laz.laz 104 '\206'
+bad 1 "las LAZ" "$IN/l_laz.laz: byte 104:" "LAZ (compressed LAS) is not supported" -- "$BSURF" convert "$IN/l_laz.laz" "$OUT"
+las_patch l_count.las 247 '\377\377'
+bad 1 "las point count beyond the file" "$IN/l_count.las: byte" "point count beyond the file" -- "$BSURF" convert "$IN/l_count.las" "$OUT"
+las_patch l_version.las 25 '\007'
+bad 1 "las version" "$IN/l_version.las: byte 24:" "LAS version 1.7 is not supported" -- "$BSURF" convert "$IN/l_version.las" "$OUT"
+las_patch l_record.las 105 '\020\000'
+bad 1 "las short records" "$IN/l_record.las: byte 105:" "less than point format 6's 30 bytes" -- "$BSURF" convert "$IN/l_record.las" "$OUT"
+las_patch l_scale.las 131 '\000\000\000\000\000\000\000\000'
+bad 1 "las zero scale" "$IN/l_scale.las: byte 131:" "x scale factor or offset is zero" -- "$BSURF" convert "$IN/l_scale.las" "$OUT"
+las_patch l_offset.las 96 '\377\377\000\000'
+bad 1 "las point offset beyond the file" "$IN/l_offset.las: byte 96:" "beyond the end of the file" -- "$BSURF" convert "$IN/l_offset.las" "$OUT"
+las_patch l_hsize.las 94 '\100\000'
+bad 1 "las header size" "$IN/l_hsize.las: byte 94:" "header size 64 is less than" -- "$BSURF" convert "$IN/l_hsize.las" "$OUT"
+# a cloud with a field: the extra bytes VLR right after the 375-byte header
+printf 'x y z w\n1 2 3 0.5\n4 5 6 0.25\n' >"$IN/w.txt"
+expect 0 "las with extra bytes" -- "$BSURF" convert "$IN/w.txt" "$IN/good.las" -q
+las_patch l_vlr.las 395 '\377\377'
+bad 1 "las wrong VLR length" "$IN/l_vlr.las: byte 395:" "wrong VLR length" -- "$BSURF" convert "$IN/l_vlr.las" "$OUT"
+las_patch l_eb.las 395 '\277\000'
+bad 1 "las extra bytes length" "$IN/l_eb.las: byte 429:" "not a multiple of 192" -- "$BSURF" convert "$IN/l_eb.las" "$OUT"
+las_patch l_ebtype.las 431 '\077'
+bad 1 "las extra bytes type" "$IN/l_ebtype.las: byte 431:" "unknown data type 63" -- "$BSURF" convert "$IN/l_ebtype.las" "$OUT"
+
 finish

@@ -1,0 +1,89 @@
+/* Output formats on the command line (docs/formats.md): --format,
+ * --float32 and --ply-names for every command that writes a cloud, and
+ * standard output as a file ("-o -"): the cloud's bytes go to the real
+ * standard output while everything the command prints for people (summaries,
+ * JSON) goes to standard error, so a pipe carries only the data. */
+#include "cli.h"
+
+#include <string.h>
+#include <unistd.h>
+
+const char *cli_out_format = NULL;
+int cli_float32 = 0;
+const char *cli_ply_names = NULL;
+const char *cli_las_version = NULL;
+
+/* the real standard output while it carries data; -1: not redirected */
+static int data_fd = -1;
+
+void cli_stdout_data_begin(void) {
+  if (data_fd >= 0) return;
+  fflush(stdout);
+  data_fd = dup(STDOUT_FILENO);
+  if (data_fd >= 0) dup2(STDERR_FILENO, STDOUT_FILENO);
+}
+
+int cli_output_is_stdout(int argc, char **argv) {
+  for (int i = 1; i < argc; i++) {
+    if ((!strcmp(argv[i], "-o") || !strcmp(argv[i], "--output")) && i + 1 < argc &&
+        !strcmp(argv[i + 1], "-"))
+      return 1;
+    if (!strcmp(argv[i], "--output=-") || !strcmp(argv[i], "-o-")) return 1;
+  }
+  return 0;
+}
+
+static const char *const k_ply_names[] = {"plain", "cloudcompare", "meshlab"};
+
+int cli_write_options(const char *path, int ascii, bsurf_write_options *wo) {
+  memset(wo, 0, sizeof *wo);
+  wo->ascii = ascii;
+  wo->float32 = cli_float32;
+  if (cli_out_format) {
+    wo->format = bsurf_format_from_name(cli_out_format);
+    if (wo->format == BSURF_FORMAT_UNKNOWN)
+      return cli_error("--format %s: unknown format (ply, pcd, las, csv, asc, xyz, off, obj)",
+                       cli_out_format);
+  } else if (path && !strcmp(path, "-")) {
+    return cli_error(
+        "-: writing to standard output needs --format (ply, pcd, las, csv, xyz, off, obj)");
+  }
+  if (cli_las_version) {
+    if (!strcmp(cli_las_version, "1.2"))
+      wo->las_legacy = 1;
+    else if (strcmp(cli_las_version, "1.4") != 0)
+      return cli_error("--las-version %s: expected 1.2 or 1.4", cli_las_version);
+  }
+  if (cli_ply_names) {
+    int k = cli_choice(cli_ply_names, k_ply_names, 3);
+    if (k < 0)
+      return cli_error("--ply-names %s: expected plain, cloudcompare or meshlab", cli_ply_names);
+    wo->ply_names = (bsurf_ply_names)k;
+  }
+  return 0;
+}
+
+bsurf_format cli_output_format(const char *path) {
+  if (cli_out_format) return bsurf_format_from_name(cli_out_format);
+  return bsurf_format_from_path(path);
+}
+
+bsurf_status cli_write_to(const char *path, const bsurf_cloud *cloud, const bsurf_write_options *wo,
+                          bsurf_error *err) {
+  bsurf_format f = wo && wo->format ? wo->format : bsurf_format_from_path(path);
+  if (cloud->face_count && f != BSURF_FORMAT_PLY && f != BSURF_FORMAT_OFF && f != BSURF_FORMAT_OBJ)
+    cli_warn("%s: %s holds points only: the %zu faces are not written (use .ply, .off or .obj)", path,
+             bsurf_format_name(f), cloud->face_count);
+  if (strcmp(path, "-") != 0 || data_fd < 0) return bsurf_write(path, cloud, wo, err);
+  /* the data to the real standard output, then back to standard error */
+  fflush(stdout);
+  int text_fd = dup(STDOUT_FILENO);
+  dup2(data_fd, STDOUT_FILENO);
+  bsurf_status st = bsurf_write(path, cloud, wo, err);
+  fflush(stdout);
+  if (text_fd >= 0) {
+    dup2(text_fd, STDOUT_FILENO);
+    close(text_fd);
+  }
+  return st;
+}
