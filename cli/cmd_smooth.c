@@ -169,7 +169,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   bsurf_smooth_options so = bsurf_smooth_options_default();
   const char *method = "bilateral", *order = "parallel", *estimator = "auto", *gamma = "fit",
              *center = "centroid", *threshold = "auto", *h1_text = "h", *h2_text = "auto",
-             *kerr_text = "auto", *output = NULL, *memory_limit = "auto";
+             *kerr_text = "auto", *guard = "on", *output = NULL, *memory_limit = "auto";
   size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
@@ -192,7 +192,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        0},
       {0, "h2", ARG_STRING, &h2_text, "X",
        "bilateral, multipass: error sigma of Eq. 6.2: a length, a multiple of |W| (e.g. 1W) or auto "
-       "(2W bilateral, 0.3W multipass)",
+       "(2W; the thesis's multipass setting is 0.3W)",
        1, 0},
       {0, "order", ARG_STRING, &order, "O",
        "bilateral, multipass: parallel (order-independent; tiled with a halo of reverse neighbours) or "
@@ -203,7 +203,12 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       {0, "k-min", ARG_INT, &so.k_min, "K", "multipass: the smallest neighbourhood (Eq. 6.3)", 1, 65535},
       {0, "k-error", ARG_STRING, &kerr_text, "X",
        "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length, a multiple of |W| (e.g. "
-       "2W) or auto (1W)",
+       "2W) or auto (3W; the thesis's is 1W)",
+       1, 0},
+      {0, "guard", ARG_STRING, &guard, "G",
+       "every method: on (a fit biased at its centre by a second sheet or an edge, by a t test on its "
+       "nearest points' residuals, is made again from fewer points, or moves nothing) or off (the thesis's "
+       "methods as written)",
        1, 0},
       CLI_OPT_SEED(so.error.seed),
       CLI_OPT_THREADS(so.error.threads),
@@ -226,6 +231,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   int mi = cli_choice(method, methods, 3), oi = cli_choice(order, orders, 2);
   int ei = cli_choice(estimator, estimators, 3), g = cli_choice(gamma, gammas, 3);
   int pc = cli_choice(center, centers, 2);
+  static const char *const onoff[] = {"off", "on"};
+  int gi = cli_choice(guard, onoff, 2);
+  if (gi < 0) return cli_usage_error(cmd, "--guard must be on or off, not '%s'", guard);
+  so.guard = gi;
   if (mi < 0) return cli_usage_error(cmd, "--method must be naive, bilateral or multipass, not '%s'", method);
   if (oi < 0) return cli_usage_error(cmd, "--order must be parallel or sequential, not '%s'", order);
   if (ei < 0) return cli_usage_error(cmd, "--estimator must be auto, 632 or 632plus, not '%s'", estimator);

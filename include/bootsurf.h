@@ -500,18 +500,24 @@ typedef struct bsurf_smooth_options {
    * G(a, b) = exp(-a^2/b^2) (Eq. 5.7). h1 <= 0: h (mean spacing). h2 <= 0:
    * h2_fraction x |W|, the mean of W_i. */
   double h1, h2;
-  double h2_fraction; /* <= 0: the method's default, 2 for bilateral (the thesis
-                         shows 0.5-1, Figs. 6.4-6.6; see docs/smoothing.md),
-                         0.3 for multipass (6.4.1) */
+  double h2_fraction; /* <= 0: the default, 2 (the thesis shows 0.5-1 for
+                         bilateral, Figs. 6.4-6.6, and uses 0.3 for multipass,
+                         6.4.1, where its points barely move; see
+                         docs/smoothing.md) */
   bsurf_smooth_order order; /* bilateral and multipass (PARALLEL) */
   /* multipass: h1 = a d_L (Eq. 6.5); K_i = max{k_min, y} with y the linear
    * map of Eq. 6.4 from (0, K) to (k_error, k_min); k_error <= 0:
-   * k_error_fraction x |W|. */
+   * k_error_fraction x |W| (3 by default; the thesis's is 1). */
   double a;          /* 0.1 */
   int iterations;    /* 300 */
   int k_min;         /* 10 */
   double k_error;    /* 0 */
-  double k_error_fraction; /* 1 */
+  double k_error_fraction; /* 3 */
+  /* every method: a neighbourhood whose fit is biased at its centre (two
+   * sheets, a sharp edge: a t test on its nearest points' residuals) is
+   * fitted again from fewer points, or moves nothing (docs/smoothing.md,
+   * "The guard"). 1 (on) by default; 0: the thesis's methods as written. */
+  int guard;
 } bsurf_smooth_options;
 
 bsurf_smooth_options bsurf_smooth_options_default(void);

@@ -26,8 +26,8 @@
  *     and does not depend on the order (sums run in increasing i).
  *
  * multipass (6.4, Algorithm 5, Eqs. 6.3-6.5): per point, K_i = max{k_min, y}
- *   with y = (k_min - K) / k_error * W_i + K (Eq. 6.4, k_error = mean W by
- *   default, or a multiple of it, y rounded to the nearest integer); d_L, the local average
+ *   with y = (k_min - K) / k_error * W_i + K (Eq. 6.4, k_error = 3 mean W by
+ *   default (the thesis: mean W), or a multiple of it, y rounded to the nearest integer); d_L, the local average
  *   distance between points, taken as the mean distance from the point to the
  *   other K_i - 1 (for a uniformly sampled disc the mean over all pairs is
  *   about 1.36 times this; it would cost K_i^2 instead of K_i); the frame and
@@ -38,6 +38,9 @@
  *   each pass projects the current positions onto the fixed fitted surfaces,
  *   with weights from the current distances. The passes combine as the
  *   bilateral orders above.
+ *
+ * Every method's fits pass the guard (guard_fit below, docs/smoothing.md "The
+ * guard"): a fit of the centre's own sheet, moving only that sheet's points.
  *
  * Gaussian weights below 2^-54 are taken as 0: 1 - w rounds to 1 there, so
  * such a weight cannot move a point by itself; this cut (a^2/b^2 > 54 ln 2)
@@ -73,7 +76,8 @@ bsurf_smooth_options bsurf_smooth_options_default(void) {
   o.iterations = 300;
   o.k_min = 10;
   o.k_error = 0;
-  o.k_error_fraction = 1.0;
+  o.k_error_fraction = 3.0;
+  o.guard = 1;
   return o;
 }
 
@@ -145,8 +149,10 @@ static inline double mp_exp1(double x) {
 double bsurf_smooth_exp(double x) { return mp_exp1(x); }
 
 /* ---- a fit kept for later passes: frame, scale, coefficients ----------- */
-/* Layout of one stored fit: origin[3], rot[9] (row-major), inv_scale, coef[m]. */
-#define FIT_HEAD 13
+/* Layout of one stored fit: origin[3], rot[9] (row-major), inv_scale, the
+ * largest |residual| of a point the fit moves (the guard's prediction bound;
+ * INFINITY without the guard), coef[m]. */
+#define FIT_HEAD 14
 #define MP_EXTRA 3 /* multipass: e2, inv_h1sq, w2 after the coefficients */
 
 static void fit_store(double *F, const bsurf_frame *fr, double inv_scale, const double *coef, int m) {
@@ -154,21 +160,24 @@ static void fit_store(double *F, const bsurf_frame *fr, double inv_scale, const 
   for (int r = 0; r < 3; r++)
     for (int t = 0; t < 3; t++) F[3 + 3 * r + t] = fr->rot[r][t];
   F[12] = inv_scale;
+  F[13] = INFINITY;
   for (int a = 0; a < m; a++) F[FIT_HEAD + a] = coef[a];
 }
 
 /* delta = f(x', y') - z' for p in the stored frame: p's projection onto the
  * fitted surface along the frame normal is p + delta n. A fit holds only over
  * the disc its points span (scaled radius 1): outside it, where a polynomial
- * extrapolates, NAN (no move). */
-static inline __attribute__((always_inline)) double fit_delta(const double *F, int degree, int m,
-                                                              const double p[3]) {
+ * extrapolates, NAN (no move); and only for points within its prediction
+ * bound F[13] (the guard: a point farther from the fit is on another sheet),
+ * NAN beyond. */
+static inline __attribute__((always_inline)) double fit_delta_any(const double *F, int degree, int m,
+                                                                  const double p[3], int held) {
   double q[3] = {p[0] - F[0], p[1] - F[1], p[2] - F[2]};
   double x = F[3] * q[0] + F[4] * q[1] + F[5] * q[2];
   double y = F[6] * q[0] + F[7] * q[1] + F[8] * q[2];
   double z = F[9] * q[0] + F[10] * q[1] + F[11] * q[2];
   double u = x * F[12], v = y * F[12];
-  if (u * u + v * v > 1.0) return NAN;
+  if (held && u * u + v * v > 1.0) return NAN;
   const double *a = &F[FIT_HEAD];
   double f;
   if (m <= 10) {
@@ -187,7 +196,13 @@ static inline __attribute__((always_inline)) double fit_delta(const double *F, i
     f = 0;
     for (int t = 0; t < bsurf_poly_terms(degree); t++) f += phi[t] * a[t];
   }
-  return f - z;
+  const double delta = f - z;
+  return !held || fabs(delta) <= F[13] ? delta : NAN;
+}
+
+static inline __attribute__((always_inline)) double fit_delta(const double *F, int degree, int m,
+                                                              const double p[3]) {
+  return fit_delta_any(F, degree, m, p, 1);
 }
 
 /* Full-rank fit of the highest degree <= `degree` (down to a constant), as
@@ -262,7 +277,142 @@ typedef struct smooth_ctx {
   size_t tb_cap;      /* rows of the largest region */
   double *tb_pos;     /* threads x 2 tb_cap x 3: a block's local positions, two passes */
   double *tb_step;    /* threads x MP_TSTRIDE: the largest squared move of each pass of a block */
+  uint32_t *gcount;   /* threads x k: the guard's sheet (guard_fit) */
 } smooth_ctx;
+#define GCOUNT(c, thread) (&(c)->gcount[(size_t)(thread) * (size_t)(c)->k])
+
+/* ---- the guard (docs/smoothing.md, "The guard") ------------------------
+ * A least-squares fit to a neighbourhood that mixes two sheets (the
+ * opposite face of a thin part, the other side of a sharp edge) runs
+ * between them, and every point it moves goes off its own surface. The guard
+ * makes each neighbourhood's fit a fit of its centre's sheet, and moves with
+ * it only the points of that sheet:
+ *  1. the centre's sheet: the n_s = max(K/4, 12) points nearest the centre,
+ *     fitted first; their residuals give the sheet's offset m (median) and
+ *     noise scale s (1.4826 x the median absolute deviation, robust to the
+ *     few points of another sheet among them);
+ *  2. a point belongs to the sheet when its residual lies in the prediction
+ *     interval |r - m| <= t s sqrt(1 + 1/n_s) (t: Student's quantile at
+ *     two-sided level 1%, n_s - 1 degrees of freedom); the fit is made again
+ *     from these points only, and 1-2 repeat until the set stops changing
+ *     (at most GUARD_ROUNDS times);
+ *  3. the fit must be unbiased at the centre: Student's one-sample t test
+ *     of "the mean residual of the centre's sheet's n_s nearest points is 0"
+ *     (two-sided, same level). A fit that fails is made again from the
+ *     nearest K/2 points (the degree drops so that there are two points per
+ *     coefficient), down to k_min points; a neighbourhood whose smallest fit
+ *     still fails moves no point.
+ * The fit then moves only points within GUARD_MOVE prediction half-widths of
+ * it (fit_delta's bound). The level is the tests' false-alarm rate on a single sheet: a false
+ * alarm costs a fit from fewer points, or one point left to other fits. */
+#define BSURF_GUARD_Z 2.5758293035489 /* the normal quantile of 1 - 0.01 / 2 */
+#define GUARD_ROUNDS 6
+/* A fit moves the points within GUARD_MOVE prediction half-widths of it:
+ * with one, the noise's own tail (1% of a sheet at this level, more where
+ * n_s points underestimate the scale) was never moved (cube, gaussian 0.5:
+ * 0.156 h against 0.147 h with two); a second sheet lies farther out. */
+#define GUARD_MOVE 2.0
+
+/* Student's t quantile with nu degrees of freedom at the normal quantile z
+ * (Cornish-Fisher expansion, Abramowitz & Stegun 26.7.5: within 1% of the
+ * table for nu >= 5 at z = 2.58). */
+static double student_t_quantile(double z, double nu) {
+  const double z2 = z * z, z3 = z2 * z, z5 = z3 * z2, z7 = z5 * z2;
+  return z + (z3 + z) / (4 * nu) + (5 * z5 + 16 * z3 + 3 * z) / (96 * nu * nu) +
+         (3 * z7 + 19 * z5 + 17 * z3 - 15 * z) / (384 * nu * nu * nu);
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+static double median_of(double *v, int n) {
+  qsort(v, (size_t)n, sizeof *v, cmp_double);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* n_s: a quarter of the neighbourhood, and at least 12 points (two per
+ * coefficient of a quadric, the lowest degree that follows curvature: the
+ * first fit of an exact surface is then exact) */
+static int guard_near(int k) { return k / 4 > 12 ? k / 4 : (k < 12 ? k : 12); }
+
+/* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the
+ * positions xyz: F (fit_store's record) and *degree out. Returns the
+ * neighbourhood size whose fit passes (negative when the fit is of only part
+ * of it, a sheet); 0 when none down to k_min does, F's scale is then NAN,
+ * which fit_delta and the pair lanes read as "moves nothing". s: the
+ * thread's scratch (its localfit and est_scratch); act: k entries. */
+static int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
+                     const uint32_t *idx, int k, double *F, int *degree) {
+  const double tiny = 1e-9 * (c->nb ? c->nb->h : c->h1);
+  const int kmin = c->o.k_min > 3 ? c->o.k_min : 3;
+  bsurf_localfit *lf = &s->lf;
+  double *r = s->est_scratch + k, *tmp = s->est_scratch + 2 * (size_t)k;
+  for (int kc = k; kc >= kmin; kc /= 2) {
+    const int ns = guard_near(kc);
+    /* the first fit: the centre's ns nearest points (most of them on its
+     * sheet, however many of the K are not), grown from there */
+    int na = ns, deg = c->degree;
+    for (int j = 0; j < ns; j++) act[j] = idx[j];
+    double m = 0, bound = INFINITY;
+    for (int round = 0;; round++) {
+      /* the fit of the sheet's points: frame, degree with two points per
+       * coefficient, least squares */
+      bsurf_frame fr;
+      bsurf_local_frame(xyz, act, na, c->o.error.pca_center, &fr);
+      int d = c->degree;
+      while (d > 1 && 2 * bsurf_poly_terms(d) > na) d--;
+      bsurf_localfit_setup(lf, xyz, act, na, &fr, d);
+      double coef[BSURF_TERMS_MAX];
+      deg = solve_with_fallback(lf, d, c->m, coef);
+      fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
+      /* residuals of every point of the neighbourhood (beyond the fit's
+       * disc too: the sheet grows from its nearest points) */
+      int nn = 0;
+      for (int j = 0; j < kc; j++) {
+        r[j] = -fit_delta_any(F, deg, c->m, &xyz[3 * (size_t)idx[j]], 0);
+        if (j < ns && !isnan(r[j])) tmp[nn++] = r[j];
+      }
+      if (nn < 3) break;
+      /* 1: the centre's sheet: offset and noise scale from its nearest
+       * points */
+      m = median_of(tmp, nn);
+      int t = 0;
+      for (int j = 0; j < ns; j++)
+        if (!isnan(r[j])) tmp[t++] = fabs(r[j] - m);
+      const double sc = 1.4826 * median_of(tmp, t);
+      bound = fmax(student_t_quantile(BSURF_GUARD_Z, t - 1) * sc * sqrt(1.0 + 1.0 / t), tiny);
+      /* 2: the points of that sheet (the centre always) */
+      int n_in = 1, changed = 0;
+      for (int j = 1; j < kc; j++) {
+        if (!(fabs(r[j] - m) <= bound)) continue;
+        if (n_in >= na || act[n_in] != idx[j]) changed = 1;
+        act[n_in++] = idx[j];
+      }
+      changed |= n_in != na;
+      if (!changed || round == GUARD_ROUNDS || n_in < 3) break;
+      na = n_in;
+    }
+    /* 3: unbiased at the centre: the t test on the sheet's nearest points */
+    double sum = 0, ss = 0;
+    int n = 0;
+    for (int j = 0; j < ns; j++)
+      if (fabs(r[j] - m) <= bound) sum += r[j], n++;
+    const double mean = n ? sum / n : 0;
+    for (int j = 0; j < ns; j++)
+      if (fabs(r[j] - m) <= bound) ss += (r[j] - mean) * (r[j] - mean);
+    const double sd = n > 1 ? sqrt(ss / (n - 1)) : 0;
+    if (n >= 3 && !(fabs(mean) > tiny && fabs(mean) * sqrt((double)n) > student_t_quantile(BSURF_GUARD_Z, n - 1) * sd)) {
+      /* moves: delta = f - z = -r, so |delta| <= |m| + bound holds the sheet */
+      F[13] = fabs(m) + GUARD_MOVE * bound;
+      *degree = deg;
+      return na < kc ? -kc : kc;
+    }
+  }
+  F[12] = NAN;
+  return 0;
+}
 
 /* Stage 1: Algorithm 1 at every point (and the naive projection). */
 static void boot_task(void *vc, int thread, size_t i) {
@@ -278,10 +428,31 @@ static void boot_task(void *vc, int thread, size_t i) {
   if (c->o.method == BSURF_SMOOTH_NAIVE) {
     /* Eq. 6.1: the centre has local coordinates (0, 0, 0) (the frame's
      * origin is the point), so it moves by boot_center along n. */
-    for (int t = 0; t < 3; t++) c->out[3 * i + t] = p[t] + fit.boot_center * fit.frame.rot[2][t];
+    double height = fit.boot_center, *n = fit.frame.rot[2];
+    if (c->o.guard) {
+      /* a biased fit: the height of the guard's smaller fit at the point
+       * (no bootstrap mean there), or no move */
+      double F[FIT_HEAD + BSURF_TERMS_MAX];
+      int deg = fit.degree;
+      fit_store(F, &fit.frame, fit.inv_scale, fit.coef, c->m);
+      int kg = guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg);
+      if (kg == 0) height = 0;
+      else if (kg != c->k) {
+        height = fit_delta(F, deg, c->m, p);
+        if (isnan(height)) height = 0;
+        n = &F[9];
+      }
+    }
+    for (int t = 0; t < 3; t++) c->out[3 * i + t] = p[t] + height * n[t];
   } else if (c->fits) {
-    fit_store(&c->fits[i * (size_t)c->stride], &fit.frame, fit.inv_scale, fit.coef, c->m);
-    if (c->fit_degree) c->fit_degree[i] = c->degree;
+    double *F = &c->fits[i * (size_t)c->stride];
+    fit_store(F, &fit.frame, fit.inv_scale, fit.coef, c->m);
+    int deg = c->degree;
+    if (c->o.guard) {
+      deg = fit.degree;
+      guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg);
+    }
+    if (c->fit_degree) c->fit_degree[i] = deg;
   }
 }
 
@@ -335,6 +506,9 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
   double coef[BSURF_TERMS_MAX];
   c->fit_degree[i] = solve_with_fallback(lf, deg, c->m, coef);
   fit_store(&c->fits[i * (size_t)c->stride], &fr, 1.0 / lf->scale, coef, c->m);
+  if (c->o.guard)
+    guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, kh, &c->fits[i * (size_t)c->stride],
+              &c->fit_degree[i]);
 
   double h1 = c->o.a * c->dl[i];
   c->inv_h1sq[i] = h1 > 0 ? 1.0 / (h1 * h1) : 0.0;
@@ -478,7 +652,8 @@ static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c,
          MP_GATHER(F, FIT_HEAD + 8) * (u * vv) + MP_GATHER(F, FIT_HEAD + 9) * (vv * v);
   const mp_v4d delta = f - lz;
   const mp_v4d cut = {GAUSS_CUT, GAUSS_CUT, GAUSS_CUT, GAUSS_CUT};
-  const mp_v4l ok = (ex <= cut) & ~outside & (delta == delta);
+  const mp_v4d bound = MP_GATHER(F, 13);
+  const mp_v4l ok = (ex <= cut) & ~outside & (MP_SELECT(delta < zero, -delta, delta) <= bound);
   const mp_v4d t0 = MP_SELECT(ok, x0 + delta * n0, zero), t1 = MP_SELECT(ok, x1 + delta * n1, zero),
                t2 = MP_SELECT(ok, x2 + delta * n2, zero);
   /* d > 0: e^-ex (1 at ex = 0); d = 0: theta_2, kept in the record */
@@ -839,6 +1014,11 @@ static void bilateral_sequential(smooth_ctx *c) {
     double coef[BSURF_TERMS_MAX];
     int d = solve_with_fallback(lf, c->degree, c->m, coef);
     bsurf_localfit_predict(lf, d, 1, coef, NULL, pred);
+    double F[FIT_HEAD + BSURF_TERMS_MAX];
+    if (c->o.guard) {
+      fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
+      guard_fit(c, &c->scr[0], GCOUNT(c, 0), c->out, idx, k, F, &d);
+    }
     const double *z0 = &c->out[3 * (size_t)idx[0]];
     for (int j = 0; j < k; j++) {
       const double *z = &c->out[3 * (size_t)idx[j]];
@@ -849,6 +1029,12 @@ static void bilateral_sequential(smooth_ctx *c) {
     for (int j = 0; j < k; j++) {
       if (w[j] < 0x1p-54) continue;
       double *z = &c->out[3 * (size_t)idx[j]];
+      if (c->o.guard) { /* the guard's fit (or none: NAN) and its bound */
+        double delta = fit_delta(F, d, c->m, z);
+        if (isnan(delta)) continue;
+        for (int t = 0; t < 3; t++) z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * F[9 + t]);
+        continue;
+      }
       double delta = pred[j] - lf->z[j];
       for (int t = 0; t < 3; t++) z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * fr.rot[2][t]);
     }
@@ -923,6 +1109,7 @@ static void ctx_free(smooth_ctx *c, int T) {
   free(c->lmap);
   free(c->tb_pos);
   free(c->tb_step);
+  free(c->gcount);
 }
 
 bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
@@ -966,6 +1153,10 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = bsurf_error_scratch_alloc(&c.scr[t], c.k, o.error.bootstrap, c.degree);
   if (st != BSURF_OK) goto done;
+  if (o.guard && !(c.gcount = bsurf_alloc_array((size_t)T * (size_t)c.k, sizeof(uint32_t)))) {
+    st = BSURF_ERR_NOMEM;
+    goto done;
+  }
   if ((o.method == BSURF_SMOOTH_BILATERAL && !seq) || o.method == BSURF_SMOOTH_MULTIPASS) {
     /* multipass: each fit also carries its point's e2, 1 / h1^2 and w2 (one
      * record per neighbourhood for the passes to read) */
@@ -1047,9 +1238,9 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     }
   } else {
     /* ---- multipass: K_i, d_L and the fits, once ---- */
-    /* |W| by default; errors below 1e-9 h are rounding, not noise, and their
+    /* 3 |W| by default (the thesis: |W|); errors below 1e-9 h are rounding, not noise, and their
      * ratios carry no information (exact data keeps K_i = K) */
-    double kf = o.k_error_fraction > 0 ? o.k_error_fraction : 1.0;
+    double kf = o.k_error_fraction > 0 ? o.k_error_fraction : 3.0;
     c.k_error = o.k_error > 0 ? o.k_error : fmax(kf * meanW, 1e-9 * nb->h);
     c.khat = bsurf_alloc_array(n, sizeof(int));
     c.dl = bsurf_alloc_array(n, sizeof(double));
@@ -1277,11 +1468,14 @@ int bsurf_smooth_w_column(const bsurf_smooth_options *o) {
 }
 
 void bsurf_smooth_resolve(bsurf_smooth_options *o, double h, double mean_w) {
-  /* h2 defaults: 0.3 |W| for multipass (6.4.1); 2 |W| for bilateral, where
-   * the thesis shows 0.5-1 |W| (Figs. 6.4-6.6): on fandisk and the cube at
-   * noise 0.25 and 0.5 the distance to the true surface keeps falling up to
-   * about 2 |W|, feature points included (docs/smoothing.md) */
-  double frac = o->h2_fraction > 0 ? o->h2_fraction : (o->method == BSURF_SMOOTH_MULTIPASS ? 0.3 : 2.0);
+  /* h2 default: 2 |W|. Bilateral: the thesis shows 0.5-1 |W| (Figs.
+   * 6.4-6.6), but on fandisk and the cube at noise 0.25 and 0.5 the distance
+   * to the true surface keeps falling up to about 2 |W|, feature points
+   * included. Multipass: the thesis's 0.3 |W| (6.4.1) gives a point at the
+   * mean error theta_2 = e^-11 per pass, so 300 passes move it 0.5% of the
+   * way to its fit (docs/smoothing.md, "Why the thesis's multipass barely
+   * moves points") */
+  double frac = o->h2_fraction > 0 ? o->h2_fraction : 2.0;
   o->h1 = o->h1 > 0 ? o->h1 : h;
   o->h2 = o->h2 > 0 ? o->h2 : frac * mean_w;
   /* naive: Eq. 6.1 only where W_i < threshold (6.2, Figs. 6.2-6.3) */
@@ -1309,7 +1503,8 @@ bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb, c
     c.out = bsurf_alloc_array(n, 3 * sizeof(double));
   else
     c.fits = bsurf_alloc_array(n, (size_t)c.stride * sizeof(double));
-  if (!c.err_632 || !c.err_632plus || !c.scr || !(c.out || c.fits)) st = BSURF_ERR_NOMEM;
+  if (o.guard) c.gcount = bsurf_alloc_array((size_t)T * (size_t)c.k, sizeof(uint32_t));
+  if (!c.err_632 || !c.err_632plus || !c.scr || !(c.out || c.fits) || (o.guard && !c.gcount)) st = BSURF_ERR_NOMEM;
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = bsurf_error_scratch_alloc(&c.scr[t], c.k, o.error.bootstrap, c.degree);
   if (st == BSURF_OK) st = bsurf_parallel_sweep(n, T, boot_task, &c);

@@ -1,0 +1,107 @@
+#!/usr/bin/python3
+"""Smoothing at the defaults over the development set (issue 22, docs/smoothing.md).
+
+usage:
+  /usr/bin/python3 scripts/validate_defaults.py BUILD_DIR DEVSET_DIR OUT_DIR
+      [--only SUBSTR[,SUBSTR...]] [--noise u0.25,u0.5,g0.6] [--peers DIR]
+      [--methods naive,bilateral,multipass,default,jet,cgal_bilateral,mls] [--threads N]
+
+DEVSET_DIR is built by `scripts/devset.py build` (its cases are read, never
+written). For every case whose name contains one of --only and whose noise is in
+--noise: the noisy input, `bootsurf smooth` at its defaults with each --method
+and with no --method at all (the "default" row), and the peers of bench/peers at
+their own defaults (PEERS/smooth_cgal --method jet and --method bilateral: CGAL
+jet_smooth_point_set and bilateral_smooth_point_set; PEERS/smooth_pcl: PCL
+MovingLeastSquares; K = 30, their drivers' default), each scored by
+`bootsurf eval --truth --surface --json` (devset.evaluate): the mean distance to
+the true surface in units of the truth's spacing h, overall / feature /
+non-feature. Prints one markdown table (a row per case and method) and a summary:
+per method, the cases where it ends farther from the surface than the noisy input,
+and the cases where it beats CGAL jet.
+"""
+import argparse
+import os
+import subprocess
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import devset  # noqa: E402
+from tables import header, row, run  # noqa: E402
+
+OURS = ["naive", "bilateral", "multipass", "default"]
+PEERS = ["jet", "cgal_bilateral", "mls"]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("build")
+    ap.add_argument("devset")
+    ap.add_argument("out")
+    ap.add_argument("--only", default="")
+    ap.add_argument("--noise", default="u0.25,u0.5,g0.6")
+    ap.add_argument("--peers", default="/work/peers")
+    ap.add_argument("--methods", default=",".join(OURS + PEERS))
+    ap.add_argument("--threads", default="2")
+    a = ap.parse_args()
+    bs = os.path.join(a.build, "bootsurf")
+    os.makedirs(a.out, exist_ok=True)
+    noises = a.noise.split(",")
+    only = [s for s in a.only.split(",") if s]
+    methods = a.methods.split(",")
+    cases = [c for c in devset.load(a.devset) if c.noise in noises and
+             (not only or any(s in c.name for s in only))]
+    if not cases:
+        sys.exit("no case of %s matches --only %s --noise %s" % (a.devset, a.only, a.noise))
+
+    def smooth(case, method):
+        dst = os.path.join(a.out, "out.ply")
+        if method in OURS:
+            args = [bs, "smooth", case.noisy, "-o", dst, "-q", "-j", a.threads, "--force"]
+            if method != "default":
+                args += ["--method", method]
+            run(args)
+        elif method == "mls":
+            run([os.path.join(a.peers, "smooth_pcl"), case.noisy, "-o", dst, "-j", a.threads])
+        else:
+            m = "jet" if method == "jet" else "bilateral"
+            run([os.path.join(a.peers, "smooth_cgal"), case.noisy, "-o", dst, "-j", a.threads, "--method", m])
+        return dst
+
+    def position(result, case):
+        p = devset.evaluate(bs, result, case, threads=int(a.threads))["position"]
+        f = lambda v: float("nan") if v is None else v  # noqa: E731
+        return f(p["mean_h"]), f(p["feature"]["mean_h"]), f(p["non_feature"]["mean_h"])
+
+    worse = {m: [] for m in methods}
+    beats_jet = {m: [] for m in methods}
+    header("case", "method", "all", "feature", "non-feature")
+    for case in cases:
+        base = position(case.noisy, case)
+        row(case.name, "noisy", *("%.4f" % v for v in base))
+        res = {}
+        for m in methods:
+            try:
+                res[m] = position(smooth(case, m), case)
+            except SystemExit:
+                sys.stderr.write("%s: %s failed, left out\n" % (case.name, m))
+                continue
+            row(case.name, m, *("%.4f" % v for v in res[m]))
+            sys.stdout.flush()
+            if res[m][0] > base[0]:
+                worse[m].append(case.name)
+        if "jet" in res:
+            for m in res:
+                if m != "jet" and res[m][0] < res["jet"][0]:
+                    beats_jet[m].append(case.name)
+    print()
+    header("method", "cases", "farther than the noisy input", "below CGAL jet")
+    for m in methods:
+        row(m, len(cases), "%d %s" % (len(worse[m]), " ".join(worse[m])),
+            "" if m == "jet" else "%d" % len(beats_jet[m]))
+
+
+if __name__ == "__main__":
+    try:
+        main()
+    except subprocess.CalledProcessError as e:
+        sys.exit(str(e))
