@@ -2,10 +2,10 @@
  * (src/algo/kselect.c): the nested moments against direct sums, the noise
  * estimate, statistical checks at a fixed seed on generated shapes,
  * determinism across thread counts, bad options. */
-#include <cmocka.h>
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
+#include <cmocka.h>
 #include <stdint.h>
 
 #include <math.h>
