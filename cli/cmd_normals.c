@@ -82,6 +82,54 @@ static int normals_bufs_alloc(normals_bufs *b, const normals_job *job, size_t n)
   return ok ? 0 : cli_error("out of memory");
 }
 
+/* --select-k with PCA: every candidate in one pass (bsurf_select_normals_k);
+ * with --curve each candidate's means, summed in point order. */
+static bsurf_status normals_select_pca(const normals_job *job, const double *xyz, const bsurf_neighbors *nb,
+                                       const bsurf_normal_options *no, normals_bufs *b, bsurf_normal_report *total,
+                                       FILE *cf, const bsurf_cloud *truth, cli_progress *prog) {
+  const size_t n = nb->point_count;
+  const int nk = job->nk;
+  int *ksel = malloc(n * sizeof *ksel);
+  double *ce = NULL, *cv = NULL, *cn = NULL;
+  if (cf) {
+    ce = malloc(n * (size_t)nk * sizeof *ce);
+    cv = malloc(n * (size_t)nk * sizeof *cv);
+    cn = truth ? malloc(n * (size_t)nk * 3 * sizeof *cn) : NULL;
+  }
+  bsurf_status st = BSURF_ERR_NOMEM;
+  if (ksel && (!cf || (ce && cv && (!truth || cn)))) {
+    bsurf_normal_select_fields out = {b->normals, b->var, b->err, ksel, ce, cv, cn};
+    char label[48];
+    snprintf(label, sizeof label, "K=%d..%d", job->ks[0], job->ks[nk - 1]);
+    if (prog) cli_progress_init(prog, label, job->quiet);
+    st = bsurf_select_normals_k(xyz, nb, b->ref, no, job->ks, nk, &out, total);
+    if (prog) cli_progress_done(prog);
+  }
+  if (st == BSURF_OK) {
+    for (size_t i = 0; i < n; i++) {
+      b->ksel[i] = ksel[i];
+      b->dsel[i] = no->degree;
+      b->best_e[i] = b->err[i];
+    }
+    for (int a = 0; cf && a < nk; a++) {
+      double se = 0, sv = 0, sa = 0;
+      for (size_t i = 0; i < n; i++) {
+        se += ce[i * nk + a];
+        sv += cv[i * nk + a];
+        if (truth) sa += bsurf_normal_angle(&cn[(i * nk + a) * 3], &truth->normals[3 * i]);
+      }
+      fprintf(cf, "%d,1,%.10g,%.10g", job->ks[a], se / n, sv / n);
+      if (truth) fprintf(cf, ",%.10g", sa / n);
+      fprintf(cf, "\n");
+    }
+  }
+  free(ksel);
+  free(ce);
+  free(cv);
+  free(cn);
+  return st;
+}
+
 /* The reference normals, then every candidate (K, degree), keeping per point
  * the one with the smallest normal_err. cf / truth: the --curve file and its
  * ground truth, or NULL. Progress bars unless prog is NULL. */
@@ -109,6 +157,8 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
     if (st != BSURF_OK) return st;
   }
   const int selecting = job->selecting;
+  if (selecting && no.fit == BSURF_NORMAL_PCA) /* nested candidates, one pass */
+    return normals_select_pca(job, xyz, nb, &no, b, total, cf, truth, prog);
   for (int a = 0; a < job->nk; a++) {
     for (int d = 0; d < job->nd; d++) {
       bsurf_normal_options o = no;
