@@ -95,6 +95,11 @@ void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, c
  * or -1 when the total weight is 0. */
 int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center, double mu[3],
                      double cov[6]);
+/* bsurf_nested_cov for the R rows of one candidate's block (block: its
+ * column 0), in vector lanes: cov out 6 x R (cov[t R + r]), ok[r] = 1 when
+ * the row's weight is positive (else its cov is not defined). Same values
+ * as row by row. */
+void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center, double *cov, int *ok);
 /* sum_j theta(g, r_j), j < k: the unoriented angles (atan2(|g x r|, |g . r|),
  * within 2 ulp of the C library's, tests/test_normals.c) between unit g and
  * the unit vectors (rx, ry, rz)[j] in vector lanes, summed in a fixed order.

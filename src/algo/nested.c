@@ -37,19 +37,21 @@ void bsurf_nested_terms(const double *xyz, const uint32_t *idx, int kmax, double
 /* Neighbour j's weighted terms added to the R lanes of acc (column-major,
  * acc[col R + r]) and its nonzero weights to the distinct counts. */
 BSURF_CLONES
-static void sums_add(int R, const double *restrict t, const double *restrict w, double *restrict acc,
-                     int *restrict nz) {
+static void sums_add(int R, const double *restrict t, const double *restrict w,
+                     double *restrict acc, int *restrict nz) {
   for (int col = 0; col < BSURF_NESTED_COLS; col++) {
     const double tc = t[col];
     double *restrict a = acc + (size_t)col * R;
-    for (int r = 0; r < R; r++) a[r] += w[r] * tc;
+    for (int r = 0; r < R; r++)
+      a[r] += w[r] * tc;
   }
   if (nz)
-    for (int r = 0; r < R; r++) nz[r] += w[r] != 0;
+    for (int r = 0; r < R; r++)
+      nz[r] += w[r] != 0;
 }
 
-void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, const int *ks, int nk,
-                       double *sums, int *distinct) {
+void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, const int *ks,
+                       int nk, double *sums, int *distinct) {
   const size_t block = (size_t)BSURF_NESTED_COLS * R;
   double *acc = sums;
   int *nz = distinct;
@@ -61,7 +63,8 @@ void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, c
     if (Wt) {
       sums_add(R, t, &Wt[(size_t)j * R], acc, nz);
     } else {
-      for (int col = 0; col < BSURF_NESTED_COLS; col++) acc[col] += t[col];
+      for (int col = 0; col < BSURF_NESTED_COLS; col++)
+        acc[col] += t[col];
       if (nz) nz[0]++;
     }
     if (j + 1 == ks[c]) { /* candidate c complete: carry its sums on */
@@ -80,11 +83,13 @@ int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center,
                      double cov[6]) {
   const double w = sums[9 * stride];
   if (!(w > 0)) return -1;
-  for (int t = 0; t < 3; t++) mu[t] = sums[(6 + t) * stride] / w;
+  for (int t = 0; t < 3; t++)
+    mu[t] = sums[(6 + t) * stride] / w;
   /* second moments about the centroid, or about d_i (Eq. 2.1) */
   double m[3] = {0, 0, 0};
   if (center == BSURF_PCA_CENTROID)
-    for (int t = 0; t < 3; t++) m[t] = mu[t];
+    for (int t = 0; t < 3; t++)
+      m[t] = mu[t];
   cov[0] = sums[0] / w - m[0] * m[0];
   cov[1] = sums[stride] / w - m[0] * m[1];
   cov[2] = sums[2 * stride] / w - m[0] * m[2];
@@ -100,7 +105,8 @@ int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center,
 #if defined(__GNUC__) && !defined(__clang__)
 __attribute__((optimize("no-trapping-math")))
 #endif
-static inline double atan_reduced(double num, double den) {
+static inline double
+atan_reduced(double num, double den) {
   static const double P0 = -8.750608600031904122785e-1, P1 = -1.615753718733365076637e1,
                       P2 = -7.500855792314704667340e1, P3 = -1.228866684490136173410e2,
                       P4 = -6.485021904942025371773e1;
@@ -129,13 +135,14 @@ static inline double atan_reduced(double num, double den) {
  * but GCC vectorises the loop only when it may ignore FP exception flags */
 __attribute__((optimize("no-trapping-math")))
 #endif
-BSURF_CLONES
-static void angles(const double g[3], const double *restrict rx, const double *restrict ry,
-                   const double *restrict rz, int k, double *restrict out) {
+BSURF_CLONES static void
+angles(const double g[3], const double *restrict rx, const double *restrict ry,
+       const double *restrict rz, int k, double *restrict out) {
   static const double PIO2 = 1.57079632679489661923, MOREBITS = 6.123233995736765886130e-17;
   const double g0 = g[0], g1 = g[1], g2 = g[2];
   for (int j = 0; j < k; j++) {
-    const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j], c2 = g0 * ry[j] - g1 * rx[j];
+    const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
+                 c2 = g0 * ry[j] - g1 * rx[j];
     const double y = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
     const double x = fabs(g0 * rx[j] + g1 * ry[j] + g2 * rz[j]);
     const double lo = y > x ? x : y, hi = y > x ? y : x;
@@ -145,14 +152,35 @@ static void angles(const double g[3], const double *restrict rx, const double *r
   }
 }
 
-double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry, const double *rz,
-                              int k, double *scratch) {
+double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
+                              const double *rz, int k, double *scratch) {
   angles(g, rx, ry, rz, k, scratch);
   /* four running sums, j mod 4, then combined: a fixed order */
   double s[4] = {0, 0, 0, 0};
   int j = 0;
   for (; j + 4 <= k; j += 4)
-    for (int l = 0; l < 4; l++) s[l] += scratch[j + l];
-  for (int l = 0; j < k; j++, l++) s[l] += scratch[j];
+    for (int l = 0; l < 4; l++)
+      s[l] += scratch[j + l];
+  for (int l = 0; j < k; j++, l++)
+    s[l] += scratch[j];
   return (s[0] + s[1]) + (s[2] + s[3]);
+}
+
+BSURF_CLONES
+void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center, double *cov,
+                            int *ok) {
+  const int about_centroid = center == BSURF_PCA_CENTROID;
+  for (int r = 0; r < R; r++) {
+    const double w = block[9 * R + r];
+    const double m0 = block[6 * R + r] / w, m1 = block[7 * R + r] / w, m2 = block[8 * R + r] / w;
+    const double a0 = about_centroid ? m0 : 0.0, a1 = about_centroid ? m1 : 0.0,
+                 a2 = about_centroid ? m2 : 0.0;
+    cov[r] = block[r] / w - a0 * a0;
+    cov[R + r] = block[R + r] / w - a0 * a1;
+    cov[2 * R + r] = block[2 * R + r] / w - a0 * a2;
+    cov[3 * R + r] = block[3 * R + r] / w - a1 * a1;
+    cov[4 * R + r] = block[4 * R + r] / w - a1 * a2;
+    cov[5 * R + r] = block[5 * R + r] / w - a2 * a2;
+    ok[r] = w > 0;
+  }
 }

@@ -328,6 +328,8 @@ typedef struct select_scratch {
   unsigned char *valid; /* nk x B */
   double *nP;      /* nk x 3 */
   double *err, *var, *nrm; /* nk, nk, nk x 3 */
+  double *cov, *nl, *ang2; /* 6 x B, 3 x B, B: one candidate's replicates in lanes */
+  int *wok, *st;           /* B, B */
   size_t skipped, degenerate;
 } select_scratch;
 
@@ -346,6 +348,11 @@ static void select_scratch_free(select_scratch *s) {
   free(s->err);
   free(s->var);
   free(s->nrm);
+  free(s->cov);
+  free(s->nl);
+  free(s->ang2);
+  free(s->wok);
+  free(s->st);
   memset(s, 0, sizeof *s);
 }
 
@@ -366,8 +373,14 @@ static bsurf_status select_scratch_alloc(select_scratch *s, int kmax, int nk, in
   s->err = bsurf_alloc_array(cands, sizeof(double));
   s->var = bsurf_alloc_array(cands, sizeof(double));
   s->nrm = bsurf_alloc_array(cands, 3 * sizeof(double));
+  s->cov = bsurf_alloc_aligned(b1, 6 * sizeof(double));
+  s->nl = bsurf_alloc_aligned(b1, 3 * sizeof(double));
+  s->ang2 = bsurf_alloc_array(b1, sizeof(double));
+  s->wok = bsurf_alloc_array(b1, sizeof(int));
+  s->st = bsurf_alloc_array(b1, sizeof(int));
   if (!s->terms || !s->u || !s->x || !s->Wt || !s->sums || !s->fsums || !s->nz || !s->ref || !s->bn ||
-      !s->valid || !s->nP || !s->err || !s->var || !s->nrm) {
+      !s->valid || !s->nP || !s->err || !s->var || !s->nrm || !s->cov || !s->nl || !s->ang2 || !s->wok ||
+      !s->st) {
     select_scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -413,11 +426,12 @@ static void select_point(void *vctx, int thread, size_t i) {
     bsurf_nested_sums(s->terms, kmax, B, s->Wt, ks, nk, s->sums, s->nz);
     for (int a = 0; a < nk; a++) {
       const double *blk = &s->sums[(size_t)a * COLS * B];
+      bsurf_nested_cov_lanes(blk, B, o->pca_center, s->cov, s->wok);
+      bsurf_eigen_sym3_smallest_lanes(B, s->cov, s->nl, s->st);
       for (int b = 0; b < B; b++) {
         const size_t ab = (size_t)a * B + b;
-        double mu[3], cov[6];
-        s->valid[ab] = s->nz[ab] >= 3 && bsurf_nested_cov(&blk[b], (size_t)B, o->pca_center, mu, cov) == 0 &&
-                       bsurf_eigen_sym3_smallest(cov, &s->bn[3 * ab]) == 0;
+        s->valid[ab] = s->nz[ab] >= 3 && s->wok[b] && s->st[b] == 0;
+        for (int t = 0; t < 3; t++) s->bn[3 * ab + t] = s->nl[(size_t)t * B + b];
       }
     }
   }
@@ -450,11 +464,11 @@ static void select_point(void *vctx, int thread, size_t i) {
     if (nvalid >= 2) {
       double mean = 0;
       for (int b = 0; b < B; b++)
-        if (valid[b]) mean += angle_between(&bn[3 * first], &bn[3 * b], 0);
+        if (valid[b]) mean += s->ang2[b] = angle_between(&bn[3 * first], &bn[3 * b], 0);
       mean /= nvalid;
       for (int b = 0; b < B; b++)
         if (valid[b]) {
-          const double d = angle_between(&bn[3 * first], &bn[3 * b], 0) - mean;
+          const double d = s->ang2[b] - mean;
           var += d * d;
         }
       var /= nvalid - 1;

@@ -21,6 +21,10 @@ void bsurf_eigen_sym3(double a[3][3], double evals[3], double evecs[3][3]);
  * coincide. Returns 0, or -1 when the matrix is degenerate for PCA
  * (lambda2 <= 0 or lambda1 <= 1e-12 lambda2). The sign of n is arbitrary. */
 int bsurf_eigen_sym3_smallest(const double c[6], double n[3]);
+/* The same for R matrices in vector lanes, column-major: c[t R + r] is entry
+ * t of matrix r, n[t R + r] component t of its normal, status[r] its return
+ * value; every lane gets exactly the scalar function's result. */
+void bsurf_eigen_sym3_smallest_lanes(int R, const double *c, double *n, int *status);
 
 /* p' = rot (p - origin) (Eq. 3.4 rows X', Y', n; see frame.c on Eq. 3.5). */
 void bsurf_frame_to_local(const bsurf_frame *f, const double p[3], double out[3]);
