@@ -64,6 +64,8 @@ typedef struct normal_scratch {
   uint16_t *draws;  /* B x k: each replicate's indices in the order drawn */
   unsigned char *valid; /* B */
   double *bn;      /* B x 3 bootstrap normals */
+  double *lanes;   /* (COLS + 6 + 3) x B: PCA sums, covariances, normals in lanes */
+  int *ok, *st;    /* B, B */
   size_t skipped, reduced, degenerate;
 } normal_scratch;
 
@@ -77,6 +79,9 @@ static void scratch_free(normal_scratch *s) {
   free(s->draws);
   free(s->valid);
   free(s->bn);
+  free(s->lanes);
+  free(s->ok);
+  free(s->st);
   memset(s, 0, sizeof *s);
 }
 
@@ -94,7 +99,11 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
   s->draws = bsurf_alloc_array(nb * k, sizeof(uint16_t));
   s->valid = bsurf_alloc_array(nb, 1);
   s->bn = bsurf_alloc_array(nb, 3 * sizeof(double));
-  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws || !s->valid || !s->bn) {
+  s->lanes = bsurf_alloc_aligned(nb, (PCA_COLS + 9) * sizeof(double));
+  s->ok = bsurf_alloc_array(nb, sizeof(int));
+  s->st = bsurf_alloc_array(nb, sizeof(int));
+  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws || !s->valid || !s->bn ||
+      !s->lanes || !s->ok || !s->st) {
     scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -165,9 +174,18 @@ static void normals_point(void *vctx, int thread, size_t i) {
     }
     bsurf_gemm_rows(B + 1, k, PCA_COLS, W, s->terms, s->rows);
     if (pca_normal_from_row(&s->rows[(size_t)B * PCA_COLS], o->pca_center, nP) != 0) s->degenerate++;
+    /* the replicates' normals in vector lanes (nested.c, eigen.c): the sums
+     * column by column, the covariances (the single fit's formula), the
+     * closed-form smallest eigenvectors */
+    double *blk = s->lanes, *cov = blk + (size_t)PCA_COLS * B, *nl = cov + 6 * (size_t)B;
     for (int b = 0; b < B; b++)
-      if (s->valid[b] && pca_normal_from_row(&s->rows[(size_t)b * PCA_COLS], o->pca_center, &s->bn[3 * b]) != 0)
-        s->valid[b] = 0;
+      for (int t = 0; t < PCA_COLS; t++) blk[(size_t)t * B + b] = s->rows[(size_t)b * PCA_COLS + t];
+    bsurf_nested_cov_lanes(blk, B, o->pca_center, cov, s->ok);
+    bsurf_eigen_sym3_smallest_lanes(B, cov, nl, s->st);
+    for (int b = 0; b < B; b++) {
+      s->valid[b] = s->valid[b] && s->ok[b] && s->st[b] == 0;
+      for (int t = 0; t < 3; t++) s->bn[3 * b + t] = nl[(size_t)t * B + b];
+    }
   } else {
     bsurf_local_frame(xyz, idx, k, o->pca_center, &frame);
     if (!(frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2])) s->degenerate++;
