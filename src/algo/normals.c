@@ -31,7 +31,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define PCA_COLS 10 /* q q^T (6 entries), q (3), 1, with q = p - d_i */
+#define PCA_COLS BSURF_NESTED_COLS /* q q^T (6 entries), q (3), 1, with q = p - d_i */
 
 bsurf_normal_options bsurf_normal_options_default(void) {
   bsurf_normal_options o;
@@ -156,22 +156,7 @@ static void normals_point(void *vctx, int thread, size_t i) {
   bsurf_frame frame;
   int degree = o->degree;
   if (pca) {
-    const double *d = &xyz[3 * (size_t)idx[0]];
-    for (int j = 0; j < k; j++) {
-      const double *p = &xyz[3 * (size_t)idx[j]];
-      double q[3] = {p[0] - d[0], p[1] - d[1], p[2] - d[2]};
-      double *r = &s->terms[(size_t)j * PCA_COLS];
-      r[0] = q[0] * q[0];
-      r[1] = q[0] * q[1];
-      r[2] = q[0] * q[2];
-      r[3] = q[1] * q[1];
-      r[4] = q[1] * q[2];
-      r[5] = q[2] * q[2];
-      r[6] = q[0];
-      r[7] = q[1];
-      r[8] = q[2];
-      r[9] = 1.0;
-    }
+    bsurf_nested_terms(xyz, idx, k, s->terms);
     bsurf_gemm_rows(B + 1, k, PCA_COLS, W, s->terms, s->rows);
     if (pca_normal_from_row(&s->rows[(size_t)B * PCA_COLS], o->pca_center, nP) != 0) s->degenerate++;
     /* the replicates' normals in vector lanes (nested.c, eigen.c): the sums
