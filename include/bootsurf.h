@@ -386,9 +386,9 @@ typedef struct bsurf_normal_select_fields {
  * smallest (ties: the smaller K). The candidates are nested (each the first
  * K of one sorted neighbour list) and share their resamples: Poisson(1)
  * counts per neighbour, drawn once per point and replicate, restricted to
- * each candidate's first K (docs/normals.md explains the scheme), so a
- * candidate's numbers differ from bsurf_estimate_normals's multinomial
- * resamples at the same K, not in distribution beyond O(1/K). With
+ * each candidate's first K (docs/normals.md explains the scheme): the
+ * estimator of bsurf_estimate_normals at each K, on Poisson instead of
+ * multinomial resamples (the numbers differ at O(1/K)). With
  * opts->bootstrap = 0 the single fits and their training errors. PCA only
  * (opts->fit); deterministic for a given seed, any thread count. */
 bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb, const double *ref_normals,
