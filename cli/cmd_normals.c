@@ -83,12 +83,63 @@ static int normals_bufs_alloc(normals_bufs *b, const normals_job *job, size_t n)
   return ok ? 0 : cli_error("out of memory");
 }
 
-/* The reference normals, then every candidate (K, degree), keeping per point
+/* --select-k with PCA: every candidate in one pass (bsurf_select_normals_k);
+ * with --curve each candidate's means, summed in point order. */
+static bsurf_status normals_select_pca(const normals_job *job, const double *xyz, const bsurf_neighbors *nb,
+                                       const bsurf_normal_options *no, const double *ref, normals_bufs *b,
+                                       bsurf_normal_report *total, FILE *cf, const bsurf_cloud *truth,
+                                       cli_progress *prog) {
+  const size_t n = nb->point_count;
+  const int nk = job->nk;
+  int *ksel = malloc(n * sizeof *ksel);
+  double *ce = NULL, *cv = NULL, *cn = NULL;
+  if (cf) {
+    ce = malloc(n * (size_t)nk * sizeof *ce);
+    cv = malloc(n * (size_t)nk * sizeof *cv);
+    cn = truth ? malloc(n * (size_t)nk * 3 * sizeof *cn) : NULL;
+  }
+  bsurf_status st = BSURF_ERR_NOMEM;
+  if (ksel && (!cf || (ce && cv && (!truth || cn)))) {
+    bsurf_normal_select_fields out = {b->normals, b->var, b->err, ksel, ce, cv, cn};
+    char label[48];
+    snprintf(label, sizeof label, "K=%d..%d", job->ks[0], job->ks[nk - 1]);
+    if (prog) cli_progress_init(prog, label, job->quiet);
+    st = bsurf_select_normals_k(xyz, nb, ref, no, job->ks, nk, &out, total);
+    if (prog) cli_progress_done(prog);
+  }
+  if (st == BSURF_OK) {
+    for (size_t i = 0; i < n; i++) {
+      b->ksel[i] = ksel[i];
+      b->dsel[i] = no->degree;
+      b->best_e[i] = b->err[i];
+    }
+    for (int a = 0; cf && a < nk; a++) {
+      double se = 0, sv = 0, sa = 0;
+      for (size_t i = 0; i < n; i++) {
+        se += ce[i * nk + a];
+        sv += cv[i * nk + a];
+        if (truth) sa += bsurf_normal_angle(&cn[(i * nk + a) * 3], &truth->normals[3 * i]);
+      }
+      fprintf(cf, "%d,1,%.10g,%.10g", job->ks[a], se / n, sv / n);
+      if (truth) fprintf(cf, ",%.10g", sa / n);
+      fprintf(cf, "\n");
+    }
+  }
+  free(ksel);
+  free(ce);
+  free(cv);
+  free(cn);
+  return st;
+}
+
+/* The reference normals (or ref_in, the first stage's of a tiled run: one
+ * per point of xyz), then every candidate (K, degree), keeping per point
  * the one with the smallest normal_err. cf / truth: the --curve file and its
  * ground truth, or NULL. Progress bars unless prog is NULL. */
 static bsurf_status normals_compute(const normals_job *job, const double *xyz, const bsurf_neighbors *nb,
-                                    const uint64_t *point_index, normals_bufs *b, bsurf_normal_report *total,
-                                    FILE *cf, const bsurf_cloud *truth, cli_progress *prog) {
+                                    const uint64_t *point_index, const double *ref_in, normals_bufs *b,
+                                    bsurf_normal_report *total, FILE *cf, const bsurf_cloud *truth,
+                                    cli_progress *prog) {
   const size_t n = nb->point_count;
   bsurf_normal_options no = job->no;
   no.point_index = point_index;
@@ -97,7 +148,8 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
   bsurf_normal_report rep;
   bsurf_status st;
   memset(total, 0, sizeof *total);
-  if (b->ref) {
+  const double *ref = ref_in ? ref_in : b->ref;
+  if (b->ref && !ref_in) { /* NULL with --select-rule mse: it needs no reference */
     /* reference normals n_j of Eq. 5.10: single PCA fits on a fixed K */
     bsurf_normal_options ro = no;
     ro.fit = BSURF_NORMAL_PCA;
@@ -110,6 +162,8 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
     if (st != BSURF_OK) return st;
   }
   const int selecting = job->selecting;
+  if (selecting && no.fit == BSURF_NORMAL_PCA && job->ksel.rule != BSURF_KSELECT_MSE) /* nested candidates, one pass */
+    return normals_select_pca(job, xyz, nb, &no, ref, b, total, cf, truth, prog);
   int *kmse = NULL; /* rule MSE: the chosen K; the candidates' loop below then keeps it */
   if (job->ksel.rule == BSURF_KSELECT_MSE) {
     bsurf_kselect_options ko = job->ksel;
@@ -137,7 +191,7 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
       char label[32];
       snprintf(label, sizeof label, selecting ? "K=%d" : "normals", o.k);
       if (prog) cli_progress_init(prog, label, job->quiet);
-      st = bsurf_estimate_normals(xyz, nb, b->ref, &o, &out, &rep);
+      st = bsurf_estimate_normals(xyz, nb, ref, &o, &out, &rep);
       if (prog) cli_progress_done(prog);
       if (st != BSURF_OK) {
         free(kmse);
@@ -228,7 +282,10 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
   normals_bufs b;
   if (normals_bufs_alloc(&b, job, tile->core_count)) return BSURF_ERR_NOMEM;
   bsurf_normal_report total;
-  bsurf_status st = normals_compute(job, tile->xyz, tile->nb, tile->point_index, &b, &total, NULL, NULL, NULL);
+  /* with normal_err: the reference normals of every local point, from the
+   * first stage (normals_ref_run) */
+  bsurf_status st = normals_compute(job, tile->xyz, tile->nb, tile->point_index, job->test_error ? tile->values : NULL,
+                                    &b, &total, NULL, NULL, NULL);
   if (st == BSURF_OK) st = normals_store(job, core, &b);
   if (st == BSURF_OK) {
     sums[0] += (double)total.replicates_total;
@@ -243,6 +300,23 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
   }
   normals_bufs_free(&b);
   return st;
+}
+
+/* The first stage of a tiled run with normal_err: the reference normals of
+ * Eq. 5.10 (the in-memory run's: single PCA fits on the first k_ref
+ * neighbours) of every point, kept by the engine for the second stage's
+ * halos (docs/scaling.md). */
+static bsurf_status normals_ref_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
+  (void)core;
+  (void)sums;
+  const normals_job *job = user;
+  bsurf_normal_options ro = job->no;
+  ro.fit = BSURF_NORMAL_PCA;
+  ro.k = job->k_ref;
+  ro.bootstrap = 0;
+  ro.point_index = tile->point_index;
+  bsurf_normal_fields rf = {tile->values_out, NULL, NULL};
+  return bsurf_estimate_normals(tile->xyz, tile->nb, NULL, &ro, &rf, NULL);
 }
 
 int cmd_normals(const cli_command *cmd, int argc, char **argv) {
@@ -368,11 +442,18 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   size_t plan = 0, tiles = 0;
   rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 4, &plan);
   if (rc) return rc;
-  /* smoothing passes and normal_err (Eq. 5.10: the neighbours' reference
-   * normals) reach beyond the K-neighbourhood; orientation is global */
-  if (plan && (iterations > 0 || om == 1 || test_error))
-    return cli_error("%s: --smooth-iterations, --orient mst, --test-error and --select-k/--select-degree "
-                     "use more than each point's K-neighbourhood: not available in tiled runs",
+  /* smoothing passes reach beyond the K-neighbourhood; orientation is
+   * global (normal_err's reference normals: a first tiled stage) */
+  if (plan && curve)
+    return cli_error("%s: --curve keeps every candidate's values of every point: not available in tiled runs",
+                     pos[0]);
+  if (plan && job.ksel.rule == BSURF_KSELECT_MSE)
+    return cli_error("%s: --select-rule mse grows its noise fits beyond the K_max-neighbourhood: "
+                     "not available in tiled runs",
+                     pos[0]);
+  if (plan && (iterations > 0 || om == 1))
+    return cli_error("%s: --smooth-iterations and --orient mst use more than each point's K-neighbourhood: "
+                     "not available in tiled runs",
                      pos[0]);
 
   double t0 = cli_now();
@@ -395,11 +476,23 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   rc = 1;
   if (plan) {
     double sums[NORMALS_SUMS] = {0};
+    /* with normal_err, two stages: the reference normals of every point,
+     * then the tiles with those of their halos */
+    bsurf_tile_values refs = {-1, 0, 0};
+    if (test_error) {
+      bsurf_tile_ops ops1 = {.tile_points = plan, .k = k_ref, .threads = no.threads, .user = &job,
+                             .run = normals_ref_run, .nvalues = 3, .values_out = &refs};
+      bsurf_tile_report tr1;
+      tr1.sums = NULL;
+      if (cli_tiles_run(pos[0], output, &ops1, &tr1, quiet)) goto done;
+    }
     bsurf_tile_ops ops = {.tile_points = plan, .k = kmax, .threads = no.threads, .user = &job,
-                          .prepare = normals_prepare, .run = normals_run, .nsums = NORMALS_SUMS};
+                          .prepare = normals_prepare, .run = normals_run, .nsums = NORMALS_SUMS,
+                          .values_in = test_error ? &refs : NULL};
     bsurf_tile_report tr;
     tr.sums = sums;
     int trc = cli_tiles_run(pos[0], output, &ops, &tr, quiet);
+    bsurf_tile_values_close(&refs);
     plan = ops.tile_points;
     tiles = tr.tiles;
     if (trc) goto done;
@@ -434,7 +527,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     }
     fprintf(cf, "k,degree,mean_normal_err,mean_normal_var%s\n", truth_path ? ",mean_angle_err" : "");
   }
-  st = normals_compute(&job, c.xyz, &nb, NULL, &b, &total, cf, truth_path ? &truth : NULL, &prog);
+  st = normals_compute(&job, c.xyz, &nb, NULL, NULL, &b, &total, cf, truth_path ? &truth : NULL, &prog);
   if (st != BSURF_OK) {
     cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
     goto done;

@@ -448,6 +448,31 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
                             const bsurf_kselect_options *opts, bsurf_kselect_fields *out,
                             bsurf_kselect_report *report);
 
+/* Per-point K selection (5.5, Algorithm 3): outputs of the chosen
+ * candidate (point_count long, x 3 for vectors) and, for --curve style
+ * summaries, every candidate's (NULL when not wanted). */
+typedef struct bsurf_normal_select_fields {
+  double *normals, *normal_var, *normal_err; /* as bsurf_normal_fields */
+  int *k_selected;                           /* the chosen K */
+  double *cand_err, *cand_var; /* point_count x nk: candidate c of point i at [i nk + c] */
+  double *cand_normals;        /* point_count x nk x 3 */
+} bsurf_normal_select_fields;
+
+/* PCA normals with every K of ks[0..nk) (strictly increasing, ks[0] >= 3,
+ * ks[nk - 1] <= nb->k; opts->k is ignored) and, per point, the K whose
+ * bootstrap test error (Eq. 5.10 against ref_normals, required) is the
+ * smallest (ties: the smaller K). The candidates are nested (each the first
+ * K of one sorted neighbour list) and share their resamples: Poisson(1)
+ * counts per neighbour, drawn once per point and replicate, restricted to
+ * each candidate's first K (docs/normals.md explains the scheme): the
+ * estimator of bsurf_estimate_normals at each K, on Poisson instead of
+ * multinomial resamples (the numbers differ at O(1/K)). With
+ * opts->bootstrap = 0 the single fits and their training errors. PCA only
+ * (opts->fit); deterministic for a given seed, any thread count. */
+bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb, const double *ref_normals,
+                                    const bsurf_normal_options *opts, const int *ks, int nk,
+                                    bsurf_normal_select_fields *out, bsurf_normal_report *report);
+
 /* Bilateral normal smoothing (5.3, Eqs. 5.6-5.8), `iterations` Jacobi-style
  * passes (every point from the previous pass's normals, so order-free):
  *   n_i <- (1 - alpha) n_i + alpha / c_i sum_{p in N_i} G(nu_p, sigma_nu)

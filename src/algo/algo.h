@@ -63,6 +63,50 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
 /* Validates error options against the neighbourhoods (as bsurf_estimate_error). */
 bsurf_status bsurf_error_check(const bsurf_error_options *o, const bsurf_neighbors *nb);
 
+/* ---- nested neighbourhoods (nested.c) ----
+ * For a point with its sorted neighbour list idx[0..kmax) (idx[0] = the
+ * point d_i), candidate neighbourhoods P_K are the first K neighbours for K
+ * in a strictly increasing list ks[0..nk) with ks[nk - 1] <= kmax. One pass
+ * over the kmax neighbours with running moment sums gives every candidate's
+ * (weighted) moments, for R weight rows (bootstrap replicates) at once.
+ * Typical use, per point:
+ *   bsurf_nested_terms(xyz, idx, kmax, terms);                 once
+ *   bsurf_nested_sums(terms, kmax, R, Wt, ks, nk, sums, nz);   once per weights
+ *   for c, r: bsurf_nested_cov(&sums[c * 10 R + r], R, center, mu, cov);
+ *             bsurf_eigen_sym3_smallest(cov, n);               the normal */
+#define BSURF_NESTED_COLS 10 /* q q^T (xx xy xz yy yz zz), q, 1; q = p - d_i */
+
+/* The per-neighbour terms (kmax x BSURF_NESTED_COLS, row-major), relative
+ * to d_i (accurate far from the origin). */
+void bsurf_nested_terms(const double *xyz, const uint32_t *idx, int kmax, double *terms);
+/* The moment sums of every candidate for R weight rows: Wt (kmax x R,
+ * Wt[j R + r] = weight of neighbour j in row r; NULL = a single row of ones,
+ * then R must be 1). sums out: nk blocks of BSURF_NESTED_COLS x R, column-major
+ * within a block (sums[(c COLS + col) R + r]). distinct out (nk x R, may be
+ * NULL): the number of nonzero weights among candidate c's points. Each sum
+ * runs over j = 0, 1, ... in order: candidate c's sums are exactly those of
+ * a separate sum over its own K points. */
+void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, const int *ks, int nk,
+                       double *sums, int *distinct);
+/* From one (candidate, row) of the sums (sums points at its column 0, stride
+ * R between columns): mu the weighted centroid relative to d_i, cov (xx xy xz
+ * yy yz zz) the weighted second moments about the centroid, or about d_i
+ * (BSURF_PCA_POINT, Eq. 2.1), each divided by the total weight. Returns 0,
+ * or -1 when the total weight is 0. */
+int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center, double mu[3],
+                     double cov[6]);
+/* bsurf_nested_cov for the R rows of one candidate's block (block: its
+ * column 0), in vector lanes: cov out 6 x R (cov[t R + r]), ok[r] = 1 when
+ * the row's weight is positive (else its cov is not defined). Same values
+ * as row by row. */
+void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center, double *cov, int *ok);
+/* sum_j theta(g, r_j), j < k: the unoriented angles (atan2(|g x r|, |g . r|),
+ * within 2 ulp of the C library's, tests/test_normals.c) between unit g and
+ * the unit vectors (rx, ry, rz)[j] in vector lanes, summed in a fixed order.
+ * scratch: k doubles. The inner sum of Eq. 5.10. */
+double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry, const double *rz,
+                              int k, double *scratch);
+
 /* ---- features --method distance (7.1) in stages (features.c), run on the
  * whole cloud by bsurf_detect_features and tile by tile by
  * bsurf_features_distance_tiled (src/tile/features_tiled.c): the same functions on

@@ -21,6 +21,7 @@
  * The weighted second moments of all B resamples, like the normal equations
  * of the polynomial fits, are one B x K by K x c matrix product of the
  * multiplicities with per-neighbour terms computed once (src/local). */
+#include "algo/algo.h"
 #include "bootstrap/bootstrap.h"
 #include "common/common.h"
 #include "local/local.h"
@@ -30,7 +31,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define PCA_COLS 10 /* q q^T (6 entries), q (3), 1, with q = p - d_i */
+#define PCA_COLS BSURF_NESTED_COLS /* q q^T (6 entries), q (3), 1, with q = p - d_i */
 
 bsurf_normal_options bsurf_normal_options_default(void) {
   bsurf_normal_options o;
@@ -63,6 +64,8 @@ typedef struct normal_scratch {
   uint16_t *draws;  /* B x k: each replicate's indices in the order drawn */
   unsigned char *valid; /* B */
   double *bn;      /* B x 3 bootstrap normals */
+  double *lanes;   /* (COLS + 6 + 3) x B: PCA sums, covariances, normals in lanes */
+  int *ok, *st;    /* B, B */
   size_t skipped, reduced, degenerate;
 } normal_scratch;
 
@@ -76,6 +79,9 @@ static void scratch_free(normal_scratch *s) {
   free(s->draws);
   free(s->valid);
   free(s->bn);
+  free(s->lanes);
+  free(s->ok);
+  free(s->st);
   memset(s, 0, sizeof *s);
 }
 
@@ -93,7 +99,11 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
   s->draws = bsurf_alloc_array(nb * k, sizeof(uint16_t));
   s->valid = bsurf_alloc_array(nb, 1);
   s->bn = bsurf_alloc_array(nb, 3 * sizeof(double));
-  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws || !s->valid || !s->bn) {
+  s->lanes = bsurf_alloc_aligned(nb, (PCA_COLS + 9) * sizeof(double));
+  s->ok = bsurf_alloc_array(nb, sizeof(int));
+  s->st = bsurf_alloc_array(nb, sizeof(int));
+  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws || !s->valid || !s->bn ||
+      !s->lanes || !s->ok || !s->st) {
     scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -103,17 +113,12 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
 /* PCA normal from the weighted sums of one row (q q^T, q, weight). Returns 0,
  * or -1 when the points are collinear or repeated (normal undetermined). */
 static int pca_normal_from_row(const double *row, bsurf_pca_center center, double n[3]) {
-  const double w = row[9];
-  double mu[3] = {0, 0, 0};
-  if (center == BSURF_PCA_CENTROID)
-    for (int t = 0; t < 3; t++) mu[t] = row[6 + t] / w;
-  double C[3][3];
-  C[0][0] = row[0] / w - mu[0] * mu[0];
-  C[0][1] = C[1][0] = row[1] / w - mu[0] * mu[1];
-  C[0][2] = C[2][0] = row[2] / w - mu[0] * mu[2];
-  C[1][1] = row[3] / w - mu[1] * mu[1];
-  C[1][2] = C[2][1] = row[4] / w - mu[1] * mu[2];
-  C[2][2] = row[5] / w - mu[2] * mu[2];
+  double mu[3], c[6];
+  if (bsurf_nested_cov(row, 1, center, mu, c) != 0) {
+    n[0] = n[1] = 0, n[2] = 1;
+    return -1;
+  }
+  double C[3][3] = {{c[0], c[1], c[2]}, {c[1], c[3], c[4]}, {c[2], c[4], c[5]}};
   double ev[3], V[3][3];
   bsurf_eigen_sym3(C, ev, V);
   for (int t = 0; t < 3; t++) n[t] = V[0][t];
@@ -151,27 +156,21 @@ static void normals_point(void *vctx, int thread, size_t i) {
   bsurf_frame frame;
   int degree = o->degree;
   if (pca) {
-    const double *d = &xyz[3 * (size_t)idx[0]];
-    for (int j = 0; j < k; j++) {
-      const double *p = &xyz[3 * (size_t)idx[j]];
-      double q[3] = {p[0] - d[0], p[1] - d[1], p[2] - d[2]};
-      double *r = &s->terms[(size_t)j * PCA_COLS];
-      r[0] = q[0] * q[0];
-      r[1] = q[0] * q[1];
-      r[2] = q[0] * q[2];
-      r[3] = q[1] * q[1];
-      r[4] = q[1] * q[2];
-      r[5] = q[2] * q[2];
-      r[6] = q[0];
-      r[7] = q[1];
-      r[8] = q[2];
-      r[9] = 1.0;
-    }
+    bsurf_nested_terms(xyz, idx, k, s->terms);
     bsurf_gemm_rows(B + 1, k, PCA_COLS, W, s->terms, s->rows);
     if (pca_normal_from_row(&s->rows[(size_t)B * PCA_COLS], o->pca_center, nP) != 0) s->degenerate++;
+    /* the replicates' normals in vector lanes (nested.c, eigen.c): the sums
+     * column by column, the covariances (the single fit's formula), the
+     * closed-form smallest eigenvectors */
+    double *blk = s->lanes, *cov = blk + (size_t)PCA_COLS * B, *nl = cov + 6 * (size_t)B;
     for (int b = 0; b < B; b++)
-      if (s->valid[b] && pca_normal_from_row(&s->rows[(size_t)b * PCA_COLS], o->pca_center, &s->bn[3 * b]) != 0)
-        s->valid[b] = 0;
+      for (int t = 0; t < PCA_COLS; t++) blk[(size_t)t * B + b] = s->rows[(size_t)b * PCA_COLS + t];
+    bsurf_nested_cov_lanes(blk, B, o->pca_center, cov, s->ok);
+    bsurf_eigen_sym3_smallest_lanes(B, cov, nl, s->st);
+    for (int b = 0; b < B; b++) {
+      s->valid[b] = s->valid[b] && s->ok[b] && s->st[b] == 0;
+      for (int t = 0; t < 3; t++) s->bn[3 * b + t] = nl[(size_t)t * B + b];
+    }
   } else {
     bsurf_local_frame(xyz, idx, k, o->pca_center, &frame);
     if (!(frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2])) s->degenerate++;
@@ -301,6 +300,244 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
     }
   }
   for (int t = 0; t < T; t++) scratch_free(&scr[t]);
+  free(scr);
+  return st;
+}
+
+/* ---- per-point K selection over nested neighbourhoods ----
+ *
+ * For every point, all candidates K in one pass (src/algo/nested.c): the
+ * terms of the kmax = ks[nk - 1] sorted neighbours once; the whole
+ * neighbourhood's sums of every candidate (its normal n_P, the orientation
+ * reference of 5.2.1); B replicates of Poisson(1) counts per neighbour,
+ * drawn once and shared by every candidate (each candidate's replicate b is
+ * the Poisson bootstrap of its first K points), with every candidate's
+ * moments of every replicate from one running sum in vector lanes; each
+ * replicate's normal by bsurf_eigen_sym3_smallest; then per candidate the
+ * estimate of Eq. 5.4, the variance of Eq. 5.5 and the test error of
+ * Eq. 5.10 against the reference normals of the neighbours (gathered once),
+ * and the candidate with the smallest test error. */
+
+typedef struct select_scratch {
+  double *terms;   /* kmax x COLS */
+  uint32_t *u;     /* kmax */
+  uint8_t *x;      /* kmax */
+  double *Wt;      /* kmax x B */
+  double *sums;    /* nk x COLS x max(B, 1) */
+  double *fsums;   /* nk x COLS */
+  int *nz;         /* nk x B */
+  double *ref;     /* 4 x kmax: rx, ry, rz, angle scratch */
+  double *bn;      /* nk x B x 3 */
+  unsigned char *valid; /* nk x B */
+  double *nP;      /* nk x 3 */
+  double *err, *var, *nrm; /* nk, nk, nk x 3 */
+  double *cov, *nl, *ang2; /* 6 x B, 3 x B, B: one candidate's replicates in lanes */
+  int *wok, *st;           /* B, B */
+  size_t skipped, degenerate;
+} select_scratch;
+
+static void select_scratch_free(select_scratch *s) {
+  free(s->terms);
+  free(s->u);
+  free(s->x);
+  free(s->Wt);
+  free(s->sums);
+  free(s->fsums);
+  free(s->nz);
+  free(s->ref);
+  free(s->bn);
+  free(s->valid);
+  free(s->nP);
+  free(s->err);
+  free(s->var);
+  free(s->nrm);
+  free(s->cov);
+  free(s->nl);
+  free(s->ang2);
+  free(s->wok);
+  free(s->st);
+  memset(s, 0, sizeof *s);
+}
+
+static bsurf_status select_scratch_alloc(select_scratch *s, int kmax, int nk, int B) {
+  memset(s, 0, sizeof *s);
+  const size_t b1 = (size_t)(B > 0 ? B : 1), kk = (size_t)kmax, cands = (size_t)nk;
+  s->terms = bsurf_alloc_array(kk, BSURF_NESTED_COLS * sizeof(double));
+  s->u = bsurf_alloc_array(kk, sizeof(uint32_t));
+  s->x = bsurf_alloc_array(kk, 1);
+  s->Wt = bsurf_alloc_aligned(kk * b1, sizeof(double));
+  s->sums = bsurf_alloc_aligned(cands * b1, BSURF_NESTED_COLS * sizeof(double));
+  s->fsums = bsurf_alloc_array(cands, BSURF_NESTED_COLS * sizeof(double));
+  s->nz = bsurf_alloc_array(cands * b1, sizeof(int));
+  s->ref = bsurf_alloc_aligned(kk, 4 * sizeof(double));
+  s->bn = bsurf_alloc_array(cands * b1, 3 * sizeof(double));
+  s->valid = bsurf_alloc_array(cands * b1, 1);
+  s->nP = bsurf_alloc_array(cands, 3 * sizeof(double));
+  s->err = bsurf_alloc_array(cands, sizeof(double));
+  s->var = bsurf_alloc_array(cands, sizeof(double));
+  s->nrm = bsurf_alloc_array(cands, 3 * sizeof(double));
+  s->cov = bsurf_alloc_aligned(b1, 6 * sizeof(double));
+  s->nl = bsurf_alloc_aligned(b1, 3 * sizeof(double));
+  s->ang2 = bsurf_alloc_array(b1, sizeof(double));
+  s->wok = bsurf_alloc_array(b1, sizeof(int));
+  s->st = bsurf_alloc_array(b1, sizeof(int));
+  if (!s->terms || !s->u || !s->x || !s->Wt || !s->sums || !s->fsums || !s->nz || !s->ref || !s->bn ||
+      !s->valid || !s->nP || !s->err || !s->var || !s->nrm || !s->cov || !s->nl || !s->ang2 || !s->wok ||
+      !s->st) {
+    select_scratch_free(s);
+    return BSURF_ERR_NOMEM;
+  }
+  return BSURF_OK;
+}
+
+typedef struct select_ctx {
+  const double *xyz;
+  const bsurf_neighbors *nb;
+  const double *ref;
+  const bsurf_normal_options *o;
+  const int *ks;
+  int nk;
+  select_scratch *scr;
+  bsurf_normal_select_fields *out;
+} select_ctx;
+
+static void select_point(void *vctx, int thread, size_t i) {
+  select_ctx *c = vctx;
+  const bsurf_normal_options *o = c->o;
+  select_scratch *s = &c->scr[thread];
+  const int nk = c->nk, kmax = c->ks[nk - 1], B = o->bootstrap;
+  const int *ks = c->ks;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  const size_t COLS = BSURF_NESTED_COLS;
+
+  bsurf_nested_terms(c->xyz, idx, kmax, s->terms);
+  double *rx = s->ref, *ry = rx + kmax, *rz = ry + kmax, *ang = rz + kmax;
+  for (int j = 0; j < kmax; j++) {
+    const double *r = &c->ref[3 * (size_t)idx[j]];
+    rx[j] = r[0], ry[j] = r[1], rz[j] = r[2];
+  }
+
+  /* the whole neighbourhoods: the single fits (as bsurf_estimate_normals) */
+  bsurf_nested_sums(s->terms, kmax, 1, NULL, ks, nk, s->fsums, NULL);
+  for (int a = 0; a < nk; a++)
+    if (pca_normal_from_row(&s->fsums[a * COLS], o->pca_center, &s->nP[3 * a]) != 0) s->degenerate++;
+
+  /* the replicates: one draw per point, shared by the candidates */
+  if (B > 0) {
+    const uint64_t key = o->point_index ? o->point_index[i] : i;
+    bsurf_boot_poisson_rows(o->seed, key, B, kmax, s->u, s->x, s->Wt);
+    bsurf_nested_sums(s->terms, kmax, B, s->Wt, ks, nk, s->sums, s->nz);
+    for (int a = 0; a < nk; a++) {
+      const double *blk = &s->sums[(size_t)a * COLS * B];
+      bsurf_nested_cov_lanes(blk, B, o->pca_center, s->cov, s->wok);
+      bsurf_eigen_sym3_smallest_lanes(B, s->cov, s->nl, s->st);
+      for (int b = 0; b < B; b++) {
+        const size_t ab = (size_t)a * B + b;
+        s->valid[ab] = s->nz[ab] >= 3 && s->wok[b] && s->st[b] == 0;
+        for (int t = 0; t < 3; t++) s->bn[3 * ab + t] = s->nl[(size_t)t * B + b];
+      }
+    }
+  }
+
+  int best = 0;
+  for (int a = 0; a < nk; a++) {
+    const int K = ks[a];
+    const double *nP = &s->nP[3 * a];
+    double *bn = &s->bn[(size_t)a * B * 3];
+    const unsigned char *valid = &s->valid[(size_t)a * B];
+    /* orient to n_P (5.2.1), Eq. 5.4 */
+    double sum[3] = {0, 0, 0};
+    int nvalid = 0, first = -1;
+    for (int b = 0; b < B; b++) {
+      if (!valid[b]) {
+        s->skipped++;
+        continue;
+      }
+      double *n = &bn[3 * b];
+      if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
+        for (int t = 0; t < 3; t++) n[t] = -n[t];
+      for (int t = 0; t < 3; t++) sum[t] += n[t];
+      if (first < 0) first = b;
+      nvalid++;
+    }
+    const double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
+    for (int t = 0; t < 3; t++) s->nrm[3 * a + t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
+    /* Eq. 5.5 */
+    double var = 0;
+    if (nvalid >= 2) {
+      double mean = 0;
+      for (int b = 0; b < B; b++)
+        if (valid[b]) mean += s->ang2[b] = angle_between(&bn[3 * first], &bn[3 * b], 0);
+      mean /= nvalid;
+      for (int b = 0; b < B; b++)
+        if (valid[b]) {
+          const double d = s->ang2[b] - mean;
+          var += d * d;
+        }
+      var /= nvalid - 1;
+    }
+    s->var[a] = var;
+    /* Eq. 5.10: (1 / (B K)) sum_b sum_j theta(g^b, n_j); with no valid
+     * replicate the single fit's training error */
+    double total = 0;
+    if (nvalid > 0) {
+      for (int b = 0; b < B; b++)
+        if (valid[b]) total += bsurf_nested_angle_sum(&bn[3 * b], rx, ry, rz, K, ang);
+      s->err[a] = total / ((double)nvalid * K);
+    } else {
+      s->err[a] = bsurf_nested_angle_sum(nP, rx, ry, rz, K, ang) / K;
+    }
+    if (s->err[a] < s->err[best]) best = a; /* ties keep the smaller K */
+  }
+
+  bsurf_normal_select_fields *out = c->out;
+  if (out->normals)
+    for (int t = 0; t < 3; t++) out->normals[3 * i + t] = s->nrm[3 * best + t];
+  if (out->normal_var) out->normal_var[i] = s->var[best];
+  if (out->normal_err) out->normal_err[i] = s->err[best];
+  if (out->k_selected) out->k_selected[i] = ks[best];
+  if (out->cand_err) memcpy(&out->cand_err[i * (size_t)nk], s->err, (size_t)nk * sizeof(double));
+  if (out->cand_var) memcpy(&out->cand_var[i * (size_t)nk], s->var, (size_t)nk * sizeof(double));
+  if (out->cand_normals)
+    memcpy(&out->cand_normals[i * (size_t)nk * 3], s->nrm, (size_t)nk * 3 * sizeof(double));
+}
+
+bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb, const double *ref_normals,
+                                    const bsurf_normal_options *opts, const int *ks, int nk,
+                                    bsurf_normal_select_fields *out, bsurf_normal_report *report) {
+  bsurf_normal_options o = opts ? *opts : bsurf_normal_options_default();
+  if (report) memset(report, 0, sizeof *report);
+  if (!xyz || !nb || !nb->idx || !ref_normals || !ks || !out || nk < 1) return BSURF_ERR_INVALID_ARG;
+  if (o.fit != BSURF_NORMAL_PCA) return BSURF_ERR_INVALID_ARG;
+  if (o.bootstrap < 0 || o.bootstrap > 100000) return BSURF_ERR_INVALID_ARG;
+  if (ks[0] < 3) return BSURF_ERR_INVALID_ARG;
+  for (int a = 1; a < nk; a++)
+    if (ks[a] <= ks[a - 1]) return BSURF_ERR_INVALID_ARG;
+  if (ks[nk - 1] > 65535 || ks[nk - 1] > nb->k) return BSURF_ERR_INVALID_ARG;
+  if ((size_t)ks[nk - 1] > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
+
+  const size_t n = nb->point_count;
+  const int T = bsurf_threads_resolve(o.threads);
+  select_scratch *scr = calloc((size_t)T, sizeof *scr);
+  if (!scr) return BSURF_ERR_NOMEM;
+  bsurf_status st = BSURF_OK;
+  for (int t = 0; t < T && st == BSURF_OK; t++) st = select_scratch_alloc(&scr[t], ks[nk - 1], nk, o.bootstrap);
+  uint32_t *owned = NULL;
+  const uint32_t *order = NULL;
+  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) {
+    select_ctx ctx = {xyz, nb, ref_normals, &o, ks, nk, scr, out};
+    st = bsurf_parallel_points_ordered(n, order, T, select_point, &ctx, o.progress, o.progress_user);
+  }
+  free(owned);
+  if (report && st == BSURF_OK) {
+    report->replicates_total = n * (size_t)o.bootstrap * (size_t)nk;
+    for (int t = 0; t < T; t++) {
+      report->replicates_skipped += scr[t].skipped;
+      report->degenerate += scr[t].degenerate;
+    }
+  }
+  for (int t = 0; t < T; t++) select_scratch_free(&scr[t]);
   free(scr);
   return st;
 }

@@ -34,6 +34,17 @@ void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min
  * weights: a quarter of the bytes. */
 void bsurf_boot_draw_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
                           uint16_t *counts, uint16_t *draws, unsigned char *valid);
+/* Poisson(1) weights of B replicates over a sorted neighbour list of kmax
+ * points (the nested resampling of docs/normals.md): replicate b takes the
+ * stream (seed, point, b); neighbour j gets an independent Poisson(1) count,
+ * j = 0, 1, ... in order, from the 32-bit halves of the stream's outputs
+ * (low half first) by inversion. Restricted to the first K neighbours the
+ * counts are the Poisson bootstrap of that K-point neighbourhood, for every
+ * K at once, so nested candidates share (and are compared on) the same
+ * resamples. Wt out: kmax x B, transposed (Wt[j B + b], the layout of
+ * bsurf_nested_sums); u (kmax) and x (kmax) scratch. */
+void bsurf_boot_poisson_rows(uint64_t seed, uint64_t point, int B, int kmax, uint32_t *u,
+                             uint8_t *x, double *Wt);
 /* The number of distinct points of a resample: its nonzero counts (k). */
 int bsurf_boot_distinct(int k, const uint16_t *counts);
 /* B + 1 rows rounded up to a multiple of 4 (whole groups of vector lanes). */

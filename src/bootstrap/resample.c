@@ -191,3 +191,35 @@ void bsurf_boot_draw_rows(uint64_t seed, uint64_t point, int B, int k, int min_d
       valid[b] = bsurf_boot_distinct(k, &counts[(size_t)b * k]) >= min_distinct;
   }
 }
+
+/* Poisson(1) bootstrap weights (docs/normals.md, "Nested neighbourhoods").
+ * P(X <= m) = e^-1 sum_{i <= m} 1 / i!, times 2^32 and rounded, m = 0..11:
+ * a uniform 32-bit u gives X = #{m : u >= T[m]} (inversion; X = 12 stands
+ * for X >= 12, probability 9.3e-10). */
+static const uint32_t poisson1_cdf[12] = {1580030169u, 3160060337u, 3950075422u, 4213413783u,
+                                          4279248374u, 4292415292u, 4294609778u, 4294923276u,
+                                          4294962463u, 4294966817u, 4294967253u, 4294967292u};
+
+BSURF_CLONES
+static void poisson_invert(int k, const uint32_t *restrict u, uint8_t *restrict x) {
+  for (int j = 0; j < k; j++) {
+    uint8_t c = 0;
+    for (int m = 0; m < 12; m++) c += u[j] >= poisson1_cdf[m];
+    x[j] = c;
+  }
+}
+
+void bsurf_boot_poisson_rows(uint64_t seed, uint64_t point, int B, int kmax, uint32_t *u,
+                             uint8_t *x, double *Wt) {
+  for (int b = 0; b < B; b++) {
+    bsurf_rng rng;
+    bsurf_rng_init(&rng, seed, point, (uint64_t)b);
+    for (int j = 0; j < kmax; j += 2) {
+      const uint64_t r = bsurf_rng_next(&rng);
+      u[j] = (uint32_t)r;
+      if (j + 1 < kmax) u[j + 1] = (uint32_t)(r >> 32);
+    }
+    poisson_invert(kmax, u, x);
+    for (int j = 0; j < kmax; j++) Wt[(size_t)j * B + b] = x[j];
+  }
+}

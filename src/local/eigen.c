@@ -4,6 +4,7 @@
  * off-diagonal entry. It is accurate for nearly equal eigenvalues (flat or
  * isotropic neighbourhoods), where closed-form cubic solutions lose digits,
  * and its arithmetic is fixed, so results are reproducible. */
+#include "common/common.h"
 #include "local/local.h"
 
 #include <math.h>
@@ -54,4 +55,155 @@ void bsurf_eigen_sym3(double a_in[3][3], double evals[3], double evecs[3][3]) {
     evals[i] = d[order[i]];
     for (int k = 0; k < 3; k++) evecs[i][k] = v[k][order[i]];
   }
+}
+
+/* The eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix
+ * (the PCA normal), without the other two vectors.
+ *
+ * With the matrix scaled to unit trace, the smallest eigenvalue l0 is the
+ * smallest root of the characteristic polynomial
+ *   p(l) = det(A - l I) = det - m l + tr l^2 - l^3 = (l0 - l)(l1 - l)(l2 - l),
+ * reached by Newton's method from l = 0 <= l0: left of its smallest root a
+ * polynomial with real roots is convex or concave up to its first inflection
+ * point (tr / 3 >= l0), so the iterates increase monotonically to l0 (a
+ * few steps: the first is det / m ~ l0 (1 - l0 / l1 - l0 / l2)). The
+ * columns of adj(A - l0 I) = (l1 - l0)(l2 - l0) v0 v0^T are the cross
+ * products of the rows of A - l0 I; the largest one is v0 times at least
+ * (l1 - l0)(l2 - l0) / sqrt(3), so its direction is as accurate as the gap
+ * l1 - l0 allows (the eigenvector's own condition number, as for Jacobi).
+ * When that gap is tiny (below about 1e-5 of the trace: nearly collinear or
+ * isotropic points, where the normal is undetermined anyway) or the
+ * iteration does not settle, the Jacobi sweeps above decide. Returns the
+ * same verdict as a PCA fit on the full decomposition: 0, or -1 when
+ * l2 <= 0 or l1 <= 1e-12 l2 (a degenerate plane). */
+int bsurf_eigen_sym3_smallest(const double c[6], double n[3]) {
+  const double tr0 = c[0] + c[3] + c[5];
+  int jacobi = !(tr0 > 0) || !isfinite(tr0);
+  double l1 = 0, l2 = 0;
+  if (!jacobi) {
+    const double s = 1.0 / tr0;
+    const double a = c[0] * s, b = c[1] * s, e = c[2] * s, d = c[3] * s, f = c[4] * s, g = c[5] * s;
+    /* a b e / b d f / e f g */
+    const double tr = a + d + g;
+    const double m = (a * d - b * b) + (a * g - e * e) + (d * g - f * f);
+    const double det = a * (d * g - f * f) - b * (b * g - f * e) + e * (b * f - d * e);
+    double l = 0;
+    int it = 0;
+    for (; it < 64; it++) {
+      const double p = det - l * (m - l * (tr - l));
+      const double dp = -m + l * (2 * tr - 3 * l);
+      if (!(dp < 0)) break;
+      const double nl = l - p / dp;
+      if (!(nl > l)) break;
+      l = nl;
+    }
+    /* l1 + l2 = tr - l0, l1 l2 = m - l0 (l1 + l2) */
+    const double sum = tr - l, prod = m - l * sum;
+    const double disc = sum * sum - 4 * prod;
+    l2 = 0.5 * (sum + sqrt(disc > 0 ? disc : 0));
+    l1 = l2 > 0 ? prod / l2 : 0;
+    const double r0[3] = {a - l, b, e}, r1[3] = {b, d - l, f}, r2[3] = {e, f, g - l};
+    double x[3][3];
+    const double *rows[3][2] = {{r0, r1}, {r0, r2}, {r1, r2}};
+    double best = -1;
+    int bi = 0;
+    for (int t = 0; t < 3; t++) {
+      const double *u = rows[t][0], *v = rows[t][1];
+      x[t][0] = u[1] * v[2] - u[2] * v[1];
+      x[t][1] = u[2] * v[0] - u[0] * v[2];
+      x[t][2] = u[0] * v[1] - u[1] * v[0];
+      const double nn = x[t][0] * x[t][0] + x[t][1] * x[t][1] + x[t][2] * x[t][2];
+      if (nn > best) best = nn, bi = t;
+    }
+    if (it == 64 || !(best > 1e-10)) {
+      jacobi = 1;
+    } else {
+      const double inv = 1.0 / sqrt(best);
+      for (int t = 0; t < 3; t++) n[t] = x[bi][t] * inv;
+    }
+  }
+  if (jacobi) {
+    double C[3][3] = {{c[0], c[1], c[2]}, {c[1], c[3], c[4]}, {c[2], c[4], c[5]}};
+    double ev[3], V[3][3];
+    bsurf_eigen_sym3(C, ev, V);
+    for (int t = 0; t < 3; t++) n[t] = V[0][t];
+    return (ev[2] > 0 && ev[1] > 1e-12 * ev[2]) ? 0 : -1;
+  }
+  return (l2 > 0 && l1 > 1e-12 * l2) ? 0 : -1;
+}
+
+/* bsurf_eigen_sym3_smallest for R matrices at once in vector lanes: the
+ * same expressions, with Newton run a fixed SMALLEST_STEPS steps (a lane that
+ * has settled stays put: its next step is no progress again) and the lanes
+ * that have not settled by then, or need the sweeps, redone by the scalar
+ * function; so every lane gets exactly the scalar result. */
+#define SMALLEST_STEPS 6
+
+#if defined(__GNUC__) && !defined(__clang__)
+/* selects between computed values: GCC vectorises the loop only when it may
+ * ignore FP exception flags (the values are the same) */
+__attribute__((optimize("no-trapping-math")))
+#endif
+BSURF_CLONES
+static void smallest_lanes(int R, const double *restrict c, double *restrict n, int *restrict status) {
+  for (int r = 0; r < R; r++) {
+    const double c0 = c[r], c1 = c[R + r], c2 = c[2 * R + r], c3 = c[3 * R + r], c4 = c[4 * R + r],
+                 c5 = c[5 * R + r];
+    const double tr0 = c0 + c3 + c5;
+    const double s = 1.0 / tr0;
+    const double a = c0 * s, b = c1 * s, e = c2 * s, d = c3 * s, f = c4 * s, g = c5 * s;
+    const double tr = a + d + g;
+    const double m = (a * d - b * b) + (a * g - e * e) + (d * g - f * f);
+    const double det = a * (d * g - f * f) - b * (b * g - f * e) + e * (b * f - d * e);
+    double l = 0;
+    for (int it = 0; it < SMALLEST_STEPS; it++) {
+      const double p = det - l * (m - l * (tr - l));
+      const double dp = -m + l * (2 * tr - 3 * l);
+      const double nl = l - p / dp;
+      l = (dp < 0 && nl > l) ? nl : l;
+    }
+    const double p = det - l * (m - l * (tr - l));
+    const double dp = -m + l * (2 * tr - 3 * l);
+    const double nl = l - p / dp;
+    const int settled = !(dp < 0 && nl > l);
+    const double sum = tr - l, prod = m - l * sum;
+    const double disc = sum * sum - 4 * prod;
+    const double l2 = 0.5 * (sum + sqrt(disc > 0 ? disc : 0));
+    const double q = prod / l2;
+    const double l1 = l2 > 0 ? q : 0;
+    const double r00 = a - l, r11 = d - l, r22 = g - l;
+    /* rows (r00 b e), (b r11 f), (e f r22) */
+    const double x0 = b * f - e * r11, x1 = e * b - r00 * f, x2 = r00 * r11 - b * b;
+    const double y0 = b * r22 - e * f, y1 = e * e - r00 * r22, y2 = r00 * f - b * e;
+    const double z0 = r11 * r22 - f * f, z1 = f * e - b * r22, z2 = b * f - r11 * e;
+    const double nx = x0 * x0 + x1 * x1 + x2 * x2, ny = y0 * y0 + y1 * y1 + y2 * y2,
+                 nz = z0 * z0 + z1 * z1 + z2 * z2;
+    double best = nx, v0 = x0, v1 = x1, v2 = x2;
+    best = ny > best ? ny : best;
+    v0 = ny > nx ? y0 : v0;
+    v1 = ny > nx ? y1 : v1;
+    v2 = ny > nx ? y2 : v2;
+    const int zwin = nz > best;
+    best = zwin ? nz : best;
+    v0 = zwin ? z0 : v0;
+    v1 = zwin ? z1 : v1;
+    v2 = zwin ? z2 : v2;
+    const double inv = 1.0 / sqrt(best);
+    n[r] = v0 * inv;
+    n[R + r] = v1 * inv;
+    n[2 * R + r] = v2 * inv;
+    const int redo = !(tr0 > 0 && tr0 < INFINITY) | !settled | !(best > 1e-10);
+    status[r] = redo ? 1 : (l2 > 0 && l1 > 1e-12 * l2) ? 0 : -1;
+  }
+}
+
+void bsurf_eigen_sym3_smallest_lanes(int R, const double *c, double *n, int *status) {
+  smallest_lanes(R, c, n, status);
+  for (int r = 0; r < R; r++)
+    if (status[r] == 1) {
+      const double m[6] = {c[r], c[R + r], c[2 * R + r], c[3 * R + r], c[4 * R + r], c[5 * R + r]};
+      double v[3];
+      status[r] = bsurf_eigen_sym3_smallest(m, v);
+      for (int t = 0; t < 3; t++) n[t * R + r] = v[t];
+    }
 }

@@ -109,7 +109,18 @@ expect 1 "xyz input" -- "$BSURF" error "$T/s.ply" -k 10 -o "$T/x.xyz" --tile-poi
 expect 1 "ascii output" -- "$BSURF" error "$T/n.ply" -k 10 -o "$T/x.ply" --ascii --tile-points 100
 expect 1 "no output" -- "$BSURF" error "$T/n.ply" -k 10 --tile-points 100
 expect 1 "test sample" -- "$BSURF" error "$T/n.ply" -k 10 -o "$T/x.ply" --test-sample "$T/s.ply" --tile-points 100
-for opt in "--orient mst" "--test-error" "--select-k 10:20:5" "--smooth-iterations 2"; do
+# normal_err and the K selection: two stages (the reference normals of every
+# point, then the tiles with their halos' reference normals): the in-memory bytes
+for args in "-k 12 -B 6 --test-error --k-ref 10" "--select-k 6:20:7 -B 5 --k-ref 9" \
+  "--fit poly --select-k 10:15:5 --select-degree 1,2 -B 3"; do
+  expect 0 "normals $args" -- "$BSURF" normals "$T/c.ply" $args -o "$T/m.ply" -q
+  expect 0 "normals $args tiles" -- "$BSURF" normals "$T/c.ply" $args -o "$T/mt.ply" --tile-points 100 -q
+  cmp -s "$T/m.ply" "$T/mt.ply" && ok || fail "normals $args: tiled output differs"
+done
+expect 1 "normals --curve tiles" -- "$BSURF" normals "$T/n.ply" --select-k 10:20:5 --curve "$T/x.csv" -o "$T/x.ply" \
+  --tile-points 100
+stderr_has "not available in tiled runs" "normals --curve refused"
+for opt in "--orient mst" "--smooth-iterations 2"; do
   expect 1 "normals $opt" -- "$BSURF" normals "$T/n.ply" -k 10 $opt -o "$T/x.ply" --tile-points 100
   stderr_has "not available in tiled runs" "normals $opt refused"
 done
@@ -195,6 +206,10 @@ else
       -o "$T/mpin.ply" -q
     expect 0 "normals serial" -- "$BSURF" normals "$T/c.ply" -k 10 -B 0 -o "$T/sern.ply" -q
     cmp -s "$T/sern.ply" "$T/mpin.ply" && ok || fail "mpirun normals: output differs"
+    expect 0 "mpirun normals select-k" -- mpirun "${root[@]}" --oversubscribe -n 3 "$BSURF" normals "$T/c.ply" \
+      --select-k 6:20:7 -B 4 -j 1 -o "$T/mpis.ply" -q --tile-points 150
+    expect 0 "normals select-k serial" -- "$BSURF" normals "$T/c.ply" --select-k 6:20:7 -B 4 -o "$T/sers.ply" -q
+    cmp -s "$T/sers.ply" "$T/mpis.ply" && ok || fail "mpirun normals --select-k: output differs"
     # two stages under MPI: the values of the first are shared by every rank
     for m in naive bilateral; do
       expect 0 "smooth $m serial" -- "$BSURF" smooth "$T/n.ply" --method $m -k 12 -B 4 -o "$T/sser.ply" -q

@@ -1,0 +1,186 @@
+/* Nested neighbourhoods (docs/normals.md, "Nested neighbourhoods"): for a
+ * point with its sorted neighbour list of kmax points, the candidate
+ * neighbourhoods P_K (the first K neighbours, K in an increasing list) are
+ * prefixes of one another. One pass over the kmax neighbours with running
+ * sums of (weighted) moments gives every candidate's weight, centroid and
+ * covariance at once; with the weights of R bootstrap replicates in vector
+ * lanes, every candidate's covariance of every replicate.
+ *
+ * Used by the per-point K selection of the normals (normals.c, Eqs. 5.9-5.10,
+ * Algorithm 3); meant for any rule that compares neighbourhood sizes by their
+ * covariances. */
+#include "algo/algo.h"
+#include "common/common.h"
+
+#include <math.h>
+#include <string.h>
+
+void bsurf_nested_terms(const double *xyz, const uint32_t *idx, int kmax, double *terms) {
+  const double *d = &xyz[3 * (size_t)idx[0]];
+  for (int j = 0; j < kmax; j++) {
+    const double *p = &xyz[3 * (size_t)idx[j]];
+    const double q[3] = {p[0] - d[0], p[1] - d[1], p[2] - d[2]};
+    double *r = &terms[(size_t)j * BSURF_NESTED_COLS];
+    r[0] = q[0] * q[0];
+    r[1] = q[0] * q[1];
+    r[2] = q[0] * q[2];
+    r[3] = q[1] * q[1];
+    r[4] = q[1] * q[2];
+    r[5] = q[2] * q[2];
+    r[6] = q[0];
+    r[7] = q[1];
+    r[8] = q[2];
+    r[9] = 1.0;
+  }
+}
+
+/* Neighbour j's weighted terms added to the R lanes of acc (column-major,
+ * acc[col R + r]) and its nonzero weights to the distinct counts. */
+BSURF_CLONES
+static void sums_add(int R, const double *restrict t, const double *restrict w,
+                     double *restrict acc, int *restrict nz) {
+  for (int col = 0; col < BSURF_NESTED_COLS; col++) {
+    const double tc = t[col];
+    double *restrict a = acc + (size_t)col * R;
+    for (int r = 0; r < R; r++)
+      a[r] += w[r] * tc;
+  }
+  if (nz)
+    for (int r = 0; r < R; r++)
+      nz[r] += w[r] != 0;
+}
+
+void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, const int *ks,
+                       int nk, double *sums, int *distinct) {
+  const size_t block = (size_t)BSURF_NESTED_COLS * R;
+  double *acc = sums;
+  int *nz = distinct;
+  memset(acc, 0, block * sizeof *acc);
+  if (nz) memset(nz, 0, (size_t)R * sizeof *nz);
+  int c = 0;
+  for (int j = 0; j < kmax && c < nk; j++) {
+    const double *t = &terms[(size_t)j * BSURF_NESTED_COLS];
+    if (Wt) {
+      sums_add(R, t, &Wt[(size_t)j * R], acc, nz);
+    } else {
+      for (int col = 0; col < BSURF_NESTED_COLS; col++)
+        acc[col] += t[col];
+      if (nz) nz[0]++;
+    }
+    if (j + 1 == ks[c]) { /* candidate c complete: carry its sums on */
+      if (c + 1 < nk) {
+        memcpy(acc + block, acc, block * sizeof *acc);
+        if (nz) memcpy(nz + R, nz, (size_t)R * sizeof *nz);
+      }
+      acc += block;
+      if (nz) nz += R;
+      c++;
+    }
+  }
+}
+
+int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center, double mu[3],
+                     double cov[6]) {
+  const double w = sums[9 * stride];
+  if (!(w > 0)) return -1;
+  for (int t = 0; t < 3; t++)
+    mu[t] = sums[(6 + t) * stride] / w;
+  /* second moments about the centroid, or about d_i (Eq. 2.1) */
+  double m[3] = {0, 0, 0};
+  if (center == BSURF_PCA_CENTROID)
+    for (int t = 0; t < 3; t++)
+      m[t] = mu[t];
+  cov[0] = sums[0] / w - m[0] * m[0];
+  cov[1] = sums[stride] / w - m[0] * m[1];
+  cov[2] = sums[2 * stride] / w - m[0] * m[2];
+  cov[3] = sums[3 * stride] / w - m[1] * m[1];
+  cov[4] = sums[4 * stride] / w - m[1] * m[2];
+  cov[5] = sums[5 * stride] / w - m[2] * m[2];
+  return 0;
+}
+
+/* atan(t) for 0 <= t <= 1 (Cephes' atan: below 0.66 a rational function of
+ * t^2, above it pi/4 + atan((t - 1) / (t + 1))), written branch-free so that
+ * a loop of them runs in vector lanes; zn / zd is the reduced argument. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+static inline double
+atan_reduced(double num, double den) {
+  static const double P0 = -8.750608600031904122785e-1, P1 = -1.615753718733365076637e1,
+                      P2 = -7.500855792314704667340e1, P3 = -1.228866684490136173410e2,
+                      P4 = -6.485021904942025371773e1;
+  static const double Q0 = 2.485846490142306297962e1, Q1 = 1.650270098316988542046e2,
+                      Q2 = 4.328810604912902668951e2, Q3 = 4.853903996359136964868e2,
+                      Q4 = 1.945506571482613964425e2;
+  static const double PIO4 = 7.85398163397448309616e-1, MOREBITS = 6.123233995736765886130e-17;
+  /* t = num / den <= 1; above 0.66 (num > 0.66 den) reduce */
+  const double dif = num - den, tot = num + den; /* both computed: no branches */
+  const int big = num > 0.66 * den;
+  const double zn = big ? dif : num, zd = big ? tot : den;
+  const double x = zn / zd; /* zd >= den > 0 for unit vectors */
+  const double z = x * x;
+  const double p = (((P0 * z + P1) * z + P2) * z + P3) * z + P4;
+  const double q = ((((z + Q0) * z + Q1) * z + Q2) * z + Q3) * z + Q4;
+  const double r = x * (z * p / q) + x;
+  const double rb = PIO4 + (r + 0.5 * MOREBITS);
+  return big ? rb : r;
+}
+
+/* The unoriented angle between unit g and each (rx, ry, rz)[j]: atan2(|g x
+ * r|, |g . r|) as angle_between, with atan2 of the first quadrant reduced
+ * to atan of a ratio <= 1 (pi/2 - atan(x / y) above the diagonal). */
+#if defined(__GNUC__) && !defined(__clang__)
+/* selects between computed values, not branches: the values are the same,
+ * but GCC vectorises the loop only when it may ignore FP exception flags */
+__attribute__((optimize("no-trapping-math")))
+#endif
+BSURF_CLONES static void
+angles(const double g[3], const double *restrict rx, const double *restrict ry,
+       const double *restrict rz, int k, double *restrict out) {
+  static const double PIO2 = 1.57079632679489661923, MOREBITS = 6.123233995736765886130e-17;
+  const double g0 = g[0], g1 = g[1], g2 = g[2];
+  for (int j = 0; j < k; j++) {
+    const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
+                 c2 = g0 * ry[j] - g1 * rx[j];
+    const double y = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
+    const double x = fabs(g0 * rx[j] + g1 * ry[j] + g2 * rz[j]);
+    const double lo = y > x ? x : y, hi = y > x ? y : x;
+    const double a = atan_reduced(lo, hi);
+    const double as = (PIO2 - a) + MOREBITS;
+    out[j] = y > x ? as : a;
+  }
+}
+
+double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
+                              const double *rz, int k, double *scratch) {
+  angles(g, rx, ry, rz, k, scratch);
+  /* four running sums, j mod 4, then combined: a fixed order */
+  double s[4] = {0, 0, 0, 0};
+  int j = 0;
+  for (; j + 4 <= k; j += 4)
+    for (int l = 0; l < 4; l++)
+      s[l] += scratch[j + l];
+  for (int l = 0; j < k; j++, l++)
+    s[l] += scratch[j];
+  return (s[0] + s[1]) + (s[2] + s[3]);
+}
+
+BSURF_CLONES
+void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center, double *cov,
+                            int *ok) {
+  const int about_centroid = center == BSURF_PCA_CENTROID;
+  for (int r = 0; r < R; r++) {
+    const double w = block[9 * R + r];
+    const double m0 = block[6 * R + r] / w, m1 = block[7 * R + r] / w, m2 = block[8 * R + r] / w;
+    const double a0 = about_centroid ? m0 : 0.0, a1 = about_centroid ? m1 : 0.0,
+                 a2 = about_centroid ? m2 : 0.0;
+    cov[r] = block[r] / w - a0 * a0;
+    cov[R + r] = block[R + r] / w - a0 * a1;
+    cov[2 * R + r] = block[2 * R + r] / w - a0 * a2;
+    cov[3 * R + r] = block[3 * R + r] / w - a1 * a1;
+    cov[4 * R + r] = block[4 * R + r] / w - a1 * a2;
+    cov[5 * R + r] = block[5 * R + r] / w - a2 * a2;
+    ok[r] = w > 0;
+  }
+}

@@ -1,0 +1,317 @@
+/* Nested neighbourhoods (src/algo/nested.c), the closed-form smallest
+ * eigenvector (src/local/eigen.c), the Poisson(1) resampling
+ * (src/bootstrap/resample.c) and the per-point K selection built on them
+ * (bsurf_select_normals_k). */
+// clang-format off
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+// clang-format on
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "algo/algo.h"
+#include "bootsurf.h"
+
+static void unit(double v[3]) {
+  const double l = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+  for (int t = 0; t < 3; t++)
+    v[t] /= l;
+}
+
+/* The vectorised unoriented angles against atan2 of the same cross and dot
+ * products: within 2 ulp relative, from 1e-9 rad to pi/2. */
+static void test_angle_sum_accuracy(void **state) {
+  (void)state;
+  bsurf_rng r;
+  bsurf_rng_init(&r, 7, 1, 2);
+  double rx[64], ry[64], rz[64], sc[64];
+  double worst = 0;
+  for (int it = 0; it < 400; it++) {
+    double g[3] = {bsurf_rng_normal(&r), bsurf_rng_normal(&r), bsurf_rng_normal(&r)};
+    unit(g);
+    const double spread = pow(10, -9 * bsurf_rng_uniform(&r));
+    for (int j = 0; j < 64; j++) {
+      double v[3];
+      for (int t = 0; t < 3; t++)
+        v[t] = (j % 2 ? -g[t] : g[t]) + (j % 3 ? spread : 10.0) * bsurf_rng_normal(&r);
+      unit(v);
+      rx[j] = v[0], ry[j] = v[1], rz[j] = v[2];
+    }
+    for (int j = 0; j < 64; j++) {
+      const double got = bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1, sc);
+      const double c[3] = {g[1] * rz[j] - g[2] * ry[j], g[2] * rx[j] - g[0] * rz[j],
+                           g[0] * ry[j] - g[1] * rx[j]};
+      const double want = atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+                                fabs(g[0] * rx[j] + g[1] * ry[j] + g[2] * rz[j]));
+      assert_true(want >= 0 && want <= 1.5707963267948966 + 1e-15);
+      const double rel = fabs(got - want) / want;
+      if (rel > worst) worst = rel;
+    }
+    /* the sum equals the sum of its terms (up to the order of additions) */
+    double sum = 0;
+    for (int j = 0; j < 64; j++)
+      sum += bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1, sc);
+    assert_true(fabs(bsurf_nested_angle_sum(g, rx, ry, rz, 64, sc) - sum) <= 1e-14 * sum);
+  }
+  assert_true(worst <= 2 * 2.3e-16);
+}
+
+/* The smallest eigenvector against the Jacobi sweeps, on covariances of
+ * flat-ish, curved and nearly degenerate point sets; the lanes give the
+ * scalar function's bits. */
+static void test_smallest_eigenvector(void **state) {
+  (void)state;
+  bsurf_rng r;
+  bsurf_rng_init(&r, 3, 4, 5);
+  enum { R = 37 };
+  double lanes_c[6 * R], lanes_n[3 * R];
+  int lanes_st[R];
+  for (int it = 0; it < 2000; it++) {
+    /* eigenvalues 1, s1, s0 (s0 <= s1 <= 1) in a random frame */
+    const double s1 = it % 7 == 0 ? 1 - 1e-9 * bsurf_rng_uniform(&r) : bsurf_rng_uniform(&r);
+    const double s0 = it % 5 == 0 ? 0 : s1 * (it % 11 == 0 ? 1 - 1e-7 : bsurf_rng_uniform(&r));
+    const double lam[3] = {s0, s1, 1};
+    double q[3][3];
+    for (int a = 0; a < 3; a++) {
+      for (int t = 0; t < 3; t++)
+        q[a][t] = bsurf_rng_normal(&r);
+      for (int b = 0; b < a; b++) { /* Gram-Schmidt */
+        const double d = q[a][0] * q[b][0] + q[a][1] * q[b][1] + q[a][2] * q[b][2];
+        for (int t = 0; t < 3; t++)
+          q[a][t] -= d * q[b][t];
+      }
+      unit(q[a]);
+    }
+    double c[6];
+    const int ij[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}};
+    for (int e = 0; e < 6; e++) {
+      c[e] = 0;
+      for (int a = 0; a < 3; a++)
+        c[e] += lam[a] * q[a][ij[e][0]] * q[a][ij[e][1]];
+    }
+    double n[3];
+    const int st = bsurf_eigen_sym3_smallest(c, n);
+    double C[3][3] = {{c[0], c[1], c[2]}, {c[1], c[3], c[4]}, {c[2], c[4], c[5]}}, ev[3], V[3][3];
+    bsurf_eigen_sym3(C, ev, V);
+    assert_int_equal(st, (ev[2] > 0 && ev[1] > 1e-12 * ev[2]) ? 0 : -1);
+    const double dot = fabs(n[0] * V[0][0] + n[1] * V[0][1] + n[2] * V[0][2]);
+    assert_true(fabs(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] - 1) < 1e-14);
+    if (s1 - s0 > 1e-3) assert_true(dot > 1 - 1e-20 / ((s1 - s0) * (s1 - s0)) - 1e-15);
+    if (s1 - s0 > 1e-3)
+      assert_true(fabs(n[0] * q[0][0] + n[1] * q[0][1] + n[2] * q[0][2]) > 1 - 1e-12);
+    /* lanes: the same bits */
+    const int l = it % R;
+    for (int e = 0; e < 6; e++)
+      lanes_c[e * R + l] = c[e];
+    if (l == R - 1) {
+      bsurf_eigen_sym3_smallest_lanes(R, lanes_c, lanes_n, lanes_st);
+      for (int k = 0; k < R; k++) {
+        const double m[6] = {lanes_c[k],         lanes_c[R + k],     lanes_c[2 * R + k],
+                             lanes_c[3 * R + k], lanes_c[4 * R + k], lanes_c[5 * R + k]};
+        double v[3];
+        assert_int_equal(lanes_st[k], bsurf_eigen_sym3_smallest(m, v));
+        for (int t = 0; t < 3; t++)
+          assert_memory_equal(&lanes_n[t * R + k], &v[t], sizeof(double));
+      }
+    }
+  }
+  /* zero and rank-one matrices: degenerate */
+  const double zero[6] = {0, 0, 0, 0, 0, 0}, line[6] = {1, 1, 0, 1, 0, 0};
+  double n[3];
+  assert_int_equal(bsurf_eigen_sym3_smallest(zero, n), -1);
+  assert_int_equal(bsurf_eigen_sym3_smallest(line, n), -1);
+}
+
+/* Every candidate's sums equal a separate weighted sum over its own first K
+ * neighbours (same order: same bits); distinct counts the nonzero weights. */
+static void test_nested_sums(void **state) {
+  (void)state;
+  enum { KMAX = 40, R = 9, NK = 4 };
+  const int ks[NK] = {5, 12, 13, 40};
+  double xyz[3 * KMAX];
+  uint32_t idx[KMAX];
+  bsurf_rng r;
+  bsurf_rng_init(&r, 1, 2, 3);
+  for (int j = 0; j < KMAX; j++) {
+    idx[j] = (uint32_t)((j * 7) % KMAX);
+    for (int t = 0; t < 3; t++)
+      xyz[3 * j + t] = 1000 + bsurf_rng_normal(&r);
+  }
+  double terms[KMAX * BSURF_NESTED_COLS], Wt[KMAX * R], sums[NK * BSURF_NESTED_COLS * R];
+  int distinct[NK * R];
+  uint32_t u[KMAX];
+  uint8_t x[KMAX];
+  bsurf_nested_terms(xyz, idx, KMAX, terms);
+  bsurf_boot_poisson_rows(5, 17, R, KMAX, u, x, Wt);
+  bsurf_nested_sums(terms, KMAX, R, Wt, ks, NK, sums, distinct);
+  for (int c = 0; c < NK; c++)
+    for (int b = 0; b < R; b++) {
+      double want[BSURF_NESTED_COLS] = {0};
+      int nz = 0;
+      for (int j = 0; j < ks[c]; j++) {
+        for (int col = 0; col < BSURF_NESTED_COLS; col++)
+          want[col] += Wt[j * R + b] * terms[j * BSURF_NESTED_COLS + col];
+        nz += Wt[j * R + b] != 0;
+      }
+      for (int col = 0; col < BSURF_NESTED_COLS; col++)
+        assert_memory_equal(&sums[(c * BSURF_NESTED_COLS + col) * R + b], &want[col],
+                            sizeof(double));
+      assert_int_equal(distinct[c * R + b], nz);
+      /* the lanes' covariances are the row-by-row ones */
+      double cov[6 * R], mu[3], one[6];
+      int ok[R];
+      bsurf_nested_cov_lanes(&sums[c * BSURF_NESTED_COLS * R], R, BSURF_PCA_CENTROID, cov, ok);
+      assert_int_equal(
+          bsurf_nested_cov(&sums[c * BSURF_NESTED_COLS * R + b], R, BSURF_PCA_CENTROID, mu, one),
+          ok[b] ? 0 : -1);
+      for (int t = 0; ok[b] && t < 6; t++)
+        assert_memory_equal(&cov[t * R + b], &one[t], sizeof(double));
+    }
+}
+
+/* Poisson(1) weights: mean 1, variance 1, P(0) = 1/e, at a fixed seed over
+ * 200k draws (5 standard errors); the streams depend on (seed, point, b)
+ * only, not on B. */
+static void test_poisson_weights(void **state) {
+  (void)state;
+  enum { K = 100, B = 40 };
+  static double Wt[K * B], Wt2[K * 7];
+  uint32_t u[K];
+  uint8_t x[K];
+  double s = 0, s2 = 0, zeros = 0;
+  const int points = 50;
+  for (int p = 0; p < points; p++) {
+    bsurf_boot_poisson_rows(9, (uint64_t)p, B, K, u, x, Wt);
+    for (int t = 0; t < K * B; t++)
+      s += Wt[t], s2 += Wt[t] * Wt[t], zeros += Wt[t] == 0;
+    bsurf_boot_poisson_rows(9, (uint64_t)p, 7, K, u, x, Wt2);
+    for (int j = 0; j < K; j++)
+      for (int b = 0; b < 7; b++)
+        assert_true(Wt2[j * 7 + b] == Wt[j * B + b]);
+  }
+  const double m = (double)points * K * B, mean = s / m, var = s2 / m - mean * mean;
+  assert_true(fabs(mean - 1) < 5 * sqrt(1 / m));
+  assert_true(fabs(var - 1) < 5 * sqrt(3 / m)); /* Var of X^2 about 3 at large counts: generous */
+  assert_true(fabs(zeros / m - exp(-1)) < 5 * sqrt(exp(-1) * (1 - exp(-1)) / m));
+}
+
+static double *noisy_torus(bsurf_cloud *c, size_t n, bsurf_neighbors *nb, int kmax) {
+  assert_int_equal(bsurf_generate(c, BSURF_SHAPE_TORUS, n, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c->xyz, c->point_count, 2, &h), BSURF_OK);
+  double *truth = malloc(sizeof(double) * 3 * c->point_count);
+  memcpy(truth, c->normals, sizeof(double) * 3 * c->point_count);
+  assert_int_equal(
+      bsurf_add_noise(c->xyz, c->normals, c->point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 1),
+      BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(nb, c->xyz, c->point_count, kmax, 2, NULL, NULL),
+                   BSURF_OK);
+  return truth;
+}
+
+/* K selection: bit-identical for 1 and 2 threads; with B = 0 and one
+ * candidate the single fit of bsurf_estimate_normals (same normal, its
+ * training error up to the order of the sum); the chosen K is the candidate
+ * of smallest error; selection beats the worst candidate on the truth. */
+static void test_select_k(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  bsurf_neighbors nb;
+  double *truth = noisy_torus(&c, 6000, &nb, 40);
+  const size_t n = c.point_count;
+  bsurf_normal_options ro = bsurf_normal_options_default();
+  ro.bootstrap = 0;
+  ro.k = 20;
+  double *ref = malloc(sizeof(double) * 3 * n);
+  bsurf_normal_fields rf = {ref, NULL, NULL};
+  assert_int_equal(bsurf_estimate_normals(c.xyz, &nb, NULL, &ro, &rf, NULL), BSURF_OK);
+
+  const int ks[4] = {10, 20, 30, 40};
+  const int nk = 4;
+  double *a = malloc(sizeof(double) * 5 * n), *b = malloc(sizeof(double) * 5 * n);
+  double *ce = malloc(sizeof(double) * n * nk), *cv = malloc(sizeof(double) * n * nk);
+  double *cn = malloc(sizeof(double) * 3 * n * nk);
+  int *ka = malloc(sizeof(int) * n), *kb = malloc(sizeof(int) * n);
+  bsurf_normal_options o = bsurf_normal_options_default();
+  o.bootstrap = 20;
+  o.threads = 1;
+  bsurf_normal_select_fields fa = {a, a + 3 * n, a + 4 * n, ka, ce, cv, cn};
+  bsurf_normal_select_fields fb = {b, b + 3 * n, b + 4 * n, kb, NULL, NULL, NULL};
+  bsurf_normal_report rep;
+  assert_int_equal(bsurf_select_normals_k(c.xyz, &nb, ref, &o, ks, nk, &fa, &rep), BSURF_OK);
+  assert_int_equal(rep.replicates_total, n * 20 * nk);
+  o.threads = 2;
+  assert_int_equal(bsurf_select_normals_k(c.xyz, &nb, ref, &o, ks, nk, &fb, NULL), BSURF_OK);
+  assert_memory_equal(a, b, sizeof(double) * 5 * n);
+  assert_memory_equal(ka, kb, sizeof(int) * n);
+  double worst = 0, sel = 0;
+  for (int k = 0; k < nk; k++) {
+    double e = 0;
+    for (size_t i = 0; i < n; i++) {
+      double t =
+          fabs(cn[(i * nk + k) * 3] * truth[3 * i] + cn[(i * nk + k) * 3 + 1] * truth[3 * i + 1] +
+               cn[(i * nk + k) * 3 + 2] * truth[3 * i + 2]);
+      e += acos(t > 1 ? 1 : t);
+    }
+    if (e > worst) worst = e;
+  }
+  for (size_t i = 0; i < n; i++) {
+    int best = 0;
+    for (int k = 1; k < nk; k++)
+      if (ce[i * nk + k] < ce[i * nk + best]) best = k;
+    assert_int_equal(ka[i], ks[best]);
+    assert_true(a[4 * n + i] == ce[i * nk + best]);
+    assert_true(a[3 * n + i] == cv[i * nk + best]);
+    double t = fabs(a[3 * i] * truth[3 * i] + a[3 * i + 1] * truth[3 * i + 1] +
+                    a[3 * i + 2] * truth[3 * i + 2]);
+    sel += acos(t > 1 ? 1 : t);
+  }
+  assert_true(sel < worst);
+
+  /* one candidate, B = 0: the single fit */
+  o.bootstrap = 0;
+  const int k30 = 30;
+  bsurf_normal_select_fields f1 = {a, NULL, a + 4 * n, ka, NULL, NULL, NULL};
+  assert_int_equal(bsurf_select_normals_k(c.xyz, &nb, ref, &o, &k30, 1, &f1, NULL), BSURF_OK);
+  o.k = 30;
+  bsurf_normal_fields f2 = {b, NULL, b + 4 * n};
+  assert_int_equal(bsurf_estimate_normals(c.xyz, &nb, ref, &o, &f2, NULL), BSURF_OK);
+  assert_memory_equal(a, b, sizeof(double) * 3 * n);
+  for (size_t i = 0; i < n; i++)
+    assert_true(fabs(a[4 * n + i] - b[4 * n + i]) <= 1e-14 + 1e-13 * b[4 * n + i]);
+
+  /* bad arguments */
+  const int bad[2] = {20, 20};
+  assert_int_equal(bsurf_select_normals_k(c.xyz, &nb, ref, &o, bad, 2, &f1, NULL),
+                   BSURF_ERR_INVALID_ARG);
+  const int big = 41;
+  assert_int_equal(bsurf_select_normals_k(c.xyz, &nb, ref, &o, &big, 1, &f1, NULL),
+                   BSURF_ERR_INVALID_ARG);
+  assert_int_equal(bsurf_select_normals_k(c.xyz, &nb, NULL, &o, ks, nk, &f1, NULL),
+                   BSURF_ERR_INVALID_ARG);
+  free(a);
+  free(b);
+  free(ce);
+  free(cv);
+  free(cn);
+  free(ka);
+  free(kb);
+  free(ref);
+  free(truth);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_angle_sum_accuracy), cmocka_unit_test(test_smallest_eigenvector),
+      cmocka_unit_test(test_nested_sums),        cmocka_unit_test(test_poisson_weights),
+      cmocka_unit_test(test_select_k),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
