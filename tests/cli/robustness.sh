@@ -17,7 +17,7 @@ ply_head() { # ply_head FORMAT COUNT -- an x y z vertex header
 checksums() { (cd "$IN" && cksum -- * 2>/dev/null); }
 no_temporaries() {
   local left
-  left=$(find "$T" -name '*.tmp.*' | head -3)
+  left=$(find "$T" -name '*.bsurf-tmp.*' -o -name '*.tmp.*' | head -3)
   [ -z "$left" ] && ok || fail "$1: temporary files left: $left"
 }
 # bad CODE DESCRIPTION NEEDLE... -- command: exit CODE, exactly one error
