@@ -16,6 +16,9 @@
 
 /* ---- files ---- */
 
+/* the input being read or processed, for the signal handler's message */
+static const char *volatile current_input = NULL;
+
 /* --drop-invalid (CLI_OPT_DROP_INVALID) and what reading and the
  * neighbourhoods found; json_end() and cli_print_input_report() report them. */
 int cli_drop_invalid = 0;
@@ -86,6 +89,7 @@ static int check_input_file(const char *path) {
 
 int cli_read_header(const char *path, uint64_t *points) {
   *points = 0;
+  current_input = path;
   if (check_input_file(path)) return 1;
   bsurf_error err = {0, -1, ""};
   bsurf_status st = bsurf_read_header(path, points, &err);
@@ -94,6 +98,7 @@ int cli_read_header(const char *path, uint64_t *points) {
 
 int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
   bsurf_error err = {0, -1, ""};
+  if (!current_input) current_input = path;
   if (check_input_file(path)) return 1;
   bsurf_status st = bsurf_read(path, cloud, &err);
   if (st != BSURF_OK) return read_error(path, st, &err);
@@ -272,11 +277,23 @@ int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threa
  * temporary files itself and dies at once. */
 static volatile sig_atomic_t interrupted = 0;
 
+
+static void say(const char *s) {
+  size_t n = 0;
+  while (s[n]) n++;
+  ssize_t w = write(STDERR_FILENO, s, n); /* async-signal-safe */
+  (void)w;
+}
+
 static void die_of(int sig) {
   bsurf_atomic_remove_temporaries();
-  static const char msg[] = "bootsurf: error: interrupted\n";
-  ssize_t w = write(STDERR_FILENO, msg, sizeof msg - 1);
-  (void)w;
+  const char *in = current_input;
+  say("bootsurf: error: ");
+  if (in) {
+    say(in);
+    say(": ");
+  }
+  say("interrupted\n");
   signal(sig, SIG_DFL);
   sigset_t set;
   sigemptyset(&set);

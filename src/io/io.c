@@ -802,16 +802,34 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) 
   return st;
 }
 
-bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
-                                      bsurf_format format, uint64_t *points, bsurf_error *err) {
+/* The header check of bsurf_read_header(_buffer); *ascii_short: ascii data
+ * too short for the header's counts (the whole file, read, names the line). */
+static bsurf_status header_check(const void *data, size_t size, uint64_t file_size, bsurf_format format,
+                                 uint64_t *points, int *ascii_short, bsurf_error *err) {
   clear_error(err);
   *points = 0;
+  *ascii_short = 0;
   if (format != BSURF_FORMAT_PLY) return BSURF_OK;
   if (!data && size) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no data given");
   unsigned long long n = 0;
-  bsurf_status st = io_ply_probe(data ? (const char *)data : "", size, file_size, &n, err);
+  bsurf_status st = io_ply_probe(data ? (const char *)data : "", size, file_size, &n, ascii_short, err);
   if (st != BSURF_OK && err && !err->message[0]) bsurf_fail(err, st, err->line, err->byte, "%s", bsurf_strerror(st));
   *points = n;
+  return st;
+}
+
+bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
+                                      bsurf_format format, uint64_t *points, bsurf_error *err) {
+  int ascii_short = 0;
+  bsurf_status st = header_check(data, size, file_size, format, points, &ascii_short, err);
+  if (st != BSURF_OK && ascii_short && file_size == size) {
+    /* the whole file is here: the reader names the line where the data ends
+     * (it stores no vertex when the data cannot hold the header's counts) */
+    bsurf_cloud unused;
+    st = bsurf_read_buffer(data, size, format, &unused, err);
+    bsurf_cloud_free(&unused);
+    if (st == BSURF_OK) st = BSURF_ERR_PARSE; /* not reached: the check is the reader's own */
+  }
   return st;
 }
 
@@ -863,9 +881,17 @@ bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_error *
     cap *= 2;
   }
   fclose(f);
-  if (st == BSURF_OK)
-    st = bsurf_read_header_buffer(buf, n, (uint64_t)sb.st_size, format, points, err);
+  int ascii_short = 0;
+  if (st == BSURF_OK) st = header_check(buf, n, (uint64_t)sb.st_size, format, points, &ascii_short, err);
   free(buf);
+  if (st != BSURF_OK && ascii_short) {
+    /* ascii data too short for its header: the file, read whole, names the
+     * line where the data ends (the reader stores no vertex then) */
+    bsurf_cloud unused;
+    st = bsurf_read(path, &unused, err);
+    bsurf_cloud_free(&unused);
+    if (st == BSURF_OK) st = BSURF_ERR_PARSE; /* not reached: the check is the reader's own */
+  }
   return st;
 }
 

@@ -775,7 +775,7 @@ bsurf_status bsurf_io_read_ply(const char *data, size_t size, bsurf_cloud *cloud
 }
 
 bsurf_status io_ply_probe(const char *data, size_t size, unsigned long long file_size,
-                          unsigned long long *vertices, bsurf_error *err) {
+                          unsigned long long *vertices, int *ascii_short, bsurf_error *err) {
   ply_reader r;
   memset(&r, 0, sizeof r);
   r.data = data;
@@ -783,6 +783,7 @@ bsurf_status io_ply_probe(const char *data, size_t size, unsigned long long file
   r.err = err;
   r.probe = 1;
   *vertices = 0;
+  *ascii_short = 0;
   bsurf_status st = parse_header(&r);
   if (st == BSURF_OK) {
     bsurf_cloud unused;
@@ -790,6 +791,7 @@ bsurf_status io_ply_probe(const char *data, size_t size, unsigned long long file
     r.size = file_size > size ? (size_t)file_size : size; /* the checks count the whole file */
     st = setup(&r, &unused);
     if (st == BSURF_OK) *vertices = r.nv;
+    *ascii_short = r.dry;
   }
   for (size_t i = 0; i < r.nelems; i++) free(r.elems[i].props);
   free(r.elems);
