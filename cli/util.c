@@ -272,7 +272,7 @@ int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threa
  * and arms a watchdog; the command then ends by cli_exit_status() dying of
  * the same signal (exit status 130 or 143 to the shell, which then stops a
  * loop, as it does for programs without a handler). If the command has not
- * ended 0.5 s after the signal (a step that cannot be cancelled: reading a
+ * ended 0.3 s after the signal (a step that cannot be cancelled: reading a
  * large file, a write), or at a second signal, the handler removes the
  * temporary files itself and dies at once. */
 static volatile sig_atomic_t interrupted = 0;
@@ -314,7 +314,7 @@ static void on_signal(int sig) {
   bsurf_atomic_interrupt();
   struct itimerval t;
   memset(&t, 0, sizeof t);
-  t.it_value.tv_usec = 500000;
+  t.it_value.tv_usec = 300000;
   setitimer(ITIMER_REAL, &t, NULL);
 }
 
