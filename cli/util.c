@@ -288,12 +288,14 @@ static void say(const char *s) {
 static void die_of(int sig) {
   bsurf_atomic_remove_temporaries();
   const char *in = current_input;
-  say("bootsurf: error: ");
-  if (in) {
-    say(in);
-    say(": ");
+  if (cli_mpi_rank() == 0) { /* one message from a distributed run (a plain read of an int) */
+    say("bootsurf: error: ");
+    if (in) {
+      say(in);
+      say(": ");
+    }
+    say("interrupted\n");
   }
-  say("interrupted\n");
   signal(sig, SIG_DFL);
   sigset_t set;
   sigemptyset(&set);
