@@ -30,7 +30,11 @@ int cli_error(const char *fmt, ...) {
   return 1;
 }
 
+/* -q silences warnings too (set by cli_parse when a command's --quiet is on) */
+static int quiet_warnings = 0;
+
 void cli_warn(const char *fmt, ...) {
+  if (quiet_warnings) return;
   va_list ap;
   fprintf(stderr, "bootsurf: warning: ");
   va_start(ap, fmt);
@@ -151,6 +155,9 @@ int cli_parse(const cli_command *cmd, const cli_option *opts, int nopts, int arg
     int rc = set_value(cmd, o, name, val);
     if (rc) return rc;
   }
+  for (int k = 0; k < nopts; k++)
+    if (opts[k].kind == ARG_FLAG && strcmp(opts[k].long_name, "quiet") == 0 && *(int *)opts[k].target)
+      quiet_warnings = 1;
   return CLI_PARSED;
 }
 
@@ -171,7 +178,9 @@ void cli_print_help(FILE *f, const cli_command *cmd, const cli_option *opts, int
     case ARG_INT: snprintf(def, sizeof def, " (default: %d)", *(int *)o->target); break;
     case ARG_U64: snprintf(def, sizeof def, " (default: %" PRIu64 ")", *(uint64_t *)o->target); break;
     case ARG_SIZE: snprintf(def, sizeof def, " (default: %zu)", *(size_t *)o->target); break;
-    case ARG_DOUBLE: snprintf(def, sizeof def, " (default: %g)", *(double *)o->target); break;
+    case ARG_DOUBLE: /* NaN: not set unless given (the help says what happens then) */
+      if (!isnan(*(double *)o->target)) snprintf(def, sizeof def, " (default: %g)", *(double *)o->target);
+      break;
     case ARG_STRING:
       if (*(const char **)o->target) snprintf(def, sizeof def, " (default: %s)", *(const char **)o->target);
       break;

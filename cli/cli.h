@@ -28,13 +28,13 @@ typedef struct cli_command {
 } cli_command;
 
 /* Options shared by the commands, so their names and help never drift. */
-#define CLI_OPT_THREADS(var) {'j', "threads", ARG_INT, &(var), "N", "threads, 0 = all cores", 0, 4096}
+#define CLI_OPT_THREADS(var) {'j', "threads", ARG_INT, &(var), "N", "threads, 0 = $OMP_NUM_THREADS if set, else all cores", 0, 4096}
 #define CLI_OPT_SEED(var) {0, "seed", ARG_U64, &(var), "S", "random seed", 1, 0}
 #define CLI_OPTS_OUTPUT(out, ascii, force)                                                         \
   {'o', "output", ARG_STRING, &(out), "FILE",                                                       \
    "output file (.ply .pcd .las .csv keep every field; - = standard output)", 1, 0},               \
       {0, "ascii", ARG_FLAG, &(ascii), "", "write ascii PLY (default: binary little-endian)", 1, 0}, \
-      {0, "force", ARG_FLAG, &(force), "", "allow the output to be the input file", 1, 0},          \
+      {0, "force", ARG_FLAG, &(force), "", "allow the output to be the input file, or a read-only file", 1, 0}, \
       CLI_OPTS_FORMATS
 /* --format, --float32, --ply-names (cli/formats.c, docs/formats.md) */
 extern const char *cli_out_format;
@@ -71,7 +71,7 @@ extern int cli_drop_invalid;
    "skip points with a NaN or infinite coordinate or normal (default: reject the file)", 1, 0}
 #define CLI_OPTS_REPORT(json, quiet)                                                               \
   {0, "json", ARG_FLAG, &(json), "", "print the summary as one JSON object on stdout", 1, 0},      \
-      {'q', "quiet", ARG_FLAG, &(quiet), "", "no progress bar or summary", 1, 0}
+      {'q', "quiet", ARG_FLAG, &(quiet), "", "no progress bar, summary or warning", 1, 0}
 
 /* Tiled runs (cli/tiles.c, docs/scaling.md). */
 #define CLI_OPTS_TILES(tile_points, memory_limit)                                                  \
@@ -121,6 +121,19 @@ int cli_choice(const char *value, const char *const *names, int count);
  * Rejects an empty file, and NaN/Inf coordinates naming the point (or, with
  * --drop-invalid, drops those points with a warning and counts them). */
 int cli_read_cloud(const char *path, bsurf_cloud *cloud);
+/* Checks a file's header before anything is estimated from it
+ * (bsurf_read_header: PLY counts against the file size); *points = the
+ * declared vertex count (0 when the format has none). 0, or prints the
+ * message naming the file and the place and returns 1. */
+int cli_read_header(const char *path, uint64_t *points);
+/* Ground truth carried along under names eval never scores as a result:
+ * the normals become true_nx/true_ny/true_nz, feature and feature_dist
+ * become true_feature and true_feature_dist (an existing true_* field
+ * wins). 0, or 1 (printed) when out of memory. */
+int cli_truth_to_fields(bsurf_cloud *c);
+/* The reverse, for a truth file: its true_* fields (when present) become
+ * its normals, feature and feature_dist. 0 or 1 (printed). */
+int cli_truth_from_fields(bsurf_cloud *c);
 /* Text summaries: the points dropped by --drop-invalid and the duplicate
  * points cli_build_neighbors() found, when there are any. (JSON summaries get
  * "dropped_invalid" and "duplicate_points" from json_end().) */
@@ -182,6 +195,9 @@ int cli_progress_cb(void *user, size_t done, size_t total);
 void cli_progress_done(cli_progress *p);
 void cli_install_signals(void);
 int cli_interrupted(void);
+/* The end of every command: `rc`, or, after SIGINT/SIGTERM, death by that
+ * signal (the shell sees 130 or 143 and stops a loop). */
+int cli_exit_status(int rc);
 double cli_now(void);
 
 /* ---- JSON on stdout ---- */
@@ -231,7 +247,9 @@ int render_parse_range(const cli_command *cmd, const char *text, double *lo, dou
 const bsurf_field *render_find_field(const bsurf_cloud *c, const char *path, const char *name);
 int render_view_option(const cli_command *cmd, const char *view, double az, double el, double *out_az,
                        double *out_el);
-int render_up_option(const cli_command *cmd, const char *up, int *axis);
+int render_up_option(const cli_command *cmd, const char *up, int *axis); /* auto: -1 */
+/* --up auto: 2 (z) for a generated shape, else 1 (y). */
+int render_auto_up(const bsurf_cloud *c);
 /* Writes an RGB image as PNG (atomically); prints the reason and returns 1
  * on failure. */
 int cli_write_png(const char *path, const uint8_t *rgb, int w, int h);

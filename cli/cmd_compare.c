@@ -11,7 +11,7 @@
 int cmd_compare(const cli_command *cmd, int argc, char **argv) {
   bsurf_render_options ro = bsurf_render_options_default();
   const char *output = NULL, *field = NULL, *cmap = "viridis", *range = NULL, *view = NULL,
-             *size = NULL, *titles = NULL, *up = "z";
+             *size = NULL, *titles = NULL, *up = "auto";
   double az = NAN, el = NAN;
   int json = 0, quiet = 0, force = 0, flat = 0;
   ro.width = 512;
@@ -26,9 +26,9 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
       {0, "titles", ARG_STRING, &titles, "A,B,...", "panel titles (default: the file names)", 1, 0},
       {0, "view", ARG_STRING, &view, "VIEW",
        "front, back, left, right, top, bottom or iso (default: iso)", 1, 0},
-      {0, "azimuth", ARG_DOUBLE, &az, "DEG", "view azimuth about z (0 = front)", -360, 360},
-      {0, "elevation", ARG_DOUBLE, &el, "DEG", "view elevation (90 = top)", -90, 90},
-      {0, "up", ARG_STRING, &up, "AXIS", "the axis that points up in the views: x, y or z", 1, 0},
+      {0, "azimuth", ARG_DOUBLE, &az, "DEG", "view azimuth about z (0 = front; default: that of --view)", -360, 360},
+      {0, "elevation", ARG_DOUBLE, &el, "DEG", "view elevation (90 = top; default: that of --view)", -90, 90},
+      {0, "up", ARG_STRING, &up, "AXIS", "the axis that points up in the views: x, y, z or auto (from the first input, as render)", 1, 0},
       {0, "size", ARG_STRING, &size, "WxH", "size of each panel in pixels (default: 512x512)", 1,
        0},
       {0, "point-size", ARG_DOUBLE, &ro.point_size, "S", "splat diameter in units of h", 0.05, 50},
@@ -97,6 +97,7 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
       break;
     }
     loaded++;
+    if (i == 0 && ro.up_axis < 0) ro.up_axis = render_auto_up(&clouds[0]);
     vals[i] = NULL;
     if (field) {
       const bsurf_field *f = render_find_field(&clouds[i], pos[i], field);

@@ -58,7 +58,7 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   cli_option opts[] = {
       {'k', "neighbors", ARG_INT, &eo.k, "K", "neighbourhood size K, the point included", 2, 65535},
       {'d', "degree", ARG_INT, &eo.degree, "M", "degree of the height polynomial, 1..4", 1, 4},
-      {'B', "bootstrap", ARG_INT, &eo.bootstrap, "B", "bootstrap replicates per point", 0, 100000},
+      {'B', "bootstrap", ARG_INT, &eo.bootstrap, "B", "bootstrap replicates per point (at least 1)", 0, 100000},
       {0, "gamma", ARG_STRING, &gamma, "MODE",
        "no-information rate: fit (Eq. 4.10), mean or max over replicates (4.2.1)", 1, 0},
       {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point", 1, 0},
@@ -81,6 +81,11 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   int g = cli_choice(gamma, gammas, 3), pc = cli_choice(center, centers, 2);
   if (g < 0) return cli_usage_error(cmd, "--gamma must be fit, mean or max, not '%s'", gamma);
   if (pc < 0) return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", center);
+  /* -B 0 computes no bootstrap estimator: err_boot, err_loo, err_632 and
+   * err_632plus would be err_train under other names (docs/robustness.md) */
+  if (eo.bootstrap < 1)
+    return cli_usage_error(cmd, "-B 0: the bootstrap estimators need at least one replicate "
+                                "(err_boot, err_loo and err_632* would only repeat err_train)");
   eo.gamma = (bsurf_gamma_mode)g;
   eo.pca_center = (bsurf_pca_center)pc;
   int terms = (eo.degree + 1) * (eo.degree + 2) / 2;

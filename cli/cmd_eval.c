@@ -100,6 +100,12 @@ static const char *count_mismatch(const eval_ctx *e, char *buf, size_t n) {
   return buf;
 }
 
+/* A result field bit-identical to the truth's is the truth passed along
+ * (e.g. the exact normals of a generated file), not a result: never scored. */
+#define IDENTICAL_TO_TRUTH                                                                         \
+  "%s's %s are bit-identical to those of %s: ground truth passed along, not a result; refusing " \
+  "to score them"
+
 /* ---- normals: unoriented angle errors ---- */
 
 static const char *normals_missing(const eval_ctx *e, char *buf, size_t n) {
@@ -107,7 +113,10 @@ static const char *normals_missing(const eval_ctx *e, char *buf, size_t n) {
   if (!e->result->normals)
     snprintf(buf, n, "%s has no normals (nx ny nz)", e->result_path);
   else if (!e->truth->normals)
-    snprintf(buf, n, "%s (the truth) has no normals (nx ny nz)", e->truth_path);
+    snprintf(buf, n, "%s (the truth) has no normals (nx ny nz, or true_nx true_ny true_nz)", e->truth_path);
+  else if (e->result->point_count &&
+           memcmp(e->result->normals, e->truth->normals, 3 * e->result->point_count * sizeof(double)) == 0)
+    snprintf(buf, n, IDENTICAL_TO_TRUTH, e->result_path, "normals", e->truth_path);
   else
     return NULL;
   return buf;
@@ -171,7 +180,11 @@ static const char *features_missing(const eval_ctx *e, char *buf, size_t n) {
   if (!bsurf_cloud_field(e->result, "feature"))
     snprintf(buf, n, "%s has no field 'feature'", e->result_path);
   else if (!bsurf_cloud_field(e->truth, "feature"))
-    snprintf(buf, n, "%s (the truth) has no field 'feature'", e->truth_path);
+    snprintf(buf, n, "%s (the truth) has no field 'feature' (or 'true_feature')", e->truth_path);
+  else if (e->result->point_count &&
+           memcmp(bsurf_cloud_field(e->result, "feature")->values, bsurf_cloud_field(e->truth, "feature")->values,
+                  e->result->point_count * sizeof(double)) == 0)
+    snprintf(buf, n, IDENTICAL_TO_TRUTH, e->result_path, "feature labels", e->truth_path);
   else
     return NULL;
   return buf;
@@ -509,6 +522,8 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
   char reasons[SECTION_COUNT][512];
   rc = 1;
   if (cli_read_cloud(pos[0], &result) || cli_read_cloud(truth_path, &truth)) goto done;
+  /* the truth's true_* fields (noise keeps them) are its normals and labels */
+  if (cli_truth_from_fields(&truth)) goto done;
   if (surface_path) {
     if (cli_read_cloud(surface_path, &surface)) goto done;
     if (!surface.face_count) {
@@ -543,6 +558,8 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
                    SECTION_COUNT == 1 ? reasons[0] : "see the warnings above");
     goto done;
   }
+  for (int s = 0; s < SECTION_COUNT; s++)
+    if (!available[s] && strstr(reasons[s], "bit-identical")) cli_warn("%s", reasons[s]);
   for (int s = 0; s < SECTION_COUNT; s++)
     if (available[s] && (rc = sections[s].compute(&e)) != 0) goto done;
 

@@ -14,7 +14,7 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
       {0, "field", ARG_STRING, &field, "NAME", "the field to count (required)", 1, 0},
       {0, "bins", ARG_INT, &ho.bins, "N", "number of bins", 1, 10000},
       {0, "threshold", ARG_DOUBLE, &ho.threshold, "T",
-       "draw a marker at T and count the values above", 1, 0},
+       "draw a marker at T and count the values above (default: no marker)", 1, 0},
       {0, "log", ARG_FLAG, &ho.log_counts, "", "bar heights log10(1 + count)", 1, 0},
       {0, "range", ARG_STRING, &range, "LO:HI", "the x range (default: min to max)", 1, 0},
       {0, "size", ARG_STRING, &size, "WxH", "image size in pixels (default: 800x500)", 1, 0},

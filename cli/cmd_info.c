@@ -37,13 +37,17 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
   double h = NAN;
   cli_progress prog;
   cli_progress_init(&prog, "spacing", quiet || json);
-  if (c.point_count >= 2 &&
+  if (!quiet && c.point_count >= 2 &&
       bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog) != BSURF_OK)
     h = NAN;
   cli_progress_done(&prog);
   if (cli_interrupted()) {
     bsurf_cloud_free(&c);
     return cli_error("%s: interrupted", pos[0]);
+  }
+  if (quiet) { /* -q: the exit status says whether the file reads */
+    bsurf_cloud_free(&c);
+    return 0;
   }
   double secs = cli_now() - t0;
   if (json) {

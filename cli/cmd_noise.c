@@ -43,7 +43,7 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
        1e300},
       {0, "model", ARG_STRING, &model, "M", "gaussian: t ~ N(0, xi^2); uniform: t ~ U[-xi, xi]", 1, 0},
       CLI_OPT_SEED(seed),
-      {'j', "threads", ARG_INT, &threads, "N", "threads for measuring h, 0 = all cores", 0, 4096},
+      {'j', "threads", ARG_INT, &threads, "N", "threads for measuring h, 0 = $OMP_NUM_THREADS if set, else all cores", 0, 4096},
       CLI_OPTS_OUTPUT(output, ascii, force),
       CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
@@ -67,6 +67,11 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   bsurf_cloud c;
   bsurf_cloud_init(&c);
   if (cli_read_cloud(pos[0], &c)) return 1;
+  /* an earlier noise output: its exact normals are its true_* fields */
+  if (!c.normals && bsurf_cloud_field(&c, "true_nx") && cli_truth_from_fields(&c)) {
+    bsurf_cloud_free(&c);
+    return 1;
+  }
   if (!c.normals) {
     bsurf_cloud_free(&c);
     return cli_error("%s: the input has no normals (nx ny nz); noise moves points along them", pos[0]);
@@ -91,6 +96,13 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   if (st != BSURF_OK) {
     bsurf_cloud_free(&c);
     return cli_error("noise: %s", bsurf_strerror(st));
+  }
+  /* The exact normals and feature labels no longer belong to the moved
+   * points as results would: they go on as ground truth under names eval
+   * never scores (true_nx true_ny true_nz, true_feature, true_feature_dist) */
+  if (cli_truth_to_fields(&c)) {
+    bsurf_cloud_free(&c);
+    return 1;
   }
   rc = cli_write_cloud(output, &c, ascii);
   if (rc == 0 && !quiet) {

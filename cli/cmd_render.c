@@ -108,11 +108,19 @@ double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn prog
 }
 
 int render_up_option(const cli_command *cmd, const char *up, int *axis) {
-  static const char *const axes[] = {"x", "y", "z"};
-  int a = cli_choice(up, axes, 3);
-  if (a < 0) return cli_usage_error(cmd, "--up must be x, y or z, not '%s'", up);
-  *axis = a;
+  static const char *const axes[] = {"x", "y", "z", "auto"};
+  int a = cli_choice(up, axes, 4);
+  if (a < 0) return cli_usage_error(cmd, "--up must be x, y, z or auto, not '%s'", up);
+  *axis = a == 3 ? -1 : a;
   return 0;
+}
+
+int render_auto_up(const bsurf_cloud *c) {
+  /* --up auto: bootsurf's generated shapes (a "bootsurf shape" comment)
+   * are z-up, like LiDAR and GIS data; scans and meshes from graphics
+   * (Stanford's PLY scans, CGAL's OFF data, OBJ) are y-up, OpenGL's
+   * convention: the Stanford bunny then stands upright (docs/gallery.md) */
+  return c->shape[0] ? 2 : 1;
 }
 
 int cli_write_png(const char *path, const uint8_t *rgb, int w, int h) {
@@ -126,7 +134,7 @@ int cli_write_png(const char *path, const uint8_t *rgb, int w, int h) {
 int cmd_render(const cli_command *cmd, int argc, char **argv) {
   bsurf_render_options ro = bsurf_render_options_default();
   const char *output = NULL, *field = NULL, *cmap = "viridis", *range = NULL, *view = NULL,
-             *size = NULL, *title = NULL, *up = "z";
+             *size = NULL, *title = NULL, *up = "auto";
   double az = NAN, el = NAN;
   int views = 1, json = 0, quiet = 0, force = 0, flat = 0, square = 0;
   cli_option opts[] = {
@@ -138,9 +146,10 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
        "values at the colormap's ends (default: 1st-99th percentile)", 1, 0},
       {0, "view", ARG_STRING, &view, "VIEW",
        "front, back, left, right, top, bottom or iso (default: iso)", 1, 0},
-      {0, "azimuth", ARG_DOUBLE, &az, "DEG", "view azimuth about z (0 = front)", -360, 360},
-      {0, "elevation", ARG_DOUBLE, &el, "DEG", "view elevation (90 = top)", -90, 90},
-      {0, "up", ARG_STRING, &up, "AXIS", "the axis that points up in the views: x, y or z", 1, 0},
+      {0, "azimuth", ARG_DOUBLE, &az, "DEG", "view azimuth about z (0 = front; default: that of --view)", -360, 360},
+      {0, "elevation", ARG_DOUBLE, &el, "DEG", "view elevation (90 = top; default: that of --view)", -90, 90},
+      {0, "up", ARG_STRING, &up, "AXIS", "the axis that points up in the views: x, y, z or auto (z for bootsurf's generated shapes, else y: "
+       "the convention of scans and meshes)", 1, 0},
       {0, "views", ARG_INT, &views, "N", "1, or 4 for front, right, top and iso in a 2x2 grid", 1,
        4},
       {0, "size", ARG_STRING, &size, "WxH", "image size in pixels (default: 1024x768)", 1, 0},
@@ -178,6 +187,7 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
   bsurf_cloud c;
   bsurf_cloud_init(&c);
   if (cli_read_cloud(pos[0], &c)) return 1;
+  if (ro.up_axis < 0) ro.up_axis = render_auto_up(&c);
   const bsurf_field *f = NULL;
   if (field && !(f = render_find_field(&c, pos[0], field))) {
     bsurf_cloud_free(&c);

@@ -64,8 +64,16 @@ static bsurf_status smooth_stage1_run(void *user, const bsurf_tile *tile, bsurf_
   return st;
 }
 
+/* The input's normals belong to the points before they moved: the output
+ * has none (docs/robustness.md, "Honest truth"). */
+static void drop_normals(bsurf_cloud *c) {
+  free(c->normals);
+  c->normals = NULL;
+}
+
 static bsurf_status smooth_prepare(void *user, bsurf_cloud *c) {
   (void)user;
+  drop_normals(c);
   for (int f = 0; f < 3; f++)
     if (!bsurf_cloud_add_field(c, smooth_fields_all[f], BSURF_FLOAT32)) return BSURF_ERR_NOMEM;
   return BSURF_OK;
@@ -400,6 +408,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     goto done;
   }
   memcpy(c.xyz, smoothed, c.point_count * 3 * sizeof(double));
+  drop_normals(&c);
   if (cli_write_cloud(output, &c, ascii)) {
     rc = 1;
     goto done;

@@ -1,5 +1,6 @@
 /* bootsurf: statistics for point clouds. The command table and dispatch.
- * Exit codes: 0 ok, 1 bad input or failed computation, 2 bad usage. */
+ * Exit codes: 0 ok, 1 bad input or failed computation, 2 bad usage; after
+ * SIGINT or SIGTERM the process dies of that signal (130 or 143). */
 #include "cli.h"
 
 #include <errno.h>
@@ -20,7 +21,10 @@ static const cli_command commands[] = {
      "t ~ N(0, level^2) (gaussian, default) or U[-level, level] (uniform, the thesis\n"
      "text's model); h is the input's mean nearest-neighbour distance. Or, with\n"
      "--sigma-diag s, gaussian noise of sigma = s x bounding-box diagonal (PCPNet's\n"
-     "protocol: 0.00125, 0.006, 0.012). The input must have normals (nx ny nz).",
+     "protocol: 0.00125, 0.006, 0.012). The input must have normals (nx ny nz, or the\n"
+     "true_* fields of an earlier noise output). The output carries the exact normals\n"
+     "and labels on as ground truth, named so that eval never scores them as results:\n"
+     "true_nx true_ny true_nz, true_feature, true_feature_dist.",
      cmd_noise},
     {"error", "Bootstrap test-error estimates of local polynomial fits (thesis ch. 4).",
      "INPUT [-o OUTPUT] [options]",
@@ -72,7 +76,10 @@ static const cli_command commands[] = {
      "Point i corresponds to TRUTH point i when both have as many points, else to the\n"
      "nearest TRUTH point. --split FIELD:Q also reports the points whose FIELD (from\n"
      "RESULT, else TRUTH) is above its Q-quantile and the rest, e.g. normal_var:0.85\n"
-     "for the highest 15% of the bootstrap variance (thesis Table 5.2).",
+     "for the highest 15% of the bootstrap variance (thesis Table 5.2).\n"
+     "TRUTH's true_nx/true_ny/true_nz, true_feature and true_feature_dist (written by\n"
+     "noise) are its normals and labels when present. A RESULT field bit-identical to\n"
+     "TRUTH's (ground truth passed along, not computed) is not scored.",
      cmd_eval},
     {"render", "Render a cloud to PNG, shaded by normals or coloured by a field.", "INPUT -o IMAGE.png [options]",
      "Orthographic view of the points as z-buffered splats of diameter --point-size\n"
@@ -102,7 +109,9 @@ static const cli_command commands[] = {
      "G(distance, h1) G(W_i, h2), G(a, b) = exp(-a^2/b^2). multipass (6.4, Algorithm 5):\n"
      "per point a neighbourhood K_i shrinking with the error (Eqs. 6.3-6.4), fits made\n"
      "once, then --iterations passes of Eq. 6.2 with h1 = a d_L (Eq. 6.5). Every input\n"
-     "field is kept; err_632, err_632plus and moved (and k_hat, d_local) are added.",
+     "field is kept; err_632, err_632plus and moved (and k_hat, d_local) are added.\n"
+     "The input's normals (nx ny nz) are dropped: they belong to the points before\n"
+     "they moved (run normals on the output for new ones).",
      cmd_smooth},
     {"features", "Feature detection: PCA distance map or bootstrap variance (thesis ch. 7).",
      "INPUT -o OUTPUT [options]",
@@ -146,7 +155,8 @@ static void usage(FILE *f) {
   fprintf(f,
           "\nFiles: .ply (ascii or binary), .pcd, .las, .csv/.asc, .off, .obj, .xyz/.txt; - is\n"
           "standard input or output (--format FMT). Output PLY is binary little-endian unless\n"
-          "--ascii. Exit codes: 0 ok, 1 bad input or failure, 2 bad usage.\n");
+          "--ascii. Exit codes: 0 ok, 1 bad input or failure, 2 bad usage, 130 / 143\n"
+          "interrupted by SIGINT / SIGTERM (temporary files removed).\n");
 }
 
 static const cli_command *find(const char *name) {
@@ -202,5 +212,5 @@ int main(int argc, char **argv) {
     fprintf(stderr, "bootsurf: error: standard output: %s\n", errno ? strerror(errno) : "write failed");
     if (rc == 0) rc = 1;
   }
-  return rc;
+  return cli_exit_status(rc);
 }

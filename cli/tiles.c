@@ -31,21 +31,6 @@ static double parse_bytes(const char *s) {
   return *end ? 0 : v * unit;
 }
 
-/* The vertex count of a PLY header, or 0 when it cannot be read. */
-static size_t ply_vertex_count(const char *path) {
-  FILE *f = fopen(path, "rb");
-  if (!f) return 0;
-  char line[512];
-  size_t n = 0;
-  for (int i = 0; i < 10000 && fgets(line, sizeof line, f); i++) {
-    unsigned long long v;
-    if (sscanf(line, "element vertex %llu", &v) == 1) n = (size_t)v;
-    if (strncmp(line, "end_header", 10) == 0) break;
-  }
-  fclose(f);
-  return n;
-}
-
 size_t cli_range_points = 0;
 
 int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
@@ -63,9 +48,12 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
   }
   /* the whole cloud in memory: the file, its values as doubles, the
    * neighbourhoods (4 K bytes), the k-d tree and the new fields */
+  /* the header first: counts a file cannot hold are its fault, named as
+   * such, never the basis of an estimate */
+  uint64_t n = 0;
+  if (cli_read_header(input, &n)) return 1;
   struct stat sb;
   double size = stat(input, &sb) == 0 ? (double)sb.st_size : 0;
-  size_t n = bsurf_format_from_path(input) == BSURF_FORMAT_PLY ? ply_vertex_count(input) : 0;
   double need = 3 * size + (double)n * (4.0 * k + 40 + 8.0 * out_fields);
   int distributed = cli_mpi_ranks() > 1;
   int automatic = !tile_points && !distributed && limit > 0 && need > limit;
@@ -105,6 +93,16 @@ int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bs
   return cli_tiles_call(input, output, ops, rep, quiet, tiles_run_fn, NULL);
 }
 
+/* A failure of the output, not of the input (a full disk, the directory):
+ * the messages of the atomic writer and of the tiles' output. */
+static int about_output(const char *msg) {
+  static const char *const starts[] = {"cannot write",        "write failed", "cannot move the finished file",
+                                       "cannot create a file", "tiled runs write", "interrupted; nothing written"};
+  for (size_t i = 0; i < sizeof starts / sizeof starts[0]; i++)
+    if (strncmp(msg, starts[i], strlen(starts[i])) == 0) return 1;
+  return 0;
+}
+
 int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep, int quiet,
                    cli_tiles_fn fn, void *arg) {
   struct stat sb;
@@ -118,7 +116,10 @@ int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, b
   ops->range_points = cli_range_points;
   if (ops->comm && ops->tile_points > 0) {
     /* at least two tiles per rank */
-    size_t n = ply_vertex_count(input), per = (n + 2 * (size_t)ops->comm->ranks - 1) / (2 * (size_t)ops->comm->ranks);
+    uint64_t n64 = 0;
+    bsurf_error herr;
+    if (bsurf_read_header(input, &n64, &herr) != BSURF_OK) n64 = 0; /* the run names the fault */
+    size_t n = (size_t)n64, per = (n + 2 * (size_t)ops->comm->ranks - 1) / (2 * (size_t)ops->comm->ranks);
     if (n && per < ops->tile_points) ops->tile_points = per < 2 * (size_t)ops->k ? 2 * (size_t)ops->k : per;
   }
   bsurf_error err = {0, -1, ""};
@@ -132,6 +133,7 @@ int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, b
   const char *msg = cli_interrupted() ? "interrupted" : err.message[0] ? err.message : bsurf_strerror(st);
   if (st == BSURF_ERR_INVALID_VALUE)
     return cli_error("%s: %s (--drop-invalid, in memory, skips such points)", input, msg);
+  if (about_output(msg)) return cli_error("%s: %s", output, msg);
   if (err.line > 0) return cli_error("%s:%ld: %s", input, err.line, msg);
   if (err.byte >= 0) return cli_error("%s: byte %lld: %s", input, err.byte, msg);
   return cli_error("%s: %s", input, msg);
@@ -149,8 +151,8 @@ int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, co
   cli_progress_done(&prog);
   if (st == BSURF_OK) return 0;
   if (cli_mpi_rank() != 0) return 1;
-  return cli_error("%s: %s", input,
-                   cli_interrupted() ? "interrupted" : err.message[0] ? err.message : bsurf_strerror(st));
+  const char *msg = cli_interrupted() ? "interrupted" : err.message[0] ? err.message : bsurf_strerror(st);
+  return cli_error("%s: %s", about_output(msg) ? output : input, msg);
 }
 
 /* ---- MPI ---------------------------------------------------------------------- */

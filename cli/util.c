@@ -1,17 +1,23 @@
 /* Command-line plumbing: reading and writing with messages that name the
  * file and the place, progress bar, signals, JSON summaries. */
+#define _XOPEN_SOURCE 700 /* realpath */
 #include "cli.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <math.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/time.h>
 #include <time.h>
 #include <unistd.h>
 
 /* ---- files ---- */
+
+/* the input being read or processed, for the signal handler's message */
+static const char *volatile current_input = NULL;
 
 /* --drop-invalid (CLI_OPT_DROP_INVALID) and what reading and the
  * neighbourhoods found; json_end() and cli_print_input_report() report them. */
@@ -63,19 +69,38 @@ static size_t drop_invalid_points(bsurf_cloud *c) {
   return n - m;
 }
 
-int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
-  bsurf_error err = {0, -1, ""};
-  /* the format: the content's signature, else the extension (docs/formats.md) */
+/* "PATH:LINE: message", "PATH: byte B: message" or "PATH: message"; 1. */
+static int read_error(const char *path, bsurf_status st, const bsurf_error *err) {
+  const char *msg = err->message[0] ? err->message : bsurf_strerror(st);
+  if (err->line > 0) return cli_error("%s:%ld: %s", path, err->line, msg);
+  if (err->byte >= 0) return cli_error("%s: byte %lld: %s", path, err->byte, msg);
+  return cli_error("%s: %s", path, msg);
+}
+
+/* The checks every read starts with: not empty. The format is the content's
+ * signature, else the extension (bsurf_read, docs/formats.md). */
+static int check_input_file(const char *path) {
   struct stat sb;
   if (strcmp(path, "-") != 0 && stat(path, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size == 0)
     return cli_error("%s: the file is empty", path);
+  return 0;
+}
+
+int cli_read_header(const char *path, uint64_t *points) {
+  *points = 0;
+  current_input = path;
+  if (check_input_file(path)) return 1;
+  bsurf_error err = {0, -1, ""};
+  bsurf_status st = bsurf_read_header(path, points, &err);
+  return st == BSURF_OK ? 0 : read_error(path, st, &err);
+}
+
+int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
+  bsurf_error err = {0, -1, ""};
+  if (!current_input) current_input = path;
+  if (check_input_file(path)) return 1;
   bsurf_status st = bsurf_read(path, cloud, &err);
-  if (st != BSURF_OK) {
-    const char *msg = err.message[0] ? err.message : bsurf_strerror(st);
-    if (err.line > 0) return cli_error("%s:%ld: %s", path, err.line, msg);
-    if (err.byte >= 0) return cli_error("%s: byte %lld: %s", path, err.byte, msg);
-    return cli_error("%s: %s", path, msg);
-  }
+  if (st != BSURF_OK) return read_error(path, st, &err);
   size_t bad = 0;
   if (bsurf_cloud_check_finite(cloud, &bad) != BSURF_OK) {
     if (!cli_drop_invalid) {
@@ -97,6 +122,57 @@ int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
   return 0;
 }
 
+/* ---- ground truth carried along (docs/robustness.md, "Honest truth") ---- */
+
+static const char *const truth_plain[5] = {"nx", "ny", "nz", "feature", "feature_dist"};
+static const char *const truth_named[5] = {"true_nx", "true_ny", "true_nz", "true_feature", "true_feature_dist"};
+
+/* Renames field `from` to `to`; when `to` exists already, `from` is dropped. */
+static void rename_field(bsurf_cloud *c, const char *from, const char *to) {
+  bsurf_field *f = bsurf_cloud_field(c, from);
+  if (!f) return;
+  if (bsurf_cloud_field(c, to))
+    bsurf_cloud_remove_field(c, from);
+  else
+    snprintf(f->name, sizeof f->name, "%s", to);
+}
+
+int cli_truth_to_fields(bsurf_cloud *c) {
+  if (c->normals) {
+    if (!bsurf_cloud_field(c, truth_named[0])) {
+      for (int k = 0; k < 3; k++) {
+        bsurf_field *f = bsurf_cloud_add_field(c, truth_named[k], c->normal_type);
+        if (!f) return cli_error("out of memory");
+        for (size_t i = 0; i < c->point_count; i++) f->values[i] = c->normals[3 * i + (size_t)k];
+      }
+    }
+    free(c->normals);
+    c->normals = NULL;
+  }
+  rename_field(c, "feature", "true_feature");
+  rename_field(c, "feature_dist", "true_feature_dist");
+  return 0;
+}
+
+int cli_truth_from_fields(bsurf_cloud *c) {
+  const bsurf_field *t[3];
+  for (int k = 0; k < 3; k++) t[k] = bsurf_cloud_field(c, truth_named[k]);
+  if (t[0] && t[1] && t[2]) {
+    double *n = c->normals ? c->normals : malloc(c->point_count * 3 * sizeof(double) + 1);
+    if (!n) return cli_error("out of memory");
+    for (size_t i = 0; i < c->point_count; i++)
+      for (int k = 0; k < 3; k++) n[3 * i + (size_t)k] = t[k]->values[i];
+    c->normal_type = t[0]->type;
+    c->normals = n;
+  }
+  for (int k = 3; k < 5; k++)
+    if (bsurf_cloud_field(c, truth_named[k])) {
+      bsurf_cloud_remove_field(c, truth_plain[k]);
+      rename_field(c, truth_named[k], truth_plain[k]);
+    }
+  return 0;
+}
+
 void cli_print_input_report(FILE *f) {
   if (input_dropped)
     fprintf(f, "  %zu input points with a NaN or infinite coordinate or normal were dropped\n",
@@ -107,7 +183,10 @@ void cli_print_input_report(FILE *f) {
 
 int cli_check_output(const char *output, const char *input, int force) {
   if (!strcmp(output, "-")) return cli_out_format ? 0 : cli_error("-: standard output needs --format");
-  if (cli_output_format(output) == BSURF_FORMAT_UNKNOWN)
+  struct stat sd;
+  if (stat(output, &sd) == 0 && S_ISDIR(sd.st_mode)) return cli_error("%s: is a directory", output);
+  /* a FIFO or device (-o /dev/null) takes PLY whatever its name */
+  if (cli_output_format(output) == BSURF_FORMAT_UNKNOWN && !bsurf_output_is_stream(output))
     return cli_error("%s: unknown output file type (use .ply, .pcd, .las, .csv, .asc, .off, .obj, .xyz or .txt, "
                      "or --format)", output);
   return cli_check_writable(output, input, force);
@@ -119,25 +198,30 @@ int cli_check_writable(const char *output, const char *input, int force) {
       so.st_dev == si.st_dev && so.st_ino == si.st_ino)
     return cli_error("%s: the output is the input file; refusing to overwrite it (use --force)",
                      output);
-  struct stat sd;
-  if (stat(output, &sd) == 0 && S_ISDIR(sd.st_mode))
-    return cli_error("%s: is a directory", output);
+  /* the policy of docs/robustness.md: directories refused, read-only files
+   * only with --force, FIFOs and devices written directly */
+  bsurf_error err = {0, -1, ""};
+  if (bsurf_output_check(output, force, &err) != BSURF_OK) return cli_error("%s: %s", output, err.message);
+  if (bsurf_output_is_stream(output)) return 0;
   /* the directory must exist and be writable (the file goes to a temporary
-   * name there first) */
+   * name there first): the directory of a symbolic link's target */
+  char resolved[PATH_MAX];
+  const char *target = realpath(output, resolved) ? resolved : output;
   char dir[4096];
-  const char *slash = strrchr(output, '/');
+  const char *slash = strrchr(target, '/');
   if (!slash) {
     strcpy(dir, ".");
-  } else if (slash == output) {
+  } else if (slash == target) {
     strcpy(dir, "/");
   } else {
-    size_t n = (size_t)(slash - output);
+    size_t n = (size_t)(slash - target);
     if (n >= sizeof dir) return cli_error("%s: path too long", output);
-    memcpy(dir, output, n);
+    memcpy(dir, target, n);
     dir[n] = 0;
   }
   if (access(dir, W_OK) != 0)
     return cli_error("%s: cannot write in directory '%s': %s", output, dir, strerror(errno));
+  struct stat sd;
   if (stat(dir, &sd) != 0 || !S_ISDIR(sd.st_mode))
     return cli_error("%s: cannot write in directory '%s': %s", output, dir, strerror(ENOTDIR));
   return 0;
@@ -185,11 +269,58 @@ int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threa
 
 /* ---- progress and signals ---- */
 
+/* SIGINT and SIGTERM (docs/robustness.md, "Signals"): the first one sets
+ * the flag every progress callback returns (the computation stops within one
+ * chunk of points), makes writes still open discard their temporary files,
+ * and arms a watchdog; the command then ends by cli_exit_status() dying of
+ * the same signal (exit status 130 or 143 to the shell, which then stops a
+ * loop, as it does for programs without a handler). If the command has not
+ * ended 0.3 s after the signal (a step that cannot be cancelled: reading a
+ * large file, a write), or at a second signal, the handler removes the
+ * temporary files itself and dies at once. */
 static volatile sig_atomic_t interrupted = 0;
 
-static void on_signal(int sig) {
+
+static void say(const char *s) {
+  size_t n = 0;
+  while (s[n]) n++;
+  ssize_t w = write(STDERR_FILENO, s, n); /* async-signal-safe */
+  (void)w;
+}
+
+static void die_of(int sig) {
+  bsurf_atomic_remove_temporaries();
+  const char *in = current_input;
+  if (cli_mpi_rank() == 0) { /* one message from a distributed run (a plain read of an int) */
+    say("bootsurf: error: ");
+    if (in) {
+      say(in);
+      say(": ");
+    }
+    say("interrupted\n");
+  }
+  signal(sig, SIG_DFL);
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, sig);
+  sigprocmask(SIG_UNBLOCK, &set, NULL);
+  raise(sig);
+  _exit(128 + sig);
+}
+
+static void on_watchdog(int sig) {
   (void)sig;
-  interrupted = 1;
+  die_of(interrupted ? (int)interrupted : SIGINT);
+}
+
+static void on_signal(int sig) {
+  if (interrupted) die_of(sig); /* a second signal */
+  interrupted = sig;
+  bsurf_atomic_interrupt();
+  struct itimerval t;
+  memset(&t, 0, sizeof t);
+  t.it_value.tv_usec = 300000;
+  setitimer(ITIMER_REAL, &t, NULL);
 }
 
 void cli_install_signals(void) {
@@ -199,6 +330,16 @@ void cli_install_signals(void) {
   sigemptyset(&sa.sa_mask);
   sigaction(SIGINT, &sa, NULL);
   sigaction(SIGTERM, &sa, NULL);
+  sa.sa_handler = on_watchdog;
+  sigaction(SIGALRM, &sa, NULL);
+}
+
+int cli_exit_status(int rc) {
+  if (!interrupted) return rc;
+  fflush(stdout);
+  fflush(stderr);
+  die_of((int)interrupted);
+  return 128 + (int)interrupted;
 }
 
 int cli_interrupted(void) { return interrupted != 0; }
@@ -257,6 +398,7 @@ void json_begin(cli_json *j, FILE *f) {
 }
 
 void json_end(cli_json *j) {
+  json_str(j, "version", BSURF_VERSION_STRING);
   if (cli_drop_invalid) json_int(j, "dropped_invalid", (long long)input_dropped);
   if (input_duplicates_known) json_int(j, "duplicate_points", (long long)input_duplicates);
   fputs("}\n", j->f);

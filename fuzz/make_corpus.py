@@ -155,3 +155,37 @@ put("cli_args", "compare_positional", argv(3, 7, "a.ply", "-", "--", "-b.ply", "
                                            "-x", "inf", "-i", "-2147483648", "-s", "0"))
 put("cli_args", "unknown", argv(1, 0, "--unknown-option-with-a-long-name", "--=", "-"))
 put("cli_args", "empty_args", argv(3, 2, "", "", "--", ""))
+
+# ---- the CLI's read path (fuzz_cli_read): byte 0 = 0 ply, 1 off, 2 obj, 3 xyz --------
+def cli_read(kind, name, data):
+    put("cli_read", name, bytes([kind]) + (data if isinstance(data, bytes) else data.encode()))
+
+def wide_header(enc, nprops, count, nl="\n"):
+    lines = ["ply", "format %s 1.0" % enc, "element vertex %s" % count,
+             "property float x", "property float y", "property float z"]
+    lines += ["property float p%d" % i for i in range(nprops)]
+    lines += ["end_header"]
+    return nl.join(lines) + nl
+
+cli_read(0, "ascii_ok", wide_header("ascii", 1, 3) + "0 0 0 1\n1 0 0 2\n0 1 0 3\n")
+cli_read(0, "binary_ok", wide_header("binary_little_endian", 1, 2).encode() + struct.pack("<8f", *range(8)))
+cli_read(0, "ascii_count_2p32", wide_header("ascii", 0, 4294967295) + "0 0 0\n")
+cli_read(0, "ascii_count_1e15", wide_header("ascii", 0, 10**15) + "0 0 0\n")
+cli_read(0, "binary_count_huge", wide_header("binary_little_endian", 0, 99999999999).encode() + bytes(12))
+cli_read(0, "count_negative", wide_header("ascii", 0, -5) + "0 0 0\n")
+cli_read(0, "count_overflow", wide_header("ascii", 0, "99999999999999999999999") + "0 0 0\n")
+# headers far beyond libFuzzer's default 4096-byte inputs
+cli_read(0, "wide_binary_3000", wide_header("binary_little_endian", 3000, 2).encode() + bytes(2 * 3003 * 4))
+cli_read(0, "wide_ascii_2000", wide_header("ascii", 2000, 1) + " ".join(["1"] * 2003) + "\n")
+cli_read(0, "wide_ascii_short", wide_header("ascii", 2000, 5) + " ".join(["1"] * 2003) + "\n")
+dup = wide_header("ascii", 1500, 1).replace("property float p1499\n", "property float p7\n")
+cli_read(0, "wide_duplicate", dup + " ".join(["1"] * 1503) + "\n")
+# a binary header with lone CRs whose first data byte is 0x0A
+cli_read(0, "cr_binary_0a", wide_header("binary_little_endian", 0, 1, "\r").encode()
+         + b"\x0a" + bytes(11))
+cli_read(1, "off_ok", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+cli_read(1, "off_absurd", "OFF\n99999999999 1 0\n0 0 0\n")
+cli_read(2, "obj_ok", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+cli_read(2, "obj_cut", "v 0 0 0\nv 1 0 0\nv 0 1 0.5e")
+cli_read(3, "xyz_ok", "0 0 0\n1 0 0\n0 1 0\n")
+cli_read(3, "xyz_cut", "0 0 0\n1 0 0\n0 1")

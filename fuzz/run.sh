@@ -15,7 +15,7 @@ set -euo pipefail
 ROOT=$(cd "$(dirname "$0")/.." && pwd)
 BUILD=${BSURF_FUZZ_BUILD:-$ROOT/build-fuzz}
 CC_FUZZ=${CC_FUZZ:-clang}
-TARGETS="ply_ascii ply_binary off obj xyz pcd las csv cli_args"
+TARGETS="ply_ascii ply_binary off obj xyz pcd las csv cli_args cli_read"
 
 usage() {
   echo "usage: fuzz/run.sh TARGET|all|build [SECONDS] [libFuzzer options...]" >&2
@@ -49,6 +49,7 @@ run_target() {
     fuzz_off) dict=(-dict="$ROOT/fuzz/off.dict") ;;
     fuzz_obj) dict=(-dict="$ROOT/fuzz/obj.dict") ;;
     fuzz_cli_args) dict=(-dict="$ROOT/fuzz/cli_args.dict") ;;
+    fuzz_cli_read) dict=(-dict="$ROOT/fuzz/ply.dict" -max_len=1048576) ;; # headers beyond 4096 bytes
   esac
   echo "fuzz/run.sh: $name for ${seconds}s (corpus $work, artifacts $artifacts/)" >&2
   "$BUILD/fuzz/$name" "${dict[@]}" -max_total_time="$seconds" -timeout=10 -rss_limit_mb=2048 \

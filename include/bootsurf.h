@@ -174,6 +174,34 @@ typedef enum bsurf_ply_names {
   BSURF_PLY_NAMES_MESHLAB
 } bsurf_ply_names;
 
+/* Reads only the header of a file and checks it as bsurf_read would before
+ * reading any value: for PLY the syntax, the vertex layout and every declared
+ * count against the size of the file (binary: the smallest records must fit;
+ * ascii: at least two bytes per value). Tools call it before estimating
+ * resources from the declared counts. *points: the declared vertex count (0
+ * for formats without a header count, which are not checked here). */
+bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_error *err);
+/* The same on the first `size` bytes (the header among them) of a file of
+ * `file_size` bytes (used by the fuzzers). */
+bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
+                                      bsurf_format format, uint64_t *points, bsurf_error *err);
+
+/* The output-path policy of every writer (docs/robustness.md): BSURF_OK for
+ * a new file, a writable regular file, a FIFO or a device (written directly,
+ * not atomically); BSURF_ERR_INVALID_ARG with a message for a directory and,
+ * unless `force`, for a file without write permission. Symbolic links are
+ * followed (their target is written). */
+bsurf_status bsurf_output_check(const char *path, int force, bsurf_error *err);
+/* 1 when `path` exists and is a FIFO, device or socket (written directly). */
+int bsurf_output_is_stream(const char *path);
+/* For a SIGINT/SIGTERM handler (both async-signal-safe):
+ * bsurf_atomic_interrupt makes every write still open discard its temporary
+ * file when it closes instead of renaming it into place;
+ * bsurf_atomic_remove_temporaries removes the temporary files open now (the
+ * handler then ends the process). */
+void bsurf_atomic_interrupt(void);
+void bsurf_atomic_remove_temporaries(void);
+
 typedef struct bsurf_write_options {
   int ascii;              /* PLY, PCD: write ascii instead of binary little-endian */
   bsurf_format format;    /* BSURF_FORMAT_UNKNOWN (0): from the path's extension */

@@ -18,9 +18,9 @@
 //   --normals jet (default)  CGAL::jet_estimate_normals (degree 2, same K), then
 //                            --orient mst (default) CGAL::mst_orient_normals (same
 //                            K; sequential in CGAL), or none (jet signs as they come).
-//   --normals input          the input's nx ny nz. NOT the default: the comparison's
-//                            noisy inputs carry the exact normals of the truth
-//                            (`bootsurf noise` keeps them), which would be an oracle.
+//   --normals input          the input's nx ny nz. NOT the default: the exact normals
+//                            of the truth would be an oracle (`bootsurf noise` keeps
+//                            them only as true_nx/ny/nz, so its outputs have no nx ny nz).
 //
 // Timed (monotonic clock, "seconds"): every CGAL call — for jet the one
 // jet_smooth_point_set call (k-d tree build + per-point search and fit); for

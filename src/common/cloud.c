@@ -108,6 +108,53 @@ bsurf_field *bsurf_cloud_add_field(bsurf_cloud *cloud, const char *name, bsurf_t
   return f;
 }
 
+bsurf_status bsurf_cloud_add_fields(bsurf_cloud *cloud, size_t count, const char *const *names,
+                                    const bsurf_type *types) {
+  if (count == 0) return BSURF_OK;
+  for (size_t i = 0; i < count; i++)
+    if (strlen(names[i]) >= BSURF_FIELD_NAME_MAX) return BSURF_ERR_INVALID_ARG;
+  const size_t old = cloud->field_count;
+  if (count > (size_t)-1 / 4 - old) return BSURF_ERR_NOMEM;
+  bsurf_nameset set;
+  if (bsurf_nameset_init(&set, old + count) != BSURF_OK) return BSURF_ERR_NOMEM;
+  /* every name once, with its index in the field array to be */
+  for (size_t f = 0; f < old; f++)
+    bsurf_nameset_insert(&set, cloud->fields[f].name, strlen(cloud->fields[f].name), f);
+  size_t fresh = 0;
+  for (size_t i = 0; i < count; i++)
+    if (bsurf_nameset_insert(&set, names[i], strlen(names[i]), old + fresh) == BSURF_NAMESET_NONE) fresh++;
+  bsurf_status st = BSURF_OK;
+  if (fresh) {
+    bsurf_field *fields = bsurf_alloc_array(old + fresh, sizeof *fields);
+    if (!fields) {
+      bsurf_nameset_free(&set);
+      return BSURF_ERR_NOMEM;
+    }
+    if (old) memcpy(fields, cloud->fields, old * sizeof *fields);
+    free(cloud->fields);
+    cloud->fields = fields;
+  }
+  for (size_t i = 0; i < count && st == BSURF_OK; i++) {
+    size_t at = bsurf_nameset_find(&set, names[i], strlen(names[i]));
+    if (at < cloud->field_count) { /* there already (or earlier in the list) */
+      cloud->fields[at].type = types[i];
+      continue;
+    }
+    double *values = NULL;
+    if (cloud->point_count && !(values = bsurf_calloc_array(cloud->point_count, sizeof(double)))) {
+      st = BSURF_ERR_NOMEM;
+      break;
+    }
+    bsurf_field *f = &cloud->fields[cloud->field_count++];
+    memset(f, 0, sizeof *f);
+    strcpy(f->name, names[i]);
+    f->type = types[i];
+    f->values = values;
+  }
+  bsurf_nameset_free(&set);
+  return st;
+}
+
 void bsurf_cloud_remove_field(bsurf_cloud *cloud, const char *name) {
   for (size_t i = 0; i < cloud->field_count; i++) {
     if (strcmp(cloud->fields[i].name, name) == 0) {

@@ -41,16 +41,50 @@ void *bsurf_alloc_aligned(size_t n, size_t size);
 bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line, long long byte,
                         const char *fmt, ...) BSURF_PRINTF(5, 6);
 
+/* A set of names (pointer and length, not copied: they must outlive the set)
+ * with a value each; lookups in constant expected time (nameset.c). */
+typedef struct bsurf_nameset_slot {
+  const char *name;
+  size_t len, value;
+} bsurf_nameset_slot;
+typedef struct bsurf_nameset {
+  bsurf_nameset_slot *slots;
+  size_t cap, n;
+} bsurf_nameset;
+#define BSURF_NAMESET_NONE ((size_t)-1)
+#define BSURF_NAMESET_FULL ((size_t)-2)
+/* Room for `expected` names. */
+bsurf_status bsurf_nameset_init(bsurf_nameset *set, size_t expected);
+void bsurf_nameset_free(bsurf_nameset *set);
+/* The value of `name`, or BSURF_NAMESET_NONE. */
+size_t bsurf_nameset_find(const bsurf_nameset *set, const char *name, size_t len);
+/* Adds `name` with `value` and returns BSURF_NAMESET_NONE; when the name is
+ * there already, returns its value and changes nothing (BSURF_NAMESET_FULL:
+ * more names than init was told). */
+size_t bsurf_nameset_insert(bsurf_nameset *set, const char *name, size_t len, size_t value);
+
+/* Adds `count` fields at once (zero-filled, names[i] with types[i]; a name
+ * the cloud has already keeps its values and takes the type, as
+ * bsurf_cloud_add_field): one allocation of the field array and a name set,
+ * so time linear in the number of fields. BSURF_ERR_INVALID_ARG for a name
+ * of BSURF_FIELD_NAME_MAX characters or more; BSURF_ERR_NOMEM. */
+bsurf_status bsurf_cloud_add_fields(bsurf_cloud *cloud, size_t count, const char *const *names,
+                                    const bsurf_type *types);
+
 /* A file written under a temporary name next to its target and renamed
  * over it only when complete (atomic_file.c). */
 typedef struct bsurf_atomic_file {
   FILE *f; /* write here (1 MiB buffer) */
-  char *tmp;
+  char *tmp;    /* NULL when direct */
   const char *path;
   char *iobuf;
+  char *target; /* `path` with every symbolic link followed */
+  int direct;   /* a FIFO or device, written as it is (not atomic) */
 } bsurf_atomic_file;
 
-/* Creates and opens the temporary file for `path`. */
+/* Creates and opens the temporary file for `path` (beside the target of a
+ * symbolic link; a FIFO or device is opened directly), removing first the
+ * temporaries that dead processes left in that directory. */
 bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_error *err);
 /* Finishes: with status == BSURF_OK and write_errno == 0 (no write error seen
  * by the caller) flushes, fsyncs, closes and renames over the target;

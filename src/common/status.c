@@ -52,7 +52,12 @@ void *bsurf_calloc_array(size_t n, size_t size) {
 
 int bsurf_threads_resolve(int threads) {
 #ifdef _OPENMP
-  if (threads <= 0) return omp_get_num_procs();
+  /* 0: OMP_NUM_THREADS when it is set (the OpenMP convention, e.g. a batch
+   * system's share of the machine), else every core */
+  if (threads <= 0) {
+    const char *env = getenv("OMP_NUM_THREADS");
+    return env && *env ? omp_get_max_threads() : omp_get_num_procs();
+  }
   return threads;
 #else
   (void)threads;

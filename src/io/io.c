@@ -893,6 +893,99 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) 
   return st;
 }
 
+/* The header check of bsurf_read_header(_buffer); *ascii_short: ascii data
+ * too short for the header's counts (the whole file, read, names the line). */
+static bsurf_status header_check(const void *data, size_t size, uint64_t file_size, bsurf_format format,
+                                 uint64_t *points, int *ascii_short, bsurf_error *err) {
+  clear_error(err);
+  *points = 0;
+  *ascii_short = 0;
+  if (format != BSURF_FORMAT_PLY) return BSURF_OK;
+  if (!data && size) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no data given");
+  unsigned long long n = 0;
+  bsurf_status st = io_ply_probe(data ? (const char *)data : "", size, file_size, &n, ascii_short, err);
+  if (st != BSURF_OK && err && !err->message[0]) bsurf_fail(err, st, err->line, err->byte, "%s", bsurf_strerror(st));
+  *points = n;
+  return st;
+}
+
+bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
+                                      bsurf_format format, uint64_t *points, bsurf_error *err) {
+  int ascii_short = 0;
+  bsurf_status st = header_check(data, size, file_size, format, points, &ascii_short, err);
+  if (st != BSURF_OK && ascii_short && file_size == size) {
+    /* the whole file is here: the reader names the line where the data ends
+     * (it stores no vertex when the data cannot hold the header's counts) */
+    bsurf_cloud unused;
+    st = bsurf_read_buffer(data, size, format, &unused, err);
+    bsurf_cloud_free(&unused);
+    if (st == BSURF_OK) st = BSURF_ERR_PARSE; /* not reached: the check is the reader's own */
+  }
+  return st;
+}
+
+/* The end of a PLY header ("end_header" and the bytes of its line break) is
+ * in buf[0..n). */
+static int has_header_end(const char *buf, size_t n, size_t from) {
+  static const char word[] = "end_header";
+  const size_t wl = sizeof word - 1;
+  for (size_t i = from; i + wl + 2 <= n; i++)
+    if (buf[i] == 'e' && i > 0 && (buf[i - 1] == '\n' || buf[i - 1] == '\r') && memcmp(buf + i, word, wl) == 0)
+      return 1;
+  return 0;
+}
+
+bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_error *err) {
+  clear_error(err);
+  *points = 0;
+  if (!path) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no path given");
+  bsurf_format format = bsurf_format_from_path(path);
+  if (format != BSURF_FORMAT_PLY) return BSURF_OK;
+  FILE *f = fopen(path, "rb");
+  if (!f) return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open: %s", strerror(errno));
+  struct stat sb;
+  if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode)) {
+    fclose(f); /* pipes and devices: read whole by bsurf_read, checked there */
+    return BSURF_OK;
+  }
+  /* read until the header's end (any size: a header of 100,000 properties
+   * is 2.5 MB), doubling the buffer */
+  size_t cap = 1 << 16, n = 0;
+  char *buf = NULL;
+  bsurf_status st = BSURF_OK;
+  for (;;) {
+    char *nb = realloc(buf, cap);
+    if (!nb) {
+      st = bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory reading the header");
+      break;
+    }
+    buf = nb;
+    size_t from = n > 16 ? n - 16 : 0;
+    size_t got = fread(buf + n, 1, cap - n, f);
+    n += got;
+    if (ferror(f)) {
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, (long long)n, "read failed: %s", strerror(errno ? errno : EIO));
+      break;
+    }
+    if (got == 0 || feof(f) || has_header_end(buf, n, from)) break;
+    if (cap > (size_t)-1 / 4) break;
+    cap *= 2;
+  }
+  fclose(f);
+  int ascii_short = 0;
+  if (st == BSURF_OK) st = header_check(buf, n, (uint64_t)sb.st_size, format, points, &ascii_short, err);
+  free(buf);
+  if (st != BSURF_OK && ascii_short) {
+    /* ascii data too short for its header: the file, read whole, names the
+     * line where the data ends (the reader stores no vertex then) */
+    bsurf_cloud unused;
+    st = bsurf_read(path, &unused, err);
+    bsurf_cloud_free(&unused);
+    if (st == BSURF_OK) st = BSURF_ERR_PARSE; /* not reached: the check is the reader's own */
+  }
+  return st;
+}
+
 /* ------------------------------------------------------------------------ */
 /* Writing                                                                   */
 /* ------------------------------------------------------------------------ */
@@ -959,6 +1052,9 @@ bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
   if (!path || !cloud)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no path or no cloud given");
   bsurf_format format = opts && opts->format ? opts->format : bsurf_format_from_path(path);
+  /* a FIFO or device without an extension (-o /dev/null) gets PLY, the
+   * format that keeps everything */
+  if (format == BSURF_FORMAT_UNKNOWN && bsurf_output_is_stream(path)) format = BSURF_FORMAT_PLY;
   if (format == BSURF_FORMAT_UNKNOWN)
     return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "%s",
                       strcmp(path, "-") == 0 ? "standard output needs a format (--format)" : k_unknown_ext);

@@ -201,6 +201,15 @@ typedef struct io_ply_layout {
   io_ply_column *props;
 } io_ply_layout;
 
+/* Checks a PLY header as bsurf_io_read_ply does before reading any value
+ * (syntax, the vertex layout, every declared count against the bytes that
+ * follow: binary exactly, ascii at two bytes per value) without the data:
+ * `data` holds the first `size` bytes of a file of `file_size` bytes, the
+ * whole header among them. *vertices: the declared vertex count;
+ * *ascii_short: the error is ascii data too short for the header (reading it
+ * all, as bsurf_io_read_ply does, finds the line). */
+bsurf_status io_ply_probe(const char *data, size_t size, unsigned long long file_size,
+                          unsigned long long *vertices, int *ascii_short, bsurf_error *err);
 /* Validates a whole binary PLY file (little- or big-endian) exactly as
  * bsurf_io_read_ply does, with the same messages, but stores no vertex: it
  * locates them (layout) and fills `schema`, a one-point cloud (point 0) with

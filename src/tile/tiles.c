@@ -1393,6 +1393,8 @@ static bsurf_status create_output(tiles_ctx *c, const char *output, bsurf_error 
   bsurf_status st = bsurf_atomic_open(&c->af, output, err);
   if (st != BSURF_OK) return st;
   c->af_open = 1;
+  if (c->af.direct) /* its ranges are written at their offsets */
+    return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "tiled runs write a regular file, not a FIFO or device");
   io_writer w = {c->af.f, 0, 0};
   size_t record = 0;
   st = io_ply_write_header(&w, &c->out_schema, c->n, &record);

@@ -39,7 +39,8 @@ fi
 for f in err_train err_boot err_loo err_loo_center err_632 err_632plus gamma overfit_rate; do
   grep -a -q "property float $f\$" "$T/e1.ply" && ok || fail "output lacks field $f"
 done
-for f in nx ny nz; do grep -a -q "property double $f\$" "$T/e1.ply" && ok || fail "normals $f kept"; done
+# noise carries the exact normals on as true_* fields, which error keeps (no nx ny nz)
+for f in true_nx true_ny true_nz; do grep -a -q "property double $f\$" "$T/e1.ply" && ok || fail "truth $f kept"; done
 expect 0 "error again" -- "$BSURF" error "$T/n.ply" -k 30 -B 20 -j 2 -o "$T/e3.ply" -q
 cmp -s "$T/e1.ply" "$T/e3.ply" && ok || fail "two runs differ"
 expect 0 "error other seed" -- "$BSURF" error "$T/n.ply" -k 30 -B 20 --seed 7 -o "$T/e4.ply" -q
@@ -47,7 +48,7 @@ cmp -s "$T/e1.ply" "$T/e4.ply" && fail "seed has no effect" || ok
 expect 0 "noise is deterministic" -- "$BSURF" noise "$T/s.ply" --level 0.5 -o "$T/n2.ply" -q
 cmp -s "$T/n.ply" "$T/n2.ply" && ok || fail "noise differs between runs"
 expect 0 "info json" -- "$BSURF" info "$T/e1.ply" --json
-grep -q '"points":3000' "$T/out" && grep -q '"normals":true' "$T/out" && ok || fail "info json"
+grep -q '"points":3000' "$T/out" && grep -q '"normals":false' "$T/out" && grep -q '"true_nx"' "$T/out" && ok || fail "info json"
 expect 0 "uniform noise" -- "$BSURF" noise "$T/s.ply" --model uniform --level 1 -o "$T/u.xyz" -q
 expect 0 "error on xyz" -- "$BSURF" error "$T/u.xyz" -k 20 -B 5 -o "$T/u_err.ply" -q
 expect 0 "test sample" -- "$BSURF" error "$T/n.ply" -k 30 -B 5 --test-sample "$T/n2.ply" -o "$T/t.ply" -q

@@ -77,7 +77,7 @@ the cube has feature points :: P('shape0.5')['feature']['points'] > 0
 h is the truth's spacing :: 0.05 < P('shape0.5')['h'] < 0.07
 mean_h = mean / h :: abs(P('shape0.5')['mean_h'] * P('shape0.5')['h'] - P('shape0.5')['mean']) < 1e-9
 noise 0.5 h: rms about 0.5 h :: 0.4 < P('shape0.5')['rms_h'] < 0.6
-normals and features still evaluated :: 'normals' in J('shape0.5') and 'features' in J('shape0.5')
+truth passed along (true_*) is not scored :: 'normals' not in J('shape0.5') and 'features' not in J('shape0.5')
 zero noise: zero position error (shape) :: P('shape0')['max'] < 1e-12
 more noise, more error (shape) :: P('shape1')['mean'] > 1.5 * P('shape0.5')['mean']
 END

@@ -11,7 +11,7 @@ for key in '"command":"normals"' '"k":20' '"fit":"pca"' '"bootstrap":20' '"norma
   grep -qF "$key" "$T/out" && ok || fail "normals json lacks $key"
 done
 grep -a -q "property float normal_var$" "$T/a.ply" && ok || fail "normal_var written"
-grep -a -q "property float feature_dist$" "$T/a.ply" && ok || fail "input fields kept"
+grep -a -q "property float true_feature_dist$" "$T/a.ply" && ok || fail "input fields kept"
 expect 0 "poly + test error" -- "$BSURF" normals "$T/n.ply" --fit poly -d 2 -k 20 -B 10 --test-error --k-ref 15 -o "$T/p.ply" -q
 grep -a -q "property float normal_err$" "$T/p.ply" && ok || fail "normal_err written"
 expect 0 "select-k + curve" -- "$BSURF" normals "$T/n.ply" -k 20 -B 10 --select-k 10:30:10 --curve "$T/curve.csv" --truth "$T/c.ply" -o "$T/s.ply" -q

@@ -14,35 +14,6 @@ OUT="$T/out.ply"
 ply_head() { # ply_head FORMAT COUNT -- an x y z vertex header
   printf 'ply\nformat %s 1.0\nelement vertex %s\nproperty float x\nproperty float y\nproperty float z\nend_header\n' "$1" "$2"
 }
-checksums() { (cd "$IN" && cksum -- * 2>/dev/null); }
-no_temporaries() {
-  local left
-  left=$(find "$T" -name '*.tmp.*' | head -3)
-  [ -z "$left" ] && ok || fail "$1: temporary files left: $left"
-}
-# bad CODE DESCRIPTION NEEDLE... -- command: exit CODE, exactly one error
-# message containing every NEEDLE, no $OUT, no temporary file, $IN unchanged.
-bad() {
-  local code=$1 what=$2
-  shift 2
-  local needles=()
-  while [ "$1" != "--" ]; do
-    needles+=("$1")
-    shift
-  done
-  local before
-  before=$(checksums)
-  rm -f "$OUT"
-  expect "$code" "$what" "$@"
-  for n in "${needles[@]}"; do stderr_has "$n" "$what"; done
-  local lines
-  lines=$(grep -c -E '^bootsurf( [a-z]+: |: error: )' "$T/err")
-  [ "$lines" -eq 1 ] && ok || fail "$what: $lines error lines, expected one"
-  grep -q -E 'Sanitizer|runtime error|Segmentation|Aborted|core dumped' "$T/err" && fail "$what: crashed" || ok
-  [ -e "$OUT" ] && fail "$what: output written" || ok
-  no_temporaries "$what"
-  [ "$(checksums)" = "$before" ] && ok || fail "$what: an input file changed"
-}
 # ascii_values FILE: the data lines of an ascii PLY file
 ascii_values() { sed '1,/^end_header/d' "$1"; }
 no_nan() { # no_nan FILE DESCRIPTION: no NaN or infinity in an ascii PLY's data
@@ -217,6 +188,8 @@ bad 1 "output is the test sample" "refusing to overwrite" -- "$BSURF" "${ERR[@]}
 bad 1 "output is the truth" "refusing to overwrite" -- "$BSURF" normals "$IN/n.ply" --select-k 10:12:2 --curve "$T/c.csv" --truth "$IN/s.ply" -o "$IN/s.ply"
 bad 1 "png output is the input" "refusing to overwrite" -- "$BSURF" render "$IN/n.ply" -o "$IN/n.ply"
 bad 1 "unknown output type" "$T/x.dat: unknown output file type" -- "$BSURF" "${ERR[@]}" "$IN/n.ply" -o "$T/x.dat"
+mkdir -p "$T/outdir"
+bad 1 "output is a directory without an extension" "$T/outdir: is a directory" -- "$BSURF" "${ERR[@]}" "$IN/n.ply" -o "$T/outdir"
 cp "$IN/n.ply" "$T/inplace.ply"
 expect 0 "--force writes over the input" -- "$BSURF" "${ERR[@]}" "$T/inplace.ply" -o "$T/inplace.ply" --force -q
 grep -a -q "property float err_632plus" "$T/inplace.ply" && ok || fail "--force: the input was not replaced"
@@ -249,8 +222,9 @@ for sig in INT TERM; do
   kill -"$sig" "$pid"
   wait "$pid"
   rc=$?
-  [ "$rc" -eq 1 ] && ok || fail "SIG$sig: exit $rc, expected 1"
-  stderr_has "$IN/big.ply" "SIG$sig names the input"
+  want=130
+  [ "$sig" = TERM ] && want=143
+  [ "$rc" -eq "$want" ] && ok || fail "SIG$sig: exit $rc, expected $want"
   stderr_has "interrupted" "SIG$sig says interrupted"
   [ "$(cat "$T/keep.ply")" = "old contents" ] && ok || fail "SIG$sig: the existing output changed"
   no_temporaries "SIG$sig"

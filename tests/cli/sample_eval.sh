@@ -65,12 +65,14 @@ expect 2 "sample bad angle" -- "$BSURF" sample "$T/cube.off" --sharp-angle 200 -
 expect 1 "sample missing mesh" -- "$BSURF" sample "$T/none.off" -o "$T/x.ply"
 stderr_has "$T/none.off" "missing mesh is named"
 
-# eval: a cloud against itself
+# eval: a cloud against itself -- its normals and labels are the truth's own bits,
+# passed along, not results: not scored (the position is: zero)
 expect 0 "eval self" -- "$BSURF" eval "$T/a1.ply" --truth "$T/a1.ply" --json
-for key in '"command":"eval"' '"points":4000' '"normals":{' '"mean_rad":0' '"median_rad":0' '"rms_rad":0' \
-  '"mean_deg":0' '"under5deg":1' '"under10deg":1' '"seconds":'; do
+for key in '"command":"eval"' '"points":4000' '"position":{' '"max":0' '"seconds":'; do
   grep -qF "$key" "$T/out" && ok || fail "eval json lacks $key"
 done
+grep -qF '"normals":{' "$T/out" && fail "eval scored the truth's own normals" || ok
+stderr_has "normals are bit-identical to those of $T/a1.ply" "eval self refuses the normals"
 grep -qF '"split"' "$T/out" && fail "eval without --split has a split" || ok
 python3 -c "import json,sys; json.load(open('$T/out'))" 2>/dev/null && ok || fail "eval --json is one JSON object"
 
@@ -115,7 +117,7 @@ stderr_has "exclusive" "noise exclusive options"
 expect 2 "noise sigma-diag uniform" -- "$BSURF" noise "$T/a1.ply" --sigma-diag 0.01 --model uniform -o "$T/x.ply"
 expect 0 "noise sigma-diag 0" -- "$BSURF" noise "$T/a1.ply" --sigma-diag 0 -o "$T/n0.ply" -q
 expect 0 "eval unmoved" -- "$BSURF" eval "$T/n0.ply" --truth "$T/a1.ply" --json
-grep -qF '"mean_rad":0' "$T/out" && ok || fail "sigma-diag 0 leaves normals"
+grep -qF '"max":0' "$T/out" && ! grep -qF '"normals":{' "$T/out" && ok || fail "sigma-diag 0 leaves the points; the truth goes on as true_*"
 expect 0 "noise level json has sigma" -- "$BSURF" noise "$T/a1.ply" --level 0.5 -o "$T/n2.ply" --json
 grep -qF '"sigma":' "$T/out" && grep -qF '"level":0.5' "$T/out" && ok || fail "noise --level json"
 ls -A "$T" | grep -q '\.tmp\.' && fail "temporary files left behind" || ok

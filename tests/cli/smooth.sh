@@ -14,7 +14,9 @@ for m in naive bilateral multipass; do
     '"moved_mean_h":' '"moved_max_h":' '"compute_seconds":' '"seconds":'; do
     grep -qF "$key" "$T/out" && ok || fail "$m json lacks $key"
   done
-  for field in nx feature feature_dist err_632 err_632plus moved; do
+  # input fields kept (noise's true_*); the input's normals dropped (they belong to the unmoved points)
+  grep -a -q "property [a-z0-9]* nx$" "$T/$m.1.ply" && fail "$m output keeps normals that no longer match" || ok
+  for field in true_nx true_feature true_feature_dist err_632 err_632plus moved; do
     grep -a -q "property [a-z0-9]* $field$" "$T/$m.1.ply" && ok || fail "$m output lacks $field"
   done
 done
