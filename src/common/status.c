@@ -59,3 +59,7 @@ int bsurf_threads_resolve(int threads) {
   return 1;
 #endif
 }
+
+unsigned bsurf_version(void) { return (unsigned)BSURF_VERSION_NUMBER; }
+
+const char *bsurf_version_string(void) { return BSURF_VERSION_STRING; }
