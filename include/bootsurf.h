@@ -14,6 +14,32 @@
  *  - the library never prints and never exits; progress is reported through a
  *    callback that may also cancel the computation;
  *  - results depend only on the inputs and the seed, never on the thread count.
+ *
+ * Ownership and lifetimes (tests/test_api.c checks each rule):
+ *  - A struct the library fills (bsurf_cloud, bsurf_neighbors, an index) is
+ *    an OUT parameter: it is overwritten without being read, so it may be
+ *    uninitialised. A cloud or neighbourhoods that already hold data must be
+ *    freed first (bsurf_cloud_free, bsurf_neighbors_free), or their arrays
+ *    leak; reading into a cloud that holds data is therefore `free, then
+ *    read`. A failed read leaves the cloud empty (freeing it is harmless).
+ *  - Every *_free accepts NULL and, for structs (cloud, neighbourhoods), may
+ *    be called twice: the first call leaves an empty struct.
+ *  - Arrays inside a cloud belong to the cloud. A field's `values` array
+ *    stays at the same address until that field is removed or the cloud is
+ *    freed: adding other fields never moves it. The bsurf_field pointer
+ *    returned by bsurf_cloud_field/bsurf_cloud_add_field points into the
+ *    cloud's table of fields and is valid only until the next add or remove
+ *    (the table grows by realloc): keep `values`, or look the field up again.
+ *  - Arrays passed in are only read and never kept, except where a function
+ *    says so (bsurf_knn_build keeps `xyz`).
+ *  - NULL for a required pointer, an unknown enum value, a NaN or
+ *    out-of-range option and k larger than the neighbourhoods give
+ *    BSURF_ERR_INVALID_ARG and a message (bsurf_last_message()); too few
+ *    points for k gives BSURF_ERR_TOO_FEW_POINTS; NaN or infinite coordinates
+ *    given to a neighbour search give BSURF_ERR_INVALID_VALUE. Zero counts are
+ *    valid where a function can give a meaningful empty result (statistics,
+ *    noise, rendering) and BSURF_ERR_TOO_FEW_POINTS where it cannot
+ *    (neighbourhoods). Never a crash.
  */
 #ifndef BOOTSURF_H
 #define BOOTSURF_H
@@ -70,6 +96,16 @@ typedef enum bsurf_status {
 
 /* A static, human-readable name of a status code. */
 BSURF_API const char *bsurf_strerror(bsurf_status status);
+
+/* What the last call that failed on the calling thread said was wrong, as
+ * text a program can print: always set when a call returns
+ * BSURF_ERR_INVALID_ARG ("bsurf_estimate_error: opts->k = 80 exceeds nb->k
+ * = 50: K must be in [2, nb->k]" -- the function, the parameter, its value,
+ * the allowed range) and when a reader or writer fails (the message of its
+ * bsurf_error); other failures may leave an earlier message. "" before any.
+ * Thread-local: a failure on another thread never overwrites it. The string
+ * stays valid until the thread's next failing call. */
+BSURF_API const char *bsurf_last_message(void);
 
 /* Where a reader or writer failed. `line` is 1-based (0 when unknown or for
  * binary data), `byte` the offset from the start of the file (-1 when unknown).
@@ -163,8 +199,10 @@ typedef enum bsurf_format {
 /* The format named by a path's extension (case-insensitive). */
 BSURF_API bsurf_format bsurf_format_from_path(const char *path);
 
-/* Reads a cloud or mesh; the format comes from the extension. On failure the
- * cloud is left empty and `err` (optional) says where and why. */
+/* Reads a cloud or mesh; the format comes from the extension. `cloud` is an
+ * OUT parameter (overwritten, never freed: free a cloud holding data first).
+ * On failure the cloud is left empty and `err` (optional) and
+ * bsurf_last_message() say where and why. */
 BSURF_API bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err);
 /* The same from a buffer already in memory (used by the fuzzers). */
 BSURF_API bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format format,

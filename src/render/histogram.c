@@ -24,10 +24,11 @@ bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values, size_t c
                                     const bsurf_histogram_options *opt_in,
                                     bsurf_histogram_info *info) {
   bsurf_histogram_options opt = opt_in ? *opt_in : bsurf_histogram_options_default();
-  if (!rgb || (!values && count)) return BSURF_ERR_INVALID_ARG;
-  if (opt.width < 64 || opt.height < 64 || opt.width > 16384 || opt.height > 16384 ||
-      opt.bins < 1 || opt.bins > 100000)
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(rgb, "rgb is NULL");
+  BSURF_REQUIRE(values || !count, "values is NULL");
+  BSURF_REQUIRE(opt.width >= 64 && opt.height >= 64 && opt.width <= 16384 && opt.height <= 16384,
+                "width x height = %d x %d: each must be in [64, 16384]", opt.width, opt.height);
+  BSURF_REQUIRE(opt.bins >= 1 && opt.bins <= 100000, "bins = %d: must be in [1, 100000]", opt.bins);
   double lo = opt.range_lo, hi = opt.range_hi;
   if (!isfinite(lo) || !isfinite(hi)) {
     double mn = INFINITY, mx = -INFINITY;
@@ -77,7 +78,8 @@ bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values, size_t c
   int bottom = opt.height - (FONT_H * 2 + 16) * s;
   if (right - left < 20 || bottom - top < 20) {
     free(bins);
-    return BSURF_ERR_INVALID_ARG;
+    return bsurf_invalid(__func__, "width x height = %d x %d: too small for the axes and labels", opt.width,
+                         opt.height);
   }
   double ymax = opt.log_counts ? log10(1.0 + (double)maxc) : (double)maxc;
   if (!(ymax > 0)) ymax = 1;

@@ -88,7 +88,7 @@ static double select_kth(double *v, size_t n, size_t k) {
 
 bsurf_status bsurf_render_range(const double *values, size_t count, double percentile_lo,
                                 double percentile_hi, double *lo, double *hi) {
-  if (!values || !lo || !hi) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(values && lo && hi, "values, lo or hi is NULL");
   double *v = bsurf_alloc_array(count ? count : 1, sizeof *v);
   if (!v) return BSURF_ERR_NOMEM;
   size_t n = 0;
@@ -438,16 +438,19 @@ bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals
                           size_t point_count, const double *values,
                           const bsurf_render_options *opt_in, bsurf_render_info *info) {
   bsurf_render_options opt = opt_in ? *opt_in : bsurf_render_options_default();
-  if (!rgb || (!xyz && point_count)) return BSURF_ERR_INVALID_ARG;
-  if (point_count >= 0xFFFFFFFFu)
-    return BSURF_ERR_INVALID_ARG; /* indices are 32-bit in the z-buffer */
-  if (opt.width < 16 || opt.height < 16 || opt.width > 16384 || opt.height > 16384)
-    return BSURF_ERR_INVALID_ARG;
-  if (opt.views != 1 && opt.views != 4) return BSURF_ERR_INVALID_ARG;
-  if (opt.supersample < 1 || opt.supersample > 4 || opt.up_axis < 0 || opt.up_axis > 2)
-    return BSURF_ERR_INVALID_ARG;
-  if (!(opt.point_size > 0) || !isfinite(opt.azimuth) || !isfinite(opt.elevation))
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(rgb, "rgb is NULL");
+  BSURF_REQUIRE(xyz || !point_count, "xyz is NULL");
+  /* indices are 32-bit in the z-buffer */
+  BSURF_REQUIRE(point_count < 0xFFFFFFFFu, "point_count = %zu: must be below 2^32 - 1", point_count);
+  BSURF_REQUIRE(opt.width >= 16 && opt.height >= 16 && opt.width <= 16384 && opt.height <= 16384,
+                "width x height = %d x %d: each must be in [16, 16384]", opt.width, opt.height);
+  BSURF_REQUIRE(opt.views == 1 || opt.views == 4, "views = %d: must be 1 or 4", opt.views);
+  BSURF_REQUIRE(opt.supersample >= 1 && opt.supersample <= 4, "supersample = %d: must be in [1, 4]",
+                opt.supersample);
+  BSURF_REQUIRE(opt.up_axis >= 0 && opt.up_axis <= 2, "up_axis = %d: must be 0, 1 or 2", opt.up_axis);
+  BSURF_REQUIRE(opt.point_size > 0, "point_size = %g: must be > 0", opt.point_size);
+  BSURF_REQUIRE(isfinite(opt.azimuth) && isfinite(opt.elevation), "azimuth = %g, elevation = %g: must be finite",
+                opt.azimuth, opt.elevation);
   canvas img = {rgb, opt.width, opt.height};
   bsurf_draw_fill(&img, opt.background);
   uint8_t ink[3];
