@@ -2,11 +2,17 @@
 # Fetches the thesis's test meshes (Fandisk and Bunny, chapters 4-7) from
 # Debian's CGAL data (package libcgal-demo) into DIR (default: data/, which
 # git ignores). Only these two files are extracted; never commit them.
-#   scripts/get-data.sh [DIR]
+# With --all, the meshes of the development set too (scripts/devset.py:
+# elephant, dino, couplingdown, joint, femur, camel).
+#   scripts/get-data.sh [--all] [DIR]
 set -euo pipefail
+FILES=(data/meshes/fandisk_large.off data/meshes/bunny00.off)
+if [ "${1:-}" = "--all" ]; then
+  shift
+  for m in elephant dino couplingdown joint femur camel; do FILES+=("data/meshes/$m.off"); done
+fi
 DIR=${1:-"$(cd "$(dirname "$0")/.." && pwd)/data"}
 ARCHIVE=/usr/share/doc/libcgal-dev/data.tar.gz
-FILES=(data/meshes/fandisk_large.off data/meshes/bunny00.off)
 
 if [ ! -f "$ARCHIVE" ]; then
   if [ "$(id -u)" -ne 0 ]; then

@@ -21,26 +21,21 @@
  *    edges (segments, a zero-length one being a point), and every division of
  *    the edge regions is guarded, so no input gives NaN.
  *
- * The hierarchy: axis-aligned boxes, median split of the triangles' centroids
- * along the longest axis (ties by face index, so the tree is a function of
- * the mesh alone), leaves of at most BVH_LEAF triangles stored contiguously.
- * A query descends nearest-box-first and skips a box only when its distance
- * exceeds the best distance found so far by more than a bound on the
- * rounding error of the triangle distance (see prune_slack). Equal distances
- * keep the lowest face index. So the result is the minimum of the same
- * function over all triangles, bit for bit, whatever order the search takes:
- * the tests compare it with a brute-force loop.
+ * The hierarchy is the shared one of src/common/bvh.h over the triangles'
+ * boxes and centroids: its query returns the minimum of the triangle distance
+ * over all faces, bit for bit, whatever order the search takes (equal
+ * distances keep the lowest face index); the tests compare it with a
+ * brute-force loop.
  *
  * Per-point loops run through bsurf_parallel_points and write only their own
  * point's output: results are the same for any thread count. */
+#include "common/bvh.h"
 #include "common/common.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define BVH_LEAF 4
-#define BVH_STACK 128
 
 /* ---- small vector helpers ---- */
 
@@ -158,115 +153,24 @@ double bsurf_triangle_distance(const double p[3], const double a[3], const doubl
   return sqrt(tri_dist2(p, a, b, c, closest));
 }
 
-/* ---- the hierarchy ---- */
+/* ---- the hierarchy (src/common/bvh.h) over the triangles ---- */
 
 typedef struct tri {
   double v[3][3];
 } tri;
 
-typedef struct bvh_node {
-  double lo[3], hi[3];
-  size_t first, count; /* leaf: triangles [first, first + count) */
-  size_t left, right;  /* internal (count == 0): children */
-} bvh_node;
-
 struct bsurf_mesh_index {
   size_t tri_count;
-  tri *tris;      /* in leaf order */
-  size_t *face;   /* the mesh's face index of tris[i] */
-  bvh_node *nodes;
-  size_t node_count;
-  double edge2;   /* the longest edge, squared (scale of rounding errors) */
+  tri *tris;    /* in the hierarchy's leaf order */
+  size_t *face; /* the mesh's face index of tris[i] */
+  bsurf_bvh bvh;
 };
-
-typedef struct build_ctx {
-  const double *xyz;
-  const uint32_t *faces;
-  double *center; /* face centroids, 3 per face */
-  size_t *order;  /* face indices, permuted into leaf order */
-  bvh_node *nodes;
-  size_t node_count;
-} build_ctx;
-
-static int center_less(const build_ctx *b, size_t i, size_t j, int axis) {
-  double x = b->center[3 * i + axis], y = b->center[3 * j + axis];
-  return x < y || (x == y && i < j);
-}
-
-static void swap_sz(size_t *a, size_t *b) {
-  size_t t = *a;
-  *a = *b;
-  *b = t;
-}
-
-/* Quickselect: afterwards ord[0..k) are the k smallest by (centre on axis,
- * face index), a total order, so the split does not depend on the input
- * permutation. */
-static void select_kth(const build_ctx *b, size_t *ord, size_t n, size_t k, int axis) {
-  size_t lo = 0, hi = n - 1;
-  while (hi > lo) {
-    size_t mid = lo + (hi - lo) / 2;
-    if (center_less(b, ord[mid], ord[lo], axis)) swap_sz(&ord[mid], &ord[lo]);
-    if (center_less(b, ord[hi], ord[lo], axis)) swap_sz(&ord[hi], &ord[lo]);
-    if (center_less(b, ord[mid], ord[hi], axis)) swap_sz(&ord[mid], &ord[hi]);
-    size_t pivot = ord[hi], store = lo;
-    for (size_t i = lo; i < hi; i++)
-      if (center_less(b, ord[i], pivot, axis)) swap_sz(&ord[i], &ord[store++]);
-    swap_sz(&ord[hi], &ord[store]);
-    if (store == k) return;
-    if (store < k)
-      lo = store + 1;
-    else
-      hi = store - 1;
-  }
-}
-
-static size_t build_node(build_ctx *b, size_t first, size_t count) {
-  size_t id = b->node_count++;
-  bvh_node *nd = &b->nodes[id];
-  double clo[3], chi[3];
-  for (int k = 0; k < 3; k++) {
-    nd->lo[k] = clo[k] = INFINITY;
-    nd->hi[k] = chi[k] = -INFINITY;
-  }
-  for (size_t i = first; i < first + count; i++) {
-    size_t f = b->order[i];
-    for (int v = 0; v < 3; v++) {
-      const double *x = &b->xyz[3 * (size_t)b->faces[3 * f + (size_t)v]];
-      for (int k = 0; k < 3; k++) {
-        if (x[k] < nd->lo[k]) nd->lo[k] = x[k];
-        if (x[k] > nd->hi[k]) nd->hi[k] = x[k];
-      }
-    }
-    for (int k = 0; k < 3; k++) {
-      double c = b->center[3 * f + (size_t)k];
-      if (c < clo[k]) clo[k] = c;
-      if (c > chi[k]) chi[k] = c;
-    }
-  }
-  nd->first = first;
-  nd->count = count;
-  nd->left = nd->right = 0;
-  if (count <= BVH_LEAF) return id;
-  int axis = 0;
-  for (int k = 1; k < 3; k++)
-    if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
-  size_t half = count / 2;
-  select_kth(b, &b->order[first], count, half, axis);
-  size_t left = build_node(b, first, half); /* nodes never move: allocated up front */
-  size_t right = build_node(b, first + half, count - half);
-  nd = &b->nodes[id];
-  nd->count = 0;
-  nd->left = left;
-  nd->right = right;
-  return id;
-}
 
 void bsurf_mesh_index_free(bsurf_mesh_index *index) {
   if (!index) return;
   free(index->tris);
   free(index->face);
-  free(index->nodes);
+  bsurf_bvh_free(&index->bvh);
   free(index);
 }
 
@@ -282,119 +186,59 @@ bsurf_status bsurf_mesh_index_build(bsurf_mesh_index **index, const bsurf_cloud 
     if (!isfinite(mesh->xyz[i])) return BSURF_ERR_INVALID_VALUE;
 
   bsurf_mesh_index *ix = calloc(1, sizeof *ix);
-  build_ctx b;
-  memset(&b, 0, sizeof b);
-  b.xyz = mesh->xyz;
-  b.faces = mesh->faces;
-  b.center = bsurf_alloc_array(m, 3 * sizeof(double));
-  b.order = bsurf_alloc_array(m, sizeof(size_t));
-  /* a binary tree whose leaves hold >= 1 triangle has < 2m nodes */
-  b.nodes = bsurf_alloc_array(m, 2 * sizeof(bvh_node));
+  double *box = bsurf_alloc_array(m, 6 * sizeof(double));
+  double *center = bsurf_alloc_array(m, 3 * sizeof(double));
   if (ix) {
     ix->tris = bsurf_alloc_array(m, sizeof(tri));
     ix->face = bsurf_alloc_array(m, sizeof(size_t));
   }
-  if (!ix || !b.center || !b.order || !b.nodes || !ix->tris || !ix->face) {
-    free(b.center);
-    free(b.order);
-    free(b.nodes);
-    bsurf_mesh_index_free(ix);
-    return BSURF_ERR_NOMEM;
-  }
-  double edge2 = 0;
+  bsurf_status st = BSURF_ERR_NOMEM;
+  if (!ix || !box || !center || !ix->tris || !ix->face) goto fail;
   for (size_t f = 0; f < m; f++) {
     const double *v[3];
     for (int k = 0; k < 3; k++) v[k] = &mesh->xyz[3 * (size_t)mesh->faces[3 * f + (size_t)k]];
     for (int k = 0; k < 3; k++) {
-      b.center[3 * f + (size_t)k] = (v[0][k] + v[1][k] + v[2][k]) / 3.0;
-      double e[3];
-      sub3(v[(k + 1) % 3], v[k], e);
-      double l2 = dot3(e, e);
-      if (l2 > edge2) edge2 = l2;
+      double lo = v[0][k], hi = v[0][k];
+      for (int j = 1; j < 3; j++) {
+        if (v[j][k] < lo) lo = v[j][k];
+        if (v[j][k] > hi) hi = v[j][k];
+      }
+      box[6 * f + (size_t)k] = lo;
+      box[6 * f + 3 + (size_t)k] = hi;
+      center[3 * f + (size_t)k] = (v[0][k] + v[1][k] + v[2][k]) / 3.0;
     }
-    b.order[f] = f;
   }
-  build_node(&b, 0, m);
+  st = bsurf_bvh_build(&ix->bvh, box, center, m);
+  if (st != BSURF_OK) goto fail;
   for (size_t i = 0; i < m; i++) {
-    size_t f = b.order[i];
+    size_t f = ix->bvh.order[i];
     ix->face[i] = f;
     for (int v = 0; v < 3; v++)
       memcpy(ix->tris[i].v[v], &mesh->xyz[3 * (size_t)mesh->faces[3 * f + (size_t)v]],
              3 * sizeof(double));
   }
   ix->tri_count = m;
-  ix->nodes = b.nodes;
-  ix->node_count = b.node_count;
-  ix->edge2 = edge2;
-  free(b.center);
-  free(b.order);
+  free(box);
+  free(center);
   *index = ix;
   return BSURF_OK;
+fail:
+  free(box);
+  free(center);
+  bsurf_mesh_index_free(ix);
+  return st;
 }
 
-static double box_dist2(const double *p, const bvh_node *nd) {
-  double s = 0;
-  for (int k = 0; k < 3; k++) {
-    double d = p[k] < nd->lo[k] ? nd->lo[k] - p[k] : p[k] > nd->hi[k] ? p[k] - nd->hi[k] : 0.0;
-    s += d * d;
-  }
-  return s;
-}
-
-/* How much farther than the best squared distance a box may be and still
- * hold a triangle whose computed distance ties or beats it. tri_dist2 works
- * on differences of magnitude <= sqrt(best) + longest edge, so its rounding
- * error is a few ulps of (best + edge2); box_dist2 is accurate to a few ulps
- * of itself. 1e-9 is five orders of magnitude above both, and costs nothing:
- * it only keeps boxes within a hair of the best distance. */
-static double prune_slack(const bsurf_mesh_index *ix, double best) {
-  return 1e-9 * (best + ix->edge2);
+static double tri_slot_dist2(const void *ctx, size_t slot, const double p[3]) {
+  const tri *t = &((const bsurf_mesh_index *)ctx)->tris[slot];
+  return tri_dist2(p, t->v[0], t->v[1], t->v[2], NULL);
 }
 
 /* Squared distance to the nearest triangle; *face and closest (may be NULL). */
 static double mesh_nearest(const bsurf_mesh_index *ix, const double *p, size_t *face,
                            double *closest) {
-  size_t stack[BVH_STACK];
-  double sd[BVH_STACK];
-  int top = 0;
-  double best = INFINITY, bound = INFINITY;
   size_t best_i = 0;
-  stack[top] = 0;
-  sd[top++] = box_dist2(p, &ix->nodes[0]);
-  while (top > 0) {
-    --top;
-    if (sd[top] > bound) continue;
-    const bvh_node *nd = &ix->nodes[stack[top]];
-    if (nd->count) {
-      for (size_t i = nd->first; i < nd->first + nd->count; i++) {
-        const tri *t = &ix->tris[i];
-        double d = tri_dist2(p, t->v[0], t->v[1], t->v[2], NULL);
-        if (d < best || (d == best && ix->face[i] < ix->face[best_i])) {
-          best = d;
-          best_i = i;
-          bound = best + prune_slack(ix, best);
-        }
-      }
-      continue;
-    }
-    double dl = box_dist2(p, &ix->nodes[nd->left]), dr = box_dist2(p, &ix->nodes[nd->right]);
-    size_t near = nd->left, far = nd->right;
-    double dn = dl, df = dr;
-    if (dr < dl) {
-      near = nd->right, far = nd->left;
-      dn = dr, df = dl;
-    }
-    /* the farther child below the nearer one: the nearer is searched first.
-     * The depth of a median-split tree is log2(faces) + 1 < BVH_STACK / 2. */
-    if (df <= bound) {
-      stack[top] = far;
-      sd[top++] = df;
-    }
-    if (dn <= bound) {
-      stack[top] = near;
-      sd[top++] = dn;
-    }
-  }
+  double best = bsurf_bvh_nearest(&ix->bvh, p, tri_slot_dist2, ix, &best_i);
   if (face) *face = ix->face[best_i];
   if (closest) {
     const tri *t = &ix->tris[best_i];

@@ -33,6 +33,7 @@
  * Every random draw comes from the generator keyed by (seed, sample index);
  * loops over points write only their own outputs, so results do not depend
  * on the thread count. */
+#include "common/bvh.h"
 #include "common/common.h"
 
 #include <math.h>
@@ -40,8 +41,6 @@
 #include <string.h>
 
 #define PI 3.14159265358979323846
-#define BVH_LEAF 4
-#define BVH_STACK 128
 
 bsurf_sample_options bsurf_sample_options_default(void) {
   bsurf_sample_options o;
@@ -251,25 +250,16 @@ static bsurf_status find_edges(const bsurf_cloud *mesh, const double *unit_norma
   return BSURF_OK;
 }
 
-/* ---- nearest sharp edge: a BVH over segments ---- */
+/* ---- nearest sharp edge: the shared hierarchy (src/common/bvh.h) over segments ---- */
 
 typedef struct seg {
   double a[3], b[3];
 } seg;
 
-typedef struct bvh_node {
-  double lo[3], hi[3];
-  size_t first, count; /* leaf: segments order[first .. first+count) */
-  size_t left, right;  /* internal (count == 0): children */
-} bvh_node;
-
-typedef struct bvh {
-  seg *segs;
-  size_t *order;
-  double *center; /* segment midpoints, 3 per segment */
-  bvh_node *nodes;
-  size_t node_count;
-} bvh;
+typedef struct seg_tree {
+  seg *segs; /* in the hierarchy's leaf order */
+  bsurf_bvh bvh;
+} seg_tree;
 
 /* Squared distance from p to the segment [a, b]. */
 static double seg_dist2(const double *p, const seg *s) {
@@ -283,155 +273,44 @@ static double seg_dist2(const double *p, const seg *s) {
   return dot3(q, q);
 }
 
-static double box_dist2(const double *p, const bvh_node *nd) {
-  double s = 0;
-  for (int k = 0; k < 3; k++) {
-    double d = p[k] < nd->lo[k] ? nd->lo[k] - p[k] : p[k] > nd->hi[k] ? p[k] - nd->hi[k] : 0.0;
-    s += d * d;
-  }
-  return s;
+static double seg_slot_dist2(const void *ctx, size_t slot, const double p[3]) {
+  return seg_dist2(p, &((const seg_tree *)ctx)->segs[slot]);
 }
 
-static int center_less(const bvh *t, size_t i, size_t j, int axis) {
-  double a = t->center[3 * i + axis], b = t->center[3 * j + axis];
-  return a < b || (a == b && i < j);
-}
-
-/* Puts the k-th smallest (by centre on axis, ties by index) at order[k]. */
-static void select_kth(bvh *t, size_t *ord, size_t n, size_t k, int axis) {
-  size_t lo = 0, hi = n - 1;
-  while (hi > lo) {
-    size_t mid = lo + (hi - lo) / 2, tmp;
-    /* median of three as pivot, moved to hi */
-    if (center_less(t, ord[mid], ord[lo], axis)) {
-      tmp = ord[mid];
-      ord[mid] = ord[lo];
-      ord[lo] = tmp;
-    }
-    if (center_less(t, ord[hi], ord[lo], axis)) {
-      tmp = ord[hi];
-      ord[hi] = ord[lo];
-      ord[lo] = tmp;
-    }
-    if (center_less(t, ord[mid], ord[hi], axis)) {
-      tmp = ord[mid];
-      ord[mid] = ord[hi];
-      ord[hi] = tmp;
-    }
-    size_t pivot = ord[hi], store = lo;
-    for (size_t i = lo; i < hi; i++)
-      if (center_less(t, ord[i], pivot, axis)) {
-        tmp = ord[i];
-        ord[i] = ord[store];
-        ord[store] = tmp;
-        store++;
-      }
-    ord[hi] = ord[store];
-    ord[store] = pivot;
-    if (store == k) return;
-    if (store < k)
-      lo = store + 1;
-    else
-      hi = store - 1;
-  }
-}
-
-static size_t bvh_build_node(bvh *t, size_t first, size_t count) {
-  size_t id = t->node_count++;
-  bvh_node *nd = &t->nodes[id];
-  double clo[3] = {INFINITY, INFINITY, INFINITY}, chi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (int k = 0; k < 3; k++) {
-    nd->lo[k] = INFINITY;
-    nd->hi[k] = -INFINITY;
-  }
-  for (size_t i = first; i < first + count; i++) {
-    const seg *s = &t->segs[t->order[i]];
-    const double *c = &t->center[3 * t->order[i]];
-    for (int k = 0; k < 3; k++) {
-      double lo = s->a[k] < s->b[k] ? s->a[k] : s->b[k], hi = s->a[k] < s->b[k] ? s->b[k] : s->a[k];
-      if (lo < nd->lo[k]) nd->lo[k] = lo;
-      if (hi > nd->hi[k]) nd->hi[k] = hi;
-      if (c[k] < clo[k]) clo[k] = c[k];
-      if (c[k] > chi[k]) chi[k] = c[k];
-    }
-  }
-  if (count <= BVH_LEAF) {
-    nd->first = first;
-    nd->count = count;
-    nd->left = nd->right = 0;
-    return id;
-  }
-  int axis = 0;
-  for (int k = 1; k < 3; k++)
-    if (chi[k] - clo[k] > chi[axis] - clo[axis]) axis = k;
-  size_t half = count / 2;
-  select_kth(t, &t->order[first], count, half, axis);
-  /* t->nodes does not move (allocated for the worst case up front) */
-  size_t left = bvh_build_node(t, first, half);
-  size_t right = bvh_build_node(t, first + half, count - half);
-  nd = &t->nodes[id];
-  nd->first = 0;
-  nd->count = 0;
-  nd->left = left;
-  nd->right = right;
-  return id;
-}
-
-static void bvh_free(bvh *t) {
+static void seg_tree_free(seg_tree *t) {
   free(t->segs);
-  free(t->order);
-  free(t->center);
-  free(t->nodes);
+  bsurf_bvh_free(&t->bvh);
   memset(t, 0, sizeof *t);
 }
 
-static bsurf_status bvh_build(bvh *t, const double *xyz, const uint32_t *pairs, size_t m) {
+/* The tree of the m segments (pairs of point indices into xyz). */
+static bsurf_status seg_tree_build(seg_tree *t, const double *xyz, const uint32_t *pairs, size_t m) {
   memset(t, 0, sizeof *t);
+  double *box = bsurf_alloc_array(m, 6 * sizeof(double));
+  double *center = bsurf_alloc_array(m, 3 * sizeof(double));
   t->segs = bsurf_alloc_array(m, sizeof(seg));
-  t->order = bsurf_alloc_array(m, sizeof(size_t));
-  t->center = bsurf_alloc_array(m, 3 * sizeof(double));
-  t->nodes = bsurf_alloc_array(2 * m, sizeof(bvh_node)); /* a binary tree with m leaves at most */
-  if (!t->segs || !t->order || !t->center || !t->nodes) {
-    bvh_free(t);
-    return BSURF_ERR_NOMEM;
-  }
-  for (size_t i = 0; i < m; i++) {
-    memcpy(t->segs[i].a, &xyz[3 * (size_t)pairs[2 * i]], sizeof(double) * 3);
-    memcpy(t->segs[i].b, &xyz[3 * (size_t)pairs[2 * i + 1]], sizeof(double) * 3);
-    for (int k = 0; k < 3; k++)
-      t->center[3 * i + k] = 0.5 * (t->segs[i].a[k] + t->segs[i].b[k]);
-    t->order[i] = i;
-  }
-  bvh_build_node(t, 0, m);
-  return BSURF_OK;
-}
-
-static double bvh_nearest(const bvh *t, const double *p) {
-  size_t stack[BVH_STACK];
-  int top = 0;
-  double best = INFINITY;
-  stack[top++] = 0;
-  while (top > 0) {
-    const bvh_node *nd = &t->nodes[stack[--top]];
-    if (box_dist2(p, nd) >= best) continue;
-    if (nd->count) {
-      for (size_t i = nd->first; i < nd->first + nd->count; i++) {
-        double d = seg_dist2(p, &t->segs[t->order[i]]);
-        if (d < best) best = d;
+  bsurf_status st = BSURF_ERR_NOMEM;
+  if (box && center && t->segs) {
+    for (size_t i = 0; i < m; i++) {
+      const double *a = &xyz[3 * (size_t)pairs[2 * i]], *b = &xyz[3 * (size_t)pairs[2 * i + 1]];
+      for (int k = 0; k < 3; k++) {
+        box[6 * i + (size_t)k] = a[k] < b[k] ? a[k] : b[k];
+        box[6 * i + 3 + (size_t)k] = a[k] < b[k] ? b[k] : a[k];
+        center[3 * i + (size_t)k] = 0.5 * (a[k] + b[k]);
       }
-      continue;
     }
-    double dl = box_dist2(p, &t->nodes[nd->left]), dr = box_dist2(p, &t->nodes[nd->right]);
-    /* push the farther child first so that the nearer one is searched first */
-    if (dl <= dr) {
-      if (dr < best) stack[top++] = nd->right;
-      if (dl < best) stack[top++] = nd->left;
-    } else {
-      if (dl < best) stack[top++] = nd->left;
-      if (dr < best) stack[top++] = nd->right;
-    }
+    st = bsurf_bvh_build(&t->bvh, box, center, m);
   }
-  return sqrt(best);
+  if (st == BSURF_OK)
+    for (size_t s = 0; s < m; s++) {
+      size_t i = t->bvh.order[s];
+      memcpy(t->segs[s].a, &xyz[3 * (size_t)pairs[2 * i]], sizeof(double) * 3);
+      memcpy(t->segs[s].b, &xyz[3 * (size_t)pairs[2 * i + 1]], sizeof(double) * 3);
+    }
+  free(box);
+  free(center);
+  if (st != BSURF_OK) seg_tree_free(t);
+  return st;
 }
 
 /* ---- sampling ---- */
@@ -503,7 +382,7 @@ bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
   uint8_t *degenerate = bsurf_alloc_array(F, 1);
   edge_info edges;
   memset(&edges, 0, sizeof edges);
-  bvh tree;
+  seg_tree tree;
   memset(&tree, 0, sizeof tree);
   uint8_t *keep = NULL;
   if (!unit || !cum || !degenerate) {
@@ -622,14 +501,14 @@ bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
       flag[i] = 0;
     }
   } else {
-    st = bvh_build(&tree, mesh->xyz, edges.sharp, edges.sharp_count);
+    st = seg_tree_build(&tree, mesh->xyz, edges.sharp, edges.sharp_count);
     if (st != BSURF_OK) goto fail;
-    const bvh *tp = &tree;
+    const seg_tree *tp = &tree;
 #ifdef _OPENMP
 #pragma omp parallel for num_threads(T) schedule(dynamic, 256)
 #endif
     for (long long i = 0; i < count; i++) {
-      double d = bvh_nearest(tp, &pts[3 * (size_t)i]);
+      double d = sqrt(bsurf_bvh_nearest(&tp->bvh, &pts[3 * (size_t)i], seg_slot_dist2, tp, NULL));
       dist[i] = d;
       flag[i] = d <= width ? 1.0 : 0.0;
     }
@@ -637,7 +516,7 @@ bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
   for (long long i = 0; i < count; i++)
     rep.feature_points += flag[i] != 0;
 
-  bvh_free(&tree);
+  seg_tree_free(&tree);
   free(edges.sharp);
   free(unit);
   free(cum);
@@ -646,7 +525,7 @@ bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
   if (report) *report = rep;
   return BSURF_OK;
 fail:
-  bvh_free(&tree);
+  seg_tree_free(&tree);
   free(edges.sharp);
   free(unit);
   free(cum);
