@@ -53,6 +53,7 @@
  */
 #define _DEFAULT_SOURCE /* madvise */
 #include "common/common.h"
+#include "tile/tile_engine.h"
 #include "io/io.h"
 #include "search/search.h"
 
