@@ -3,6 +3,11 @@
 #define BSURF_CLI_H
 
 #include "bootsurf.h"
+/* Internal: the tile engine, for the tiled pipelines of normals, smooth and
+ * features that have not yet moved into library jobs (src/jobs, issue 18).
+ * `error` runs through bsurf_error_job and uses only bootsurf.h. */
+#include "algo/smooth_stages.h"
+#include "tile/tile_engine.h"
 
 #include <stdio.h>
 
@@ -175,6 +180,11 @@ int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, b
  * started by mpirun, messages naming the file. 0 or 1 (printed). */
 int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, const bsurf_tile_values *values,
                   bsurf_tile_map_fn map, const char *label, int quiet);
+/* Before a tiled run: an empty input is refused by name. 0 or 1 (printed). */
+int cli_check_tiled_input(const char *input);
+/* A failed tiled run's message (rank 0): the file, the line or byte, the
+ * reason. Returns 1. */
+int cli_tiles_failed(const char *input, const char *output, bsurf_status st, const bsurf_error *err);
 /* The duplicate count of a tiled run, for the summaries. */
 void cli_set_duplicates(size_t count);
 /* MPI (a build with BSURF_MPI, started by mpirun); otherwise one rank. */

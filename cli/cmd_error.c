@@ -4,51 +4,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static const char *const error_fields[] = {"err_train", "err_boot",    "err_loo",
-                                           "err_loo_center", "err_632", "err_632plus",
-                                           "gamma",     "overfit_rate", "err_test",
-                                           "err_test_center"};
-#define ERROR_FIELD_COUNT 10
-
-/* ---- tiled runs: the same fields, tile by tile (cli/tiles.c) ---- */
-
-typedef struct error_tiles {
-  bsurf_error_options eo;
-  int nfields;
-} error_tiles;
-
-/* sums: replicates total, skipped, degree reduced, centre unestimated, then
- * the field sums */
-#define ERROR_SUMS (4 + ERROR_FIELD_COUNT)
-
-static bsurf_status error_prepare(void *user, bsurf_cloud *c) {
-  const error_tiles *et = user;
-  for (int f = 0; f < et->nfields; f++)
-    if (!bsurf_cloud_add_field(c, error_fields[f], BSURF_FLOAT32)) return BSURF_ERR_NOMEM;
-  return BSURF_OK;
-}
-
-static bsurf_status error_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
-  const error_tiles *et = user;
-  bsurf_error_options eo = et->eo;
-  eo.point_index = tile->point_index;
-  eo.progress = NULL;
-  bsurf_error_fields out;
-  memset(&out, 0, sizeof out);
-  double **slots[8] = {&out.err_train, &out.err_boot, &out.err_loo, &out.err_loo_center,
-                       &out.err_632,   &out.err_632plus, &out.gamma, &out.overfit_rate};
-  for (int f = 0; f < et->nfields; f++) *slots[f] = bsurf_cloud_field(core, error_fields[f])->values;
-  bsurf_error_report rep;
-  bsurf_status st = bsurf_estimate_error(tile->xyz, tile->nb, NULL, &eo, &out, &rep);
-  if (st != BSURF_OK) return st;
-  sums[0] += (double)rep.replicates_total;
-  sums[1] += (double)rep.replicates_skipped;
-  sums[2] += (double)rep.degree_reduced;
-  sums[3] += (double)rep.center_unestimated;
-  for (int f = 0; f < et->nfields; f++) sums[4 + f] += cli_field_mean(bsurf_cloud_field(core, error_fields[f]), core->point_count) * (double)core->point_count;
-  return BSURF_OK;
-}
-
 int cmd_error(const cli_command *cmd, int argc, char **argv) {
   bsurf_error_options eo = bsurf_error_options_default();
   const char *gamma = "fit", *center = "centroid", *output = NULL, *test_path = NULL;
@@ -95,94 +50,64 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   if (output && cli_check_output(output, pos[0], force)) return 1;
   if (output && test_path && cli_check_output(output, test_path, force)) return 1;
 
-  size_t plan = 0, tiles = 0;
+  size_t plan = 0;
   rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, eo.k, 8, &plan);
   if (rc) return rc;
   if (plan && test_path) return cli_error("%s: --test-sample is not available in tiled runs", test_path);
 
+
   double t0 = cli_now();
-  bsurf_error_report rep;
-  double h = 0, means[ERROR_FIELD_COUNT];
   bsurf_cloud c, test;
   bsurf_cloud_init(&c);
   bsurf_cloud_init(&test);
-  size_t npoints = 0;
-  int nfields = test_path ? ERROR_FIELD_COUNT : ERROR_FIELD_COUNT - 2;
-  if (plan) {
-    error_tiles et = {eo, nfields};
-    double sums[ERROR_SUMS] = {0};
-    bsurf_tile_ops ops = {.tile_points = plan, .k = eo.k, .threads = eo.threads, .user = &et,
-                          .prepare = error_prepare, .run = error_run, .nsums = ERROR_SUMS};
-    bsurf_tile_report tr;
-    tr.sums = sums;
-    int trc = cli_tiles_run(pos[0], output, &ops, &tr, quiet);
-    plan = ops.tile_points;
-    tiles = tr.tiles;
-    if (trc) return 1;
-    npoints = tr.points;
-    h = tr.h;
-    rep.replicates_total = (size_t)sums[0];
-    rep.replicates_skipped = (size_t)sums[1];
-    rep.degree_reduced = (size_t)sums[2];
-    rep.center_unestimated = (size_t)sums[3];
-    for (int f = 0; f < nfields; f++) means[f] = sums[4 + f] / (double)npoints;
-    goto summary;
-  }
-
-  if (cli_read_cloud(pos[0], &c)) return 1;
-  if (test_path) {
-    if (cli_read_cloud(test_path, &test)) {
-      bsurf_cloud_free(&c);
-      return 1;
-    }
-    if (test.point_count != c.point_count) {
-      rc = cli_error("%s: has %zu points but %s has %zu; the test sample must list the same points",
-                     test_path, test.point_count, pos[0], c.point_count);
-      goto done;
-    }
-  }
-  bsurf_neighbors nb;
-  if (cli_build_neighbors(pos[0], &c, eo.k, eo.threads, quiet, &nb)) {
-    rc = 1;
-    goto done;
-  }
+  bsurf_job_io io = {0};
+  bsurf_error_job_summary sum;
+  bsurf_error where = {0, -1, ""};
   cli_progress prog;
-  bsurf_status st;
-
-  bsurf_error_fields out;
-  memset(&out, 0, sizeof out);
-  double **slots[ERROR_FIELD_COUNT] = {&out.err_train, &out.err_boot,  &out.err_loo,
-                                       &out.err_loo_center, &out.err_632, &out.err_632plus,
-                                       &out.gamma,     &out.overfit_rate, &out.err_test,
-                                       &out.err_test_center};
-  for (int f = 0; f < nfields; f++) {
-    bsurf_field *fl = bsurf_cloud_add_field(&c, error_fields[f], BSURF_FLOAT32);
-    if (!fl) {
-      bsurf_neighbors_free(&nb);
-      rc = cli_error("out of memory");
-      goto done;
-    }
-  }
-  for (int f = 0; f < nfields; f++) *slots[f] = bsurf_cloud_field(&c, error_fields[f])->values;
-
   eo.progress = cli_progress_cb;
   eo.progress_user = &prog;
-  cli_progress_init(&prog, "error", quiet);
-  st = bsurf_estimate_error(c.xyz, &nb, test_path ? test.xyz : NULL, &eo, &out, &rep);
+  if (plan) {
+    io.input = pos[0];
+    io.output = output;
+    io.tile_points = plan;
+    io.range_points = cli_range_points;
+    io.comm = cli_mpi_comm();
+    if (cli_check_tiled_input(pos[0])) return 1;
+    cli_progress_init(&prog, "tiles", quiet || cli_mpi_rank() != 0);
+  } else {
+    if (cli_read_cloud(pos[0], &c)) return 1;
+    if (test_path) {
+      if (cli_read_cloud(test_path, &test)) {
+        bsurf_cloud_free(&c);
+        return 1;
+      }
+      if (test.point_count != c.point_count) {
+        rc = cli_error("%s: has %zu points but %s has %zu; the test sample must list the same points",
+                       test_path, test.point_count, pos[0], c.point_count);
+        goto done;
+      }
+      io.test = &test;
+    }
+    if (c.point_count < (size_t)eo.k) {
+      rc = cli_error("%s: has %zu points, fewer than K = %d", pos[0], c.point_count, eo.k);
+      goto done;
+    }
+    io.cloud = &c;
+    cli_progress_init(&prog, "error", quiet);
+  }
+  bsurf_status st = bsurf_error_job(&io, &eo, &sum, &where);
   cli_progress_done(&prog);
-  h = nb.h;
-  bsurf_neighbors_free(&nb);
+  if (plan) plan = sum.tile_points;
   if (st != BSURF_OK) {
-    rc = cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
+    rc = plan ? cli_tiles_failed(pos[0], output, st, &where) : cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
     goto done;
   }
-  if (output && cli_write_cloud(output, &c, ascii)) {
+  cli_set_duplicates(sum.duplicates);
+  if (!plan && output && cli_write_cloud(output, &c, ascii)) {
     rc = 1;
     goto done;
   }
-  npoints = c.point_count;
-  for (int f = 0; f < nfields; f++) means[f] = cli_field_mean(bsurf_cloud_field(&c, error_fields[f]), npoints);
-summary:;
+
   double secs = cli_now() - t0;
   if (json) {
     cli_json j;
@@ -190,8 +115,8 @@ summary:;
     json_str(&j, "command", "error");
     json_str(&j, "input", pos[0]);
     if (output) json_str(&j, "output", output);
-    json_int(&j, "points", (long long)npoints);
-    json_num(&j, "h", h);
+    json_int(&j, "points", (long long)sum.points);
+    json_num(&j, "h", sum.h);
     json_int(&j, "k", eo.k);
     json_int(&j, "degree", eo.degree);
     json_int(&j, "bootstrap", eo.bootstrap);
@@ -199,27 +124,27 @@ summary:;
     json_str(&j, "pca_center", center);
     json_int(&j, "seed", (long long)eo.seed);
     json_int(&j, "threads", bsurf_threads_resolve(eo.threads));
-    json_int(&j, "replicates_total", (long long)rep.replicates_total);
-    json_int(&j, "replicates_skipped", (long long)rep.replicates_skipped);
-    json_int(&j, "degree_reduced", (long long)rep.degree_reduced);
-    json_int(&j, "center_unestimated", (long long)rep.center_unestimated);
+    json_int(&j, "replicates_total", (long long)sum.report.replicates_total);
+    json_int(&j, "replicates_skipped", (long long)sum.report.replicates_skipped);
+    json_int(&j, "degree_reduced", (long long)sum.report.degree_reduced);
+    json_int(&j, "center_unestimated", (long long)sum.report.center_unestimated);
     if (plan) {
       json_int(&j, "tile_points", (long long)plan);
-      json_int(&j, "tiles", (long long)tiles);
+      json_int(&j, "tiles", (long long)sum.tiles);
       json_int(&j, "ranks", cli_mpi_ranks());
     }
-    json_means(&j, error_fields, means, nfields, h);
+    json_means(&j, sum.field_names, sum.means, sum.field_count, sum.h);
     json_num(&j, "seconds", secs);
     json_end(&j);
   } else if (!quiet) {
-    printf("error: %zu points, h = %.6g, K = %d, degree %d, B = %d, gamma %s, %.2f s\n", npoints, h,
+    printf("error: %zu points, h = %.6g, K = %d, degree %d, B = %d, gamma %s, %.2f s\n", sum.points, sum.h,
            eo.k, eo.degree, eo.bootstrap, gamma, secs);
-    print_means(stdout, error_fields, means, nfields, h);
-    if (rep.replicates_skipped)
-      printf("  %zu of %zu replicate fits were rank-deficient and skipped\n", rep.replicates_skipped,
-             rep.replicates_total);
-    if (rep.degree_reduced)
-      printf("  %zu points had degenerate neighbourhoods and used a lower degree\n", rep.degree_reduced);
+    print_means(stdout, sum.field_names, sum.means, sum.field_count, sum.h);
+    if (sum.report.replicates_skipped)
+      printf("  %zu of %zu replicate fits were rank-deficient and skipped\n", sum.report.replicates_skipped,
+             sum.report.replicates_total);
+    if (sum.report.degree_reduced)
+      printf("  %zu points had degenerate neighbourhoods and used a lower degree\n", sum.report.degree_reduced);
     cli_print_input_report(stdout);
     if (output) printf("  -> %s\n", output);
   }

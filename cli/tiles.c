@@ -75,6 +75,12 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
     tile_points = (size_t)fmin(budget / per, 2e8);
   }
   if (tile_points < 2 * (size_t)k) tile_points = 2 * (size_t)k;
+  if (cli_mpi_comm()) {
+    /* at least two tiles per rank (cli_tiles_call does the same for the
+     * commands that do not yet run through a library job) */
+    size_t ranks = (size_t)cli_mpi_ranks(), per = (n + 2 * ranks - 1) / (2 * ranks);
+    if (n && per < tile_points) tile_points = per < 2 * (size_t)k ? 2 * (size_t)k : per;
+  }
   if (automatic && !cli_mpi_rank())
     cli_warn("%s: needs about %.1f GB in memory, more than --memory-limit %.1f GB: tiles of %zu points",
              input, need / 1e9, limit / 1e9, tile_points);
@@ -103,11 +109,30 @@ static int about_output(const char *msg) {
   return 0;
 }
 
-int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep, int quiet,
-                   cli_tiles_fn fn, void *arg) {
+int cli_check_tiled_input(const char *input) {
   struct stat sb;
   if (stat(input, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size == 0)
     return cli_error("%s: the file is empty", input);
+  return 0;
+}
+
+int cli_tiles_failed(const char *input, const char *output, bsurf_status st, const bsurf_error *err) {
+  if (cli_mpi_rank() != 0) return 1;
+  const char *msg = cli_interrupted()  ? "interrupted"
+                    : err->message[0] ? err->message
+                    : st == BSURF_ERR_INVALID_ARG ? bsurf_last_message()
+                                                  : bsurf_strerror(st);
+  if (st == BSURF_ERR_INVALID_VALUE)
+    return cli_error("%s: %s (--drop-invalid, in memory, skips such points)", input, msg);
+  if (output && about_output(msg)) return cli_error("%s: %s", output, msg);
+  if (err->line > 0) return cli_error("%s:%ld: %s", input, err->line, msg);
+  if (err->byte >= 0) return cli_error("%s: byte %lld: %s", input, err->byte, msg);
+  return cli_error("%s: %s", input, msg);
+}
+
+int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep, int quiet,
+                   cli_tiles_fn fn, void *arg) {
+  if (cli_check_tiled_input(input)) return 1;
   cli_progress prog;
   cli_progress_init(&prog, "tiles", quiet || cli_mpi_rank() != 0);
   ops->progress = cli_progress_cb;
@@ -129,14 +154,7 @@ int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, b
     cli_set_duplicates(rep->duplicates);
     return 0;
   }
-  if (cli_mpi_rank() != 0) return 1;
-  const char *msg = cli_interrupted() ? "interrupted" : err.message[0] ? err.message : bsurf_strerror(st);
-  if (st == BSURF_ERR_INVALID_VALUE)
-    return cli_error("%s: %s (--drop-invalid, in memory, skips such points)", input, msg);
-  if (about_output(msg)) return cli_error("%s: %s", output, msg);
-  if (err.line > 0) return cli_error("%s:%ld: %s", input, err.line, msg);
-  if (err.byte >= 0) return cli_error("%s: byte %lld: %s", input, err.byte, msg);
-  return cli_error("%s: %s", input, msg);
+  return cli_tiles_failed(input, output, st, &err);
 }
 
 int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, const bsurf_tile_values *values,

@@ -14,6 +14,32 @@
  *  - the library never prints and never exits; progress is reported through a
  *    callback that may also cancel the computation;
  *  - results depend only on the inputs and the seed, never on the thread count.
+ *
+ * Ownership and lifetimes (tests/test_api.c checks each rule):
+ *  - A struct the library fills (bsurf_cloud, bsurf_neighbors, an index) is
+ *    an OUT parameter: it is overwritten without being read, so it may be
+ *    uninitialised. A cloud or neighbourhoods that already hold data must be
+ *    freed first (bsurf_cloud_free, bsurf_neighbors_free), or their arrays
+ *    leak; reading into a cloud that holds data is therefore `free, then
+ *    read`. A failed read leaves the cloud empty (freeing it is harmless).
+ *  - Every *_free accepts NULL and, for structs (cloud, neighbourhoods), may
+ *    be called twice: the first call leaves an empty struct.
+ *  - Arrays inside a cloud belong to the cloud. A field's `values` array
+ *    stays at the same address until that field is removed or the cloud is
+ *    freed: adding other fields never moves it. The bsurf_field pointer
+ *    returned by bsurf_cloud_field/bsurf_cloud_add_field points into the
+ *    cloud's table of fields and is valid only until the next add or remove
+ *    (the table grows by realloc): keep `values`, or look the field up again.
+ *  - Arrays passed in are only read and never kept, except where a function
+ *    says so (bsurf_knn_build keeps `xyz`).
+ *  - NULL for a required pointer, an unknown enum value, a NaN or
+ *    out-of-range option and k larger than the neighbourhoods give
+ *    BSURF_ERR_INVALID_ARG and a message (bsurf_last_message()); too few
+ *    points for k gives BSURF_ERR_TOO_FEW_POINTS; NaN or infinite coordinates
+ *    given to a neighbour search give BSURF_ERR_INVALID_VALUE. Zero counts are
+ *    valid where a function can give a meaningful empty result (statistics,
+ *    noise, rendering) and BSURF_ERR_TOO_FEW_POINTS where it cannot
+ *    (neighbourhoods). Never a crash.
  */
 #ifndef BOOTSURF_H
 #define BOOTSURF_H
@@ -25,10 +51,30 @@
 extern "C" {
 #endif
 
+/* The version of this header. CMakeLists.txt reads these three lines: they
+ * are the project's version (project(), the shared library's VERSION; its
+ * SONAME libbootsurf.so.MAJOR changes when the ABI does). */
 #define BSURF_VERSION_MAJOR 0
 #define BSURF_VERSION_MINOR 1
 #define BSURF_VERSION_PATCH 0
 #define BSURF_VERSION_STRING "0.1.0"
+/* MAJOR * 10000 + MINOR * 100 + PATCH, as bsurf_version() returns it. */
+#define BSURF_VERSION_NUMBER \
+  (BSURF_VERSION_MAJOR * 10000 + BSURF_VERSION_MINOR * 100 + BSURF_VERSION_PATCH)
+
+/* Every function of this header is marked BSURF_API: the only symbols the
+ * shared library exports (it is built with -fvisibility=hidden). */
+#if defined(__GNUC__) && __GNUC__ >= 4
+#define BSURF_API __attribute__((visibility("default")))
+#else
+#define BSURF_API
+#endif
+
+/* The library's version at run time (BSURF_VERSION_NUMBER of the header it
+ * was built from), to compare with the header a program was compiled with. */
+BSURF_API unsigned bsurf_version(void);
+/* The same as "MAJOR.MINOR.PATCH" (static storage). */
+BSURF_API const char *bsurf_version_string(void);
 
 /* ------------------------------------------------------------------------ */
 /* Status codes                                                              */
@@ -49,7 +95,17 @@ typedef enum bsurf_status {
 } bsurf_status;
 
 /* A static, human-readable name of a status code. */
-const char *bsurf_strerror(bsurf_status status);
+BSURF_API const char *bsurf_strerror(bsurf_status status);
+
+/* What the last call that failed on the calling thread said was wrong, as
+ * text a program can print: always set when a call returns
+ * BSURF_ERR_INVALID_ARG ("bsurf_estimate_error: opts->k = 80 exceeds nb->k
+ * = 50: K must be in [2, nb->k]" -- the function, the parameter, its value,
+ * the allowed range) and when a reader or writer fails (the message of its
+ * bsurf_error); other failures may leave an earlier message. "" before any.
+ * Thread-local: a failure on another thread never overwrites it. The string
+ * stays valid until the thread's next failing call. */
+BSURF_API const char *bsurf_last_message(void);
 
 /* Where a reader or writer failed. `line` is 1-based (0 when unknown or for
  * binary data), `byte` the offset from the start of the file (-1 when unknown).
@@ -110,23 +166,23 @@ typedef struct bsurf_cloud {
 } bsurf_cloud;
 
 /* An empty cloud (all zero / NULL). */
-void bsurf_cloud_init(bsurf_cloud *cloud);
+BSURF_API void bsurf_cloud_init(bsurf_cloud *cloud);
 /* Allocates xyz for n points (zeroed); normals when with_normals. */
-bsurf_status bsurf_cloud_alloc(bsurf_cloud *cloud, size_t n, int with_normals);
-void bsurf_cloud_free(bsurf_cloud *cloud);
+BSURF_API bsurf_status bsurf_cloud_alloc(bsurf_cloud *cloud, size_t n, int with_normals);
+BSURF_API void bsurf_cloud_free(bsurf_cloud *cloud);
 /* Deep copy. */
-bsurf_status bsurf_cloud_copy(bsurf_cloud *dst, const bsurf_cloud *src);
+BSURF_API bsurf_status bsurf_cloud_copy(bsurf_cloud *dst, const bsurf_cloud *src);
 /* The field called `name`, or NULL. */
-bsurf_field *bsurf_cloud_field(const bsurf_cloud *cloud, const char *name);
+BSURF_API bsurf_field *bsurf_cloud_field(const bsurf_cloud *cloud, const char *name);
 /* The field called `name`, created (zero-filled, with `type`) if missing; an
  * existing field keeps its values and takes `type`. NULL on allocation failure. */
-bsurf_field *bsurf_cloud_add_field(bsurf_cloud *cloud, const char *name,
+BSURF_API bsurf_field *bsurf_cloud_add_field(bsurf_cloud *cloud, const char *name,
                                    bsurf_type type);
 /* Removes the field called `name` if present. */
-void bsurf_cloud_remove_field(bsurf_cloud *cloud, const char *name);
+BSURF_API void bsurf_cloud_remove_field(bsurf_cloud *cloud, const char *name);
 /* BSURF_OK if every coordinate (and normal) is finite; otherwise
  * BSURF_ERR_INVALID_VALUE and *bad_index (if not NULL) is the first bad point. */
-bsurf_status bsurf_cloud_check_finite(const bsurf_cloud *cloud, size_t *bad_index);
+BSURF_API bsurf_status bsurf_cloud_check_finite(const bsurf_cloud *cloud, size_t *bad_index);
 
 /* ------------------------------------------------------------------------ */
 /* Files                                                                     */
@@ -144,25 +200,27 @@ typedef enum bsurf_format {
 } bsurf_format;
 
 /* The format named by a path's extension (case-insensitive). */
-bsurf_format bsurf_format_from_path(const char *path);
+BSURF_API bsurf_format bsurf_format_from_path(const char *path);
 /* The format called `name` ("ply", "pcd", "las", "csv", "xyz", "off", "obj";
  * also "txt", "pts", "asc"), or BSURF_FORMAT_UNKNOWN. */
-bsurf_format bsurf_format_from_name(const char *name);
+BSURF_API bsurf_format bsurf_format_from_name(const char *name);
 /* The lower-case name of a format ("ply", ...; "" for UNKNOWN). */
-const char *bsurf_format_name(bsurf_format format);
+BSURF_API const char *bsurf_format_name(bsurf_format format);
 /* The format a file's first bytes declare: PLY ("ply"), PCD ("# .PCD" or a
  * "VERSION" line), LAS ("LASF"), OFF (a first word ending in "OFF"); else
  * BSURF_FORMAT_UNKNOWN (text formats have no signature). bsurf_read() trusts
  * it over the extension, so a missing or wrong extension still reads. */
-bsurf_format bsurf_format_detect(const void *data, size_t size);
+BSURF_API bsurf_format bsurf_format_detect(const void *data, size_t size);
 
 /* Reads a cloud or mesh; the format comes from the content when it declares
  * one (bsurf_format_detect), else from the extension, else (no extension)
  * text is read as CSV/XYZ and "v ..." lines as OBJ. "-" reads standard input.
- * On failure the cloud is left empty and `err` (optional) says where and why. */
-bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err);
+ * `cloud` is an OUT parameter (overwritten, never freed: free a cloud holding
+ * data first). On failure the cloud is left empty and `err` (optional) and
+ * bsurf_last_message() say where and why. */
+BSURF_API bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err);
 /* The same from a buffer already in memory (used by the fuzzers). */
-bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format format,
+BSURF_API bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format format,
                                bsurf_cloud *cloud, bsurf_error *err);
 
 /* PLY property names for the fields (docs/formats.md): as they are, with
@@ -180,10 +238,10 @@ typedef enum bsurf_ply_names {
  * ascii: at least two bytes per value). Tools call it before estimating
  * resources from the declared counts. *points: the declared vertex count (0
  * for formats without a header count, which are not checked here). */
-bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_error *err);
+BSURF_API bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_error *err);
 /* The same on the first `size` bytes (the header among them) of a file of
  * `file_size` bytes (used by the fuzzers). */
-bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
+BSURF_API bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
                                       bsurf_format format, uint64_t *points, bsurf_error *err);
 
 /* The output-path policy of every writer (docs/robustness.md): BSURF_OK for
@@ -191,16 +249,16 @@ bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t fi
  * not atomically); BSURF_ERR_INVALID_ARG with a message for a directory and,
  * unless `force`, for a file without write permission. Symbolic links are
  * followed (their target is written). */
-bsurf_status bsurf_output_check(const char *path, int force, bsurf_error *err);
+BSURF_API bsurf_status bsurf_output_check(const char *path, int force, bsurf_error *err);
 /* 1 when `path` exists and is a FIFO, device or socket (written directly). */
-int bsurf_output_is_stream(const char *path);
+BSURF_API int bsurf_output_is_stream(const char *path);
 /* For a SIGINT/SIGTERM handler (both async-signal-safe):
  * bsurf_atomic_interrupt makes every write still open discard its temporary
  * file when it closes instead of renaming it into place;
  * bsurf_atomic_remove_temporaries removes the temporary files open now (the
  * handler then ends the process). */
-void bsurf_atomic_interrupt(void);
-void bsurf_atomic_remove_temporaries(void);
+BSURF_API void bsurf_atomic_interrupt(void);
+BSURF_API void bsurf_atomic_remove_temporaries(void);
 
 typedef struct bsurf_write_options {
   int ascii;              /* PLY, PCD: write ascii instead of binary little-endian */
@@ -216,10 +274,10 @@ typedef struct bsurf_write_options {
  * "-" writes standard output (opts->format required). `opts` may be NULL
  * (binary PLY). Formats that cannot carry every field (OFF, OBJ, XYZ) write
  * what they can; see bsurf_format_keeps_fields(). */
-bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
+BSURF_API bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
                          const bsurf_write_options *opts, bsurf_error *err);
 /* 1 if the format stores named scalar fields (PLY, PCD, LAS, CSV). */
-int bsurf_format_keeps_fields(bsurf_format format);
+BSURF_API int bsurf_format_keeps_fields(bsurf_format format);
 
 /* ------------------------------------------------------------------------ */
 /* Neighbourhoods                                                            */
@@ -229,14 +287,14 @@ int bsurf_format_keeps_fields(bsurf_format format);
 typedef struct bsurf_knn_index bsurf_knn_index;
 
 /* Builds the index over `xyz` (point_count x 3), which must outlive it. */
-bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz,
+BSURF_API bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz,
                              size_t point_count);
-void bsurf_knn_free(bsurf_knn_index *index);
+BSURF_API void bsurf_knn_free(bsurf_knn_index *index);
 
 /* The k nearest indexed points of one query point, sorted by (squared
  * distance, index). `idx` out: k; `dist2` out: k, may be NULL. k must not
  * exceed the number of indexed points. */
-bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3],
+BSURF_API bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3],
                              int k, uint32_t *idx, double *dist2);
 
 /* All-K-nearest neighbours of the indexed points themselves: row i lists point
@@ -244,13 +302,13 @@ bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3]
  * index) — so duplicates of a point never displace the point itself.
  * `idx` out: point_count x k; `dist2` out: point_count x k (may be NULL).
  * threads: 0 = all cores. Parallel, deterministic for any thread count. */
-bsurf_status bsurf_knn_all(const bsurf_knn_index *index, int k, int threads,
+BSURF_API bsurf_status bsurf_knn_all(const bsurf_knn_index *index, int k, int threads,
                            uint32_t *idx, double *dist2,
                            bsurf_progress_fn progress, void *progress_user);
 
 /* Reference O(N^2 K) implementation of bsurf_knn_all (same order and ties),
  * used by the tests; only for small inputs. */
-bsurf_status bsurf_knn_all_brute(const double *xyz, size_t point_count, int k,
+BSURF_API bsurf_status bsurf_knn_all_brute(const double *xyz, size_t point_count, int k,
                                  uint32_t *idx, double *dist2);
 
 /* Neighbourhoods of every point, computed once and shared by every stage. */
@@ -265,17 +323,17 @@ typedef struct bsurf_neighbors {
 } bsurf_neighbors;
 
 /* Builds the neighbourhoods (kd-tree + all-kNN) and h. k >= 2. */
-bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz,
+BSURF_API bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz,
                                    size_t point_count, int k, int threads,
                                    bsurf_progress_fn progress, void *progress_user);
-void bsurf_neighbors_free(bsurf_neighbors *nb);
+BSURF_API void bsurf_neighbors_free(bsurf_neighbors *nb);
 
 /* Mean distance from each point to its nearest other point (h). Builds its own
  * index; threads: 0 = all cores. Needs at least 2 points. */
-bsurf_status bsurf_mean_spacing(const double *xyz, size_t point_count, int threads,
+BSURF_API bsurf_status bsurf_mean_spacing(const double *xyz, size_t point_count, int threads,
                                 double *h);
 /* The same with a progress callback (which may cancel). */
-bsurf_status bsurf_mean_spacing_progress(const double *xyz, size_t point_count, int threads,
+BSURF_API bsurf_status bsurf_mean_spacing_progress(const double *xyz, size_t point_count, int threads,
                                          double *h, bsurf_progress_fn progress,
                                          void *progress_user);
 
@@ -299,12 +357,12 @@ typedef enum bsurf_pca_center {
 } bsurf_pca_center;
 
 /* PCA frame of the k points xyz[idx[0..k-1]] centred at xyz[idx[0]]. */
-void bsurf_local_frame(const double *xyz, const uint32_t *idx, int k,
+BSURF_API void bsurf_local_frame(const double *xyz, const uint32_t *idx, int k,
                        bsurf_pca_center center, bsurf_frame *frame);
 
 /* Number of coefficients of a bivariate polynomial of total degree `degree`:
  * (degree+1)(degree+2)/2. */
-int bsurf_poly_terms(int degree);
+BSURF_API int bsurf_poly_terms(int degree);
 
 /* ------------------------------------------------------------------------ */
 /* Bootstrap test-error estimation (thesis chapter 4)                         */
@@ -333,7 +391,7 @@ typedef struct bsurf_error_options {
   const uint64_t *point_index;
 } bsurf_error_options;
 
-bsurf_error_options bsurf_error_options_default(void);
+BSURF_API bsurf_error_options bsurf_error_options_default(void);
 
 /* Per-point outputs, each point_count long or NULL when not wanted. */
 typedef struct bsurf_error_fields {
@@ -366,7 +424,7 @@ typedef struct bsurf_error_report {
  * opts->k of each row are used); test_xyz in: point_count x 3 or NULL — an
  * independent sample of the same surface points (same order) on which the
  * full fits are evaluated (err_test). Deterministic for a given seed. */
-bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
+BSURF_API bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
                                   const double *test_xyz,
                                   const bsurf_error_options *opts,
                                   bsurf_error_fields *out,
@@ -395,7 +453,7 @@ typedef struct bsurf_normal_options {
                                   bsurf_error_options.point_index) */
 } bsurf_normal_options;
 
-bsurf_normal_options bsurf_normal_options_default(void);
+BSURF_API bsurf_normal_options bsurf_normal_options_default(void);
 
 /* Per-point outputs, point_count long (x 3 for vectors) or NULL. */
 typedef struct bsurf_normal_fields {
@@ -422,7 +480,7 @@ typedef struct bsurf_normal_report {
  * or NULL — the reference normals n_j of Eq. 5.10 (Algorithm 3), e.g. PCA
  * normals of a fixed neighbourhood size; normal_err is computed only when
  * they are given. Deterministic for a given seed, any thread count. */
-bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb,
+BSURF_API bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb,
                                     const double *ref_normals,
                                     const bsurf_normal_options *opts,
                                     bsurf_normal_fields *out, bsurf_normal_report *report);
@@ -450,7 +508,7 @@ typedef struct bsurf_kselect_options {
   void *progress_user;
 } bsurf_kselect_options;
 
-bsurf_kselect_options bsurf_kselect_options_default(void);
+BSURF_API bsurf_kselect_options bsurf_kselect_options_default(void);
 
 /* Per-point outputs, point_count long (x 3 for normals) or NULL. */
 typedef struct bsurf_kselect_fields {
@@ -472,7 +530,7 @@ typedef struct bsurf_kselect_report {
 
 /* K selection by BSURF_KSELECT_MSE for every point; nb->k must be at least
  * the largest candidate and noise_k. Deterministic, any thread count. */
-bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
+BSURF_API bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
                             const bsurf_kselect_options *opts, bsurf_kselect_fields *out,
                             bsurf_kselect_report *report);
 
@@ -497,7 +555,7 @@ typedef struct bsurf_normal_select_fields {
  * multinomial resamples (the numbers differ at O(1/K)). With
  * opts->bootstrap = 0 the single fits and their training errors. PCA only
  * (opts->fit); deterministic for a given seed, any thread count. */
-bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb, const double *ref_normals,
+BSURF_API bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb, const double *ref_normals,
                                     const bsurf_normal_options *opts, const int *ks, int nk,
                                     bsurf_normal_select_fields *out, bsurf_normal_report *report);
 
@@ -508,7 +566,7 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
  * then normalised; neighbours' normals are flipped to agree with n_i first.
  * normals in/out: point_count x 3; normal_var in: point_count (NULL or
  * sigma_nu = INFINITY: the single Gaussian filter). */
-bsurf_status bsurf_smooth_normals(const double *xyz, const bsurf_neighbors *nb, int k,
+BSURF_API bsurf_status bsurf_smooth_normals(const double *xyz, const bsurf_neighbors *nb, int k,
                                   double *normals, const double *normal_var, int iterations,
                                   double alpha, double sigma_d, double sigma_nu, int threads);
 
@@ -516,7 +574,7 @@ bsurf_status bsurf_smooth_normals(const double *xyz, const bsurf_neighbors *nb, 
  * neighbour graph with weights 1 - |n_i . n_j| (Hoppe et al. 1992). Each
  * connected component starts at its highest point (largest z), whose normal
  * is turned to +z. normals in/out: point_count x 3. */
-bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, int k,
+BSURF_API bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, int k,
                                   double *normals);
 
 /* ------------------------------------------------------------------------ */
@@ -573,7 +631,7 @@ typedef struct bsurf_smooth_options {
   int guard;
 } bsurf_smooth_options;
 
-bsurf_smooth_options bsurf_smooth_options_default(void);
+BSURF_API bsurf_smooth_options bsurf_smooth_options_default(void);
 
 /* Per-point outputs, point_count long or NULL when not wanted. */
 typedef struct bsurf_smooth_fields {
@@ -603,36 +661,9 @@ typedef struct bsurf_smooth_report {
  * out_xyz out: point_count x 3 (may not alias xyz). Deterministic for a given
  * seed, whatever the thread count (the sequential order runs its sweep on one
  * thread). */
-bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
+BSURF_API bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
                           const bsurf_smooth_options *opts, double *out_xyz,
                           bsurf_smooth_fields *fields, bsurf_smooth_report *report);
-
-/* Tiled smoothing (bsurf_tiles_run, docs/scaling.md): naive and bilateral in
- * parallel order as two stages with the bits of bsurf_smooth.
- * Stage 1, per point from its own K-neighbourhood: err_632, err_632plus,
- * then naive's projection of Eq. 6.1 (3 doubles) or bilateral's fit (frame,
- * scale and coefficients). The doubles per point; 0: the method and order
- * are not local enough to tile (sequential order, multipass). */
-size_t bsurf_smooth_stage_values(const bsurf_smooth_options *opts);
-/* Which of the first two values is W_i (0: err_632, 1: err_632plus). */
-int bsurf_smooth_w_column(const bsurf_smooth_options *opts);
-/* Stage 1 for the nb->point_count rows of nb (row r is the point nb->idx[r k];
- * opts->error.point_index keys the draws): values out, rows x
- * bsurf_smooth_stage_values. report: the bootstrap counters (may be NULL). */
-bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb, const bsurf_smooth_options *opts,
-                                 double *values, bsurf_error_report *report);
-/* The sigmas and the threshold bsurf_smooth applies, from h (mean spacing)
- * and |W| (the mean of W_i over the cloud, summed in index order): sets
- * opts->h1, opts->h2 and opts->threshold. */
-void bsurf_smooth_resolve(bsurf_smooth_options *opts, double h, double mean_w);
-/* Stage 2 with resolved options, for `count` points at the local indices
- * point[] (NULL: 0..count-1) of xyz; values: stage 1's of every local point.
- * Bilateral: rev[rev_off[r] .. rev_off[r + 1]) are the local indices
- * (increasing global order) of every neighbourhood containing point r;
- * naive: rev NULL. out_xyz: count x 3; moved: count. */
-bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const double *values, size_t count,
-                                 const uint32_t *point, const size_t *rev_off, const uint32_t *rev,
-                                 const bsurf_smooth_options *opts, double *out_xyz, double *moved);
 
 /* ------------------------------------------------------------------------ */
 /* Feature detection (thesis chapter 7)                                      */
@@ -660,7 +691,7 @@ typedef enum bsurf_tail_rule {
  * values in: count. *threshold out: points with value > threshold are the
  * tail. BSURF_ERR_INVALID_VALUE for NaN, BSURF_ERR_TOO_FEW_POINTS for
  * count < 2. */
-bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail_rule rule,
+BSURF_API bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail_rule rule,
                                   double *threshold);
 
 typedef struct bsurf_feature_options {
@@ -702,7 +733,7 @@ typedef struct bsurf_feature_options {
   void *progress_user;
 } bsurf_feature_options;
 
-bsurf_feature_options bsurf_feature_options_default(void);
+BSURF_API bsurf_feature_options bsurf_feature_options_default(void);
 
 typedef struct bsurf_feature_report {
   double threshold;      /* the absolute threshold applied to the score */
@@ -719,7 +750,7 @@ typedef struct bsurf_feature_report {
  * >= normals.k (variance). feature out: point_count, 0/1; score out:
  * point_count (feature_dist for DISTANCE, normal_var for VARIANCE), may be
  * NULL. Deterministic for any thread count. */
-bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
+BSURF_API bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
                                    const bsurf_feature_options *opts, uint8_t *feature,
                                    double *score, bsurf_feature_report *report);
 
@@ -729,7 +760,7 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
  * k_max's radius when none does); points that exceed it at
  * k_min get -max(radius). dist out: point_count. Also returns, per point,
  * the neighbourhood size it stopped at (ksel out, may be NULL). */
-bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors *nb,
+BSURF_API bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors *nb,
                                         const bsurf_feature_options *opts, double *dist,
                                         int *ksel, double *max_radius, size_t *immediate);
 
@@ -737,7 +768,7 @@ bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors
  * for the tests): for m = 1..k the ratio lambda0/lambda2 of the covariance
  * (about the centroid) of the first m points xyz[idx[0..m-1]], from running
  * sums. ratio out: k (0 where lambda2 = 0). */
-void bsurf_incremental_pca_ratios(const double *xyz, const uint32_t *idx, int k, double *ratio);
+BSURF_API void bsurf_incremental_pca_ratios(const double *xyz, const uint32_t *idx, int k, double *ratio);
 
 /* ------------------------------------------------------------------------ */
 /* Generated shapes and noise                                                 */
@@ -756,20 +787,20 @@ typedef enum bsurf_sampling {
 } bsurf_sampling;
 
 /* Parses "sphere", "cube", ... Returns 0 on success. */
-int bsurf_shape_from_name(const char *name, bsurf_shape *shape);
-const char *bsurf_shape_name(bsurf_shape shape);
+BSURF_API int bsurf_shape_from_name(const char *name, bsurf_shape *shape);
+BSURF_API const char *bsurf_shape_name(bsurf_shape shape);
 
 /* Generates about `n` points on a shape with exact normals and, for shapes
  * with sharp edges, the fields `feature_dist` (distance to the nearest sharp
  * edge) and `feature` (1 where feature_dist <= feature_width * s, with s =
  * sqrt(area / point count) the nominal point spacing). Regular sampling
  * rounds n to the nearest count its pattern allows. */
-bsurf_status bsurf_generate(bsurf_cloud *cloud, bsurf_shape shape, size_t n,
+BSURF_API bsurf_status bsurf_generate(bsurf_cloud *cloud, bsurf_shape shape, size_t n,
                             bsurf_sampling sampling, uint64_t seed,
                             double feature_width);
 
 /* Exact distance from a point to a generated shape's surface. */
-double bsurf_shape_distance(bsurf_shape shape, const double p[3]);
+BSURF_API double bsurf_shape_distance(bsurf_shape shape, const double p[3]);
 
 typedef enum bsurf_noise_model {
   BSURF_NOISE_GAUSSIAN = 0, /* t ~ N(0, level^2) */
@@ -779,7 +810,7 @@ typedef enum bsurf_noise_model {
 /* Displaces every point along its (unit) normal by t * scale: xyz is updated
  * in place. t is drawn from the model with the given level, from a generator
  * keyed by (seed, point index). normals in: point_count x 3. */
-bsurf_status bsurf_add_noise(double *xyz, const double *normals,
+BSURF_API bsurf_status bsurf_add_noise(double *xyz, const double *normals,
                              size_t point_count, bsurf_noise_model model,
                              double level, double scale, uint64_t seed);
 
@@ -797,13 +828,13 @@ typedef enum bsurf_colormap {
 } bsurf_colormap;
 
 /* Parses "viridis", "magma", "gray", "coolwarm". Returns 0 on success. */
-int bsurf_colormap_from_name(const char *name, bsurf_colormap *cmap);
-const char *bsurf_colormap_name(bsurf_colormap cmap);
+BSURF_API int bsurf_colormap_from_name(const char *name, bsurf_colormap *cmap);
+BSURF_API const char *bsurf_colormap_name(bsurf_colormap cmap);
 /* The colour at t in [0, 1] (clamped; NaN gives the low end). */
-void bsurf_colormap_rgb(bsurf_colormap cmap, double t, uint8_t rgb[3]);
+BSURF_API void bsurf_colormap_rgb(bsurf_colormap cmap, double t, uint8_t rgb[3]);
 /* Named views: front (looking along +y, z up), back, left, right, top,
  * bottom, iso. Returns 0 and the angles in degrees, or -1. */
-int bsurf_view_from_name(const char *name, double *azimuth, double *elevation);
+BSURF_API int bsurf_view_from_name(const char *name, double *azimuth, double *elevation);
 
 typedef struct bsurf_render_options {
   int width, height;           /* pixels of the whole image (1024 x 768) */
@@ -829,7 +860,7 @@ typedef struct bsurf_render_options {
   int threads;                 /* 0 = all cores; the image never depends on it */
 } bsurf_render_options;
 
-bsurf_render_options bsurf_render_options_default(void);
+BSURF_API bsurf_render_options bsurf_render_options_default(void);
 
 typedef struct bsurf_render_info {
   double range_lo, range_hi; /* the value range used (NaN without values) */
@@ -848,22 +879,22 @@ typedef struct bsurf_render_info {
  *   values   in: point_count or NULL (NaN values are drawn gray)
  *   point_count  below 2^32 - 1
  *   info     out, may be NULL */
-bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals,
+BSURF_API bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals,
                           size_t point_count, const double *values,
                           const bsurf_render_options *opt, bsurf_render_info *info);
 
 /* The value range between two percentiles (in percent) of the finite values;
  * BSURF_ERR_INVALID_VALUE when there is none. */
-bsurf_status bsurf_render_range(const double *values, size_t count, double percentile_lo,
+BSURF_API bsurf_status bsurf_render_range(const double *values, size_t count, double percentile_lo,
                                 double percentile_hi, double *lo, double *hi);
 
 /* Draws a vertical colour bar with labelled ticks into the box (x, y, w, h)
  * of an image (the bar, its ticks and the label all stay in the box). */
-void bsurf_render_colorbar(uint8_t *rgb, int width, int height, int x, int y, int w, int h,
+BSURF_API void bsurf_render_colorbar(uint8_t *rgb, int width, int height, int x, int y, int w, int h,
                            bsurf_colormap cmap, double lo, double hi, const char *label,
                            const uint8_t background[3]);
 /* Draws text (5x7 font, enlarged `scale` times) with its top-left at (x, y). */
-void bsurf_render_text(uint8_t *rgb, int width, int height, int x, int y, const char *text,
+BSURF_API void bsurf_render_text(uint8_t *rgb, int width, int height, int x, int y, const char *text,
                        int scale, const uint8_t color[3]);
 
 typedef struct bsurf_histogram_options {
@@ -876,7 +907,7 @@ typedef struct bsurf_histogram_options {
   const char *title;         /* NULL */
 } bsurf_histogram_options;
 
-bsurf_histogram_options bsurf_histogram_options_default(void);
+BSURF_API bsurf_histogram_options bsurf_histogram_options_default(void);
 
 typedef struct bsurf_histogram_info {
   size_t counted;         /* finite values inside the range */
@@ -886,13 +917,13 @@ typedef struct bsurf_histogram_info {
 
 /* A histogram picture: bars, axes with ticks and labels, threshold marker.
  *   rgb  out: height x width x 3 */
-bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values, size_t count,
+BSURF_API bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values, size_t count,
                                     const bsurf_histogram_options *opt,
                                     bsurf_histogram_info *info);
 
 /* Writes an 8-bit RGB PNG (libpng; no time stamp, so the same image gives the
  * same bytes). Atomic like bsurf_write: a temporary file renamed at the end. */
-bsurf_status bsurf_write_png(const char *path, const uint8_t *rgb, int width, int height,
+BSURF_API bsurf_status bsurf_write_png(const char *path, const uint8_t *rgb, int width, int height,
                              bsurf_error *err);
 
 /* ------------------------------------------------------------------------ */
@@ -913,7 +944,7 @@ bsurf_status bsurf_write_png(const char *path, const uint8_t *rgb, int width, in
  * zero (no face, only zero-area faces, or faces that cancel) gets (0, 0, 0)
  * and is counted in *without_normal (may be NULL). BSURF_ERR_INVALID_ARG when
  * the mesh has no face or a face index is out of range. */
-bsurf_status bsurf_mesh_vertex_normals(const bsurf_cloud *mesh, double *normals,
+BSURF_API bsurf_status bsurf_mesh_vertex_normals(const bsurf_cloud *mesh, double *normals,
                                        size_t *without_normal);
 
 typedef struct bsurf_sample_options {
@@ -928,7 +959,7 @@ typedef struct bsurf_sample_options {
   int threads;            /* 0 = all cores */
 } bsurf_sample_options;
 
-bsurf_sample_options bsurf_sample_options_default(void);
+BSURF_API bsurf_sample_options bsurf_sample_options_default(void);
 
 typedef struct bsurf_sample_report {
   size_t edges;             /* distinct undirected edges */
@@ -965,14 +996,14 @@ typedef struct bsurf_sample_report {
  * `feature` (1 where feature_dist <= the absolute feature width). `out` gets
  * no faces: it is a point set. On failure `out` is left empty. `report` may
  * be NULL. */
-bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
+BSURF_API bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
                                const bsurf_sample_options *opts,
                                bsurf_sample_report *report);
 
 /* The unoriented angle in radians, in [0, pi/2], between two directions of
  * any non-zero length: atan2(|a x b|, |a . b|) of the normalised vectors,
  * accurate near 0 and pi/2 (acos is not). NAN when either is zero. */
-double bsurf_normal_angle(const double a[3], const double b[3]);
+BSURF_API double bsurf_normal_angle(const double a[3], const double b[3]);
 
 /* Statistics of a set of angle errors (radians). PGP5/PGP10 of PCPNet are
  * under5deg/under10deg (fractions, in [0, 1]). An empty set has count 0 and
@@ -989,7 +1020,7 @@ typedef struct bsurf_angle_stats {
 
 /* Statistics of angles[i] over the points with mask[i] == keep (mask NULL:
  * all points). Sums run in point order (deterministic). angles in: count. */
-bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask, uint8_t keep,
+BSURF_API bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask, uint8_t keep,
                                        size_t count, bsurf_angle_stats *stats);
 
 /* Angle errors of estimated normals against ground-truth normals of the same
@@ -997,7 +1028,7 @@ bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask
  * result, truth in: count x 3; angles out: count (may be NULL); stats out
  * (may be NULL). BSURF_ERR_INVALID_VALUE if a normal has zero length or is
  * not finite; *bad_index (may be NULL) is then the first such point. */
-bsurf_status bsurf_eval_normals(const double *result, const double *truth, size_t count,
+BSURF_API bsurf_status bsurf_eval_normals(const double *result, const double *truth, size_t count,
                                 double *angles, bsurf_angle_stats *stats, size_t *bad_index);
 
 /* Splits points at the q-quantile of a per-point value (thesis 5.2.3, Table
@@ -1009,7 +1040,7 @@ bsurf_status bsurf_eval_normals(const double *result, const double *truth, size_
  * the threshold are all low. high out: count, 1 = high, 0 = low (may be
  * NULL); threshold and high_count out (may be NULL). q in [0, 1];
  * BSURF_ERR_INVALID_VALUE (and *bad_index) for a NaN value. */
-bsurf_status bsurf_quantile_split(const double *values, size_t count, double q, uint8_t *high,
+BSURF_API bsurf_status bsurf_quantile_split(const double *values, size_t count, double q, uint8_t *high,
                                   double *threshold, size_t *high_count, size_t *bad_index);
 
 /* Precision, recall and F1 of detected features against ground truth
@@ -1021,7 +1052,7 @@ typedef struct bsurf_feature_stats {
 } bsurf_feature_stats;
 
 /* result, truth in: count (non-zero = feature). */
-bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth, size_t count,
+BSURF_API bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth, size_t count,
                                  bsurf_feature_stats *stats);
 
 /* Position error: the distance from points (e.g. a smoothed cloud) to the
@@ -1031,7 +1062,7 @@ bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth, si
  * Voronoi regions (Ericson, Real-Time Collision Detection, 5.1.5). A
  * zero-area triangle is treated as its edges (never NaN for finite input).
  * closest out: 3, may be NULL. */
-double bsurf_triangle_distance(const double p[3], const double a[3], const double b[3],
+BSURF_API double bsurf_triangle_distance(const double p[3], const double a[3], const double b[3],
                                const double c[3], double closest[3]);
 
 /* A bounding-volume hierarchy over a mesh's triangles for exact distances. */
@@ -1041,14 +1072,14 @@ typedef struct bsurf_mesh_index bsurf_mesh_index;
  * it). Deterministic. BSURF_ERR_INVALID_ARG when the mesh has no face or a
  * face index is out of range, BSURF_ERR_INVALID_VALUE for a non-finite
  * vertex. */
-bsurf_status bsurf_mesh_index_build(bsurf_mesh_index **index, const bsurf_cloud *mesh);
-void bsurf_mesh_index_free(bsurf_mesh_index *index);
+BSURF_API bsurf_status bsurf_mesh_index_build(bsurf_mesh_index **index, const bsurf_cloud *mesh);
+BSURF_API void bsurf_mesh_index_free(bsurf_mesh_index *index);
 
 /* Exact distance from p to the nearest triangle: the minimum of
  * bsurf_triangle_distance over all faces, bit for bit (equal distances: the
  * lowest face index). face out (may be NULL): that face; closest out: 3, may
  * be NULL. NAN for a non-finite p. Thread-safe (the index is read only). */
-double bsurf_mesh_distance(const bsurf_mesh_index *index, const double p[3], size_t *face,
+BSURF_API double bsurf_mesh_distance(const bsurf_mesh_index *index, const double p[3], size_t *face,
                            double closest[3]);
 
 typedef enum bsurf_surface_kind {
@@ -1075,14 +1106,14 @@ typedef struct bsurf_true_surface {
  * for a missing member or a match out of range; BSURF_ERR_INVALID_VALUE when
  * a distance is NaN (a zero truth normal, a non-finite point), the others
  * being filled. */
-bsurf_status bsurf_position_errors(const double *xyz, size_t count,
+BSURF_API bsurf_status bsurf_position_errors(const double *xyz, size_t count,
                                    const bsurf_true_surface *surface, int threads, double *dist,
                                    bsurf_progress_fn progress, void *progress_user);
 
 /* Correspondence of two clouds with different points: for each point of xyz
  * (count x 3) the nearest truth point (k-d tree; ties by the lower index).
  * match out: count. Parallel, deterministic. truth_count >= 1. */
-bsurf_status bsurf_match_nearest(const double *truth_xyz, size_t truth_count, const double *xyz,
+BSURF_API bsurf_status bsurf_match_nearest(const double *truth_xyz, size_t truth_count, const double *xyz,
                                  size_t count, int threads, uint32_t *match);
 
 /* Summary of distances. An empty set has count 0 and NAN elsewhere. */
@@ -1093,59 +1124,16 @@ typedef struct bsurf_distance_stats {
 
 /* Statistics of dist[i] over the points with mask[i] == keep (mask NULL:
  * all), summed in point order. dist in: count. */
-bsurf_status bsurf_distance_stats_compute(const double *dist, const uint8_t *mask, uint8_t keep,
+BSURF_API bsurf_status bsurf_distance_stats_compute(const double *dist, const uint8_t *mask, uint8_t keep,
                                           size_t count, bsurf_distance_stats *stats);
 
 /* ------------------------------------------------------------------------ */
-/* Tiled (out-of-core) and distributed runs                                  */
+/* Distributed runs                                                          */
 /* ------------------------------------------------------------------------ */
 
-/* Every per-point estimate depends only on the point's K-neighbourhood and
- * on random draws keyed by its global index, so a cloud too large for memory
- * is processed tile by tile: space is cut into tiles of about tile_points
- * points; each tile is loaded with a halo grown until every tile point's K
- * nearest neighbours are proven to lie inside the loaded region (see
- * src/tile/tiles.c); results are written at the points' places in the
- * output. The input is a binary PLY file read by offset (memory-mapped), the
- * output a binary little-endian PLY file with the bytes the in-memory writer
- * gives. docs/scaling.md. */
-
-/* One tile, as given to bsurf_tile_ops.run. */
-typedef struct bsurf_tile {
-  size_t index, tile_count;
-  size_t core_count;             /* the tile's own points: the rows of nb */
-  size_t local_count;            /* those and their neighbours in the halo */
-  const double *xyz;             /* local_count x 3, in increasing global order */
-  const uint64_t *point_index;   /* core_count global indices (increasing) */
-  const bsurf_neighbors *nb;     /* core_count rows of k local indices, each
-                                    point first, exactly the rows the whole
-                                    cloud gives (nb->h is 0: see report) */
-  double halo;                   /* the widest halo the tile needed */
-  /* Two-stage runs (bsurf_tile_ops.values_in / nvalues; docs/scaling.md): */
-  const double *values;          /* values_in: local_count x values_in->nvalues,
-                                    the first stage's values of every local point */
-  double *values_out;            /* nvalues > 0: core_count x nvalues to fill */
-  /* reverse: for core point r, the local indices (increasing) of every
-   * point whose K-neighbourhood in the whole cloud contains it (itself
-   * included): rev[rev_off[r] .. rev_off[r + 1]) */
-  const size_t *rev_off;
-  const uint32_t *rev;
-} bsurf_tile;
-
-/* Per-point values of a first tiled stage, kept by global index in a scratch
- * file beside the output (removed on every exit: it is unlinked while open)
- * for the reductions and the second stage of a two-stage run. */
-typedef struct bsurf_tile_values {
-  int fd;          /* -1: none */
-  size_t count;    /* points */
-  size_t nvalues;  /* the stage's values per point (a last column, the
-                      squared distance to the K-th neighbour, is the
-                      engine's: it bounds the reverse neighbourhoods) */
-} bsurf_tile_values;
-
-/* Values [first, first + count) x nvalues into out, in index order. */
-bsurf_status bsurf_tile_values_read(const bsurf_tile_values *v, size_t first, size_t count, double *out);
-void bsurf_tile_values_close(bsurf_tile_values *v);
+/* Tiled runs (bsurf_job_io: tile_points) cut a cloud too large for memory
+ * into tiles with proven halos; the same bits as in memory (docs/scaling.md).
+ * The tile engine itself is internal (src/tile/tile_engine.h). */
 
 /* Messages between the processes of a distributed run (MPI in the CLI; the
  * library itself never links MPI). All calls are collective. */
@@ -1169,96 +1157,64 @@ typedef struct bsurf_tile_comm {
   void (*exscan_u64)(void *user, uint64_t *values, size_t count);
 } bsurf_tile_comm;
 
-typedef struct bsurf_tile_ops {
-  size_t tile_points; /* about this many points per tile (>= 2 k) */
-  int k;              /* neighbourhood size, the point included */
-  int threads;        /* for the neighbour search (0 = all cores) */
-  void *user;
-  /* Adds the command's output properties to a cloud that has the input's
-   * (what the in-memory command does to the whole cloud); any point count. */
-  bsurf_status (*prepare)(void *user, bsurf_cloud *cloud);
-  /* Computes a tile: `core` holds its core points with every input property,
-   * prepared; run fills the outputs and may add to sums[0 .. nsums-1] (the
-   * tile's own accumulators, reduced in tile order). */
-  bsurf_status (*run)(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums);
-  size_t nsums;
-  const bsurf_tile_comm *comm; /* NULL: one process */
-  bsurf_progress_fn progress;  /* points done of all (this rank's share) */
-  void *progress_user;
-  /* The output is assembled in ranges of at most this many points (record
-   * + 8 bytes each in memory), at least 64; 0: the larger of tile_points
-   * and 32 MiB of them, and with comm at most points / ranks. The ranges
-   * are the subtrees of the cascade that sums h (each between half and all
-   * of this size), split over the ranks. */
-  size_t range_points;
-  /* A first stage: run() fills tile->values_out with nvalues doubles per
-   * core point; they are kept in index order in *values_out (which the
-   * caller closes). prepare NULL: no output file (`output` then only names
-   * where the scratch files go); with nvalues 0 too, the tiles keep what they
-   * compute in `user` themselves (the report's h and sums are still made). */
-  size_t nvalues;
-  bsurf_tile_values *values_out;
-  /* A second stage: the first stage's values, given for every local point
-   * (tile->values); with `reverse`, tiles also get every point whose exact
-   * K-neighbourhood contains a tile point (tile->rev_off, rev: the halo of
-   * reverse neighbours, proven from the first stage's K-th distances). */
-  const bsurf_tile_values *values_in;
-  int reverse;
-} bsurf_tile_ops;
+/* ------------------------------------------------------------------------ */
+/* Jobs: one call per command, in memory or tiled (issue 18)                 */
+/* ------------------------------------------------------------------------ */
 
-typedef struct bsurf_tile_report {
-  size_t points;      /* in the input */
-  size_t tiles;
-  size_t max_tile_points;  /* core points of the largest tile */
-  size_t max_local_points; /* tile + halo points of the largest */
-  size_t halo_grown;  /* tile passes that had to widen the halo */
-  size_t duplicates;  /* points at the same place as another */
-  double h;           /* mean nearest-neighbour distance, bit-identical to
-                         bsurf_neighbors_build on the whole cloud */
-  double *sums;       /* nsums totals (owned by the caller: pass a buffer) */
-  size_t bad_point;   /* BSURF_ERR_INVALID_VALUE: the first non-finite point */
-} bsurf_tile_report;
+/* Where a job's points come from and where its results go: either a cloud
+ * in memory (`cloud`: the job adds its output fields to it; writing it is
+ * the caller's choice) or a binary PLY file processed tile by tile
+ * (`input`, `output`, `tile_points`, the same bytes as in memory; with
+ * `comm`, every process of a distributed run makes the same call). */
+typedef struct bsurf_job_io {
+  bsurf_cloud *cloud;          /* in memory; NULL for a tiled run */
+  const bsurf_cloud *test;     /* error: an independent sample of the same
+                                  points (err_test), in memory only; or NULL */
+  const char *input;           /* tiled: binary PLY read by offset */
+  const char *output;          /* tiled: binary little-endian PLY, written
+                                  atomically (nothing on failure) */
+  size_t tile_points;          /* tiled: about this many points per tile
+                                  (raised to 2 K) */
+  size_t range_points;         /* tiled: the output is assembled at most this
+                                  many points at a time, at least 64 (0: the
+                                  larger of tile_points and 32 MiB of rows;
+                                  with comm at most points / ranks) */
+  const bsurf_tile_comm *comm; /* tiled: messages between processes, or NULL */
+} bsurf_job_io;
 
-/* Runs a local computation over a binary PLY file tile by tile and writes
- * the result to `output` (binary little-endian PLY, atomically: a temporary
- * file renamed at the end; nothing on failure). The tiles' rows go to a
- * scratch file beside the output (removed on every exit) and the output is
- * then written once in index order. report->sums must point to ops->nsums
- * doubles. With ops->comm, every rank calls it with the same arguments:
- * the streaming passes over the input are split by index range, tiles are
- * dealt round-robin, each rank writes its tiles' rows to the scratch file,
- * then assembles its share of the output's ranges and writes them at their
- * offsets; rank 0 writes the header and renames the file.
- * Errors name the file and place in err (as bsurf_read). */
-bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
-                             bsurf_tile_report *report, bsurf_error *err);
+#define BSURF_ERROR_JOB_FIELDS 10
 
-/* A pointwise second stage: the input is streamed in index order, range by
- * range (ops->range_points), with the first stage's values; each range's
- * points (every input property, prepared by ops->prepare) go to map, which
- * fills the outputs; the rows are written as bsurf_tiles_run writes them.
- * With ops->comm, rank 0 writes and the others wait. Uses prepare, map,
- * range_points, comm and progress of ops. */
-typedef bsurf_status (*bsurf_tile_map_fn)(void *user, size_t first, bsurf_cloud *points, const double *values);
-bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_tile_ops *ops,
-                             const bsurf_tile_values *values, bsurf_tile_map_fn map, bsurf_error *err);
+/* What `bootsurf error` prints (text and --json): every number comes from
+ * here. */
+typedef struct bsurf_error_job_summary {
+  size_t points;
+  double h;                  /* mean nearest-neighbour distance */
+  size_t duplicates;         /* points at the same place as another */
+  bsurf_error_report report; /* replicate and degree counters */
+  int field_count;           /* 8, or 10 with a test sample */
+  const char *field_names[BSURF_ERROR_JOB_FIELDS]; /* err_train, err_boot,
+                                err_loo, err_loo_center, err_632,
+                                err_632plus, gamma, overfit_rate (Eqs. 4.3-4.11),
+                                err_test, err_test_center */
+  double means[BSURF_ERROR_JOB_FIELDS]; /* each field's mean over the points,
+                                summed in point order (tiled: per tile, then
+                                over the tiles in order) */
+  size_t tile_points, tiles; /* tiled runs: the tile size used, the tiles */
+  size_t bad_point;          /* BSURF_ERR_INVALID_VALUE in a tiled run: the
+                                first non-finite point */
+} bsurf_error_job_summary;
 
-/* Feature detection by the distance method (7.1) tile by tile: the file
- * bsurf_detect_features gives (its feature_dist and feature, the other
- * properties of the input), byte for byte, and its report (threshold, the
- * feature count, max radius, the points stopped at once, T_{a/c} at k_min).
- * Stages, each a tiled run: the sample's f(K) for the medians of
- * noise_factor (skipped when it is 0), the raw map, then `iterations`
- * passes of the bilateral filter (Eq. 7.1), each reading the previous
- * pass's values of the tile's neighbours; T_h over every value read back in
- * index order (auto: 8 bytes per point in memory); the output by a
- * pointwise stage (bsurf_tiles_map). ops: tile_points, threads, comm,
- * progress, range_points, and prepare (with user), which must add the
- * fields "feature_dist" and "feature" to the input's; the rest is set per
- * stage. tiles out: the raw map's run (points, tiles, h, duplicates). */
-bsurf_status bsurf_features_distance_tiled(const char *input, const char *output, const bsurf_tile_ops *ops,
-                                           const bsurf_feature_options *opts, bsurf_feature_report *report,
-                                           bsurf_tile_report *tiles, bsurf_error *err);
+/* Bootstrap test error of every point (Algorithm 1, bsurf_estimate_error)
+ * with its neighbourhoods (bsurf_neighbors_build) and the summary, in
+ * memory or tiled through the same call. opts: NULL = defaults; its
+ * progress callback (which may cancel) sees the neighbour search, then the
+ * estimation (tiled: the points done of this process's share). The fields
+ * (field_names, BSURF_FLOAT32) are added to io->cloud, or written with the
+ * input's to io->output. err (may be NULL): where a tiled run's input is
+ * wrong. BSURF_ERR_INVALID_ARG (message: bsurf_last_message()) for bad
+ * options or io; otherwise the statuses of the calls above. */
+BSURF_API bsurf_status bsurf_error_job(const bsurf_job_io *io, const bsurf_error_options *opts,
+                                       bsurf_error_job_summary *summary, bsurf_error *err);
 
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */
@@ -1270,14 +1226,14 @@ typedef struct bsurf_rng {
   uint64_t s[4];
 } bsurf_rng;
 
-void bsurf_rng_init(bsurf_rng *rng, uint64_t seed, uint64_t a, uint64_t b);
-uint64_t bsurf_rng_next(bsurf_rng *rng);
+BSURF_API void bsurf_rng_init(bsurf_rng *rng, uint64_t seed, uint64_t a, uint64_t b);
+BSURF_API uint64_t bsurf_rng_next(bsurf_rng *rng);
 /* Uniform in [0, 1) with 53 random bits. */
-double bsurf_rng_uniform(bsurf_rng *rng);
+BSURF_API double bsurf_rng_uniform(bsurf_rng *rng);
 /* Uniform integer in [0, n), unbiased (n > 0). */
-uint32_t bsurf_rng_below(bsurf_rng *rng, uint32_t n);
+BSURF_API uint32_t bsurf_rng_below(bsurf_rng *rng, uint32_t n);
 /* Standard normal (Box-Muller, both values drawn from this stream). */
-double bsurf_rng_normal(bsurf_rng *rng);
+BSURF_API double bsurf_rng_normal(bsurf_rng *rng);
 
 /* ------------------------------------------------------------------------ */
 /* Threads                                                                   */
@@ -1285,7 +1241,7 @@ double bsurf_rng_normal(bsurf_rng *rng);
 
 /* The number of threads a call with `threads` will use (0 = all cores); 1
  * when built without OpenMP. */
-int bsurf_threads_resolve(int threads);
+BSURF_API int bsurf_threads_resolve(int threads);
 
 #ifdef __cplusplus
 }

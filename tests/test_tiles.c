@@ -18,6 +18,8 @@
 #include <unistd.h>
 
 #include "bootsurf.h"
+#include "algo/smooth_stages.h"
+#include "tile/tile_engine.h"
 
 static char tmp_dir[1024];
 

@@ -153,4 +153,6 @@ double bsurf_fdist_otsu_positive(double *pos, size_t m);
  * threshold: the option (NAN = auto). */
 int bsurf_fdist_feature(double v, int state, double thr, double threshold);
 
+#include "algo/smooth_stages.h"
+
 #endif

@@ -181,13 +181,24 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
 }
 
 bsurf_status bsurf_error_check(const bsurf_error_options *o, const bsurf_neighbors *nb) {
-  if (!o || !nb || !nb->idx) return BSURF_ERR_INVALID_ARG;
-  if (o->degree < 1 || o->degree > BSURF_DEGREE_MAX) return BSURF_ERR_INVALID_ARG;
-  if (o->bootstrap < 0 || o->bootstrap > 100000) return BSURF_ERR_INVALID_ARG;
-  if (o->k < 2 || o->k > 65535) return BSURF_ERR_INVALID_ARG;
-  if (o->k > nb->k) return BSURF_ERR_INVALID_ARG;
-  if ((size_t)o->k > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
-  if (o->k < bsurf_poly_terms(o->degree)) return BSURF_ERR_TOO_FEW_POINTS;
+  BSURF_REQUIRE_IN("error options", o, "no options given");
+  BSURF_REQUIRE_IN("error options", nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE_IN("error options", o->degree >= 1 && o->degree <= BSURF_DEGREE_MAX, "degree = %d: must be in [1, %d]", o->degree,
+                BSURF_DEGREE_MAX);
+  BSURF_REQUIRE_IN("error options", o->bootstrap >= 0 && o->bootstrap <= 100000, "bootstrap (B) = %d: must be in [0, 100000]",
+                o->bootstrap);
+  BSURF_REQUIRE_IN("error options", o->k >= 2 && o->k <= 65535, "k = %d: must be in [2, 65535]", o->k);
+  BSURF_REQUIRE_IN("error options", o->k <= nb->k, "k = %d exceeds the neighbourhoods' nb->k = %d: must be in [2, %d]", o->k, nb->k,
+                nb->k);
+  if ((size_t)o->k > nb->point_count)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d exceeds the %zu points", o->k, nb->point_count);
+  if (o->k < bsurf_poly_terms(o->degree))
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d is too small for degree %d: a fit needs %d points",
+                             o->k, o->degree, bsurf_poly_terms(o->degree));
+  BSURF_REQUIRE_IN("error options", (unsigned)o->gamma <= BSURF_GAMMA_MAX, "gamma = %d: must be BSURF_GAMMA_FIT, _MEAN or _MAX",
+                (int)o->gamma);
+  BSURF_REQUIRE_IN("error options", (unsigned)o->pca_center <= BSURF_PCA_POINT,
+                "pca_center = %d: must be BSURF_PCA_CENTROID or BSURF_PCA_POINT", (int)o->pca_center);
   return BSURF_OK;
 }
 
@@ -215,7 +226,8 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
                                   bsurf_error_fields *out, bsurf_error_report *report) {
   bsurf_error_options o = opts ? *opts : bsurf_error_options_default();
   if (report) memset(report, 0, sizeof *report);
-  if (!xyz || !out) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz, "xyz is NULL");
+  BSURF_REQUIRE(out, "out is NULL (give a bsurf_error_fields, its unwanted outputs NULL)");
   bsurf_status st = bsurf_error_check(&o, nb);
   if (st != BSURF_OK) return st;
 

@@ -333,13 +333,20 @@ static bsurf_status ratio_thresholds(const double *xyz, const bsurf_neighbors *n
 }
 
 bsurf_status bsurf_fdist_check(const bsurf_feature_options *o, int k, size_t n) {
-  if (o->k_min < 3 || o->k_max < o->k_min || o->k_step < 1) return BSURF_ERR_INVALID_ARG;
-  if (o->k_max > k) return BSURF_ERR_INVALID_ARG;
-  if (!(o->ratio_threshold >= 0) || !isfinite(o->derivative)) return BSURF_ERR_INVALID_ARG;
-  if (!(o->noise_factor >= 0) || !isfinite(o->noise_factor)) return BSURF_ERR_INVALID_ARG;
-  if (!(o->alpha >= 0 && o->alpha <= 1) || o->iterations < 0) return BSURF_ERR_INVALID_ARG;
-  if (o->filter_k < 0 || o->filter_k > k || !(o->sigma_range > 0)) return BSURF_ERR_INVALID_ARG;
-  if ((size_t)o->k_max > n) return BSURF_ERR_TOO_FEW_POINTS;
+  BSURF_REQUIRE_IN("feature options", o->k_min >= 3, "k_min = %d: must be at least 3", o->k_min);
+  BSURF_REQUIRE_IN("feature options", o->k_max >= o->k_min && o->k_max <= k, "k_max = %d: must be in [k_min = %d, nb->k = %d]", o->k_max,
+                o->k_min, k);
+  BSURF_REQUIRE_IN("feature options", o->k_step >= 1, "k_step = %d: must be at least 1", o->k_step);
+  BSURF_REQUIRE_IN("feature options", o->ratio_threshold >= 0, "ratio_threshold = %g: must be >= 0", o->ratio_threshold);
+  BSURF_REQUIRE_IN("feature options", isfinite(o->derivative), "derivative = %g: must be finite", o->derivative);
+  BSURF_REQUIRE_IN("feature options", o->noise_factor >= 0 && isfinite(o->noise_factor), "noise_factor = %g: must be finite and >= 0",
+                o->noise_factor);
+  BSURF_REQUIRE_IN("feature options", o->alpha >= 0 && o->alpha <= 1, "alpha = %g: must be in [0, 1]", o->alpha);
+  BSURF_REQUIRE_IN("feature options", o->iterations >= 0, "iterations = %d: must be >= 0", o->iterations);
+  BSURF_REQUIRE_IN("feature options", o->filter_k >= 0 && o->filter_k <= k, "filter_k = %d: must be in [0, nb->k = %d]", o->filter_k, k);
+  BSURF_REQUIRE_IN("feature options", o->sigma_range > 0, "sigma_range = %g: must be > 0", o->sigma_range);
+  if ((size_t)o->k_max > n)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k_max = %d exceeds the %zu points", o->k_max, n);
   return BSURF_OK;
 }
 
@@ -355,7 +362,8 @@ static bsurf_status distance_raw(const double *xyz, const bsurf_neighbors *nb,
                                  double *max_radius, size_t *immediate, double *t_kmin,
                                  uint8_t *state) {
   bsurf_feature_options o = opts ? *opts : bsurf_feature_options_default();
-  if (!xyz || !nb || !nb->idx || !dist) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz && dist, "xyz or dist is NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
   bsurf_status st = bsurf_fdist_check(&o, nb->k, nb->point_count);
   if (st != BSURF_OK) return st;
   const size_t n = nb->point_count;
@@ -504,9 +512,13 @@ static bsurf_status distance_auto_threshold(const double *map, size_t n, double 
 
 bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail_rule rule,
                                   double *threshold) {
-  if (!values || !threshold || (rule != BSURF_TAIL_OTSU && rule != BSURF_TAIL_MAD))
-    return BSURF_ERR_INVALID_ARG;
-  if (count < 2) return BSURF_ERR_TOO_FEW_POINTS;
+  BSURF_REQUIRE(values, "values is NULL");
+  BSURF_REQUIRE(threshold, "threshold is NULL");
+  BSURF_REQUIRE(rule == BSURF_TAIL_OTSU || rule == BSURF_TAIL_MAD,
+                "rule = %d: must be BSURF_TAIL_OTSU or BSURF_TAIL_MAD", (int)rule);
+  if (count < 2)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_tail_threshold: %zu values, at least 2 needed",
+                             count);
   for (size_t i = 0; i < count; i++)
     if (isnan(values[i])) return BSURF_ERR_INVALID_VALUE;
   /* values at or below 1e-12 x max are rounding-level zeros (a noise-free
@@ -558,9 +570,15 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
                                    double *score, bsurf_feature_report *report) {
   bsurf_feature_options o = opts ? *opts : bsurf_feature_options_default();
   if (report) memset(report, 0, sizeof *report);
-  if (!xyz || !nb || !nb->idx || !feature) return BSURF_ERR_INVALID_ARG;
-  if (o.method != BSURF_FEATURES_DISTANCE && o.method != BSURF_FEATURES_VARIANCE)
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz, "xyz is NULL");
+  BSURF_REQUIRE(feature, "feature is NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE(o.method == BSURF_FEATURES_DISTANCE || o.method == BSURF_FEATURES_VARIANCE,
+                "method = %d: must be BSURF_FEATURES_DISTANCE or BSURF_FEATURES_VARIANCE", (int)o.method);
+  BSURF_REQUIRE((unsigned)o.tail_rule <= BSURF_TAIL_MAD, "tail_rule = %d: must be BSURF_TAIL_OTSU or _MAD",
+                (int)o.tail_rule);
+  BSURF_REQUIRE(o.method != BSURF_FEATURES_VARIANCE || o.normals.bootstrap >= 2,
+                "normals.bootstrap = %d: the variance method needs B >= 2", o.normals.bootstrap);
   const size_t n = nb->point_count;
   double *sc = score ? score : bsurf_alloc_array(n, sizeof(double));
   double *tmp = NULL;

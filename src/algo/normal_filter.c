@@ -56,10 +56,13 @@ static void filter_point(void *vctx, int thread, size_t i) {
 bsurf_status bsurf_smooth_normals(const double *xyz, const bsurf_neighbors *nb, int k,
                                   double *normals, const double *normal_var, int iterations,
                                   double alpha, double sigma_d, double sigma_nu, int threads) {
-  if (!xyz || !nb || !nb->idx || !normals) return BSURF_ERR_INVALID_ARG;
-  if (k < 1 || k > nb->k || iterations < 0) return BSURF_ERR_INVALID_ARG;
-  if (!(alpha >= 0 && alpha <= 1) || !(sigma_d > 0) || !isfinite(sigma_d) || !(sigma_nu > 0))
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz && normals, "xyz or normals is NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE(k >= 1 && k <= nb->k, "k = %d: must be in [1, nb->k = %d]", k, nb->k);
+  BSURF_REQUIRE(iterations >= 0, "iterations = %d: must be >= 0", iterations);
+  BSURF_REQUIRE(alpha >= 0 && alpha <= 1, "alpha = %g: must be in [0, 1]", alpha);
+  BSURF_REQUIRE(sigma_d > 0 && isfinite(sigma_d), "sigma_d = %g: must be finite and > 0", sigma_d);
+  BSURF_REQUIRE(sigma_nu > 0, "sigma_nu = %g: must be > 0 (INFINITY: no variance term)", sigma_nu);
   if (iterations == 0) return BSURF_OK;
   const size_t n = nb->point_count;
   double *tmp = bsurf_alloc_array(n, 3 * sizeof(double));

@@ -266,14 +266,24 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
                                     bsurf_normal_fields *out, bsurf_normal_report *report) {
   bsurf_normal_options o = opts ? *opts : bsurf_normal_options_default();
   if (report) memset(report, 0, sizeof *report);
-  if (!xyz || !nb || !nb->idx || !out) return BSURF_ERR_INVALID_ARG;
-  if (o.fit != BSURF_NORMAL_PCA && o.fit != BSURF_NORMAL_POLY) return BSURF_ERR_INVALID_ARG;
-  if (o.fit == BSURF_NORMAL_POLY && (o.degree < 1 || o.degree > BSURF_DEGREE_MAX))
-    return BSURF_ERR_INVALID_ARG;
-  if (o.bootstrap < 0 || o.bootstrap > 100000) return BSURF_ERR_INVALID_ARG;
-  if (o.k < 3 || o.k > 65535 || o.k > nb->k) return BSURF_ERR_INVALID_ARG;
-  if ((size_t)o.k > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
-  if (o.fit == BSURF_NORMAL_POLY && o.k < bsurf_poly_terms(o.degree)) return BSURF_ERR_TOO_FEW_POINTS;
+  BSURF_REQUIRE(xyz, "xyz is NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE(out, "out is NULL (give a bsurf_normal_fields, its unwanted outputs NULL)");
+  BSURF_REQUIRE(o.fit == BSURF_NORMAL_PCA || o.fit == BSURF_NORMAL_POLY,
+                "fit = %d: must be BSURF_NORMAL_PCA or BSURF_NORMAL_POLY", (int)o.fit);
+  BSURF_REQUIRE(o.fit != BSURF_NORMAL_POLY || (o.degree >= 1 && o.degree <= BSURF_DEGREE_MAX),
+                "degree = %d: must be in [1, %d]", o.degree, BSURF_DEGREE_MAX);
+  BSURF_REQUIRE((unsigned)o.pca_center <= BSURF_PCA_POINT,
+                "pca_center = %d: must be BSURF_PCA_CENTROID or BSURF_PCA_POINT", (int)o.pca_center);
+  BSURF_REQUIRE(o.bootstrap >= 0 && o.bootstrap <= 100000, "bootstrap (B) = %d: must be in [0, 100000]",
+                o.bootstrap);
+  BSURF_REQUIRE(o.k >= 3 && o.k <= 65535 && o.k <= nb->k, "k = %d: must be in [3, %d] (nb->k = %d)", o.k,
+                nb->k < 65535 ? nb->k : 65535, nb->k);
+  if ((size_t)o.k > nb->point_count)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d exceeds the %zu points", o.k, nb->point_count);
+  if (o.fit == BSURF_NORMAL_POLY && o.k < bsurf_poly_terms(o.degree))
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d is too small for degree %d: a fit needs %d points",
+                             o.k, o.degree, bsurf_poly_terms(o.degree));
 
   const size_t n = nb->point_count;
   const int T = bsurf_threads_resolve(o.threads);

@@ -68,9 +68,11 @@ static heap_item heap_pop(heap *h) {
 
 bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, int k,
                                   double *normals) {
-  if (!xyz || !nb || !nb->idx || !normals || k < 2 || k > nb->k) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz && normals, "xyz or normals is NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE(k >= 2 && k <= nb->k, "k = %d: must be in [2, nb->k = %d]", k, nb->k);
   const size_t n = nb->point_count;
-  if (n > UINT32_MAX) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(n <= UINT32_MAX, "nb->point_count = %zu: at most 2^32 - 1 points", n);
   /* symmetric adjacency (CSR): i -> j for j in N_i, and j -> i */
   size_t *start = calloc(n + 1, sizeof *start);
   uint32_t *adj = bsurf_alloc_array(2 * n * (size_t)(k - 1), sizeof *adj);

@@ -1117,16 +1117,27 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
                           bsurf_smooth_fields *fields, bsurf_smooth_report *report) {
   bsurf_smooth_options o = opts ? *opts : bsurf_smooth_options_default();
   if (report) memset(report, 0, sizeof *report);
-  if (!xyz || !out_xyz || out_xyz == xyz) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz, "xyz is NULL");
+  BSURF_REQUIRE(out_xyz, "out_xyz is NULL");
+  BSURF_REQUIRE(out_xyz != xyz, "out_xyz is xyz: the output may not alias the input");
   bsurf_status st = bsurf_error_check(&o.error, nb);
   if (st != BSURF_OK) return st;
-  if (o.method < BSURF_SMOOTH_NAIVE || o.method > BSURF_SMOOTH_MULTIPASS) return BSURF_ERR_INVALID_ARG;
-  if (o.order != BSURF_ORDER_PARALLEL && o.order != BSURF_ORDER_SEQUENTIAL) return BSURF_ERR_INVALID_ARG;
-  if (isnan(o.h1) || isnan(o.h2) || isnan(o.h2_fraction) || isnan(o.k_error) || isnan(o.k_error_fraction))
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(o.method >= BSURF_SMOOTH_NAIVE && o.method <= BSURF_SMOOTH_MULTIPASS,
+                "method = %d: must be BSURF_SMOOTH_NAIVE, _BILATERAL or _MULTIPASS", (int)o.method);
+  BSURF_REQUIRE(o.order == BSURF_ORDER_PARALLEL || o.order == BSURF_ORDER_SEQUENTIAL,
+                "order = %d: must be BSURF_ORDER_PARALLEL or _SEQUENTIAL", (int)o.order);
+  BSURF_REQUIRE((unsigned)o.estimator <= BSURF_SMOOTH_EST_632PLUS,
+                "estimator = %d: must be BSURF_SMOOTH_EST_DEFAULT, _632 or _632PLUS", (int)o.estimator);
+  BSURF_REQUIRE(!isnan(o.h1) && !isnan(o.h2) && !isnan(o.h2_fraction),
+                "h1 = %g, h2 = %g, h2_fraction = %g: NaN is not allowed (<= 0 selects the default)", o.h1, o.h2,
+                o.h2_fraction);
+  BSURF_REQUIRE(!isnan(o.k_error) && !isnan(o.k_error_fraction),
+                "k_error = %g, k_error_fraction = %g: NaN is not allowed", o.k_error, o.k_error_fraction);
   if (o.method == BSURF_SMOOTH_MULTIPASS) {
-    if (!(o.a >= 0) || !isfinite(o.a) || o.iterations < 0 || o.k_min < 1) return BSURF_ERR_INVALID_ARG;
-    if (o.k_min > o.error.k) return BSURF_ERR_INVALID_ARG;
+    BSURF_REQUIRE(o.a >= 0 && isfinite(o.a), "a = %g: must be finite and >= 0", o.a);
+    BSURF_REQUIRE(o.iterations >= 0, "iterations = %d: must be >= 0", o.iterations);
+    BSURF_REQUIRE(o.k_min >= 1 && o.k_min <= o.error.k, "k_min = %d: must be in [1, error.k = %d]", o.k_min,
+                  o.error.k);
   }
 
   smooth_ctx c;
@@ -1486,7 +1497,9 @@ bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb, c
                                  double *values, bsurf_error_report *report) {
   if (report) memset(report, 0, sizeof *report);
   const size_t nv = bsurf_smooth_stage_values(opts);
-  if (!xyz || !values || !nv) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz && values, "xyz or values is NULL");
+  BSURF_REQUIRE(nv, "method %d in order %d is not tiled (stage values 0)", opts ? (int)opts->method : -1,
+                opts ? (int)opts->order : -1);
   bsurf_smooth_options o = *opts;
   bsurf_status st = bsurf_error_check(&o.error, nb);
   if (st != BSURF_OK) return st;
@@ -1536,8 +1549,9 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
                                  const uint32_t *point, const size_t *rev_off, const uint32_t *rev,
                                  const bsurf_smooth_options *o, double *out_xyz, double *moved) {
   const size_t nv = bsurf_smooth_stage_values(o);
-  if (!xyz || !values || !o || !out_xyz || !moved || !nv || (o->method == BSURF_SMOOTH_BILATERAL && !rev_off))
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz && values && o && out_xyz && moved, "xyz, values, opts, out_xyz or moved is NULL");
+  BSURF_REQUIRE(nv, "method %d in order %d is not tiled (stage values 0)", (int)o->method, (int)o->order);
+  BSURF_REQUIRE(o->method != BSURF_SMOOTH_BILATERAL || rev_off, "rev_off is NULL (bilateral needs it)");
   const int wc = bsurf_smooth_w_column(o);
   bsurf_status st = BSURF_OK;
   if (o->method == BSURF_SMOOTH_NAIVE) {

@@ -37,6 +37,22 @@ void *bsurf_calloc_array(size_t n, size_t size);
  * them then straddles two lines (a split load costs two). free() frees it. */
 void *bsurf_alloc_aligned(size_t n, size_t size);
 
+/* BSURF_ERR_INVALID_ARG with a message for bsurf_last_message(): "FUNC:
+ * what is wrong" naming the parameter, its value and the allowed range.
+ * BSURF_REQUIRE(cond, fmt, ...) returns it from the calling function when
+ * cond is false (func is the public function's name, __func__). */
+bsurf_status bsurf_invalid(const char *func, const char *fmt, ...) BSURF_PRINTF(2, 3);
+#define BSURF_REQUIRE(cond, ...) BSURF_REQUIRE_IN(__func__, cond, __VA_ARGS__)
+/* The same in a check shared by several functions: `what` names the
+ * argument checked ("error options", "mesh") instead of the helper. */
+#define BSURF_REQUIRE_IN(what, cond, ...)                                                          \
+  do {                                                                                             \
+    if (!(cond)) return bsurf_invalid(what, __VA_ARGS__);                                          \
+  } while (0)
+/* Sets the calling thread's last message (printf-style) to any status's
+ * explanation; returns `status`. */
+bsurf_status bsurf_set_message(bsurf_status status, const char *fmt, ...) BSURF_PRINTF(2, 3);
+
 /* Fills an optional error record (printf-style message). Returns `status`. */
 bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line, long long byte,
                         const char *fmt, ...) BSURF_PRINTF(5, 6);

@@ -22,15 +22,43 @@ const char *bsurf_strerror(bsurf_status status) {
   return "unknown status";
 }
 
+/* The message of the last failed call on each thread (bsurf_last_message):
+ * thread-local, so concurrent calls on other threads never overwrite it. */
+static _Thread_local char last_message[512];
+
+const char *bsurf_last_message(void) { return last_message; }
+
+bsurf_status bsurf_set_message(bsurf_status status, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(last_message, sizeof last_message, fmt, ap);
+  va_end(ap);
+  return status;
+}
+
+bsurf_status bsurf_invalid(const char *func, const char *fmt, ...) {
+  int n = snprintf(last_message, sizeof last_message, "%s: ", func);
+  if (n < 0 || (size_t)n >= sizeof last_message) return BSURF_ERR_INVALID_ARG;
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(last_message + n, sizeof last_message - (size_t)n, fmt, ap);
+  va_end(ap);
+  return BSURF_ERR_INVALID_ARG;
+}
+
 bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line,
                         long long byte, const char *fmt, ...) {
+  va_list ap;
+  va_start(ap, fmt);
+  vsnprintf(last_message, sizeof last_message, fmt, ap);
+  va_end(ap);
   if (err) {
-    va_list ap;
     err->line = line;
     err->byte = byte;
-    va_start(ap, fmt);
-    vsnprintf(err->message, sizeof err->message, fmt, ap);
-    va_end(ap);
+    size_t len = strlen(last_message);
+    if (len >= sizeof err->message) len = sizeof err->message - 1;
+    memcpy(err->message, last_message, len);
+    err->message[len] = '\0';
   }
   return status;
 }
@@ -64,3 +92,7 @@ int bsurf_threads_resolve(int threads) {
   return 1;
 #endif
 }
+
+unsigned bsurf_version(void) { return (unsigned)BSURF_VERSION_NUMBER; }
+
+const char *bsurf_version_string(void) { return BSURF_VERSION_STRING; }

@@ -35,7 +35,8 @@ static int cmp_double(const void *pa, const void *pb) {
 
 bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask, uint8_t keep,
                                        size_t count, bsurf_angle_stats *stats) {
-  if (!stats || (count && !angles)) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(stats, "stats is NULL");
+  BSURF_REQUIRE(!count || angles, "angles is NULL");
   size_t n = 0;
   for (size_t i = 0; i < count; i++)
     n += !mask || mask[i] == keep;
@@ -73,7 +74,7 @@ bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask
 
 bsurf_status bsurf_eval_normals(const double *result, const double *truth, size_t count,
                                 double *angles, bsurf_angle_stats *stats, size_t *bad_index) {
-  if (count && (!result || !truth)) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(!count || (result && truth), "result or truth is NULL");
   double *a = angles ? angles : (count ? bsurf_alloc_array(count, sizeof(double)) : NULL);
   if (count && !a) return BSURF_ERR_NOMEM;
   bsurf_status st = BSURF_OK;
@@ -92,7 +93,8 @@ bsurf_status bsurf_eval_normals(const double *result, const double *truth, size_
 
 bsurf_status bsurf_quantile_split(const double *values, size_t count, double q, uint8_t *high,
                                   double *threshold, size_t *high_count, size_t *bad_index) {
-  if (!(q >= 0 && q <= 1) || (count && !values)) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(q >= 0 && q <= 1, "q = %g: must be in [0, 1]", q);
+  BSURF_REQUIRE(!count || values, "values is NULL");
   for (size_t i = 0; i < count; i++)
     if (isnan(values[i])) {
       if (bad_index) *bad_index = i;
@@ -125,7 +127,8 @@ bsurf_status bsurf_quantile_split(const double *values, size_t count, double q, 
 
 bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth, size_t count,
                                  bsurf_feature_stats *stats) {
-  if (!stats || (count && (!result || !truth))) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(stats, "stats is NULL");
+  BSURF_REQUIRE(!count || (result && truth), "result or truth is NULL");
   memset(stats, 0, sizeof *stats);
   for (size_t i = 0; i < count; i++) {
     int r = result[i] != 0, t = truth[i] != 0;

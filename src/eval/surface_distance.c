@@ -175,12 +175,13 @@ void bsurf_mesh_index_free(bsurf_mesh_index *index) {
 }
 
 bsurf_status bsurf_mesh_index_build(bsurf_mesh_index **index, const bsurf_cloud *mesh) {
-  if (!index) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(index, "index is NULL");
   *index = NULL;
-  if (!mesh || !mesh->xyz || !mesh->faces || mesh->face_count == 0) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(mesh && mesh->xyz, "mesh is NULL or has no vertices");
+  BSURF_REQUIRE(mesh->faces && mesh->face_count > 0, "the mesh has no face");
   const size_t m = mesh->face_count, n = mesh->point_count;
   for (size_t i = 0; i < 3 * m; i++)
-    if (mesh->faces[i] >= n) return BSURF_ERR_INVALID_ARG;
+    BSURF_REQUIRE(mesh->faces[i] < n, "face %zu uses vertex %u of %zu", i / 3, (unsigned)mesh->faces[i], n);
   for (size_t i = 0; i < 3 * n; i++)
     if (!isfinite(mesh->xyz[i])) return BSURF_ERR_INVALID_VALUE;
 
@@ -290,22 +291,28 @@ static void position_point(void *vctx, int thread, size_t i) {
 bsurf_status bsurf_position_errors(const double *xyz, size_t count,
                                    const bsurf_true_surface *surface, int threads, double *dist,
                                    bsurf_progress_fn progress, void *progress_user) {
-  if (!surface || (count && (!xyz || !dist))) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(surface, "surface is NULL");
+  BSURF_REQUIRE(!count || (xyz && dist), "xyz or dist is NULL");
   switch (surface->kind) {
   case BSURF_SURFACE_MESH:
-    if (!surface->mesh) return BSURF_ERR_INVALID_ARG;
+    BSURF_REQUIRE(surface->mesh, "surface->mesh is NULL (kind MESH)");
     break;
   case BSURF_SURFACE_SHAPE:
-    if ((unsigned)surface->shape > BSURF_SHAPE_PLANE) return BSURF_ERR_INVALID_ARG;
+    BSURF_REQUIRE((unsigned)surface->shape <= BSURF_SHAPE_PLANE, "surface->shape = %d: not a bsurf_shape",
+                  (int)surface->shape);
     break;
   case BSURF_SURFACE_TANGENT_PLANE:
-    if (!surface->truth_xyz || !surface->truth_normals) return BSURF_ERR_INVALID_ARG;
-    if (!surface->match && surface->truth_count != count) return BSURF_ERR_INVALID_ARG;
+    BSURF_REQUIRE(surface->truth_xyz && surface->truth_normals,
+                  "surface->truth_xyz or truth_normals is NULL (kind TANGENT_PLANE)");
+    BSURF_REQUIRE(surface->match || surface->truth_count == count,
+                  "surface->truth_count = %zu differs from count = %zu and no match is given", surface->truth_count,
+                  count);
     for (size_t i = 0; surface->match && i < count; i++)
-      if (surface->match[i] >= surface->truth_count) return BSURF_ERR_INVALID_ARG;
+      BSURF_REQUIRE(surface->match[i] < surface->truth_count, "surface->match[%zu] = %u: must be below %zu", i,
+                    (unsigned)surface->match[i], surface->truth_count);
     break;
   default:
-    return BSURF_ERR_INVALID_ARG;
+    return bsurf_invalid(__func__, "surface->kind = %d: not a bsurf_surface_kind", (int)surface->kind);
   }
   position_ctx c = {xyz, surface, dist};
   bsurf_status st = bsurf_parallel_points(count, threads, position_point, &c, progress,
@@ -338,8 +345,10 @@ static void match_point(void *vctx, int thread, size_t i) {
 
 bsurf_status bsurf_match_nearest(const double *truth_xyz, size_t truth_count, const double *xyz,
                                  size_t count, int threads, uint32_t *match) {
-  if (!truth_xyz || truth_count == 0 || truth_count > UINT32_MAX || (count && (!xyz || !match)))
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(truth_xyz, "truth_xyz is NULL");
+  BSURF_REQUIRE(truth_count >= 1 && truth_count <= UINT32_MAX, "truth_count = %zu: must be in [1, 2^32 - 1]",
+                truth_count);
+  BSURF_REQUIRE(!count || (xyz && match), "xyz or match is NULL");
   bsurf_knn_index *index = NULL;
   bsurf_status st = bsurf_knn_build(&index, truth_xyz, truth_count);
   if (st != BSURF_OK) return st;
@@ -354,7 +363,8 @@ bsurf_status bsurf_match_nearest(const double *truth_xyz, size_t truth_count, co
 
 bsurf_status bsurf_distance_stats_compute(const double *dist, const uint8_t *mask, uint8_t keep,
                                           size_t count, bsurf_distance_stats *stats) {
-  if (!stats || (count && !dist)) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(stats, "stats is NULL");
+  BSURF_REQUIRE(!count || dist, "dist is NULL");
   size_t n = 0;
   double sum = 0, sum2 = 0, max = 0;
   for (size_t i = 0; i < count; i++) {

@@ -11,6 +11,50 @@
 
 #include <stdio.h>
 
+/* The library exports no unprefixed global symbol (a program linking the
+ * static library may have its own io_*): the short names below stay in the
+ * sources and the linker sees them as bsurf_i_io_*. A new non-static io_
+ * function gets its line here (tests/cli/library.sh checks the archive). */
+#define io_count_tokens bsurf_i_io_count_tokens
+#define io_cursor_init bsurf_i_io_cursor_init
+#define io_dvec_push bsurf_i_io_dvec_push
+#define io_dvec_take bsurf_i_io_dvec_take
+#define io_faces_begin bsurf_i_io_faces_begin
+#define io_faces_corner bsurf_i_io_faces_corner
+#define io_faces_free bsurf_i_io_faces_free
+#define io_faces_init bsurf_i_io_faces_init
+#define io_faces_move bsurf_i_io_faces_move
+#define io_format_value bsurf_i_io_format_value
+#define io_next_token bsurf_i_io_next_token
+#define io_obuf_char bsurf_i_io_obuf_char
+#define io_obuf_done bsurf_i_io_obuf_done
+#define io_obuf_flush bsurf_i_io_obuf_flush
+#define io_obuf_init bsurf_i_io_obuf_init
+#define io_obuf_str bsurf_i_io_obuf_str
+#define io_obuf_uint bsurf_i_io_obuf_uint
+#define io_obuf_value bsurf_i_io_obuf_value
+#define io_parse_double bsurf_i_io_parse_double
+#define io_parse_u64 bsurf_i_io_parse_u64
+#define io_ply_decode bsurf_i_io_ply_decode
+#define io_ply_encode bsurf_i_io_ply_encode
+#define io_ply_layout_free bsurf_i_io_ply_layout_free
+#define io_ply_map bsurf_i_io_ply_map
+#define io_ply_write_header bsurf_i_io_ply_write_header
+#define io_ply_xyz bsurf_i_io_ply_xyz
+#define io_strip_comment bsurf_i_io_strip_comment
+#define io_text_init bsurf_i_io_text_init
+#define io_text_next_line bsurf_i_io_text_next_line
+#define io_token_is bsurf_i_io_token_is
+#define io_token_repr bsurf_i_io_token_repr
+#define io_type_convert bsurf_i_io_type_convert
+#define io_type_is_integer bsurf_i_io_type_is_integer
+#define io_type_name bsurf_i_io_type_name
+#define io_type_parse bsurf_i_io_type_parse
+#define io_type_size bsurf_i_io_type_size
+#define io_write_bytes bsurf_i_io_write_bytes
+#define io_write_fmt bsurf_i_io_write_fmt
+#define io_write_str bsurf_i_io_write_str
+
 /* ---- bounded text scanning ---------------------------------------------- */
 
 typedef struct io_text {

@@ -111,7 +111,7 @@ static void put(canvas *c, int x, int y, const uint8_t color[3]) {
   p[0] = color[0], p[1] = color[1], p[2] = color[2];
 }
 
-int draw_text_width(const char *text, int scale) {
+int bsurf_draw_text_width(const char *text, int scale) {
   int n = (int)strlen(text);
   return n ? n * (FONT_W + 1) * scale - scale : 0;
 }
@@ -121,7 +121,7 @@ static const uint8_t *glyph_of(char ch) {
   return glyphs[(u >= 32 && u < 127) ? u - 32 : '?' - 32];
 }
 
-void draw_text(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3]) {
+void bsurf_draw_text(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3]) {
   for (; *text; text++, x += (FONT_W + 1) * scale) {
     const uint8_t *g = glyph_of(*text);
     for (int r = 0; r < FONT_H; r++)
@@ -133,7 +133,7 @@ void draw_text(canvas *c, int x, int y, const char *text, int scale, const uint8
   }
 }
 
-void draw_text_up(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3]) {
+void bsurf_draw_text_up(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3]) {
   /* glyph pixel (col, r) goes to (x + r, y - col) */
   for (; *text; text++, y -= (FONT_W + 1) * scale) {
     const uint8_t *g = glyph_of(*text);
@@ -146,31 +146,31 @@ void draw_text_up(canvas *c, int x, int y, const char *text, int scale, const ui
   }
 }
 
-void draw_rect(canvas *c, int x0, int y0, int x1, int y1, const uint8_t color[3]) {
+void bsurf_draw_rect(canvas *c, int x0, int y0, int x1, int y1, const uint8_t color[3]) {
   for (int y = y0; y <= y1; y++)
     for (int x = x0; x <= x1; x++)
       put(c, x, y, color);
 }
-void draw_hline(canvas *c, int x0, int x1, int y, const uint8_t color[3]) {
-  draw_rect(c, x0, y, x1, y, color);
+void bsurf_draw_hline(canvas *c, int x0, int x1, int y, const uint8_t color[3]) {
+  bsurf_draw_rect(c, x0, y, x1, y, color);
 }
-void draw_vline(canvas *c, int x, int y0, int y1, const uint8_t color[3]) {
-  draw_rect(c, x, y0, x, y1, color);
+void bsurf_draw_vline(canvas *c, int x, int y0, int y1, const uint8_t color[3]) {
+  bsurf_draw_rect(c, x, y0, x, y1, color);
 }
 
-void draw_fill(canvas *c, const uint8_t color[3]) {
+void bsurf_draw_fill(canvas *c, const uint8_t color[3]) {
   size_t n = (size_t)c->width * (size_t)c->height;
   for (size_t i = 0; i < n; i++)
     memcpy(c->rgb + 3 * i, color, 3);
 }
 
-void draw_ink_for(const uint8_t bg[3], uint8_t ink[3]) {
+void bsurf_draw_ink_for(const uint8_t bg[3], uint8_t ink[3]) {
   int lum = (299 * bg[0] + 587 * bg[1] + 114 * bg[2]) / 1000;
   uint8_t v = lum > 128 ? 20 : 235;
   ink[0] = ink[1] = ink[2] = v;
 }
 
-int draw_nice_ticks(double lo, double hi, int target, double *ticks, int max) {
+int bsurf_draw_nice_ticks(double lo, double hi, int target, double *ticks, int max) {
   if (!(hi > lo) || !isfinite(lo) || !isfinite(hi)) {
     if (max > 0 && isfinite(lo)) {
       ticks[0] = lo;
@@ -190,7 +190,7 @@ int draw_nice_ticks(double lo, double hi, int target, double *ticks, int max) {
   return n;
 }
 
-void draw_format_value(double v, double step, char *buf, size_t size) {
+void bsurf_draw_format_value(double v, double step, char *buf, size_t size) {
   double a = fabs(v);
   if (v == 0.0) {
     snprintf(buf, size, "0");
@@ -205,6 +205,6 @@ void draw_format_value(double v, double step, char *buf, size_t size) {
   }
 }
 
-int draw_font_scale(int height) {
+int bsurf_draw_font_scale(int height) {
   return height >= 300 ? 2 : 1;
 }

@@ -88,7 +88,7 @@ static double select_kth(double *v, size_t n, size_t k) {
 
 bsurf_status bsurf_render_range(const double *values, size_t count, double percentile_lo,
                                 double percentile_hi, double *lo, double *hi) {
-  if (!values || !lo || !hi) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(values && lo && hi, "values, lo or hi is NULL");
   double *v = bsurf_alloc_array(count ? count : 1, sizeof *v);
   if (!v) return BSURF_ERR_NOMEM;
   size_t n = 0;
@@ -223,7 +223,7 @@ static double estimate_spacing(const double *xyz, size_t n, const double lo[3], 
 void bsurf_render_text(uint8_t *rgb, int width, int height, int x, int y, const char *text,
                        int scale, const uint8_t color[3]) {
   canvas c = {rgb, width, height};
-  draw_text(&c, x, y, text, scale < 1 ? 1 : scale, color);
+  bsurf_draw_text(&c, x, y, text, scale < 1 ? 1 : scale, color);
 }
 
 void bsurf_render_colorbar(uint8_t *rgb, int width, int height, int x, int y, int w, int h,
@@ -231,7 +231,7 @@ void bsurf_render_colorbar(uint8_t *rgb, int width, int height, int x, int y, in
                            const uint8_t background[3]) {
   canvas c = {rgb, width, height};
   uint8_t ink[3];
-  draw_ink_for(background, ink);
+  bsurf_draw_ink_for(background, ink);
   int s = (h >= 220 && w >= 120) ? 2 : 1;
   int line = (FONT_H + 4) * s;
   int top = y + (label ? line + 4 * s : 4 * s) + FONT_H * s / 2;
@@ -243,26 +243,26 @@ void bsurf_render_colorbar(uint8_t *rgb, int width, int height, int x, int y, in
     /* the caption, shortened to the box */
     char buf[128];
     snprintf(buf, sizeof buf, "%s", label);
-    while (strlen(buf) > 1 && draw_text_width(buf, s) > w - 4 * s)
+    while (strlen(buf) > 1 && bsurf_draw_text_width(buf, s) > w - 4 * s)
       buf[strlen(buf) - 1] = 0;
-    draw_text(&c, x + 2 * s, y + 2 * s, buf, s, ink);
+    bsurf_draw_text(&c, x + 2 * s, y + 2 * s, buf, s, ink);
   }
   for (int yy = top; yy <= bottom; yy++) {
     double t = (double)(bottom - yy) / (double)(bottom - top);
     uint8_t col[3];
     bsurf_colormap_rgb(cmap, t, col);
-    draw_hline(&c, bx, bx + barw - 1, yy, col);
+    bsurf_draw_hline(&c, bx, bx + barw - 1, yy, col);
   }
   /* frame */
-  draw_hline(&c, bx - 1, bx + barw, top - 1, ink);
-  draw_hline(&c, bx - 1, bx + barw, bottom + 1, ink);
-  draw_vline(&c, bx - 1, top - 1, bottom + 1, ink);
-  draw_vline(&c, bx + barw, top - 1, bottom + 1, ink);
+  bsurf_draw_hline(&c, bx - 1, bx + barw, top - 1, ink);
+  bsurf_draw_hline(&c, bx - 1, bx + barw, bottom + 1, ink);
+  bsurf_draw_vline(&c, bx - 1, top - 1, bottom + 1, ink);
+  bsurf_draw_vline(&c, bx + barw, top - 1, bottom + 1, ink);
   if (!isfinite(lo) || !isfinite(hi)) return;
   double ticks[16];
   int nt;
   if (hi > lo) {
-    nt = draw_nice_ticks(lo, hi, 5, ticks, 16);
+    nt = bsurf_draw_nice_ticks(lo, hi, 5, ticks, 16);
   } else {
     ticks[0] = lo;
     nt = 1;
@@ -271,10 +271,10 @@ void bsurf_render_colorbar(uint8_t *rgb, int width, int height, int x, int y, in
   for (int k = 0; k < nt; k++) {
     double t = hi > lo ? (ticks[k] - lo) / (hi - lo) : 0.5;
     int yy = bottom - (int)floor(t * (bottom - top) + 0.5);
-    draw_hline(&c, bx + barw, bx + barw + 4 * s, yy, ink);
+    bsurf_draw_hline(&c, bx + barw, bx + barw + 4 * s, yy, ink);
     char buf[32];
-    draw_format_value(ticks[k], step, buf, sizeof buf);
-    draw_text(&c, bx + barw + 7 * s, yy - FONT_H * s / 2, buf, s, ink);
+    bsurf_draw_format_value(ticks[k], step, buf, sizeof buf);
+    bsurf_draw_text(&c, bx + barw + 7 * s, yy - FONT_H * s / 2, buf, s, ink);
   }
 }
 
@@ -438,20 +438,23 @@ bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals
                           size_t point_count, const double *values,
                           const bsurf_render_options *opt_in, bsurf_render_info *info) {
   bsurf_render_options opt = opt_in ? *opt_in : bsurf_render_options_default();
-  if (!rgb || (!xyz && point_count)) return BSURF_ERR_INVALID_ARG;
-  if (point_count >= 0xFFFFFFFFu)
-    return BSURF_ERR_INVALID_ARG; /* indices are 32-bit in the z-buffer */
-  if (opt.width < 16 || opt.height < 16 || opt.width > 16384 || opt.height > 16384)
-    return BSURF_ERR_INVALID_ARG;
-  if (opt.views != 1 && opt.views != 4) return BSURF_ERR_INVALID_ARG;
-  if (opt.supersample < 1 || opt.supersample > 4 || opt.up_axis < 0 || opt.up_axis > 2)
-    return BSURF_ERR_INVALID_ARG;
-  if (!(opt.point_size > 0) || !isfinite(opt.azimuth) || !isfinite(opt.elevation))
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(rgb, "rgb is NULL");
+  BSURF_REQUIRE(xyz || !point_count, "xyz is NULL");
+  /* indices are 32-bit in the z-buffer */
+  BSURF_REQUIRE(point_count < 0xFFFFFFFFu, "point_count = %zu: must be below 2^32 - 1", point_count);
+  BSURF_REQUIRE(opt.width >= 16 && opt.height >= 16 && opt.width <= 16384 && opt.height <= 16384,
+                "width x height = %d x %d: each must be in [16, 16384]", opt.width, opt.height);
+  BSURF_REQUIRE(opt.views == 1 || opt.views == 4, "views = %d: must be 1 or 4", opt.views);
+  BSURF_REQUIRE(opt.supersample >= 1 && opt.supersample <= 4, "supersample = %d: must be in [1, 4]",
+                opt.supersample);
+  BSURF_REQUIRE(opt.up_axis >= 0 && opt.up_axis <= 2, "up_axis = %d: must be 0, 1 or 2", opt.up_axis);
+  BSURF_REQUIRE(opt.point_size > 0, "point_size = %g: must be > 0", opt.point_size);
+  BSURF_REQUIRE(isfinite(opt.azimuth) && isfinite(opt.elevation), "azimuth = %g, elevation = %g: must be finite",
+                opt.azimuth, opt.elevation);
   canvas img = {rgb, opt.width, opt.height};
-  draw_fill(&img, opt.background);
+  bsurf_draw_fill(&img, opt.background);
   uint8_t ink[3];
-  draw_ink_for(opt.background, ink);
+  bsurf_draw_ink_for(opt.background, ink);
 
   render_job job;
   memset(&job, 0, sizeof job);
@@ -487,7 +490,7 @@ bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals
   }
   job.h = opt.spacing > 0 ? opt.spacing : estimate_spacing(xyz, point_count, lo3, extent);
 
-  int s = draw_font_scale(opt.height);
+  int s = bsurf_draw_font_scale(opt.height);
   int bar_w = (values && opt.colorbar) ? (s == 2 ? 150 : 80) : 0;
   if (bar_w > opt.width / 3) bar_w = 80; /* a narrower bar (its font is then 1x) */
   if (bar_w > opt.width / 3) bar_w = 0;
@@ -505,20 +508,20 @@ bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals
       bsurf_view_from_name(names[v], &az, &el);
       int px = (v % 2) * hw, py = title_h + (v / 2) * hh;
       st = render_view(&job, &img, px, py, hw, hh, az, el, &covered);
-      draw_text(&img, px + 4 * s, py + 4 * s, names[v], s, ink);
+      bsurf_draw_text(&img, px + 4 * s, py + 4 * s, names[v], s, ink);
     }
     if (st == BSURF_OK) {
       uint8_t sep[3] = {(uint8_t)((opt.background[0] + 2 * ink[0]) / 3),
                         (uint8_t)((opt.background[1] + 2 * ink[1]) / 3),
                         (uint8_t)((opt.background[2] + 2 * ink[2]) / 3)};
-      draw_vline(&img, hw, title_h, title_h + 2 * hh - 1, sep);
-      draw_hline(&img, 0, 2 * hw - 1, title_h + hh, sep);
+      bsurf_draw_vline(&img, hw, title_h, title_h + 2 * hh - 1, sep);
+      bsurf_draw_hline(&img, 0, 2 * hw - 1, title_h + hh, sep);
     }
   }
   if (st != BSURF_OK) return st;
   if (opt.title) {
-    int tw = draw_text_width(opt.title, s);
-    draw_text(&img, (plot_w - tw) / 2 > 2 ? (plot_w - tw) / 2 : 2, 4 * s, opt.title, s, ink);
+    int tw = bsurf_draw_text_width(opt.title, s);
+    bsurf_draw_text(&img, (plot_w - tw) / 2 > 2 ? (plot_w - tw) / 2 : 2, 4 * s, opt.title, s, ink);
   }
   if (bar_w) {
     int bh = plot_h * 3 / 4;

@@ -457,10 +457,11 @@ bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz, size_t 
   knn_builder b;
   size_t max_nodes;
 
-  if (!index) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(index, "index is NULL");
   *index = NULL;
-  if (point_count == 0) return BSURF_ERR_TOO_FEW_POINTS;
-  if (!xyz || point_count > UINT32_MAX) return BSURF_ERR_INVALID_ARG;
+  if (point_count == 0) return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_knn_build: no points");
+  BSURF_REQUIRE(xyz, "xyz is NULL");
+  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points", point_count);
 
   ix = calloc(1, sizeof *ix);
   if (!ix) return BSURF_ERR_NOMEM;
@@ -667,8 +668,8 @@ bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3]
   knn_search s;
 
   s.buf = NULL;
-  if (!index || !query || !idx) return BSURF_ERR_INVALID_ARG;
-  if (k < 1 || (size_t)k > index->n) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(index && query && idx, "index, query or idx is NULL");
+  BSURF_REQUIRE(k >= 1 && (size_t)k <= index->n, "k = %d: must be in [1, %zu] (the indexed points)", k, index->n);
 
   for (int d = 0; d < 3; d++)
     s.c[d] = index->xyz[d];
@@ -817,10 +818,10 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
   uint32_t *hist;
   knn_buffer *bufs;
 
-  if (!index) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(index, "index is NULL");
   n = index->n;
-  if (k < 1 || (size_t)k > n) return BSURF_ERR_INVALID_ARG;
-  if (nn_dist2 && k < 2) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(k >= 1 && (size_t)k <= n, "k = %d: must be in [1, %zu] (the indexed points)", k, n);
+  BSURF_REQUIRE(!nn_dist2 || k >= 2, "k = %d: the spacing needs k >= 2", k);
 
   nt = bsurf_threads_resolve(threads);
   if (nt < 1) nt = 1;
@@ -892,7 +893,7 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
 
 bsurf_status bsurf_knn_all(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,
                            double *dist2, bsurf_progress_fn progress, void *progress_user) {
-  if (!idx) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(idx, "idx is NULL");
   return bsurf_knn_all_ex(index, k, threads, idx, dist2, NULL, progress, progress_user);
 }
 
@@ -905,9 +906,10 @@ bsurf_status bsurf_knn_all_brute(const double *xyz, size_t point_count, int k, u
   knn_list l;
   const int m = k - 1;
 
-  if (point_count == 0) return BSURF_ERR_TOO_FEW_POINTS;
-  if (!xyz || !idx || point_count > UINT32_MAX) return BSURF_ERR_INVALID_ARG;
-  if (k < 1 || (size_t)k > point_count) return BSURF_ERR_INVALID_ARG;
+  if (point_count == 0) return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_knn_all_brute: no points");
+  BSURF_REQUIRE(xyz && idx, "xyz or idx is NULL");
+  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points", point_count);
+  BSURF_REQUIRE(k >= 1 && (size_t)k <= point_count, "k = %d: must be in [1, %zu] (the points)", k, point_count);
 
   l.k = m;
   l.e = bsurf_alloc_array(m > 0 ? (size_t)m : 1, sizeof *l.e);

@@ -32,6 +32,12 @@ double bsurf_sum_sqrt(const double *v, size_t n) {
 static bsurf_status knn_with_spacing(const double *xyz, size_t point_count, int k, int threads,
                                      uint32_t *idx, uint32_t *order, double *h,
                                      bsurf_progress_fn progress, void *user) {
+  /* The tree orders non-finite points too (bsurf_knn_*), but h and every
+   * neighbourhood-based estimate would be NaN: refuse them here. */
+  for (size_t i = 0; i < 3 * point_count; i++)
+    if (!isfinite(xyz[i]))
+      return bsurf_set_message(BSURF_ERR_INVALID_VALUE, "point %zu has a NaN or infinite coordinate (%g)", i / 3,
+                               xyz[i]);
   bsurf_knn_index *index = NULL;
   double *nn;
   bsurf_status st;
@@ -56,10 +62,14 @@ bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz, size_
   uint32_t *idx;
   double h = 0.0;
 
-  if (!nb) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(nb, "nb is NULL");
   memset(nb, 0, sizeof *nb);
-  if (!xyz || k < 2 || point_count > UINT32_MAX) return BSURF_ERR_INVALID_ARG;
-  if (point_count == 0 || (size_t)k > point_count) return BSURF_ERR_TOO_FEW_POINTS;
+  BSURF_REQUIRE(xyz, "xyz is NULL");
+  BSURF_REQUIRE(k >= 2, "k = %d: must be at least 2 (the point and a neighbour)", k);
+  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points", point_count);
+  if (point_count == 0 || (size_t)k > point_count)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_neighbors_build: k = %d exceeds the %zu points", k,
+                             point_count);
 
   idx = bsurf_alloc_array(point_count, (size_t)k * sizeof *idx);
   uint32_t *order = bsurf_alloc_array(point_count, sizeof *order);
@@ -91,8 +101,12 @@ void bsurf_neighbors_free(bsurf_neighbors *nb) {
 
 bsurf_status bsurf_mean_spacing_progress(const double *xyz, size_t point_count, int threads,
                                          double *h, bsurf_progress_fn progress, void *user) {
-  if (!h || !xyz || point_count > UINT32_MAX) return BSURF_ERR_INVALID_ARG;
-  if (point_count < 2) return BSURF_ERR_TOO_FEW_POINTS;
+  BSURF_REQUIRE(h, "h is NULL");
+  BSURF_REQUIRE(xyz, "xyz is NULL");
+  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points", point_count);
+  if (point_count < 2)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_mean_spacing: %zu points, at least 2 needed",
+                             point_count);
   return knn_with_spacing(xyz, point_count, 2, threads, NULL, NULL, h, progress, user);
 }
 

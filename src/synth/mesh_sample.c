@@ -73,10 +73,11 @@ static double norm3(const double *a) {
 }
 
 static bsurf_status check_mesh(const bsurf_cloud *mesh) {
-  if (!mesh || !mesh->xyz || !mesh->faces || mesh->face_count == 0) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE_IN("mesh", mesh && mesh->xyz, "mesh is NULL or has no vertices");
+  BSURF_REQUIRE_IN("mesh", mesh->faces && mesh->face_count > 0, "the mesh has no face");
   const size_t n = mesh->point_count;
   for (size_t i = 0; i < 3 * mesh->face_count; i++)
-    if (mesh->faces[i] >= n) return BSURF_ERR_INVALID_ARG;
+    BSURF_REQUIRE_IN("mesh", mesh->faces[i] < n, "face %zu uses vertex %u of %zu", i / 3, (unsigned)mesh->faces[i], n);
   for (size_t i = 0; i < 3 * n; i++)
     if (!isfinite(mesh->xyz[i])) return BSURF_ERR_INVALID_VALUE;
   return BSURF_OK;
@@ -121,7 +122,7 @@ static size_t accumulate_normals(const bsurf_cloud *mesh, double *normals) {
 
 bsurf_status bsurf_mesh_vertex_normals(const bsurf_cloud *mesh, double *normals,
                                        size_t *without_normal) {
-  if (!normals) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(normals, "normals is NULL");
   bsurf_status st = check_mesh(mesh);
   if (st != BSURF_OK) return st;
   size_t without = accumulate_normals(mesh, normals);
@@ -358,12 +359,14 @@ static size_t pick_face(const double *cum, size_t F, double u, size_t last_posit
 
 bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
                                const bsurf_sample_options *opts, bsurf_sample_report *report) {
-  if (!out) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(out, "out is NULL");
   bsurf_cloud_init(out);
   bsurf_sample_options o = opts ? *opts : bsurf_sample_options_default();
-  if (!(o.sharp_angle_deg >= 0 && o.sharp_angle_deg <= 180) || !(o.feature_width >= 0) ||
-      !isfinite(o.feature_width) || o.threads < 0)
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(o.sharp_angle_deg >= 0 && o.sharp_angle_deg <= 180, "sharp_angle_deg = %g: must be in [0, 180]",
+                o.sharp_angle_deg);
+  BSURF_REQUIRE(o.feature_width >= 0 && isfinite(o.feature_width), "feature_width = %g: must be finite and >= 0",
+                o.feature_width);
+  BSURF_REQUIRE(o.threads >= 0, "threads = %d: must be >= 0 (0 = all cores)", o.threads);
   bsurf_status st = check_mesh(mesh);
   if (st != BSURF_OK) return st;
   if (mesh->face_count > UINT32_MAX) return BSURF_ERR_UNSUPPORTED;

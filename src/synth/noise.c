@@ -12,9 +12,11 @@
 bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_t point_count,
                              bsurf_noise_model model, double level, double scale,
                              uint64_t seed) {
-  if (!xyz || !normals) return BSURF_ERR_INVALID_ARG;
-  if (!(level >= 0) || !isfinite(level) || !(scale >= 0) || !isfinite(scale))
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(point_count == 0 || (xyz && normals), "xyz or normals is NULL");
+  BSURF_REQUIRE(model == BSURF_NOISE_GAUSSIAN || model == BSURF_NOISE_UNIFORM,
+                "model = %d: must be BSURF_NOISE_GAUSSIAN or BSURF_NOISE_UNIFORM", (int)model);
+  BSURF_REQUIRE(level >= 0 && isfinite(level), "level = %g: must be finite and >= 0", level);
+  BSURF_REQUIRE(scale >= 0 && isfinite(scale), "scale = %g: must be finite and >= 0", scale);
   for (size_t i = 0; i < point_count; i++) {
     const double *n = &normals[3 * i];
     double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);

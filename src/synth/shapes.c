@@ -76,8 +76,14 @@ static size_t torus_regular_count(size_t n, int *rings) {
 
 bsurf_status bsurf_generate(bsurf_cloud *cloud, bsurf_shape shape, size_t n,
                             bsurf_sampling sampling, uint64_t seed, double feature_width) {
+  BSURF_REQUIRE(cloud, "cloud is NULL");
   bsurf_cloud_init(cloud);
-  if (n < 1 || (unsigned)shape > BSURF_SHAPE_PLANE) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(n >= 1, "n = 0: at least one point");
+  BSURF_REQUIRE((unsigned)shape <= BSURF_SHAPE_PLANE, "shape = %d: not a bsurf_shape", (int)shape);
+  BSURF_REQUIRE(sampling == BSURF_SAMPLING_REGULAR || sampling == BSURF_SAMPLING_RANDOM,
+                "sampling = %d: must be BSURF_SAMPLING_REGULAR or BSURF_SAMPLING_RANDOM", (int)sampling);
+  BSURF_REQUIRE(feature_width >= 0 && isfinite(feature_width), "feature_width = %g: must be finite and >= 0",
+                feature_width);
   size_t count = n;
   int grid = 0, rings = 0;
   if (sampling == BSURF_SAMPLING_REGULAR) {

@@ -32,6 +32,7 @@
  * column, 24 bytes, two files at a time while a pass runs. */
 #include "algo/algo.h"
 #include "common/common.h"
+#include "tile/tile_engine.h"
 
 #include "io/io.h"
 

@@ -53,6 +53,7 @@
  */
 #define _DEFAULT_SOURCE /* madvise */
 #include "common/common.h"
+#include "tile/tile_engine.h"
 #include "io/io.h"
 #include "search/search.h"
 
@@ -1484,8 +1485,10 @@ static bsurf_status map_values(const bsurf_tile_values *v, size_t n, tile_map *m
 }
 
 bsurf_status bsurf_tile_values_read(const bsurf_tile_values *v, size_t first, size_t count, double *out) {
-  if (!v || v->fd < 0 || first > v->count || count > v->count - first || (count && !out))
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(v && v->fd >= 0, "no values file (v is NULL or closed)");
+  BSURF_REQUIRE(first <= v->count && count <= v->count - first, "points [%zu, %zu + %zu) outside [0, %zu)", first,
+                first, count, v->count);
+  BSURF_REQUIRE(out || !count, "out is NULL");
   const size_t cols = v->nvalues + 1, per = 65536;
   double *buf = bsurf_alloc_array(per, cols * sizeof(double));
   if (!buf) return BSURF_ERR_NOMEM;

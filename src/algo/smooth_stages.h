@@ -1,0 +1,38 @@
+/* Smoothing in two stages, for the tiled smoothing of cli/cmd_smooth.c
+ * (internal: moved from bootsurf.h by issue 18; to be called from a
+ * src/jobs smoothing job instead of cli/ once that exists). */
+#ifndef BSURF_SMOOTH_STAGES_H
+#define BSURF_SMOOTH_STAGES_H
+
+#include "bootsurf.h"
+
+/* Tiled smoothing (bsurf_tiles_run, docs/scaling.md): naive and bilateral in
+ * parallel order as two stages with the bits of bsurf_smooth.
+ * Stage 1, per point from its own K-neighbourhood: err_632, err_632plus,
+ * then naive's projection of Eq. 6.1 (3 doubles) or bilateral's fit (frame,
+ * scale and coefficients). The doubles per point; 0: the method and order
+ * are not local enough to tile (sequential order, multipass). */
+size_t bsurf_smooth_stage_values(const bsurf_smooth_options *opts);
+/* Which of the first two values is W_i (0: err_632, 1: err_632plus). */
+int bsurf_smooth_w_column(const bsurf_smooth_options *opts);
+/* Stage 1 for the nb->point_count rows of nb (row r is the point nb->idx[r k];
+ * opts->error.point_index keys the draws): values out, rows x
+ * bsurf_smooth_stage_values. report: the bootstrap counters (may be NULL). */
+bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb,
+                                 const bsurf_smooth_options *opts, double *values,
+                                 bsurf_error_report *report);
+/* The sigmas and the threshold bsurf_smooth applies, from h (mean spacing)
+ * and |W| (the mean of W_i over the cloud, summed in index order): sets
+ * opts->h1, opts->h2 and opts->threshold. */
+void bsurf_smooth_resolve(bsurf_smooth_options *opts, double h, double mean_w);
+/* Stage 2 with resolved options, for `count` points at the local indices
+ * point[] (NULL: 0..count-1) of xyz; values: stage 1's of every local point.
+ * Bilateral: rev[rev_off[r] .. rev_off[r + 1]) are the local indices
+ * (increasing global order) of every neighbourhood containing point r;
+ * naive: rev NULL. out_xyz: count x 3; moved: count. */
+bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const double *values,
+                                 size_t count, const uint32_t *point, const size_t *rev_off,
+                                 const uint32_t *rev, const bsurf_smooth_options *opts,
+                                 double *out_xyz, double *moved);
+
+#endif /* BSURF_SMOOTH_STAGES_H */

@@ -1,0 +1,174 @@
+/* The `error` job (issue 18): bootstrap test-error estimates of every point
+ * of a cloud, in memory or tile by tile (under MPI through the caller's
+ * bsurf_tile_comm), through one call. The command line parses its options
+ * and prints the summary; everything between is here. */
+#include "common/common.h"
+#include "tile/tile_engine.h"
+
+#include <string.h>
+
+/* The output fields, in the order they are added to a cloud and written. */
+static const char *const error_field_names[BSURF_ERROR_JOB_FIELDS] = {
+    "err_train",   "err_boot", "err_loo",      "err_loo_center", "err_632",
+    "err_632plus", "gamma",    "overfit_rate", "err_test",       "err_test_center"};
+
+static void fields_slots(bsurf_error_fields *out, double **slots[BSURF_ERROR_JOB_FIELDS]) {
+  memset(out, 0, sizeof *out);
+  double **s[BSURF_ERROR_JOB_FIELDS] = {&out->err_train,      &out->err_boot,     &out->err_loo,
+                                        &out->err_loo_center, &out->err_632,      &out->err_632plus,
+                                        &out->gamma,          &out->overfit_rate, &out->err_test,
+                                        &out->err_test_center};
+  memcpy(slots, s, sizeof s);
+}
+
+/* Adds the job's fields to a cloud and points `out` at them. */
+static bsurf_status add_fields(bsurf_cloud *c, int nfields, bsurf_error_fields *out) {
+  double **slots[BSURF_ERROR_JOB_FIELDS];
+  fields_slots(out, slots);
+  for (int f = 0; f < nfields; f++)
+    if (!bsurf_cloud_add_field(c, error_field_names[f], BSURF_FLOAT32))
+      return bsurf_set_message(BSURF_ERR_NOMEM, "out of memory adding the field %s",
+                               error_field_names[f]);
+  /* looked up after every add: the table of fields moves, the values do not */
+  for (int f = 0; f < nfields; f++)
+    *slots[f] = bsurf_cloud_field(c, error_field_names[f])->values;
+  return BSURF_OK;
+}
+
+/* The mean of a field summed in point order (what the summary reports). */
+static double field_mean(const double *v, size_t n) {
+  double s = 0;
+  for (size_t i = 0; i < n; i++)
+    s += v[i];
+  return n ? s / (double)n : 0.0;
+}
+
+/* ---- tiled: the same fields, tile by tile (bsurf_tiles_run) ---- */
+
+typedef struct error_tiles {
+  bsurf_error_options eo;
+  int nfields;
+} error_tiles;
+
+/* sums: replicates total, skipped, degree reduced, centre unestimated, then
+ * the field sums */
+#define ERROR_SUMS (4 + BSURF_ERROR_JOB_FIELDS)
+
+static bsurf_status error_prepare(void *user, bsurf_cloud *c) {
+  const error_tiles *et = user;
+  bsurf_error_fields out;
+  return add_fields(c, et->nfields, &out);
+}
+
+static bsurf_status error_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
+  const error_tiles *et = user;
+  bsurf_error_options eo = et->eo;
+  eo.point_index = tile->point_index;
+  eo.progress = NULL;
+  bsurf_error_fields out;
+  double **slots[BSURF_ERROR_JOB_FIELDS];
+  fields_slots(&out, slots);
+  for (int f = 0; f < et->nfields; f++)
+    *slots[f] = bsurf_cloud_field(core, error_field_names[f])->values;
+  bsurf_error_report rep;
+  bsurf_status st = bsurf_estimate_error(tile->xyz, tile->nb, NULL, &eo, &out, &rep);
+  if (st != BSURF_OK) return st;
+  sums[0] += (double)rep.replicates_total;
+  sums[1] += (double)rep.replicates_skipped;
+  sums[2] += (double)rep.degree_reduced;
+  sums[3] += (double)rep.center_unestimated;
+  for (int f = 0; f < et->nfields; f++)
+    sums[4 + f] += field_mean(*slots[f], core->point_count) * (double)core->point_count;
+  return BSURF_OK;
+}
+
+static bsurf_status error_tiled(const bsurf_job_io *io, const bsurf_error_options *o,
+                                bsurf_error_job_summary *s, bsurf_error *err) {
+  error_tiles et = {*o, s->field_count};
+  double sums[ERROR_SUMS] = {0};
+  bsurf_tile_ops ops;
+  memset(&ops, 0, sizeof ops);
+  ops.tile_points = io->tile_points;
+  ops.k = o->k;
+  ops.threads = o->threads;
+  ops.user = &et;
+  ops.prepare = error_prepare;
+  ops.run = error_run;
+  ops.nsums = ERROR_SUMS;
+  ops.comm = io->comm;
+  ops.progress = o->progress;
+  ops.progress_user = o->progress_user;
+  ops.range_points = io->range_points;
+  bsurf_tile_report tr;
+  memset(&tr, 0, sizeof tr);
+  tr.sums = sums;
+  bsurf_status st = bsurf_tiles_run(io->input, io->output, &ops, &tr, err);
+  s->tile_points = ops.tile_points;
+  s->tiles = tr.tiles;
+  s->bad_point = tr.bad_point;
+  if (st != BSURF_OK) return st;
+  s->points = tr.points;
+  s->h = tr.h;
+  s->duplicates = tr.duplicates;
+  s->report.replicates_total = (size_t)sums[0];
+  s->report.replicates_skipped = (size_t)sums[1];
+  s->report.degree_reduced = (size_t)sums[2];
+  s->report.center_unestimated = (size_t)sums[3];
+  for (int f = 0; f < s->field_count; f++)
+    s->means[f] = sums[4 + f] / (double)s->points;
+  return BSURF_OK;
+}
+
+/* ---- in memory ---- */
+
+static bsurf_status error_in_memory(const bsurf_job_io *io, const bsurf_error_options *o,
+                                    bsurf_error_job_summary *s) {
+  bsurf_cloud *c = io->cloud;
+  const size_t n = c->point_count;
+  if (io->test && io->test->point_count != n)
+    return bsurf_invalid("bsurf_error_job",
+                         "io->test has %zu points, io->cloud %zu: the same points are needed",
+                         io->test->point_count, n);
+  bsurf_neighbors nb;
+  bsurf_status st =
+      bsurf_neighbors_build(&nb, c->xyz, n, o->k, o->threads, o->progress, o->progress_user);
+  if (st != BSURF_OK) return st;
+  s->points = n;
+  s->h = nb.h;
+  /* points at the same place as another: the nearest other neighbour (the
+   * point itself comes first) is at distance 0 */
+  for (size_t i = 0; i < n; i++) {
+    const double *a = c->xyz + 3 * i, *b = c->xyz + 3 * (size_t)nb.idx[i * (size_t)nb.k + 1];
+    s->duplicates += a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+  }
+  bsurf_error_fields out;
+  st = add_fields(c, s->field_count, &out);
+  if (st == BSURF_OK)
+    st = bsurf_estimate_error(c->xyz, &nb, io->test ? io->test->xyz : NULL, o, &out, &s->report);
+  bsurf_neighbors_free(&nb);
+  if (st != BSURF_OK) return st;
+  for (int f = 0; f < s->field_count; f++)
+    s->means[f] = field_mean(bsurf_cloud_field(c, s->field_names[f])->values, n);
+  return BSURF_OK;
+}
+
+bsurf_status bsurf_error_job(const bsurf_job_io *io, const bsurf_error_options *opts,
+                             bsurf_error_job_summary *summary, bsurf_error *err) {
+  bsurf_error_options o = opts ? *opts : bsurf_error_options_default();
+  BSURF_REQUIRE(io, "io is NULL");
+  BSURF_REQUIRE(summary, "summary is NULL");
+  memset(summary, 0, sizeof *summary);
+  summary->field_count = io->test ? BSURF_ERROR_JOB_FIELDS : BSURF_ERROR_JOB_FIELDS - 2;
+  for (int f = 0; f < BSURF_ERROR_JOB_FIELDS; f++)
+    summary->field_names[f] = error_field_names[f];
+  BSURF_REQUIRE(!io->cloud != !io->input,
+                "give either io->cloud (in memory) or io->input (tiled), not %s",
+                io->cloud ? "both" : "neither");
+  if (io->cloud) {
+    BSURF_REQUIRE(io->cloud->xyz || !io->cloud->point_count, "io->cloud has no coordinates");
+    return error_in_memory(io, &o, summary);
+  }
+  BSURF_REQUIRE(!io->test, "io->test: a test sample is only available in memory");
+  BSURF_REQUIRE(io->tile_points > 0, "io->tile_points = 0: a tiled run needs the tile size");
+  return error_tiled(io, &o, summary, err);
+}
