@@ -67,7 +67,7 @@ int cli_write_options(const char *path, int ascii, bsurf_write_options *wo);
 bsurf_format cli_output_format(const char *path);
 /* bsurf_write, "-" to the real standard output. */
 bsurf_status cli_write_to(const char *path, const bsurf_cloud *cloud, const bsurf_write_options *wo,
-                          bsurf_error *err);
+                          bsurf_failure *err);
 /* For every command that reads clouds: cli_read_cloud() then drops points
  * with a NaN or infinite coordinate or normal instead of rejecting the file. */
 extern int cli_drop_invalid;
@@ -173,7 +173,7 @@ int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bs
 /* The same around any run of tiled runs with bsurf_tiles_run's arguments
  * (a library's chain of stages, e.g. bsurf_features_distance_tiled). */
 typedef bsurf_status (*cli_tiles_fn)(void *arg, const char *input, const char *output, bsurf_tile_ops *ops,
-                                     bsurf_tile_report *rep, bsurf_error *err);
+                                     bsurf_tile_report *rep, bsurf_failure *err);
 int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep, int quiet,
                    cli_tiles_fn fn, void *arg);
 /* bsurf_tiles_map (a pointwise second stage) with a progress bar, MPI when
@@ -184,7 +184,7 @@ int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, co
 int cli_check_tiled_input(const char *input);
 /* A failed tiled run's message (rank 0): the file, the line or byte, the
  * reason. Returns 1. */
-int cli_tiles_failed(const char *input, const char *output, bsurf_status st, const bsurf_error *err);
+int cli_tiles_failed(const char *input, const char *output, bsurf_status st, const bsurf_failure *err);
 /* The duplicate count of a tiled run, for the summaries. */
 void cli_set_duplicates(size_t count);
 /* MPI (a build with BSURF_MPI, started by mpirun); otherwise one rank. */

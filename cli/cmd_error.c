@@ -62,7 +62,7 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   bsurf_cloud_init(&test);
   bsurf_job_io io = {0};
   bsurf_error_job_summary sum;
-  bsurf_error where = {0, -1, ""};
+  bsurf_failure where = {0, -1, ""};
   cli_progress prog;
   eo.progress = cli_progress_cb;
   eo.progress_user = &prog;

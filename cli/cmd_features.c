@@ -134,7 +134,7 @@ typedef struct features_distance_arg {
 } features_distance_arg;
 
 static bsurf_status features_distance_fn(void *arg, const char *input, const char *output, bsurf_tile_ops *ops,
-                                         bsurf_tile_report *rep, bsurf_error *err) {
+                                         bsurf_tile_report *rep, bsurf_failure *err) {
   const features_distance_arg *a = arg;
   return bsurf_features_distance_tiled(input, output, ops, a->fo, a->rep, rep, err);
 }

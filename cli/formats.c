@@ -69,7 +69,7 @@ bsurf_format cli_output_format(const char *path) {
 }
 
 bsurf_status cli_write_to(const char *path, const bsurf_cloud *cloud, const bsurf_write_options *wo,
-                          bsurf_error *err) {
+                          bsurf_failure *err) {
   bsurf_format f = wo && wo->format ? wo->format : bsurf_format_from_path(path);
   if (cloud->face_count && f != BSURF_FORMAT_PLY && f != BSURF_FORMAT_OFF && f != BSURF_FORMAT_OBJ)
     cli_warn("%s: %s holds points only: the %zu faces are not written (use .ply, .off or .obj)", path,

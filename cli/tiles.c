@@ -89,7 +89,7 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
 }
 
 static bsurf_status tiles_run_fn(void *arg, const char *input, const char *output, bsurf_tile_ops *ops,
-                                 bsurf_tile_report *rep, bsurf_error *err) {
+                                 bsurf_tile_report *rep, bsurf_failure *err) {
   (void)arg;
   return bsurf_tiles_run(input, output, ops, rep, err);
 }
@@ -116,7 +116,7 @@ int cli_check_tiled_input(const char *input) {
   return 0;
 }
 
-int cli_tiles_failed(const char *input, const char *output, bsurf_status st, const bsurf_error *err) {
+int cli_tiles_failed(const char *input, const char *output, bsurf_status st, const bsurf_failure *err) {
   if (cli_mpi_rank() != 0) return 1;
   const char *msg = cli_interrupted()  ? "interrupted"
                     : err->message[0] ? err->message
@@ -142,12 +142,12 @@ int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, b
   if (ops->comm && ops->tile_points > 0) {
     /* at least two tiles per rank */
     uint64_t n64 = 0;
-    bsurf_error herr;
+    bsurf_failure herr;
     if (bsurf_read_header(input, &n64, &herr) != BSURF_OK) n64 = 0; /* the run names the fault */
     size_t n = (size_t)n64, per = (n + 2 * (size_t)ops->comm->ranks - 1) / (2 * (size_t)ops->comm->ranks);
     if (n && per < ops->tile_points) ops->tile_points = per < 2 * (size_t)ops->k ? 2 * (size_t)ops->k : per;
   }
-  bsurf_error err = {0, -1, ""};
+  bsurf_failure err = {0, -1, ""};
   bsurf_status st = fn(arg, input, output, ops, rep, &err);
   cli_progress_done(&prog);
   if (st == BSURF_OK) {
@@ -164,7 +164,7 @@ int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, co
   ops->progress = cli_progress_cb;
   ops->progress_user = &prog;
   ops->comm = cli_mpi_comm();
-  bsurf_error err = {0, -1, ""};
+  bsurf_failure err = {0, -1, ""};
   bsurf_status st = bsurf_tiles_map(input, output, ops, values, map, &err);
   cli_progress_done(&prog);
   if (st == BSURF_OK) return 0;

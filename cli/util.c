@@ -70,7 +70,7 @@ static size_t drop_invalid_points(bsurf_cloud *c) {
 }
 
 /* "PATH:LINE: message", "PATH: byte B: message" or "PATH: message"; 1. */
-static int read_error(const char *path, bsurf_status st, const bsurf_error *err) {
+static int read_error(const char *path, bsurf_status st, const bsurf_failure *err) {
   const char *msg = err->message[0] ? err->message : bsurf_strerror(st);
   if (err->line > 0) return cli_error("%s:%ld: %s", path, err->line, msg);
   if (err->byte >= 0) return cli_error("%s: byte %lld: %s", path, err->byte, msg);
@@ -90,13 +90,13 @@ int cli_read_header(const char *path, uint64_t *points) {
   *points = 0;
   current_input = path;
   if (check_input_file(path)) return 1;
-  bsurf_error err = {0, -1, ""};
+  bsurf_failure err = {0, -1, ""};
   bsurf_status st = bsurf_read_header(path, points, &err);
   return st == BSURF_OK ? 0 : read_error(path, st, &err);
 }
 
 int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
-  bsurf_error err = {0, -1, ""};
+  bsurf_failure err = {0, -1, ""};
   if (!current_input) current_input = path;
   if (check_input_file(path)) return 1;
   bsurf_status st = bsurf_read(path, cloud, &err);
@@ -200,7 +200,7 @@ int cli_check_writable(const char *output, const char *input, int force) {
                      output);
   /* the policy of docs/robustness.md: directories refused, read-only files
    * only with --force, FIFOs and devices written directly */
-  bsurf_error err = {0, -1, ""};
+  bsurf_failure err = {0, -1, ""};
   if (bsurf_output_check(output, force, &err) != BSURF_OK) return cli_error("%s: %s", output, err.message);
   if (bsurf_output_is_stream(output)) return 0;
   /* the directory must exist and be writable (the file goes to a temporary
@@ -237,7 +237,7 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii) {
              path, cloud->field_count, cloud->fields[0].name);
   }
   if (cli_interrupted()) return cli_error("%s: interrupted; nothing written", path);
-  bsurf_error err = {0, -1, ""};
+  bsurf_failure err = {0, -1, ""};
   bsurf_status st = cli_write_to(path, cloud, &wo, &err);
   if (st != BSURF_OK)
     return cli_error("%s: %s", path, err.message[0] ? err.message : bsurf_strerror(st));

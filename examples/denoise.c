@@ -14,7 +14,7 @@ int main(int argc, char **argv) {
     return 2;
   }
   bsurf_cloud cloud;
-  bsurf_error where;
+  bsurf_failure where;
   bsurf_status st = bsurf_read(argv[1], &cloud, &where);
   if (st != BSURF_OK) {
     fprintf(stderr, "%s:%ld: %s\n", argv[1], where.line, where.message);

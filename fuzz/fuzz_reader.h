@@ -48,7 +48,7 @@ static void fuzz_touch(const double *v, size_t n) {
   fuzz_sink = s;
 }
 
-static void fuzz_check_cloud(bsurf_status st, const bsurf_cloud *c, const bsurf_error *err) {
+static void fuzz_check_cloud(bsurf_status st, const bsurf_cloud *c, const bsurf_failure *err) {
   FUZZ_CHECK(memchr(err->message, '\0', sizeof err->message) != NULL);
   FUZZ_CHECK(err->line >= 0);
   if (st != BSURF_OK) {
@@ -90,7 +90,7 @@ static void fuzz_roundtrip(const bsurf_cloud *c, int ascii) {
   char path[4096];
   snprintf(path, sizeof path, "%s/bsurf-fuzz-%ld.ply", g_roundtrip_dir, (long)getpid());
   bsurf_write_options o = {.ascii = ascii};
-  bsurf_error err;
+  bsurf_failure err;
   bsurf_status st = bsurf_write(path, c, &o, &err);
   if (st != BSURF_OK) fprintf(stderr, "write: %s\n", err.message);
   FUZZ_CHECK(st == BSURF_OK);
@@ -131,7 +131,7 @@ int LLVMFuzzerInitialize(int *argc, char ***argv) {
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   bsurf_cloud cloud;
-  bsurf_error err;
+  bsurf_failure err;
   bsurf_status st = bsurf_read_buffer(data, size, FUZZ_FORMAT, &cloud, &err);
   fuzz_check_cloud(st, &cloud, &err);
   if (st == BSURF_OK) {

@@ -102,7 +102,7 @@ BSURF_API const char *bsurf_strerror(bsurf_status status);
  * BSURF_ERR_INVALID_ARG ("bsurf_estimate_error: opts->k = 80 exceeds nb->k
  * = 50: K must be in [2, nb->k]" -- the function, the parameter, its value,
  * the allowed range) and when a reader or writer fails (the message of its
- * bsurf_error); other failures may leave an earlier message. "" before any.
+ * bsurf_failure); other failures may leave an earlier message. "" before any.
  * Thread-local: a failure on another thread never overwrites it. The string
  * stays valid until the thread's next failing call. */
 BSURF_API const char *bsurf_last_message(void);
@@ -110,11 +110,11 @@ BSURF_API const char *bsurf_last_message(void);
 /* Where a reader or writer failed. `line` is 1-based (0 when unknown or for
  * binary data), `byte` the offset from the start of the file (-1 when unknown).
  * `message` says what is wrong in words a user understands. */
-typedef struct bsurf_error {
+typedef struct bsurf_failure {
   long line;
   long long byte;
   char message[256];
-} bsurf_error;
+} bsurf_failure;
 
 /* Progress callback: `done` of `total` work items are finished. Called from
  * the calling thread only. Return non-zero to cancel (the call then returns
@@ -218,10 +218,10 @@ BSURF_API bsurf_format bsurf_format_detect(const void *data, size_t size);
  * `cloud` is an OUT parameter (overwritten, never freed: free a cloud holding
  * data first). On failure the cloud is left empty and `err` (optional) and
  * bsurf_last_message() say where and why. */
-BSURF_API bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err);
+BSURF_API bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err);
 /* The same from a buffer already in memory (used by the fuzzers). */
 BSURF_API bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format format,
-                               bsurf_cloud *cloud, bsurf_error *err);
+                               bsurf_cloud *cloud, bsurf_failure *err);
 
 /* PLY property names for the fields (docs/formats.md): as they are, with
  * CloudCompare's "scalar_" prefix (which it loads and strips), or as they are
@@ -238,18 +238,18 @@ typedef enum bsurf_ply_names {
  * ascii: at least two bytes per value). Tools call it before estimating
  * resources from the declared counts. *points: the declared vertex count (0
  * for formats without a header count, which are not checked here). */
-BSURF_API bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_error *err);
+BSURF_API bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_failure *err);
 /* The same on the first `size` bytes (the header among them) of a file of
  * `file_size` bytes (used by the fuzzers). */
 BSURF_API bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
-                                      bsurf_format format, uint64_t *points, bsurf_error *err);
+                                      bsurf_format format, uint64_t *points, bsurf_failure *err);
 
 /* The output-path policy of every writer (docs/robustness.md): BSURF_OK for
  * a new file, a writable regular file, a FIFO or a device (written directly,
  * not atomically); BSURF_ERR_INVALID_ARG with a message for a directory and,
  * unless `force`, for a file without write permission. Symbolic links are
  * followed (their target is written). */
-BSURF_API bsurf_status bsurf_output_check(const char *path, int force, bsurf_error *err);
+BSURF_API bsurf_status bsurf_output_check(const char *path, int force, bsurf_failure *err);
 /* 1 when `path` exists and is a FIFO, device or socket (written directly). */
 BSURF_API int bsurf_output_is_stream(const char *path);
 /* For a SIGINT/SIGTERM handler (both async-signal-safe):
@@ -275,7 +275,7 @@ typedef struct bsurf_write_options {
  * (binary PLY). Formats that cannot carry every field (OFF, OBJ, XYZ) write
  * what they can; see bsurf_format_keeps_fields(). */
 BSURF_API bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
-                         const bsurf_write_options *opts, bsurf_error *err);
+                         const bsurf_write_options *opts, bsurf_failure *err);
 /* 1 if the format stores named scalar fields (PLY, PCD, LAS, CSV). */
 BSURF_API int bsurf_format_keeps_fields(bsurf_format format);
 
@@ -924,7 +924,7 @@ BSURF_API bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values
 /* Writes an 8-bit RGB PNG (libpng; no time stamp, so the same image gives the
  * same bytes). Atomic like bsurf_write: a temporary file renamed at the end. */
 BSURF_API bsurf_status bsurf_write_png(const char *path, const uint8_t *rgb, int width, int height,
-                             bsurf_error *err);
+                             bsurf_failure *err);
 
 /* ------------------------------------------------------------------------ */
 /* Meshes and evaluation against ground truth                                */
@@ -1214,7 +1214,7 @@ typedef struct bsurf_error_job_summary {
  * wrong. BSURF_ERR_INVALID_ARG (message: bsurf_last_message()) for bad
  * options or io; otherwise the statuses of the calls above. */
 BSURF_API bsurf_status bsurf_error_job(const bsurf_job_io *io, const bsurf_error_options *opts,
-                                       bsurf_error_job_summary *summary, bsurf_error *err);
+                                       bsurf_error_job_summary *summary, bsurf_failure *err);
 
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */

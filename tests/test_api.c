@@ -111,7 +111,7 @@ static void test_read_into_used_cloud(void **state) {
   const char *t = getenv("BSURF_TMP");
   snprintf(path, sizeof path, "%s/test_api_cloud.ply", t ? t : ".");
   bsurf_cloud c = sphere(300);
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_write(path, &c, NULL, &err), BSURF_OK);
   /* the documented way: free, then read into the same struct */
   bsurf_cloud_free(&c);

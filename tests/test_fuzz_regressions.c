@@ -28,7 +28,7 @@
 
 /* ---- the reader's contract (as in fuzz/fuzz_reader.h) ------------------------ */
 
-static void check_cloud(bsurf_status st, const bsurf_cloud *c, const bsurf_error *err) {
+static void check_cloud(bsurf_status st, const bsurf_cloud *c, const bsurf_failure *err) {
   assert_non_null(memchr(err->message, '\0', sizeof err->message));
   assert_true(err->line >= 0);
   if (st != BSURF_OK) {
@@ -55,7 +55,7 @@ static void check_cloud(bsurf_status st, const bsurf_cloud *c, const bsurf_error
 /* Reads `size` bytes (copied to an exact-size allocation) and checks the
  * contract; returns the status. */
 static bsurf_status read_exact(const void *data, size_t size, bsurf_format format,
-                               bsurf_cloud *cloud, bsurf_error *err) {
+                               bsurf_cloud *cloud, bsurf_failure *err) {
   void *copy = malloc(size ? size : 1);
   assert_non_null(copy);
   if (size) memcpy(copy, data, size);
@@ -78,7 +78,7 @@ static void corpus_dir(char *out, size_t cap, const char *target) {
 static void read_variants(const char *buf, size_t size, bsurf_format format) {
   static const char subst[] = {'\0', '\n', '\r', ' ', '9', '-', (char)0xff};
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   for (size_t n = 0; n <= size; n++) {
     read_exact(buf, n, format, &c, &err);
     bsurf_cloud_free(&c);
@@ -122,7 +122,7 @@ static int replay_dir(const char *target, bsurf_format format) {
     }
     fclose(f);
     bsurf_cloud c;
-    bsurf_error err;
+    bsurf_failure err;
     read_exact(buf, size, format, &c, &err);
     bsurf_cloud_free(&c);
     if (size <= 4096) read_variants(buf, size, format);

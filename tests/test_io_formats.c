@@ -82,7 +82,7 @@ static void assert_same_doubles(const double *a, const double *b, size_t n) {
 static void roundtrip(const char *name, const bsurf_write_options *opts, int keeps_fields,
                       int keeps_faces) {
   bsurf_cloud c, r;
-  bsurf_error e;
+  bsurf_failure e;
   char path[4200];
   make_cloud(&c);
   tmp_path(path, sizeof path, name);
@@ -148,7 +148,7 @@ static void test_ply_write_conversions(void **state) {
   (void)state;
   for (int ascii = 0; ascii < 2; ascii++) {
     bsurf_cloud c, r;
-    bsurf_error e;
+    bsurf_failure e;
     assert_int_equal(bsurf_cloud_alloc(&c, 6, 0), BSURF_OK);
     c.xyz_type = BSURF_FLOAT32;
     static const double v[6] = {2.5, -3.0, 300.7, 0.1, NAN, -0.4};
@@ -186,13 +186,13 @@ static void test_ply_write_conversions(void **state) {
 
 /* ---- OFF ------------------------------------------------------------------ */
 
-static bsurf_status read_fmt(const char *s, bsurf_format f, bsurf_cloud *c, bsurf_error *e) {
+static bsurf_status read_fmt(const char *s, bsurf_format f, bsurf_cloud *c, bsurf_failure *e) {
   return bsurf_read_buffer(s, strlen(s), f, c, e);
 }
 
 static void expect_fail(const char *s, bsurf_format f, long line, const char *needle) {
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   bsurf_status st = read_fmt(s, f, &c, &e);
   if (st != BSURF_ERR_PARSE || (line >= 0 && e.line != line) ||
       (needle && !strstr(e.message, needle)))
@@ -209,7 +209,7 @@ static void expect_fail(const char *s, bsurf_format f, long line, const char *ne
 static void test_off_read(void **state) {
   (void)state;
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   const char *off = "# a comment before the keyword\n"
                     "OFF\n"
                     "\n"
@@ -282,7 +282,7 @@ static void test_off_errors(void **state) {
 static void test_obj_read(void **state) {
   (void)state;
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   const char *obj = "# comment\n"
                     "mtllib a.mtl\n"
                     "o thing\n"
@@ -366,7 +366,7 @@ static void test_obj_errors(void **state) {
 static void test_xyz_read(void **state) {
   (void)state;
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   const char *six = "// X,Y,Z,Nx,Ny,Nz\n# another comment\n\n"
                     "1.5,2,3,0,0,1\r\n4;5;6;0;1;0\n  7, 8 ,9\t1 0 0\n";
   assert_int_equal(read_fmt(six, BSURF_FORMAT_XYZ, &c, &e), BSURF_OK);
@@ -421,7 +421,7 @@ static void test_unterminated_buffers(void **state) {
     char *copy = malloc(n);
     memcpy(copy, texts[k], n);
     bsurf_cloud c;
-    bsurf_error e;
+    bsurf_failure e;
     assert_int_equal(bsurf_read_buffer(copy, n, fmts[k], &c, &e), BSURF_OK);
     assert_true(c.point_count >= 1);
     assert_true(c.xyz[3 * c.point_count - 1] > 3);
@@ -528,7 +528,7 @@ static void test_formats_from_path(void **state) {
 static void test_read_file_errors(void **state) {
   (void)state;
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   char path[4200];
   tmp_path(path, sizeof path, "does_not_exist.ply");
   assert_int_equal(bsurf_read(path, &c, &e), BSURF_ERR_IO);
@@ -554,7 +554,7 @@ static void test_read_file_errors(void **state) {
 static void test_atomic_write(void **state) {
   (void)state;
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   make_cloud(&c);
   char path[4200];
   static const char *names[5] = {"atomic.ply", "atomic.off", "atomic.obj", "atomic.xyz",
@@ -634,7 +634,7 @@ static void test_empty_cloud(void **state) {
   static const char *names[4] = {"empty.ply", "empty.off", "empty.obj", "empty.xyz"};
   for (int k = 0; k < 4; k++) {
     bsurf_cloud c, r;
-    bsurf_error e;
+    bsurf_failure e;
     char path[4200];
     bsurf_cloud_init(&c);
     tmp_path(path, sizeof path, names[k]);

@@ -119,7 +119,7 @@ static void same_fields(const bsurf_cloud *a, const bsurf_cloud *b, double tol, 
 static void roundtrip(const bsurf_cloud *in, const char *name, const bsurf_write_options *o,
                       bsurf_cloud *out) {
   char path[4096];
-  bsurf_error err;
+  bsurf_failure err;
   tmp_path(path, sizeof path, name);
   if (bsurf_write(path, in, o, &err) != BSURF_OK) fail_msg("write %s: %s", name, err.message);
   if (bsurf_read(path, out, &err) != BSURF_OK) fail_msg("read %s: %s", name, err.message);
@@ -161,7 +161,7 @@ static void test_roundtrip_chain(void **state) {
 
 /* Writes bytes to a file and reads it (format from the content). */
 static bsurf_status read_bytes(const char *name, const void *data, size_t n, bsurf_cloud *c,
-                               bsurf_error *err) {
+                               bsurf_failure *err) {
   char path[4096];
   tmp_path(path, sizeof path, name);
   FILE *f = fopen(path, "wb");
@@ -174,7 +174,7 @@ static bsurf_status read_bytes(const char *name, const void *data, size_t n, bsu
 static void test_pcd_cases(void **state) {
   (void)state;
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   /* COUNT 3 becomes h_0 h_1 h_2; rgb is PCL's packed colour (as uint32 text);
    * no extension: the content says PCD */
   const char *txt =
@@ -321,7 +321,7 @@ static void test_las_cases(void **state) {
   (void)state;
   unsigned char f[1024];
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   size_t n = make_las12(f, 3, 1);
   if (read_bytes("fmt3.las", f, n, &c, &err) != BSURF_OK)
     fail_msg("%s (byte %lld)", err.message, err.byte);
@@ -378,7 +378,7 @@ static void test_las_cases(void **state) {
 static void test_csv_header(void **state) {
   (void)state;
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   const char *cc =
       "//X,Y,Z,R,G,B,Nx,Ny,Nz,Scalar field\n1,2,3,255,0,9,0,0,1,0.5\n4,5,6,1,2,3,1,0,0,-2\n";
   assert_int_equal(read_bytes("cc.asc", cc, strlen(cc), &c, &err), BSURF_OK);
@@ -414,7 +414,7 @@ static void test_detect(void **state) {
   assert_string_equal(bsurf_format_name(BSURF_FORMAT_PCD), "pcd");
   /* a PLY file called .xyz reads as PLY */
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   const char *ply = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
                     "property float z\nend_header\n1 2 3\n";
   assert_int_equal(read_bytes("really_ply.xyz", ply, strlen(ply), &c, &err), BSURF_OK);

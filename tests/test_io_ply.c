@@ -48,7 +48,7 @@ static void put_f64(buf *b, double f, int be) {
   put_uint(b, u, 8, be);
 }
 
-static bsurf_status read_str(const char *s, bsurf_cloud *c, bsurf_error *e) {
+static bsurf_status read_str(const char *s, bsurf_cloud *c, bsurf_failure *e) {
   return bsurf_read_buffer(s, strlen(s), BSURF_FORMAT_PLY, c, e);
 }
 
@@ -108,7 +108,7 @@ static void test_ply_binary_big_endian(void **state) {
   put_f32(&b, 0.5f, 1);
 
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   assert_int_equal(bsurf_read_buffer(b.d, b.n, BSURF_FORMAT_PLY, &c, &e), BSURF_OK);
   assert_int_equal(c.point_count, 4);
   assert_int_equal(c.xyz_type, BSURF_FLOAT32);
@@ -176,7 +176,7 @@ static void test_ply_binary_little_endian(void **state) {
   put_uint(&b, 1, 4, 0);
   put_uint(&b, 0, 4, 0);
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   assert_int_equal(bsurf_read_buffer(b.d, b.n, BSURF_FORMAT_PLY, &c, &e), BSURF_OK);
   assert_int_equal(c.point_count, 3);
   /* nx ny without nz are plain fields */
@@ -222,7 +222,7 @@ static void test_ply_ascii_crlf_comments(void **state) {
                   "3 3 2 1 0\r\n"
                   "\r\n  \r\n";
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   assert_int_equal(read_str(s, &c, &e), BSURF_OK);
   assert_int_equal(c.point_count, 4);
   assert_int_equal(c.xyz_type, BSURF_FLOAT32);
@@ -239,7 +239,7 @@ static void test_ply_ascii_crlf_comments(void **state) {
 static void test_ply_empty_and_minimal(void **state) {
   (void)state;
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   assert_int_equal(read_str("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\n"
                             "property float y\nproperty float z\nend_header\n",
                             &c, &e),
@@ -258,7 +258,7 @@ static void test_ply_empty_and_minimal(void **state) {
 
 static void expect_fail(const char *s, bsurf_status want, long line, const char *needle) {
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   bsurf_status st = read_str(s, &c, &e);
   if (st != want || (line >= 0 && e.line != line) || (needle && !strstr(e.message, needle)))
     print_error("got status %d line %ld message '%s'\n", (int)st, e.line, e.message);
@@ -339,7 +339,7 @@ static void test_ply_ascii_data_errors(void **state) {
   /* trailing data: whitespace is fine, anything else is reported */
   snprintf(s, sizeof s, "%s0 0 0 1 1\n1 0 0 1 1\n0 1 0 1 1\n3 0 1 2\n \n\t\n", hdr);
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   assert_int_equal(read_str(s, &c, &e), BSURF_OK);
   bsurf_cloud_free(&c);
   snprintf(s, sizeof s, "%s0 0 0 1 1\n1 0 0 1 1\n0 1 0 1 1\n3 0 1 2\n\n7 7 7\n", hdr);
@@ -355,7 +355,7 @@ static void test_ply_binary_data_errors(void **state) {
   for (int i = 0; i < 5 * 3; i++) put_f32(&b, (float)i, 0);
   put_uint(&b, 0, 2, 0); /* a partial sixth vertex */
   bsurf_cloud c;
-  bsurf_error e;
+  bsurf_failure e;
   assert_int_equal(bsurf_read_buffer(b.d, b.n, BSURF_FORMAT_PLY, &c, &e), BSURF_ERR_PARSE);
   assert_non_null(strstr(e.message, "header declares 10 vertices (120 bytes) but only 62 bytes"));
   assert_non_null(strstr(e.message, "vertex 5"));
@@ -417,7 +417,7 @@ static void test_ply_huge_counts(void **state) {
              "end_header\n0 0 0\n1 1 1\n",
              fmts[k]);
     bsurf_cloud c;
-    bsurf_error e;
+    bsurf_failure e;
     assert_int_equal(read_str(s, &c, &e), BSURF_ERR_PARSE);
     assert_non_null(strstr(e.message, "header declares 99999999999 vertices"));
     if (k == 0)
@@ -474,7 +474,7 @@ static void test_ply_damaged(void **state) {
       x = x * 1103515245u + 12345u;
       size_t n = trial % 2 ? len[f] : (x >> 8) % (len[f] + 1);
       bsurf_cloud c;
-      bsurf_error e;
+      bsurf_failure e;
       bsurf_status st = bsurf_read_buffer(copy, n, BSURF_FORMAT_PLY, &c, &e);
       if (st == BSURF_OK) {
         for (size_t i = 0; i < 3 * c.face_count; i++) assert_true(c.faces[i] < c.point_count);

@@ -239,7 +239,7 @@ static void test_deterministic_png(void **state) {
   /* unwritable: an error, no file */
   char bad[512];
   tmp_path(bad, sizeof bad, "no_such_dir/x.png");
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_write_png(bad, a, 400, 300, &err), BSURF_ERR_IO);
   assert_true(strlen(err.message) > 0);
   assert_int_not_equal(access(bad, F_OK), 0);

@@ -103,7 +103,7 @@ static int cancel_progress(void *user, size_t done, size_t total) {
 /* The in-memory reference: read, neighbourhoods, compute, write. */
 static void reference(const char *in, const char *out, job *j, double *h, size_t *dups) {
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, j->eo.k, 2, NULL, NULL), BSURF_OK);
@@ -165,7 +165,7 @@ static bsurf_status tiled_ranges(const char *in, const char *out, job *j, size_t
     ops.progress_user = j;
   }
   rep->sums = sums;
-  bsurf_error err;
+  bsurf_failure err;
   return bsurf_tiles_run(in, out, &ops, rep, &err);
 }
 
@@ -209,7 +209,7 @@ static void write_uniform(const char *path, size_t n) {
     for (size_t i = 0; i < c.point_count; i++) f->values[i] = (double)((i * 37 + (size_t)t) % 100) - 20;
   }
   c.xyz_type = BSURF_FLOAT32; /* the scanner's usual float coordinates */
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_write(path, &c, NULL, &err), BSURF_OK);
   bsurf_cloud_free(&c);
 }
@@ -247,7 +247,7 @@ static void write_nonuniform(const char *path) {
     memcpy(&c.xyz[3 * i], &c.xyz[3 * j], sizeof t);
     memcpy(&c.xyz[3 * j], t, sizeof t);
   }
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_write(path, &c, NULL, &err), BSURF_OK);
   bsurf_cloud_free(&c);
   bsurf_cloud_free(&s);
@@ -402,7 +402,7 @@ static void check_smooth(const char *path, bsurf_smooth_options so, const size_t
   char in[1200]; /* tmp_path's buffers are reused */
   snprintf(in, sizeof in, "%s", path);
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, so.error.k, 2, NULL, NULL), BSURF_OK);
@@ -525,7 +525,7 @@ static void test_features_two_stage(void **state) {
   char in[1200]; /* tmp_path's buffers are reused */
   snprintf(in, sizeof in, "%s", tmp_path("nonuniform.ply"));
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 14, 2, NULL, NULL), BSURF_OK);
@@ -603,7 +603,7 @@ static size_t check_distance(const char *path, const bsurf_feature_options *fo, 
   snprintf(in, sizeof in, "%s", path);
   snprintf(ref_path, sizeof ref_path, "%s", tmp_path("dref.ply"));
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, fo->k_max, 2, NULL, NULL), BSURF_OK);
@@ -646,7 +646,7 @@ static size_t check_distance(const char *path, const bsurf_feature_options *fo, 
 static void test_features_distance(void **state) {
   (void)state;
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   /* the cube: sharp edges, noise 0.5 h (its feature fields are kept as _in) */
   assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
   assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_UNIFORM, 0.5, 0.04, 4), BSURF_OK);
@@ -740,7 +740,7 @@ static void test_refusals(void **state) {
   c.faces = calloc(3, sizeof(uint32_t));
   c.faces[1] = 1, c.faces[2] = 2;
   c.face_count = 1;
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_write(tmp_path("mesh.ply"), &c, NULL, &err), BSURF_OK);
   assert_int_equal(tiled(tmp_path("mesh.ply"), out, &j, 100, &rep, sums), BSURF_ERR_UNSUPPORTED);
   free(c.faces);
@@ -803,7 +803,7 @@ typedef struct fake_rank {
   int cancels; /* this rank's progress callback cancels (j.cancel_after) */
   bsurf_tile_report rep;
   double sums[1];
-  bsurf_error err;
+  bsurf_failure err;
   bsurf_status st;
 } fake_rank;
 
@@ -901,7 +901,7 @@ static void *fake_main(void *u) {
  * Rank cancel_rank (-1: none) cancels after j->cancel_after progress calls. */
 static bsurf_status tiled_ranks(int ranks, const char *in, const char *out, const job *j, size_t tile_points,
                                 size_t range_points, int cancel_rank, bsurf_tile_report *rep, double *sum,
-                                bsurf_error *err) {
+                                bsurf_failure *err) {
   fake_world w;
   memset(&w, 0, sizeof w);
   w.ranks = ranks;
@@ -966,7 +966,7 @@ static void test_ranks(void **state) {
     for (int g = 0; g < 3; g++) {
       bsurf_tile_report rep;
       double sum;
-      bsurf_error err;
+      bsurf_failure err;
       unlink(tmp_path("ranks_out.ply"));
       assert_int_equal(tiled_ranks(ranks, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &j, 300, ranges[g], -1, &rep,
                                    &sum, &err),
@@ -979,7 +979,7 @@ static void test_ranks(void **state) {
     }
   /* NaNs at two late points: the first is named, by every rank count */
   bsurf_cloud c;
-  bsurf_error err;
+  bsurf_failure err;
   assert_int_equal(bsurf_read(tmp_path("ranks.ply"), &c, &err), BSURF_OK);
   const size_t bad = c.point_count - 300;
   c.xyz[3 * bad + 2] = NAN;
@@ -988,7 +988,7 @@ static void test_ranks(void **state) {
   bsurf_cloud_free(&c);
   bsurf_tile_report rep;
   double sum;
-  bsurf_error serr;
+  bsurf_failure serr;
   assert_int_equal(tiled_ranks(1, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0, -1, &rep, &sum, &serr),
                    BSURF_ERR_INVALID_VALUE);
   assert_int_equal(rep.bad_point, bad);

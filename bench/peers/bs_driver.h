@@ -36,7 +36,7 @@ static inline long peak_rss_kb(void) {
 /* Reads `path` into c (initialised here); on failure prints "prog: path: why"
  * and returns -1. Untimed in every driver. */
 static inline int driver_read(const char *prog, const char *path, bsurf_cloud *c) {
-  bsurf_error where;
+  bsurf_failure where;
   memset(&where, 0, sizeof where);
   bsurf_cloud_init(c);
   if (bsurf_read(path, c, &where) == BSURF_OK) return 0;

@@ -42,7 +42,7 @@ int main(int argc, char **argv) {
 
   bsurf_cloud c;
   if (driver_read("error_bootsurf", in, &c)) return 1;
-  bsurf_error where;
+  bsurf_failure where;
   memset(&where, 0, sizeof where);
   const size_t n = c.point_count;
   double *v = malloc(n * 8 * sizeof *v); /* the CLI's eight fields */

@@ -53,7 +53,7 @@ int main(int argc, char **argv) {
 
   bsurf_cloud c;
   if (driver_read("normals_bootsurf", in, &c)) return 1;
-  bsurf_error where;
+  bsurf_failure where;
   memset(&where, 0, sizeof where);
   const size_t n = c.point_count;
   double *normals = malloc(n * 3 * sizeof(double));

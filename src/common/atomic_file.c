@@ -124,7 +124,7 @@ int bsurf_output_is_stream(const char *path) {
   return path && stat(path, &sb) == 0 && is_special(&sb);
 }
 
-bsurf_status bsurf_output_check(const char *path, int force, bsurf_error *err) {
+bsurf_status bsurf_output_check(const char *path, int force, bsurf_failure *err) {
   struct stat sb;
   if (stat(path, &sb) != 0) return BSURF_OK; /* a new file (or a dangling link's target) */
   if (S_ISDIR(sb.st_mode)) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "is a directory");
@@ -172,7 +172,7 @@ static void use_buffer(bsurf_atomic_file *af) {
 }
 
 /* A FIFO or device: opened for writing as it is. */
-static bsurf_status open_direct(bsurf_atomic_file *af, char *target, bsurf_error *err) {
+static bsurf_status open_direct(bsurf_atomic_file *af, char *target, bsurf_failure *err) {
   FILE *f = fopen(target, "wb");
   if (!f) {
     int e = errno;
@@ -186,7 +186,7 @@ static bsurf_status open_direct(bsurf_atomic_file *af, char *target, bsurf_error
   return BSURF_OK;
 }
 
-bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_error *err) {
+bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_failure *err) {
   memset(af, 0, sizeof *af);
   if (strcmp(path, "-") == 0) { /* standard output: no temporary (tmp stays NULL) */
     af->f = stdout;
@@ -253,7 +253,7 @@ bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_er
 }
 
 bsurf_status bsurf_atomic_close(bsurf_atomic_file *af, bsurf_status status, int write_errno,
-                                bsurf_error *err) {
+                                bsurf_failure *err) {
   int failed = status != BSURF_OK || write_errno != 0, e = write_errno;
   if (af->f == stdout && !af->direct) { /* standard output: flushed, never closed; a failure may
                      leave part of the data in the pipe (docs/formats.md) */

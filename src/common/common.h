@@ -54,7 +54,7 @@ bsurf_status bsurf_invalid(const char *func, const char *fmt, ...) BSURF_PRINTF(
 bsurf_status bsurf_set_message(bsurf_status status, const char *fmt, ...) BSURF_PRINTF(2, 3);
 
 /* Fills an optional error record (printf-style message). Returns `status`. */
-bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line, long long byte,
+bsurf_status bsurf_fail(bsurf_failure *err, bsurf_status status, long line, long long byte,
                         const char *fmt, ...) BSURF_PRINTF(5, 6);
 
 /* A set of names (pointer and length, not copied: they must outlive the set)
@@ -101,13 +101,13 @@ typedef struct bsurf_atomic_file {
 /* Creates and opens the temporary file for `path` (beside the target of a
  * symbolic link; a FIFO or device is opened directly), removing first the
  * temporaries that dead processes left in that directory. */
-bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_error *err);
+bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_failure *err);
 /* Finishes: with status == BSURF_OK and write_errno == 0 (no write error seen
  * by the caller) flushes, fsyncs, closes and renames over the target;
  * otherwise, or if any of that fails, closes and removes the temporary.
  * Returns `status` if it was an error, else the outcome (err filled). */
 bsurf_status bsurf_atomic_close(bsurf_atomic_file *af, bsurf_status status, int write_errno,
-                                bsurf_error *err);
+                                bsurf_failure *err);
 
 /* Number of points processed between two progress callbacks; also the unit
  * of cancellation. */

@@ -46,7 +46,7 @@ bsurf_status bsurf_invalid(const char *func, const char *fmt, ...) {
   return BSURF_ERR_INVALID_ARG;
 }
 
-bsurf_status bsurf_fail(bsurf_error *err, bsurf_status status, long line,
+bsurf_status bsurf_fail(bsurf_failure *err, bsurf_status status, long line,
                         long long byte, const char *fmt, ...) {
   va_list ap;
   va_start(ap, fmt);

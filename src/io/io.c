@@ -757,7 +757,7 @@ int bsurf_format_keeps_fields(bsurf_format format) {
          format == BSURF_FORMAT_CSV;
 }
 
-static void clear_error(bsurf_error *err) {
+static void clear_error(bsurf_failure *err) {
   if (err) {
     err->line = 0;
     err->byte = -1;
@@ -773,7 +773,7 @@ static const char k_unknown_ext[] =
 /* ------------------------------------------------------------------------ */
 
 bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format format,
-                               bsurf_cloud *cloud, bsurf_error *err) {
+                               bsurf_cloud *cloud, bsurf_failure *err) {
   clear_error(err);
   if (!cloud) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no cloud given");
   bsurf_cloud_init(cloud);
@@ -809,7 +809,7 @@ bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format forma
   return BSURF_OK;
 }
 
-bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) {
+bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err) {
   clear_error(err);
   if (!cloud) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no cloud given");
   bsurf_cloud_init(cloud);
@@ -896,7 +896,7 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_error *err) 
 /* The header check of bsurf_read_header(_buffer); *ascii_short: ascii data
  * too short for the header's counts (the whole file, read, names the line). */
 static bsurf_status header_check(const void *data, size_t size, uint64_t file_size, bsurf_format format,
-                                 uint64_t *points, int *ascii_short, bsurf_error *err) {
+                                 uint64_t *points, int *ascii_short, bsurf_failure *err) {
   clear_error(err);
   *points = 0;
   *ascii_short = 0;
@@ -910,7 +910,7 @@ static bsurf_status header_check(const void *data, size_t size, uint64_t file_si
 }
 
 bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
-                                      bsurf_format format, uint64_t *points, bsurf_error *err) {
+                                      bsurf_format format, uint64_t *points, bsurf_failure *err) {
   int ascii_short = 0;
   bsurf_status st = header_check(data, size, file_size, format, points, &ascii_short, err);
   if (st != BSURF_OK && ascii_short && file_size == size) {
@@ -935,7 +935,7 @@ static int has_header_end(const char *buf, size_t n, size_t from) {
   return 0;
 }
 
-bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_error *err) {
+bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_failure *err) {
   clear_error(err);
   *points = 0;
   if (!path) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no path given");
@@ -990,7 +990,7 @@ bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_error *
 /* Writing                                                                   */
 /* ------------------------------------------------------------------------ */
 
-static bsurf_status check_cloud(const bsurf_cloud *cloud, bsurf_error *err) {
+static bsurf_status check_cloud(const bsurf_cloud *cloud, bsurf_failure *err) {
   if (cloud->point_count && !cloud->xyz)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "the cloud has no coordinates");
   for (size_t i = 0; i < cloud->field_count; i++)
@@ -1012,7 +1012,7 @@ static bsurf_status check_cloud(const bsurf_cloud *cloud, bsurf_error *err) {
  * docs/formats.md). */
 static bsurf_status write_view(bsurf_cloud *view, const bsurf_cloud *cloud,
                                const bsurf_write_options *opts, bsurf_format format,
-                               bsurf_error *err) {
+                               bsurf_failure *err) {
   bsurf_field *fields = view->fields;
   if (cloud->field_count) memcpy(fields, cloud->fields, cloud->field_count * sizeof *fields);
   if (opts->float32) {
@@ -1047,7 +1047,7 @@ static bsurf_status write_view(bsurf_cloud *view, const bsurf_cloud *cloud,
 }
 
 bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
-                         const bsurf_write_options *opts, bsurf_error *err) {
+                         const bsurf_write_options *opts, bsurf_failure *err) {
   clear_error(err);
   if (!path || !cloud)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no path or no cloud given");

@@ -189,19 +189,19 @@ void io_obuf_uint(io_obuf *b, unsigned long long v);
  * filled (the caller frees it) and fill err -------------------------------- */
 
 bsurf_status bsurf_io_read_ply(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err);
+                               bsurf_failure *err);
 bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err);
+                               bsurf_failure *err);
 bsurf_status bsurf_io_read_obj(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err);
+                               bsurf_failure *err);
 /* .xyz/.txt/.pts and .csv/.asc: one reader (a header line naming the
  * columns is used when present). */
 bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err);
+                               bsurf_failure *err);
 bsurf_status bsurf_io_read_pcd(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err);
+                               bsurf_failure *err);
 bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err);
+                               bsurf_failure *err);
 
 /* ---- shared by the binary readers ----------------------------------------- */
 
@@ -253,14 +253,14 @@ typedef struct io_ply_layout {
  * *ascii_short: the error is ascii data too short for the header (reading it
  * all, as bsurf_io_read_ply does, finds the line). */
 bsurf_status io_ply_probe(const char *data, size_t size, unsigned long long file_size,
-                          unsigned long long *vertices, int *ascii_short, bsurf_error *err);
+                          unsigned long long *vertices, int *ascii_short, bsurf_failure *err);
 /* Validates a whole binary PLY file (little- or big-endian) exactly as
  * bsurf_io_read_ply does, with the same messages, but stores no vertex: it
  * locates them (layout) and fills `schema`, a one-point cloud (point 0) with
  * the properties, types and shape bsurf_io_read_ply would give. ascii files
  * and meshes (faces) are BSURF_ERR_UNSUPPORTED. */
 bsurf_status io_ply_map(const char *data, size_t size, io_ply_layout *layout,
-                        bsurf_cloud *schema, bsurf_error *err);
+                        bsurf_cloud *schema, bsurf_failure *err);
 void io_ply_layout_free(io_ply_layout *layout);
 /* Vertex i of the mapped file into point j of c (a cloud with the schema's
  * properties). */
@@ -278,21 +278,21 @@ bsurf_status io_ply_encode(const bsurf_cloud *cloud, unsigned char *out);
  * write errors are recorded in w and reported by the caller ---------------- */
 
 /* Checks that the fields can be named in a PLY header. */
-bsurf_status bsurf_io_ply_check(const bsurf_cloud *cloud, bsurf_error *err);
+bsurf_status bsurf_io_ply_check(const bsurf_cloud *cloud, bsurf_failure *err);
 bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int ascii,
-                                bsurf_error *err);
-bsurf_status bsurf_io_write_off(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
-bsurf_status bsurf_io_write_obj(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
-bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err);
+                                bsurf_failure *err);
+bsurf_status bsurf_io_write_off(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err);
+bsurf_status bsurf_io_write_obj(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err);
+bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err);
 /* A header line then comma-separated rows; cloudcompare: "//X,Y,Z,Nx,..." as
  * CloudCompare's ASCII export, else "x,y,z,nx,...". */
 bsurf_status bsurf_io_write_csv(io_writer *w, const bsurf_cloud *cloud, int cloudcompare,
-                                bsurf_error *err);
+                                bsurf_failure *err);
 bsurf_status bsurf_io_write_pcd(io_writer *w, const bsurf_cloud *cloud, int ascii,
-                                bsurf_error *err);
+                                bsurf_failure *err);
 /* Checks before anything is written: finite coordinates, names that fit. */
-bsurf_status bsurf_io_las_check(const bsurf_cloud *cloud, bsurf_error *err);
+bsurf_status bsurf_io_las_check(const bsurf_cloud *cloud, bsurf_failure *err);
 /* legacy: LAS 1.2, point format 1 or 3 (else 1.4, 6-8) */
-bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy, bsurf_error *err);
+bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy, bsurf_failure *err);
 
 #endif

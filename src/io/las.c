@@ -37,7 +37,7 @@
 
 static const size_t k_record_size[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
 
-static bsurf_status nomem(bsurf_error *err) {
+static bsurf_status nomem(bsurf_failure *err) {
   return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
 }
 
@@ -222,7 +222,7 @@ typedef struct las_extra {
 
 /* Reads the descriptors of one extra bytes record. */
 static bsurf_status parse_extra(const unsigned char *p, size_t len, long long at, las_extra **out,
-                                size_t *count, bsurf_error *err) {
+                                size_t *count, bsurf_failure *err) {
   if (len % LAS_EB_SIZE != 0)
     return bsurf_fail(
         err, BSURF_ERR_PARSE, 0, at,
@@ -286,7 +286,7 @@ static int user_is(const unsigned char *user16, const char *id) {
   return 1;
 }
 
-static bsurf_status laz_refused(bsurf_error *err, long long at) {
+static bsurf_status laz_refused(bsurf_failure *err, long long at) {
   return bsurf_fail(
       err, BSURF_ERR_UNSUPPORTED, 0, at,
       "LAZ (compressed LAS) is not supported: decompress it first, e.g. 'laszip -i IN.laz -o "
@@ -294,7 +294,7 @@ static bsurf_status laz_refused(bsurf_error *err, long long at) {
 }
 
 bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err) {
+                               bsurf_failure *err) {
   const unsigned char *d = (const unsigned char *)data;
   if (size < 4 || memcmp(d, "LASF", 4) != 0)
     return bsurf_fail(err, BSURF_ERR_PARSE, 0, 0, "not a LAS file: it does not start with 'LASF'");
@@ -628,7 +628,7 @@ static int eb_type_code(bsurf_type t) {
   }
 }
 
-bsurf_status bsurf_io_las_check(const bsurf_cloud *cloud, bsurf_error *err) {
+bsurf_status bsurf_io_las_check(const bsurf_cloud *cloud, bsurf_failure *err) {
   size_t bytes = 38;
   for (size_t i = 0; i < 3 * cloud->point_count; i++)
     if (!isfinite(cloud->xyz[i]))
@@ -712,7 +712,7 @@ typedef struct las_col {
   const char *name;
 } las_col;
 
-bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy, bsurf_error *err) {
+bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy, bsurf_failure *err) {
   size_t n = cloud->point_count, nf = cloud->field_count;
   if (legacy && n > 0xffffffffu)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "LAS 1.2 counts at most 2^32 - 1 points; write LAS 1.4");

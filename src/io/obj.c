@@ -23,7 +23,7 @@ typedef struct obj_reader {
   size_t first_cap;
   int contradict;  /* some corner pairs v[i] with vn[j], j != i */
   io_faces faces;
-  bsurf_error *err;
+  bsurf_failure *err;
 } obj_reader;
 
 static bsurf_status nomem(obj_reader *r) {
@@ -170,7 +170,7 @@ static bsurf_status parse(obj_reader *r, const char *data, size_t size) {
 }
 
 bsurf_status bsurf_io_read_obj(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err) {
+                               bsurf_failure *err) {
   obj_reader r;
   memset(&r, 0, sizeof r);
   r.err = err;
@@ -218,7 +218,7 @@ bsurf_status bsurf_io_read_obj(const char *data, size_t size, bsurf_cloud *cloud
   return st;
 }
 
-bsurf_status bsurf_io_write_obj(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err) {
+bsurf_status bsurf_io_write_obj(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err) {
   io_obuf ob;
   if (io_obuf_init(&ob, w) != BSURF_OK)
     return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");

@@ -27,7 +27,7 @@ static int is_byte_literal(io_token tok) {
 }
 
 bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err) {
+                               bsurf_failure *err) {
   io_text t;
   io_text_init(&t, data, size);
   io_cursor c;
@@ -98,7 +98,7 @@ bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud
    * a face line 2 ("0\n"). If they cannot fit, the data are only validated (nothing is stored),
    * which finds the line where they go wrong. */
   unsigned long long left = size - t.pos + 1;
-  bsurf_error dry_err;
+  bsurf_failure dry_err;
   int dry = 0;
   if (nv > left / 6) {
     dry = 1;
@@ -227,7 +227,7 @@ bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud
   return BSURF_OK;
 }
 
-bsurf_status bsurf_io_write_off(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err) {
+bsurf_status bsurf_io_write_off(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err) {
   io_obuf ob;
   if (io_obuf_init(&ob, w) != BSURF_OK)
     return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");

@@ -40,7 +40,7 @@ typedef struct pcd_column {
   int wide; /* 8-byte integer: converted with an exactness check */
 } pcd_column;
 
-static bsurf_status nomem(bsurf_error *err) {
+static bsurf_status nomem(bsurf_failure *err) {
   return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
 }
 
@@ -120,7 +120,7 @@ typedef struct pcd_header {
 } pcd_header;
 
 static bsurf_status expect_per_field(io_cursor *c, const pcd_header *h, long ln, const char *kw,
-                                     bsurf_error *err) {
+                                     bsurf_failure *err) {
   if (!h->fields) return bsurf_fail(err, BSURF_ERR_PARSE, ln, -1, "%s before FIELDS", kw);
   size_t k = io_count_tokens(c);
   if (k != h->nfields)
@@ -129,7 +129,7 @@ static bsurf_status expect_per_field(io_cursor *c, const pcd_header *h, long ln,
   return BSURF_OK;
 }
 
-static bsurf_status parse_header(const char *data, size_t size, pcd_header *h, bsurf_error *err) {
+static bsurf_status parse_header(const char *data, size_t size, pcd_header *h, bsurf_failure *err) {
   io_text t;
   io_text_init(&t, data, size);
   const char *line;
@@ -334,7 +334,7 @@ static int name_is(const pcd_field *f, const char *w) {
 
 /* The columns (one per element) and the cloud's arrays and fields. */
 static bsurf_status setup(const pcd_header *h, bsurf_cloud *cloud, pcd_column **out, size_t *ncols,
-                          bsurf_error *err) {
+                          bsurf_failure *err) {
   size_t n = 0;
   for (size_t i = 0; i < h->nfields; i++)
     n += h->fields[i].count;
@@ -445,7 +445,7 @@ static double load(const unsigned char *p, const pcd_column *col, uint32_t *bits
   return io_le_value(p, col->type);
 }
 
-static bsurf_status too_wide(bsurf_error *err, const pcd_column *col, size_t i) {
+static bsurf_status too_wide(bsurf_failure *err, const pcd_column *col, size_t i) {
   char a[48];
   return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1,
                     "point %zu: the 8-byte integer in field '%s' is beyond 2^53, which a double "
@@ -455,7 +455,7 @@ static bsurf_status too_wide(bsurf_error *err, const pcd_column *col, size_t i) 
 
 static bsurf_status read_binary(const pcd_header *h, const char *data, size_t size,
                                 bsurf_cloud *cloud, const pcd_column *cols, size_t ncols,
-                                bsurf_error *err) {
+                                bsurf_failure *err) {
   size_t n = cloud->point_count;
   size_t have = size - h->body;
   if (h->record && n > have / h->record)
@@ -481,7 +481,7 @@ static bsurf_status read_binary(const pcd_header *h, const char *data, size_t si
 
 static bsurf_status read_compressed(const pcd_header *h, const char *data, size_t size,
                                     bsurf_cloud *cloud, const pcd_column *cols, size_t ncols,
-                                    bsurf_error *err) {
+                                    bsurf_failure *err) {
   size_t n = cloud->point_count;
   const unsigned char *p = (const unsigned char *)data + h->body;
   size_t have = size - h->body;
@@ -540,7 +540,7 @@ static bsurf_status read_compressed(const pcd_header *h, const char *data, size_
 /* An ascii element: a number that the field's type holds (integers in
  * range), or for a packed colour the uint32 PCL writes (or a float's bits). */
 static bsurf_status ascii_value(io_token tok, const pcd_column *col, double *v, uint32_t *bits,
-                                long ln, bsurf_error *err) {
+                                long ln, bsurf_failure *err) {
   char a[48], b[48];
   if (col->dst == DST_RGB || col->dst == DST_RGBA) {
     unsigned long long u;
@@ -592,7 +592,7 @@ static bsurf_status ascii_value(io_token tok, const pcd_column *col, double *v, 
 
 static bsurf_status read_ascii(const pcd_header *h, const char *data, size_t size,
                                bsurf_cloud *cloud, const pcd_column *cols, size_t ncols,
-                               bsurf_error *err) {
+                               bsurf_failure *err) {
   io_text t;
   io_text_init(&t, data + h->body, size - h->body);
   t.line = h->body_line - 1;
@@ -637,7 +637,7 @@ static bsurf_status read_ascii(const pcd_header *h, const char *data, size_t siz
 }
 
 bsurf_status bsurf_io_read_pcd(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err) {
+                               bsurf_failure *err) {
   pcd_header h;
   memset(&h, 0, sizeof h);
   pcd_column *cols = NULL;
@@ -747,7 +747,7 @@ static size_t split_index(const char *name, unsigned long *index) {
 }
 
 bsurf_status bsurf_io_write_pcd(io_writer *w, const bsurf_cloud *cloud, int ascii,
-                                bsurf_error *err) {
+                                bsurf_failure *err) {
   size_t n = cloud->point_count;
   size_t nf = cloud->field_count;
   pcd_out *outs = bsurf_alloc_array(nf + 7, sizeof *outs); /* x y z, normals, rgb, fields */

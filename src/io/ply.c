@@ -48,9 +48,9 @@ typedef struct ply_reader {
   long body_line; /* number of the first line after the header */
   unsigned long long nv;
   io_faces faces;
-  bsurf_error *err;
+  bsurf_failure *err;
   int dry;              /* ascii data too short for the header: validate only */
-  bsurf_error dry_err;  /* the error to report if validation finds nothing */
+  bsurf_failure dry_err;  /* the error to report if validation finds nothing */
   char shape[BSURF_FIELD_NAME_MAX]; /* from "comment bootsurf shape NAME" */
   io_ply_layout *layout; /* io_ply_map: vertices are located, not stored */
   int probe;             /* io_ply_probe: the header only, checked */
@@ -750,7 +750,7 @@ static bsurf_status read_ascii(ply_reader *r) {
 /* ------------------------------------------------------------------------ */
 
 bsurf_status bsurf_io_read_ply(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err) {
+                               bsurf_failure *err) {
   ply_reader r;
   memset(&r, 0, sizeof r);
   r.data = data;
@@ -775,7 +775,7 @@ bsurf_status bsurf_io_read_ply(const char *data, size_t size, bsurf_cloud *cloud
 }
 
 bsurf_status io_ply_probe(const char *data, size_t size, unsigned long long file_size,
-                          unsigned long long *vertices, int *ascii_short, bsurf_error *err) {
+                          unsigned long long *vertices, int *ascii_short, bsurf_failure *err) {
   ply_reader r;
   memset(&r, 0, sizeof r);
   r.data = data;
@@ -799,7 +799,7 @@ bsurf_status io_ply_probe(const char *data, size_t size, unsigned long long file
 }
 
 bsurf_status io_ply_map(const char *data, size_t size, io_ply_layout *layout,
-                        bsurf_cloud *schema, bsurf_error *err) {
+                        bsurf_cloud *schema, bsurf_failure *err) {
   ply_reader r;
   memset(&r, 0, sizeof r);
   memset(layout, 0, sizeof *layout);
@@ -861,7 +861,7 @@ void io_ply_decode(const io_ply_layout *L, const char *data, size_t i, bsurf_clo
 /* Writer                                                                    */
 /* ------------------------------------------------------------------------ */
 
-bsurf_status bsurf_io_ply_check(const bsurf_cloud *cloud, bsurf_error *err) {
+bsurf_status bsurf_io_ply_check(const bsurf_cloud *cloud, bsurf_failure *err) {
   for (size_t i = 0; i < cloud->field_count; i++) {
     const char *name = cloud->fields[i].name;
     if (!name[0])
@@ -974,7 +974,7 @@ bsurf_status io_ply_encode(const bsurf_cloud *cloud, unsigned char *out) {
 }
 
 bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int ascii,
-                                bsurf_error *err) {
+                                bsurf_failure *err) {
   size_t np = 3 + (cloud->normals ? 3u : 0u) + cloud->field_count;
   out_prop *props = bsurf_alloc_array(np, sizeof *props);
   if (!props) return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");

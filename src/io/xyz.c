@@ -104,7 +104,7 @@ static bsurf_type infer_type(const double *v, size_t stride, size_t n, int allow
 
 /* The cloud from rows named by a header. */
 static bsurf_status named_columns(bsurf_cloud *cloud, const double *rows, size_t n, size_t ncols,
-                                  const io_token *names, bsurf_error *err) {
+                                  const io_token *names, bsurf_failure *err) {
   size_t xyz[3] = {0, 1, 2}, nrm[3] = {0, 0, 0};
   int found = 0, nfound = 0;
   static const char *const cx[3] = {"x", "y", "z"}, *const cn[3] = {"nx", "ny", "nz"},
@@ -167,7 +167,7 @@ static bsurf_status named_columns(bsurf_cloud *cloud, const double *rows, size_t
 }
 
 bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_error *err) {
+                               bsurf_failure *err) {
   io_text t;
   io_text_init(&t, data, size);
   io_dvec rows = {NULL, 0, 0};
@@ -307,7 +307,7 @@ bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud
   return st;
 }
 
-bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_error *err) {
+bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err) {
   io_obuf ob;
   if (io_obuf_init(&ob, w) != BSURF_OK)
     return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
@@ -328,7 +328,7 @@ bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_er
 }
 
 bsurf_status bsurf_io_write_csv(io_writer *w, const bsurf_cloud *cloud, int cloudcompare,
-                                bsurf_error *err) {
+                                bsurf_failure *err) {
   io_obuf ob;
   if (io_obuf_init(&ob, w) != BSURF_OK)
     return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");

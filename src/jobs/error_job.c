@@ -83,7 +83,7 @@ static bsurf_status error_run(void *user, const bsurf_tile *tile, bsurf_cloud *c
 }
 
 static bsurf_status error_tiled(const bsurf_job_io *io, const bsurf_error_options *o,
-                                bsurf_error_job_summary *s, bsurf_error *err) {
+                                bsurf_error_job_summary *s, bsurf_failure *err) {
   error_tiles et = {*o, s->field_count};
   double sums[ERROR_SUMS] = {0};
   bsurf_tile_ops ops;
@@ -153,7 +153,7 @@ static bsurf_status error_in_memory(const bsurf_job_io *io, const bsurf_error_op
 }
 
 bsurf_status bsurf_error_job(const bsurf_job_io *io, const bsurf_error_options *opts,
-                             bsurf_error_job_summary *summary, bsurf_error *err) {
+                             bsurf_error_job_summary *summary, bsurf_failure *err) {
   bsurf_error_options o = opts ? *opts : bsurf_error_options_default();
   BSURF_REQUIRE(io, "io is NULL");
   BSURF_REQUIRE(summary, "summary is NULL");

@@ -55,7 +55,7 @@ static int encode(png_job *job) {
 }
 
 bsurf_status bsurf_write_png(const char *path, const uint8_t *rgb, int width, int height,
-                             bsurf_error *err) {
+                             bsurf_failure *err) {
   if (err) {
     err->line = 0;
     err->byte = -1;

@@ -173,7 +173,7 @@ static bsurf_status map_out(void *user, size_t first, bsurf_cloud *c, const doub
 static bsurf_status stage(const char *input, const char *output, fd_run *f, int k, size_t nvalues,
                           bsurf_status (*run)(void *, const bsurf_tile *, bsurf_cloud *, double *),
                           const bsurf_tile_values *in, bsurf_tile_values *out, bsurf_tile_report *rep,
-                          bsurf_error *err) {
+                          bsurf_failure *err) {
   bsurf_tile_ops ops = *f->base;
   ops.k = k;
   ops.user = f;
@@ -222,7 +222,7 @@ static size_t ply_points(const char *path) {
 
 bsurf_status bsurf_features_distance_tiled(const char *input, const char *output, const bsurf_tile_ops *ops,
                                            const bsurf_feature_options *opts, bsurf_feature_report *report,
-                                           bsurf_tile_report *tiles, bsurf_error *err) {
+                                           bsurf_tile_report *tiles, bsurf_failure *err) {
   if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
   if (report) memset(report, 0, sizeof *report);
   if (!input || !output || !ops || !ops->prepare || !tiles)

@@ -126,7 +126,7 @@ typedef struct bsurf_tile_report {
  * offsets; rank 0 writes the header and renames the file.
  * Errors name the file and place in err (as bsurf_read). */
 bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
-                             bsurf_tile_report *report, bsurf_error *err);
+                             bsurf_tile_report *report, bsurf_failure *err);
 
 /* A pointwise second stage: the input is streamed in index order, range by
  * range (ops->range_points), with the first stage's values; each range's
@@ -138,7 +138,7 @@ typedef bsurf_status (*bsurf_tile_map_fn)(void *user, size_t first, bsurf_cloud 
                                           const double *values);
 bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_tile_ops *ops,
                              const bsurf_tile_values *values, bsurf_tile_map_fn map,
-                             bsurf_error *err);
+                             bsurf_failure *err);
 
 /* Feature detection by the distance method (7.1) tile by tile: the file
  * bsurf_detect_features gives (its feature_dist and feature, the other
@@ -157,7 +157,7 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
                                            const bsurf_tile_ops *ops,
                                            const bsurf_feature_options *opts,
                                            bsurf_feature_report *report, bsurf_tile_report *tiles,
-                                           bsurf_error *err);
+                                           bsurf_failure *err);
 
 #ifdef __cplusplus
 }

@@ -111,7 +111,7 @@ static void sweep_at(sweep *s, size_t offset) {
   }
 }
 
-static bsurf_status map_input(const char *path, tile_map *m, bsurf_error *err) {
+static bsurf_status map_input(const char *path, tile_map *m, bsurf_failure *err) {
   m->data = NULL;
   m->size = 0;
   m->fd = open(path, O_RDONLY);
@@ -146,7 +146,7 @@ static void path_beside(char *out, size_t cap, const char *path, const char *nam
  * and writable when `map`; its name goes to `name` (to be unlinked by the
  * caller) or, when name is NULL, it is unlinked at once. */
 static bsurf_status scratch_create(const char *near, size_t bytes, int map, tile_map *m, char *name,
-                                   bsurf_error *err) {
+                                   bsurf_failure *err) {
   char tmp[TILE_PATH_MAX];
   path_beside(tmp, sizeof tmp, near, ".bootsurf-tiles.XXXXXX");
   m->data = NULL;
@@ -287,7 +287,7 @@ static bsurf_status agree(const bsurf_tile_comm *cm, bsurf_status st) {
 }
 
 /* Opens (and maps, when `map`) the scratch file `name` another rank made. */
-static bsurf_status scratch_open(const char *name, size_t bytes, int map, tile_map *m, bsurf_error *err) {
+static bsurf_status scratch_open(const char *name, size_t bytes, int map, tile_map *m, bsurf_failure *err) {
   m->data = NULL;
   m->size = bytes;
   m->fd = open(name, O_RDWR);
@@ -307,7 +307,7 @@ static bsurf_status scratch_open(const char *name, size_t bytes, int map, tile_m
  * `near`, the others open it by name, and the name is removed as soon as
  * every rank has it open, so no exit, however abrupt, leaves it behind. */
 static bsurf_status shared_scratch(const tiles_ctx *c, const char *near, size_t bytes, int map, tile_map *m,
-                                   bsurf_error *err) {
+                                   bsurf_failure *err) {
   const bsurf_tile_comm *cm = c->comm;
   m->data = NULL;
   m->size = 0;
@@ -443,7 +443,7 @@ static void make_grid(tiles_ctx *c) {
  * starts) and their exclusive prefix over the ranks places rank r's points
  * of a cell after those of ranks 0 .. r-1, so the file is the one-process
  * pass's whatever the rank count. */
-static bsurf_status pass_sort(tiles_ctx *c, const char *output, bsurf_error *err) {
+static bsurf_status pass_sort(tiles_ctx *c, const char *output, bsurf_failure *err) {
   const size_t a = share_start(c->n, rank_of(c), ranks_of(c)), b = share_start(c->n, rank_of(c) + 1, ranks_of(c));
   c->cell_start = bsurf_calloc_array(c->cells + 1, sizeof *c->cell_start);
   uint64_t *cursor = bsurf_calloc_array(c->cells, sizeof *cursor);
@@ -870,7 +870,7 @@ static bsurf_status plan_blocks(tiles_ctx *c) {
   return BSURF_OK;
 }
 
-static bsurf_status scratch_error(bsurf_error *err, const char *what, int e) {
+static bsurf_status scratch_error(bsurf_failure *err, const char *what, int e) {
   return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot %s the scratch file of the tiles' rows: %s", what,
                     strerror(e));
 }
@@ -878,7 +878,7 @@ static bsurf_status scratch_error(bsurf_error *err, const char *what, int e) {
 /* Tile t's block: core (increasing global indices), nn2, the values (vcols
  * each) and the encoded rows of its nc points. */
 static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *core, const double *nn2,
-                                const double *vals, const unsigned char *enc, size_t nc, bsurf_error *err) {
+                                const double *vals, const unsigned char *enc, size_t nc, bsurf_failure *err) {
   assert(nc == c->tiles[t].count);
   const size_t eb = entry_bytes(c), per = BLOCK_CHUNK / eb ? BLOCK_CHUNK / eb : 1;
   uint64_t *cuts = bsurf_alloc_array(c->nranges + 1, sizeof *cuts);
@@ -915,7 +915,7 @@ static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *co
  * stage's values) and nn (squared nearest distances); buf holds `per`
  * entries. */
 static bsurf_status load_range(const tiles_ctx *c, size_t r, unsigned char *rows, double *vals, double *nn,
-                               unsigned char *buf, size_t per, bsurf_error *err) {
+                               unsigned char *buf, size_t per, bsurf_failure *err) {
   const size_t eb = entry_bytes(c), lo = c->range_lo[r], hi = c->range_lo[r + 1];
   size_t placed = 0;
   int e = 0;
@@ -957,7 +957,7 @@ static bsurf_status load_range(const tiles_ctx *c, size_t r, unsigned char *rows
  * the values file; its sum for h stored in range_sum[r] (bsurf_sum_sqrt
  * over the range: a subtree of the cascade). The ranges are independent, so
  * the ranks assemble theirs at the same time. */
-static bsurf_status assemble(const tiles_ctx *c, double *range_sum, bsurf_error *err) {
+static bsurf_status assemble(const tiles_ctx *c, double *range_sum, bsurf_failure *err) {
   const size_t r0 = share_start(c->nranges, rank_of(c), ranks_of(c));
   const size_t r1 = share_start(c->nranges, rank_of(c) + 1, ranks_of(c));
   const size_t per = BLOCK_CHUNK / entry_bytes(c) ? BLOCK_CHUNK / entry_bytes(c) : 1;
@@ -1112,7 +1112,7 @@ static bsurf_status reverse_candidates(const tiles_ctx *c, const tile_box *b, u6
  * are proven), then the command's run and the output rows. In reverse mode
  * the candidates of reverse_candidates are searched with them, and the
  * reverse lists follow from their exact rows. */
-static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_error *err) {
+static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failure *err) {
   const tile_box *b = &c->tiles[t];
   const int k = c->k;
   const int T = bsurf_threads_resolve(c->ops->threads);
@@ -1390,7 +1390,7 @@ static size_t record_of(const bsurf_cloud *schema) {
 
 /* Rank 0: the output under a temporary name, its header, and the space of
  * every record reserved (a full disk fails here, not later). */
-static bsurf_status create_output(tiles_ctx *c, const char *output, bsurf_error *err) {
+static bsurf_status create_output(tiles_ctx *c, const char *output, bsurf_failure *err) {
   bsurf_status st = bsurf_atomic_open(&c->af, output, err);
   if (st != BSURF_OK) return st;
   c->af_open = 1;
@@ -1417,7 +1417,7 @@ static bsurf_status create_output(tiles_ctx *c, const char *output, bsurf_error 
  * record) unless the run has none (a first stage), and every rank opens it
  * to write its ranges; then the scratch files, shared by every rank
  * (shared_scratch): the tiles' blocks, and the values of a first stage. */
-static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_error *err) {
+static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_failure *err) {
   const bsurf_tile_comm *cm = c->comm;
   const int rank = rank_of(c);
   c->record = c->ops->prepare ? record_of(&c->out_schema) : 0;
@@ -1468,7 +1468,7 @@ static size_t values_bytes(const bsurf_tile_values *v) { return v->count * (v->n
 
 /* The values of a first stage over the same input (n points), mapped
  * read-only (the descriptor stays the caller's). */
-static bsurf_status map_values(const bsurf_tile_values *v, size_t n, tile_map *m, bsurf_error *err) {
+static bsurf_status map_values(const bsurf_tile_values *v, size_t n, tile_map *m, bsurf_failure *err) {
   m->fd = -1;
   m->data = NULL;
   m->size = 0;
@@ -1509,7 +1509,7 @@ void bsurf_tile_values_close(bsurf_tile_values *v) {
 }
 
 bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
-                             bsurf_tile_report *report, bsurf_error *err) {
+                             bsurf_tile_report *report, bsurf_failure *err) {
   if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
   if (!input || !output || !ops || !report || !ops->run || ops->k < 1 || (ops->nsums && !report->sums) ||
       (ops->nvalues && !ops->values_out) || (ops->reverse && !ops->values_in))
@@ -1641,7 +1641,7 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   }
   free(range_sum);
   if (rank == 0 && c.af_open) {
-    bsurf_error cerr;
+    bsurf_failure cerr;
     bsurf_status cst = bsurf_atomic_close(&c.af, st, 0, &cerr);
     if (st == BSURF_OK && cst != BSURF_OK) {
       st = cst;
@@ -1676,7 +1676,7 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
 /* ---- a pointwise second stage ------------------------------------------------ */
 
 bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_tile_ops *ops,
-                             const bsurf_tile_values *values, bsurf_tile_map_fn map, bsurf_error *err) {
+                             const bsurf_tile_values *values, bsurf_tile_map_fn map, bsurf_failure *err) {
   if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
   if (!input || !output || !ops || !ops->prepare || !values || !map)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
@@ -1735,7 +1735,7 @@ bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_
     }
     if (st == BSURF_ERR_NOMEM && err && !err->message[0]) bsurf_fail(err, st, 0, -1, "out of memory");
     if (c.af_open) {
-      bsurf_error cerr;
+      bsurf_failure cerr;
       bsurf_status cst = bsurf_atomic_close(&c.af, st, 0, &cerr);
       if (st == BSURF_OK && cst != BSURF_OK) {
         st = cst;
