@@ -42,7 +42,8 @@ int main(int argc, char **argv) {
   bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 1);
   double c0 = cpu_now(), t0 = now();
   bsurf_neighbors nb;
-  if (bsurf_neighbors_build(&nb, c.xyz, c.point_count, o.k, threads, NULL, NULL) != BSURF_OK) return 1;
+  if (bsurf_neighbors_build(&nb, c.xyz, c.point_count, o.k, threads, NULL, NULL) != BSURF_OK)
+    return 1;
   double c1 = cpu_now(), t1 = now();
   double *v = malloc(sizeof(double) * c.point_count * 8);
   bsurf_error_fields out;
@@ -58,20 +59,21 @@ int main(int argc, char **argv) {
   if (bsurf_estimate_error(c.xyz, &nb, NULL, &o, &out, NULL) != BSURF_OK) return 1;
   double c2 = cpu_now(), t2 = now();
   double total = t2 - t0;
-  printf("bench_error: N=%zu K=%d B=%d degree=%d threads=%d\n", c.point_count, o.k, o.bootstrap, o.degree,
-         bsurf_threads_resolve(threads));
-  printf("  neighbourhoods  %8.3f s  %12.0f points/s  CPU %8.3f s\n", t1 - t0, c.point_count / (t1 - t0),
-         c1 - c0);
-  printf("  estimation      %8.3f s  %12.0f points/s  CPU %8.3f s\n", t2 - t1, c.point_count / (t2 - t1),
-         c2 - c1);
-  printf("  total           %8.3f s  %12.0f points/s  CPU %8.3f s\n", total, c.point_count / total, c2 - c0);
+  printf("bench_error: N=%zu K=%d B=%d degree=%d threads=%d\n", c.point_count, o.k, o.bootstrap,
+         o.degree, bsurf_threads_resolve(threads));
+  printf("  neighbourhoods  %8.3f s  %12.0f points/s  CPU %8.3f s\n", t1 - t0,
+         c.point_count / (t1 - t0), c1 - c0);
+  printf("  estimation      %8.3f s  %12.0f points/s  CPU %8.3f s\n", t2 - t1,
+         c.point_count / (t2 - t1), c2 - c1);
+  printf("  total           %8.3f s  %12.0f points/s  CPU %8.3f s\n", total, c.point_count / total,
+         c2 - c0);
   struct rusage ru;
   getrusage(RUSAGE_SELF, &ru);
   printf("{\"points\":%zu,\"k\":%d,\"bootstrap\":%d,\"degree\":%d,\"threads\":%d,"
          "\"seconds_neighbors\":%.6f,\"seconds_estimate\":%.6f,\"seconds\":%.6f,"
          "\"cpu_neighbors\":%.6f,\"cpu_estimate\":%.6f,\"cpu_seconds\":%.6f,\"peak_rss_kb\":%ld}\n",
-         c.point_count, o.k, o.bootstrap, o.degree, bsurf_threads_resolve(threads), t1 - t0, t2 - t1, total,
-         c1 - c0, c2 - c1, c2 - c0, ru.ru_maxrss);
+         c.point_count, o.k, o.bootstrap, o.degree, bsurf_threads_resolve(threads), t1 - t0,
+         t2 - t1, total, c1 - c0, c2 - c1, c2 - c0, ru.ru_maxrss);
   free(v);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);

@@ -26,12 +26,13 @@ static double now(void) {
 static double cpu(void) {
   struct rusage ru;
   getrusage(RUSAGE_SELF, &ru);
-  return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec + (double)ru.ru_stime.tv_sec +
-         1e-6 * (double)ru.ru_stime.tv_usec;
+  return (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+         (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
 }
 
 static void line(const char *what, double secs, double cpu_secs, size_t n) {
-  printf("  %-36s %8.3f s  %12.0f points/s  (CPU %7.2f s)\n", what, secs, (double)n / secs, cpu_secs);
+  printf("  %-36s %8.3f s  %12.0f points/s  (CPU %7.2f s)\n", what, secs, (double)n / secs,
+         cpu_secs);
 }
 
 int main(int argc, char **argv) {
@@ -48,12 +49,14 @@ int main(int argc, char **argv) {
   uint8_t *truth = malloc(n), *feat = malloc(n);
   double *score = malloc(n * sizeof(double));
   if (!tf || !truth || !feat || !score) return 1;
-  for (size_t i = 0; i < n; i++) truth[i] = tf->values[i] != 0;
+  for (size_t i = 0; i < n; i++)
+    truth[i] = tf->values[i] != 0;
 
   bsurf_feature_options o = bsurf_feature_options_default();
   o.threads = threads;
   o.normals.bootstrap = B;
-  printf("bench_features: cube N=%zu, uniform noise 0.5 h, threads=%d\n", n, bsurf_threads_resolve(threads));
+  printf("bench_features: cube N=%zu, uniform noise 0.5 h, threads=%d\n", n,
+         bsurf_threads_resolve(threads));
 
   /* distance (7.1), defaults: k 15..60 step 2, noise factor 1.75, 5 filter passes */
   double t0 = now(), c0 = cpu();

@@ -39,8 +39,7 @@ static double clock_hz(void) {
     double t0 = now();
     for (unsigned long i = 0; i < n; i++) {
 #if defined(__x86_64__)
-      __asm__ volatile(".rept 64\n\tadd $1, %0\n\t.endr"
-          : "+r"(x));
+      __asm__ volatile(".rept 64\n\tadd $1, %0\n\t.endr" : "+r"(x));
 #else
       x += 64;
 #endif
@@ -55,10 +54,10 @@ static double clock_hz(void) {
 static double ldl_flops(int m) {
   double f = 0;
   for (int j = 0; j < m; j++) {
-    f += 2.0 * j + 1;                    /* pivot: j multiply-subtracts, reciprocal */
+    f += 2.0 * j + 1;                         /* pivot: j multiply-subtracts, reciprocal */
     f += (double)(m - 1 - j) * (2.0 * j + 1); /* column below the pivot */
   }
-  f += 2.0 * (double)m * m - m;          /* forward and back substitution, D^-1 */
+  f += 2.0 * (double)m * m - m; /* forward and back substitution, D^-1 */
   return f;
 }
 
@@ -91,7 +90,8 @@ int main(int argc, char **argv) {
     double x = j ? bsurf_rng_uniform(&rng) * 2 - 1 : 0, y = j ? bsurf_rng_uniform(&rng) * 2 - 1 : 0;
     xyz[3 * j] = x;
     xyz[3 * j + 1] = y;
-    xyz[3 * j + 2] = 0.3 * x * x - 0.2 * x * y + 0.1 * y * y + 0.02 * (bsurf_rng_uniform(&rng) - 0.5);
+    xyz[3 * j + 2] =
+        0.3 * x * x - 0.2 * x * y + 0.1 * y * y + 0.02 * (bsurf_rng_uniform(&rng) - 0.5);
     idx[j] = (uint32_t)j;
   }
   bsurf_error_options o = bsurf_error_options_default();
@@ -126,7 +126,8 @@ int main(int argc, char **argv) {
   size_t calls = 0;
   double t0 = now();
   while (now() - t0 < budget)
-    for (int r = 0; r < 100; r++, calls++) bsurf_error_point(xyz, idx, NULL, &o, 0, &s, &out, NULL);
+    for (int r = 0; r < 100; r++, calls++)
+      bsurf_error_point(xyz, idx, NULL, &o, 0, &s, &out, NULL);
   timing whole = {"bsurf_error_point (all of it)", (now() - t0) / (double)calls,
                   f_draws + f_ldl + f_resid + f_setup};
 
@@ -135,12 +136,14 @@ int main(int argc, char **argv) {
   double *W = calloc((size_t)R * K, sizeof(double));
   if (!W) return 1;
   for (int b = 0; b <= B; b++)
-    for (int j = 0; j < K; j++) W[(size_t)b * K + j] = b < B ? s.counts[(size_t)b * K + j] : 1.0;
+    for (int j = 0; j < K; j++)
+      W[(size_t)b * K + j] = b < B ? s.counts[(size_t)b * K + j] : 1.0;
   timing t_gemm = {"normal equations (gemm_lanes)", 0, f_gemm};
   calls = 0;
   t0 = now();
   while (now() - t0 < budget)
-    for (int r = 0; r < 100; r++, calls++) bsurf_localfit_normal_eq_lanes(lf, R, W, s.rows);
+    for (int r = 0; r < 100; r++, calls++)
+      bsurf_localfit_normal_eq_lanes(lf, R, W, s.rows);
   t_gemm.seconds_per_call = (now() - t0) / (double)calls;
 
   /* the error pass's product: one add per draw and column (half the flop) */
@@ -148,7 +151,8 @@ int main(int argc, char **argv) {
   calls = 0;
   t0 = now();
   while (now() - t0 < budget)
-    for (int r = 0; r < 100; r++, calls++) bsurf_localfit_normal_eq_draws(lf, B, s.draws, s.rows);
+    for (int r = 0; r < 100; r++, calls++)
+      bsurf_localfit_normal_eq_draws(lf, B, s.draws, s.rows);
   t_draws.seconds_per_call = (now() - t0) / (double)calls;
 
   timing t_ldl = {"LDL^T solves (solve_lanes)", 0, f_ldl};
@@ -168,7 +172,8 @@ int main(int argc, char **argv) {
   t0 = now();
   while (now() - t0 < budget)
     for (int r = 0; r < 100; r++, calls++)
-      bsurf_localfit_residual_sums(lf, D, B, s.coefs, valid, s.counts, sums, sums + K, sums + 2 * K);
+      bsurf_localfit_residual_sums(lf, D, B, s.coefs, valid, s.counts, sums, sums + K,
+                                   sums + 2 * K);
   t_res.seconds_per_call = (now() - t0) / (double)calls;
 
   timing t_counts = {"resampling (counts + draws)", 0, 0};
@@ -179,17 +184,17 @@ int main(int argc, char **argv) {
       bsurf_boot_draw_rows(1, calls, B, K, m, s.counts, s.draws, valid);
   t_counts.seconds_per_call = (now() - t0) / (double)calls;
 
-  printf("bench_kernel: K=%d B=%d degree=%d (m=%d terms, %d normal-equation columns, %d rows)\n", K, B, D,
-         m, nc, R);
-  printf("  clock %.3f GHz (dependent adds); peak %.1f GFLOP/s per core (16 flop/cycle)\n", 1e-9 * hz,
-         16e-9 * hz);
+  printf("bench_kernel: K=%d B=%d degree=%d (m=%d terms, %d normal-equation columns, %d rows)\n", K,
+         B, D, m, nc, R);
+  printf("  clock %.3f GHz (dependent adds); peak %.1f GFLOP/s per core (16 flop/cycle)\n",
+         1e-9 * hz, 16e-9 * hz);
   report(&whole, hz);
   report(&t_gemm, hz);
   report(&t_draws, hz);
   report(&t_ldl, hz);
   report(&t_res, hz);
-  printf("  %-34s %10.3f us (%d draws, integer work)\n", t_counts.name, 1e6 * t_counts.seconds_per_call,
-         B * K);
+  printf("  %-34s %10.3f us (%d draws, integer work)\n", t_counts.name,
+         1e6 * t_counts.seconds_per_call, B * K);
   printf("  points/s per core at this rate: %.0f (error pass without kNN, frames in L1)\n",
          1.0 / whole.seconds_per_call);
   free(sums);

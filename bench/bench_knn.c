@@ -17,11 +17,15 @@ static double clock_s(clockid_t id) {
   return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-static double now(void) { return clock_s(CLOCK_MONOTONIC); }
+static double now(void) {
+  return clock_s(CLOCK_MONOTONIC);
+}
 
 /* CPU time of all the process's threads: on a shared machine the wall time
  * also counts the time other jobs held the cores. */
-static double cpu(void) { return clock_s(CLOCK_PROCESS_CPUTIME_ID); }
+static double cpu(void) {
+  return clock_s(CLOCK_PROCESS_CPUTIME_ID);
+}
 
 int main(int argc, char **argv) {
   const size_t n = argc > 1 ? (size_t)strtoull(argv[1], NULL, 10) : 1000000;

@@ -49,7 +49,9 @@ int cli_choice(const char *value, const char *const *names, int count) {
   return -1;
 }
 
-static int in_range(const cli_option *o, double v) { return o->min > o->max || (v >= o->min && v <= o->max); }
+static int in_range(const cli_option *o, double v) {
+  return o->min > o->max || (v >= o->min && v <= o->max);
+}
 
 static void range_text(const cli_option *o, char *buf, size_t n) {
   if (o->min > o->max) {
@@ -61,7 +63,8 @@ static void range_text(const cli_option *o, char *buf, size_t n) {
   }
 }
 
-static int set_value(const cli_command *cmd, const cli_option *o, const char *name, const char *arg) {
+static int set_value(const cli_command *cmd, const cli_option *o, const char *name,
+                     const char *arg) {
   char *end = NULL;
   char range[64];
   range_text(o, range, sizeof range);
@@ -71,24 +74,30 @@ static int set_value(const cli_command *cmd, const cli_option *o, const char *na
   case ARG_STRING: *(const char **)o->target = arg; return 0;
   case ARG_INT: {
     long v = strtol(arg, &end, 10);
-    if (end == arg || *end || errno || v < -2147483647L || v > 2147483647L || !in_range(o, (double)v))
+    if (end == arg || *end || errno || v < -2147483647L || v > 2147483647L ||
+        !in_range(o, (double)v))
       return cli_usage_error(cmd, "option %s needs a whole number%s, not '%s'", name, range, arg);
     *(int *)o->target = (int)v;
     return 0;
   }
   case ARG_U64: {
     /* strtoull skips white space and negates a '-' after it: only digits */
-    if (arg[0] < '0' || arg[0] > '9') return cli_usage_error(cmd, "option %s needs a non-negative whole number, not '%s'", name, arg);
+    if (arg[0] < '0' || arg[0] > '9')
+      return cli_usage_error(cmd, "option %s needs a non-negative whole number, not '%s'", name,
+                             arg);
     unsigned long long v = strtoull(arg, &end, 10);
     if (end == arg || *end || errno)
-      return cli_usage_error(cmd, "option %s needs a non-negative whole number, not '%s'", name, arg);
+      return cli_usage_error(cmd, "option %s needs a non-negative whole number, not '%s'", name,
+                             arg);
     *(uint64_t *)o->target = (uint64_t)v;
     return 0;
   }
   case ARG_SIZE: {
-    if (!(arg[0] >= '0' && arg[0] <= '9') && arg[0] != '.') return cli_usage_error(cmd, "option %s needs a positive whole number, not '%s'", name, arg);
+    if (!(arg[0] >= '0' && arg[0] <= '9') && arg[0] != '.')
+      return cli_usage_error(cmd, "option %s needs a positive whole number, not '%s'", name, arg);
     double v = strtod(arg, &end); /* accepts 1e6 */
-    if (end == arg || *end || errno || !(v >= 0) || v != floor(v) || v > 4294967295.0 || !in_range(o, v))
+    if (end == arg || *end || errno || !(v >= 0) || v != floor(v) || v > 4294967295.0 ||
+        !in_range(o, v))
       return cli_usage_error(cmd, "option %s needs a whole number%s, not '%s'", name, range, arg);
     *(size_t *)o->target = (size_t)v;
     return 0;
@@ -149,14 +158,16 @@ int cli_parse(const cli_command *cmd, const cli_option *opts, int nopts, int arg
     }
     const char *val = inline_val;
     if (!val) {
-      if (i + 1 >= argc) return cli_usage_error(cmd, "option %s needs a value (%s)", name, o->metavar);
+      if (i + 1 >= argc)
+        return cli_usage_error(cmd, "option %s needs a value (%s)", name, o->metavar);
       val = argv[++i];
     }
     int rc = set_value(cmd, o, name, val);
     if (rc) return rc;
   }
   for (int k = 0; k < nopts; k++)
-    if (opts[k].kind == ARG_FLAG && strcmp(opts[k].long_name, "quiet") == 0 && *(int *)opts[k].target)
+    if (opts[k].kind == ARG_FLAG && strcmp(opts[k].long_name, "quiet") == 0 &&
+        *(int *)opts[k].target)
       quiet_warnings = 1;
   return CLI_PARSED;
 }
@@ -176,13 +187,17 @@ void cli_print_help(FILE *f, const cli_command *cmd, const cli_option *opts, int
     switch (o->kind) {
     case ARG_FLAG: break;
     case ARG_INT: snprintf(def, sizeof def, " (default: %d)", *(int *)o->target); break;
-    case ARG_U64: snprintf(def, sizeof def, " (default: %" PRIu64 ")", *(uint64_t *)o->target); break;
+    case ARG_U64:
+      snprintf(def, sizeof def, " (default: %" PRIu64 ")", *(uint64_t *)o->target);
+      break;
     case ARG_SIZE: snprintf(def, sizeof def, " (default: %zu)", *(size_t *)o->target); break;
     case ARG_DOUBLE: /* NaN: not set unless given (the help says what happens then) */
-      if (!isnan(*(double *)o->target)) snprintf(def, sizeof def, " (default: %g)", *(double *)o->target);
+      if (!isnan(*(double *)o->target))
+        snprintf(def, sizeof def, " (default: %g)", *(double *)o->target);
       break;
     case ARG_STRING:
-      if (*(const char **)o->target) snprintf(def, sizeof def, " (default: %s)", *(const char **)o->target);
+      if (*(const char **)o->target)
+        snprintf(def, sizeof def, " (default: %s)", *(const char **)o->target);
       break;
     }
     fprintf(f, "  %-26s %s%s\n", left, o->help, def);

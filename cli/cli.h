@@ -33,28 +33,48 @@ typedef struct cli_command {
 } cli_command;
 
 /* Options shared by the commands, so their names and help never drift. */
-#define CLI_OPT_THREADS(var) {'j', "threads", ARG_INT, &(var), "N", "threads, 0 = $OMP_NUM_THREADS if set, else all cores", 0, 4096}
-#define CLI_OPT_SEED(var) {0, "seed", ARG_U64, &(var), "S", "random seed", 1, 0}
-#define CLI_OPTS_OUTPUT(out, ascii, force)                                                         \
-  {'o', "output", ARG_STRING, &(out), "FILE",                                                       \
-   "output file (.ply .pcd .las .csv keep every field; - = standard output)", 1, 0},               \
+#define CLI_OPT_THREADS(var)                                                                       \
+  {                                                                                                \
+    'j', "threads", ARG_INT, &(var), "N", "threads, 0 = $OMP_NUM_THREADS if set, else all cores",  \
+        0, 4096                                                                                    \
+  }
+#define CLI_OPT_SEED(var)                                                                          \
+  { 0, "seed", ARG_U64, &(var), "S", "random seed", 1, 0 }
+#define CLI_OPTS_OUTPUT(out, ascii, force)                                                           \
+  {'o',    "output", ARG_STRING,                                                                     \
+   &(out), "FILE",   "output file (.ply .pcd .las .csv keep every field; - = standard output)",      \
+   1,      0},                                                                                       \
       {0, "ascii", ARG_FLAG, &(ascii), "", "write ascii PLY (default: binary little-endian)", 1, 0}, \
-      {0, "force", ARG_FLAG, &(force), "", "allow the output to be the input file, or a read-only file", 1, 0}, \
+      {0,        "force", ARG_FLAG,                                                                  \
+       &(force), "",      "allow the output to be the input file, or a read-only file",              \
+       1,        0},                                                                                 \
       CLI_OPTS_FORMATS
 /* --format, --float32, --ply-names (cli/formats.c, docs/formats.md) */
 extern const char *cli_out_format;
 extern int cli_float32;
 extern const char *cli_ply_names;
 extern const char *cli_las_version;
-#define CLI_OPTS_FORMATS                                                                            \
-  {0, "format", ARG_STRING, &cli_out_format, "FMT",                                                 \
-   "output format whatever the extension: ply pcd las csv asc xyz off obj (needed for -)", 1, 0},  \
-      {0, "float32", ARG_FLAG, &cli_float32, "",                                                    \
-       "write double coordinates, normals and fields as float (PCL's typed loaders)", 1, 0},      \
-      {0, "ply-names", ARG_STRING, &cli_ply_names, "NAMES",                                         \
-       "PLY field names: plain, cloudcompare (scalar_ prefix) or meshlab (+ quality)", 1, 0},       \
-      {0, "las-version", ARG_STRING, &cli_las_version, "V",                                         \
-       "LAS output: 1.4 (point formats 6-8) or 1.2 (formats 1, 3: readers stopping at 1.3)", 1, 0}
+#define CLI_OPTS_FORMATS                                                                           \
+  {0,                                                                                              \
+   "format",                                                                                       \
+   ARG_STRING,                                                                                     \
+   &cli_out_format,                                                                                \
+   "FMT",                                                                                          \
+   "output format whatever the extension: ply pcd las csv asc xyz off obj (needed for -)",         \
+   1,                                                                                              \
+   0},                                                                                             \
+      {0,        "float32",                                                                        \
+       ARG_FLAG, &cli_float32,                                                                     \
+       "",       "write double coordinates, normals and fields as float (PCL's typed loaders)",    \
+       1,        0},                                                                               \
+      {0,          "ply-names",                                                                    \
+       ARG_STRING, &cli_ply_names,                                                                 \
+       "NAMES",    "PLY field names: plain, cloudcompare (scalar_ prefix) or meshlab (+ quality)", \
+       1,          0},                                                                             \
+  {                                                                                                \
+    0, "las-version", ARG_STRING, &cli_las_version, "V",                                           \
+        "LAS output: 1.4 (point formats 6-8) or 1.2 (formats 1, 3: readers stopping at 1.3)", 1, 0 \
+  }
 /* -o - anywhere in argv. */
 int cli_output_is_stdout(int argc, char **argv);
 /* From now on standard output carries a cloud: what is printed for people
@@ -71,24 +91,38 @@ bsurf_status cli_write_to(const char *path, const bsurf_cloud *cloud, const bsur
 /* For every command that reads clouds: cli_read_cloud() then drops points
  * with a NaN or infinite coordinate or normal instead of rejecting the file. */
 extern int cli_drop_invalid;
-#define CLI_OPT_DROP_INVALID                                                                        \
-  {0, "drop-invalid", ARG_FLAG, &cli_drop_invalid, "",                                              \
-   "skip points with a NaN or infinite coordinate or normal (default: reject the file)", 1, 0}
+#define CLI_OPT_DROP_INVALID                                                                       \
+  {                                                                                                \
+    0, "drop-invalid", ARG_FLAG, &cli_drop_invalid, "",                                            \
+        "skip points with a NaN or infinite coordinate or normal (default: reject the file)", 1, 0 \
+  }
 #define CLI_OPTS_REPORT(json, quiet)                                                               \
-  {0, "json", ARG_FLAG, &(json), "", "print the summary as one JSON object on stdout", 1, 0},      \
-      {'q', "quiet", ARG_FLAG, &(quiet), "", "no progress bar, summary or warning", 1, 0}
+  {0, "json", ARG_FLAG, &(json), "", "print the summary as one JSON object on stdout", 1, 0}, {    \
+    'q', "quiet", ARG_FLAG, &(quiet), "", "no progress bar, summary or warning", 1, 0              \
+  }
 
 /* Tiled runs (cli/tiles.c, docs/scaling.md). */
 #define CLI_OPTS_TILES(tile_points, memory_limit)                                                  \
-  {0, "tile-points", ARG_SIZE, &(tile_points), "N",                                                \
-   "out of core: tiles of about N points with proven halos, same bytes as in memory "             \
-   "(binary PLY in and out; 0 = only above --memory-limit)", 0, 4294967295.0},                     \
-      {0, "memory-limit", ARG_STRING, &(memory_limit), "SIZE",                                      \
-       "inputs needing more memory (e.g. 8G; auto = 3/4 of RAM; none) are tiled", 1, 0},            \
-      {0, "range-points", ARG_SIZE, &cli_range_points, "N",                                         \
-       "tiled runs: the output is assembled at most N points at a time, at least 64 "               \
-       "(0 = the larger of the tile size and 32 MiB of rows; with mpirun, at most points / ranks)", \
-       0, 4294967295.0}
+  {0,                                                                                              \
+   "tile-points",                                                                                  \
+   ARG_SIZE,                                                                                       \
+   &(tile_points),                                                                                 \
+   "N",                                                                                            \
+   "out of core: tiles of about N points with proven halos, same bytes as in memory "              \
+   "(binary PLY in and out; 0 = only above --memory-limit)",                                       \
+   0,                                                                                              \
+   4294967295.0},                                                                                  \
+      {0,          "memory-limit",                                                                 \
+       ARG_STRING, &(memory_limit),                                                                \
+       "SIZE",     "inputs needing more memory (e.g. 8G; auto = 3/4 of RAM; none) are tiled",      \
+       1,          0},                                                                             \
+  {                                                                                                \
+    0, "range-points", ARG_SIZE, &cli_range_points, "N",                                           \
+        "tiled runs: the output is assembled at most N points at a time, at least 64 "             \
+        "(0 = the larger of the tile size and 32 MiB of rows; with mpirun, at most points / "      \
+        "ranks)",                                                                                  \
+        0, 4294967295.0                                                                            \
+  }
 
 #define CLI_PARSED 0
 #define CLI_HELP_SHOWN (-1)
@@ -165,26 +199,30 @@ extern size_t cli_range_points;
  * in-memory run (always tiles under mpirun with several ranks). Checks that a
  * tiled run can write its output. 0, or prints and returns 1 (2: usage). */
 int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
-                   size_t tile_points, const char *memory_limit, int k, int out_fields, size_t *plan);
+                   size_t tile_points, const char *memory_limit, int k, int out_fields,
+                   size_t *plan);
 /* bsurf_tiles_run with a progress bar, MPI when started by mpirun, messages
  * naming the file and place. 0 or 1 (printed). */
-int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep,
-                  int quiet);
+int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops,
+                  bsurf_tile_report *rep, int quiet);
 /* The same around any run of tiled runs with bsurf_tiles_run's arguments
  * (a library's chain of stages, e.g. bsurf_features_distance_tiled). */
-typedef bsurf_status (*cli_tiles_fn)(void *arg, const char *input, const char *output, bsurf_tile_ops *ops,
-                                     bsurf_tile_report *rep, bsurf_failure *err);
-int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep, int quiet,
-                   cli_tiles_fn fn, void *arg);
+typedef bsurf_status (*cli_tiles_fn)(void *arg, const char *input, const char *output,
+                                     bsurf_tile_ops *ops, bsurf_tile_report *rep,
+                                     bsurf_failure *err);
+int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops,
+                   bsurf_tile_report *rep, int quiet, cli_tiles_fn fn, void *arg);
 /* bsurf_tiles_map (a pointwise second stage) with a progress bar, MPI when
  * started by mpirun, messages naming the file. 0 or 1 (printed). */
-int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, const bsurf_tile_values *values,
-                  bsurf_tile_map_fn map, const char *label, int quiet);
+int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops,
+                  const bsurf_tile_values *values, bsurf_tile_map_fn map, const char *label,
+                  int quiet);
 /* Before a tiled run: an empty input is refused by name. 0 or 1 (printed). */
 int cli_check_tiled_input(const char *input);
 /* A failed tiled run's message (rank 0): the file, the line or byte, the
  * reason. Returns 1. */
-int cli_tiles_failed(const char *input, const char *output, bsurf_status st, const bsurf_failure *err);
+int cli_tiles_failed(const char *input, const char *output, bsurf_status st,
+                     const bsurf_failure *err);
 /* The duplicate count of a tiled run, for the summaries. */
 void cli_set_duplicates(size_t count);
 /* MPI (a build with BSURF_MPI, started by mpirun); otherwise one rank. */
@@ -255,8 +293,8 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv);
 int render_parse_size(const cli_command *cmd, const char *text, int *w, int *h);
 int render_parse_range(const cli_command *cmd, const char *text, double *lo, double *hi);
 const bsurf_field *render_find_field(const bsurf_cloud *c, const char *path, const char *name);
-int render_view_option(const cli_command *cmd, const char *view, double az, double el, double *out_az,
-                       double *out_el);
+int render_view_option(const cli_command *cmd, const char *view, double az, double el,
+                       double *out_az, double *out_el);
 int render_up_option(const cli_command *cmd, const char *up, int *axis); /* auto: -1 */
 /* --up auto: 2 (z) for a generated shape, else 1 (y). */
 int render_auto_up(const bsurf_cloud *c);
@@ -266,8 +304,8 @@ int cli_write_png(const char *path, const uint8_t *rgb, int w, int h);
 /* One 7-nearest-neighbour search: the mean spacing h (0 for fewer than 2
  * points) and, returned, each point's splat spacing (malloc'ed, point_count;
  * NULL for fewer than 8 points or on failure, with *status set). */
-double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn progress, void *user, double *h,
-                       bsurf_status *status);
+double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn progress, void *user,
+                       double *h, bsurf_status *status);
 int cmd_features(const cli_command *cmd, int argc, char **argv);
 int cmd_convert(const cli_command *cmd, int argc, char **argv);
 int cmd_smooth(const cli_command *cmd, int argc, char **argv);

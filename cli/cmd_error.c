@@ -13,7 +13,8 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   cli_option opts[] = {
       {'k', "neighbors", ARG_INT, &eo.k, "K", "neighbourhood size K, the point included", 2, 65535},
       {'d', "degree", ARG_INT, &eo.degree, "M", "degree of the height polynomial, 1..4", 1, 4},
-      {'B', "bootstrap", ARG_INT, &eo.bootstrap, "B", "bootstrap replicates per point (at least 1)", 0, 100000},
+      {'B', "bootstrap", ARG_INT, &eo.bootstrap, "B", "bootstrap replicates per point (at least 1)",
+       0, 100000},
       {0, "gamma", ARG_STRING, &gamma, "MODE",
        "no-information rate: fit (Eq. 4.10), mean or max over replicates (4.2.1)", 1, 0},
       {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point", 1, 0},
@@ -35,7 +36,8 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   static const char *const centers[] = {"centroid", "point"};
   int g = cli_choice(gamma, gammas, 3), pc = cli_choice(center, centers, 2);
   if (g < 0) return cli_usage_error(cmd, "--gamma must be fit, mean or max, not '%s'", gamma);
-  if (pc < 0) return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", center);
+  if (pc < 0)
+    return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", center);
   /* -B 0 computes no bootstrap estimator: err_boot, err_loo, err_632 and
    * err_632plus would be err_train under other names (docs/robustness.md) */
   if (eo.bootstrap < 1)
@@ -45,16 +47,16 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   eo.pca_center = (bsurf_pca_center)pc;
   int terms = (eo.degree + 1) * (eo.degree + 2) / 2;
   if (eo.k < terms)
-    return cli_usage_error(cmd, "K = %d is too small for degree %d: a fit needs at least %d points", eo.k,
-                           eo.degree, terms);
+    return cli_usage_error(cmd, "K = %d is too small for degree %d: a fit needs at least %d points",
+                           eo.k, eo.degree, terms);
   if (output && cli_check_output(output, pos[0], force)) return 1;
   if (output && test_path && cli_check_output(output, test_path, force)) return 1;
 
   size_t plan = 0;
   rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, eo.k, 8, &plan);
   if (rc) return rc;
-  if (plan && test_path) return cli_error("%s: --test-sample is not available in tiled runs", test_path);
-
+  if (plan && test_path)
+    return cli_error("%s: --test-sample is not available in tiled runs", test_path);
 
   double t0 = cli_now();
   bsurf_cloud c, test;
@@ -82,8 +84,9 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
         return 1;
       }
       if (test.point_count != c.point_count) {
-        rc = cli_error("%s: has %zu points but %s has %zu; the test sample must list the same points",
-                       test_path, test.point_count, pos[0], c.point_count);
+        rc = cli_error(
+            "%s: has %zu points but %s has %zu; the test sample must list the same points",
+            test_path, test.point_count, pos[0], c.point_count);
         goto done;
       }
       io.test = &test;
@@ -99,7 +102,8 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   cli_progress_done(&prog);
   if (plan) plan = sum.tile_points;
   if (st != BSURF_OK) {
-    rc = plan ? cli_tiles_failed(pos[0], output, st, &where) : cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
+    rc = plan ? cli_tiles_failed(pos[0], output, st, &where)
+              : cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
     goto done;
   }
   cli_set_duplicates(sum.duplicates);
@@ -137,14 +141,15 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
     json_num(&j, "seconds", secs);
     json_end(&j);
   } else if (!quiet) {
-    printf("error: %zu points, h = %.6g, K = %d, degree %d, B = %d, gamma %s, %.2f s\n", sum.points, sum.h,
-           eo.k, eo.degree, eo.bootstrap, gamma, secs);
+    printf("error: %zu points, h = %.6g, K = %d, degree %d, B = %d, gamma %s, %.2f s\n", sum.points,
+           sum.h, eo.k, eo.degree, eo.bootstrap, gamma, secs);
     print_means(stdout, sum.field_names, sum.means, sum.field_count, sum.h);
     if (sum.report.replicates_skipped)
-      printf("  %zu of %zu replicate fits were rank-deficient and skipped\n", sum.report.replicates_skipped,
-             sum.report.replicates_total);
+      printf("  %zu of %zu replicate fits were rank-deficient and skipped\n",
+             sum.report.replicates_skipped, sum.report.replicates_total);
     if (sum.report.degree_reduced)
-      printf("  %zu points had degenerate neighbourhoods and used a lower degree\n", sum.report.degree_reduced);
+      printf("  %zu points had degenerate neighbourhoods and used a lower degree\n",
+             sum.report.degree_reduced);
     cli_print_input_report(stdout);
     if (output) printf("  -> %s\n", output);
   }

@@ -103,7 +103,7 @@ static const char *count_mismatch(const eval_ctx *e, char *buf, size_t n) {
 /* A result field bit-identical to the truth's is the truth passed along
  * (e.g. the exact normals of a generated file), not a result: never scored. */
 #define IDENTICAL_TO_TRUTH                                                                         \
-  "%s's %s are bit-identical to those of %s: ground truth passed along, not a result; refusing " \
+  "%s's %s are bit-identical to those of %s: ground truth passed along, not a result; refusing "   \
   "to score them"
 
 /* ---- normals: unoriented angle errors ---- */
@@ -113,9 +113,10 @@ static const char *normals_missing(const eval_ctx *e, char *buf, size_t n) {
   if (!e->result->normals)
     snprintf(buf, n, "%s has no normals (nx ny nz)", e->result_path);
   else if (!e->truth->normals)
-    snprintf(buf, n, "%s (the truth) has no normals (nx ny nz, or true_nx true_ny true_nz)", e->truth_path);
-  else if (e->result->point_count &&
-           memcmp(e->result->normals, e->truth->normals, 3 * e->result->point_count * sizeof(double)) == 0)
+    snprintf(buf, n, "%s (the truth) has no normals (nx ny nz, or true_nx true_ny true_nz)",
+             e->truth_path);
+  else if (e->result->point_count && memcmp(e->result->normals, e->truth->normals,
+                                            3 * e->result->point_count * sizeof(double)) == 0)
     snprintf(buf, n, IDENTICAL_TO_TRUTH, e->result_path, "normals", e->truth_path);
   else
     return NULL;
@@ -181,9 +182,9 @@ static const char *features_missing(const eval_ctx *e, char *buf, size_t n) {
     snprintf(buf, n, "%s has no field 'feature'", e->result_path);
   else if (!bsurf_cloud_field(e->truth, "feature"))
     snprintf(buf, n, "%s (the truth) has no field 'feature' (or 'true_feature')", e->truth_path);
-  else if (e->result->point_count &&
-           memcmp(bsurf_cloud_field(e->result, "feature")->values, bsurf_cloud_field(e->truth, "feature")->values,
-                  e->result->point_count * sizeof(double)) == 0)
+  else if (e->result->point_count && memcmp(bsurf_cloud_field(e->result, "feature")->values,
+                                            bsurf_cloud_field(e->truth, "feature")->values,
+                                            e->result->point_count * sizeof(double)) == 0)
     snprintf(buf, n, IDENTICAL_TO_TRUTH, e->result_path, "feature labels", e->truth_path);
   else
     return NULL;
@@ -324,21 +325,23 @@ static int position_compute(eval_ctx *e) {
   int rc = 0;
   if (st == BSURF_ERR_INVALID_VALUE) {
     size_t bad = 0;
-    while (bad < n && !isnan(dist[bad])) bad++;
+    while (bad < n && !isnan(dist[bad]))
+      bad++;
     rc = cli_error("%s: truth point %zu (0-based, for result point %zu) has a zero-length normal",
                    e->truth_path, bad < n ? truth_index(e, bad) : 0, bad);
   } else if (st != BSURF_OK) {
     rc = cli_error("position: %s", bsurf_strerror(st));
   }
-  for (size_t i = 0; tf && i < n; i++) feat[i] = tf->values[truth_index(e, i)] != 0;
+  for (size_t i = 0; tf && i < n; i++)
+    feat[i] = tf->values[truth_index(e, i)] != 0;
   for (int g = 0; g < GROUP_COUNT && rc == 0; g++) {
     uint8_t keep;
     const uint8_t *mask = group_mask(e, g, &keep);
     if (g != GROUP_ALL && !mask) break;
     for (int part = 0; part < (tf ? PART_COUNT : 1); part++) {
       for (size_t i = 0; i < n; i++)
-        sel[i] = (!mask || mask[i] == keep) &&
-                 (part == PART_ALL || feat[i] == (part == PART_FEATURE));
+        sel[i] =
+            (!mask || mask[i] == keep) && (part == PART_ALL || feat[i] == (part == PART_FEATURE));
       bsurf_distance_stats_compute(dist, sel, 1, n, &e->position[g][part]);
     }
   }
@@ -439,7 +442,8 @@ static int run_split(eval_ctx *e) {
   double *mapped = NULL;
   if (from_truth && e->match) {
     if (!(mapped = malloc(sizeof(double) * (n ? n : 1)))) return cli_error("out of memory");
-    for (size_t i = 0; i < n; i++) mapped[i] = f->values[e->match[i]];
+    for (size_t i = 0; i < n; i++)
+      mapped[i] = f->values[e->match[i]];
     values = mapped;
   }
   e->high = malloc(n ? n : 1);

@@ -19,7 +19,8 @@
 /* The output fields: an input field NAME is kept as NAME_in, unless NAME_in
  * exists (then NAME is an earlier result and is replaced); then the score
  * and `feature` are added (their values zero). kept / replaced: per name. */
-static bsurf_status features_fields(bsurf_cloud *c, const char *const names[2], int kept[2], int replaced[2]) {
+static bsurf_status features_fields(bsurf_cloud *c, const char *const names[2], int kept[2],
+                                    int replaced[2]) {
   for (int t = 0; t < 2; t++) {
     kept[t] = replaced[t] = 0;
     bsurf_field *old = bsurf_cloud_field(c, names[t]);
@@ -34,14 +35,17 @@ static bsurf_status features_fields(bsurf_cloud *c, const char *const names[2], 
     }
   }
   /* adding a field may move the field array: look both up once both exist */
-  return bsurf_cloud_add_field(c, names[1], BSURF_FLOAT32) && bsurf_cloud_add_field(c, names[0], BSURF_UINT8)
+  return bsurf_cloud_add_field(c, names[1], BSURF_FLOAT32) &&
+                 bsurf_cloud_add_field(c, names[0], BSURF_UINT8)
              ? BSURF_OK
              : BSURF_ERR_NOMEM;
 }
 
-static void features_warn(const char *input, const char *const names[2], const int kept[2], const int replaced[2]) {
+static void features_warn(const char *input, const char *const names[2], const int kept[2],
+                          const int replaced[2]) {
   for (int t = 0; t < 2; t++) {
-    if (replaced[t]) cli_warn("%s: replacing the input's %s (%s_in is kept)", input, names[t], names[t]);
+    if (replaced[t])
+      cli_warn("%s: replacing the input's %s (%s_in is kept)", input, names[t], names[t]);
     if (kept[t]) cli_warn("%s: the input's %s is kept as %s_in", input, names[t], names[t]);
   }
 }
@@ -60,7 +64,8 @@ typedef struct features_tiles {
   int kept[2], replaced[2];
 } features_tiles;
 
-static bsurf_status features_stage1_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
+static bsurf_status features_stage1_run(void *user, const bsurf_tile *tile, bsurf_cloud *core,
+                                        double *sums) {
   (void)core;
   (void)sums;
   const features_tiles *ft = user;
@@ -78,7 +83,8 @@ static bsurf_status features_prepare(void *user, bsurf_cloud *c) {
 static bsurf_status features_map(void *user, size_t first, bsurf_cloud *c, const double *values) {
   (void)first;
   const features_tiles *ft = user;
-  double *score = bsurf_cloud_field(c, ft->names[1])->values, *feat = bsurf_cloud_field(c, ft->names[0])->values;
+  double *score = bsurf_cloud_field(c, ft->names[1])->values,
+         *feat = bsurf_cloud_field(c, ft->names[0])->values;
   for (size_t i = 0; i < c->point_count; i++) {
     score[i] = values[i];
     feat[i] = values[i] > ft->threshold; /* Eq. 7.2 */
@@ -88,14 +94,19 @@ static bsurf_status features_map(void *user, size_t first, bsurf_cloud *c, const
 
 /* The tiled variance method: threshold (given or automatic), the feature
  * count and h out. 0 or 1 (printed). */
-static int features_tiled(const char *input, const char *output, const bsurf_feature_options *fo, size_t *plan,
-                          int quiet, features_tiles *ft, size_t *tiles, size_t *n, double *h,
-                          bsurf_feature_report *rep) {
+static int features_tiled(const char *input, const char *output, const bsurf_feature_options *fo,
+                          size_t *plan, int quiet, features_tiles *ft, size_t *tiles, size_t *n,
+                          double *h, bsurf_feature_report *rep) {
   bsurf_tile_values vals = {-1, 0, 0};
   ft->no = fo->normals;
   ft->no.threads = fo->threads;
-  bsurf_tile_ops ops = {.tile_points = *plan, .k = fo->normals.k, .threads = fo->threads, .user = ft,
-                        .run = features_stage1_run, .nvalues = 1, .values_out = &vals};
+  bsurf_tile_ops ops = {.tile_points = *plan,
+                        .k = fo->normals.k,
+                        .threads = fo->threads,
+                        .user = ft,
+                        .run = features_stage1_run,
+                        .nvalues = 1,
+                        .values_out = &vals};
   bsurf_tile_report tr;
   tr.sums = NULL;
   int rc = cli_tiles_run(input, output, &ops, &tr, quiet);
@@ -106,17 +117,21 @@ static int features_tiled(const char *input, const char *output, const bsurf_fea
     *n = tr.points;
     *h = tr.h;
     v = malloc((*n ? *n : 1) * sizeof(double));
-    if (!v) rc = cli_error("out of memory");
+    if (!v)
+      rc = cli_error("out of memory");
     else if (bsurf_tile_values_read(&vals, 0, *n, v) != BSURF_OK)
       rc = cli_error("%s: cannot read the scratch file of the first stage", input);
   }
   bsurf_status st = BSURF_OK;
-  if (!rc && isnan(fo->threshold)) st = bsurf_tail_threshold(v, *n, fo->tail_rule, &ft->threshold);
-  else ft->threshold = fo->threshold;
+  if (!rc && isnan(fo->threshold))
+    st = bsurf_tail_threshold(v, *n, fo->tail_rule, &ft->threshold);
+  else
+    ft->threshold = fo->threshold;
   if (st != BSURF_OK) rc = cli_error("%s: %s", input, bsurf_strerror(st));
   memset(rep, 0, sizeof *rep);
   rep->threshold = ft->threshold;
-  for (size_t i = 0; !rc && i < *n; i++) rep->feature_points += v[i] > ft->threshold;
+  for (size_t i = 0; !rc && i < *n; i++)
+    rep->feature_points += v[i] > ft->threshold;
   free(v);
   if (!rc) {
     ops.prepare = features_prepare;
@@ -133,14 +148,16 @@ typedef struct features_distance_arg {
   bsurf_feature_report *rep;
 } features_distance_arg;
 
-static bsurf_status features_distance_fn(void *arg, const char *input, const char *output, bsurf_tile_ops *ops,
-                                         bsurf_tile_report *rep, bsurf_failure *err) {
+static bsurf_status features_distance_fn(void *arg, const char *input, const char *output,
+                                         bsurf_tile_ops *ops, bsurf_tile_report *rep,
+                                         bsurf_failure *err) {
   const features_distance_arg *a = arg;
   return bsurf_features_distance_tiled(input, output, ops, a->fo, a->rep, rep, err);
 }
 
-static int features_distance_tiled(const char *input, const char *output, const bsurf_feature_options *fo,
-                                   size_t *plan, int quiet, features_tiles *ft, size_t *tiles, size_t *n, double *h,
+static int features_distance_tiled(const char *input, const char *output,
+                                   const bsurf_feature_options *fo, size_t *plan, int quiet,
+                                   features_tiles *ft, size_t *tiles, size_t *n, double *h,
                                    bsurf_feature_report *rep) {
   bsurf_tile_ops ops;
   memset(&ops, 0, sizeof ops);
@@ -167,21 +184,29 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
-      {0, "method", ARG_STRING, &method, "M", "distance (PCA distance map, 7.1; tiled in stages) or variance (7.2; tiled in two stages)", 1, 0},
-      {'k', "neighbors", ARG_INT, &fo.normals.k, "K", "variance: neighbourhood of the normals", 3, 65535},
-      {'B', "bootstrap", ARG_INT, &fo.normals.bootstrap, "B", "variance: bootstrap replicates (>= 2)", 2, 100000},
+      {0, "method", ARG_STRING, &method, "M",
+       "distance (PCA distance map, 7.1; tiled in stages) or variance (7.2; tiled in two stages)",
+       1, 0},
+      {'k', "neighbors", ARG_INT, &fo.normals.k, "K", "variance: neighbourhood of the normals", 3,
+       65535},
+      {'B', "bootstrap", ARG_INT, &fo.normals.bootstrap, "B",
+       "variance: bootstrap replicates (>= 2)", 2, 100000},
       {0, "k-min", ARG_INT, &fo.k_min, "K", "distance: smallest neighbourhood", 3, 65535},
       {0, "k-max", ARG_INT, &fo.k_max, "K", "distance: largest neighbourhood", 3, 65535},
-      {0, "k-step", ARG_INT, &fo.k_step, "S", "distance: growth step of the neighbourhood", 1, 65535},
-      {0, "ratio-threshold", ARG_DOUBLE, &fo.ratio_threshold, "T", "distance: T_{a/c} on lambda0/lambda2", 0,
-       1},
+      {0, "k-step", ARG_INT, &fo.k_step, "S", "distance: growth step of the neighbourhood", 1,
+       65535},
+      {0, "ratio-threshold", ARG_DOUBLE, &fo.ratio_threshold, "T",
+       "distance: T_{a/c} on lambda0/lambda2", 0, 1},
       {0, "noise-factor", ARG_DOUBLE, &fo.noise_factor, "C",
        "distance: T_{a/c} of size K = max(T, C x median f(K)) (0 = T alone)", 0, 1e6},
-      {0, "derivative", ARG_DOUBLE, &fo.derivative, "D", "distance: threshold f + D f' instead of f (0 = off)", 0,
-       1e6},
-      {0, "alpha", ARG_DOUBLE, &fo.alpha, "A", "distance: bilateral filter strength (Eq. 7.1)", 0, 1},
-      {0, "iterations", ARG_INT, &fo.iterations, "N", "distance: bilateral filter passes", 0, 100000},
-      {0, "filter-k", ARG_INT, &fo.filter_k, "K", "distance: neighbours of the filter (0 = --k-min)", 0, 65535},
+      {0, "derivative", ARG_DOUBLE, &fo.derivative, "D",
+       "distance: threshold f + D f' instead of f (0 = off)", 0, 1e6},
+      {0, "alpha", ARG_DOUBLE, &fo.alpha, "A", "distance: bilateral filter strength (Eq. 7.1)", 0,
+       1},
+      {0, "iterations", ARG_INT, &fo.iterations, "N", "distance: bilateral filter passes", 0,
+       100000},
+      {0, "filter-k", ARG_INT, &fo.filter_k, "K",
+       "distance: neighbours of the filter (0 = --k-min)", 0, 65535},
       {0, "sigma-range", ARG_DOUBLE, &fo.sigma_range, "S",
        "distance: range sigma of the filter, fraction of max radius", 1e-12, 1e6},
       {0, "threshold", ARG_STRING, &threshold_s, "T",
@@ -275,7 +300,8 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   if (!quiet) features_warn(pos[0], out_names, kept, replaced);
   memcpy(bsurf_cloud_field(&c, score_name)->values, score, n * sizeof(double));
   double *fv = bsurf_cloud_field(&c, "feature")->values;
-  for (size_t i = 0; i < n; i++) fv[i] = feat[i];
+  for (size_t i = 0; i < n; i++)
+    fv[i] = feat[i];
   if (cli_write_cloud(output, &c, ascii)) goto done;
 summary:;
   double secs = cli_now() - t0;
@@ -339,7 +365,8 @@ summary:;
            isnan(fo.threshold) ? "auto" : "given", rep.feature_points,
            n ? 100.0 * (double)rep.feature_points / (double)n : 0.0);
     if (fo.method == BSURF_FEATURES_DISTANCE)
-      printf("  T_{a/c} %.4g at k_min, max radius %.6g, %zu points stopped at k_min (set to -max radius)\n",
+      printf("  T_{a/c} %.4g at k_min, max radius %.6g, %zu points stopped at k_min (set to -max "
+             "radius)\n",
              rep.ratio_threshold_kmin, rep.max_radius, rep.immediate);
     cli_print_input_report(stdout);
     printf("  -> %s\n", output);

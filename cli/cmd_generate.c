@@ -12,9 +12,11 @@ int cmd_generate(const cli_command *cmd, int argc, char **argv) {
   int ascii = 0, json = 0, quiet = 0, force = 0, threads = 0;
   cli_option opts[] = {
       {'n', "points", ARG_SIZE, &n, "N", "number of points (regular sampling rounds it)", 1, 4e9},
-      {0, "sampling", ARG_STRING, &sampling, "MODE", "regular (even, deterministic) or random (uniform by area)", 1, 0},
+      {0, "sampling", ARG_STRING, &sampling, "MODE",
+       "regular (even, deterministic) or random (uniform by area)", 1, 0},
       {0, "seed", ARG_U64, &seed, "S", "random seed (random sampling)", 1, 0},
-      {0, "feature-width", ARG_DOUBLE, &width, "W", "cube: feature = within W nominal spacings of an edge", 0, 1e300},
+      {0, "feature-width", ARG_DOUBLE, &width, "W",
+       "cube: feature = within W nominal spacings of an edge", 0, 1e300},
       CLI_OPT_THREADS(threads),
       CLI_OPTS_OUTPUT(output, ascii, force),
       CLI_OPTS_REPORT(json, quiet),
@@ -29,7 +31,8 @@ int cmd_generate(const cli_command *cmd, int argc, char **argv) {
     return cli_usage_error(cmd, "unknown shape '%s' (sphere, cube, torus, plane)", pos[0]);
   static const char *const samplings[] = {"regular", "random"};
   int smode = cli_choice(sampling, samplings, 2);
-  if (smode < 0) return cli_usage_error(cmd, "--sampling must be regular or random, not '%s'", sampling);
+  if (smode < 0)
+    return cli_usage_error(cmd, "--sampling must be regular or random, not '%s'", sampling);
   if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   if (cli_check_output(output, NULL, force)) return 1;
   double t0 = cli_now();
@@ -43,7 +46,8 @@ int cmd_generate(const cli_command *cmd, int argc, char **argv) {
   if (!quiet && c.point_count >= 2) {
     cli_progress prog;
     cli_progress_init(&prog, "spacing", quiet || json);
-    if (bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog) != BSURF_OK)
+    if (bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog) !=
+        BSURF_OK)
       h = NAN;
     cli_progress_done(&prog);
   }

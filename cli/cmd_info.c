@@ -4,7 +4,8 @@
 #include <math.h>
 
 static const char *type_name(bsurf_type t) {
-  static const char *names[] = {"int8", "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"};
+  static const char *names[] = {"int8",  "uint8",  "int16",   "uint16",
+                                "int32", "uint32", "float32", "float64"};
   return (unsigned)t < 8 ? names[t] : "?";
 }
 
@@ -31,14 +32,16 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
       if (v < lo[t]) lo[t] = v;
       if (v > hi[t]) hi[t] = v;
     }
-  double diag = c.point_count ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                                     (hi[2] - lo[2]) * (hi[2] - lo[2]))
-                              : 0;
+  double diag = c.point_count
+                    ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
+                           (hi[2] - lo[2]) * (hi[2] - lo[2]))
+                    : 0;
   double h = NAN;
   cli_progress prog;
   cli_progress_init(&prog, "spacing", quiet || json);
   if (!quiet && c.point_count >= 2 &&
-      bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog) != BSURF_OK)
+      bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog) !=
+          BSURF_OK)
     h = NAN;
   cli_progress_done(&prog);
   if (cli_interrupted()) {
@@ -59,15 +62,18 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
     json_int(&j, "faces", (long long)c.face_count);
     json_bool(&j, "normals", c.normals != NULL);
     json_arr(&j, "fields");
-    for (size_t f = 0; f < c.field_count; f++) json_str(&j, NULL, c.fields[f].name);
+    for (size_t f = 0; f < c.field_count; f++)
+      json_str(&j, NULL, c.fields[f].name);
     json_close_arr(&j);
     if (c.point_count) {
       json_obj(&j, "bbox");
       json_arr(&j, "min");
-      for (int t = 0; t < 3; t++) json_num(&j, NULL, lo[t]);
+      for (int t = 0; t < 3; t++)
+        json_num(&j, NULL, lo[t]);
       json_close_arr(&j);
       json_arr(&j, "max");
-      for (int t = 0; t < 3; t++) json_num(&j, NULL, hi[t]);
+      for (int t = 0; t < 3; t++)
+        json_num(&j, NULL, hi[t]);
       json_close_arr(&j);
       json_num(&j, "diagonal", diag);
       json_close_obj(&j);
@@ -82,11 +88,12 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
     printf("  faces      %zu\n", c.face_count);
     printf("  normals    %s\n", c.normals ? "yes" : "no");
     printf("  fields    ");
-    for (size_t f = 0; f < c.field_count; f++) printf(" %s(%s)", c.fields[f].name, type_name(c.fields[f].type));
+    for (size_t f = 0; f < c.field_count; f++)
+      printf(" %s(%s)", c.fields[f].name, type_name(c.fields[f].type));
     printf("%s\n", c.field_count ? "" : " none");
     if (c.point_count)
-      printf("  bbox       [%g %g %g] .. [%g %g %g], diagonal %g\n", lo[0], lo[1], lo[2], hi[0], hi[1],
-             hi[2], diag);
+      printf("  bbox       [%g %g %g] .. [%g %g %g], diagonal %g\n", lo[0], lo[1], lo[2], hi[0],
+             hi[1], hi[2], diag);
     printf("  h          %.6g (mean nearest-neighbour distance)\n", h);
     cli_print_input_report(stdout);
   }

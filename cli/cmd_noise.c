@@ -12,7 +12,8 @@ static int option_given(int argc, char **argv, const char *name) {
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i];
     if (strcmp(a, "--") == 0) return 0;
-    if (a[0] == '-' && a[1] == '-' && strncmp(a + 2, name, len) == 0 && (a[2 + len] == 0 || a[2 + len] == '='))
+    if (a[0] == '-' && a[1] == '-' && strncmp(a + 2, name, len) == 0 &&
+        (a[2 + len] == 0 || a[2 + len] == '='))
       return 1;
   }
   return 0;
@@ -27,7 +28,8 @@ static double bbox_diagonal(const bsurf_cloud *c) {
       if (v > hi[k]) hi[k] = v;
     }
   double s = 0;
-  for (int k = 0; k < 3; k++) s += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+  for (int k = 0; k < 3; k++)
+    s += (hi[k] - lo[k]) * (hi[k] - lo[k]);
   return c->point_count ? sqrt(s) : 0.0;
 }
 
@@ -39,11 +41,12 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   cli_option opts[] = {
       {0, "level", ARG_DOUBLE, &level, "XI", "noise level xi in units of h", 0, 1e300},
       {0, "sigma-diag", ARG_DOUBLE, &sigma_diag, "S",
-       "instead of --level: gaussian, sigma = S x bbox diagonal (PCPNet 0.00125-0.012)", 0,
-       1e300},
-      {0, "model", ARG_STRING, &model, "M", "gaussian: t ~ N(0, xi^2); uniform: t ~ U[-xi, xi]", 1, 0},
+       "instead of --level: gaussian, sigma = S x bbox diagonal (PCPNet 0.00125-0.012)", 0, 1e300},
+      {0, "model", ARG_STRING, &model, "M", "gaussian: t ~ N(0, xi^2); uniform: t ~ U[-xi, xi]", 1,
+       0},
       CLI_OPT_SEED(seed),
-      {'j', "threads", ARG_INT, &threads, "N", "threads for measuring h, 0 = $OMP_NUM_THREADS if set, else all cores", 0, 4096},
+      {'j', "threads", ARG_INT, &threads, "N",
+       "threads for measuring h, 0 = $OMP_NUM_THREADS if set, else all cores", 0, 4096},
       CLI_OPTS_OUTPUT(output, ascii, force),
       CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
@@ -58,9 +61,11 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   if (m < 0) return cli_usage_error(cmd, "--model must be gaussian or uniform, not '%s'", model);
   int by_diag = option_given(argc, argv, "sigma-diag");
   if (by_diag && option_given(argc, argv, "level"))
-    return cli_usage_error(cmd, "--level and --sigma-diag are exclusive (noise in units of h or of the diagonal)");
+    return cli_usage_error(
+        cmd, "--level and --sigma-diag are exclusive (noise in units of h or of the diagonal)");
   if (by_diag && m != BSURF_NOISE_GAUSSIAN)
-    return cli_usage_error(cmd, "--sigma-diag is gaussian noise; it cannot be used with --model %s", model);
+    return cli_usage_error(cmd, "--sigma-diag is gaussian noise; it cannot be used with --model %s",
+                           model);
   if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   if (cli_check_output(output, pos[0], force)) return 1;
   double t0 = cli_now();
@@ -74,7 +79,8 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   }
   if (!c.normals) {
     bsurf_cloud_free(&c);
-    return cli_error("%s: the input has no normals (nx ny nz); noise moves points along them", pos[0]);
+    return cli_error("%s: the input has no normals (nx ny nz); noise moves points along them",
+                     pos[0]);
   }
   if (c.point_count < 2) {
     bsurf_cloud_free(&c);
@@ -84,11 +90,13 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   /* --sigma-diag s: t ~ N(0, 1) scaled by s x diagonal, i.e. level 1 */
   cli_progress prog;
   cli_progress_init(&prog, "spacing", quiet);
-  bsurf_status st = bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog);
+  bsurf_status st =
+      bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog);
   cli_progress_done(&prog);
   double use_level = by_diag ? 1.0 : level, scale = by_diag ? sigma_diag * diag : h;
   if (st == BSURF_OK)
-    st = bsurf_add_noise(c.xyz, c.normals, c.point_count, (bsurf_noise_model)m, use_level, scale, seed);
+    st = bsurf_add_noise(c.xyz, c.normals, c.point_count, (bsurf_noise_model)m, use_level, scale,
+                         seed);
   if (st == BSURF_ERR_INVALID_VALUE) {
     bsurf_cloud_free(&c);
     return cli_error("%s: some normals have zero length", pos[0]);
@@ -129,10 +137,11 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
       json_end(&j);
     } else {
       if (by_diag)
-        printf("noise gaussian sigma %g x diagonal %.6g = %.6g (%.4g h) on %zu points -> %s\n", sigma_diag, diag,
-               scale, h > 0 ? scale / h : NAN, c.point_count, output);
+        printf("noise gaussian sigma %g x diagonal %.6g = %.6g (%.4g h) on %zu points -> %s\n",
+               sigma_diag, diag, scale, h > 0 ? scale / h : NAN, c.point_count, output);
       else
-        printf("noise %s level %g (x h = %.6g) on %zu points -> %s\n", model, level, h, c.point_count, output);
+        printf("noise %s level %g (x h = %.6g) on %zu points -> %s\n", model, level, h,
+               c.point_count, output);
       cli_print_input_report(stdout);
     }
   }

@@ -12,7 +12,8 @@ static int parse_range(const char *s, int *ks, int max) {
   int a, b, step, n = 0;
   char extra;
   if (sscanf(s, "%d:%d:%d%c", &a, &b, &step, &extra) != 3 || a < 3 || b < a || step < 1) return -1;
-  for (int k = a; k <= b && n < max; k += step) ks[n++] = k;
+  for (int k = a; k <= b && n < max; k += step)
+    ks[n++] = k;
   return n;
 }
 
@@ -25,13 +26,14 @@ static int parse_degrees(const char *s, int *ds, int max) {
     long d = strtol(p, &end, 10);
     if (end == p || d < 1 || d > 4) return -1;
     ds[n++] = (int)d;
-    if (*end == ',') end++;
-    else if (*end) return -1;
+    if (*end == ',')
+      end++;
+    else if (*end)
+      return -1;
     p = end;
   }
   return n > 0 ? n : -1;
 }
-
 
 /* What one normals run computes (every candidate K and degree), shared by the
  * in-memory run and the tiles. */
@@ -68,7 +70,8 @@ static int normals_bufs_alloc(normals_bufs *b, const normals_job *job, size_t n)
   b->var = calloc(n, sizeof(double));
   b->err = calloc(n, sizeof(double));
   int ok = b->normals && b->var && b->err;
-  if (job->test_error && job->ksel.rule != BSURF_KSELECT_MSE) ok = ok && (b->ref = malloc(n * 3 * sizeof(double)));
+  if (job->test_error && job->ksel.rule != BSURF_KSELECT_MSE)
+    ok = ok && (b->ref = malloc(n * 3 * sizeof(double)));
   if (job->selecting) {
     b->cand_n = malloc(n * 3 * sizeof(double));
     b->cand_v = calloc(n, sizeof(double));
@@ -77,7 +80,8 @@ static int normals_bufs_alloc(normals_bufs *b, const normals_job *job, size_t n)
     b->ksel = calloc(n, sizeof(double));
     b->dsel = calloc(n, sizeof(double));
     ok = ok && b->cand_n && b->cand_v && b->cand_e && b->best_e && b->ksel && b->dsel;
-    for (size_t i = 0; ok && i < n; i++) b->best_e[i] = INFINITY;
+    for (size_t i = 0; ok && i < n; i++)
+      b->best_e[i] = INFINITY;
   }
   if (!ok) normals_bufs_free(b);
   return ok ? 0 : cli_error("out of memory");
@@ -85,10 +89,11 @@ static int normals_bufs_alloc(normals_bufs *b, const normals_job *job, size_t n)
 
 /* --select-k with PCA: every candidate in one pass (bsurf_select_normals_k);
  * with --curve each candidate's means, summed in point order. */
-static bsurf_status normals_select_pca(const normals_job *job, const double *xyz, const bsurf_neighbors *nb,
-                                       const bsurf_normal_options *no, const double *ref, normals_bufs *b,
-                                       bsurf_normal_report *total, FILE *cf, const bsurf_cloud *truth,
-                                       cli_progress *prog) {
+static bsurf_status normals_select_pca(const normals_job *job, const double *xyz,
+                                       const bsurf_neighbors *nb, const bsurf_normal_options *no,
+                                       const double *ref, normals_bufs *b,
+                                       bsurf_normal_report *total, FILE *cf,
+                                       const bsurf_cloud *truth, cli_progress *prog) {
   const size_t n = nb->point_count;
   const int nk = job->nk;
   int *ksel = malloc(n * sizeof *ksel);
@@ -136,8 +141,9 @@ static bsurf_status normals_select_pca(const normals_job *job, const double *xyz
  * per point of xyz), then every candidate (K, degree), keeping per point
  * the one with the smallest normal_err. cf / truth: the --curve file and its
  * ground truth, or NULL. Progress bars unless prog is NULL. */
-static bsurf_status normals_compute(const normals_job *job, const double *xyz, const bsurf_neighbors *nb,
-                                    const uint64_t *point_index, const double *ref_in, normals_bufs *b,
+static bsurf_status normals_compute(const normals_job *job, const double *xyz,
+                                    const bsurf_neighbors *nb, const uint64_t *point_index,
+                                    const double *ref_in, normals_bufs *b,
                                     bsurf_normal_report *total, FILE *cf, const bsurf_cloud *truth,
                                     cli_progress *prog) {
   const size_t n = nb->point_count;
@@ -162,7 +168,8 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
     if (st != BSURF_OK) return st;
   }
   const int selecting = job->selecting;
-  if (selecting && no.fit == BSURF_NORMAL_PCA && job->ksel.rule != BSURF_KSELECT_MSE) /* nested candidates, one pass */
+  if (selecting && no.fit == BSURF_NORMAL_PCA &&
+      job->ksel.rule != BSURF_KSELECT_MSE) /* nested candidates, one pass */
     return normals_select_pca(job, xyz, nb, &no, ref, b, total, cf, truth, prog);
   int *kmse = NULL; /* rule MSE: the chosen K; the candidates' loop below then keeps it */
   if (job->ksel.rule == BSURF_KSELECT_MSE) {
@@ -175,7 +182,8 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
     if (prog) cli_progress_init(prog, "select K", job->quiet);
     st = bsurf_select_k(xyz, nb, &ko, &kf, NULL);
     if (prog) cli_progress_done(prog);
-    for (size_t i = 0; i < n; i++) b->ksel[i] = kmse[i];
+    for (size_t i = 0; i < n; i++)
+      b->ksel[i] = kmse[i];
     if (st != BSURF_OK || !bootstrap) {
       free(kmse);
       return st;
@@ -224,7 +232,8 @@ static bsurf_status normals_compute(const normals_job *job, const double *xyz, c
         }
       }
       if (cf && !kmse) {
-        fprintf(cf, "%d,%d,%.10g,%.10g", o.k, no.fit == BSURF_NORMAL_POLY ? o.degree : 1, se / n, sv / n);
+        fprintf(cf, "%d,%d,%.10g,%.10g", o.k, no.fit == BSURF_NORMAL_POLY ? o.degree : 1, se / n,
+                sv / n);
         if (truth) fprintf(cf, ",%.10g", sa / n);
         fprintf(cf, "\n");
       }
@@ -256,7 +265,8 @@ static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, const 
   if (b) memcpy(c->normals, b->normals, n * 3 * sizeof(double));
   const char *names[4];
   bsurf_type types[4];
-  const double *vals[4] = {b ? b->var : NULL, b ? b->err : NULL, b ? b->ksel : NULL, b ? b->dsel : NULL};
+  const double *vals[4] = {b ? b->var : NULL, b ? b->err : NULL, b ? b->ksel : NULL,
+                           b ? b->dsel : NULL};
   int nf = normals_field_names(job, names, types), v = 0;
   for (int t = 0; t < nf; t++) {
     bsurf_field *fl = bsurf_cloud_add_field(c, names[t], types[t]);
@@ -275,17 +285,21 @@ static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, const 
 
 #define NORMALS_SUMS 8 /* replicates total, skipped, degree reduced, degenerate, 4 field sums */
 
-static bsurf_status normals_prepare(void *user, bsurf_cloud *c) { return normals_store(user, c, NULL); }
+static bsurf_status normals_prepare(void *user, bsurf_cloud *c) {
+  return normals_store(user, c, NULL);
+}
 
-static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
+static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud *core,
+                                double *sums) {
   const normals_job *job = user;
   normals_bufs b;
   if (normals_bufs_alloc(&b, job, tile->core_count)) return BSURF_ERR_NOMEM;
   bsurf_normal_report total;
   /* with normal_err: the reference normals of every local point, from the
    * first stage (normals_ref_run) */
-  bsurf_status st = normals_compute(job, tile->xyz, tile->nb, tile->point_index, job->test_error ? tile->values : NULL,
-                                    &b, &total, NULL, NULL, NULL);
+  bsurf_status st =
+      normals_compute(job, tile->xyz, tile->nb, tile->point_index,
+                      job->test_error ? tile->values : NULL, &b, &total, NULL, NULL, NULL);
   if (st == BSURF_OK) st = normals_store(job, core, &b);
   if (st == BSURF_OK) {
     sums[0] += (double)total.replicates_total;
@@ -296,7 +310,8 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
     bsurf_type types[4];
     int nf = normals_field_names(job, names, types);
     for (int t = 0; t < nf; t++)
-      sums[4 + t] += cli_field_mean(bsurf_cloud_field(core, names[t]), core->point_count) * (double)core->point_count;
+      sums[4 + t] += cli_field_mean(bsurf_cloud_field(core, names[t]), core->point_count) *
+                     (double)core->point_count;
   }
   normals_bufs_free(&b);
   return st;
@@ -306,7 +321,8 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
  * Eq. 5.10 (the in-memory run's: single PCA fits on the first k_ref
  * neighbours) of every point, kept by the engine for the second stage's
  * halos (docs/scaling.md). */
-static bsurf_status normals_ref_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
+static bsurf_status normals_ref_run(void *user, const bsurf_tile *tile, bsurf_cloud *core,
+                                    double *sums) {
   (void)core;
   (void)sums;
   const normals_job *job = user;
@@ -321,7 +337,8 @@ static bsurf_status normals_ref_run(void *user, const bsurf_tile *tile, bsurf_cl
 
 int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   bsurf_normal_options no = bsurf_normal_options_default();
-  const char *fit = "pca", *center = "centroid", *output = NULL, *select_k = NULL, *select_degree = NULL;
+  const char *fit = "pca", *center = "centroid", *output = NULL, *select_k = NULL,
+             *select_degree = NULL;
   const char *curve = NULL, *truth_path = NULL, *sigma_nu_s = "auto", *orient = "none";
   const char *select_rule = "test-error";
   bsurf_kselect_options ksel = bsurf_kselect_options_default();
@@ -332,30 +349,39 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   cli_option opts[] = {
       {'k', "neighbors", ARG_INT, &no.k, "K", "neighbourhood size K, the point included", 3, 65535},
       {0, "fit", ARG_STRING, &fit, "F", "pca (plane) or poly (height polynomial, Eq. 5.9)", 1, 0},
-      {'d', "degree", ARG_INT, &no.degree, "M", "degree of the polynomial for --fit poly, 1..4", 1, 4},
-      {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point (Eq. 2.1)", 1, 0},
-      {'B', "bootstrap", ARG_INT, &no.bootstrap, "B", "bootstrap replicates; 0 = a single fit", 0, 100000},
+      {'d', "degree", ARG_INT, &no.degree, "M", "degree of the polynomial for --fit poly, 1..4", 1,
+       4},
+      {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point (Eq. 2.1)",
+       1, 0},
+      {'B', "bootstrap", ARG_INT, &no.bootstrap, "B", "bootstrap replicates; 0 = a single fit", 0,
+       100000},
       CLI_OPT_SEED(no.seed),
       CLI_OPT_THREADS(no.threads),
-      {0, "test-error", ARG_FLAG, &test_error, "", "write normal_err, the bootstrap test error (Eq. 5.10)", 1, 0},
-      {0, "k-ref", ARG_INT, &k_ref, "K", "neighbourhood of the reference PCA normals of Eq. 5.10 (0 = -k)", 0,
-       65535},
-      {0, "select-k", ARG_STRING, &select_k, "A:B:STEP", "per point, the K chosen by --select-rule", 1, 0},
+      {0, "test-error", ARG_FLAG, &test_error, "",
+       "write normal_err, the bootstrap test error (Eq. 5.10)", 1, 0},
+      {0, "k-ref", ARG_INT, &k_ref, "K",
+       "neighbourhood of the reference PCA normals of Eq. 5.10 (0 = -k)", 0, 65535},
+      {0, "select-k", ARG_STRING, &select_k, "A:B:STEP", "per point, the K chosen by --select-rule",
+       1, 0},
       {0, "select-rule", ARG_STRING, &select_rule, "R",
        "test-error (Eq. 5.10) or mse (estimated variance + bias^2 of the PCA normal)", 1, 0},
-      {0, "noise-k", ARG_INT, &ksel.noise_k, "K", "with --select-rule mse: neighbourhood of the noise estimate", 12,
-       65535},
-      {0, "select-degree", ARG_STRING, &select_degree, "LIST", "with --fit poly: also choose the degree, e.g. 1,2,3",
-       1, 0},
-      {0, "curve", ARG_STRING, &curve, "FILE.csv", "with --select-k: mean errors against K (figs. 5.6-5.11)", 1, 0},
-      {0, "truth", ARG_STRING, &truth_path, "FILE", "ground-truth normals (same points) for --curve", 1, 0},
-      {0, "smooth-iterations", ARG_INT, &iterations, "N", "bilateral normal smoothing passes (Eq. 5.6)", 0,
-       100000},
+      {0, "noise-k", ARG_INT, &ksel.noise_k, "K",
+       "with --select-rule mse: neighbourhood of the noise estimate", 12, 65535},
+      {0, "select-degree", ARG_STRING, &select_degree, "LIST",
+       "with --fit poly: also choose the degree, e.g. 1,2,3", 1, 0},
+      {0, "curve", ARG_STRING, &curve, "FILE.csv",
+       "with --select-k: mean errors against K (figs. 5.6-5.11)", 1, 0},
+      {0, "truth", ARG_STRING, &truth_path, "FILE",
+       "ground-truth normals (same points) for --curve", 1, 0},
+      {0, "smooth-iterations", ARG_INT, &iterations, "N",
+       "bilateral normal smoothing passes (Eq. 5.6)", 0, 100000},
       {0, "alpha", ARG_DOUBLE, &alpha, "A", "strength of one smoothing pass", 0, 1},
       {0, "sigma-d", ARG_DOUBLE, &sigma_d, "S", "spatial sigma of the smoothing (0 = h)", 0, 1e300},
       {0, "sigma-nu", ARG_STRING, &sigma_nu_s, "S",
-       "variance sigma: a value, auto (85th percentile of normal_var) or inf (single Gaussian)", 1, 0},
-      {0, "orient", ARG_STRING, &orient, "MODE", "none or mst (consistent orientation, Hoppe 1992)", 1, 0},
+       "variance sigma: a value, auto (85th percentile of normal_var) or inf (single Gaussian)", 1,
+       0},
+      {0, "orient", ARG_STRING, &orient, "MODE", "none or mst (consistent orientation, Hoppe 1992)",
+       1, 0},
       CLI_OPTS_OUTPUT(output, ascii, force),
       CLI_OPTS_TILES(tile_points, memory_limit),
       CLI_OPT_DROP_INVALID,
@@ -368,9 +394,11 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
   static const char *const fits[] = {"pca", "poly"}, *const centers[] = {"centroid", "point"};
   static const char *const orients[] = {"none", "mst"};
-  int f = cli_choice(fit, fits, 2), pc = cli_choice(center, centers, 2), om = cli_choice(orient, orients, 2);
+  int f = cli_choice(fit, fits, 2), pc = cli_choice(center, centers, 2),
+      om = cli_choice(orient, orients, 2);
   if (f < 0) return cli_usage_error(cmd, "--fit must be pca or poly, not '%s'", fit);
-  if (pc < 0) return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", center);
+  if (pc < 0)
+    return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", center);
   if (om < 0) return cli_usage_error(cmd, "--orient must be none or mst, not '%s'", orient);
   no.fit = (bsurf_normal_fit)f;
   no.pca_center = (bsurf_pca_center)pc;
@@ -380,29 +408,37 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   } else if (strcmp(sigma_nu_s, "auto") != 0) {
     char *end;
     sigma_nu = strtod(sigma_nu_s, &end);
-    if (*end || !(sigma_nu > 0)) return cli_usage_error(cmd, "--sigma-nu must be a positive number, auto or inf");
+    if (*end || !(sigma_nu > 0))
+      return cli_usage_error(cmd, "--sigma-nu must be a positive number, auto or inf");
   }
   int ks[MAX_CANDIDATES], ds[4], nk = 1, nd = 1;
   ks[0] = no.k;
   ds[0] = no.degree;
   if (select_k && (nk = parse_range(select_k, ks, MAX_CANDIDATES)) < 1)
-    return cli_usage_error(cmd, "--select-k needs A:B:STEP with 3 <= A <= B and STEP >= 1, not '%s'", select_k);
+    return cli_usage_error(
+        cmd, "--select-k needs A:B:STEP with 3 <= A <= B and STEP >= 1, not '%s'", select_k);
   if (select_degree) {
-    if (no.fit != BSURF_NORMAL_POLY) return cli_usage_error(cmd, "--select-degree needs --fit poly");
+    if (no.fit != BSURF_NORMAL_POLY)
+      return cli_usage_error(cmd, "--select-degree needs --fit poly");
     if ((nd = parse_degrees(select_degree, ds, 4)) < 1)
       return cli_usage_error(cmd, "--select-degree needs a list of degrees 1..4 like 1,2,3");
   }
   if (curve && !select_k) return cli_usage_error(cmd, "--curve needs --select-k");
   static const char *const rules[] = {"test-error", "mse"};
   int sr = cli_choice(select_rule, rules, 2);
-  if (sr < 0) return cli_usage_error(cmd, "--select-rule must be test-error or mse, not '%s'", select_rule);
+  if (sr < 0)
+    return cli_usage_error(cmd, "--select-rule must be test-error or mse, not '%s'", select_rule);
   ksel.rule = (bsurf_kselect_rule)sr;
   if (ksel.rule == BSURF_KSELECT_MSE) {
     if (!select_k) return cli_usage_error(cmd, "--select-rule mse needs --select-k");
     if (no.fit != BSURF_NORMAL_PCA || select_degree)
-      return cli_usage_error(cmd, "--select-rule mse chooses K for PCA normals: not with --fit poly or --select-degree");
+      return cli_usage_error(
+          cmd,
+          "--select-rule mse chooses K for PCA normals: not with --fit poly or --select-degree");
     if (curve) return cli_usage_error(cmd, "--curve needs --select-rule test-error");
-    if (ks[0] < 7) return cli_usage_error(cmd, "--select-rule mse needs candidates K >= 7 (a quadric per K), not %d", ks[0]);
+    if (ks[0] < 7)
+      return cli_usage_error(
+          cmd, "--select-rule mse needs candidates K >= 7 (a quadric per K), not %d", ks[0]);
   }
   if (truth_path && !curve) return cli_usage_error(cmd, "--truth is used by --curve");
   const int selecting = select_k || select_degree;
@@ -445,16 +481,18 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   /* smoothing passes reach beyond the K-neighbourhood; orientation is
    * global (normal_err's reference normals: a first tiled stage) */
   if (plan && curve)
-    return cli_error("%s: --curve keeps every candidate's values of every point: not available in tiled runs",
-                     pos[0]);
+    return cli_error(
+        "%s: --curve keeps every candidate's values of every point: not available in tiled runs",
+        pos[0]);
   if (plan && job.ksel.rule == BSURF_KSELECT_MSE)
     return cli_error("%s: --select-rule mse grows its noise fits beyond the K_max-neighbourhood: "
                      "not available in tiled runs",
                      pos[0]);
   if (plan && (iterations > 0 || om == 1))
-    return cli_error("%s: --smooth-iterations and --orient mst use more than each point's K-neighbourhood: "
-                     "not available in tiled runs",
-                     pos[0]);
+    return cli_error(
+        "%s: --smooth-iterations and --orient mst use more than each point's K-neighbourhood: "
+        "not available in tiled runs",
+        pos[0]);
 
   double t0 = cli_now();
   bsurf_cloud c, truth;
@@ -480,14 +518,24 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
      * then the tiles with those of their halos */
     bsurf_tile_values refs = {-1, 0, 0};
     if (test_error) {
-      bsurf_tile_ops ops1 = {.tile_points = plan, .k = k_ref, .threads = no.threads, .user = &job,
-                             .run = normals_ref_run, .nvalues = 3, .values_out = &refs};
+      bsurf_tile_ops ops1 = {.tile_points = plan,
+                             .k = k_ref,
+                             .threads = no.threads,
+                             .user = &job,
+                             .run = normals_ref_run,
+                             .nvalues = 3,
+                             .values_out = &refs};
       bsurf_tile_report tr1;
       tr1.sums = NULL;
       if (cli_tiles_run(pos[0], output, &ops1, &tr1, quiet)) goto done;
     }
-    bsurf_tile_ops ops = {.tile_points = plan, .k = kmax, .threads = no.threads, .user = &job,
-                          .prepare = normals_prepare, .run = normals_run, .nsums = NORMALS_SUMS,
+    bsurf_tile_ops ops = {.tile_points = plan,
+                          .k = kmax,
+                          .threads = no.threads,
+                          .user = &job,
+                          .prepare = normals_prepare,
+                          .run = normals_run,
+                          .nsums = NORMALS_SUMS,
                           .values_in = test_error ? &refs : NULL};
     bsurf_tile_report tr;
     tr.sums = sums;
@@ -502,14 +550,16 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     total.replicates_skipped = (size_t)sums[1];
     total.degree_reduced = (size_t)sums[2];
     total.degenerate = (size_t)sums[3];
-    for (int t = 0; t < nf; t++) means[t] = sums[4 + t] / (double)n;
+    for (int t = 0; t < nf; t++)
+      means[t] = sums[4 + t] / (double)n;
     goto summary;
   }
   if (cli_read_cloud(pos[0], &c)) goto done;
   if (truth_path) {
     if (cli_read_cloud(truth_path, &truth)) goto done;
     if (truth.point_count != c.point_count || !truth.normals) {
-      cli_error("%s: the truth needs normals and the same %zu points as %s", truth_path, c.point_count, pos[0]);
+      cli_error("%s: the truth needs normals and the same %zu points as %s", truth_path,
+                c.point_count, pos[0]);
       goto done;
     }
   }
@@ -525,9 +575,11 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       cli_error("%s: cannot write", curve_tmp);
       goto done;
     }
-    fprintf(cf, "k,degree,mean_normal_err,mean_normal_var%s\n", truth_path ? ",mean_angle_err" : "");
+    fprintf(cf, "k,degree,mean_normal_err,mean_normal_var%s\n",
+            truth_path ? ",mean_angle_err" : "");
   }
-  st = normals_compute(&job, c.xyz, &nb, NULL, NULL, &b, &total, cf, truth_path ? &truth : NULL, &prog);
+  st = normals_compute(&job, c.xyz, &nb, NULL, NULL, &b, &total, cf, truth_path ? &truth : NULL,
+                       &prog);
   if (st != BSURF_OK) {
     cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
     goto done;
@@ -535,11 +587,13 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   h = nb.h;
   if (iterations > 0) {
     /* auto: the threshold of the top 15% of normal_var (Table 5.2's split) */
-    if (isnan(sigma_nu) && (no.bootstrap < 2 || bsurf_quantile_split(b.var, n, 0.85, NULL, &sigma_nu, NULL, NULL) != BSURF_OK))
+    if (isnan(sigma_nu) &&
+        (no.bootstrap < 2 ||
+         bsurf_quantile_split(b.var, n, 0.85, NULL, &sigma_nu, NULL, NULL) != BSURF_OK))
       sigma_nu = INFINITY;
     if (!(sigma_nu > 0)) sigma_nu = INFINITY; /* all variances 0: nothing to weigh */
-    st = bsurf_smooth_normals(c.xyz, &nb, no.k, b.normals, no.bootstrap >= 2 ? b.var : NULL, iterations, alpha,
-                              sigma_d > 0 ? sigma_d : h, sigma_nu, no.threads);
+    st = bsurf_smooth_normals(c.xyz, &nb, no.k, b.normals, no.bootstrap >= 2 ? b.var : NULL,
+                              iterations, alpha, sigma_d > 0 ? sigma_d : h, sigma_nu, no.threads);
     if (st != BSURF_OK) {
       cli_error("smoothing: %s", bsurf_strerror(st));
       goto done;
@@ -555,7 +609,8 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     goto done;
   }
   if (cli_write_cloud(output, &c, ascii)) goto done;
-  for (int t = 0; t < nf; t++) means[t] = cli_field_mean(bsurf_cloud_field(&c, names[t]), n);
+  for (int t = 0; t < nf; t++)
+    means[t] = cli_field_mean(bsurf_cloud_field(&c, names[t]), n);
   if (cf) {
     int bad = fclose(cf) != 0;
     cf = NULL;

@@ -67,8 +67,8 @@ int render_view_option(const cli_command *cmd, const char *view, double az, doub
  * clamped to [1, 4]: evenly sampled regions keep splats of h, sparse regions
  * of a scan get larger ones, so they look closed too. NULL on failure (the
  * renderer then uses h everywhere). */
-double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn progress, void *user, double *h,
-                       bsurf_status *status) {
+double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn progress, void *user,
+                       double *h, bsurf_status *status) {
   const int k = 7;
   size_t n = c->point_count;
   *h = 0;
@@ -90,7 +90,8 @@ double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn prog
   if (okay) {
     for (size_t i = 0; i < n; i++) {
       const double *p = &c->xyz[3 * i], *q = &c->xyz[3 * (size_t)nb.idx[i * k + k - 1]];
-      out[i] = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) + (p[2] - q[2]) * (p[2] - q[2]));
+      out[i] = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
+                    (p[2] - q[2]) * (p[2] - q[2]));
     }
     okay = bsurf_render_range(out, n, 50, 50, &med, &unused) == BSURF_OK && med > 0;
   }
@@ -127,7 +128,8 @@ int cli_write_png(const char *path, const uint8_t *rgb, int w, int h) {
   bsurf_failure err = {0, -1, ""};
   if (cli_interrupted()) return cli_error("%s: interrupted; nothing written", path);
   bsurf_status st = bsurf_write_png(path, rgb, w, h, &err);
-  if (st != BSURF_OK) return cli_error("%s: %s", path, err.message[0] ? err.message : bsurf_strerror(st));
+  if (st != BSURF_OK)
+    return cli_error("%s: %s", path, err.message[0] ? err.message : bsurf_strerror(st));
   return 0;
 }
 
@@ -146,10 +148,15 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
        "values at the colormap's ends (default: 1st-99th percentile)", 1, 0},
       {0, "view", ARG_STRING, &view, "VIEW",
        "front, back, left, right, top, bottom or iso (default: iso)", 1, 0},
-      {0, "azimuth", ARG_DOUBLE, &az, "DEG", "view azimuth about z (0 = front; default: that of --view)", -360, 360},
-      {0, "elevation", ARG_DOUBLE, &el, "DEG", "view elevation (90 = top; default: that of --view)", -90, 90},
-      {0, "up", ARG_STRING, &up, "AXIS", "the axis that points up in the views: x, y, z or auto (z for bootsurf's generated shapes, else y: "
-       "the convention of scans and meshes)", 1, 0},
+      {0, "azimuth", ARG_DOUBLE, &az, "DEG",
+       "view azimuth about z (0 = front; default: that of --view)", -360, 360},
+      {0, "elevation", ARG_DOUBLE, &el, "DEG", "view elevation (90 = top; default: that of --view)",
+       -90, 90},
+      {0, "up", ARG_STRING, &up, "AXIS",
+       "the axis that points up in the views: x, y, z or auto (z for bootsurf's generated shapes, "
+       "else y: "
+       "the convention of scans and meshes)",
+       1, 0},
       {0, "views", ARG_INT, &views, "N", "1, or 4 for front, right, top and iso in a 2x2 grid", 1,
        4},
       {0, "size", ARG_STRING, &size, "WxH", "image size in pixels (default: 1024x768)", 1, 0},
@@ -202,7 +209,8 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
   cli_progress_done(&prog);
   if (sst != BSURF_OK) {
     bsurf_cloud_free(&c);
-    return cli_error("%s: spacing: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(sst));
+    return cli_error("%s: spacing: %s", pos[0],
+                     cli_interrupted() ? "interrupted" : bsurf_strerror(sst));
   }
   ro.spacing = h;
   ro.point_spacing = local;

@@ -13,8 +13,10 @@ static int parse_length(const char *text, double h, int allow_w, double *value, 
   errno = 0;
   char *end = NULL;
   double x = strtod(text, &end);
-  if (end == text && (text[0] == 'h' || text[0] == 'W')) x = 1.0; /* "h" = 1h */
-  else if (end == text || errno || !isfinite(x) || x < 0) return -1;
+  if (end == text && (text[0] == 'h' || text[0] == 'W'))
+    x = 1.0; /* "h" = 1h */
+  else if (end == text || errno || !isfinite(x) || x < 0)
+    return -1;
   if (*end == 0) {
     *value = x;
     return 0;
@@ -31,7 +33,8 @@ static int parse_length(const char *text, double h, int allow_w, double *value, 
   return -1;
 }
 
-static const char *const smooth_fields_all[] = {"err_632", "err_632plus", "moved", "k_hat", "d_local"};
+static const char *const smooth_fields_all[] = {"err_632", "err_632plus", "moved", "k_hat",
+                                                "d_local"};
 
 /* ---- tiled runs (cli/tiles.c, docs/scaling.md) ----
  * Stage 1 (tiles): W_i and the naive projection or the bilateral fit of
@@ -51,7 +54,8 @@ typedef struct smooth_tiles {
 
 #define SMOOTH_SUMS 3 /* replicates skipped, degree reduced, centre unestimated */
 
-static bsurf_status smooth_stage1_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
+static bsurf_status smooth_stage1_run(void *user, const bsurf_tile *tile, bsurf_cloud *core,
+                                      double *sums) {
   (void)core;
   const smooth_tiles *t = user;
   bsurf_smooth_options so = t->so;
@@ -81,9 +85,10 @@ static bsurf_status smooth_prepare(void *user, bsurf_cloud *c) {
 
 /* The smoothed positions and the fields of `count` points (local indices
  * point[], NULL: 0..) into c. */
-static void smooth_store(const smooth_tiles *t, bsurf_cloud *c, const double *values, const uint32_t *point,
-                         const double *out, const double *moved) {
-  double *e632 = bsurf_cloud_field(c, "err_632")->values, *e632p = bsurf_cloud_field(c, "err_632plus")->values;
+static void smooth_store(const smooth_tiles *t, bsurf_cloud *c, const double *values,
+                         const uint32_t *point, const double *out, const double *moved) {
+  double *e632 = bsurf_cloud_field(c, "err_632")->values,
+         *e632p = bsurf_cloud_field(c, "err_632plus")->values;
   double *mv = bsurf_cloud_field(c, "moved")->values;
   for (size_t r = 0; r < c->point_count; r++) {
     const double *v = &values[(point ? (size_t)point[r] : r) * t->nv];
@@ -95,17 +100,19 @@ static void smooth_store(const smooth_tiles *t, bsurf_cloud *c, const double *va
 }
 
 /* bilateral: one tile of stage 2 (its points and their reverse neighbours) */
-static bsurf_status smooth_stage2_run(void *user, const bsurf_tile *tile, bsurf_cloud *core, double *sums) {
+static bsurf_status smooth_stage2_run(void *user, const bsurf_tile *tile, bsurf_cloud *core,
+                                      double *sums) {
   (void)sums;
   const smooth_tiles *t = user;
   const size_t n = tile->core_count;
   uint32_t *point = calloc(n ? n : 1, sizeof *point);
   double *out = calloc(n ? n : 1, 3 * sizeof(double));
   bsurf_status st = point && out ? BSURF_OK : BSURF_ERR_NOMEM;
-  for (size_t r = 0; r < n && point; r++) point[r] = tile->nb->idx[r * (size_t)tile->nb->k]; /* each row's point */
+  for (size_t r = 0; r < n && point; r++)
+    point[r] = tile->nb->idx[r * (size_t)tile->nb->k]; /* each row's point */
   if (st == BSURF_OK)
-    st = bsurf_smooth_stage2(tile->xyz, tile->local_count, tile->values, n, point, tile->rev_off, tile->rev, &t->so,
-                             out, tile->values_out);
+    st = bsurf_smooth_stage2(tile->xyz, tile->local_count, tile->values, n, point, tile->rev_off,
+                             tile->rev, &t->so, out, tile->values_out);
   if (st == BSURF_OK) smooth_store(t, core, tile->values, point, out, tile->values_out);
   free(point);
   free(out);
@@ -119,7 +126,8 @@ static bsurf_status smooth_map(void *user, size_t first, bsurf_cloud *c, const d
   const size_t n = c->point_count;
   double *out = calloc(n ? n : 1, 3 * sizeof(double)), *moved = calloc(n ? n : 1, sizeof(double));
   bsurf_status st = out && moved ? BSURF_OK : BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_smooth_stage2(c->xyz, n, values, n, NULL, NULL, NULL, &t->so, out, moved);
+  if (st == BSURF_OK)
+    st = bsurf_smooth_stage2(c->xyz, n, values, n, NULL, NULL, NULL, &t->so, out, moved);
   if (st == BSURF_OK) {
     const int wc = bsurf_smooth_w_column(&t->so);
     for (size_t r = 0; r < n; r++) {
@@ -136,12 +144,15 @@ static bsurf_status smooth_map(void *user, size_t first, bsurf_cloud *c, const d
 }
 
 /* The lengths given as text, converted with h (the mean spacing). */
-static void smooth_lengths(bsurf_smooth_options *so, double h, const char *threshold, const char *h1_text,
-                           const char *h2_text, const char *kerr_text) {
+static void smooth_lengths(bsurf_smooth_options *so, double h, const char *threshold,
+                           const char *h1_text, const char *h2_text, const char *kerr_text) {
   double frac = 0;
-  if (!strcmp(threshold, "auto")) so->threshold = NAN;
-  else if (!strcmp(threshold, "none")) so->threshold = INFINITY;
-  else parse_length(threshold, h, 0, &so->threshold, &frac);
+  if (!strcmp(threshold, "auto"))
+    so->threshold = NAN;
+  else if (!strcmp(threshold, "none"))
+    so->threshold = INFINITY;
+  else
+    parse_length(threshold, h, 0, &so->threshold, &frac);
   parse_length(h1_text, h, 0, &so->h1, &frac);
   if (strcmp(h2_text, "auto")) parse_length(h2_text, h, 1, &so->h2, &so->h2_fraction);
   if (strcmp(kerr_text, "auto")) parse_length(kerr_text, h, 1, &so->k_error, &so->k_error_fraction);
@@ -149,11 +160,13 @@ static void smooth_lengths(bsurf_smooth_options *so, double h, const char *thres
 
 /* Sums over a values file in index order (the order of the in-memory loops):
  * sum[c] of column c, and of `moved` columns the count > 0 and the maximum. */
-static int values_sums(const char *input, const bsurf_tile_values *v, double *sum, size_t *positive, double *max) {
+static int values_sums(const char *input, const bsurf_tile_values *v, double *sum, size_t *positive,
+                       double *max) {
   const size_t per = 1 << 16, nv = v->nvalues;
   double *buf = malloc(per * nv * sizeof(double));
   if (!buf) return cli_error("out of memory");
-  for (size_t c = 0; c < nv; c++) sum[c] = 0;
+  for (size_t c = 0; c < nv; c++)
+    sum[c] = 0;
   *positive = 0;
   *max = 0;
   for (size_t i = 0; i < v->count; i += per) {
@@ -185,37 +198,52 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "naive (Eq. 6.1), bilateral (Algorithm 4, Eq. 6.2) or multipass (Algorithm 5; not tiled: "
        "--iterations passes reach as many rings)",
        1, 0},
-      {'k', "neighbors", ARG_INT, &so.error.k, "K", "neighbourhood size K, the point included", 2, 65535},
-      {'d', "degree", ARG_INT, &so.error.degree, "M", "degree of the height polynomial, 1..4", 1, 4},
-      {'B', "bootstrap", ARG_INT, &so.error.bootstrap, "B", "bootstrap replicates per point", 0, 100000},
-      {0, "gamma", ARG_STRING, &gamma, "MODE", "no-information rate of .632+: fit, mean or max", 1, 0},
+      {'k', "neighbors", ARG_INT, &so.error.k, "K", "neighbourhood size K, the point included", 2,
+       65535},
+      {'d', "degree", ARG_INT, &so.error.degree, "M", "degree of the height polynomial, 1..4", 1,
+       4},
+      {'B', "bootstrap", ARG_INT, &so.error.bootstrap, "B", "bootstrap replicates per point", 0,
+       100000},
+      {0, "gamma", ARG_STRING, &gamma, "MODE", "no-information rate of .632+: fit, mean or max", 1,
+       0},
       {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point", 1, 0},
       {0, "estimator", ARG_STRING, &estimator, "E",
-       "the error W_i that weights the moves: 632, 632plus or auto (.632+ for naive, .632 otherwise)", 1, 0},
+       "the error W_i that weights the moves: 632, 632plus or auto (.632+ for naive, .632 "
+       "otherwise)",
+       1, 0},
       {0, "threshold", ARG_STRING, &threshold, "T",
-       "naive: project only where W_i < T; a length (model units, or 0.5h = 0.5 x h), auto (the mean "
+       "naive: project only where W_i < T; a length (model units, or 0.5h = 0.5 x h), auto (the "
+       "mean "
        "W_i) or none (every point)",
        1, 0},
-      {0, "h1", ARG_STRING, &h1_text, "X", "bilateral: distance sigma of Eq. 6.2 (a length; h = the mean spacing)", 1,
-       0},
+      {0, "h1", ARG_STRING, &h1_text, "X",
+       "bilateral: distance sigma of Eq. 6.2 (a length; h = the mean spacing)", 1, 0},
       {0, "h2", ARG_STRING, &h2_text, "X",
-       "bilateral, multipass: error sigma of Eq. 6.2: a length, a multiple of |W| (e.g. 1W) or auto "
+       "bilateral, multipass: error sigma of Eq. 6.2: a length, a multiple of |W| (e.g. 1W) or "
+       "auto "
        "(2W; the thesis's multipass setting is 0.3W)",
        1, 0},
       {0, "order", ARG_STRING, &order, "O",
-       "bilateral, multipass: parallel (order-independent; tiled with a halo of reverse neighbours) or "
-       "sequential (the thesis's in-place sweep, one thread; not tiled: a chain over the whole cloud)",
+       "bilateral, multipass: parallel (order-independent; tiled with a halo of reverse "
+       "neighbours) or "
+       "sequential (the thesis's in-place sweep, one thread; not tiled: a chain over the whole "
+       "cloud)",
        1, 0},
-      {0, "a", ARG_DOUBLE, &so.a, "A", "multipass: h1 = A x d_L, the mean distance to the K_i neighbours (Eq. 6.5)", 0, 1e6},
+      {0, "a", ARG_DOUBLE, &so.a, "A",
+       "multipass: h1 = A x d_L, the mean distance to the K_i neighbours (Eq. 6.5)", 0, 1e6},
       {0, "iterations", ARG_INT, &so.iterations, "N", "multipass: smoothing passes", 0, 1000000},
-      {0, "k-min", ARG_INT, &so.k_min, "K", "multipass: the smallest neighbourhood (Eq. 6.3)", 1, 65535},
+      {0, "k-min", ARG_INT, &so.k_min, "K", "multipass: the smallest neighbourhood (Eq. 6.3)", 1,
+       65535},
       {0, "k-error", ARG_STRING, &kerr_text, "X",
-       "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length, a multiple of |W| (e.g. "
+       "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length, a multiple of |W| "
+       "(e.g. "
        "2W) or auto (3W; the thesis's is 1W)",
        1, 0},
       {0, "guard", ARG_STRING, &guard, "G",
-       "every method: on (a fit biased at its centre by a second sheet or an edge, by a t test on its "
-       "nearest points' residuals, is made again from fewer points, or moves nothing) or off (the thesis's "
+       "every method: on (a fit biased at its centre by a second sheet or an edge, by a t test on "
+       "its "
+       "nearest points' residuals, is made again from fewer points, or moves nothing) or off (the "
+       "thesis's "
        "methods as written)",
        1, 0},
       CLI_OPT_SEED(so.error.seed),
@@ -243,11 +271,15 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   int gi = cli_choice(guard, onoff, 2);
   if (gi < 0) return cli_usage_error(cmd, "--guard must be on or off, not '%s'", guard);
   so.guard = gi;
-  if (mi < 0) return cli_usage_error(cmd, "--method must be naive, bilateral or multipass, not '%s'", method);
-  if (oi < 0) return cli_usage_error(cmd, "--order must be parallel or sequential, not '%s'", order);
-  if (ei < 0) return cli_usage_error(cmd, "--estimator must be auto, 632 or 632plus, not '%s'", estimator);
+  if (mi < 0)
+    return cli_usage_error(cmd, "--method must be naive, bilateral or multipass, not '%s'", method);
+  if (oi < 0)
+    return cli_usage_error(cmd, "--order must be parallel or sequential, not '%s'", order);
+  if (ei < 0)
+    return cli_usage_error(cmd, "--estimator must be auto, 632 or 632plus, not '%s'", estimator);
   if (g < 0) return cli_usage_error(cmd, "--gamma must be fit, mean or max, not '%s'", gamma);
-  if (pc < 0) return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", center);
+  if (pc < 0)
+    return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", center);
   so.method = (bsurf_smooth_method)mi;
   so.order = (bsurf_smooth_order)oi;
   so.estimator = (bsurf_smooth_estimator)ei;
@@ -255,39 +287,47 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   so.error.pca_center = (bsurf_pca_center)pc;
   int terms = (so.error.degree + 1) * (so.error.degree + 2) / 2;
   if (so.error.k < terms)
-    return cli_usage_error(cmd, "K = %d is too small for degree %d: a fit needs at least %d points", so.error.k,
-                           so.error.degree, terms);
+    return cli_usage_error(cmd, "K = %d is too small for degree %d: a fit needs at least %d points",
+                           so.error.k, so.error.degree, terms);
   if (so.k_min > so.error.k)
     return cli_usage_error(cmd, "--k-min %d is larger than K = %d", so.k_min, so.error.k);
   /* Lengths are checked now (with h = 1) and converted once h is known. */
   double dummy, frac;
-  if (strcmp(threshold, "auto") && strcmp(threshold, "none") && parse_length(threshold, 1, 0, &dummy, &frac))
-    return cli_usage_error(cmd, "--threshold must be a length (e.g. 0.01 or 0.5h), auto or none, not '%s'",
-                           threshold);
+  if (strcmp(threshold, "auto") && strcmp(threshold, "none") &&
+      parse_length(threshold, 1, 0, &dummy, &frac))
+    return cli_usage_error(
+        cmd, "--threshold must be a length (e.g. 0.01 or 0.5h), auto or none, not '%s'", threshold);
   if (parse_length(h1_text, 1, 0, &dummy, &frac) || dummy <= 0)
-    return cli_usage_error(cmd, "--h1 must be a positive length (e.g. 0.01 or 1.5h), not '%s'", h1_text);
-  if (strcmp(h2_text, "auto") && (parse_length(h2_text, 1, 1, &dummy, &frac) || (dummy <= 0 && frac <= 0)))
-    return cli_usage_error(cmd, "--h2 must be a positive length, a multiple of |W| (e.g. 1W) or auto, not '%s'",
-                           h2_text);
-  if (strcmp(kerr_text, "auto") && (parse_length(kerr_text, 1, 1, &dummy, &frac) || (dummy <= 0 && frac <= 0)))
-    return cli_usage_error(cmd, "--k-error must be a positive length, a multiple of |W| or auto, not '%s'",
-                           kerr_text);
+    return cli_usage_error(cmd, "--h1 must be a positive length (e.g. 0.01 or 1.5h), not '%s'",
+                           h1_text);
+  if (strcmp(h2_text, "auto") &&
+      (parse_length(h2_text, 1, 1, &dummy, &frac) || (dummy <= 0 && frac <= 0)))
+    return cli_usage_error(
+        cmd, "--h2 must be a positive length, a multiple of |W| (e.g. 1W) or auto, not '%s'",
+        h2_text);
+  if (strcmp(kerr_text, "auto") &&
+      (parse_length(kerr_text, 1, 1, &dummy, &frac) || (dummy <= 0 && frac <= 0)))
+    return cli_usage_error(
+        cmd, "--k-error must be a positive length, a multiple of |W| or auto, not '%s'", kerr_text);
   if (cli_check_output(output, pos[0], force)) return 1;
   size_t plan = 0, tiles = 0;
   const size_t nv = bsurf_smooth_stage_values(&so);
   /* in memory: the cloud, its fields, and per point the fits (bilateral) */
-  rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, so.error.k, (int)(6 + nv), &plan);
+  rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, so.error.k,
+                      (int)(6 + nv), &plan);
   if (rc) return rc;
   if (plan && so.method == BSURF_SMOOTH_MULTIPASS)
-    return cli_error("%s: smooth --method multipass is not available in tiled runs: it runs --iterations passes "
-                     "(300), each reaching one neighbourhood ring further, so a tile would need a halo of "
-                     "that many rings",
-                     pos[0]);
+    return cli_error(
+        "%s: smooth --method multipass is not available in tiled runs: it runs --iterations passes "
+        "(300), each reaching one neighbourhood ring further, so a tile would need a halo of "
+        "that many rings",
+        pos[0]);
   if (plan && !nv)
-    return cli_error("%s: smooth --order sequential is not available in tiled runs: its sweep fits each "
-                     "neighbourhood to the points every earlier neighbourhood of the whole cloud has moved, "
-                     "a chain as long as the cloud (--order parallel is tiled)",
-                     pos[0]);
+    return cli_error(
+        "%s: smooth --order sequential is not available in tiled runs: its sweep fits each "
+        "neighbourhood to the points every earlier neighbourhood of the whole cloud has moved, "
+        "a chain as long as the cloud (--order parallel is tiled)",
+        pos[0]);
 
   double t0 = cli_now(), compute = 0;
   bsurf_cloud c;
@@ -304,14 +344,21 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     st1.nv = nv;
     bsurf_tile_values vals = {-1, 0, 0}, moved = {-1, 0, 0};
     double sums[SMOOTH_SUMS] = {0}, vs[64];
-    bsurf_tile_ops ops = {.tile_points = plan, .k = so.error.k, .threads = so.error.threads, .user = &st1,
-                          .run = smooth_stage1_run, .nsums = SMOOTH_SUMS, .nvalues = nv, .values_out = &vals};
+    bsurf_tile_ops ops = {.tile_points = plan,
+                          .k = so.error.k,
+                          .threads = so.error.threads,
+                          .user = &st1,
+                          .run = smooth_stage1_run,
+                          .nsums = SMOOTH_SUMS,
+                          .nvalues = nv,
+                          .values_out = &vals};
     bsurf_tile_report tr;
     tr.sums = sums;
     size_t positive;
     double mx;
     /* stage 1, then |W| and the fields' means in index order */
-    rc = cli_tiles_run(pos[0], output, &ops, &tr, quiet) || values_sums(pos[0], &vals, vs, &positive, &mx);
+    rc = cli_tiles_run(pos[0], output, &ops, &tr, quiet) ||
+         values_sums(pos[0], &vals, vs, &positive, &mx);
     plan = ops.tile_points;
     tiles = tr.tiles;
     if (rc) goto tiled_done;
@@ -337,9 +384,16 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       if (rc) goto tiled_done;
       rep.projected = st1.projected;
     } else {
-      bsurf_tile_ops ops2 = {.tile_points = plan, .k = so.error.k, .threads = so.error.threads, .user = &st1,
-                             .prepare = smooth_prepare, .run = smooth_stage2_run, .nvalues = 1,
-                             .values_out = &moved, .values_in = &vals, .reverse = 1};
+      bsurf_tile_ops ops2 = {.tile_points = plan,
+                             .k = so.error.k,
+                             .threads = so.error.threads,
+                             .user = &st1,
+                             .prepare = smooth_prepare,
+                             .run = smooth_stage2_run,
+                             .nvalues = 1,
+                             .values_out = &moved,
+                             .values_in = &vals,
+                             .reverse = 1};
       bsurf_tile_report tr2;
       tr2.sums = NULL;
       rc = cli_tiles_run(pos[0], output, &ops2, &tr2, quiet);
@@ -414,13 +468,15 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     goto done;
   }
   npoints = c.point_count;
-  for (int f = 0; f < nfields; f++) means[f] = cli_field_mean(bsurf_cloud_field(&c, smooth_fields_all[f]), npoints);
+  for (int f = 0; f < nfields; f++)
+    means[f] = cli_field_mean(bsurf_cloud_field(&c, smooth_fields_all[f]), npoints);
 summary:;
   double secs = cli_now() - t0;
-  const char *est_used = so.estimator == BSURF_SMOOTH_EST_632PLUS ||
-                                 (so.estimator == BSURF_SMOOTH_EST_DEFAULT && so.method == BSURF_SMOOTH_NAIVE)
-                             ? "err_632plus"
-                             : "err_632";
+  const char *est_used =
+      so.estimator == BSURF_SMOOTH_EST_632PLUS ||
+              (so.estimator == BSURF_SMOOTH_EST_DEFAULT && so.method == BSURF_SMOOTH_NAIVE)
+          ? "err_632plus"
+          : "err_632";
   double hh = h > 0 ? h : 1;
   if (json) {
     cli_json j;
@@ -479,18 +535,18 @@ summary:;
     json_num(&j, "seconds", secs);
     json_end(&j);
   } else if (!quiet) {
-    printf("smooth: %s, %zu points, h = %.6g, K = %d, degree %d, B = %d, %.2f s\n", method, npoints, h,
-           so.error.k, so.error.degree, so.error.bootstrap, secs);
+    printf("smooth: %s, %zu points, h = %.6g, K = %d, degree %d, B = %d, %.2f s\n", method, npoints,
+           h, so.error.k, so.error.degree, so.error.bootstrap, secs);
     printf("  W = %s, mean %.6g (%.4g h)\n", est_used, rep.mean_error, rep.mean_error / hh);
     if (so.method == BSURF_SMOOTH_NAIVE)
-      printf("  threshold %.6g (%.4g h): %zu of %zu points projected\n", rep.threshold, rep.threshold / hh,
-             rep.projected, npoints);
+      printf("  threshold %.6g (%.4g h): %zu of %zu points projected\n", rep.threshold,
+             rep.threshold / hh, rep.projected, npoints);
     else if (so.method == BSURF_SMOOTH_BILATERAL)
-      printf("  order %s, h1 = %.6g (%.4g h), h2 = %.6g (%.4g h)\n", order, rep.h1, rep.h1 / hh, rep.h2,
-             rep.h2 / hh);
+      printf("  order %s, h1 = %.6g (%.4g h), h2 = %.6g (%.4g h)\n", order, rep.h1, rep.h1 / hh,
+             rep.h2, rep.h2 / hh);
     else
-      printf("  order %s, %d passes, h1 = %g d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order, rep.iterations,
-             so.a, rep.h2, rep.h2 / hh, so.k_min, so.error.k);
+      printf("  order %s, %d passes, h1 = %g d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order,
+             rep.iterations, so.a, rep.h2, rep.h2 / hh, so.k_min, so.error.k);
     printf("  moved %zu points: mean %.4g h, max %.4g h\n", rep.moved_points, rep.moved_mean / hh,
            rep.moved_max / hh);
     cli_print_input_report(stdout);

@@ -72,8 +72,8 @@ bsurf_status cli_write_to(const char *path, const bsurf_cloud *cloud, const bsur
                           bsurf_failure *err) {
   bsurf_format f = wo && wo->format ? wo->format : bsurf_format_from_path(path);
   if (cloud->face_count && f != BSURF_FORMAT_PLY && f != BSURF_FORMAT_OFF && f != BSURF_FORMAT_OBJ)
-    cli_warn("%s: %s holds points only: the %zu faces are not written (use .ply, .off or .obj)", path,
-             bsurf_format_name(f), cloud->face_count);
+    cli_warn("%s: %s holds points only: the %zu faces are not written (use .ply, .off or .obj)",
+             path, bsurf_format_name(f), cloud->face_count);
   if (strcmp(path, "-") != 0 || data_fd < 0) return bsurf_write(path, cloud, wo, err);
   /* the data to the real standard output, then back to standard error */
   fflush(stdout);

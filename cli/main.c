@@ -17,7 +17,8 @@ static const cli_command commands[] = {
      "([-1,1]^2). The cube also gets feature_dist (distance to the nearest sharp edge)\n"
      "and feature (1 within --feature-width nominal spacings of an edge).",
      cmd_generate},
-    {"noise", "Displace points along their normals by t*h (thesis 4.2).", "INPUT -o OUTPUT [options]",
+    {"noise", "Displace points along their normals by t*h (thesis 4.2).",
+     "INPUT -o OUTPUT [options]",
      "t ~ N(0, level^2) (gaussian, default) or U[-level, level] (uniform, the thesis\n"
      "text's model); h is the input's mean nearest-neighbour distance. Or, with\n"
      "--sigma-diag s, gaussian noise of sigma = s x bounding-box diagonal (PCPNet's\n"
@@ -81,7 +82,8 @@ static const cli_command commands[] = {
      "noise) are its normals and labels when present. A RESULT field bit-identical to\n"
      "TRUTH's (ground truth passed along, not computed) is not scored.",
      cmd_eval},
-    {"render", "Render a cloud to PNG, shaded by normals or coloured by a field.", "INPUT -o IMAGE.png [options]",
+    {"render", "Render a cloud to PNG, shaded by normals or coloured by a field.",
+     "INPUT -o IMAGE.png [options]",
      "Orthographic view of the points as z-buffered splats of diameter --point-size\n"
      "times h (the mean nearest-neighbour distance), so surfaces look closed.\n"
      "Without --field the surface is shaded by its normals (two-sided Lambert), or by\n"
@@ -102,7 +104,8 @@ static const cli_command commands[] = {
      "or the file name); with --field every panel uses the same colour range (by\n"
      "default the 1st-99th percentile of all inputs together) and one colour bar.",
      cmd_compare},
-    {"smooth", "Denoise: move points towards the bootstrap fits (thesis ch. 6).", "INPUT -o OUTPUT [options]",
+    {"smooth", "Denoise: move points towards the bootstrap fits (thesis ch. 6).",
+     "INPUT -o OUTPUT [options]",
      "naive (6.2, Eq. 6.1): each point to the mean of its B bootstrap fits, only where\n"
      "its error is below --threshold. bilateral (6.3, Algorithm 4, Eq. 6.2): every\n"
      "neighbourhood's fit pulls the point and its neighbours with weight\n"
@@ -131,7 +134,8 @@ static const cli_command commands[] = {
      "medians, the raw map, one run per filter pass; --threshold auto keeps 8 bytes\n"
      "per point in memory). docs/scaling.md.",
      cmd_features},
-    {"convert", "Convert between formats, keeping every field the output can hold.", "INPUT OUTPUT [options]",
+    {"convert", "Convert between formats, keeping every field the output can hold.",
+     "INPUT OUTPUT [options]",
      "Formats: .ply, .pcd (PCL; ascii, binary, binary_compressed read), .las (1.0-1.4,\n"
      "point formats 0-10; written as LAS 1.4 with the fields as extra bytes), .csv/.asc\n"
      "(a header line names the columns), .xyz/.txt/.pts, .off, .obj. The input's format\n"
@@ -152,11 +156,10 @@ static void usage(FILE *f) {
           BSURF_VERSION_STRING);
   for (int i = 0; i < command_count; i++)
     fprintf(f, "  %-10s %s\n", commands[i].name, commands[i].summary);
-  fprintf(f,
-          "\nFiles: .ply (ascii or binary), .pcd, .las, .csv/.asc, .off, .obj, .xyz/.txt; - is\n"
-          "standard input or output (--format FMT). Output PLY is binary little-endian unless\n"
-          "--ascii. Exit codes: 0 ok, 1 bad input or failure, 2 bad usage, 130 / 143\n"
-          "interrupted by SIGINT / SIGTERM (temporary files removed).\n");
+  fprintf(f, "\nFiles: .ply (ascii or binary), .pcd, .las, .csv/.asc, .off, .obj, .xyz/.txt; - is\n"
+             "standard input or output (--format FMT). Output PLY is binary little-endian unless\n"
+             "--ascii. Exit codes: 0 ok, 1 bad input or failure, 2 bad usage, 130 / 143\n"
+             "interrupted by SIGINT / SIGTERM (temporary files removed).\n");
 }
 
 static const cli_command *find(const char *name) {
@@ -209,7 +212,8 @@ int main(int argc, char **argv) {
    * failure, not a silent success */
   errno = 0;
   if (fflush(stdout) != 0 || ferror(stdout)) {
-    fprintf(stderr, "bootsurf: error: standard output: %s\n", errno ? strerror(errno) : "write failed");
+    fprintf(stderr, "bootsurf: error: standard output: %s\n",
+            errno ? strerror(errno) : "write failed");
     if (rc == 0) rc = 1;
   }
   return cli_exit_status(rc);

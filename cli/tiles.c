@@ -21,10 +21,22 @@ static double parse_bytes(const char *s) {
   double unit = 1;
   switch (toupper((unsigned char)*end)) {
   case 0: break;
-  case 'K': unit = 1024.0; end++; break;
-  case 'M': unit = 1024.0 * 1024; end++; break;
-  case 'G': unit = 1024.0 * 1024 * 1024; end++; break;
-  case 'T': unit = 1024.0 * 1024 * 1024 * 1024; end++; break;
+  case 'K':
+    unit = 1024.0;
+    end++;
+    break;
+  case 'M':
+    unit = 1024.0 * 1024;
+    end++;
+    break;
+  case 'G':
+    unit = 1024.0 * 1024 * 1024;
+    end++;
+    break;
+  case 'T':
+    unit = 1024.0 * 1024 * 1024 * 1024;
+    end++;
+    break;
   default: return 0;
   }
   if (*end == 'B' || *end == 'b') end++;
@@ -34,7 +46,8 @@ static double parse_bytes(const char *s) {
 size_t cli_range_points = 0;
 
 int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
-                   size_t tile_points, const char *memory_limit, int k, int out_fields, size_t *plan) {
+                   size_t tile_points, const char *memory_limit, int k, int out_fields,
+                   size_t *plan) {
   *plan = 0;
   double limit;
   if (strcmp(memory_limit, "auto") == 0) {
@@ -58,15 +71,20 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
   int distributed = cli_mpi_ranks() > 1;
   int automatic = !tile_points && !distributed && limit > 0 && need > limit;
   if (!tile_points && !automatic && !distributed) return 0;
-  if (!output) return cli_error("%s: tiled runs write their points to a file: give -o FILE.ply", input);
-  if (bsurf_format_from_path(output) != BSURF_FORMAT_PLY || ascii || cli_output_format(output) != BSURF_FORMAT_PLY ||
-      cli_float32 || cli_ply_names || cli_las_version)
-    return cli_error("%s: tiled runs write binary PLY (not --ascii, --format, --float32, --ply-names, other "
-                     "formats or -)", output);
+  if (!output)
+    return cli_error("%s: tiled runs write their points to a file: give -o FILE.ply", input);
+  if (bsurf_format_from_path(output) != BSURF_FORMAT_PLY || ascii ||
+      cli_output_format(output) != BSURF_FORMAT_PLY || cli_float32 || cli_ply_names ||
+      cli_las_version)
+    return cli_error(
+        "%s: tiled runs write binary PLY (not --ascii, --format, --float32, --ply-names, other "
+        "formats or -)",
+        output);
   if (bsurf_format_from_path(input) != BSURF_FORMAT_PLY)
-    return cli_error("%s: tiled runs read binary PLY files (write one with any command's -o FILE.ply)",
-                     input);
-  if (cli_drop_invalid) return cli_error("%s: --drop-invalid is not available in tiled runs", input);
+    return cli_error(
+        "%s: tiled runs read binary PLY files (write one with any command's -o FILE.ply)", input);
+  if (cli_drop_invalid)
+    return cli_error("%s: --drop-invalid is not available in tiled runs", input);
   if (!tile_points) {
     /* tiles well inside the budget: the neighbourhood rows (12 K bytes per
      * point while they are built), the fields and the halo */
@@ -82,28 +100,30 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
     if (n && per < tile_points) tile_points = per < 2 * (size_t)k ? 2 * (size_t)k : per;
   }
   if (automatic && !cli_mpi_rank())
-    cli_warn("%s: needs about %.1f GB in memory, more than --memory-limit %.1f GB: tiles of %zu points",
-             input, need / 1e9, limit / 1e9, tile_points);
+    cli_warn(
+        "%s: needs about %.1f GB in memory, more than --memory-limit %.1f GB: tiles of %zu points",
+        input, need / 1e9, limit / 1e9, tile_points);
   *plan = tile_points;
   return 0;
 }
 
-static bsurf_status tiles_run_fn(void *arg, const char *input, const char *output, bsurf_tile_ops *ops,
-                                 bsurf_tile_report *rep, bsurf_failure *err) {
+static bsurf_status tiles_run_fn(void *arg, const char *input, const char *output,
+                                 bsurf_tile_ops *ops, bsurf_tile_report *rep, bsurf_failure *err) {
   (void)arg;
   return bsurf_tiles_run(input, output, ops, rep, err);
 }
 
-int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep,
-                  int quiet) {
+int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops,
+                  bsurf_tile_report *rep, int quiet) {
   return cli_tiles_call(input, output, ops, rep, quiet, tiles_run_fn, NULL);
 }
 
 /* A failure of the output, not of the input (a full disk, the directory):
  * the messages of the atomic writer and of the tiles' output. */
 static int about_output(const char *msg) {
-  static const char *const starts[] = {"cannot write",        "write failed", "cannot move the finished file",
-                                       "cannot create a file", "tiled runs write", "interrupted; nothing written"};
+  static const char *const starts[] = {
+      "cannot write",         "write failed",     "cannot move the finished file",
+      "cannot create a file", "tiled runs write", "interrupted; nothing written"};
   for (size_t i = 0; i < sizeof starts / sizeof starts[0]; i++)
     if (strncmp(msg, starts[i], strlen(starts[i])) == 0) return 1;
   return 0;
@@ -116,10 +136,11 @@ int cli_check_tiled_input(const char *input) {
   return 0;
 }
 
-int cli_tiles_failed(const char *input, const char *output, bsurf_status st, const bsurf_failure *err) {
+int cli_tiles_failed(const char *input, const char *output, bsurf_status st,
+                     const bsurf_failure *err) {
   if (cli_mpi_rank() != 0) return 1;
-  const char *msg = cli_interrupted()  ? "interrupted"
-                    : err->message[0] ? err->message
+  const char *msg = cli_interrupted()             ? "interrupted"
+                    : err->message[0]             ? err->message
                     : st == BSURF_ERR_INVALID_ARG ? bsurf_last_message()
                                                   : bsurf_strerror(st);
   if (st == BSURF_ERR_INVALID_VALUE)
@@ -130,8 +151,8 @@ int cli_tiles_failed(const char *input, const char *output, bsurf_status st, con
   return cli_error("%s: %s", input, msg);
 }
 
-int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, bsurf_tile_report *rep, int quiet,
-                   cli_tiles_fn fn, void *arg) {
+int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops,
+                   bsurf_tile_report *rep, int quiet, cli_tiles_fn fn, void *arg) {
   if (cli_check_tiled_input(input)) return 1;
   cli_progress prog;
   cli_progress_init(&prog, "tiles", quiet || cli_mpi_rank() != 0);
@@ -144,8 +165,10 @@ int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, b
     uint64_t n64 = 0;
     bsurf_failure herr;
     if (bsurf_read_header(input, &n64, &herr) != BSURF_OK) n64 = 0; /* the run names the fault */
-    size_t n = (size_t)n64, per = (n + 2 * (size_t)ops->comm->ranks - 1) / (2 * (size_t)ops->comm->ranks);
-    if (n && per < ops->tile_points) ops->tile_points = per < 2 * (size_t)ops->k ? 2 * (size_t)ops->k : per;
+    size_t n = (size_t)n64,
+           per = (n + 2 * (size_t)ops->comm->ranks - 1) / (2 * (size_t)ops->comm->ranks);
+    if (n && per < ops->tile_points)
+      ops->tile_points = per < 2 * (size_t)ops->k ? 2 * (size_t)ops->k : per;
   }
   bsurf_failure err = {0, -1, ""};
   bsurf_status st = fn(arg, input, output, ops, rep, &err);
@@ -157,8 +180,9 @@ int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops, b
   return cli_tiles_failed(input, output, st, &err);
 }
 
-int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, const bsurf_tile_values *values,
-                  bsurf_tile_map_fn map, const char *label, int quiet) {
+int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops,
+                  const bsurf_tile_values *values, bsurf_tile_map_fn map, const char *label,
+                  int quiet) {
   cli_progress prog;
   cli_progress_init(&prog, label, quiet || cli_mpi_rank() != 0);
   ops->progress = cli_progress_cb;
@@ -169,7 +193,9 @@ int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops, co
   cli_progress_done(&prog);
   if (st == BSURF_OK) return 0;
   if (cli_mpi_rank() != 0) return 1;
-  const char *msg = cli_interrupted() ? "interrupted" : err.message[0] ? err.message : bsurf_strerror(st);
+  const char *msg = cli_interrupted() ? "interrupted"
+                    : err.message[0]  ? err.message
+                                      : bsurf_strerror(st);
   return cli_error("%s: %s", about_output(msg) ? output : input, msg);
 }
 
@@ -232,7 +258,8 @@ static void mpi_allgather(void *u, const void *mine, void *all, size_t bytes) {
   for (size_t i = 0; i < bytes; i += chunk) {
     size_t m = bytes - i < chunk ? bytes - i : chunk;
     MPI_Allgather((const char *)mine + i, (int)m, MPI_BYTE, tmp, (int)m, MPI_BYTE, MPI_COMM_WORLD);
-    for (int r = 0; r < mpi_size; r++) memcpy((char *)all + (size_t)r * bytes + i, tmp + (size_t)r * m, m);
+    for (int r = 0; r < mpi_size; r++)
+      memcpy((char *)all + (size_t)r * bytes + i, tmp + (size_t)r * m, m);
   }
   free(tmp);
 }
@@ -278,16 +305,28 @@ void cli_mpi_finalize(void) {
   if (mpi_on) MPI_Finalize();
 }
 
-const bsurf_tile_comm *cli_mpi_comm(void) { return mpi_on ? &mpi_comm : NULL; }
-int cli_mpi_rank(void) { return mpi_rank; }
-int cli_mpi_ranks(void) { return mpi_on ? mpi_size : 1; }
+const bsurf_tile_comm *cli_mpi_comm(void) {
+  return mpi_on ? &mpi_comm : NULL;
+}
+int cli_mpi_rank(void) {
+  return mpi_rank;
+}
+int cli_mpi_ranks(void) {
+  return mpi_on ? mpi_size : 1;
+}
 #else
 void cli_mpi_init(int *argc, char ***argv) {
   (void)argc;
   (void)argv;
 }
 void cli_mpi_finalize(void) {}
-const bsurf_tile_comm *cli_mpi_comm(void) { return NULL; }
-int cli_mpi_rank(void) { return 0; }
-int cli_mpi_ranks(void) { return 1; }
+const bsurf_tile_comm *cli_mpi_comm(void) {
+  return NULL;
+}
+int cli_mpi_rank(void) {
+  return 0;
+}
+int cli_mpi_ranks(void) {
+  return 1;
+}
 #endif

@@ -47,7 +47,8 @@ static size_t drop_invalid_points(bsurf_cloud *c) {
     if (m != i) {
       memcpy(c->xyz + 3 * m, c->xyz + 3 * i, 3 * sizeof(double));
       if (c->normals) memcpy(c->normals + 3 * m, c->normals + 3 * i, 3 * sizeof(double));
-      for (size_t f = 0; f < c->field_count; f++) c->fields[f].values[m] = c->fields[f].values[i];
+      for (size_t f = 0; f < c->field_count; f++)
+        c->fields[f].values[m] = c->fields[f].values[i];
     }
     m++;
   }
@@ -125,7 +126,8 @@ int cli_read_cloud(const char *path, bsurf_cloud *cloud) {
 /* ---- ground truth carried along (docs/robustness.md, "Honest truth") ---- */
 
 static const char *const truth_plain[5] = {"nx", "ny", "nz", "feature", "feature_dist"};
-static const char *const truth_named[5] = {"true_nx", "true_ny", "true_nz", "true_feature", "true_feature_dist"};
+static const char *const truth_named[5] = {"true_nx", "true_ny", "true_nz", "true_feature",
+                                           "true_feature_dist"};
 
 /* Renames field `from` to `to`; when `to` exists already, `from` is dropped. */
 static void rename_field(bsurf_cloud *c, const char *from, const char *to) {
@@ -143,7 +145,8 @@ int cli_truth_to_fields(bsurf_cloud *c) {
       for (int k = 0; k < 3; k++) {
         bsurf_field *f = bsurf_cloud_add_field(c, truth_named[k], c->normal_type);
         if (!f) return cli_error("out of memory");
-        for (size_t i = 0; i < c->point_count; i++) f->values[i] = c->normals[3 * i + (size_t)k];
+        for (size_t i = 0; i < c->point_count; i++)
+          f->values[i] = c->normals[3 * i + (size_t)k];
       }
     }
     free(c->normals);
@@ -156,12 +159,14 @@ int cli_truth_to_fields(bsurf_cloud *c) {
 
 int cli_truth_from_fields(bsurf_cloud *c) {
   const bsurf_field *t[3];
-  for (int k = 0; k < 3; k++) t[k] = bsurf_cloud_field(c, truth_named[k]);
+  for (int k = 0; k < 3; k++)
+    t[k] = bsurf_cloud_field(c, truth_named[k]);
   if (t[0] && t[1] && t[2]) {
     double *n = c->normals ? c->normals : malloc(c->point_count * 3 * sizeof(double) + 1);
     if (!n) return cli_error("out of memory");
     for (size_t i = 0; i < c->point_count; i++)
-      for (int k = 0; k < 3; k++) n[3 * i + (size_t)k] = t[k]->values[i];
+      for (int k = 0; k < 3; k++)
+        n[3 * i + (size_t)k] = t[k]->values[i];
     c->normal_type = t[0]->type;
     c->normals = n;
   }
@@ -182,13 +187,16 @@ void cli_print_input_report(FILE *f) {
 }
 
 int cli_check_output(const char *output, const char *input, int force) {
-  if (!strcmp(output, "-")) return cli_out_format ? 0 : cli_error("-: standard output needs --format");
+  if (!strcmp(output, "-"))
+    return cli_out_format ? 0 : cli_error("-: standard output needs --format");
   struct stat sd;
   if (stat(output, &sd) == 0 && S_ISDIR(sd.st_mode)) return cli_error("%s: is a directory", output);
   /* a FIFO or device (-o /dev/null) takes PLY whatever its name */
   if (cli_output_format(output) == BSURF_FORMAT_UNKNOWN && !bsurf_output_is_stream(output))
-    return cli_error("%s: unknown output file type (use .ply, .pcd, .las, .csv, .asc, .off, .obj, .xyz or .txt, "
-                     "or --format)", output);
+    return cli_error(
+        "%s: unknown output file type (use .ply, .pcd, .las, .csv, .asc, .off, .obj, .xyz or .txt, "
+        "or --format)",
+        output);
   return cli_check_writable(output, input, force);
 }
 
@@ -201,7 +209,8 @@ int cli_check_writable(const char *output, const char *input, int force) {
   /* the policy of docs/robustness.md: directories refused, read-only files
    * only with --force, FIFOs and devices written directly */
   bsurf_failure err = {0, -1, ""};
-  if (bsurf_output_check(output, force, &err) != BSURF_OK) return cli_error("%s: %s", output, err.message);
+  if (bsurf_output_check(output, force, &err) != BSURF_OK)
+    return cli_error("%s: %s", output, err.message);
   if (bsurf_output_is_stream(output)) return 0;
   /* the directory must exist and be writable (the file goes to a temporary
    * name there first): the directory of a symbolic link's target */
@@ -232,7 +241,8 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii) {
   if (cli_write_options(path, ascii, &wo)) return 1;
   bsurf_format fmt = wo.format ? wo.format : bsurf_format_from_path(path);
   if (!bsurf_format_keeps_fields(fmt) && cloud->field_count > 0) {
-    cli_warn("%s: this format cannot store the %zu scalar field(s) (first: %s); write .ply, .pcd, .las or .csv "
+    cli_warn("%s: this format cannot store the %zu scalar field(s) (first: %s); write .ply, .pcd, "
+             ".las or .csv "
              "to keep them",
              path, cloud->field_count, cloud->fields[0].name);
   }
@@ -251,10 +261,12 @@ int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threa
     return cli_error("%s: has %zu points, fewer than K = %d", path, c->point_count, k);
   cli_progress prog;
   cli_progress_init(&prog, "neighbours", quiet);
-  bsurf_status st = bsurf_neighbors_build(nb, c->xyz, c->point_count, k, threads, cli_progress_cb, &prog);
+  bsurf_status st =
+      bsurf_neighbors_build(nb, c->xyz, c->point_count, k, threads, cli_progress_cb, &prog);
   cli_progress_done(&prog);
   if (st != BSURF_OK)
-    return cli_error("%s: neighbourhoods: %s", path, cli_interrupted() ? "interrupted" : bsurf_strerror(st));
+    return cli_error("%s: neighbourhoods: %s", path,
+                     cli_interrupted() ? "interrupted" : bsurf_strerror(st));
   /* points at the same place as another: the nearest other neighbour (the
    * point itself comes first) is at distance 0 */
   size_t dup = 0;
@@ -280,10 +292,10 @@ int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threa
  * temporary files itself and dies at once. */
 static volatile sig_atomic_t interrupted = 0;
 
-
 static void say(const char *s) {
   size_t n = 0;
-  while (s[n]) n++;
+  while (s[n])
+    n++;
   ssize_t w = write(STDERR_FILENO, s, n); /* async-signal-safe */
   (void)w;
 }
@@ -342,7 +354,9 @@ int cli_exit_status(int rc) {
   return 128 + (int)interrupted;
 }
 
-int cli_interrupted(void) { return interrupted != 0; }
+int cli_interrupted(void) {
+  return interrupted != 0;
+}
 
 void cli_progress_init(cli_progress *p, const char *label, int quiet) {
   p->label = label;
@@ -358,7 +372,8 @@ int cli_progress_cb(void *user, size_t done, size_t total) {
       p->last_permille = permille;
       int width = 30, filled = permille * width / 1000;
       fprintf(stderr, "\r%-10s [", p->label);
-      for (int i = 0; i < width; i++) fputc(i < filled ? '#' : '.', stderr);
+      for (int i = 0; i < width; i++)
+        fputc(i < filled ? '#' : '.', stderr);
       fprintf(stderr, "] %5.1f%%", permille / 10.0);
       fflush(stderr);
     }
@@ -463,7 +478,8 @@ void json_bool(cli_json *j, const char *key, int v) {
 
 double cli_field_mean(const bsurf_field *field, size_t n) {
   double s = 0;
-  for (size_t i = 0; i < n; i++) s += field->values[i];
+  for (size_t i = 0; i < n; i++)
+    s += field->values[i];
   return n ? s / (double)n : 0.0;
 }
 
@@ -483,7 +499,8 @@ void cli_set_duplicates(size_t count) {
 }
 
 /* means[t] is NAN for a field the cloud lacks */
-static void field_means(const bsurf_cloud *cloud, const char *const *names, int count, double *means) {
+static void field_means(const bsurf_cloud *cloud, const char *const *names, int count,
+                        double *means) {
   for (int t = 0; t < count && t < 64; t++) {
     const bsurf_field *f = bsurf_cloud_field(cloud, names[t]);
     means[t] = f ? cli_field_mean(f, cloud->point_count) : NAN;
@@ -497,7 +514,8 @@ void json_means(cli_json *j, const char *const *names, const double *means, int 
   json_close_obj(j);
   json_obj(j, "mean_h");
   for (int t = 0; t < count && t < 64; t++)
-    if (!isnan(means[t]) && is_length_field(names[t])) json_num(j, names[t], h > 0 ? means[t] / h : NAN);
+    if (!isnan(means[t]) && is_length_field(names[t]))
+      json_num(j, names[t], h > 0 ? means[t] / h : NAN);
   json_close_obj(j);
 }
 

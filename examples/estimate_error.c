@@ -18,7 +18,7 @@ int main(int argc, char **argv) {
   }
 
   bsurf_error_options opt = bsurf_error_options_default(); /* K=50, cubic, B=50, seed 1 */
-  bsurf_neighbors nb;                                       /* built once, shared */
+  bsurf_neighbors nb;                                      /* built once, shared */
   st = bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count, opt.k, 0, NULL, NULL);
   if (st != BSURF_OK) {
     fprintf(stderr, "neighbourhoods: %s\n", bsurf_strerror(st));
@@ -32,9 +32,11 @@ int main(int argc, char **argv) {
   bsurf_error_report rep;
   st = bsurf_estimate_error(cloud.xyz, &nb, NULL, &opt, &out, &rep);
   if (st == BSURF_OK) st = bsurf_write(argv[2], &cloud, NULL, &where); /* binary PLY, atomic */
-  if (st != BSURF_OK) fprintf(stderr, "%s\n", bsurf_strerror(st));
-  else printf("%zu points, h = %g, %zu replicate fits skipped\n", cloud.point_count, nb.h,
-              rep.replicates_skipped);
+  if (st != BSURF_OK)
+    fprintf(stderr, "%s\n", bsurf_strerror(st));
+  else
+    printf("%zu points, h = %g, %zu replicate fits skipped\n", cloud.point_count, nb.h,
+           rep.replicates_skipped);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&cloud);
   return st == BSURF_OK ? 0 : 1;

@@ -32,12 +32,12 @@
 #define FUZZ_MAX_ARGS 64
 #define FUZZ_MAX_POS 8
 
-#define FUZZ_CHECK(cond)                                                                   \
-  do {                                                                                     \
-    if (!(cond)) {                                                                         \
-      fprintf(stderr, "%s:%d: parser contract broken: %s\n", __FILE__, __LINE__, #cond);   \
-      abort();                                                                             \
-    }                                                                                      \
+#define FUZZ_CHECK(cond)                                                                           \
+  do {                                                                                             \
+    if (!(cond)) {                                                                                 \
+      fprintf(stderr, "%s:%d: parser contract broken: %s\n", __FILE__, __LINE__, #cond);           \
+      abort();                                                                                     \
+    }                                                                                              \
   } while (0)
 
 /* Option targets, reset before every input. */
@@ -63,7 +63,8 @@ static void reset_values(void) {
   v.sharp = 30;
   v.width = 1;
   v.seed = 1;
-  for (int i = 0; i < 8; i++) v.str[i] = i % 2 ? k_default_str : NULL;
+  for (int i = 0; i < 8; i++)
+    v.str[i] = i % 2 ? k_default_str : NULL;
 }
 
 /* Tables modelled on cli/cmd_error.c, cmd_render.c, cmd_sample.c and cmd_compare.c. */
@@ -123,13 +124,17 @@ static const struct {
   const cli_option *opts;
   int nopts;
 } k_tables[4] = {
-    {{"error", "bootstrap test-error estimates", "[OPTIONS] INPUT", "", NULL}, k_error,
+    {{"error", "bootstrap test-error estimates", "[OPTIONS] INPUT", "", NULL},
+     k_error,
      (int)(sizeof k_error / sizeof k_error[0])},
-    {{"render", "PNG picture", "[OPTIONS] INPUT -o IMAGE.png", NULL, NULL}, k_render,
+    {{"render", "PNG picture", "[OPTIONS] INPUT -o IMAGE.png", NULL, NULL},
+     k_render,
      (int)(sizeof k_render / sizeof k_render[0])},
-    {{"sample", "points from a mesh", "[OPTIONS] MESH", "a description", NULL}, k_sample,
+    {{"sample", "points from a mesh", "[OPTIONS] MESH", "a description", NULL},
+     k_sample,
      (int)(sizeof k_sample / sizeof k_sample[0])},
-    {{"compare", "clouds side by side", "[OPTIONS] A B ...", NULL, NULL}, k_compare,
+    {{"compare", "clouds side by side", "[OPTIONS] A B ...", NULL, NULL},
+     k_compare,
      (int)(sizeof k_compare / sizeof k_compare[0])},
 };
 
@@ -224,8 +229,8 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   }
 #endif
   const cli_command *cmd = &k_tables[table].cmd;
-  int rc = cli_parse(cmd, k_tables[table].opts, k_tables[table].nopts, argc, argv, pos, maxpos,
-                     &npos);
+  int rc =
+      cli_parse(cmd, k_tables[table].opts, k_tables[table].nopts, argc, argv, pos, maxpos, &npos);
 #if defined(__GLIBC__)
   stdout = saved_out;
   stderr = saved_err;
@@ -238,11 +243,13 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {
   FUZZ_CHECK(npos >= 0 && npos <= maxpos);
   for (int i = 0; i < npos; i++) {
     int found = 0;
-    for (int j = 1; j < argc; j++) found |= pos[i] == argv[j];
+    for (int j = 1; j < argc; j++)
+      found |= pos[i] == argv[j];
     FUZZ_CHECK(found);
   }
   check_ranges(k_tables[table].opts, k_tables[table].nopts, argv, argc);
 
-  for (int i = 1; i < argc; i++) free(argv[i]);
+  for (int i = 1; i < argc; i++)
+    free(argv[i]);
   return 0;
 }

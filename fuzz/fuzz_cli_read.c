@@ -26,12 +26,12 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#define FUZZ_CHECK(cond)                                                                   \
-  do {                                                                                     \
-    if (!(cond)) {                                                                         \
-      fprintf(stderr, "%s:%d: read path contract broken: %s\n", __FILE__, __LINE__, #cond); \
-      abort();                                                                             \
-    }                                                                                      \
+#define FUZZ_CHECK(cond)                                                                           \
+  do {                                                                                             \
+    if (!(cond)) {                                                                                 \
+      fprintf(stderr, "%s:%d: read path contract broken: %s\n", __FILE__, __LINE__, #cond);        \
+      abort();                                                                                     \
+    }                                                                                              \
   } while (0)
 
 int LLVMFuzzerInitialize(int *argc, char ***argv);
@@ -43,7 +43,8 @@ int LLVMFuzzerInitialize(int *argc, char ***argv) {
   (void)argc;
   (void)argv;
   const char *tmp = getenv("TMPDIR");
-  snprintf(g_dir, sizeof g_dir, "%s/bsurf-fuzz-read-%ld", tmp && *tmp ? tmp : "/tmp", (long)getpid());
+  snprintf(g_dir, sizeof g_dir, "%s/bsurf-fuzz-read-%ld", tmp && *tmp ? tmp : "/tmp",
+           (long)getpid());
   mkdir(g_dir, 0700);
   const char *verbose = getenv("BSURF_FUZZ_VERBOSE");
   if (!verbose || !*verbose) {

@@ -30,12 +30,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define FUZZ_CHECK(cond)                                                                   \
-  do {                                                                                     \
-    if (!(cond)) {                                                                         \
-      fprintf(stderr, "%s:%d: reader contract broken: %s\n", __FILE__, __LINE__, #cond);   \
-      abort();                                                                             \
-    }                                                                                      \
+#define FUZZ_CHECK(cond)                                                                           \
+  do {                                                                                             \
+    if (!(cond)) {                                                                                 \
+      fprintf(stderr, "%s:%d: reader contract broken: %s\n", __FILE__, __LINE__, #cond);           \
+      abort();                                                                                     \
+    }                                                                                              \
   } while (0)
 
 /* Reads every value so that a short allocation is an ASan report; the sum is
@@ -44,7 +44,8 @@ static volatile double fuzz_sink;
 
 static void fuzz_touch(const double *v, size_t n) {
   double s = 0;
-  for (size_t i = 0; i < n; i++) s += v[i];
+  for (size_t i = 0; i < n; i++)
+    s += v[i];
   fuzz_sink = s;
 }
 
@@ -69,10 +70,12 @@ static void fuzz_check_cloud(bsurf_status st, const bsurf_cloud *c, const bsurf_
     FUZZ_CHECK((unsigned)f->type <= (unsigned)BSURF_FLOAT64);
     FUZZ_CHECK(c->point_count == 0 || f->values != NULL);
     if (c->point_count) fuzz_touch(f->values, c->point_count);
-    for (size_t k = 0; k < i; k++) FUZZ_CHECK(strcmp(c->fields[k].name, f->name) != 0);
+    for (size_t k = 0; k < i; k++)
+      FUZZ_CHECK(strcmp(c->fields[k].name, f->name) != 0);
   }
   FUZZ_CHECK(c->face_count == 0 || c->faces != NULL);
-  for (size_t i = 0; i < 3 * c->face_count; i++) FUZZ_CHECK(c->faces[i] < c->point_count);
+  for (size_t i = 0; i < 3 * c->face_count; i++)
+    FUZZ_CHECK(c->faces[i] < c->point_count);
   FUZZ_CHECK(memchr(c->shape, '\0', sizeof c->shape) != NULL);
   FUZZ_CHECK((unsigned)c->xyz_type <= (unsigned)BSURF_FLOAT64);
   FUZZ_CHECK((unsigned)c->normal_type <= (unsigned)BSURF_FLOAT64);

@@ -40,7 +40,9 @@ static int run_file(const char *path) {
   return 1;
 }
 
-static int by_name(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+static int by_name(const void *a, const void *b) {
+  return strcmp(*(char *const *)a, *(char *const *)b);
+}
 
 int main(int argc, char **argv) {
   LLVMFuzzerInitialize(&argc, &argv);

@@ -59,7 +59,7 @@ extern "C" {
 #define BSURF_VERSION_PATCH 0
 #define BSURF_VERSION_STRING "0.1.0"
 /* MAJOR * 10000 + MINOR * 100 + PATCH, as bsurf_version() returns it. */
-#define BSURF_VERSION_NUMBER \
+#define BSURF_VERSION_NUMBER                                                                       \
   (BSURF_VERSION_MAJOR * 10000 + BSURF_VERSION_MINOR * 100 + BSURF_VERSION_PATCH)
 
 /* Every function of this header is marked BSURF_API: the only symbols the
@@ -151,14 +151,14 @@ typedef struct bsurf_field {
  * the cloud and released by bsurf_cloud_free(). */
 typedef struct bsurf_cloud {
   size_t point_count;
-  double *xyz;           /* point_count x 3 */
-  double *normals;       /* point_count x 3, or NULL */
-  bsurf_type xyz_type;   /* how x y z are written (default FLOAT64) */
+  double *xyz;            /* point_count x 3 */
+  double *normals;        /* point_count x 3, or NULL */
+  bsurf_type xyz_type;    /* how x y z are written (default FLOAT64) */
   bsurf_type normal_type; /* how nx ny nz are written (default FLOAT32) */
   size_t field_count;
-  bsurf_field *fields;   /* field_count */
+  bsurf_field *fields; /* field_count */
   size_t face_count;
-  uint32_t *faces;       /* face_count x 3 (polygons are fan-triangulated) */
+  uint32_t *faces;                  /* face_count x 3 (polygons are fan-triangulated) */
   char shape[BSURF_FIELD_NAME_MAX]; /* the generated shape the points sample
                                        (bsurf_shape_name; set by bsurf_generate)
                                        or "": PLY keeps it as the header line
@@ -176,8 +176,7 @@ BSURF_API bsurf_status bsurf_cloud_copy(bsurf_cloud *dst, const bsurf_cloud *src
 BSURF_API bsurf_field *bsurf_cloud_field(const bsurf_cloud *cloud, const char *name);
 /* The field called `name`, created (zero-filled, with `type`) if missing; an
  * existing field keeps its values and takes `type`. NULL on allocation failure. */
-BSURF_API bsurf_field *bsurf_cloud_add_field(bsurf_cloud *cloud, const char *name,
-                                   bsurf_type type);
+BSURF_API bsurf_field *bsurf_cloud_add_field(bsurf_cloud *cloud, const char *name, bsurf_type type);
 /* Removes the field called `name` if present. */
 BSURF_API void bsurf_cloud_remove_field(bsurf_cloud *cloud, const char *name);
 /* BSURF_OK if every coordinate (and normal) is finite; otherwise
@@ -221,7 +220,7 @@ BSURF_API bsurf_format bsurf_format_detect(const void *data, size_t size);
 BSURF_API bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err);
 /* The same from a buffer already in memory (used by the fuzzers). */
 BSURF_API bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format format,
-                               bsurf_cloud *cloud, bsurf_failure *err);
+                                         bsurf_cloud *cloud, bsurf_failure *err);
 
 /* PLY property names for the fields (docs/formats.md): as they are, with
  * CloudCompare's "scalar_" prefix (which it loads and strips), or as they are
@@ -242,7 +241,8 @@ BSURF_API bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsu
 /* The same on the first `size` bytes (the header among them) of a file of
  * `file_size` bytes (used by the fuzzers). */
 BSURF_API bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
-                                      bsurf_format format, uint64_t *points, bsurf_failure *err);
+                                                bsurf_format format, uint64_t *points,
+                                                bsurf_failure *err);
 
 /* The output-path policy of every writer (docs/robustness.md): BSURF_OK for
  * a new file, a writable regular file, a FIFO or a device (written directly,
@@ -261,11 +261,11 @@ BSURF_API void bsurf_atomic_interrupt(void);
 BSURF_API void bsurf_atomic_remove_temporaries(void);
 
 typedef struct bsurf_write_options {
-  int ascii;              /* PLY, PCD: write ascii instead of binary little-endian */
-  bsurf_format format;    /* BSURF_FORMAT_UNKNOWN (0): from the path's extension */
-  int float32;            /* float64 coordinates, normals and fields as float32 */
+  int ascii;           /* PLY, PCD: write ascii instead of binary little-endian */
+  bsurf_format format; /* BSURF_FORMAT_UNKNOWN (0): from the path's extension */
+  int float32;         /* float64 coordinates, normals and fields as float32 */
   bsurf_ply_names ply_names;
-  int las_legacy;         /* LAS 1.2 (point format 1 or 3) instead of 1.4 (6-8) */
+  int las_legacy; /* LAS 1.2 (point format 1 or 3) instead of 1.4 (6-8) */
 } bsurf_write_options;
 
 /* Writes a cloud; the format comes from opts->format, else the extension. The
@@ -275,7 +275,7 @@ typedef struct bsurf_write_options {
  * (binary PLY). Formats that cannot carry every field (OFF, OBJ, XYZ) write
  * what they can; see bsurf_format_keeps_fields(). */
 BSURF_API bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
-                         const bsurf_write_options *opts, bsurf_failure *err);
+                                   const bsurf_write_options *opts, bsurf_failure *err);
 /* 1 if the format stores named scalar fields (PLY, PCD, LAS, CSV). */
 BSURF_API int bsurf_format_keeps_fields(bsurf_format format);
 
@@ -288,14 +288,14 @@ typedef struct bsurf_knn_index bsurf_knn_index;
 
 /* Builds the index over `xyz` (point_count x 3), which must outlive it. */
 BSURF_API bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz,
-                             size_t point_count);
+                                       size_t point_count);
 BSURF_API void bsurf_knn_free(bsurf_knn_index *index);
 
 /* The k nearest indexed points of one query point, sorted by (squared
  * distance, index). `idx` out: k; `dist2` out: k, may be NULL. k must not
  * exceed the number of indexed points. */
-BSURF_API bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3],
-                             int k, uint32_t *idx, double *dist2);
+BSURF_API bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3], int k,
+                                       uint32_t *idx, double *dist2);
 
 /* All-K-nearest neighbours of the indexed points themselves: row i lists point
  * i first, then the k-1 nearest other points sorted by (squared distance,
@@ -303,20 +303,20 @@ BSURF_API bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const doubl
  * `idx` out: point_count x k; `dist2` out: point_count x k (may be NULL).
  * threads: 0 = all cores. Parallel, deterministic for any thread count. */
 BSURF_API bsurf_status bsurf_knn_all(const bsurf_knn_index *index, int k, int threads,
-                           uint32_t *idx, double *dist2,
-                           bsurf_progress_fn progress, void *progress_user);
+                                     uint32_t *idx, double *dist2, bsurf_progress_fn progress,
+                                     void *progress_user);
 
 /* Reference O(N^2 K) implementation of bsurf_knn_all (same order and ties),
  * used by the tests; only for small inputs. */
 BSURF_API bsurf_status bsurf_knn_all_brute(const double *xyz, size_t point_count, int k,
-                                 uint32_t *idx, double *dist2);
+                                           uint32_t *idx, double *dist2);
 
 /* Neighbourhoods of every point, computed once and shared by every stage. */
 typedef struct bsurf_neighbors {
   size_t point_count;
-  int k;         /* neighbours per point, the point itself first */
-  uint32_t *idx; /* point_count x k */
-  double h;      /* mean nearest-neighbour distance (the thesis's unit) */
+  int k;           /* neighbours per point, the point itself first */
+  uint32_t *idx;   /* point_count x k */
+  double h;        /* mean nearest-neighbour distance (the thesis's unit) */
   uint32_t *order; /* point_count: the points in k-d tree (spatially coherent)
                       order, in which per-point passes visit them for cache
                       locality; may be NULL (then a Morton order is made) */
@@ -324,18 +324,18 @@ typedef struct bsurf_neighbors {
 
 /* Builds the neighbourhoods (kd-tree + all-kNN) and h. k >= 2. */
 BSURF_API bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz,
-                                   size_t point_count, int k, int threads,
-                                   bsurf_progress_fn progress, void *progress_user);
+                                             size_t point_count, int k, int threads,
+                                             bsurf_progress_fn progress, void *progress_user);
 BSURF_API void bsurf_neighbors_free(bsurf_neighbors *nb);
 
 /* Mean distance from each point to its nearest other point (h). Builds its own
  * index; threads: 0 = all cores. Needs at least 2 points. */
 BSURF_API bsurf_status bsurf_mean_spacing(const double *xyz, size_t point_count, int threads,
-                                double *h);
+                                          double *h);
 /* The same with a progress callback (which may cancel). */
-BSURF_API bsurf_status bsurf_mean_spacing_progress(const double *xyz, size_t point_count, int threads,
-                                         double *h, bsurf_progress_fn progress,
-                                         void *progress_user);
+BSURF_API bsurf_status bsurf_mean_spacing_progress(const double *xyz, size_t point_count,
+                                                   int threads, double *h,
+                                                   bsurf_progress_fn progress, void *progress_user);
 
 /* ------------------------------------------------------------------------ */
 /* Local analysis (thesis 3.3)                                               */
@@ -358,7 +358,7 @@ typedef enum bsurf_pca_center {
 
 /* PCA frame of the k points xyz[idx[0..k-1]] centred at xyz[idx[0]]. */
 BSURF_API void bsurf_local_frame(const double *xyz, const uint32_t *idx, int k,
-                       bsurf_pca_center center, bsurf_frame *frame);
+                                 bsurf_pca_center center, bsurf_frame *frame);
 
 /* Number of coefficients of a bivariate polynomial of total degree `degree`:
  * (degree+1)(degree+2)/2. */
@@ -375,13 +375,13 @@ typedef enum bsurf_gamma_mode {
 } bsurf_gamma_mode;
 
 typedef struct bsurf_error_options {
-  int k;                  /* neighbourhood size K, the point included (50) */
-  int degree;             /* polynomial degree M, 1..4 (3) */
-  int bootstrap;          /* replicates B (50) */
-  uint64_t seed;          /* random seed (1) */
-  bsurf_gamma_mode gamma; /* no-information rate (FIT) */
+  int k;                       /* neighbourhood size K, the point included (50) */
+  int degree;                  /* polynomial degree M, 1..4 (3) */
+  int bootstrap;               /* replicates B (50) */
+  uint64_t seed;               /* random seed (1) */
+  bsurf_gamma_mode gamma;      /* no-information rate (FIT) */
   bsurf_pca_center pca_center; /* frame's PCA centre (CENTROID) */
-  int threads;            /* 0 = all cores */
+  int threads;                 /* 0 = all cores */
   bsurf_progress_fn progress;
   void *progress_user;
   /* NULL, or point_count global indices: row i of the neighbourhoods is the
@@ -425,10 +425,8 @@ typedef struct bsurf_error_report {
  * independent sample of the same surface points (same order) on which the
  * full fits are evaluated (err_test). Deterministic for a given seed. */
 BSURF_API bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
-                                  const double *test_xyz,
-                                  const bsurf_error_options *opts,
-                                  bsurf_error_fields *out,
-                                  bsurf_error_report *report);
+                                            const double *test_xyz, const bsurf_error_options *opts,
+                                            bsurf_error_fields *out, bsurf_error_report *report);
 
 /* ------------------------------------------------------------------------ */
 /* Normals with bootstrap confidence (thesis chapter 5)                       */
@@ -481,9 +479,10 @@ typedef struct bsurf_normal_report {
  * normals of a fixed neighbourhood size; normal_err is computed only when
  * they are given. Deterministic for a given seed, any thread count. */
 BSURF_API bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb,
-                                    const double *ref_normals,
-                                    const bsurf_normal_options *opts,
-                                    bsurf_normal_fields *out, bsurf_normal_report *report);
+                                              const double *ref_normals,
+                                              const bsurf_normal_options *opts,
+                                              bsurf_normal_fields *out,
+                                              bsurf_normal_report *report);
 
 /* Per-point choice of the neighbourhood size K (docs/normals.md, "Choosing
  * K"). BSURF_KSELECT_TEST_ERROR is the thesis's rule (5.5, Eq. 5.10): per
@@ -512,14 +511,14 @@ BSURF_API bsurf_kselect_options bsurf_kselect_options_default(void);
 
 /* Per-point outputs, point_count long (x 3 for normals) or NULL. */
 typedef struct bsurf_kselect_fields {
-  double *normals;    /* unit, unoriented: the PCA normal (about the
-                         centroid, single fit) of the chosen K */
-  int *k_selected;    /* the chosen K */
-  double *rmse;       /* the estimated root mean squared angle error of
-                         that normal (rad): sqrt(variance + bias^2);
-                         pi / 2 where no candidate could be assessed */
-  double *noise;      /* the estimated noise standard deviation along the
-                         normal (length) */
+  double *normals; /* unit, unoriented: the PCA normal (about the
+                      centroid, single fit) of the chosen K */
+  int *k_selected; /* the chosen K */
+  double *rmse;    /* the estimated root mean squared angle error of
+                      that normal (rad): sqrt(variance + bias^2);
+                      pi / 2 where no candidate could be assessed */
+  double *noise;   /* the estimated noise standard deviation along the
+                      normal (length) */
 } bsurf_kselect_fields;
 
 typedef struct bsurf_kselect_report {
@@ -531,8 +530,8 @@ typedef struct bsurf_kselect_report {
 /* K selection by BSURF_KSELECT_MSE for every point; nb->k must be at least
  * the largest candidate and noise_k. Deterministic, any thread count. */
 BSURF_API bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
-                            const bsurf_kselect_options *opts, bsurf_kselect_fields *out,
-                            bsurf_kselect_report *report);
+                                      const bsurf_kselect_options *opts, bsurf_kselect_fields *out,
+                                      bsurf_kselect_report *report);
 
 /* Per-point K selection (5.5, Algorithm 3): outputs of the chosen
  * candidate (point_count long, x 3 for vectors) and, for --curve style
@@ -555,9 +554,11 @@ typedef struct bsurf_normal_select_fields {
  * multinomial resamples (the numbers differ at O(1/K)). With
  * opts->bootstrap = 0 the single fits and their training errors. PCA only
  * (opts->fit); deterministic for a given seed, any thread count. */
-BSURF_API bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb, const double *ref_normals,
-                                    const bsurf_normal_options *opts, const int *ks, int nk,
-                                    bsurf_normal_select_fields *out, bsurf_normal_report *report);
+BSURF_API bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb,
+                                              const double *ref_normals,
+                                              const bsurf_normal_options *opts, const int *ks,
+                                              int nk, bsurf_normal_select_fields *out,
+                                              bsurf_normal_report *report);
 
 /* Bilateral normal smoothing (5.3, Eqs. 5.6-5.8), `iterations` Jacobi-style
  * passes (every point from the previous pass's normals, so order-free):
@@ -567,24 +568,25 @@ BSURF_API bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_nei
  * normals in/out: point_count x 3; normal_var in: point_count (NULL or
  * sigma_nu = INFINITY: the single Gaussian filter). */
 BSURF_API bsurf_status bsurf_smooth_normals(const double *xyz, const bsurf_neighbors *nb, int k,
-                                  double *normals, const double *normal_var, int iterations,
-                                  double alpha, double sigma_d, double sigma_nu, int threads);
+                                            double *normals, const double *normal_var,
+                                            int iterations, double alpha, double sigma_d,
+                                            double sigma_nu, int threads);
 
 /* Consistent orientation by propagation along a minimum spanning tree of the
  * neighbour graph with weights 1 - |n_i . n_j| (Hoppe et al. 1992). Each
  * connected component starts at its highest point (largest z), whose normal
  * is turned to +z. normals in/out: point_count x 3. */
 BSURF_API bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, int k,
-                                  double *normals);
+                                            double *normals);
 
 /* ------------------------------------------------------------------------ */
 /* Smoothing driven by the bootstrap error (thesis chapter 6)                 */
 /* ------------------------------------------------------------------------ */
 
 typedef enum bsurf_smooth_method {
-  BSURF_SMOOTH_NAIVE = 0,  /* 6.2, Eq. 6.1: projection to the mean bootstrap fit */
-  BSURF_SMOOTH_BILATERAL,  /* 6.3, Algorithm 4, Eq. 6.2 */
-  BSURF_SMOOTH_MULTIPASS   /* 6.4, Algorithm 5, Eqs. 6.3-6.5 */
+  BSURF_SMOOTH_NAIVE = 0, /* 6.2, Eq. 6.1: projection to the mean bootstrap fit */
+  BSURF_SMOOTH_BILATERAL, /* 6.3, Algorithm 4, Eq. 6.2 */
+  BSURF_SMOOTH_MULTIPASS  /* 6.4, Algorithm 5, Eqs. 6.3-6.5 */
 } bsurf_smooth_method;
 
 typedef enum bsurf_smooth_order {
@@ -611,18 +613,18 @@ typedef struct bsurf_smooth_options {
    * G(a, b) = exp(-a^2/b^2) (Eq. 5.7). h1 <= 0: h (mean spacing). h2 <= 0:
    * h2_fraction x |W|, the mean of W_i. */
   double h1, h2;
-  double h2_fraction; /* <= 0: the default, 2 (the thesis shows 0.5-1 for
-                         bilateral, Figs. 6.4-6.6, and uses 0.3 for multipass,
-                         6.4.1, where its points barely move; see
-                         docs/smoothing.md) */
+  double h2_fraction;       /* <= 0: the default, 2 (the thesis shows 0.5-1 for
+                               bilateral, Figs. 6.4-6.6, and uses 0.3 for multipass,
+                               6.4.1, where its points barely move; see
+                               docs/smoothing.md) */
   bsurf_smooth_order order; /* bilateral and multipass (PARALLEL) */
   /* multipass: h1 = a d_L (Eq. 6.5); K_i = max{k_min, y} with y the linear
    * map of Eq. 6.4 from (0, K) to (k_error, k_min); k_error <= 0:
    * k_error_fraction x |W| (3 by default; the thesis's is 1). */
-  double a;          /* 0.1 */
-  int iterations;    /* 300 */
-  int k_min;         /* 10 */
-  double k_error;    /* 0 */
+  double a;                /* 0.1 */
+  int iterations;          /* 300 */
+  int k_min;               /* 10 */
+  double k_error;          /* 0 */
   double k_error_fraction; /* 3 */
   /* every method: a neighbourhood whose fit is biased at its centre (two
    * sheets, a sharp edge: a t test on its nearest points' residuals) is
@@ -644,16 +646,16 @@ typedef struct bsurf_smooth_fields {
 } bsurf_smooth_fields;
 
 typedef struct bsurf_smooth_report {
-  bsurf_error_report error; /* of the bootstrap pass */
-  double h;                 /* mean spacing (nb->h) */
-  double mean_error;        /* |W|: mean of the W_i used */
-  double threshold;         /* naive: the threshold applied */
-  double h1, h2;            /* the sigmas applied (multipass: h1 = 0, per point) */
-  double k_error;           /* multipass: the error mapped to k_min */
-  size_t projected;         /* naive: points under the threshold */
-  size_t moved_points;      /* points whose position changed */
+  bsurf_error_report error;     /* of the bootstrap pass */
+  double h;                     /* mean spacing (nb->h) */
+  double mean_error;            /* |W|: mean of the W_i used */
+  double threshold;             /* naive: the threshold applied */
+  double h1, h2;                /* the sigmas applied (multipass: h1 = 0, per point) */
+  double k_error;               /* multipass: the error mapped to k_min */
+  size_t projected;             /* naive: points under the threshold */
+  size_t moved_points;          /* points whose position changed */
   double moved_mean, moved_max; /* displacement over all points */
-  int iterations;           /* multipass: passes run */
+  int iterations;               /* multipass: passes run */
 } bsurf_smooth_report;
 
 /* Moves the points of a cloud towards the bootstrap fits (chapter 6).
@@ -662,8 +664,8 @@ typedef struct bsurf_smooth_report {
  * seed, whatever the thread count (the sequential order runs its sweep on one
  * thread). */
 BSURF_API bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
-                          const bsurf_smooth_options *opts, double *out_xyz,
-                          bsurf_smooth_fields *fields, bsurf_smooth_report *report);
+                                    const bsurf_smooth_options *opts, double *out_xyz,
+                                    bsurf_smooth_fields *fields, bsurf_smooth_report *report);
 
 /* ------------------------------------------------------------------------ */
 /* Feature detection (thesis chapter 7)                                      */
@@ -691,33 +693,33 @@ typedef enum bsurf_tail_rule {
  * values in: count. *threshold out: points with value > threshold are the
  * tail. BSURF_ERR_INVALID_VALUE for NaN, BSURF_ERR_TOO_FEW_POINTS for
  * count < 2. */
-BSURF_API bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail_rule rule,
-                                  double *threshold);
+BSURF_API bsurf_status bsurf_tail_threshold(const double *values, size_t count,
+                                            bsurf_tail_rule rule, double *threshold);
 
 typedef struct bsurf_feature_options {
   bsurf_feature_method method; /* DISTANCE */
   /* distance (7.1) */
-  int k_min, k_max, k_step;    /* neighbourhood sizes k_min, k_min + k_step,
-                                  ... <= k_max, the point included (15, 60, 2;
-                                  k_min 15 beat 10 and 20 on the cube and
-                                  Fandisk at noise 0 and 0.5) */
-  double ratio_threshold;      /* T_{a/c}: stop when f = lambda0/lambda2 (or
-                                  f + d f') exceeds it (0.1) */
-  double noise_factor;         /* c > 0: at each size K the threshold is
-                                  max(T_{a/c}, c x the median of f(K) over
-                                  the points), so that noise alone (which
-                                  raises f everywhere) does not stop the
-                                  growth; at low noise c x median < T_{a/c}
-                                  and nothing changes. 0 = T_{a/c} alone, the
-                                  thesis (1.75, see src/algo/features.c) */
-  double derivative;           /* d of f + d f' (f' per step); 0 = f alone (0) */
-  double alpha;                /* bilateral filter strength, Eq. 7.1 (0.5) */
-  int iterations;              /* bilateral filter passes (5) */
-  int filter_k;                /* neighbours of the filter, point included
-                                  (0 = k_min) */
-  double sigma_range;          /* range sigma of g_b as a fraction of
-                                  max(radius) (0.05; the thesis's 0.01 is
-                                  absolute on a unit-size model) */
+  int k_min, k_max, k_step; /* neighbourhood sizes k_min, k_min + k_step,
+                               ... <= k_max, the point included (15, 60, 2;
+                               k_min 15 beat 10 and 20 on the cube and
+                               Fandisk at noise 0 and 0.5) */
+  double ratio_threshold;   /* T_{a/c}: stop when f = lambda0/lambda2 (or
+                               f + d f') exceeds it (0.1) */
+  double noise_factor;      /* c > 0: at each size K the threshold is
+                               max(T_{a/c}, c x the median of f(K) over
+                               the points), so that noise alone (which
+                               raises f everywhere) does not stop the
+                               growth; at low noise c x median < T_{a/c}
+                               and nothing changes. 0 = T_{a/c} alone, the
+                               thesis (1.75, see src/algo/features.c) */
+  double derivative;        /* d of f + d f' (f' per step); 0 = f alone (0) */
+  double alpha;             /* bilateral filter strength, Eq. 7.1 (0.5) */
+  int iterations;           /* bilateral filter passes (5) */
+  int filter_k;             /* neighbours of the filter, point included
+                               (0 = k_min) */
+  double sigma_range;       /* range sigma of g_b as a fraction of
+                               max(radius) (0.05; the thesis's 0.01 is
+                               absolute on a unit-size model) */
   /* threshold: distance: feature_dist <= threshold x max(feature_dist)
    * (0: the thesis's T_h = 0 of Fig. 7.5, the points the accentuated,
    * filtered map keeps at or below zero); NAN = auto: the points <= 0 and
@@ -725,10 +727,10 @@ typedef struct bsurf_feature_options {
    * at some size (the band that met a feature before k_max, apart from the
    * plateau near max radius of those that met none).
    * variance: normal_var > threshold; NAN = auto (tail_rule). */
-  double threshold;            /* NAN */
-  bsurf_tail_rule tail_rule;   /* OTSU */
+  double threshold;             /* NAN */
+  bsurf_tail_rule tail_rule;    /* OTSU */
   bsurf_normal_options normals; /* variance: the bootstrap normals (defaults) */
-  int threads;                 /* 0 = all cores (also used for normals) */
+  int threads;                  /* 0 = all cores (also used for normals) */
   bsurf_progress_fn progress;
   void *progress_user;
 } bsurf_feature_options;
@@ -736,11 +738,11 @@ typedef struct bsurf_feature_options {
 BSURF_API bsurf_feature_options bsurf_feature_options_default(void);
 
 typedef struct bsurf_feature_report {
-  double threshold;      /* the absolute threshold applied to the score */
-  size_t feature_points; /* points with feature = 1 */
-  double max_radius;     /* distance: the largest neighbourhood radius */
-  size_t immediate;      /* distance: points whose k_min neighbourhood
-                            already exceeded T_{a/c} (set to -max_radius) */
+  double threshold;            /* the absolute threshold applied to the score */
+  size_t feature_points;       /* points with feature = 1 */
+  double max_radius;           /* distance: the largest neighbourhood radius */
+  size_t immediate;            /* distance: points whose k_min neighbourhood
+                                  already exceeded T_{a/c} (set to -max_radius) */
   double ratio_threshold_kmin; /* distance: the T_{a/c} applied at k_min
                                   (above ratio_threshold when noise_factor
                                   raised it); NAN for VARIANCE */
@@ -751,8 +753,8 @@ typedef struct bsurf_feature_report {
  * point_count (feature_dist for DISTANCE, normal_var for VARIANCE), may be
  * NULL. Deterministic for any thread count. */
 BSURF_API bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
-                                   const bsurf_feature_options *opts, uint8_t *feature,
-                                   double *score, bsurf_feature_report *report);
+                                             const bsurf_feature_options *opts, uint8_t *feature,
+                                             double *score, bsurf_feature_report *report);
 
 /* The raw distance map of 7.1 (before filtering): for each point the radius
  * of the first neighbourhood size whose a/c (or a/c + d (a/c)') exceeds the
@@ -761,14 +763,15 @@ BSURF_API bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neig
  * k_min get -max(radius). dist out: point_count. Also returns, per point,
  * the neighbourhood size it stopped at (ksel out, may be NULL). */
 BSURF_API bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors *nb,
-                                        const bsurf_feature_options *opts, double *dist,
-                                        int *ksel, double *max_radius, size_t *immediate);
+                                                  const bsurf_feature_options *opts, double *dist,
+                                                  int *ksel, double *max_radius, size_t *immediate);
 
 /* Incremental PCA along a sorted neighbour list (internal to 7.1, public
  * for the tests): for m = 1..k the ratio lambda0/lambda2 of the covariance
  * (about the centroid) of the first m points xyz[idx[0..m-1]], from running
  * sums. ratio out: k (0 where lambda2 = 0). */
-BSURF_API void bsurf_incremental_pca_ratios(const double *xyz, const uint32_t *idx, int k, double *ratio);
+BSURF_API void bsurf_incremental_pca_ratios(const double *xyz, const uint32_t *idx, int k,
+                                            double *ratio);
 
 /* ------------------------------------------------------------------------ */
 /* Generated shapes and noise                                                 */
@@ -796,8 +799,7 @@ BSURF_API const char *bsurf_shape_name(bsurf_shape shape);
  * sqrt(area / point count) the nominal point spacing). Regular sampling
  * rounds n to the nearest count its pattern allows. */
 BSURF_API bsurf_status bsurf_generate(bsurf_cloud *cloud, bsurf_shape shape, size_t n,
-                            bsurf_sampling sampling, uint64_t seed,
-                            double feature_width);
+                                      bsurf_sampling sampling, uint64_t seed, double feature_width);
 
 /* Exact distance from a point to a generated shape's surface. */
 BSURF_API double bsurf_shape_distance(bsurf_shape shape, const double p[3]);
@@ -810,9 +812,9 @@ typedef enum bsurf_noise_model {
 /* Displaces every point along its (unit) normal by t * scale: xyz is updated
  * in place. t is drawn from the model with the given level, from a generator
  * keyed by (seed, point index). normals in: point_count x 3. */
-BSURF_API bsurf_status bsurf_add_noise(double *xyz, const double *normals,
-                             size_t point_count, bsurf_noise_model model,
-                             double level, double scale, uint64_t seed);
+BSURF_API bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_t point_count,
+                                       bsurf_noise_model model, double level, double scale,
+                                       uint64_t seed);
 
 /* ------------------------------------------------------------------------ */
 /* Pictures                                                                  */
@@ -837,27 +839,27 @@ BSURF_API void bsurf_colormap_rgb(bsurf_colormap cmap, double t, uint8_t rgb[3])
 BSURF_API int bsurf_view_from_name(const char *name, double *azimuth, double *elevation);
 
 typedef struct bsurf_render_options {
-  int width, height;           /* pixels of the whole image (1024 x 768) */
-  double azimuth, elevation;   /* view direction in degrees (iso: 45, 35.26) */
-  int views;                   /* 1, or 4: front, right, top and iso in a 2x2 grid */
-  double point_size;           /* splat diameter in units of the spacing h (2) */
-  double spacing;              /* h; 0: estimated from the points */
-  const double *point_spacing; /* point_count local spacings (sparse regions get
-                                  larger splats) or NULL: h everywhere */
-  int up_axis;                 /* 0, 1, 2: x, y or z points up in named views (2) */
-  int round_splats;            /* 1: discs (default), 0: squares */
-  int supersample;             /* 1..4: samples per pixel side, averaged (2) */
-  bsurf_colormap colormap;     /* viridis */
-  double range_lo, range_hi;   /* field values mapped to the colormap's ends;
-                                  NaN: the percentiles below */
+  int width, height;                   /* pixels of the whole image (1024 x 768) */
+  double azimuth, elevation;           /* view direction in degrees (iso: 45, 35.26) */
+  int views;                           /* 1, or 4: front, right, top and iso in a 2x2 grid */
+  double point_size;                   /* splat diameter in units of the spacing h (2) */
+  double spacing;                      /* h; 0: estimated from the points */
+  const double *point_spacing;         /* point_count local spacings (sparse regions get
+                                          larger splats) or NULL: h everywhere */
+  int up_axis;                         /* 0, 1, 2: x, y or z points up in named views (2) */
+  int round_splats;                    /* 1: discs (default), 0: squares */
+  int supersample;                     /* 1..4: samples per pixel side, averaged (2) */
+  bsurf_colormap colormap;             /* viridis */
+  double range_lo, range_hi;           /* field values mapped to the colormap's ends;
+                                          NaN: the percentiles below */
   double percentile_lo, percentile_hi; /* in percent (1, 99); values outside are capped */
-  int shade;                   /* 1: field colours modulated by Lambert shading
-                                  when normals are given */
-  int colorbar;                /* 1: a colour bar with ticks when values are given */
-  const char *label;           /* colour-bar caption (e.g. the field name) or NULL */
-  const char *title;           /* text at the top or NULL */
-  uint8_t background[3];       /* white */
-  int threads;                 /* 0 = all cores; the image never depends on it */
+  int shade;                           /* 1: field colours modulated by Lambert shading
+                                          when normals are given */
+  int colorbar;                        /* 1: a colour bar with ticks when values are given */
+  const char *label;                   /* colour-bar caption (e.g. the field name) or NULL */
+  const char *title;                   /* text at the top or NULL */
+  uint8_t background[3];               /* white */
+  int threads;                         /* 0 = all cores; the image never depends on it */
 } bsurf_render_options;
 
 BSURF_API bsurf_render_options bsurf_render_options_default(void);
@@ -880,22 +882,22 @@ typedef struct bsurf_render_info {
  *   point_count  below 2^32 - 1
  *   info     out, may be NULL */
 BSURF_API bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals,
-                          size_t point_count, const double *values,
-                          const bsurf_render_options *opt, bsurf_render_info *info);
+                                    size_t point_count, const double *values,
+                                    const bsurf_render_options *opt, bsurf_render_info *info);
 
 /* The value range between two percentiles (in percent) of the finite values;
  * BSURF_ERR_INVALID_VALUE when there is none. */
 BSURF_API bsurf_status bsurf_render_range(const double *values, size_t count, double percentile_lo,
-                                double percentile_hi, double *lo, double *hi);
+                                          double percentile_hi, double *lo, double *hi);
 
 /* Draws a vertical colour bar with labelled ticks into the box (x, y, w, h)
  * of an image (the bar, its ticks and the label all stay in the box). */
-BSURF_API void bsurf_render_colorbar(uint8_t *rgb, int width, int height, int x, int y, int w, int h,
-                           bsurf_colormap cmap, double lo, double hi, const char *label,
-                           const uint8_t background[3]);
+BSURF_API void bsurf_render_colorbar(uint8_t *rgb, int width, int height, int x, int y, int w,
+                                     int h, bsurf_colormap cmap, double lo, double hi,
+                                     const char *label, const uint8_t background[3]);
 /* Draws text (5x7 font, enlarged `scale` times) with its top-left at (x, y). */
-BSURF_API void bsurf_render_text(uint8_t *rgb, int width, int height, int x, int y, const char *text,
-                       int scale, const uint8_t color[3]);
+BSURF_API void bsurf_render_text(uint8_t *rgb, int width, int height, int x, int y,
+                                 const char *text, int scale, const uint8_t color[3]);
 
 typedef struct bsurf_histogram_options {
   int width, height;         /* 800 x 500 */
@@ -918,13 +920,13 @@ typedef struct bsurf_histogram_info {
 /* A histogram picture: bars, axes with ticks and labels, threshold marker.
  *   rgb  out: height x width x 3 */
 BSURF_API bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values, size_t count,
-                                    const bsurf_histogram_options *opt,
-                                    bsurf_histogram_info *info);
+                                              const bsurf_histogram_options *opt,
+                                              bsurf_histogram_info *info);
 
 /* Writes an 8-bit RGB PNG (libpng; no time stamp, so the same image gives the
  * same bytes). Atomic like bsurf_write: a temporary file renamed at the end. */
 BSURF_API bsurf_status bsurf_write_png(const char *path, const uint8_t *rgb, int width, int height,
-                             bsurf_failure *err);
+                                       bsurf_failure *err);
 
 /* ------------------------------------------------------------------------ */
 /* Meshes and evaluation against ground truth                                */
@@ -945,7 +947,7 @@ BSURF_API bsurf_status bsurf_write_png(const char *path, const uint8_t *rgb, int
  * and is counted in *without_normal (may be NULL). BSURF_ERR_INVALID_ARG when
  * the mesh has no face or a face index is out of range. */
 BSURF_API bsurf_status bsurf_mesh_vertex_normals(const bsurf_cloud *mesh, double *normals,
-                                       size_t *without_normal);
+                                                 size_t *without_normal);
 
 typedef struct bsurf_sample_options {
   size_t points;          /* 0 = the mesh's vertices (the thesis's protocol,
@@ -962,25 +964,25 @@ typedef struct bsurf_sample_options {
 BSURF_API bsurf_sample_options bsurf_sample_options_default(void);
 
 typedef struct bsurf_sample_report {
-  size_t edges;             /* distinct undirected edges */
-  size_t sharp_edges;       /* interior edges whose dihedral angle (between
-                               the faces' normals) exceeds sharp_angle_deg */
-  size_t boundary_edges;    /* edges of one face: mesh borders, never sharp */
-  size_t nonmanifold_edges; /* edges of 3+ faces: sharp when any two of their
-                               faces differ by more than the angle */
+  size_t edges;              /* distinct undirected edges */
+  size_t sharp_edges;        /* interior edges whose dihedral angle (between
+                                the faces' normals) exceeds sharp_angle_deg */
+  size_t boundary_edges;     /* edges of one face: mesh borders, never sharp */
+  size_t nonmanifold_edges;  /* edges of 3+ faces: sharp when any two of their
+                                faces differ by more than the angle */
   size_t inconsistent_edges; /* edges walked the same way by two faces (their
                                orientations disagree; the angle is measured
                                with one of them flipped) */
-  size_t degenerate_faces;  /* zero area: never sampled, ignored for angles */
-  size_t vertices_dropped;  /* vertex sampling: vertices without a normal
-                               (see bsurf_mesh_vertex_normals), left out */
-  size_t feature_points;    /* output points with feature = 1 */
-  double area;              /* total surface area */
+  size_t degenerate_faces;   /* zero area: never sampled, ignored for angles */
+  size_t vertices_dropped;   /* vertex sampling: vertices without a normal
+                                (see bsurf_mesh_vertex_normals), left out */
+  size_t feature_points;     /* output points with feature = 1 */
+  double area;               /* total surface area */
   double mean_edge_length;
-  double spacing;           /* s = sqrt(area / output points) */
-  double feature_width;     /* the absolute width: opts feature_width x s */
-  double no_feature_dist;   /* feature_dist when there is no sharp edge: the
-                               mesh's bounding-box diagonal */
+  double spacing;         /* s = sqrt(area / output points) */
+  double feature_width;   /* the absolute width: opts feature_width x s */
+  double no_feature_dist; /* feature_dist when there is no sharp edge: the
+                             mesh's bounding-box diagonal */
 } bsurf_sample_report;
 
 /* Points on a triangle mesh with ground truth (thesis 5.2.2, 7.x).
@@ -997,8 +999,8 @@ typedef struct bsurf_sample_report {
  * no faces: it is a point set. On failure `out` is left empty. `report` may
  * be NULL. */
 BSURF_API bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
-                               const bsurf_sample_options *opts,
-                               bsurf_sample_report *report);
+                                         const bsurf_sample_options *opts,
+                                         bsurf_sample_report *report);
 
 /* The unoriented angle in radians, in [0, pi/2], between two directions of
  * any non-zero length: atan2(|a x b|, |a . b|) of the normalised vectors,
@@ -1020,8 +1022,9 @@ typedef struct bsurf_angle_stats {
 
 /* Statistics of angles[i] over the points with mask[i] == keep (mask NULL:
  * all points). Sums run in point order (deterministic). angles in: count. */
-BSURF_API bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask, uint8_t keep,
-                                       size_t count, bsurf_angle_stats *stats);
+BSURF_API bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask,
+                                                 uint8_t keep, size_t count,
+                                                 bsurf_angle_stats *stats);
 
 /* Angle errors of estimated normals against ground-truth normals of the same
  * points in the same order (unoriented: a flipped normal has error 0).
@@ -1029,7 +1032,8 @@ BSURF_API bsurf_status bsurf_angle_stats_compute(const double *angles, const uin
  * (may be NULL). BSURF_ERR_INVALID_VALUE if a normal has zero length or is
  * not finite; *bad_index (may be NULL) is then the first such point. */
 BSURF_API bsurf_status bsurf_eval_normals(const double *result, const double *truth, size_t count,
-                                double *angles, bsurf_angle_stats *stats, size_t *bad_index);
+                                          double *angles, bsurf_angle_stats *stats,
+                                          size_t *bad_index);
 
 /* Splits points at the q-quantile of a per-point value (thesis 5.2.3, Table
  * 5.2: "the highest 15%" is q = 0.85). With the values sorted ascending as
@@ -1040,8 +1044,9 @@ BSURF_API bsurf_status bsurf_eval_normals(const double *result, const double *tr
  * the threshold are all low. high out: count, 1 = high, 0 = low (may be
  * NULL); threshold and high_count out (may be NULL). q in [0, 1];
  * BSURF_ERR_INVALID_VALUE (and *bad_index) for a NaN value. */
-BSURF_API bsurf_status bsurf_quantile_split(const double *values, size_t count, double q, uint8_t *high,
-                                  double *threshold, size_t *high_count, size_t *bad_index);
+BSURF_API bsurf_status bsurf_quantile_split(const double *values, size_t count, double q,
+                                            uint8_t *high, double *threshold, size_t *high_count,
+                                            size_t *bad_index);
 
 /* Precision, recall and F1 of detected features against ground truth
  * (feature = 1 / 0 per point). A ratio whose denominator is 0 is NAN
@@ -1052,8 +1057,8 @@ typedef struct bsurf_feature_stats {
 } bsurf_feature_stats;
 
 /* result, truth in: count (non-zero = feature). */
-BSURF_API bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth, size_t count,
-                                 bsurf_feature_stats *stats);
+BSURF_API bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth,
+                                           size_t count, bsurf_feature_stats *stats);
 
 /* Position error: the distance from points (e.g. a smoothed cloud) to the
  * true surface. */
@@ -1063,7 +1068,7 @@ BSURF_API bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t 
  * zero-area triangle is treated as its edges (never NaN for finite input).
  * closest out: 3, may be NULL. */
 BSURF_API double bsurf_triangle_distance(const double p[3], const double a[3], const double b[3],
-                               const double c[3], double closest[3]);
+                                         const double c[3], double closest[3]);
 
 /* A bounding-volume hierarchy over a mesh's triangles for exact distances. */
 typedef struct bsurf_mesh_index bsurf_mesh_index;
@@ -1080,7 +1085,7 @@ BSURF_API void bsurf_mesh_index_free(bsurf_mesh_index *index);
  * lowest face index). face out (may be NULL): that face; closest out: 3, may
  * be NULL. NAN for a non-finite p. Thread-safe (the index is read only). */
 BSURF_API double bsurf_mesh_distance(const bsurf_mesh_index *index, const double p[3], size_t *face,
-                           double closest[3]);
+                                     double closest[3]);
 
 typedef enum bsurf_surface_kind {
   BSURF_SURFACE_MESH = 0,     /* a triangle mesh: bsurf_mesh_distance */
@@ -1092,13 +1097,13 @@ typedef enum bsurf_surface_kind {
 /* The true surface of bsurf_position_errors; only the kind's members are read. */
 typedef struct bsurf_true_surface {
   bsurf_surface_kind kind;
-  const bsurf_mesh_index *mesh;  /* MESH */
-  bsurf_shape shape;             /* SHAPE */
-  const double *truth_xyz;       /* TANGENT_PLANE: truth_count x 3 */
-  const double *truth_normals;   /* TANGENT_PLANE: truth_count x 3, non-zero */
+  const bsurf_mesh_index *mesh; /* MESH */
+  bsurf_shape shape;            /* SHAPE */
+  const double *truth_xyz;      /* TANGENT_PLANE: truth_count x 3 */
+  const double *truth_normals;  /* TANGENT_PLANE: truth_count x 3, non-zero */
   size_t truth_count;
-  const uint32_t *match;         /* TANGENT_PLANE: point i corresponds to truth
-                                    point match[i] (count); NULL: to truth point i */
+  const uint32_t *match; /* TANGENT_PLANE: point i corresponds to truth
+                            point match[i] (count); NULL: to truth point i */
 } bsurf_true_surface;
 
 /* Per-point distance to the true surface, in parallel; the same for any
@@ -1107,14 +1112,16 @@ typedef struct bsurf_true_surface {
  * a distance is NaN (a zero truth normal, a non-finite point), the others
  * being filled. */
 BSURF_API bsurf_status bsurf_position_errors(const double *xyz, size_t count,
-                                   const bsurf_true_surface *surface, int threads, double *dist,
-                                   bsurf_progress_fn progress, void *progress_user);
+                                             const bsurf_true_surface *surface, int threads,
+                                             double *dist, bsurf_progress_fn progress,
+                                             void *progress_user);
 
 /* Correspondence of two clouds with different points: for each point of xyz
  * (count x 3) the nearest truth point (k-d tree; ties by the lower index).
  * match out: count. Parallel, deterministic. truth_count >= 1. */
-BSURF_API bsurf_status bsurf_match_nearest(const double *truth_xyz, size_t truth_count, const double *xyz,
-                                 size_t count, int threads, uint32_t *match);
+BSURF_API bsurf_status bsurf_match_nearest(const double *truth_xyz, size_t truth_count,
+                                           const double *xyz, size_t count, int threads,
+                                           uint32_t *match);
 
 /* Summary of distances. An empty set has count 0 and NAN elsewhere. */
 typedef struct bsurf_distance_stats {
@@ -1124,8 +1131,9 @@ typedef struct bsurf_distance_stats {
 
 /* Statistics of dist[i] over the points with mask[i] == keep (mask NULL:
  * all), summed in point order. dist in: count. */
-BSURF_API bsurf_status bsurf_distance_stats_compute(const double *dist, const uint8_t *mask, uint8_t keep,
-                                          size_t count, bsurf_distance_stats *stats);
+BSURF_API bsurf_status bsurf_distance_stats_compute(const double *dist, const uint8_t *mask,
+                                                    uint8_t keep, size_t count,
+                                                    bsurf_distance_stats *stats);
 
 /* ------------------------------------------------------------------------ */
 /* Distributed runs                                                          */
@@ -1188,20 +1196,20 @@ typedef struct bsurf_job_io {
  * here. */
 typedef struct bsurf_error_job_summary {
   size_t points;
-  double h;                  /* mean nearest-neighbour distance */
-  size_t duplicates;         /* points at the same place as another */
-  bsurf_error_report report; /* replicate and degree counters */
-  int field_count;           /* 8, or 10 with a test sample */
+  double h;                                        /* mean nearest-neighbour distance */
+  size_t duplicates;                               /* points at the same place as another */
+  bsurf_error_report report;                       /* replicate and degree counters */
+  int field_count;                                 /* 8, or 10 with a test sample */
   const char *field_names[BSURF_ERROR_JOB_FIELDS]; /* err_train, err_boot,
                                 err_loo, err_loo_center, err_632,
                                 err_632plus, gamma, overfit_rate (Eqs. 4.3-4.11),
                                 err_test, err_test_center */
-  double means[BSURF_ERROR_JOB_FIELDS]; /* each field's mean over the points,
-                                summed in point order (tiled: per tile, then
-                                over the tiles in order) */
-  size_t tile_points, tiles; /* tiled runs: the tile size used, the tiles */
-  size_t bad_point;          /* BSURF_ERR_INVALID_VALUE in a tiled run: the
-                                first non-finite point */
+  double means[BSURF_ERROR_JOB_FIELDS];            /* each field's mean over the points,
+                                           summed in point order (tiled: per tile, then
+                                           over the tiles in order) */
+  size_t tile_points, tiles;                       /* tiled runs: the tile size used, the tiles */
+  size_t bad_point;                                /* BSURF_ERR_INVALID_VALUE in a tiled run: the
+                                                      first non-finite point */
 } bsurf_error_job_summary;
 
 /* Bootstrap test error of every point (Algorithm 1, bsurf_estimate_error)

@@ -118,7 +118,8 @@ static void test_gamma_fast_equals_naive(void **state) {
     }
     bsurf_sort_doubles(ys, k);
     prefix[0] = 0;
-    for (int j = 0; j < k; j++) prefix[j + 1] = prefix[j] + ys[j];
+    for (int j = 0; j < k; j++)
+      prefix[j + 1] = prefix[j] + ys[j];
     double fast = bsurf_boot_gamma(k, pred, ys, prefix, scratch);
     double slow = bsurf_boot_gamma_naive(k, pred, yy);
     assert_true(fabs(fast - slow) <= 1e-12 * (1 + slow));
@@ -238,7 +239,8 @@ static void test_sort_doubles_stable(void **state) {
       }
       bsurf_sort_doubles(a, n);
       if (n <= 64) assert_memory_equal(a, ref, (size_t)n * sizeof *a);
-      for (int i = 1; i < n; i++) assert_true(a[i - 1] <= a[i]); /* qsort: order only */
+      for (int i = 1; i < n; i++)
+        assert_true(a[i - 1] <= a[i]); /* qsort: order only */
     }
 }
 

@@ -20,7 +20,8 @@ typedef struct {
 
 static void fields_alloc(fields *F, size_t n) {
   memset(F, 0, sizeof *F);
-  for (int t = 0; t < 10; t++) F->v[t] = calloc(n, sizeof(double));
+  for (int t = 0; t < 10; t++)
+    F->v[t] = calloc(n, sizeof(double));
   F->f.err_train = F->v[0];
   F->f.err_boot = F->v[1];
   F->f.err_loo = F->v[2];
@@ -34,7 +35,8 @@ static void fields_alloc(fields *F, size_t n) {
 }
 
 static void fields_free(fields *F) {
-  for (int t = 0; t < 10; t++) free(F->v[t]);
+  for (int t = 0; t < 10; t++)
+    free(F->v[t]);
 }
 
 /* Points on a plane (any orientation) are fitted exactly at every degree:
@@ -42,7 +44,8 @@ static void fields_free(fields *F) {
 static void test_plane_zero_error(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 2500, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 2500, BSURF_SAMPLING_RANDOM, 3, 0),
+                   BSURF_OK);
   /* tilt it: rotate about x by 0.7 rad and shift */
   for (size_t i = 0; i < c.point_count; i++) {
     double *p = &c.xyz[3 * i];
@@ -62,8 +65,10 @@ static void test_plane_zero_error(void **state) {
     bsurf_error_report rep;
     assert_int_equal(bsurf_estimate_error(c.xyz, &nb, c.xyz, &o, &F.f, &rep), BSURF_OK);
     for (size_t i = 0; i < c.point_count; i++)
-      for (int t = 0; t < 6; t++) assert_true(F.v[t][i] < 1e-9);
-    for (size_t i = 0; i < c.point_count; i++) assert_true(F.f.err_test[i] < 1e-9);
+      for (int t = 0; t < 6; t++)
+        assert_true(F.v[t][i] < 1e-9);
+    for (size_t i = 0; i < c.point_count; i++)
+      assert_true(F.f.err_test[i] < 1e-9);
     assert_int_equal(rep.degree_reduced, 0);
     fields_free(&F);
   }
@@ -74,12 +79,13 @@ static void test_plane_zero_error(void **state) {
 /* A random torus of about n points with gaussian noise 0.5 h along the
  * normals. */
 static void noisy_torus(bsurf_cloud *c, size_t n, uint64_t seed, uint64_t noise_seed) {
-  assert_int_equal(bsurf_generate(c, BSURF_SHAPE_TORUS, n, BSURF_SAMPLING_RANDOM, seed, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(c, BSURF_SHAPE_TORUS, n, BSURF_SAMPLING_RANDOM, seed, 0),
+                   BSURF_OK);
   double h;
   assert_int_equal(bsurf_mean_spacing(c->xyz, c->point_count, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c->xyz, c->normals, c->point_count, BSURF_NOISE_GAUSSIAN, 0.5, h,
-                                   noise_seed),
-                   BSURF_OK);
+  assert_int_equal(
+      bsurf_add_noise(c->xyz, c->normals, c->point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, noise_seed),
+      BSURF_OK);
 }
 
 /* Bit-identical results for 1 and 2 threads, and for two runs. */
@@ -154,7 +160,8 @@ static void test_degenerate_neighbourhoods(void **state) {
   bsurf_error_report rep;
   assert_int_equal(bsurf_estimate_error(xyz, &nb, NULL, &o, &F.f, &rep), BSURF_OK);
   for (int i = 0; i < N; i++)
-    for (int t = 0; t < 8; t++) assert_true(isfinite(F.v[t][i]));
+    for (int t = 0; t < 8; t++)
+      assert_true(isfinite(F.v[t][i]));
   assert_true(rep.degree_reduced >= 200);
   assert_true(rep.replicates_skipped > 0);
   assert_int_equal(rep.replicates_total, (size_t)N * 50);
@@ -198,7 +205,8 @@ static void test_sum_paths_agree(void **state) {
       assert_int_equal(bsurf_estimate_error(clouds[w], &nb, NULL, &o, &A.f, NULL), BSURF_OK);
       o.gamma = BSURF_GAMMA_MEAN;
       assert_int_equal(bsurf_estimate_error(clouds[w], &nb, NULL, &o, &M.f, NULL), BSURF_OK);
-      for (int t = 0; t < 5; t++) assert_memory_equal(A.v[t], M.v[t], n * sizeof(double));
+      for (int t = 0; t < 5; t++)
+        assert_memory_equal(A.v[t], M.v[t], n * sizeof(double));
       fields_free(&A);
       fields_free(&M);
       bsurf_neighbors_free(&nb);
@@ -216,7 +224,8 @@ static int cancel_cb(void *user, size_t done, size_t total) {
 static void test_arguments(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 500, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 500, BSURF_SAMPLING_REGULAR, 1, 0),
+                   BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 20, 1, NULL, NULL), BSURF_OK);
   fields F;
@@ -226,7 +235,8 @@ static void test_arguments(void **state) {
   assert_int_equal(bsurf_estimate_error(c.xyz, &nb, NULL, &o, &F.f, NULL), BSURF_ERR_INVALID_ARG);
   o.k = 12;
   o.degree = 4; /* 15 terms > 12 points */
-  assert_int_equal(bsurf_estimate_error(c.xyz, &nb, NULL, &o, &F.f, NULL), BSURF_ERR_TOO_FEW_POINTS);
+  assert_int_equal(bsurf_estimate_error(c.xyz, &nb, NULL, &o, &F.f, NULL),
+                   BSURF_ERR_TOO_FEW_POINTS);
   o.degree = 5;
   assert_int_equal(bsurf_estimate_error(c.xyz, &nb, NULL, &o, &F.f, NULL), BSURF_ERR_INVALID_ARG);
   o.degree = 2;
@@ -236,7 +246,8 @@ static void test_arguments(void **state) {
   o.progress = NULL;
   o.bootstrap = 0;
   assert_int_equal(bsurf_estimate_error(c.xyz, &nb, NULL, &o, &F.f, NULL), BSURF_OK);
-  for (size_t i = 0; i < c.point_count; i++) assert_true(F.f.err_632plus[i] == F.f.err_train[i]);
+  for (size_t i = 0; i < c.point_count; i++)
+    assert_true(F.f.err_632plus[i] == F.f.err_train[i]);
   fields_free(&F);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);

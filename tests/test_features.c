@@ -20,14 +20,16 @@ static bsurf_feature_stats detect(const bsurf_cloud *c, const bsurf_feature_opti
   bsurf_feature_report rep;
   assert_int_equal(bsurf_detect_features(c->xyz, &nb, o, feat, score, &rep), BSURF_OK);
   size_t count = 0;
-  for (size_t i = 0; i < c->point_count; i++) count += feat[i];
+  for (size_t i = 0; i < c->point_count; i++)
+    count += feat[i];
   assert_int_equal(count, rep.feature_points);
   bsurf_feature_stats s;
   memset(&s, 0, sizeof s);
   bsurf_field *truth = bsurf_cloud_field(c, "feature");
   if (truth) {
     uint8_t *t = malloc(c->point_count);
-    for (size_t i = 0; i < c->point_count; i++) t[i] = truth->values[i] != 0;
+    for (size_t i = 0; i < c->point_count; i++)
+      t[i] = truth->values[i] != 0;
     assert_int_equal(bsurf_eval_features(feat, t, c->point_count, &s), BSURF_OK);
     free(t);
   }
@@ -40,13 +42,15 @@ static bsurf_feature_stats detect(const bsurf_cloud *c, const bsurf_feature_opti
 static void test_plane_no_features(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 4000, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 4000, BSURF_SAMPLING_RANDOM, 3, 0),
+                   BSURF_OK);
   uint8_t *feat = malloc(c.point_count);
   double *score = malloc(c.point_count * sizeof(double));
   bsurf_feature_options o = bsurf_feature_options_default();
   detect(&c, &o, o.k_max, feat, score);
   size_t count = 0;
-  for (size_t i = 0; i < c.point_count; i++) count += feat[i];
+  for (size_t i = 0; i < c.point_count; i++)
+    count += feat[i];
   assert_int_equal(count, 0);
   /* variance with a fixed threshold well above the flat-area level (the
    * auto rule always finds "a tail", so it is not asked on a featureless
@@ -57,7 +61,8 @@ static void test_plane_no_features(void **state) {
   o.threshold = 1e-6;
   detect(&c, &o, 20, feat, score);
   count = 0;
-  for (size_t i = 0; i < c.point_count; i++) count += feat[i];
+  for (size_t i = 0; i < c.point_count; i++)
+    count += feat[i];
   assert_int_equal(count, 0);
   free(feat);
   free(score);
@@ -70,7 +75,8 @@ static void test_plane_no_features(void **state) {
 static void test_cube_edges_distance(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 1.0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 1.0),
+                   BSURF_OK);
   uint8_t *feat = malloc(c.point_count);
   double *score = malloc(c.point_count * sizeof(double));
   bsurf_feature_options o = bsurf_feature_options_default();
@@ -79,9 +85,11 @@ static void test_cube_edges_distance(void **state) {
   assert_true(s.recall > 0.9);
   assert_true(s.precision > 0.8);
   /* the score of the detected points is <= 0, the rest positive */
-  for (size_t i = 0; i < c.point_count; i++) assert_int_equal(feat[i], score[i] <= 0);
+  for (size_t i = 0; i < c.point_count; i++)
+    assert_int_equal(feat[i], score[i] <= 0);
   bsurf_cloud_free(&c);
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 2.0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 2.0),
+                   BSURF_OK);
   o.threshold = NAN;
   s = detect(&c, &o, o.k_max, feat, score);
   assert_true(s.recall > 0.95);
@@ -100,7 +108,8 @@ static void test_cube_edges_distance(void **state) {
 static void test_distance_auto_rule(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 2.0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 2.0),
+                   BSURF_OK);
   const size_t n = c.point_count;
   bsurf_neighbors nb;
   bsurf_feature_options o = bsurf_feature_options_default();
@@ -131,7 +140,8 @@ static void test_distance_auto_rule(void **state) {
   assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, feat2, score2, &rep), BSURF_OK);
   assert_true(rep.ratio_threshold_kmin > 2 * o.ratio_threshold); /* noise 1.0: f(k_min) ~ 0.15 */
   assert_true(rep.threshold > 0 && rep.threshold < rep.max_radius);
-  for (size_t i = 0; i < n; i++) assert_int_equal(feat2[i], score2[i] <= rep.threshold);
+  for (size_t i = 0; i < n; i++)
+    assert_int_equal(feat2[i], score2[i] <= rep.threshold);
   /* the sampled medians and the split are thread-independent */
   assert_memory_equal(feat, feat2, n);
   assert_memory_equal(score, score2, n * sizeof(double));
@@ -150,7 +160,8 @@ static void test_distance_auto_rule(void **state) {
 static void test_cube_edges_variance(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 2.0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 12000, BSURF_SAMPLING_REGULAR, 1, 2.0),
+                   BSURF_OK);
   double h;
   assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 0, &h), BSURF_OK);
   assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_UNIFORM, 0.5, h, 7),
@@ -173,7 +184,8 @@ static void test_cube_edges_variance(void **state) {
 static void test_incremental_pca(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 5, 2.0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 5, 2.0),
+                   BSURF_OK);
   const int k = 60;
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, k, 1, NULL, NULL), BSURF_OK);
@@ -197,11 +209,12 @@ static void test_incremental_pca(void **state) {
 static void test_threads(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 5000, BSURF_SAMPLING_RANDOM, 9, 2.0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 5000, BSURF_SAMPLING_RANDOM, 9, 2.0),
+                   BSURF_OK);
   double h;
   assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 0, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, h, 2),
-                   BSURF_OK);
+  assert_int_equal(
+      bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, h, 2), BSURF_OK);
   size_t n = c.point_count;
   uint8_t *f1 = malloc(n), *f2 = malloc(n);
   double *s1 = malloc(n * sizeof(double)), *s2 = malloc(n * sizeof(double));
@@ -233,21 +246,26 @@ static void test_tail_threshold(void **state) {
   bsurf_rng r;
   bsurf_rng_init(&r, 11, 0, 0);
   for (size_t i = 0; i < n; i++)
-    v[i] = i < tail ? 0.05 * exp(0.2 * bsurf_rng_normal(&r)) : 0.001 * exp(0.3 * bsurf_rng_normal(&r));
+    v[i] =
+        i < tail ? 0.05 * exp(0.2 * bsurf_rng_normal(&r)) : 0.001 * exp(0.3 * bsurf_rng_normal(&r));
   for (int rule = 0; rule < 2; rule++) {
     double t;
     assert_int_equal(bsurf_tail_threshold(v, n, (bsurf_tail_rule)rule, &t), BSURF_OK);
     size_t above_bulk = 0, above_tail = 0;
     for (size_t i = 0; i < n; i++) {
-      if (i < tail) above_tail += v[i] > t;
-      else above_bulk += v[i] > t;
+      if (i < tail)
+        above_tail += v[i] > t;
+      else
+        above_bulk += v[i] > t;
     }
     assert_true(above_tail >= tail * 99 / 100);
     assert_true(above_bulk <= (n - tail) / 100);
   }
-  assert_int_equal(bsurf_tail_threshold(v, 1, BSURF_TAIL_OTSU, &(double){0}), BSURF_ERR_TOO_FEW_POINTS);
+  assert_int_equal(bsurf_tail_threshold(v, 1, BSURF_TAIL_OTSU, &(double){0}),
+                   BSURF_ERR_TOO_FEW_POINTS);
   v[3] = NAN;
-  assert_int_equal(bsurf_tail_threshold(v, n, BSURF_TAIL_MAD, &(double){0}), BSURF_ERR_INVALID_VALUE);
+  assert_int_equal(bsurf_tail_threshold(v, n, BSURF_TAIL_MAD, &(double){0}),
+                   BSURF_ERR_INVALID_VALUE);
   free(v);
 }
 
@@ -271,12 +289,14 @@ static void test_eval_features(void **state) {
 static void test_bad_args(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 500, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 500, BSURF_SAMPLING_RANDOM, 3, 0),
+                   BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 20, 1, NULL, NULL), BSURF_OK);
   uint8_t f[500];
   bsurf_feature_options o = bsurf_feature_options_default();
-  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG); /* k_max > nb.k */
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL),
+                   BSURF_ERR_INVALID_ARG); /* k_max > nb.k */
   o.k_max = 20;
   o.k_min = 25;
   assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
@@ -292,10 +312,14 @@ static void test_bad_args(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_plane_no_features), cmocka_unit_test(test_cube_edges_distance),
-      cmocka_unit_test(test_cube_edges_variance), cmocka_unit_test(test_incremental_pca),
-      cmocka_unit_test(test_threads),           cmocka_unit_test(test_tail_threshold),
-      cmocka_unit_test(test_eval_features),     cmocka_unit_test(test_bad_args),
+      cmocka_unit_test(test_plane_no_features),
+      cmocka_unit_test(test_cube_edges_distance),
+      cmocka_unit_test(test_cube_edges_variance),
+      cmocka_unit_test(test_incremental_pca),
+      cmocka_unit_test(test_threads),
+      cmocka_unit_test(test_tail_threshold),
+      cmocka_unit_test(test_eval_features),
+      cmocka_unit_test(test_bad_args),
       cmocka_unit_test(test_distance_auto_rule),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -45,10 +45,12 @@ static void check_cloud(bsurf_status st, const bsurf_cloud *c, const bsurf_failu
     assert_non_null(memchr(f->name, '\0', sizeof f->name));
     assert_true(f->name[0] != '\0');
     assert_true(c->point_count == 0 || f->values != NULL);
-    for (size_t k = 0; k < i; k++) assert_string_not_equal(c->fields[k].name, f->name);
+    for (size_t k = 0; k < i; k++)
+      assert_string_not_equal(c->fields[k].name, f->name);
   }
   assert_true(c->face_count == 0 || c->faces != NULL);
-  for (size_t i = 0; i < 3 * c->face_count; i++) assert_true(c->faces[i] < c->point_count);
+  for (size_t i = 0; i < 3 * c->face_count; i++)
+    assert_true(c->faces[i] < c->point_count);
   assert_non_null(memchr(c->shape, '\0', sizeof c->shape));
 }
 

@@ -49,8 +49,9 @@ static int count_files(const char *dir, const char *needle) {
 
 /* 5 points with normals, a FLOAT32 and a UINT8 field, 3 triangles. */
 static void make_cloud(bsurf_cloud *c) {
-  static const double xyz[15] = {0.1, 0.2, 0.3, 1.0 / 3.0, -2.0 / 7.0, 1e-300, -12345.678901234567,
-                                 6.02214076e23, 0.0, 1.0, 2.0, 3.0, -0.5, 0.25, 1e17 + 1};
+  static const double xyz[15] = {
+      0.1, 0.2, 0.3, 1.0 / 3.0, -2.0 / 7.0, 1e-300,  -12345.678901234567, 6.02214076e23, 0.0,
+      1.0, 2.0, 3.0, -0.5,      0.25,       1e17 + 1};
   assert_int_equal(bsurf_cloud_alloc(c, 5, 1), BSURF_OK);
   memcpy(c->xyz, xyz, sizeof xyz);
   for (size_t i = 0; i < 5; i++) {
@@ -62,10 +63,12 @@ static void make_cloud(bsurf_cloud *c) {
   c->normal_type = BSURF_FLOAT64;
   bsurf_field *f = bsurf_cloud_add_field(c, "intensity", BSURF_FLOAT32);
   assert_non_null(f);
-  for (size_t i = 0; i < 5; i++) f->values[i] = (double)(float)(0.1 * (double)i);
+  for (size_t i = 0; i < 5; i++)
+    f->values[i] = (double)(float)(0.1 * (double)i);
   f = bsurf_cloud_add_field(c, "label", BSURF_UINT8);
   assert_non_null(f);
-  for (size_t i = 0; i < 5; i++) f->values[i] = (double)(i * 60);
+  for (size_t i = 0; i < 5; i++)
+    f->values[i] = (double)(i * 60);
   static const uint32_t faces[9] = {0, 1, 2, 2, 3, 4, 4, 3, 0};
   c->faces = malloc(sizeof faces);
   assert_non_null(c->faces);
@@ -259,12 +262,14 @@ static void test_off_errors(void **state) {
   (void)state;
   expect_fail("", BSURF_FORMAT_OFF, -1, "not an OFF file");
   expect_fail("PLY\n1 0 0\n0 0 0\n", BSURF_FORMAT_OFF, 1, "not an OFF file");
-  expect_fail("OFF\n3 1 0\n0 0 0\n1 0 0\n", BSURF_FORMAT_OFF, 5, "vertex 2: unexpected end of file");
+  expect_fail("OFF\n3 1 0\n0 0 0\n1 0 0\n", BSURF_FORMAT_OFF, 5,
+              "vertex 2: unexpected end of file");
   expect_fail("OFF\n3 2 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n", BSURF_FORMAT_OFF, 7,
               "face 1: unexpected end of file");
   expect_fail("OFF\n3 1 0\n0 0 0\n1 0\n0 1 0\n3 0 1 2\n", BSURF_FORMAT_OFF, 4,
               "vertex 1: expected 3 values, found 2");
-  expect_fail("OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n", BSURF_FORMAT_OFF, 4, "'x' is not a number");
+  expect_fail("OFF\n3 1 0\n0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n", BSURF_FORMAT_OFF, 4,
+              "'x' is not a number");
   expect_fail("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 3\n", BSURF_FORMAT_OFF, 6,
               "face 0: vertex index '3' is out of range");
   expect_fail("OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n4 0 1 2\n", BSURF_FORMAT_OFF, 6,
@@ -318,7 +323,8 @@ static void test_obj_read(void **state) {
   assert_int_equal(read_fmt(flat, BSURF_FORMAT_OBJ, &c, &e), BSURF_OK);
   assert_int_equal(c.face_count, 2);
   assert_non_null(c.normals);
-  for (int i = 0; i < 4; i++) assert_true(c.normals[3 * i + 2] == 1);
+  for (int i = 0; i < 4; i++)
+    assert_true(c.normals[3 * i + 2] == 1);
   bsurf_cloud_free(&c);
 
   /* a vertex no corner gives a normal: no normals at all */
@@ -387,7 +393,10 @@ static void test_xyz_read(void **state) {
   bsurf_cloud_free(&c);
 
   /* a UTF-8 byte order mark is skipped */
-  assert_int_equal(read_fmt("\xEF\xBB\xBF" "1 2 3\n", BSURF_FORMAT_XYZ, &c, &e), BSURF_OK);
+  assert_int_equal(read_fmt("\xEF\xBB\xBF"
+                            "1 2 3\n",
+                            BSURF_FORMAT_XYZ, &c, &e),
+                   BSURF_OK);
   assert_int_equal(c.point_count, 1);
   bsurf_cloud_free(&c);
 
@@ -400,7 +409,8 @@ static void test_xyz_read(void **state) {
   assert_int_equal(c.point_count, 0);
   bsurf_cloud_free(&c);
 
-  expect_fail("1 2 3\n4 5 6\n7 8\n", BSURF_FORMAT_XYZ, 3, "expected 3 values like the first point (line 1), found 2");
+  expect_fail("1 2 3\n4 5 6\n7 8\n", BSURF_FORMAT_XYZ, 3,
+              "expected 3 values like the first point (line 1), found 2");
   expect_fail("# c\n1 2 3 4\n4 5 6 7 8\n", BSURF_FORMAT_XYZ, 3, "found 5");
   expect_fail("1 2\n", BSURF_FORMAT_XYZ, 1, "at least 3");
   expect_fail("1 2 3\n4 five 6\n", BSURF_FORMAT_XYZ, 2, "'five' is not a number");
@@ -410,8 +420,8 @@ static void test_xyz_read(void **state) {
  * reading past it (ASan checks with an exact-size copy). */
 static void test_unterminated_buffers(void **state) {
   (void)state;
-  static const char *texts[4] = {"1 2 3\n4 5 6.25", "OFF\n1 0 0\n1 2 3.5",
-                                 "v 1 2 3\nv 4 5 6.75", "ply\nformat ascii 1.0\nelement vertex 1\n"
+  static const char *texts[4] = {"1 2 3\n4 5 6.25", "OFF\n1 0 0\n1 2 3.5", "v 1 2 3\nv 4 5 6.75",
+                                 "ply\nformat ascii 1.0\nelement vertex 1\n"
                                  "property double x\nproperty double y\nproperty double z\n"
                                  "end_header\n1 2 3.125"};
   static const bsurf_format fmts[4] = {BSURF_FORMAT_XYZ, BSURF_FORMAT_OFF, BSURF_FORMAT_OBJ,
@@ -462,7 +472,9 @@ static void test_number_conversions(void **state) {
     }
     case 1: v = ldexp((double)(xorshift(&s) >> 11), (int)(xorshift(&s) % 200) - 150); break;
     case 2: v = (double)(xorshift(&s) % 2000000) / pow(10, (double)(xorshift(&s) % 12)); break;
-    case 3: v = nextafter(pow(10, (double)((int)(xorshift(&s) % 60) - 30)), i % 2 ? 0 : 1e300); break;
+    case 3:
+      v = nextafter(pow(10, (double)((int)(xorshift(&s) % 60) - 30)), i % 2 ? 0 : 1e300);
+      break;
     default: v = (double)(float)ldexp((double)(xorshift(&s) >> 40), (int)(xorshift(&s) % 80) - 60);
     }
     if (isnan(v)) continue;
@@ -648,15 +660,23 @@ static void test_empty_cloud(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_roundtrip_ply_binary), cmocka_unit_test(test_roundtrip_ply_ascii),
-      cmocka_unit_test(test_roundtrip_off),        cmocka_unit_test(test_roundtrip_obj),
-      cmocka_unit_test(test_roundtrip_xyz),        cmocka_unit_test(test_ply_write_conversions),
-      cmocka_unit_test(test_off_read),             cmocka_unit_test(test_off_errors),
-      cmocka_unit_test(test_obj_read),             cmocka_unit_test(test_obj_errors),
-      cmocka_unit_test(test_xyz_read),             cmocka_unit_test(test_unterminated_buffers),
+      cmocka_unit_test(test_roundtrip_ply_binary),
+      cmocka_unit_test(test_roundtrip_ply_ascii),
+      cmocka_unit_test(test_roundtrip_off),
+      cmocka_unit_test(test_roundtrip_obj),
+      cmocka_unit_test(test_roundtrip_xyz),
+      cmocka_unit_test(test_ply_write_conversions),
+      cmocka_unit_test(test_off_read),
+      cmocka_unit_test(test_off_errors),
+      cmocka_unit_test(test_obj_read),
+      cmocka_unit_test(test_obj_errors),
+      cmocka_unit_test(test_xyz_read),
+      cmocka_unit_test(test_unterminated_buffers),
       cmocka_unit_test(test_number_conversions),
-      cmocka_unit_test(test_formats_from_path),    cmocka_unit_test(test_read_file_errors),
-      cmocka_unit_test(test_atomic_write),         cmocka_unit_test(test_empty_cloud),
+      cmocka_unit_test(test_formats_from_path),
+      cmocka_unit_test(test_read_file_errors),
+      cmocka_unit_test(test_atomic_write),
+      cmocka_unit_test(test_empty_cloud),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -103,7 +103,8 @@ static void test_ply_binary_big_endian(void **state) {
   /* the quad 0 1 2 3 with a texcoord list of 1 float */
   put_uint(&b, 9, 1, 1);
   put_uint(&b, 4, 1, 1);
-  for (int i = 0; i < 4; i++) put_uint(&b, (uint64_t)i, 4, 1);
+  for (int i = 0; i < 4; i++)
+    put_uint(&b, (uint64_t)i, 4, 1);
   put_uint(&b, 1, 2, 1);
   put_f32(&b, 0.5f, 1);
 
@@ -116,8 +117,8 @@ static void test_ply_binary_big_endian(void **state) {
   assert_non_null(c.normals);
   assert_int_equal(c.field_count, 7);
   static const char *names[7] = {"red", "c", "s", "us", "i", "u", "d"};
-  static const bsurf_type types[7] = {BSURF_UINT8,  BSURF_INT8,   BSURF_INT16,  BSURF_UINT16,
-                                      BSURF_INT32,  BSURF_UINT32, BSURF_FLOAT64};
+  static const bsurf_type types[7] = {BSURF_UINT8, BSURF_INT8,   BSURF_INT16,  BSURF_UINT16,
+                                      BSURF_INT32, BSURF_UINT32, BSURF_FLOAT64};
   for (int k = 0; k < 7; k++) {
     assert_string_equal(c.fields[k].name, names[k]);
     assert_int_equal(c.fields[k].type, types[k]);
@@ -295,8 +296,8 @@ static void test_ply_header_errors(void **state) {
   expect_fail("ply\nformat ascii 1.0\nelement vertex 1\n" HDR3
               "property half h\nend_header\n0 0 0 1\n",
               BSURF_ERR_PARSE, 7, "unknown property type 'half'");
-  expect_fail("ply\nformat ascii 1.0\nelement vertex -1\n" HDR3 "end_header\n", BSURF_ERR_PARSE,
-              3, "element count");
+  expect_fail("ply\nformat ascii 1.0\nelement vertex -1\n" HDR3 "end_header\n", BSURF_ERR_PARSE, 3,
+              "element count");
   expect_fail("ply\nformat ascii 1.0\nproperty float x\nend_header\n", BSURF_ERR_PARSE, 3,
               "before any element");
   expect_fail("ply\nformat ascii 1.0\nelement face 0\nproperty list uchar int vertex_indices\n"
@@ -311,9 +312,9 @@ static void test_ply_header_errors(void **state) {
 
 static void test_ply_ascii_data_errors(void **state) {
   (void)state;
-  const char *hdr = "ply\nformat ascii 1.0\nelement vertex 3\n" HDR3
-                    "property uchar red\nproperty float s\n"
-                    "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
+  const char *hdr =
+      "ply\nformat ascii 1.0\nelement vertex 3\n" HDR3 "property uchar red\nproperty float s\n"
+      "element face 1\nproperty list uchar int vertex_indices\nend_header\n";
   char s[1024];
   /* header line count: 11, so data starts on line 12 */
   snprintf(s, sizeof s, "%s0 0 0 1 1\n1 0 0 1 1\n0 1 0\n3 0 1 2\n", hdr);
@@ -352,7 +353,8 @@ static void test_ply_binary_data_errors(void **state) {
   buf b = {{0}, 0};
   put_str(&b, "ply\nformat binary_little_endian 1.0\nelement vertex 10\n" HDR3 "end_header\n");
   size_t body = b.n;
-  for (int i = 0; i < 5 * 3; i++) put_f32(&b, (float)i, 0);
+  for (int i = 0; i < 5 * 3; i++)
+    put_f32(&b, (float)i, 0);
   put_uint(&b, 0, 2, 0); /* a partial sixth vertex */
   bsurf_cloud c;
   bsurf_failure e;
@@ -367,7 +369,8 @@ static void test_ply_binary_data_errors(void **state) {
   for (int variant = 0; variant < 2; variant++) {
     buf t = {{0}, 0};
     put_str(&t, "ply\nformat binary_little_endian 1.0\nelement vertex 2\n" HDR3 "end_header\n");
-    for (int i = 0; i < 6; i++) put_f32(&t, (float)i, 0);
+    for (int i = 0; i < 6; i++)
+      put_f32(&t, (float)i, 0);
     size_t end = t.n;
     put_str(&t, variant ? "\n" : "\x01\x02\x03");
     bsurf_status st = bsurf_read_buffer(t.d, t.n, BSURF_FORMAT_PLY, &c, &e);
@@ -388,7 +391,8 @@ static void test_ply_binary_data_errors(void **state) {
   for (int variant = 0; variant < 2; variant++) {
     buf f = {{0}, 0};
     put_str(&f, fh);
-    for (int i = 0; i < 9; i++) put_f32(&f, 1.0f, 1);
+    for (int i = 0; i < 9; i++)
+      put_f32(&f, 1.0f, 1);
     size_t face_at = f.n;
     put_uint(&f, variant ? 200 : 3, 1, 1);
     put_uint(&f, 0, 4, 1);
@@ -413,8 +417,7 @@ static void test_ply_huge_counts(void **state) {
   for (int k = 0; k < 3; k++) {
     char s[512];
     snprintf(s, sizeof s,
-             "ply\nformat %s 1.0\nelement vertex 99999999999\n" HDR3
-             "end_header\n0 0 0\n1 1 1\n",
+             "ply\nformat %s 1.0\nelement vertex 99999999999\n" HDR3 "end_header\n0 0 0\n1 1 1\n",
              fmts[k]);
     bsurf_cloud c;
     bsurf_failure e;
@@ -442,20 +445,22 @@ static void test_ply_huge_counts(void **state) {
 /* Random damage to a valid file never crashes or leaks (run under ASan). */
 static void test_ply_damaged(void **state) {
   (void)state;
-  const char *ascii = "ply\nformat ascii 1.0\nelement vertex 3\n" HDR3
-                      "property uchar red\nelement face 1\n"
-                      "property list uchar int vertex_indices\nend_header\n"
-                      "0 0 0 1\n1 0 0 2\n0 1 0 3\n3 0 1 2\n";
+  const char *ascii =
+      "ply\nformat ascii 1.0\nelement vertex 3\n" HDR3 "property uchar red\nelement face 1\n"
+      "property list uchar int vertex_indices\nend_header\n"
+      "0 0 0 1\n1 0 0 2\n0 1 0 3\n3 0 1 2\n";
   buf b = {{0}, 0};
   put_str(&b, "ply\nformat binary_little_endian 1.0\nelement vertex 3\n" HDR3
               "property uchar red\nelement face 1\n"
               "property list uchar int vertex_indices\nend_header\n");
   for (int i = 0; i < 3; i++) {
-    for (int k = 0; k < 3; k++) put_f32(&b, (float)(i == k), 0);
+    for (int k = 0; k < 3; k++)
+      put_f32(&b, (float)(i == k), 0);
     put_uint(&b, 9, 1, 0);
   }
   put_uint(&b, 3, 1, 0);
-  for (int i = 0; i < 3; i++) put_uint(&b, (uint64_t)i, 4, 0);
+  for (int i = 0; i < 3; i++)
+    put_uint(&b, (uint64_t)i, 4, 0);
 
   const unsigned char *src[2] = {(const unsigned char *)ascii, b.d};
   size_t len[2] = {strlen(ascii), b.n};
@@ -477,7 +482,8 @@ static void test_ply_damaged(void **state) {
       bsurf_failure e;
       bsurf_status st = bsurf_read_buffer(copy, n, BSURF_FORMAT_PLY, &c, &e);
       if (st == BSURF_OK) {
-        for (size_t i = 0; i < 3 * c.face_count; i++) assert_true(c.faces[i] < c.point_count);
+        for (size_t i = 0; i < 3 * c.face_count; i++)
+          assert_true(c.faces[i] < c.point_count);
         bsurf_cloud_free(&c);
       } else {
         assert_true(e.message[0] != '\0');
@@ -490,10 +496,14 @@ static void test_ply_damaged(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_ply_binary_big_endian), cmocka_unit_test(test_ply_binary_little_endian),
-      cmocka_unit_test(test_ply_ascii_crlf_comments), cmocka_unit_test(test_ply_empty_and_minimal),
-      cmocka_unit_test(test_ply_header_errors),       cmocka_unit_test(test_ply_ascii_data_errors),
-      cmocka_unit_test(test_ply_binary_data_errors),  cmocka_unit_test(test_ply_huge_counts),
+      cmocka_unit_test(test_ply_binary_big_endian),
+      cmocka_unit_test(test_ply_binary_little_endian),
+      cmocka_unit_test(test_ply_ascii_crlf_comments),
+      cmocka_unit_test(test_ply_empty_and_minimal),
+      cmocka_unit_test(test_ply_header_errors),
+      cmocka_unit_test(test_ply_ascii_data_errors),
+      cmocka_unit_test(test_ply_binary_data_errors),
+      cmocka_unit_test(test_ply_huge_counts),
       cmocka_unit_test(test_ply_damaged),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -22,7 +22,8 @@ static void test_eigen_known(void **state) {
   double A[3][3] = {{0}};
   for (int i = 0; i < 3; i++)
     for (int j = 0; j < 3; j++)
-      for (int k = 0; k < 3; k++) A[i][j] += R[i][k] * d[k] * R[j][k];
+      for (int k = 0; k < 3; k++)
+        A[i][j] += R[i][k] * d[k] * R[j][k];
   double ev[3], V[3][3];
   bsurf_eigen_sym3(A, ev, V);
   assert_true(fabs(ev[0] - 1) < 1e-12 && fabs(ev[1] - 2) < 1e-12 && fabs(ev[2] - 5) < 1e-12);
@@ -41,10 +42,12 @@ static void test_eigen_degenerate(void **state) {
   (void)state;
   double Z[3][3] = {{0}}, ev[3], V[3][3];
   bsurf_eigen_sym3(Z, ev, V);
-  for (int i = 0; i < 3; i++) assert_true(ev[i] == 0);
+  for (int i = 0; i < 3; i++)
+    assert_true(ev[i] == 0);
   double I[3][3] = {{2, 0, 0}, {0, 2, 0}, {0, 0, 2}};
   bsurf_eigen_sym3(I, ev, V);
-  for (int i = 0; i < 3; i++) assert_true(ev[i] == 2);
+  for (int i = 0; i < 3; i++)
+    assert_true(ev[i] == 2);
 }
 
 /* Points of a tilted plane through d: the frame's normal is the plane's
@@ -64,8 +67,10 @@ static void test_frame_tangent_plane_height_zero(void **state) {
   bsurf_rng rng;
   bsurf_rng_init(&rng, 7, 0, 0);
   for (int j = 0; j < K; j++) {
-    double a = j == 0 ? 0 : bsurf_rng_uniform(&rng) * 2 - 1, b = j == 0 ? 0 : bsurf_rng_uniform(&rng) * 2 - 1;
-    for (int t = 0; t < 3; t++) xyz[3 * j + t] = d[t] + a * u[t] / sqrt(5) + b * w[t] / sqrt(45);
+    double a = j == 0 ? 0 : bsurf_rng_uniform(&rng) * 2 - 1,
+           b = j == 0 ? 0 : bsurf_rng_uniform(&rng) * 2 - 1;
+    for (int t = 0; t < 3; t++)
+      xyz[3 * j + t] = d[t] + a * u[t] / sqrt(5) + b * w[t] / sqrt(45);
     idx[j] = (uint32_t)j;
   }
   for (int center = 0; center < 2; center++) {
@@ -78,13 +83,15 @@ static void test_frame_tangent_plane_height_zero(void **state) {
       bsurf_frame_to_local(&f, &xyz[3 * j], q);
       assert_true(fabs(q[2]) < 1e-12);
       bsurf_frame_to_global(&f, q, back); /* Eq. 3.6 inverts Eq. 3.5 */
-      for (int t = 0; t < 3; t++) assert_true(fabs(back[t] - xyz[3 * j + t]) < 1e-12);
+      for (int t = 0; t < 3; t++)
+        assert_true(fabs(back[t] - xyz[3 * j + t]) < 1e-12);
     }
     /* rows orthonormal and right-handed */
     for (int a = 0; a < 3; a++)
       for (int b = 0; b < 3; b++) {
         double s = 0;
-        for (int t = 0; t < 3; t++) s += f.rot[a][t] * f.rot[b][t];
+        for (int t = 0; t < 3; t++)
+          s += f.rot[a][t] * f.rot[b][t];
         assert_true(fabs(s - (a == b)) < 1e-12);
       }
     double cx = f.rot[0][1] * f.rot[1][2] - f.rot[0][2] * f.rot[1][1];
@@ -101,7 +108,8 @@ static void test_poly_basis_order(void **state) {
   double phi[15];
   bsurf_poly_basis(4, 2.0, 3.0, phi);
   double expect[15] = {1, 2, 3, 4, 6, 9, 8, 12, 18, 27, 16, 24, 36, 54, 81};
-  for (int i = 0; i < 15; i++) assert_true(phi[i] == expect[i]);
+  for (int i = 0; i < 15; i++)
+    assert_true(phi[i] == expect[i]);
   assert_int_equal(bsurf_poly_terms(1), 3);
   assert_int_equal(bsurf_poly_terms(2), 6);
   assert_int_equal(bsurf_poly_terms(3), 10);
@@ -111,7 +119,8 @@ static void test_poly_basis_order(void **state) {
 /* Identity frame at the origin: local coordinates are the coordinates. */
 static void identity_frame(bsurf_frame *f) {
   memset(f, 0, sizeof *f);
-  for (int t = 0; t < 3; t++) f->rot[t][t] = 1;
+  for (int t = 0; t < 3; t++)
+    f->rot[t][t] = 1;
 }
 
 /* A polynomial of degree M is recovered exactly by a degree-M fit (and
@@ -125,7 +134,8 @@ static void test_poly_exact_recovery(void **state) {
   bsurf_rng_init(&rng, 3, 1, 2);
   /* true coefficients in unscaled coordinates, graded order */
   double c_true[15];
-  for (int i = 0; i < 15; i++) c_true[i] = bsurf_rng_uniform(&rng) * 2 - 1;
+  for (int i = 0; i < 15; i++)
+    c_true[i] = bsurf_rng_uniform(&rng) * 2 - 1;
   for (int M = 1; M <= 4; M++) {
     int m = bsurf_poly_terms(M);
     for (int j = 0; j < K; j++) {
@@ -134,7 +144,8 @@ static void test_poly_exact_recovery(void **state) {
       double phi[15];
       bsurf_poly_basis(M, x, y, phi);
       double z = 0;
-      for (int a = 0; a < m; a++) z += c_true[a] * phi[a];
+      for (int a = 0; a < m; a++)
+        z += c_true[a] * phi[a];
       xyz[3 * j] = x;
       xyz[3 * j + 1] = y;
       xyz[3 * j + 2] = z;
@@ -148,20 +159,24 @@ static void test_poly_exact_recovery(void **state) {
     double coef[15], pred[K];
     assert_int_equal(bsurf_localfit_solve(&lf, M, NULL, coef), 0);
     bsurf_localfit_predict(&lf, M, 1, coef, NULL, pred);
-    for (int j = 0; j < K; j++) assert_true(fabs(pred[j] - xyz[3 * j + 2]) < 1e-9);
+    for (int j = 0; j < K; j++)
+      assert_true(fabs(pred[j] - xyz[3 * j + 2]) < 1e-9);
     /* a higher-degree fit of a lower-degree polynomial is exact too */
     if (M < 4) {
       assert_int_equal(bsurf_localfit_solve(&lf, 4, NULL, coef), 0);
       bsurf_localfit_predict(&lf, 4, 1, coef, NULL, pred);
-      for (int j = 0; j < K; j++) assert_true(fabs(pred[j] - xyz[3 * j + 2]) < 1e-9);
+      for (int j = 0; j < K; j++)
+        assert_true(fabs(pred[j] - xyz[3 * j + 2]) < 1e-9);
     }
     /* weighted (bootstrap-like) fit, and evaluation off the sample points */
     uint16_t counts[K];
-    for (int j = 0; j < K; j++) counts[j] = (uint16_t)(j % 3);
+    for (int j = 0; j < K; j++)
+      counts[j] = (uint16_t)(j % 3);
     assert_int_equal(bsurf_localfit_solve(&lf, M, counts, coef), 0);
     double phi[15], z = 0;
     bsurf_poly_basis(M, 0.7, -1.3, phi);
-    for (int a = 0; a < m; a++) z += c_true[a] * phi[a];
+    for (int a = 0; a < m; a++)
+      z += c_true[a] * phi[a];
     assert_true(fabs(bsurf_localfit_eval(&lf, M, coef, 0.7, -1.3) - z) < 1e-9);
     bsurf_localfit_free(&lf);
   }
@@ -181,7 +196,8 @@ static void test_residual_sums_equal_plain(void **state) {
   double xyz[3 * KMAX];
   uint32_t idx[KMAX];
   for (int j = 0; j < KMAX; j++) {
-    for (int t = 0; t < 3; t++) xyz[3 * j + t] = bsurf_rng_uniform(&rng) * 2 - 1;
+    for (int t = 0; t < 3; t++)
+      xyz[3 * j + t] = bsurf_rng_uniform(&rng) * 2 - 1;
     idx[j] = (uint32_t)j;
   }
   bsurf_frame f;
@@ -200,10 +216,13 @@ static void test_residual_sums_equal_plain(void **state) {
       for (size_t ib = 0; ib < sizeof Bs / sizeof *Bs; ib++)
         for (int mask = 0; mask < 3; mask++) {
           const int B = Bs[ib];
-          for (int i = 0; i < B * m; i++) coef[i] = bsurf_rng_uniform(&rng) * 2 - 1;
-          for (int i = 0; i < B * k; i++) counts[i] = (uint16_t)(bsurf_rng_next(&rng) % 3);
+          for (int i = 0; i < B * m; i++)
+            coef[i] = bsurf_rng_uniform(&rng) * 2 - 1;
+          for (int i = 0; i < B * k; i++)
+            counts[i] = (uint16_t)(bsurf_rng_next(&rng) % 3);
           /* none, every third, or one in the middle invalid */
-          for (int b = 0; b < B; b++) valid[b] = mask == 1 ? b % 3 != 1 : mask == 2 ? b != B / 2 : 1;
+          for (int b = 0; b < B; b++)
+            valid[b] = mask == 1 ? b % 3 != 1 : mask == 2 ? b != B / 2 : 1;
           const unsigned char *v = mask ? valid : NULL;
           bsurf_localfit_residual_sums(&lf, M, B, coef, v, counts, got[0], got[1], got[2]);
           for (int j = 0; j < k; j++) {
@@ -211,7 +230,8 @@ static void test_residual_sums_equal_plain(void **state) {
             for (int b = 0; b < B; b++) {
               if (v && !v[b]) continue;
               double p = 0;
-              for (int a = 0; a < m; a++) p += coef[b * m + a] * lf.phit[(size_t)a * lf.kp + j];
+              for (int a = 0; a < m; a++)
+                p += coef[b * m + a] * lf.phit[(size_t)a * lf.kp + j];
               const double e = fabs(p - lf.z[j]), w = counts[b * k + j] == 0 ? 1.0 : 0.0;
               s += e;
               o += w * e;
@@ -221,7 +241,8 @@ static void test_residual_sums_equal_plain(void **state) {
             want[1][j] = o;
             want[2][j] = c;
           }
-          for (int t = 0; t < 3; t++) assert_memory_equal(got[t], want[t], (size_t)k * sizeof(double));
+          for (int t = 0; t < 3; t++)
+            assert_memory_equal(got[t], want[t], (size_t)k * sizeof(double));
           cases++;
         }
     }
@@ -246,7 +267,8 @@ static void flat_patch(uint64_t seed, int K, flat_patch_t *p) {
   assert_true(K <= PATCH_MAX);
   bsurf_rng_init(&p->rng, seed, 2, 3);
   for (int j = 0; j < K; j++) {
-    for (int t = 0; t < 3; t++) p->xyz[3 * j + t] = bsurf_rng_uniform(&p->rng) * 2 - 1;
+    for (int t = 0; t < 3; t++)
+      p->xyz[3 * j + t] = bsurf_rng_uniform(&p->rng) * 2 - 1;
     p->xyz[3 * j + 2] *= 0.1;
     p->idx[j] = (uint32_t)j;
   }
@@ -318,7 +340,8 @@ static void test_draw_sums(void **state) {
         uint16_t draws[BMAX * KMAX];
         double W[(BMAX + 4) * KMAX], lanes[(BMAX + 4) * 64], dense[(BMAX + 4) * 64], row[64];
         for (int b = 0; b < R; b++)
-          for (int j = 0; j < K; j++) W[b * K + j] = b == B ? 1.0 : 0.0;
+          for (int j = 0; j < K; j++)
+            W[b * K + j] = b == B ? 1.0 : 0.0;
         for (int b = 0; b < B; b++)
           for (int t = 0; t < K; t++) {
             const uint16_t j = (uint16_t)(bsurf_rng_next(&pt.rng) % (uint64_t)K);
@@ -334,11 +357,13 @@ static void test_draw_sums(void **state) {
           for (int c = 0; c < nc; c++) {
             double x = 0;
             if (b < B)
-              for (int t = 0; t < K; t++) x += pt.lf.op[(size_t)draws[b * K + t] * nc + c];
+              for (int t = 0; t < K; t++)
+                x += pt.lf.op[(size_t)draws[b * K + t] * nc + c];
             ref[c] = x;
             if (b < B) {
               double mag = 0;
-              for (int j = 0; j < K; j++) mag += W[b * K + j] * fabs(pt.lf.op[(size_t)j * nc + c]);
+              for (int j = 0; j < K; j++)
+                mag += W[b * K + j] * fabs(pt.lf.op[(size_t)j * nc + c]);
               assert_true(fabs(row[c] - dref[c]) <= 1e-14 * mag);
             }
           }
@@ -370,7 +395,8 @@ static void test_rank_deficient_detected(void **state) {
   assert_int_equal(bsurf_localfit_alloc(&lf, K, 4), BSURF_OK);
   bsurf_localfit_setup(&lf, xyz, idx, K, &f, 4);
   double coef[15];
-  for (int M = 1; M <= 4; M++) assert_int_equal(bsurf_localfit_solve(&lf, M, NULL, coef), -1);
+  for (int M = 1; M <= 4; M++)
+    assert_int_equal(bsurf_localfit_solve(&lf, M, NULL, coef), -1);
   assert_int_equal(bsurf_localfit_solve(&lf, 0, NULL, coef), 0);
   /* a weighted sample with fewer distinct points than terms */
   uint16_t counts[K] = {0};
@@ -400,17 +426,19 @@ static void test_rank_deficient_detected(void **state) {
 static void test_pca_noisy_plane(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 10000, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 10000, BSURF_SAMPLING_REGULAR, 1, 0),
+                   BSURF_OK);
   double h;
   assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 1, &h), BSURF_OK);
   assert_true(fabs(h - 0.02) < 1e-9);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, h, 5),
-                   BSURF_OK);
+  assert_int_equal(
+      bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, h, 5), BSURF_OK);
   double prev = 1e9;
   int ks[2] = {15, 60};
   for (int t = 0; t < 2; t++) {
     bsurf_neighbors nb;
-    assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, ks[t], 2, NULL, NULL), BSURF_OK);
+    assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, ks[t], 2, NULL, NULL),
+                     BSURF_OK);
     double sum = 0;
     size_t count = 0;
     for (size_t i = 0; i < c.point_count; i++) {

@@ -20,7 +20,8 @@ static double angle_u(const double *a, const double *b) {
 
 static double mean_angle(const double *n, const double *truth, size_t count) {
   double s = 0;
-  for (size_t i = 0; i < count; i++) s += angle_u(&n[3 * i], &truth[3 * i]);
+  for (size_t i = 0; i < count; i++)
+    s += angle_u(&n[3 * i], &truth[3 * i]);
   return s / count;
 }
 
@@ -29,7 +30,8 @@ static double mean_angle(const double *n, const double *truth, size_t count) {
 static void test_plane_exact(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 3000, BSURF_SAMPLING_RANDOM, 2, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 3000, BSURF_SAMPLING_RANDOM, 2, 0),
+                   BSURF_OK);
   const double a = 0.6;
   for (size_t i = 0; i < c.point_count; i++) {
     double *p = &c.xyz[3 * i], *n = &c.normals[3 * i];
@@ -41,8 +43,8 @@ static void test_plane_exact(void **state) {
   }
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 20, 2, NULL, NULL), BSURF_OK);
-  double *n = malloc(sizeof(double) * 3 * c.point_count), *v = malloc(sizeof(double) * c.point_count),
-         *e = malloc(sizeof(double) * c.point_count);
+  double *n = malloc(sizeof(double) * 3 * c.point_count),
+         *v = malloc(sizeof(double) * c.point_count), *e = malloc(sizeof(double) * c.point_count);
   for (int fit = 0; fit < 2; fit++)
     for (int center = 0; center < 2; center++)
       for (int degree = 1; degree <= (fit ? 4 : 1); degree++) {
@@ -75,7 +77,8 @@ static void test_plane_exact(void **state) {
 static void test_sphere_poly_normals(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 20000, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 20000, BSURF_SAMPLING_REGULAR, 1, 0),
+                   BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
   double *n = malloc(sizeof(double) * 3 * c.point_count);
@@ -103,12 +106,14 @@ static void test_sphere_poly_normals(void **state) {
 static void test_determinism_and_single_fit(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_TORUS, 8000, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_TORUS, 8000, BSURF_SAMPLING_RANDOM, 3, 0),
+                   BSURF_OK);
   double h;
   assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
   double *truth = malloc(sizeof(double) * 3 * c.point_count);
   memcpy(truth, c.normals, sizeof(double) * 3 * c.point_count);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 1), BSURF_OK);
+  assert_int_equal(
+      bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, h, 1), BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 30, 2, NULL, NULL), BSURF_OK);
   size_t n = c.point_count;
@@ -127,7 +132,8 @@ static void test_determinism_and_single_fit(void **state) {
     assert_int_equal(bsurf_estimate_normals(c.xyz, &nb, truth, &o, &fb, NULL), BSURF_OK);
     double single = mean_angle(b, truth, n);
     assert_true(fabs(boot - single) < 0.1 * single);
-    for (size_t i = 0; i < n; i++) assert_true(b[3 * n + i] == 0); /* no variance without replicates */
+    for (size_t i = 0; i < n; i++)
+      assert_true(b[3 * n + i] == 0); /* no variance without replicates */
   }
   free(a);
   free(b);
@@ -141,12 +147,14 @@ static void test_determinism_and_single_fit(void **state) {
 static void test_variance_flags_bad_normals(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 24000, BSURF_SAMPLING_REGULAR, 1, 2), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 24000, BSURF_SAMPLING_REGULAR, 1, 2),
+                   BSURF_OK);
   double h;
   assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
   double *truth = malloc(sizeof(double) * 3 * c.point_count);
   memcpy(truth, c.normals, sizeof(double) * 3 * c.point_count);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_UNIFORM, 0.5, h, 1), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_UNIFORM, 0.5, h, 1),
+                   BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 50, 2, NULL, NULL), BSURF_OK);
   size_t n = c.point_count;
@@ -160,9 +168,12 @@ static void test_variance_flags_bad_normals(void **state) {
   for (int it = 0; it < 60; it++) {
     double mid = 0.5 * (lo + hi);
     size_t above = 0;
-    for (size_t i = 0; i < n; i++) above += var[i] > mid;
-    if (above > 0.15 * n) lo = mid;
-    else hi = mid;
+    for (size_t i = 0; i < n; i++)
+      above += var[i] > mid;
+    if (above > 0.15 * n)
+      lo = mid;
+    else
+      hi = mid;
   }
   double eh = 0, el = 0;
   size_t ch = 0, cl = 0;
@@ -193,7 +204,8 @@ static void test_orientation_agreement(void **state) {
   (void)state;
   for (int s = 0; s < 2; s++) {
     bsurf_cloud c;
-    assert_int_equal(bsurf_generate(&c, s ? BSURF_SHAPE_TORUS : BSURF_SHAPE_SPHERE, 10000, BSURF_SAMPLING_REGULAR, 1, 0),
+    assert_int_equal(bsurf_generate(&c, s ? BSURF_SHAPE_TORUS : BSURF_SHAPE_SPHERE, 10000,
+                                    BSURF_SAMPLING_REGULAR, 1, 0),
                      BSURF_OK);
     size_t n = c.point_count;
     bsurf_neighbors nb;
@@ -208,7 +220,8 @@ static void test_orientation_agreement(void **state) {
     bsurf_rng_init(&rng, 5, 0, 0);
     for (size_t i = 0; i < n; i++)
       if (bsurf_rng_uniform(&rng) < 0.5)
-        for (int t = 0; t < 3; t++) nrm[3 * i + t] = -nrm[3 * i + t];
+        for (int t = 0; t < 3; t++)
+          nrm[3 * i + t] = -nrm[3 * i + t];
     assert_int_equal(bsurf_orient_normals(c.xyz, &nb, 12, nrm), BSURF_OK);
     for (size_t i = 0; i < n; i++) {
       const double *a = &nrm[3 * i], *b = &c.normals[3 * i];
@@ -226,7 +239,8 @@ static void test_orientation_agreement(void **state) {
 static void test_smoothing(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 10000, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 10000, BSURF_SAMPLING_REGULAR, 1, 0),
+                   BSURF_OK);
   size_t n = c.point_count;
   double h;
   assert_int_equal(bsurf_mean_spacing(c.xyz, n, 2, &h), BSURF_OK);
@@ -235,26 +249,31 @@ static void test_smoothing(void **state) {
   assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_GAUSSIAN, 1.0, h, 2), BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 15, 2, NULL, NULL), BSURF_OK);
-  double *nrm = malloc(sizeof(double) * 3 * n), *var = malloc(sizeof(double) * n), *copy = malloc(sizeof(double) * 3 * n);
+  double *nrm = malloc(sizeof(double) * 3 * n), *var = malloc(sizeof(double) * n),
+         *copy = malloc(sizeof(double) * 3 * n);
   bsurf_normal_options o = bsurf_normal_options_default();
   o.k = 15;
   bsurf_normal_fields out = {nrm, var, NULL};
   assert_int_equal(bsurf_estimate_normals(c.xyz, &nb, NULL, &o, &out, NULL), BSURF_OK);
   double before = mean_angle(nrm, truth, n);
   memcpy(copy, nrm, sizeof(double) * 3 * n);
-  assert_int_equal(bsurf_smooth_normals(c.xyz, &nb, 15, copy, var, 5, 0.0, h, INFINITY, 2), BSURF_OK);
-  for (size_t i = 0; i < 3 * n; i++) assert_true(fabs(copy[i] - nrm[i]) < 1e-15); /* only renormalised */
+  assert_int_equal(bsurf_smooth_normals(c.xyz, &nb, 15, copy, var, 5, 0.0, h, INFINITY, 2),
+                   BSURF_OK);
+  for (size_t i = 0; i < 3 * n; i++)
+    assert_true(fabs(copy[i] - nrm[i]) < 1e-15); /* only renormalised */
   memcpy(copy, nrm, sizeof(double) * 3 * n);
-  assert_int_equal(bsurf_smooth_normals(c.xyz, &nb, 15, copy, var, 10, 0.5, 2 * h, 0.01, 1), BSURF_OK);
+  assert_int_equal(bsurf_smooth_normals(c.xyz, &nb, 15, copy, var, 10, 0.5, 2 * h, 0.01, 1),
+                   BSURF_OK);
   double after = mean_angle(copy, truth, n);
   assert_true(after < 0.8 * before);
   double *copy2 = malloc(sizeof(double) * 3 * n);
   memcpy(copy2, nrm, sizeof(double) * 3 * n);
-  assert_int_equal(bsurf_smooth_normals(c.xyz, &nb, 15, copy2, var, 10, 0.5, 2 * h, 0.01, 2), BSURF_OK);
+  assert_int_equal(bsurf_smooth_normals(c.xyz, &nb, 15, copy2, var, 10, 0.5, 2 * h, 0.01, 2),
+                   BSURF_OK);
   assert_memory_equal(copy, copy2, sizeof(double) * 3 * n); /* 1 thread == 2 threads */
   for (size_t i = 0; i < n; i++)
-    assert_true(fabs(copy[3 * i] * copy[3 * i] + copy[3 * i + 1] * copy[3 * i + 1] + copy[3 * i + 2] * copy[3 * i + 2] - 1) <
-                1e-12);
+    assert_true(fabs(copy[3 * i] * copy[3 * i] + copy[3 * i + 1] * copy[3 * i + 1] +
+                     copy[3 * i + 2] * copy[3 * i + 2] - 1) < 1e-12);
   free(copy2);
   free(nrm);
   free(var);

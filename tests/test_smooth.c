@@ -50,19 +50,20 @@ static void surface(bsurf_cloud *c, size_t n, double qa, double qb, double qc, d
 
 /* Points on a generated shape (`sampling`) with gaussian noise of `level` h
  * along the normals; returns h, the clean sample's mean spacing. */
-static double noisy_sample(bsurf_cloud *c, bsurf_shape shape, size_t n, bsurf_sampling sampling, uint64_t seed,
-                           double feature_width, double level, uint64_t noise_seed) {
+static double noisy_sample(bsurf_cloud *c, bsurf_shape shape, size_t n, bsurf_sampling sampling,
+                           uint64_t seed, double feature_width, double level, uint64_t noise_seed) {
   assert_int_equal(bsurf_generate(c, shape, n, sampling, seed, feature_width), BSURF_OK);
   double h;
   assert_int_equal(bsurf_mean_spacing(c->xyz, c->point_count, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c->xyz, c->normals, c->point_count, BSURF_NOISE_GAUSSIAN, level, h, noise_seed),
+  assert_int_equal(bsurf_add_noise(c->xyz, c->normals, c->point_count, BSURF_NOISE_GAUSSIAN, level,
+                                   h, noise_seed),
                    BSURF_OK);
   return h;
 }
 
 /* noisy_sample with random sampling. */
-static double noisy_shape(bsurf_cloud *c, bsurf_shape shape, size_t n, uint64_t seed, double feature_width,
-                          double level, uint64_t noise_seed) {
+static double noisy_shape(bsurf_cloud *c, bsurf_shape shape, size_t n, uint64_t seed,
+                          double feature_width, double level, uint64_t noise_seed) {
   return noisy_sample(c, shape, n, BSURF_SAMPLING_RANDOM, seed, feature_width, level, noise_seed);
 }
 
@@ -139,7 +140,8 @@ static void test_noisy_plane_gets_flatter(void **state) {
   double *out = malloc(c.point_count * 3 * sizeof(double));
   double rms0 = 0;
   size_t inner = 0;
-  for (size_t i = 0; i < c.point_count; i++) rms0 += c.xyz[3 * i + 2] * c.xyz[3 * i + 2];
+  for (size_t i = 0; i < c.point_count; i++)
+    rms0 += c.xyz[3 * i + 2] * c.xyz[3 * i + 2];
   rms0 = sqrt(rms0 / c.point_count);
   for (int m = 0; m < 3; m++)
     for (int order = 0; order < 2; order++) {
@@ -148,7 +150,7 @@ static void test_noisy_plane_gets_flatter(void **state) {
       o.threshold = INFINITY;
       o.h2_fraction = 2.0; /* a wide error weight: smooth everywhere */
       o.iterations = 300;
-      o.guard = 0;              /* the thesis's methods (the guard: test_two_sheets) */
+      o.guard = 0; /* the thesis's methods (the guard: test_two_sheets) */
       bsurf_smooth_report r;
       assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, &r), BSURF_OK);
       double rms = 0;
@@ -160,7 +162,8 @@ static void test_noisy_plane_gets_flatter(void **state) {
         inner++;
       }
       rms = sqrt(rms / inner);
-      print_message("noisy plane, method %d order %d: rms %.3f h -> %.3f h\n", m, order, rms0 / h, rms / h);
+      print_message("noisy plane, method %d order %d: rms %.3f h -> %.3f h\n", m, order, rms0 / h,
+                    rms / h);
       /* multipass shrinks K_i to k_min (a plane fit of 10 points) wherever
        * W_i exceeds the mean error (Eq. 6.4): on pure noise that is half the
        * points, so it smooths less */
@@ -185,28 +188,30 @@ static void test_noisy_plane_gets_flatter(void **state) {
 static void test_two_sheets(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 8000, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 8000, BSURF_SAMPLING_RANDOM, 3, 0),
+                   BSURF_OK);
   double h;
   assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
   const size_t n = c.point_count;
   const double gap = 6 * h;
   /* even points on the sheet z = +gap/2, odd ones on z = -gap/2 */
-  for (size_t i = 0; i < n; i++) c.xyz[3 * i + 2] = (i % 2 ? -0.5 : 0.5) * gap;
+  for (size_t i = 0; i < n; i++)
+    c.xyz[3 * i + 2] = (i % 2 ? -0.5 : 0.5) * gap;
   assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_UNIFORM, 0.5, h, 13), BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 50, 2, NULL, NULL), BSURF_OK);
   double *out = malloc(n * 3 * sizeof(double));
   /* mean distance to the point's own sheet, away from the border */
-#define SHEET_ERR(P, res)                                                                                  \
-  do {                                                                                                     \
-    double s_ = 0;                                                                                         \
-    size_t m_ = 0;                                                                                         \
-    for (size_t i = 0; i < n; i++) {                                                                       \
-      if (fabs(c.xyz[3 * i]) > 0.8 || fabs(c.xyz[3 * i + 1]) > 0.8) continue;                              \
-      s_ += fabs((P)[3 * i + 2] - (i % 2 ? -0.5 : 0.5) * gap);                                             \
-      m_++;                                                                                                \
-    }                                                                                                      \
-    (res) = s_ / (double)m_;                                                                               \
+#define SHEET_ERR(P, res)                                                                          \
+  do {                                                                                             \
+    double s_ = 0;                                                                                 \
+    size_t m_ = 0;                                                                                 \
+    for (size_t i = 0; i < n; i++) {                                                               \
+      if (fabs(c.xyz[3 * i]) > 0.8 || fabs(c.xyz[3 * i + 1]) > 0.8) continue;                      \
+      s_ += fabs((P)[3 * i + 2] - (i % 2 ? -0.5 : 0.5) * gap);                                     \
+      m_++;                                                                                        \
+    }                                                                                              \
+    (res) = s_ / (double)m_;                                                                       \
   } while (0)
   double e0;
   SHEET_ERR(c.xyz, e0);
@@ -272,7 +277,8 @@ static void test_naive_threshold(void **state) {
   o.threshold = NAN;
   assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, &f, &r), BSURF_OK);
   double mean = 0;
-  for (size_t i = 0; i < n; i++) mean += e632p[i];
+  for (size_t i = 0; i < n; i++)
+    mean += e632p[i];
   mean /= n;
   assert_true(fabs((r.threshold) - (mean)) <= 1e-12 * mean);
   assert_true(fabs((r.mean_error) - (mean)) <= 1e-12 * mean);
@@ -341,14 +347,15 @@ typedef struct twin_runs {
 
 /* t->c's K-neighbourhoods and the two outputs. */
 static void twins_finish(twin_runs *t, int K) {
-  assert_int_equal(bsurf_neighbors_build(&t->nb, t->c.xyz, t->c.point_count, K, 2, NULL, NULL), BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(&t->nb, t->c.xyz, t->c.point_count, K, 2, NULL, NULL),
+                   BSURF_OK);
   t->n = t->c.point_count;
   t->a = malloc(t->n * 3 * sizeof(double));
   t->b = malloc(t->n * 3 * sizeof(double));
 }
 
-static void twins_open(twin_runs *t, bsurf_shape shape, size_t n, uint64_t seed, double feature_width,
-                       uint64_t noise_seed) {
+static void twins_open(twin_runs *t, bsurf_shape shape, size_t n, uint64_t seed,
+                       double feature_width, uint64_t noise_seed) {
   (void)noisy_shape(&t->c, shape, n, seed, feature_width, 0.5, noise_seed);
   twins_finish(t, 30);
 }
@@ -451,7 +458,8 @@ static void test_multipass_time_blocks(void **state) {
  * bits as the passes one by one, on two threads. */
 static void test_multipass_time_blocks_long(void **state) {
   (void)state;
-  twin_runs t; /* as `generate cube -n 3000`, `noise --level 0.5` and the command's K = 50, B = 50 */
+  twin_runs
+      t; /* as `generate cube -n 3000`, `noise --level 0.5` and the command's K = 50, B = 50 */
   (void)noisy_sample(&t.c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_REGULAR, 1, 2, 0.5, 1);
   twins_finish(&t, 50);
   bsurf_smooth_options o = options(BSURF_SMOOTH_MULTIPASS, 50, 3, 50);
@@ -486,7 +494,8 @@ static void test_multipass_exp(void **state) {
 static void test_arguments(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 500, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 500, BSURF_SAMPLING_REGULAR, 1, 0),
+                   BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 20, 2, NULL, NULL), BSURF_OK);
   double *out = malloc(c.point_count * 3 * sizeof(double));
@@ -509,12 +518,17 @@ static void test_arguments(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_plane_does_not_move),   cmocka_unit_test(test_quadric_does_not_move),
-      cmocka_unit_test(test_noisy_plane_gets_flatter), cmocka_unit_test(test_two_sheets),
+      cmocka_unit_test(test_plane_does_not_move),
+      cmocka_unit_test(test_quadric_does_not_move),
+      cmocka_unit_test(test_noisy_plane_gets_flatter),
+      cmocka_unit_test(test_two_sheets),
       cmocka_unit_test(test_naive_threshold),
-      cmocka_unit_test(test_multipass_neighbourhoods), cmocka_unit_test(test_thread_determinism),
-      cmocka_unit_test(test_multipass_block_passes), cmocka_unit_test(test_multipass_time_blocks),
-      cmocka_unit_test(test_multipass_time_blocks_long), cmocka_unit_test(test_multipass_exp),
+      cmocka_unit_test(test_multipass_neighbourhoods),
+      cmocka_unit_test(test_thread_determinism),
+      cmocka_unit_test(test_multipass_block_passes),
+      cmocka_unit_test(test_multipass_time_blocks),
+      cmocka_unit_test(test_multipass_time_blocks_long),
+      cmocka_unit_test(test_multipass_exp),
       cmocka_unit_test(test_arguments),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

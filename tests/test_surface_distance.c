@@ -38,7 +38,8 @@ enum { REG_FACE = 0, REG_EDGE, REG_VERTEX };
 
 /* Point-segment: projection onto the line, clamped. *t out. */
 static double ref_seg(const double *p, const double *a, const double *b, double *t) {
-  double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
+  double d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+         w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
   double dd = dot3(d, d), s = dd > 0 ? dot3(w, d) / dd : 0;
   s = s < 0 ? 0 : s > 1 ? 1 : s;
   double e[3] = {w[0] - s * d[0], w[1] - s * d[1], w[2] - s * d[2]};
@@ -50,7 +51,8 @@ static double ref_seg(const double *p, const double *a, const double *b, double 
  * Gram system, all > 0) -> the height; else the nearest edge. *region out. */
 static double ref_tri(const double *p, const double *a, const double *b, const double *c,
                       int *region) {
-  double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]},
+  double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]},
+         v[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]},
          w[3] = {p[0] - a[0], p[1] - a[1], p[2] - a[2]};
   double uu = dot3(u, u), uv = dot3(u, v), vv = dot3(v, v), wu = dot3(w, u), wv = dot3(w, v);
   double det = uu * vv - uv * uv;
@@ -58,7 +60,8 @@ static double ref_tri(const double *p, const double *a, const double *b, const d
     double s = (vv * wu - uv * wv) / det, t = (uu * wv - uv * wu) / det;
     if (s > 0 && t > 0 && s + t < 1) {
       double q[3];
-      for (int k = 0; k < 3; k++) q[k] = a[k] + s * u[k] + t * v[k];
+      for (int k = 0; k < 3; k++)
+        q[k] = a[k] + s * u[k] + t * v[k];
       *region = REG_FACE;
       return dist3(p, q);
     }
@@ -74,7 +77,8 @@ static double ref_tri(const double *p, const double *a, const double *b, const d
 }
 
 static void rand_vec(bsurf_rng *r, double scale, double *out) {
-  for (int k = 0; k < 3; k++) out[k] = scale * (2 * bsurf_rng_uniform(r) - 1);
+  for (int k = 0; k < 3; k++)
+    out[k] = scale * (2 * bsurf_rng_uniform(r) - 1);
 }
 
 /* ---- point to triangle ---- */
@@ -84,9 +88,9 @@ static void rand_vec(bsurf_rng *r, double scale, double *out) {
 static void test_triangle_regions(void **state) {
   (void)state;
   const double T[3][3] = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0}};
-  const double P[7][3] = {{-1, -1, 0.5}, {3, -1, 0.3}, {-0.5, 3, -0.2}, {1, -1, 0.5},
+  const double P[7][3] = {{-1, -1, 0.5}, {3, -1, 0.3},    {-0.5, 3, -0.2}, {1, -1, 0.5},
                           {-1, 1, 0.5},  {1.5, 1.5, 0.7}, {0.5, 0.5, 2}};
-  const double Q[7][3] = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0}, {1, 0, 0},
+  const double Q[7][3] = {{0, 0, 0}, {2, 0, 0}, {0, 2, 0},    {1, 0, 0},
                           {0, 1, 0}, {1, 1, 0}, {0.5, 0.5, 0}};
   const int perm[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {2, 1, 0}, {1, 0, 2}};
   bsurf_rng rng;
@@ -94,9 +98,11 @@ static void test_triangle_regions(void **state) {
   for (int trial = 0; trial < 20; trial++) {
     /* rotation from a random unit quaternion, translation up to 100 */
     double q[4], n = 0;
-    for (int k = 0; k < 4; k++) q[k] = bsurf_rng_normal(&rng), n += q[k] * q[k];
+    for (int k = 0; k < 4; k++)
+      q[k] = bsurf_rng_normal(&rng), n += q[k] * q[k];
     n = sqrt(n);
-    for (int k = 0; k < 4; k++) q[k] /= n;
+    for (int k = 0; k < 4; k++)
+      q[k] /= n;
     double w = q[0], x = q[1], y = q[2], z = q[3];
     double R[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},
                       {2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)},
@@ -106,8 +112,11 @@ static void test_triangle_regions(void **state) {
     if (trial == 0) memset(R, 0, sizeof R), R[0][0] = R[1][1] = R[2][2] = 1;
     double tv[3][3], pv[7][3], qv[7][3];
 #define MOVE(src, dst)                                                                             \
-  for (int k = 0; k < 3; k++) (dst)[k] = t[k] + dot3(R[k], (src));
-    for (int i = 0; i < 3; i++) { MOVE(T[i], tv[i]) }
+  for (int k = 0; k < 3; k++)                                                                      \
+    (dst)[k] = t[k] + dot3(R[k], (src));
+    for (int i = 0; i < 3; i++) {
+      MOVE(T[i], tv[i])
+    }
     for (int i = 0; i < 7; i++) {
       MOVE(P[i], pv[i])
       MOVE(Q[i], qv[i])
@@ -116,8 +125,8 @@ static void test_triangle_regions(void **state) {
     for (int pm = 0; pm < 6; pm++)
       for (int i = 0; i < 7; i++) {
         double cl[3];
-        double d = bsurf_triangle_distance(pv[i], tv[perm[pm][0]], tv[perm[pm][1]],
-                                           tv[perm[pm][2]], cl);
+        double d =
+            bsurf_triangle_distance(pv[i], tv[perm[pm][0]], tv[perm[pm][1]], tv[perm[pm][2]], cl);
         double expect = dist3(P[i], Q[i]);
         assert_true(fabs(d - expect) < 1e-12 * 100);
         assert_true(dist3(cl, qv[i]) < 1e-12 * 100);
@@ -145,9 +154,11 @@ static void test_triangle_random(void **state) {
     } else { /* around the triangle: barycentric in [-0.5, 1.5] plus a random offset */
       double s = 2 * bsurf_rng_uniform(&rng) - 0.5, t = 2 * bsurf_rng_uniform(&rng) - 0.5, e[3];
       rand_vec(&rng, 0.5 * scale, e);
-      for (int k = 0; k < 3; k++) p[k] = a[k] + s * (b[k] - a[k]) + t * (c[k] - a[k]) + e[k];
+      for (int k = 0; k < 3; k++)
+        p[k] = a[k] + s * (b[k] - a[k]) + t * (c[k] - a[k]) + e[k];
     }
-    for (int k = 0; k < 3; k++) a[k] += off[k], b[k] += off[k], c[k] += off[k], p[k] += off[k];
+    for (int k = 0; k < 3; k++)
+      a[k] += off[k], b[k] += off[k], c[k] += off[k], p[k] += off[k];
     int region;
     double ref = ref_tri(p, a, b, c, &region), cl[3];
     double d = bsurf_triangle_distance(p, a, b, c, cl);
@@ -177,20 +188,24 @@ static void test_triangle_degenerate(void **state) {
     double s = 3 * bsurf_rng_uniform(&rng) - 1;
     switch (trial % 5) {
     case 0: /* collinear, c between or beyond */
-      for (int k = 0; k < 3; k++) b[k] = a[k] + d[k], c[k] = a[k] + s * d[k];
+      for (int k = 0; k < 3; k++)
+        b[k] = a[k] + d[k], c[k] = a[k] + s * d[k];
       break;
     case 1: /* a == b */
-      for (int k = 0; k < 3; k++) b[k] = a[k], c[k] = a[k] + d[k];
+      for (int k = 0; k < 3; k++)
+        b[k] = a[k], c[k] = a[k] + d[k];
       break;
     case 2: /* b == c */
-      for (int k = 0; k < 3; k++) b[k] = c[k] = a[k] + d[k];
+      for (int k = 0; k < 3; k++)
+        b[k] = c[k] = a[k] + d[k];
       break;
     case 3: /* one point */
       memcpy(b, a, sizeof b);
       memcpy(c, a, sizeof c);
       break;
     default: /* collinear up to rounding: c on the line through a, b, scaled */
-      for (int k = 0; k < 3; k++) b[k] = a[k] + d[k], c[k] = a[k] + 0.1 * (double)(trial % 17) * d[k];
+      for (int k = 0; k < 3; k++)
+        b[k] = a[k] + d[k], c[k] = a[k] + 0.1 * (double)(trial % 17) * d[k];
       break;
     }
     double t, ref = INFINITY, e;
@@ -272,14 +287,15 @@ static void make_soup(bsurf_cloud *m, size_t nf, uint64_t seed) {
     rand_vec(&rng, 5, c);
     rand_vec(&rng, 0.5, e1);
     rand_vec(&rng, 0.5, e2);
-    if (i % 25 == 0) memcpy(e2, e1, sizeof e2);                    /* collinear: a segment */
+    if (i % 25 == 0) memcpy(e2, e1, sizeof e2);                          /* collinear: a segment */
     if (i % 25 == 1) memset(e1, 0, sizeof e1), memset(e2, 0, sizeof e2); /* a point */
     for (int k = 0; k < 3; k++) {
       v[9 * i + (size_t)k] = c[k];
       v[9 * i + 3 + (size_t)k] = c[k] + e1[k];
       v[9 * i + 6 + (size_t)k] = c[k] + (i % 25 == 0 ? 2 : 1) * e2[k];
     }
-    for (int k = 0; k < 3; k++) f[3 * i + (size_t)k] = (uint32_t)(3 * i + (size_t)k);
+    for (int k = 0; k < 3; k++)
+      f[3 * i + (size_t)k] = (uint32_t)(3 * i + (size_t)k);
   }
   /* a duplicated face: equal distances, the lower index wins */
   memcpy(&f[3 * (nf - 1)], &f[3 * 7], 3 * sizeof(uint32_t));
@@ -329,15 +345,17 @@ static void test_bvh_random_soup(void **state) {
   size_t n = 3000;
   double *pts = malloc(sizeof(double) * 3 * n);
   assert_non_null(pts);
-  for (size_t i = 0; i < n; i++) rand_vec(&rng, i % 10 == 0 ? 30 : 6, &pts[3 * i]);
+  for (size_t i = 0; i < n; i++)
+    rand_vec(&rng, i % 10 == 0 ? 30 : 6, &pts[3 * i]);
   /* points on faces and at vertices, including the duplicated face */
   for (size_t i = 0; i < 200; i++) {
     const uint32_t *t = &m.faces[3 * ((i * 37) % m.face_count)];
     double s = bsurf_rng_uniform(&rng), u = bsurf_rng_uniform(&rng) * (1 - s);
     for (int k = 0; k < 3; k++)
-      pts[3 * i + (size_t)k] = m.xyz[3 * (size_t)t[0] + (size_t)k] +
-                               s * (m.xyz[3 * (size_t)t[1] + (size_t)k] - m.xyz[3 * (size_t)t[0] + (size_t)k]) +
-                               u * (m.xyz[3 * (size_t)t[2] + (size_t)k] - m.xyz[3 * (size_t)t[0] + (size_t)k]);
+      pts[3 * i + (size_t)k] =
+          m.xyz[3 * (size_t)t[0] + (size_t)k] +
+          s * (m.xyz[3 * (size_t)t[1] + (size_t)k] - m.xyz[3 * (size_t)t[0] + (size_t)k]) +
+          u * (m.xyz[3 * (size_t)t[2] + (size_t)k] - m.xyz[3 * (size_t)t[0] + (size_t)k]);
   }
   memcpy(&pts[3 * 200], &m.xyz[3 * (size_t)m.faces[3 * 7]], 3 * sizeof(double));
   check_against_brute(&m, pts, n);
@@ -347,7 +365,8 @@ static void test_bvh_random_soup(void **state) {
   size_t face;
   double c7[3] = {0, 0, 0};
   for (int v = 0; v < 3; v++)
-    for (int k = 0; k < 3; k++) c7[k] += m.xyz[3 * (size_t)m.faces[3 * 7 + (size_t)v] + (size_t)k] / 3;
+    for (int k = 0; k < 3; k++)
+      c7[k] += m.xyz[3 * (size_t)m.faces[3 * 7 + (size_t)v] + (size_t)k] / 3;
   assert_true(bsurf_mesh_distance(ix, c7, &face, NULL) < 1e-12);
   assert_int_equal(face, 7);
   bsurf_mesh_index_free(ix);
@@ -369,7 +388,8 @@ static void test_bvh_sphere(void **state) {
     rand_vec(&rng, 1, d);
     double r = (i % 4 == 0) ? 0.2 + 3 * bsurf_rng_uniform(&rng) : 1 + 0.05 * bsurf_rng_normal(&rng);
     double l = sqrt(dot3(d, d));
-    for (int k = 0; k < 3; k++) pts[3 * i + (size_t)k] = r * d[k] / l;
+    for (int k = 0; k < 3; k++)
+      pts[3 * i + (size_t)k] = r * d[k] / l;
   }
   check_against_brute(&m, pts, n);
 
@@ -390,7 +410,8 @@ static void test_bvh_sphere(void **state) {
   ts.kind = BSURF_SURFACE_MESH;
   ts.mesh = ix;
   assert_int_equal(bsurf_position_errors(s.xyz, s.point_count, &ts, 2, dist, NULL, NULL), BSURF_OK);
-  for (size_t i = 0; i < s.point_count; i++) assert_true(dist[i] < 1e-14);
+  for (size_t i = 0; i < s.point_count; i++)
+    assert_true(dist[i] < 1e-14);
   for (size_t i = 0; i < n; i++) {
     double d = bsurf_mesh_distance(ix, &pts[3 * i], NULL, NULL);
     double exact = fabs(sqrt(dot3(&pts[3 * i], &pts[3 * i])) - 1);
@@ -482,20 +503,23 @@ static void test_position_shape_and_plane(void **state) {
   ts.kind = BSURF_SURFACE_SHAPE;
   ts.shape = BSURF_SHAPE_SPHERE;
   assert_int_equal(bsurf_position_errors(moved, n, &ts, 0, d, NULL, NULL), BSURF_OK);
-  for (size_t i = 0; i < n; i++) assert_true(fabs(d[i] - fabs(0.01 * (double)(i % 7) - 0.03)) < 1e-12);
+  for (size_t i = 0; i < n; i++)
+    assert_true(fabs(d[i] - fabs(0.01 * (double)(i % 7) - 0.03)) < 1e-12);
   ts.kind = BSURF_SURFACE_TANGENT_PLANE;
   ts.truth_xyz = c.xyz;
   ts.truth_normals = c.normals;
   ts.truth_count = n;
   assert_int_equal(bsurf_position_errors(moved, n, &ts, 0, d, NULL, NULL), BSURF_OK);
-  for (size_t i = 0; i < n; i++) assert_true(fabs(d[i] - fabs(0.01 * (double)(i % 7) - 0.03)) < 1e-12);
+  for (size_t i = 0; i < n; i++)
+    assert_true(fabs(d[i] - fabs(0.01 * (double)(i % 7) - 0.03)) < 1e-12);
   /* by a correspondence: every point against truth point 0's plane */
   uint32_t *match = calloc(n, sizeof(uint32_t));
   assert_non_null(match);
   ts.match = match;
   assert_int_equal(bsurf_position_errors(c.xyz, n, &ts, 0, d, NULL, NULL), BSURF_OK);
   for (size_t i = 0; i < n; i++) {
-    double r[3] = {c.xyz[3 * i] - c.xyz[0], c.xyz[3 * i + 1] - c.xyz[1], c.xyz[3 * i + 2] - c.xyz[2]};
+    double r[3] = {c.xyz[3 * i] - c.xyz[0], c.xyz[3 * i + 1] - c.xyz[1],
+                   c.xyz[3 * i + 2] - c.xyz[2]};
     assert_true(fabs(d[i] - fabs(dot3(r, c.normals))) < 1e-12);
   }
   match[5] = (uint32_t)n; /* out of range */
@@ -518,9 +542,11 @@ static void test_match_nearest(void **state) {
   double *t = malloc(sizeof(double) * 3 * nt), *q = malloc(sizeof(double) * 3 * n);
   uint32_t *m = malloc(sizeof(uint32_t) * n);
   assert_true(t && q && m);
-  for (size_t i = 0; i < nt; i++) rand_vec(&rng, 1, &t[3 * i]);
+  for (size_t i = 0; i < nt; i++)
+    rand_vec(&rng, 1, &t[3 * i]);
   memcpy(&t[3 * 100], &t[3 * 400], 3 * sizeof(double)); /* a duplicate: ties -> lower index */
-  for (size_t i = 0; i < n; i++) rand_vec(&rng, 1.2, &q[3 * i]);
+  for (size_t i = 0; i < n; i++)
+    rand_vec(&rng, 1.2, &q[3 * i]);
   memcpy(&q[0], &t[3 * 400], 3 * sizeof(double));
   assert_int_equal(bsurf_match_nearest(t, nt, q, n, 2, m), BSURF_OK);
   assert_int_equal(m[0], 100);
@@ -571,7 +597,8 @@ static void tmp_path(char *out, size_t cap, const char *name) {
 static void test_shape_in_ply(void **state) {
   (void)state;
   bsurf_cloud c, r, copy;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 600, BSURF_SAMPLING_REGULAR, 1, 2), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 600, BSURF_SAMPLING_REGULAR, 1, 2),
+                   BSURF_OK);
   assert_string_equal(c.shape, "cube");
   assert_int_equal(bsurf_cloud_copy(&copy, &c), BSURF_OK);
   assert_string_equal(copy.shape, "cube");
@@ -622,16 +649,11 @@ static void test_shape_in_ply(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_triangle_regions),
-      cmocka_unit_test(test_triangle_random),
-      cmocka_unit_test(test_triangle_degenerate),
-      cmocka_unit_test(test_bvh_random_soup),
-      cmocka_unit_test(test_bvh_sphere),
-      cmocka_unit_test(test_mesh_index_errors),
-      cmocka_unit_test(test_position_threads),
-      cmocka_unit_test(test_position_shape_and_plane),
-      cmocka_unit_test(test_match_nearest),
-      cmocka_unit_test(test_distance_stats),
+      cmocka_unit_test(test_triangle_regions),    cmocka_unit_test(test_triangle_random),
+      cmocka_unit_test(test_triangle_degenerate), cmocka_unit_test(test_bvh_random_soup),
+      cmocka_unit_test(test_bvh_sphere),          cmocka_unit_test(test_mesh_index_errors),
+      cmocka_unit_test(test_position_threads),    cmocka_unit_test(test_position_shape_and_plane),
+      cmocka_unit_test(test_match_nearest),       cmocka_unit_test(test_distance_stats),
       cmocka_unit_test(test_shape_in_ply),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -16,7 +16,8 @@ static void test_shapes_on_surface(void **state) {
   for (int s = 0; s < 4; s++) {
     for (int sampling = 0; sampling < 2; sampling++) {
       bsurf_cloud c;
-      assert_int_equal(bsurf_generate(&c, (bsurf_shape)s, 5000, (bsurf_sampling)sampling, 4, 2.0), BSURF_OK);
+      assert_int_equal(bsurf_generate(&c, (bsurf_shape)s, 5000, (bsurf_sampling)sampling, 4, 2.0),
+                       BSURF_OK);
       assert_true(c.point_count > 4500 && c.point_count < 5500);
       assert_non_null(c.normals);
       for (size_t i = 0; i < c.point_count; i++) {
@@ -44,7 +45,8 @@ static void test_names(void **state) {
 static void test_cube_features(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 6 * 40 * 40, BSURF_SAMPLING_REGULAR, 1, 2.0), BSURF_OK);
+  assert_int_equal(
+      bsurf_generate(&c, BSURF_SHAPE_CUBE, 6 * 40 * 40, BSURF_SAMPLING_REGULAR, 1, 2.0), BSURF_OK);
   assert_int_equal(c.point_count, 6 * 40 * 40);
   bsurf_field *fd = bsurf_cloud_field(&c, "feature_dist"), *ff = bsurf_cloud_field(&c, "feature");
   assert_non_null(fd);
@@ -67,9 +69,12 @@ static void test_cube_features(void **state) {
 static void test_random_determinism(void **state) {
   (void)state;
   bsurf_cloud a, b, c;
-  assert_int_equal(bsurf_generate(&a, BSURF_SHAPE_SPHERE, 1000, BSURF_SAMPLING_RANDOM, 7, 0), BSURF_OK);
-  assert_int_equal(bsurf_generate(&b, BSURF_SHAPE_SPHERE, 1000, BSURF_SAMPLING_RANDOM, 7, 0), BSURF_OK);
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 1000, BSURF_SAMPLING_RANDOM, 8, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&a, BSURF_SHAPE_SPHERE, 1000, BSURF_SAMPLING_RANDOM, 7, 0),
+                   BSURF_OK);
+  assert_int_equal(bsurf_generate(&b, BSURF_SHAPE_SPHERE, 1000, BSURF_SAMPLING_RANDOM, 7, 0),
+                   BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 1000, BSURF_SAMPLING_RANDOM, 8, 0),
+                   BSURF_OK);
   assert_memory_equal(a.xyz, b.xyz, 3000 * sizeof(double));
   assert_true(memcmp(a.xyz, c.xyz, 3000 * sizeof(double)) != 0);
   bsurf_cloud_free(&a);
@@ -82,16 +87,19 @@ static void test_noise_models(void **state) {
   (void)state;
   for (int model = 0; model < 2; model++) {
     bsurf_cloud c;
-    assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 20000, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+    assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 20000, BSURF_SAMPLING_REGULAR, 1, 0),
+                     BSURF_OK);
     double *orig = malloc(sizeof(double) * 3 * c.point_count);
     memcpy(orig, c.xyz, sizeof(double) * 3 * c.point_count);
     const double level = 0.8, scale = 0.01;
-    assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, (bsurf_noise_model)model, level, scale, 3),
-                     BSURF_OK);
+    assert_int_equal(
+        bsurf_add_noise(c.xyz, c.normals, c.point_count, (bsurf_noise_model)model, level, scale, 3),
+        BSURF_OK);
     double s1 = 0, s2 = 0, maxabs = 0;
     for (size_t i = 0; i < c.point_count; i++) {
       double t = 0;
-      for (int k = 0; k < 3; k++) t += (c.xyz[3 * i + k] - orig[3 * i + k]) * c.normals[3 * i + k];
+      for (int k = 0; k < 3; k++)
+        t += (c.xyz[3 * i + k] - orig[3 * i + k]) * c.normals[3 * i + k];
       /* displacement is along the normal only */
       for (int k = 0; k < 3; k++)
         assert_true(fabs(c.xyz[3 * i + k] - orig[3 * i + k] - t * c.normals[3 * i + k]) < 1e-15);
@@ -117,15 +125,16 @@ static void test_noise_models(void **state) {
 static void test_noise_rejects_zero_normal(void **state) {
   (void)state;
   double xyz[6] = {0, 0, 0, 1, 0, 0}, n[6] = {0, 0, 1, 0, 0, 0};
-  assert_int_equal(bsurf_add_noise(xyz, n, 2, BSURF_NOISE_GAUSSIAN, 1, 1, 1), BSURF_ERR_INVALID_VALUE);
+  assert_int_equal(bsurf_add_noise(xyz, n, 2, BSURF_NOISE_GAUSSIAN, 1, 1, 1),
+                   BSURF_ERR_INVALID_VALUE);
   assert_true(xyz[2] == 0); /* nothing moved */
 }
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_shapes_on_surface),  cmocka_unit_test(test_names),
-      cmocka_unit_test(test_cube_features),      cmocka_unit_test(test_random_determinism),
-      cmocka_unit_test(test_noise_models),       cmocka_unit_test(test_noise_rejects_zero_normal),
+      cmocka_unit_test(test_shapes_on_surface), cmocka_unit_test(test_names),
+      cmocka_unit_test(test_cube_features),     cmocka_unit_test(test_random_determinism),
+      cmocka_unit_test(test_noise_models),      cmocka_unit_test(test_noise_rejects_zero_normal),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -26,8 +26,9 @@
 #include "bootsurf.h"
 
 enum { NF = 10, NNOISE = 4, NCOMBO = 4 };
-static const char *names[NF] = {"err_train", "err_boot", "err_loo", "err_loo_center", "err_632",
-                                "err_632plus", "gamma", "overfit_rate", "err_test", "err_test_center"};
+static const char *names[NF] = {"err_train", "err_boot",       "err_loo", "err_loo_center",
+                                "err_632",   "err_632plus",    "gamma",   "overfit_rate",
+                                "err_test",  "err_test_center"};
 static const double noise[NNOISE] = {0, 0.5, 1, 2};
 static const int combo_k[NCOMBO] = {50, 50, 100, 100}, combo_d[NCOMBO] = {3, 4, 3, 4};
 static double table[NNOISE][NCOMBO][NF]; /* means in units of h */
@@ -36,7 +37,8 @@ static double plus_mean[NNOISE][NCOMBO], plus_max[NNOISE][NCOMBO];
 
 static double field_mean(const double *v, size_t n) {
   double s = 0;
-  for (size_t i = 0; i < n; i++) s += v[i];
+  for (size_t i = 0; i < n; i++)
+    s += v[i];
   return s / n;
 }
 
@@ -52,7 +54,8 @@ static size_t requested_points(void) {
 static void run_all(void) {
   bsurf_cloud clean;
   const size_t want = requested_points();
-  assert_int_equal(bsurf_generate(&clean, BSURF_SHAPE_SPHERE, want, BSURF_SAMPLING_REGULAR, 1, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&clean, BSURF_SHAPE_SPHERE, want, BSURF_SAMPLING_REGULAR, 1, 0),
+                   BSURF_OK);
   const size_t n = clean.point_count;
   if (want == 26010) assert_int_equal(n, 26010);
   assert_true(n >= 900);
@@ -60,14 +63,17 @@ static void run_all(void) {
   assert_int_equal(bsurf_mean_spacing(clean.xyz, n, 0, &h), BSURF_OK);
   double *noisy = malloc(sizeof(double) * 3 * n), *test = malloc(sizeof(double) * 3 * n);
   double *v[NF];
-  for (int f = 0; f < NF; f++) v[f] = malloc(sizeof(double) * n);
+  for (int f = 0; f < NF; f++)
+    v[f] = malloc(sizeof(double) * n);
   bsurf_error_fields out = {v[0], v[1], v[2], v[3], v[4], v[5], v[6], v[7], v[8], v[9]};
   for (int a = 0; a < NNOISE; a++) {
     memcpy(noisy, clean.xyz, sizeof(double) * 3 * n);
     memcpy(test, clean.xyz, sizeof(double) * 3 * n);
     /* training and test samples: same surface points, independent noise */
-    assert_int_equal(bsurf_add_noise(noisy, clean.normals, n, BSURF_NOISE_GAUSSIAN, noise[a], h, 1), BSURF_OK);
-    assert_int_equal(bsurf_add_noise(test, clean.normals, n, BSURF_NOISE_GAUSSIAN, noise[a], h, 1001), BSURF_OK);
+    assert_int_equal(bsurf_add_noise(noisy, clean.normals, n, BSURF_NOISE_GAUSSIAN, noise[a], h, 1),
+                     BSURF_OK);
+    assert_int_equal(
+        bsurf_add_noise(test, clean.normals, n, BSURF_NOISE_GAUSSIAN, noise[a], h, 1001), BSURF_OK);
     bsurf_neighbors nb;
     assert_int_equal(bsurf_neighbors_build(&nb, noisy, n, 100, 0, NULL, NULL), BSURF_OK);
     for (int c = 0; c < NCOMBO; c++) {
@@ -90,17 +96,22 @@ static void run_all(void) {
     }
     bsurf_neighbors_free(&nb);
   }
-  printf("\nTable 4.1 reproduction: sphere %zu points, h = %.6g, gaussian noise, B = 50, gamma = fit\n", n, h);
+  printf("\nTable 4.1 reproduction: sphere %zu points, h = %.6g, gaussian noise, B = 50, gamma = "
+         "fit\n",
+         n, h);
   printf("%-8s %-4s %-6s", "fit", "K", "noise");
-  for (int f = 0; f < NF; f++) printf(" %14s", names[f]);
+  for (int f = 0; f < NF; f++)
+    printf(" %14s", names[f]);
   printf(" %14s %14s\n", "632plus_meanG", "632plus_maxG");
   for (int c = 0; c < NCOMBO; c++)
     for (int a = 0; a < NNOISE; a++) {
       printf("%-8s %-4d %-6.1f", combo_d[c] == 3 ? "cubic" : "quartic", combo_k[c], noise[a]);
-      for (int f = 0; f < NF; f++) printf(" %14.4f", table[a][c][f]);
+      for (int f = 0; f < NF; f++)
+        printf(" %14.4f", table[a][c][f]);
       printf(" %14.4f %14.4f\n", plus_mean[a][c], plus_max[a][c]);
     }
-  for (int f = 0; f < NF; f++) free(v[f]);
+  for (int f = 0; f < NF; f++)
+    free(v[f]);
   free(noisy);
   free(test);
   bsurf_cloud_free(&clean);
@@ -143,7 +154,8 @@ static void test_grows_with_noise(void **state) {
   for (int c = 0; c < NCOMBO; c++)
     for (int f = 0; f < NF; f++) {
       if (f == 7) continue; /* R is a rate */
-      for (int a = 1; a < NNOISE; a++) assert_true(table[a][c][f] > table[a - 1][c][f]);
+      for (int a = 1; a < NNOISE; a++)
+        assert_true(table[a][c][f] > table[a - 1][c][f]);
     }
 }
 

@@ -60,7 +60,8 @@ static bsurf_status prepare(void *user, bsurf_cloud *c) {
     return bsurf_cloud_add_field(c, "normal_var", BSURF_FLOAT32) ? BSURF_OK : BSURF_ERR_NOMEM;
   }
   for (int f = 0; f < 4; f++)
-    if (!bsurf_cloud_add_field(c, names[f], f == 3 ? BSURF_FLOAT64 : BSURF_FLOAT32)) return BSURF_ERR_NOMEM;
+    if (!bsurf_cloud_add_field(c, names[f], f == 3 ? BSURF_FLOAT64 : BSURF_FLOAT32))
+      return BSURF_ERR_NOMEM;
   return BSURF_OK;
 }
 
@@ -106,7 +107,8 @@ static void reference(const char *in, const char *out, job *j, double *h, size_t
   bsurf_failure err;
   assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
   bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, j->eo.k, 2, NULL, NULL), BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, j->eo.k, 2, NULL, NULL),
+                   BSURF_OK);
   assert_int_equal(prepare(j, &c), BSURF_OK);
   assert_int_equal(compute(j, c.xyz, &nb, NULL, &c), BSURF_OK);
   assert_int_equal(bsurf_write(out, &c, NULL, &err), BSURF_OK);
@@ -185,8 +187,8 @@ static void check_tiles(const char *in, job *j, const size_t *sizes, int nsizes)
     /* the output assembled at once (one range here), then in ranges of 97
      * points (every tile's rows spread over many) */
     size_t range = s < nsizes ? 0 : 97;
-    assert_int_equal(tiled_ranges(in, tmp_path("tiled.ply"), j, sizes[s % nsizes], range, &rep, sums),
-                     BSURF_OK);
+    assert_int_equal(
+        tiled_ranges(in, tmp_path("tiled.ply"), j, sizes[s % nsizes], range, &rep, sums), BSURF_OK);
     assert_same_file(tmp_path("ref.ply"), tmp_path("tiled.ply"));
     assert_true(rep.h == h); /* the same double */
     assert_int_equal(rep.duplicates, dups);
@@ -198,15 +200,19 @@ static void check_tiles(const char *in, job *j, const size_t *sizes, int nsizes)
 /* A noisy sphere with extra properties of every type. */
 static void write_uniform(const char *path, size_t n) {
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, n, BSURF_SAMPLING_RANDOM, 5, 0), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, 0.02, 9), BSURF_OK);
-  static const bsurf_type types[] = {BSURF_INT8, BSURF_UINT8, BSURF_INT16, BSURF_UINT16,
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, n, BSURF_SAMPLING_RANDOM, 5, 0),
+                   BSURF_OK);
+  assert_int_equal(
+      bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.5, 0.02, 9),
+      BSURF_OK);
+  static const bsurf_type types[] = {BSURF_INT8,  BSURF_UINT8,  BSURF_INT16,   BSURF_UINT16,
                                      BSURF_INT32, BSURF_UINT32, BSURF_FLOAT32, BSURF_FLOAT64};
   for (int t = 0; t < 8; t++) {
     char name[16];
     snprintf(name, sizeof name, "extra%d", t);
     bsurf_field *f = bsurf_cloud_add_field(&c, name, types[t]);
-    for (size_t i = 0; i < c.point_count; i++) f->values[i] = (double)((i * 37 + (size_t)t) % 100) - 20;
+    for (size_t i = 0; i < c.point_count; i++)
+      f->values[i] = (double)((i * 37 + (size_t)t) % 100) - 20;
   }
   c.xyz_type = BSURF_FLOAT32; /* the scanner's usual float coordinates */
   bsurf_failure err;
@@ -218,7 +224,8 @@ static void write_uniform(const char *path, size_t n) {
  * plane strip, far outliers (their halos must grow), exact duplicates. */
 static void write_nonuniform(const char *path) {
   bsurf_cloud s, c;
-  assert_int_equal(bsurf_generate(&s, BSURF_SHAPE_SPHERE, 1500, BSURF_SAMPLING_RANDOM, 2, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&s, BSURF_SHAPE_SPHERE, 1500, BSURF_SAMPLING_RANDOM, 2, 0),
+                   BSURF_OK);
   const size_t dense = 2500, strip = 1200, far = 7, dup = 40;
   size_t n = s.point_count + dense + strip + far + dup;
   assert_int_equal(bsurf_cloud_alloc(&c, n, 0), BSURF_OK);
@@ -227,7 +234,8 @@ static void write_nonuniform(const char *path) {
   bsurf_rng_init(&r, 7, 0, 0);
   size_t m = s.point_count;
   for (size_t i = 0; i < dense; i++, m++)
-    for (int a = 0; a < 3; a++) c.xyz[3 * m + a] = (a == 0 ? 0.99 : 0.0) + 0.003 * bsurf_rng_normal(&r);
+    for (int a = 0; a < 3; a++)
+      c.xyz[3 * m + a] = (a == 0 ? 0.99 : 0.0) + 0.003 * bsurf_rng_normal(&r);
   for (size_t i = 0; i < strip; i++, m++) {
     c.xyz[3 * m] = 2 + 3 * bsurf_rng_uniform(&r);
     c.xyz[3 * m + 1] = 0.05 * bsurf_rng_uniform(&r);
@@ -238,7 +246,8 @@ static void write_nonuniform(const char *path) {
     c.xyz[3 * m + 1] = -30;
     c.xyz[3 * m + 2] = 25 * (double)(i % 2);
   }
-  for (size_t i = 0; i < dup; i++, m++) memcpy(&c.xyz[3 * m], &c.xyz[3 * (i * 97 % (m - 1))], 3 * sizeof(double));
+  for (size_t i = 0; i < dup; i++, m++)
+    memcpy(&c.xyz[3 * m], &c.xyz[3 * (i * 97 % (m - 1))], 3 * sizeof(double));
   /* interleave the parts so global order is not spatial */
   for (size_t i = n - 1; i > 0; i--) {
     size_t j = bsurf_rng_below(&r, (uint32_t)(i + 1));
@@ -289,10 +298,14 @@ static void test_nonuniform(void **state) {
 static void test_big_endian(void **state) {
   (void)state;
   bsurf_cloud s;
-  assert_int_equal(bsurf_generate(&s, BSURF_SHAPE_TORUS, 3000, BSURF_SAMPLING_RANDOM, 4, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&s, BSURF_SHAPE_TORUS, 3000, BSURF_SAMPLING_RANDOM, 4, 0),
+                   BSURF_OK);
   FILE *f = fopen(tmp_path("be.ply"), "wb");
-  fprintf(f, "ply\nformat binary_big_endian 1.0\nelement vertex %zu\nproperty short id\nproperty float x\n"
-             "property float y\nproperty float z\nend_header\n", s.point_count);
+  fprintf(
+      f,
+      "ply\nformat binary_big_endian 1.0\nelement vertex %zu\nproperty short id\nproperty float x\n"
+      "property float y\nproperty float z\nend_header\n",
+      s.point_count);
   for (size_t i = 0; i < s.point_count; i++) {
     unsigned char rec[14];
     uint16_t id = (uint16_t)(i % 3000);
@@ -302,7 +315,8 @@ static void test_big_endian(void **state) {
       float v = (float)s.xyz[3 * i + a];
       uint32_t u;
       memcpy(&u, &v, 4);
-      for (int b = 0; b < 4; b++) rec[2 + 4 * a + b] = (unsigned char)(u >> (24 - 8 * b));
+      for (int b = 0; b < 4; b++)
+        rec[2 + 4 * a + b] = (unsigned char)(u >> (24 - 8 * b));
     }
     fwrite(rec, 1, sizeof rec, f);
   }
@@ -341,8 +355,8 @@ static bsurf_status smooth_run1(void *user, const bsurf_tile *t, bsurf_cloud *co
   return bsurf_smooth_stage1(t->xyz, t->nb, &so, t->values_out, NULL);
 }
 
-static void smooth_fill(const smooth_job *j, bsurf_cloud *c, const double *values, const uint32_t *point,
-                        const double *out, const double *moved) {
+static void smooth_fill(const smooth_job *j, bsurf_cloud *c, const double *values,
+                        const uint32_t *point, const double *out, const double *moved) {
   for (size_t r = 0; r < c->point_count; r++) {
     const double *v = &values[(point ? (size_t)point[r] : r) * j->nv];
     memcpy(&c->xyz[3 * r], &out[3 * r], 3 * sizeof(double));
@@ -362,11 +376,12 @@ static bsurf_status smooth_run2(void *user, const bsurf_tile *t, bsurf_cloud *co
   for (size_t r = 0; r < n; r++) {
     point[r] = t->nb->idx[r * (size_t)t->nb->k];
     int self = 0;
-    for (size_t e = t->rev_off[r]; e < t->rev_off[r + 1]; e++) self |= t->rev[e] == point[r];
+    for (size_t e = t->rev_off[r]; e < t->rev_off[r + 1]; e++)
+      self |= t->rev[e] == point[r];
     assert_true(self);
   }
-  bsurf_status st =
-      bsurf_smooth_stage2(t->xyz, t->local_count, t->values, n, point, t->rev_off, t->rev, &j->so, out, t->values_out);
+  bsurf_status st = bsurf_smooth_stage2(t->xyz, t->local_count, t->values, n, point, t->rev_off,
+                                        t->rev, &j->so, out, t->values_out);
   if (st == BSURF_OK) smooth_fill(j, core, t->values, point, out, t->values_out);
   free(point);
   free(out);
@@ -398,14 +413,16 @@ static bsurf_tile_ops stage_ops(void *user, int k, size_t tile_points) {
 
 /* Tiled naive and bilateral (parallel order) smoothing: the in-memory
  * bsurf_smooth's file, byte for byte, for every tile size. */
-static void check_smooth(const char *path, bsurf_smooth_options so, const size_t *sizes, int nsizes) {
+static void check_smooth(const char *path, bsurf_smooth_options so, const size_t *sizes,
+                         int nsizes) {
   char in[1200]; /* tmp_path's buffers are reused */
   snprintf(in, sizeof in, "%s", path);
   bsurf_cloud c;
   bsurf_failure err;
   assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
   bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, so.error.k, 2, NULL, NULL), BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, so.error.k, 2, NULL, NULL),
+                   BSURF_OK);
   assert_int_equal(smooth_prepare(NULL, &c), BSURF_OK);
   bsurf_smooth_fields sf = {bsurf_cloud_field(&c, smooth_names[0])->values,
                             bsurf_cloud_field(&c, smooth_names[1])->values,
@@ -435,14 +452,16 @@ static void check_smooth(const char *path, bsurf_smooth_options so, const size_t
     /* |W| in index order, as bsurf_smooth sums it */
     double *v = malloc(n * j.nv * sizeof(double)), sw = 0;
     assert_int_equal(bsurf_tile_values_read(&vals, 0, n, v), BSURF_OK);
-    for (size_t i = 0; i < n; i++) sw += v[i * j.nv + (size_t)bsurf_smooth_w_column(&so)];
+    for (size_t i = 0; i < n; i++)
+      sw += v[i * j.nv + (size_t)bsurf_smooth_w_column(&so)];
     free(v);
     assert_true(sw / (double)n == ref.mean_error);
     bsurf_smooth_resolve(&j.so, rep.h, sw / (double)n);
     ops.prepare = smooth_prepare;
     if (so.method == BSURF_SMOOTH_NAIVE) {
       ops.range_points = 97;
-      assert_int_equal(bsurf_tiles_map(in, tmp_path("stiled.ply"), &ops, &vals, smooth_map, &err), BSURF_OK);
+      assert_int_equal(bsurf_tiles_map(in, tmp_path("stiled.ply"), &ops, &vals, smooth_map, &err),
+                       BSURF_OK);
     } else {
       ops.run = smooth_run2;
       ops.values_in = &vals;
@@ -504,7 +523,8 @@ static bsurf_status var_run1(void *user, const bsurf_tile *t, bsurf_cloud *core,
 
 static bsurf_status var_prepare(void *user, bsurf_cloud *c) {
   (void)user;
-  return bsurf_cloud_add_field(c, "normal_var", BSURF_FLOAT32) && bsurf_cloud_add_field(c, "feature", BSURF_UINT8)
+  return bsurf_cloud_add_field(c, "normal_var", BSURF_FLOAT32) &&
+                 bsurf_cloud_add_field(c, "feature", BSURF_UINT8)
              ? BSURF_OK
              : BSURF_ERR_NOMEM;
 }
@@ -565,11 +585,13 @@ static void test_features_two_stage(void **state) {
     assert_int_equal(bsurf_tail_threshold(score, n, fo.tail_rule, &j.threshold), BSURF_OK);
     assert_true(j.threshold == ref.threshold);
     ops.prepare = var_prepare;
-    assert_int_equal(bsurf_tiles_map(in, tmp_path("ftiled.ply"), &ops, &vals, var_map, &err), BSURF_OK);
+    assert_int_equal(bsurf_tiles_map(in, tmp_path("ftiled.ply"), &ops, &vals, var_map, &err),
+                     BSURF_OK);
     assert_same_file(tmp_path("fref.ply"), tmp_path("ftiled.ply"));
     /* a second stage refuses values of another input */
     vals.count--;
-    assert_int_equal(bsurf_tiles_map(in, tmp_path("fbad.ply"), &ops, &vals, var_map, &err), BSURF_ERR_INVALID_ARG);
+    assert_int_equal(bsurf_tiles_map(in, tmp_path("fbad.ply"), &ops, &vals, var_map, &err),
+                     BSURF_ERR_INVALID_ARG);
     assert_int_equal(access(tmp_path("fbad.ply"), F_OK), -1);
     bsurf_tile_values_close(&vals);
   }
@@ -586,7 +608,8 @@ static bsurf_status fd_prepare(void *user, bsurf_cloud *c) {
     bsurf_field *old = bsurf_cloud_field(c, fd_names[t]);
     if (old) snprintf(old->name, sizeof old->name, "%s_in", fd_names[t]);
   }
-  return bsurf_cloud_add_field(c, fd_names[0], BSURF_FLOAT32) && bsurf_cloud_add_field(c, fd_names[1], BSURF_UINT8)
+  return bsurf_cloud_add_field(c, fd_names[0], BSURF_FLOAT32) &&
+                 bsurf_cloud_add_field(c, fd_names[1], BSURF_UINT8)
              ? BSURF_OK
              : BSURF_ERR_NOMEM;
 }
@@ -598,7 +621,8 @@ static int fd_cancel(void *user, size_t done, size_t total) {
 }
 
 /* returns the feature count */
-static size_t check_distance(const char *path, const bsurf_feature_options *fo, const size_t *sizes, int nsizes) {
+static size_t check_distance(const char *path, const bsurf_feature_options *fo, const size_t *sizes,
+                             int nsizes) {
   char in[1200], ref_path[1200]; /* tmp_path's buffers are reused */
   snprintf(in, sizeof in, "%s", path);
   snprintf(ref_path, sizeof ref_path, "%s", tmp_path("dref.ply"));
@@ -606,7 +630,8 @@ static size_t check_distance(const char *path, const bsurf_feature_options *fo, 
   bsurf_failure err;
   assert_int_equal(bsurf_read(in, &c, &err), BSURF_OK);
   bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, fo->k_max, 2, NULL, NULL), BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, fo->k_max, 2, NULL, NULL),
+                   BSURF_OK);
   const size_t n = c.point_count;
   uint8_t *feat = malloc(n);
   double *score = malloc(n * sizeof(double));
@@ -629,7 +654,9 @@ static size_t check_distance(const char *path, const bsurf_feature_options *fo, 
     ops.range_points = s % 2 ? 97 : 0;
     bsurf_tile_report tr;
     bsurf_feature_report rep;
-    assert_int_equal(bsurf_features_distance_tiled(in, tmp_path("dtiled.ply"), &ops, fo, &rep, &tr, &err), BSURF_OK);
+    assert_int_equal(
+        bsurf_features_distance_tiled(in, tmp_path("dtiled.ply"), &ops, fo, &rep, &tr, &err),
+        BSURF_OK);
     assert_same_file(ref_path, tmp_path("dtiled.ply"));
     assert_true(tr.h == h);
     assert_int_equal(tr.points, n);
@@ -648,8 +675,11 @@ static void test_features_distance(void **state) {
   bsurf_cloud c;
   bsurf_failure err;
   /* the cube: sharp edges, noise 0.5 h (its feature fields are kept as _in) */
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 3, 0), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_UNIFORM, 0.5, 0.04, 4), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 3, 0),
+                   BSURF_OK);
+  assert_int_equal(
+      bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_UNIFORM, 0.5, 0.04, 4),
+      BSURF_OK);
   assert_int_equal(bsurf_write(tmp_path("dcube.ply"), &c, NULL, &err), BSURF_OK);
   bsurf_cloud_free(&c);
   write_uniform(tmp_path("uniform.ply"), 3000);
@@ -692,12 +722,14 @@ static void test_features_distance(void **state) {
   snprintf(out, sizeof out, "%s", tmp_path("drefused.ply"));
   unlink(out);
   fo.k_min = 2;
-  assert_int_equal(bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
-                   BSURF_ERR_INVALID_ARG);
+  assert_int_equal(
+      bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
+      BSURF_ERR_INVALID_ARG);
   fo.k_min = 15;
   fo.method = BSURF_FEATURES_VARIANCE;
-  assert_int_equal(bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
-                   BSURF_ERR_INVALID_ARG);
+  assert_int_equal(
+      bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
+      BSURF_ERR_INVALID_ARG);
   fo.method = BSURF_FEATURES_DISTANCE;
   /* the progress calls of a whole chain (one per tile and per range of
    * every stage), then cancelled in the first stage, in the middle (a
@@ -705,15 +737,18 @@ static void test_features_distance(void **state) {
   int left = 1 << 30;
   ops.progress = fd_cancel;
   ops.progress_user = &left;
-  assert_int_equal(bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err), BSURF_OK);
+  assert_int_equal(
+      bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
+      BSURF_OK);
   assert_int_equal(remove(out), 0);
   const int calls = (1 << 30) - left;
   assert_true(calls > 7 * (int)tr.tiles);
   const int at[3] = {0, calls / 2, calls - 1};
   for (int a = 0; a < 3; a++) {
     left = at[a];
-    assert_int_equal(bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
-                     BSURF_ERR_CANCELLED);
+    assert_int_equal(
+        bsurf_features_distance_tiled(tmp_path("dcube.ply"), out, &ops, &fo, &rep, &tr, &err),
+        BSURF_ERR_CANCELLED);
     assert_int_equal(access(out, F_OK), -1);
   }
 }
@@ -730,13 +765,15 @@ static void test_refusals(void **state) {
   unlink(out);
   /* ascii */
   FILE *f = fopen(tmp_path("a.ply"), "w");
-  fprintf(f, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n"
+  fprintf(f, "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float "
+             "y\nproperty float z\n"
              "end_header\n0 0 0\n");
   fclose(f);
   assert_int_equal(tiled(tmp_path("a.ply"), out, &j, 100, &rep, sums), BSURF_ERR_UNSUPPORTED);
   /* a mesh */
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 200, BSURF_SAMPLING_RANDOM, 1, 0), BSURF_OK);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 200, BSURF_SAMPLING_RANDOM, 1, 0),
+                   BSURF_OK);
   c.faces = calloc(3, sizeof(uint32_t));
   c.faces[1] = 1, c.faces[2] = 2;
   c.face_count = 1;
@@ -775,7 +812,8 @@ static void test_refusals(void **state) {
   assert_int_equal(remove(out), 0);
   j.cancel_after = (int)rep.tiles + 1;
   j.calls = 0;
-  assert_int_equal(tiled_ranges(tmp_path("ok.ply"), out, &j, 40, 50, &rep, sums), BSURF_ERR_CANCELLED);
+  assert_int_equal(tiled_ranges(tmp_path("ok.ply"), out, &j, 40, 50, &rep, sums),
+                   BSURF_ERR_CANCELLED);
   assert_int_equal(access(out, F_OK), -1);
   bsurf_cloud_free(&c);
 }
@@ -823,7 +861,8 @@ static void fake_sum(void *u, double *v, size_t n) {
   publish(r, v);
   double *t = calloc(n ? n : 1, sizeof *t);
   for (int q = 0; q < r->w->ranks; q++)
-    for (size_t i = 0; i < n; i++) t[i] += ((const double *)r->w->slot[q])[i];
+    for (size_t i = 0; i < n; i++)
+      t[i] += ((const double *)r->w->slot[q])[i];
   pthread_barrier_wait(&r->w->bar);
   memcpy(v, t, n * sizeof *v);
   free(t);
@@ -834,7 +873,8 @@ static void fake_u64(fake_rank *r, uint64_t *v, size_t n, int upto) {
   publish(r, v);
   uint64_t *t = calloc(n ? n : 1, sizeof *t);
   for (int q = 0; q < upto; q++)
-    for (size_t i = 0; i < n; i++) t[i] += ((const uint64_t *)r->w->slot[q])[i];
+    for (size_t i = 0; i < n; i++)
+      t[i] += ((const uint64_t *)r->w->slot[q])[i];
   pthread_barrier_wait(&r->w->bar);
   memcpy(v, t, n * sizeof *v);
   free(t);
@@ -870,7 +910,8 @@ static void fake_broadcast(void *u, void *data, size_t bytes) {
 static void fake_allgather(void *u, const void *mine, void *all, size_t bytes) {
   fake_rank *r = u;
   publish(r, mine);
-  for (int q = 0; q < r->w->ranks; q++) memcpy((char *)all + (size_t)q * bytes, r->w->slot[q], bytes);
+  for (int q = 0; q < r->w->ranks; q++)
+    memcpy((char *)all + (size_t)q * bytes, r->w->slot[q], bytes);
   pthread_barrier_wait(&r->w->bar);
 }
 
@@ -899,9 +940,9 @@ static void *fake_main(void *u) {
 /* bsurf_tiles_run on `ranks` threads sharing a fake_world; rank 0's report,
  * status and error in *rep, return and *err; every rank's report must agree.
  * Rank cancel_rank (-1: none) cancels after j->cancel_after progress calls. */
-static bsurf_status tiled_ranks(int ranks, const char *in, const char *out, const job *j, size_t tile_points,
-                                size_t range_points, int cancel_rank, bsurf_tile_report *rep, double *sum,
-                                bsurf_failure *err) {
+static bsurf_status tiled_ranks(int ranks, const char *in, const char *out, const job *j,
+                                size_t tile_points, size_t range_points, int cancel_rank,
+                                bsurf_tile_report *rep, double *sum, bsurf_failure *err) {
   fake_world w;
   memset(&w, 0, sizeof w);
   w.ranks = ranks;
@@ -930,7 +971,8 @@ static bsurf_status tiled_ranks(int ranks, const char *in, const char *out, cons
     r[q].cancels = q == cancel_rank;
     assert_int_equal(pthread_create(&th[q], NULL, fake_main, &r[q]), 0);
   }
-  for (int q = 0; q < ranks; q++) assert_int_equal(pthread_join(th[q], NULL), 0);
+  for (int q = 0; q < ranks; q++)
+    assert_int_equal(pthread_join(th[q], NULL), 0);
   pthread_barrier_destroy(&w.bar);
   for (int q = 1; q < ranks; q++) {
     assert_int_equal(r[q].st, r[0].st);
@@ -958,7 +1000,8 @@ static void test_ranks(void **state) {
   reference(tmp_path("ranks.ply"), tmp_path("ranks_ref.ply"), &j, &h, &dups);
   bsurf_tile_report serial;
   double serial_sum[1] = {0};
-  assert_int_equal(tiled_ranges(tmp_path("ranks.ply"), tmp_path("ranks_ser.ply"), &j, 300, 100, &serial, serial_sum),
+  assert_int_equal(tiled_ranges(tmp_path("ranks.ply"), tmp_path("ranks_ser.ply"), &j, 300, 100,
+                                &serial, serial_sum),
                    BSURF_OK);
   assert_same_file(tmp_path("ranks_ref.ply"), tmp_path("ranks_ser.ply"));
   const size_t ranges[] = {0, 100, 64};
@@ -968,8 +1011,8 @@ static void test_ranks(void **state) {
       double sum;
       bsurf_failure err;
       unlink(tmp_path("ranks_out.ply"));
-      assert_int_equal(tiled_ranks(ranks, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &j, 300, ranges[g], -1, &rep,
-                                   &sum, &err),
+      assert_int_equal(tiled_ranks(ranks, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &j, 300,
+                                   ranges[g], -1, &rep, &sum, &err),
                        BSURF_OK);
       assert_same_file(tmp_path("ranks_ref.ply"), tmp_path("ranks_out.ply"));
       assert_true(rep.h == h);
@@ -989,12 +1032,14 @@ static void test_ranks(void **state) {
   bsurf_tile_report rep;
   double sum;
   bsurf_failure serr;
-  assert_int_equal(tiled_ranks(1, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0, -1, &rep, &sum, &serr),
+  assert_int_equal(tiled_ranks(1, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0,
+                               -1, &rep, &sum, &serr),
                    BSURF_ERR_INVALID_VALUE);
   assert_int_equal(rep.bad_point, bad);
   for (int ranks = 2; ranks <= MAX_RANKS; ranks++) {
     unlink(tmp_path("ranks_out.ply"));
-    assert_int_equal(tiled_ranks(ranks, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j, 300, 0, -1, &rep, &sum, &err),
+    assert_int_equal(tiled_ranks(ranks, tmp_path("ranks_nan.ply"), tmp_path("ranks_out.ply"), &j,
+                                 300, 0, -1, &rep, &sum, &err),
                      BSURF_ERR_INVALID_VALUE);
     assert_int_equal(rep.bad_point, bad);
     assert_string_equal(err.message, serr.message);
@@ -1003,16 +1048,19 @@ static void test_ranks(void **state) {
   /* rank 1 of 3 stops at its second range (one progress call per tile of
    * its own, then one per range): every rank fails, nothing is written */
   size_t own = 0;
-  for (size_t t = 1; t < serial.tiles; t += 3) own++;
+  for (size_t t = 1; t < serial.tiles; t += 3)
+    own++;
   job jc = j;
   jc.cancel_after = (int)own + 1;
   unlink(tmp_path("ranks_out.ply"));
-  assert_int_equal(tiled_ranks(3, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &jc, 300, 100, 1, &rep, &sum, &err),
+  assert_int_equal(tiled_ranks(3, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &jc, 300, 100,
+                               1, &rep, &sum, &err),
                    BSURF_ERR_CANCELLED);
   assert_int_equal(access(tmp_path("ranks_out.ply"), F_OK), -1);
   /* the same with a cancel after the last range: the run completes */
   jc.cancel_after = 1 << 30;
-  assert_int_equal(tiled_ranks(3, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &jc, 300, 100, 1, &rep, &sum, &err),
+  assert_int_equal(tiled_ranks(3, tmp_path("ranks.ply"), tmp_path("ranks_out.ply"), &jc, 300, 100,
+                               1, &rep, &sum, &err),
                    BSURF_OK);
   assert_same_file(tmp_path("ranks_ref.ply"), tmp_path("ranks_out.ply"));
 }
@@ -1021,9 +1069,9 @@ int main(void) {
   const char *t = getenv("BSURF_TMP");
   snprintf(tmp_dir, sizeof tmp_dir, "%s", t ? t : "/tmp");
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_uniform_error), cmocka_unit_test(test_uniform_normals),
-      cmocka_unit_test(test_nonuniform),    cmocka_unit_test(test_big_endian),
-      cmocka_unit_test(test_refusals),     cmocka_unit_test(test_smooth_two_stage),
+      cmocka_unit_test(test_uniform_error),      cmocka_unit_test(test_uniform_normals),
+      cmocka_unit_test(test_nonuniform),         cmocka_unit_test(test_big_endian),
+      cmocka_unit_test(test_refusals),           cmocka_unit_test(test_smooth_two_stage),
       cmocka_unit_test(test_features_two_stage), cmocka_unit_test(test_ranks),
       cmocka_unit_test(test_features_distance),
   };

@@ -30,13 +30,20 @@ int main(int argc, char **argv) {
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i];
     const int has = i + 1 < argc;
-    if (!strcmp(a, "-o") && has) out = argv[++i];
-    else if (!strcmp(a, "-k") && has) eo.k = atoi(argv[++i]);
-    else if (!strcmp(a, "-B") && has) eo.bootstrap = atoi(argv[++i]);
-    else if (!strcmp(a, "-d") && has) eo.degree = atoi(argv[++i]);
-    else if (!strcmp(a, "-j") && has) eo.threads = atoi(argv[++i]);
-    else if (a[0] == '-' || in) return usage();
-    else in = a;
+    if (!strcmp(a, "-o") && has)
+      out = argv[++i];
+    else if (!strcmp(a, "-k") && has)
+      eo.k = atoi(argv[++i]);
+    else if (!strcmp(a, "-B") && has)
+      eo.bootstrap = atoi(argv[++i]);
+    else if (!strcmp(a, "-d") && has)
+      eo.degree = atoi(argv[++i]);
+    else if (!strcmp(a, "-j") && has)
+      eo.threads = atoi(argv[++i]);
+    else if (a[0] == '-' || in)
+      return usage();
+    else
+      in = a;
   }
   if (!in || !out || eo.k < 3 || eo.threads < 1) return usage();
 
@@ -52,9 +59,10 @@ int main(int argc, char **argv) {
   }
   bsurf_error_fields f;
   memset(&f, 0, sizeof f);
-  double **slot[8] = {&f.err_train, &f.err_boot, &f.err_loo,   &f.err_loo_center,
-                      &f.err_632,   &f.err_632plus, &f.gamma, &f.overfit_rate};
-  for (int i = 0; i < 8; i++) *slot[i] = v + (size_t)i * n;
+  double **slot[8] = {&f.err_train, &f.err_boot,    &f.err_loo, &f.err_loo_center,
+                      &f.err_632,   &f.err_632plus, &f.gamma,   &f.overfit_rate};
+  for (int i = 0; i < 8; i++)
+    *slot[i] = v + (size_t)i * n;
   bsurf_neighbors nb;
   memset(&nb, 0, sizeof nb);
   bsurf_error_report rep;
@@ -72,7 +80,8 @@ int main(int argc, char **argv) {
     return 1;
   }
   double mean = 0.0;
-  for (size_t i = 0; i < n; i++) mean += f.err_632plus[i];
+  for (size_t i = 0; i < n; i++)
+    mean += f.err_632plus[i];
   mean /= (double)n;
 
   bsurf_cloud o;

@@ -35,7 +35,8 @@ typedef Kernel::Point_3 Point;
 typedef std::array<double, 6> Covariance;
 
 static void usage() {
-  std::fprintf(stderr, "usage: features_cgal INPUT.ply -o SCORES.txt --R R --r r [--threshold T]\n");
+  std::fprintf(stderr,
+               "usage: features_cgal INPUT.ply -o SCORES.txt --R R --r r [--threshold T]\n");
   std::exit(2);
 }
 
@@ -48,13 +49,20 @@ int main(int argc, char **argv) {
       if (i + 1 >= argc) usage();
       return argv[++i];
     };
-    if (a == "-o") out = val();
-    else if (a == "--R") R = std::atof(val());
-    else if (a == "--r") r = std::atof(val());
-    else if (a == "--threshold") threshold = std::atof(val());
-    else if (!a.empty() && a[0] == '-') usage();
-    else if (in.empty()) in = a;
-    else usage();
+    if (a == "-o")
+      out = val();
+    else if (a == "--R")
+      R = std::atof(val());
+    else if (a == "--r")
+      r = std::atof(val());
+    else if (a == "--threshold")
+      threshold = std::atof(val());
+    else if (!a.empty() && a[0] == '-')
+      usage();
+    else if (in.empty())
+      in = a;
+    else
+      usage();
   }
   if (in.empty() || out.empty() || !(R > 0) || !(r >= 0)) usage();
   std::vector<double> xyz;
@@ -67,7 +75,8 @@ int main(int argc, char **argv) {
   const size_t n = xyz.size() / 3;
   std::vector<Point> points;
   points.reserve(n);
-  for (size_t i = 0; i < n; i++) points.emplace_back(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
+  for (size_t i = 0; i < n; i++)
+    points.emplace_back(xyz[3 * i], xyz[3 * i + 1], xyz[3 * i + 2]);
 
   std::vector<Covariance> cov;
   const double c0 = peer::cpu_seconds();
@@ -86,11 +95,12 @@ int main(int argc, char **argv) {
     std::array<double, 3> ev;
     double score = -1;
     // the same traits and ratio as vcm_is_on_feature_edge(cov, threshold)
-    if (CGAL::Default_diagonalize_traits<double, 3>::diagonalize_selfadjoint_covariance_matrix(cov[i], ev))
+    if (CGAL::Default_diagonalize_traits<double, 3>::diagonalize_selfadjoint_covariance_matrix(
+            cov[i], ev))
       score = ev[1] / (ev[0] + ev[1] + ev[2]);
     else
       failed++;
-    if (std::isnan(score)) nan++;  // e.g. degenerate Delaunay cells of a regular grid
+    if (std::isnan(score)) nan++; // e.g. degenerate Delaunay cells of a regular grid
     const bool e = CGAL::vcm_is_on_feature_edge(cov[i], threshold);
     on_edge += e;
     agree += e == (score >= threshold);
@@ -100,9 +110,10 @@ int main(int argc, char **argv) {
     std::fprintf(stderr, "features_cgal: cannot write %s\n", out.c_str());
     return 1;
   }
-  std::printf("{\"peer\":\"cgal\",\"version\":\"%s\",\"score\":\"vcm l1/(l0+l1+l2)\",\"R\":%.9g,\"r\":%.9g,"
-              "\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"threshold\":%.9g,\"on_edge\":%zu,"
-              "\"score_agrees\":%zu,\"failed\":%zu,\"nan\":%zu}\n",
-              CGAL_VERSION_STR, R, r, n, secs, cpu, threshold, on_edge, agree, failed, nan);
+  std::printf(
+      "{\"peer\":\"cgal\",\"version\":\"%s\",\"score\":\"vcm l1/(l0+l1+l2)\",\"R\":%.9g,\"r\":%.9g,"
+      "\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"threshold\":%.9g,\"on_edge\":%zu,"
+      "\"score_agrees\":%zu,\"failed\":%zu,\"nan\":%zu}\n",
+      CGAL_VERSION_STR, R, r, n, secs, cpu, threshold, on_edge, agree, failed, nan);
   return 0;
 }

@@ -36,7 +36,8 @@ int main(int argc, char **argv) {
   pcl::NormalEstimationOMP<pcl::PointXYZ, pcl::Normal> ne;
   ne.setNumberOfThreads((unsigned)o.threads);
   ne.setInputCloud(cloud);
-  ne.setSearchMethod(pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>));
+  ne.setSearchMethod(
+      pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>));
   ne.setKSearch(o.k);
   ne.compute(normals);
   const double secs = peer::now() - t0;
@@ -57,8 +58,9 @@ int main(int argc, char **argv) {
     std::fprintf(stderr, "features_pcl: cannot write %s\n", o.out.c_str());
     return 1;
   }
-  std::printf("{\"peer\":\"pcl\",\"version\":\"%s\",\"score\":\"surface variation l0/(l0+l1+l2)\",\"k\":%d,"
-              "\"threads\":%d,\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"invalid\":%zu}\n",
-              PCL_VERSION_PRETTY, o.k, o.threads, n, secs, cpu, invalid);
+  std::printf(
+      "{\"peer\":\"pcl\",\"version\":\"%s\",\"score\":\"surface variation l0/(l0+l1+l2)\",\"k\":%d,"
+      "\"threads\":%d,\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"invalid\":%zu}\n",
+      PCL_VERSION_PRETTY, o.k, o.threads, n, secs, cpu, invalid);
   return 0;
 }

@@ -31,11 +31,16 @@ int main(int argc, char **argv) {
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i];
     const int has = i + 1 < argc;
-    if (!strcmp(a, "-o") && has) out = argv[++i];
-    else if (!strcmp(a, "-k") && has) k = atoi(argv[++i]);
-    else if (!strcmp(a, "-j") && has) threads = atoi(argv[++i]);
-    else if (a[0] == '-' || in) return usage();
-    else in = a;
+    if (!strcmp(a, "-o") && has)
+      out = argv[++i];
+    else if (!strcmp(a, "-k") && has)
+      k = atoi(argv[++i]);
+    else if (!strcmp(a, "-j") && has)
+      threads = atoi(argv[++i]);
+    else if (a[0] == '-' || in)
+      return usage();
+    else
+      in = a;
   }
   if (!in || !out || k < 1 || threads < 1) return usage();
   bsurf_cloud c;
@@ -67,10 +72,11 @@ int main(int argc, char **argv) {
     fprintf(stderr, "knn_bootsurf: %s: cannot write\n", out);
     return 1;
   }
-  printf("{\"peer\":\"bootsurf\",\"method\":\"bsurf_knn_all\",\"k\":%d,\"threads\":%d,\"points\":%zu,"
-         "\"seconds\":%.6f,\"seconds_build\":%.6f,\"seconds_search\":%.6f,\"cpu_seconds\":%.6f,"
-         "\"peak_rss_kb\":%ld,\"timed\":\"bsurf_knn_build + bsurf_knn_all\"}\n",
-         k, bsurf_threads_resolve(threads), n, t2 - t0, t1 - t0, t2 - t1, cpu, peak_rss_kb());
+  printf(
+      "{\"peer\":\"bootsurf\",\"method\":\"bsurf_knn_all\",\"k\":%d,\"threads\":%d,\"points\":%zu,"
+      "\"seconds\":%.6f,\"seconds_build\":%.6f,\"seconds_search\":%.6f,\"cpu_seconds\":%.6f,"
+      "\"peak_rss_kb\":%ld,\"timed\":\"bsurf_knn_build + bsurf_knn_all\"}\n",
+      k, bsurf_threads_resolve(threads), n, t2 - t0, t1 - t0, t2 - t1, cpu, peak_rss_kb());
   bsurf_knn_free(index);
   free(idx);
   free(dist2);

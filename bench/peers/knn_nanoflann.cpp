@@ -14,9 +14,9 @@
 // walks the points in the tree's leaf order (its public index permutation vAcc),
 // so consecutive queries touch the same nodes and points, as an all-kNN over a
 // cloud should; "input" queries them in file order (random on the benchmark's
-// sphere), as a naive loop does — slower from cache misses alone. The query point is in the cloud, so it
-// is among its K (distance 0): the same K as bootsurf's. "seconds" = build +
-// search. Not timed: reading the PLY, writing CHECK.f64.
+// sphere), as a naive loop does — slower from cache misses alone. The query point is in the cloud,
+// so it is among its K (distance 0): the same K as bootsurf's. "seconds" = build + search. Not
+// timed: reading the PLY, writing CHECK.f64.
 //
 // CHECK.f64: per point the sum and the largest of its K squared distances, as
 // n x 2 little-endian doubles (bench/peers/bs_driver.h's format).
@@ -33,10 +33,15 @@
 struct Cloud {
   const double *xyz;
   size_t n;
-  size_t kdtree_get_point_count() const { return n; }
-  double kdtree_get_pt(const size_t i, const size_t d) const { return xyz[3 * i + d]; }
-  template <class BBox>
-  bool kdtree_get_bbox(BBox &) const { return false; }
+  size_t kdtree_get_point_count() const {
+    return n;
+  }
+  double kdtree_get_pt(const size_t i, const size_t d) const {
+    return xyz[3 * i + d];
+  }
+  template <class BBox> bool kdtree_get_bbox(BBox &) const {
+    return false;
+  }
 };
 
 typedef nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<double, Cloud>, Cloud, 3,
@@ -96,9 +101,12 @@ int main(int argc, char **argv) {
   }
   std::printf("{\"peer\":\"nanoflann\",\"version\":\"%d.%d.%d\",\"method\":\"knnSearch\",\"k\":%zu,"
               "\"threads\":%d,\"points\":%zu,\"seconds\":%.6f,\"seconds_build\":%.6f,"
-              "\"seconds_search\":%.6f,\"cpu_seconds\":%.6f,\"leaf_size\":10,\"order\":\"%s\",\"short_rows\":%ld,"
-              "\"peak_rss_kb\":%ld,\"timed\":\"KDTreeSingleIndexAdaptor build + knnSearch per point (OpenMP)\"}\n",
-              NANOFLANN_VERSION >> 8, (NANOFLANN_VERSION >> 4) & 0xf, NANOFLANN_VERSION & 0xf, k, o.threads,
-              n, t2 - t0, t1 - t0, t2 - t1, cpu, o.method.c_str(), short_rows, peer::peak_rss_kb());
+              "\"seconds_search\":%.6f,\"cpu_seconds\":%.6f,\"leaf_size\":10,\"order\":\"%s\","
+              "\"short_rows\":%ld,"
+              "\"peak_rss_kb\":%ld,\"timed\":\"KDTreeSingleIndexAdaptor build + knnSearch per "
+              "point (OpenMP)\"}\n",
+              NANOFLANN_VERSION >> 8, (NANOFLANN_VERSION >> 4) & 0xf, NANOFLANN_VERSION & 0xf, k,
+              o.threads, n, t2 - t0, t1 - t0, t2 - t1, cpu, o.method.c_str(), short_rows,
+              peer::peak_rss_kb());
   return 0;
 }

@@ -36,20 +36,32 @@ int main(int argc, char **argv) {
   for (int i = 1; i < argc; i++) {
     const char *a = argv[i];
     int has = i + 1 < argc;
-    if (!strcmp(a, "-o") && has) out = argv[++i];
-    else if (!strcmp(a, "-k") && has) no.k = atoi(argv[++i]);
-    else if (!strcmp(a, "-j") && has) no.threads = atoi(argv[++i]);
-    else if (!strcmp(a, "-d") && has) no.degree = atoi(argv[++i]);
-    else if (!strcmp(a, "-B") && has) no.bootstrap = atoi(argv[++i]);
-    else if (!strcmp(a, "--fit") && has) fit = argv[++i];
-    else if (a[0] == '-') return usage();
-    else if (!in) in = a;
-    else return usage();
+    if (!strcmp(a, "-o") && has)
+      out = argv[++i];
+    else if (!strcmp(a, "-k") && has)
+      no.k = atoi(argv[++i]);
+    else if (!strcmp(a, "-j") && has)
+      no.threads = atoi(argv[++i]);
+    else if (!strcmp(a, "-d") && has)
+      no.degree = atoi(argv[++i]);
+    else if (!strcmp(a, "-B") && has)
+      no.bootstrap = atoi(argv[++i]);
+    else if (!strcmp(a, "--fit") && has)
+      fit = argv[++i];
+    else if (a[0] == '-')
+      return usage();
+    else if (!in)
+      in = a;
+    else
+      return usage();
   }
   if (!in || !out || no.k < 3) return usage();
-  if (!strcmp(fit, "pca")) no.fit = BSURF_NORMAL_PCA;
-  else if (!strcmp(fit, "poly")) no.fit = BSURF_NORMAL_POLY;
-  else return usage();
+  if (!strcmp(fit, "pca"))
+    no.fit = BSURF_NORMAL_PCA;
+  else if (!strcmp(fit, "poly"))
+    no.fit = BSURF_NORMAL_POLY;
+  else
+    return usage();
 
   bsurf_cloud c;
   if (driver_read("normals_bootsurf", in, &c)) return 1;
@@ -96,7 +108,8 @@ int main(int argc, char **argv) {
     return 1;
   }
   printf("{\"peer\":\"bootsurf\",\"method\":\"%s\",\"degree\":%d,\"bootstrap\":%d,\"k\":%d,"
-         "\"threads\":%d,\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"seconds_neighbors\":%.6f,"
+         "\"threads\":%d,\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"seconds_"
+         "neighbors\":%.6f,"
          "\"seconds_normals\":%.6f,\"peak_rss_kb\":%ld,\"degenerate\":%zu,"
          "\"timed\":\"bsurf_neighbors_build + bsurf_estimate_normals\"}\n",
          fit, no.fit == BSURF_NORMAL_POLY ? no.degree : 1, no.bootstrap, no.k, no.threads, n,

@@ -44,7 +44,8 @@ typedef std::pair<Point, Vector> PointVectorPair;
 
 int main(int argc, char **argv) {
   peer::Options o = peer::parse(argc, argv, " [--method pca|jet] [-d DEGREE]", "pca");
-  if (o.method != "pca" && o.method != "jet") peer::usage(argv[0], " [--method pca|jet] [-d DEGREE]");
+  if (o.method != "pca" && o.method != "jet")
+    peer::usage(argv[0], " [--method pca|jet] [-d DEGREE]");
   const unsigned need = (unsigned)((o.degree + 1) * (o.degree + 2) / 2);
   if (o.method == "jet" && (o.degree < 1 || (unsigned)o.k < need)) {
     std::fprintf(stderr, "normals_cgal: K = %d too small for degree %d\n", o.k, o.degree);
@@ -70,7 +71,7 @@ int main(int argc, char **argv) {
   const bool tbb = false;
   const int threads = 1;
 #endif
-  const unsigned cgal_k = (unsigned)(o.k - 1);  // CGAL adds the point itself
+  const unsigned cgal_k = (unsigned)(o.k - 1); // CGAL adds the point itself
   auto np = CGAL::parameters::point_map(CGAL::First_of_pair_property_map<PointVectorPair>())
                 .normal_map(CGAL::Second_of_pair_property_map<PointVectorPair>());
 
@@ -79,8 +80,8 @@ int main(int argc, char **argv) {
   if (o.method == "pca")
     CGAL::pca_estimate_normals<CGAL::Parallel_if_available_tag>(pts, cgal_k, np);
   else
-    CGAL::jet_estimate_normals<CGAL::Parallel_if_available_tag>(pts, cgal_k,
-                                                                np.degree_fitting((unsigned)o.degree));
+    CGAL::jet_estimate_normals<CGAL::Parallel_if_available_tag>(
+        pts, cgal_k, np.degree_fitting((unsigned)o.degree));
   const double secs = peer::now() - t0;
   const double cpu = peer::cpu_seconds() - c0;
 
@@ -98,7 +99,8 @@ int main(int argc, char **argv) {
     return 1;
   }
   std::printf("{\"peer\":\"cgal\",\"version\":\"%s\",\"method\":\"%s\",\"degree\":%d,\"k\":%d,"
-              "\"cgal_k\":%u,\"threads\":%d,\"tbb\":%s,\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,"
+              "\"cgal_k\":%u,\"threads\":%d,\"tbb\":%s,\"points\":%zu,\"seconds\":%.6f,\"cpu_"
+              "seconds\":%.6f,"
               "\"peak_rss_kb\":%ld,\"timed\":\"%s_estimate_normals incl. kd-tree build\"}\n",
               CGAL_VERSION_STR, o.method.c_str(), o.method == "jet" ? o.degree : 1, o.k, cgal_k,
               threads, tbb ? "true" : "false", n, secs, cpu, peer::peak_rss_kb(), o.method.c_str());

@@ -38,9 +38,10 @@ int main(int argc, char **argv) {
   pcl::NormalEstimationOMP<pcl::PointXYZ, pcl::Normal> ne;
   ne.setNumberOfThreads((unsigned)o.threads);
   ne.setInputCloud(cloud);
-  ne.setSearchMethod(pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>));
+  ne.setSearchMethod(
+      pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>));
   ne.setKSearch(o.k);
-  ne.compute(normals);  // builds the k-d tree (initCompute), then the OMP loop
+  ne.compute(normals); // builds the k-d tree (initCompute), then the OMP loop
   const double secs = peer::now() - t0;
   const double cpu = peer::cpu_seconds() - c0;
 
@@ -60,7 +61,8 @@ int main(int argc, char **argv) {
     return 1;
   }
   std::printf("{\"peer\":\"pcl\",\"version\":\"%s\",\"method\":\"pca\",\"k\":%d,\"threads\":%d,"
-              "\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"peak_rss_kb\":%ld,\"invalid_normals\":%zu,"
+              "\"points\":%zu,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"peak_rss_kb\":%ld,\"invalid_"
+              "normals\":%zu,"
               "\"timed\":\"NormalEstimationOMP::compute incl. FLANN kd-tree build\"}\n",
               PCL_VERSION_PRETTY, o.k, o.threads, n, secs, cpu, peer::peak_rss_kb(), invalid);
   return 0;

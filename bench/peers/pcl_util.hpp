@@ -36,4 +36,4 @@ inline pcl::PointCloud<pcl::PointXYZ>::Ptr read_pcl_cloud(const std::string &pat
   return cloud;
 }
 
-}  // namespace peer
+} // namespace peer

@@ -36,9 +36,9 @@ static inline double cpu_seconds() {
 
 struct Options {
   std::string in, out, method;
-  int k = 30;       // neighbourhood size, the point itself included (bootsurf's K)
+  int k = 30; // neighbourhood size, the point itself included (bootsurf's K)
   int threads = 2;
-  int degree = 2;   // jet fitting degree (CGAL)
+  int degree = 2; // jet fitting degree (CGAL)
 };
 
 static inline void usage(const char *prog, const char *extra) {
@@ -58,18 +58,27 @@ static inline Options parse(int argc, char **argv, const char *extra, const char
       if (i + 1 >= argc) usage(argv[0], extra);
       return argv[++i];
     };
-    if (a == "-o") o.out = val();
-    else if (a == "-k") o.k = std::atoi(val());
-    else if (a == "-j") o.threads = std::atoi(val());
-    else if (a == "-d") o.degree = std::atoi(val());
-    else if (a == "--method") o.method = val();
-    else if (a == "-h" || a == "--help") usage(argv[0], extra);
-    else if (!a.empty() && a[0] == '-') usage(argv[0], extra);
-    else if (o.in.empty()) o.in = a;
-    else usage(argv[0], extra);
+    if (a == "-o")
+      o.out = val();
+    else if (a == "-k")
+      o.k = std::atoi(val());
+    else if (a == "-j")
+      o.threads = std::atoi(val());
+    else if (a == "-d")
+      o.degree = std::atoi(val());
+    else if (a == "--method")
+      o.method = val();
+    else if (a == "-h" || a == "--help")
+      usage(argv[0], extra);
+    else if (!a.empty() && a[0] == '-')
+      usage(argv[0], extra);
+    else if (o.in.empty())
+      o.in = a;
+    else
+      usage(argv[0], extra);
   }
   if (o.in.empty() || o.out.empty() || o.k < 3 || o.threads < 1) usage(argv[0], extra);
   return o;
 }
 
-}  // namespace peer
+} // namespace peer

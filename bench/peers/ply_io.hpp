@@ -25,16 +25,19 @@ namespace plyio {
 
 struct Prop {
   std::string name;
-  int size = 0;   // bytes
-  char kind = 0;  // 'i' signed, 'u' unsigned, 'f' float
+  int size = 0;  // bytes
+  char kind = 0; // 'i' signed, 'u' unsigned, 'f' float
 };
 
 static inline bool type_of(const std::string &t, Prop &p) {
-  static const struct { const char *n; int s; char k; } tab[] = {
-      {"char", 1, 'i'},   {"int8", 1, 'i'},    {"uchar", 1, 'u'},  {"uint8", 1, 'u'},
-      {"short", 2, 'i'},  {"int16", 2, 'i'},   {"ushort", 2, 'u'}, {"uint16", 2, 'u'},
-      {"int", 4, 'i'},    {"int32", 4, 'i'},   {"uint", 4, 'u'},   {"uint32", 4, 'u'},
-      {"float", 4, 'f'},  {"float32", 4, 'f'}, {"double", 8, 'f'}, {"float64", 8, 'f'}};
+  static const struct {
+    const char *n;
+    int s;
+    char k;
+  } tab[] = {{"char", 1, 'i'},  {"int8", 1, 'i'},    {"uchar", 1, 'u'},  {"uint8", 1, 'u'},
+             {"short", 2, 'i'}, {"int16", 2, 'i'},   {"ushort", 2, 'u'}, {"uint16", 2, 'u'},
+             {"int", 4, 'i'},   {"int32", 4, 'i'},   {"uint", 4, 'u'},   {"uint32", 4, 'u'},
+             {"float", 4, 'f'}, {"float32", 4, 'f'}, {"double", 8, 'f'}, {"float64", 8, 'f'}};
   for (const auto &e : tab)
     if (t == e.n) {
       p.size = e.s;
@@ -46,19 +49,47 @@ static inline bool type_of(const std::string &t, Prop &p) {
 
 static inline double decode(const unsigned char *b, const Prop &p, bool swap) {
   unsigned char t[8];
-  for (int i = 0; i < p.size; i++) t[i] = swap ? b[p.size - 1 - i] : b[i];
+  for (int i = 0; i < p.size; i++)
+    t[i] = swap ? b[p.size - 1 - i] : b[i];
   switch (p.kind) {
-    case 'f':
-      if (p.size == 4) { float f; std::memcpy(&f, t, 4); return f; }
-      else { double d; std::memcpy(&d, t, 8); return d; }
-    case 'i':
-      if (p.size == 1) { int8_t v; std::memcpy(&v, t, 1); return v; }
-      if (p.size == 2) { int16_t v; std::memcpy(&v, t, 2); return v; }
-      { int32_t v; std::memcpy(&v, t, 4); return v; }
-    default:
-      if (p.size == 1) return t[0];
-      if (p.size == 2) { uint16_t v; std::memcpy(&v, t, 2); return v; }
-      { uint32_t v; std::memcpy(&v, t, 4); return v; }
+  case 'f':
+    if (p.size == 4) {
+      float f;
+      std::memcpy(&f, t, 4);
+      return f;
+    } else {
+      double d;
+      std::memcpy(&d, t, 8);
+      return d;
+    }
+  case 'i':
+    if (p.size == 1) {
+      int8_t v;
+      std::memcpy(&v, t, 1);
+      return v;
+    }
+    if (p.size == 2) {
+      int16_t v;
+      std::memcpy(&v, t, 2);
+      return v;
+    }
+    {
+      int32_t v;
+      std::memcpy(&v, t, 4);
+      return v;
+    }
+  default:
+    if (p.size == 1) return t[0];
+    if (p.size == 2) {
+      uint16_t v;
+      std::memcpy(&v, t, 2);
+      return v;
+    }
+    {
+      uint32_t v;
+      std::memcpy(&v, t, 4);
+      return v;
+    }
   }
 }
 
@@ -122,7 +153,8 @@ static inline bool read_columns(const std::string &path, const std::vector<std::
     std::istringstream ls(line);
     std::string w;
     ls >> w;
-    if (w == "format") ls >> format;
+    if (w == "format")
+      ls >> format;
     else if (w == "element") {
       std::string name;
       ls >> name;
@@ -144,7 +176,8 @@ static inline bool read_columns(const std::string &path, const std::vector<std::
       p.name = name;
       if (!type_of(t, p)) throw std::runtime_error(path + ": unknown type " + t);
       props.push_back(p);
-    } else if (w == "end_header") break;
+    } else if (w == "end_header")
+      break;
   }
   const size_t m = names.size();
   std::vector<int> idx(m, -1);
@@ -164,16 +197,20 @@ static inline bool read_columns(const std::string &path, const std::vector<std::
     for (size_t r = 0; r < n; r++) {
       for (size_t i = 0; i < props.size(); i++)
         if (!(in >> v[i])) throw std::runtime_error(path + ": short ascii data");
-      for (size_t c = 0; c < m; c++) cols[m * r + c] = v[idx[c]];
+      for (size_t c = 0; c < m; c++)
+        cols[m * r + c] = v[idx[c]];
     }
     return true;
   }
   const uint16_t one = 1;
   const bool host_le = *(const unsigned char *)&one == 1;
   bool swap;
-  if (format == "binary_little_endian") swap = !host_le;
-  else if (format == "binary_big_endian") swap = host_le;
-  else throw std::runtime_error(path + ": unknown format " + format);
+  if (format == "binary_little_endian")
+    swap = !host_le;
+  else if (format == "binary_big_endian")
+    swap = host_le;
+  else
+    throw std::runtime_error(path + ": unknown format " + format);
   const size_t block = 65536;
   std::vector<unsigned char> buf(stride * (n < block ? n : block));
   for (size_t s = 0; s < n; s += block) {
@@ -198,16 +235,21 @@ static inline void write_points(const std::string &path, const std::vector<doubl
                                 const std::vector<double> &nrm, const std::vector<Extra> &extra,
                                 const std::string &comment) {
   const size_t n = xyz.size() / 3;
-  if (!nrm.empty() && nrm.size() != xyz.size()) throw std::runtime_error("write: normals size mismatch");
+  if (!nrm.empty() && nrm.size() != xyz.size())
+    throw std::runtime_error("write: normals size mismatch");
   for (const Extra &e : extra)
-    if (e.values.size() != n) throw std::runtime_error("write: column " + e.name + " size mismatch");
+    if (e.values.size() != n)
+      throw std::runtime_error("write: column " + e.name + " size mismatch");
   const std::string tmp = path + ".tmp";
   FILE *f = std::fopen(tmp.c_str(), "wb");
   if (!f) throw std::runtime_error(path + ": cannot write");
-  std::fprintf(f, "ply\nformat binary_little_endian 1.0\ncomment %s\nelement vertex %zu\n"
-               "property double x\nproperty double y\nproperty double z\n", comment.c_str(), n);
+  std::fprintf(f,
+               "ply\nformat binary_little_endian 1.0\ncomment %s\nelement vertex %zu\n"
+               "property double x\nproperty double y\nproperty double z\n",
+               comment.c_str(), n);
   if (!nrm.empty()) std::fprintf(f, "property double nx\nproperty double ny\nproperty double nz\n");
-  for (const Extra &e : extra) std::fprintf(f, "property float %s\n", e.name.c_str());
+  for (const Extra &e : extra)
+    std::fprintf(f, "property float %s\n", e.name.c_str());
   std::fprintf(f, "end_header\n");
   const size_t row_bytes = 8 * (nrm.empty() ? 3 : 6) + 4 * extra.size();
   std::vector<unsigned char> buf(row_bytes * 4096);
@@ -215,7 +257,7 @@ static inline void write_points(const std::string &path, const std::vector<doubl
   for (size_t s = 0; s < n && ok; s += 4096) {
     const size_t m = n - s < 4096 ? n - s : 4096;
     unsigned char *p = buf.data();
-    for (size_t r = 0; r < m; r++) {  // little-endian host (x86-64, aarch64)
+    for (size_t r = 0; r < m; r++) { // little-endian host (x86-64, aarch64)
       std::memcpy(p, &xyz[3 * (s + r)], 24);
       p += 24;
       if (!nrm.empty()) {
@@ -235,4 +277,4 @@ static inline void write_points(const std::string &path, const std::vector<doubl
   }
 }
 
-}  // namespace plyio
+} // namespace plyio

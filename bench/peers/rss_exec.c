@@ -2,12 +2,11 @@
  *
  * usage: rss_exec STATS_FILE COMMAND [ARGS...]
  *
- * Writes "WALL_SECONDS PEAK_RSS_KB CPU_SECONDS" (user + system) to STATS_FILE and exits with the command's
- * status. Why not measure from the Python harness directly: Linux carries a
- * process's RSS high-water mark across fork and exec (ru_maxrss of a child is
- * at least its parent's RSS at fork time), so a child of the numpy-loaded
- * harness would report at least the harness's ~40 MB. This launcher is small,
- * so the peak it passes on is about 1 MB. Wall time: monotonic clock from just
+ * Writes "WALL_SECONDS PEAK_RSS_KB CPU_SECONDS" (user + system) to STATS_FILE and exits with the
+ * command's status. Why not measure from the Python harness directly: Linux carries a process's RSS
+ * high-water mark across fork and exec (ru_maxrss of a child is at least its parent's RSS at fork
+ * time), so a child of the numpy-loaded harness would report at least the harness's ~40 MB. This
+ * launcher is small, so the peak it passes on is about 1 MB. Wall time: monotonic clock from just
  * before fork to the reaping of the child (process start-up included). */
 #define _GNU_SOURCE
 #include <stdio.h>
@@ -47,9 +46,11 @@ int main(int argc, char **argv) {
   }
   const double wall = now() - t0;
   FILE *f = fopen(argv[1], "w");
-  if (!f || fprintf(f, "%.6f %ld %.6f\n", wall, ru.ru_maxrss,
-                      (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
-                          (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec) < 0 || fclose(f) != 0) {
+  if (!f ||
+      fprintf(f, "%.6f %ld %.6f\n", wall, ru.ru_maxrss,
+              (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+                  (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec) < 0 ||
+      fclose(f) != 0) {
     perror("rss_exec: stats file");
     return 127;
   }

@@ -62,7 +62,7 @@
 typedef CGAL::Simple_cartesian<double> Kernel;
 typedef Kernel::Point_3 Point;
 typedef Kernel::Vector_3 Vector;
-typedef std::tuple<Point, Vector, std::size_t> PNI;  // point, normal, input index
+typedef std::tuple<Point, Vector, std::size_t> PNI; // point, normal, input index
 typedef CGAL::Nth_of_tuple_property_map<0, PNI> PointMap;
 typedef CGAL::Nth_of_tuple_property_map<1, PNI> NormalMap;
 
@@ -80,10 +80,14 @@ int main(int argc, char **argv) {
   for (int i = 1; i < argc; i++) {
     const std::string a = argv[i];
     const bool has = i + 1 < argc;
-    if (a == "--sharpness" && has) sharpness = std::atof(argv[++i]);
-    else if (a == "--iterations" && has) iterations = std::atoi(argv[++i]);
-    else if (a == "--normals" && has) normals_src = argv[++i];
-    else if (a == "--orient" && has) orient = argv[++i];
+    if (a == "--sharpness" && has)
+      sharpness = std::atof(argv[++i]);
+    else if (a == "--iterations" && has)
+      iterations = std::atoi(argv[++i]);
+    else if (a == "--normals" && has)
+      normals_src = argv[++i];
+    else if (a == "--orient" && has)
+      orient = argv[++i];
     else {
       if (a == "-k") k_given = true;
       rest.push_back(argv[i]);
@@ -129,7 +133,7 @@ int main(int argc, char **argv) {
   const bool tbb = false;
   const int threads = 1;
 #endif
-  const unsigned cgal_k = (unsigned)(o.k - 1);  // CGAL adds the point itself
+  const unsigned cgal_k = (unsigned)(o.k - 1); // CGAL adds the point itself
   const unsigned monge = o.degree < 2 ? (unsigned)o.degree : 2u;
   auto np = CGAL::parameters::point_map(PointMap()).normal_map(NormalMap());
 
@@ -140,11 +144,14 @@ int main(int argc, char **argv) {
   if (o.method == "jet") {
     CGAL::jet_smooth_point_set<CGAL::Parallel_if_available_tag>(
         pts, cgal_k,
-        CGAL::parameters::point_map(PointMap()).degree_fitting((unsigned)o.degree).degree_monge(monge));
+        CGAL::parameters::point_map(PointMap())
+            .degree_fitting((unsigned)o.degree)
+            .degree_monge(monge));
     t_smooth = peer::now() - t0;
   } else {
     if (normals_src == "jet") {
-      CGAL::jet_estimate_normals<CGAL::Parallel_if_available_tag>(pts, cgal_k, np.degree_fitting(2));
+      CGAL::jet_estimate_normals<CGAL::Parallel_if_available_tag>(pts, cgal_k,
+                                                                  np.degree_fitting(2));
       t_normals = peer::now() - t0;
       if (orient == "mst") {
         const double t1 = peer::now();
@@ -190,23 +197,25 @@ int main(int argc, char **argv) {
     std::fprintf(stderr, "smooth_cgal: %s\n", e.what());
     return 1;
   }
-  std::printf("{\"peer\":\"cgal\",\"version\":\"%s\",\"method\":\"%s\",\"degree\":%d,\"k\":%d,"
-              "\"cgal_k\":%u,\"threads\":%d,\"tbb\":%s,\"points\":%zu,\"output_points\":%zu,\"dropped\":0,"
-              "\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"peak_rss_kb\":%ld,"
-              "\"normals_seconds\":%.6f,\"orient_seconds\":%.6f,\"smooth_seconds\":%.6f,"
-              "\"moved_mean\":%.9g,\"moved_max\":%.9g",
-              CGAL_VERSION_STR, o.method.c_str(), o.method == "jet" ? o.degree : 2, o.k, cgal_k,
-              threads, tbb ? "true" : "false", n, n, secs, cpu, peer::peak_rss_kb(), t_normals,
-              t_orient, t_smooth, n ? moved_sum / (double)n : 0.0, moved_max);
+  std::printf(
+      "{\"peer\":\"cgal\",\"version\":\"%s\",\"method\":\"%s\",\"degree\":%d,\"k\":%d,"
+      "\"cgal_k\":%u,\"threads\":%d,\"tbb\":%s,\"points\":%zu,\"output_points\":%zu,\"dropped\":0,"
+      "\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"peak_rss_kb\":%ld,"
+      "\"normals_seconds\":%.6f,\"orient_seconds\":%.6f,\"smooth_seconds\":%.6f,"
+      "\"moved_mean\":%.9g,\"moved_max\":%.9g",
+      CGAL_VERSION_STR, o.method.c_str(), o.method == "jet" ? o.degree : 2, o.k, cgal_k, threads,
+      tbb ? "true" : "false", n, n, secs, cpu, peer::peak_rss_kb(), t_normals, t_orient, t_smooth,
+      n ? moved_sum / (double)n : 0.0, moved_max);
   if (o.method == "bilateral")
     std::printf(",\"sharpness\":%g,\"iterations\":%d,\"normals\":\"%s\",\"orient\":\"%s\","
                 "\"unoriented\":%zu,\"last_move_error\":%.9g,"
                 "\"timed\":\"%sbilateral_smooth_point_set x %d (each: kd-tree, radius guess)\"}\n",
                 sharpness, iterations, normals_src.c_str(),
                 normals_src == "jet" ? orient.c_str() : "input", unoriented, move_error,
-                normals_src == "jet" ? (orient == "mst" ? "jet_estimate_normals + mst_orient_normals + "
-                                                        : "jet_estimate_normals + ")
-                                     : "",
+                normals_src == "jet"
+                    ? (orient == "mst" ? "jet_estimate_normals + mst_orient_normals + "
+                                       : "jet_estimate_normals + ")
+                    : "",
                 iterations);
   else
     std::printf(",\"timed\":\"jet_smooth_point_set incl. kd-tree build\"}\n");

@@ -51,7 +51,8 @@ int main(int argc, char **argv) {
   std::vector<char *> rest{argv[0]};
   for (int i = 1; i < argc; i++) {
     const std::string a = argv[i];
-    if (a == "--radius" && i + 1 < argc) radius = std::atof(argv[++i]);
+    if (a == "--radius" && i + 1 < argc)
+      radius = std::atof(argv[++i]);
     else {
       if (a == "-k") k_given = true;
       rest.push_back(argv[i]);
@@ -85,7 +86,7 @@ int main(int argc, char **argv) {
       radius = sum / (double)sample;
     }
     radius_secs = peer::now() - t0;
-    double inside = 0;  // not timed: how many points the radius holds
+    double inside = 0; // not timed: how many points the radius holds
     for (size_t s = 0; s < sample; s++) {
       const size_t i = s * n / sample;
       inside += (double)tree.radiusSearch((*cloud)[i], radius, idx, d2);
@@ -99,11 +100,12 @@ int main(int argc, char **argv) {
   const double t0 = peer::now();
   mls.setInputCloud(cloud);
   mls.setPolynomialOrder(o.degree);
-  mls.setSearchRadius(radius);  // also sets the Gaussian parameter to radius^2
+  mls.setSearchRadius(radius); // also sets the Gaussian parameter to radius^2
   mls.setComputeNormals(false);
   mls.setNumberOfThreads((unsigned)o.threads);
-  mls.setSearchMethod(pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>(false)));
-  mls.process(smoothed);  // builds the k-d tree, then the OpenMP loop
+  mls.setSearchMethod(
+      pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>(false)));
+  mls.process(smoothed); // builds the k-d tree, then the OpenMP loop
   const double secs = peer::now() - t0;
   const double cpu = peer::cpu_seconds() - c0;
 
@@ -152,14 +154,15 @@ int main(int argc, char **argv) {
     std::fprintf(stderr, "smooth_pcl: %s\n", e.what());
     return 1;
   }
-  std::printf("{\"peer\":\"pcl\",\"version\":\"%s\",\"method\":\"mls\",\"degree\":%d,\"k\":%d,"
-              "\"threads\":%d,\"points\":%zu,\"output_points\":%zu,\"dropped\":%zu,\"duplicates\":%zu,"
-              "\"radius\":%.9g,\"radius_seconds\":%.6f,\"mean_inside_radius\":%.2f,"
-              "\"plane_only_share\":%.5f,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"peak_rss_kb\":%ld,"
-              "\"moved_mean\":%.9g,\"moved_max\":%.9g,"
-              "\"timed\":\"MovingLeastSquares::process incl. FLANN kd-tree build\"}\n",
-              PCL_VERSION_PRETTY, o.degree, o.k, o.threads, n, smoothed.size(), dropped, dup, radius,
-              radius_secs, inside_mean, sample ? (double)plane_only / (double)sample : 0.0, secs, cpu,
-              peer::peak_rss_kb(), n ? moved_sum / (double)n : 0.0, moved_max);
+  std::printf(
+      "{\"peer\":\"pcl\",\"version\":\"%s\",\"method\":\"mls\",\"degree\":%d,\"k\":%d,"
+      "\"threads\":%d,\"points\":%zu,\"output_points\":%zu,\"dropped\":%zu,\"duplicates\":%zu,"
+      "\"radius\":%.9g,\"radius_seconds\":%.6f,\"mean_inside_radius\":%.2f,"
+      "\"plane_only_share\":%.5f,\"seconds\":%.6f,\"cpu_seconds\":%.6f,\"peak_rss_kb\":%ld,"
+      "\"moved_mean\":%.9g,\"moved_max\":%.9g,"
+      "\"timed\":\"MovingLeastSquares::process incl. FLANN kd-tree build\"}\n",
+      PCL_VERSION_PRETTY, o.degree, o.k, o.threads, n, smoothed.size(), dropped, dup, radius,
+      radius_secs, inside_mean, sample ? (double)plane_only / (double)sample : 0.0, secs, cpu,
+      peer::peak_rss_kb(), n ? moved_sum / (double)n : 0.0, moved_max);
   return 0;
 }

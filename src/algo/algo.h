@@ -11,14 +11,14 @@
 /* One thread's scratch for bsurf_error_point. */
 typedef struct bsurf_error_scratch {
   bsurf_localfit lf;
-  double *pred_full; /* k */
-  double *pred_boot; /* B x k */
-  uint16_t *counts;  /* B x k: the replicates' multiplicities */
-  double *missing;   /* B x k: 1 where the point is not in the replicate */
-  uint16_t *draws;   /* B x k: each replicate's indices in the order drawn */
-  double *rows;      /* R x ncols, R = B + 1 rounded up to 4: normal
-                        equations (bsurf_gemm_lanes layout), row B the full fit */
-  double *coefs;     /* B x terms */
+  double *pred_full;    /* k */
+  double *pred_boot;    /* B x k */
+  uint16_t *counts;     /* B x k: the replicates' multiplicities */
+  double *missing;      /* B x k: 1 where the point is not in the replicate */
+  uint16_t *draws;      /* B x k: each replicate's indices in the order drawn */
+  double *rows;         /* R x ncols, R = B + 1 rounded up to 4: normal
+                           equations (bsurf_gemm_lanes layout), row B the full fit */
+  double *coefs;        /* B x terms */
   unsigned char *valid; /* B */
   double *est_scratch;  /* 6k + 1 */
   size_t skipped, reduced, center_unestimated;
@@ -43,14 +43,14 @@ void bsurf_error_scratch_free(bsurf_error_scratch *s);
 
 /* What a point's fits leave beyond the estimators. */
 typedef struct bsurf_error_fit {
-  bsurf_frame frame;             /* PCA frame; origin = the point itself */
-  double inv_scale;              /* u = x' * inv_scale, v = y' * inv_scale */
-  int degree;                    /* degree of the full fit (may be reduced) */
-  double coef[BSURF_TERMS_MAX];  /* full fit, zero-padded to the asked degree */
-  double boot_center;            /* (1/B) sum_b f*b(x_0) over valid replicates:
-                                    the height of Eq. 6.1 (the full fit's when
-                                    no replicate is valid) */
-  bsurf_boot_result r;           /* the estimators */
+  bsurf_frame frame;            /* PCA frame; origin = the point itself */
+  double inv_scale;             /* u = x' * inv_scale, v = y' * inv_scale */
+  int degree;                   /* degree of the full fit (may be reduced) */
+  double coef[BSURF_TERMS_MAX]; /* full fit, zero-padded to the asked degree */
+  double boot_center;           /* (1/B) sum_b f*b(x_0) over valid replicates:
+                                   the height of Eq. 6.1 (the full fit's when
+                                   no replicate is valid) */
+  bsurf_boot_result r;          /* the estimators */
 } bsurf_error_fit;
 
 /* Algorithm 1 at point i with neighbourhood idx[0..o->k-1] (idx[0] = i):
@@ -86,8 +86,8 @@ void bsurf_nested_terms(const double *xyz, const uint32_t *idx, int kmax, double
  * NULL): the number of nonzero weights among candidate c's points. Each sum
  * runs over j = 0, 1, ... in order: candidate c's sums are exactly those of
  * a separate sum over its own K points. */
-void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, const int *ks, int nk,
-                       double *sums, int *distinct);
+void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, const int *ks,
+                       int nk, double *sums, int *distinct);
 /* From one (candidate, row) of the sums (sums points at its column 0, stride
  * R between columns): mu the weighted centroid relative to d_i, cov (xx xy xz
  * yy yz zz) the weighted second moments about the centroid, or about d_i
@@ -99,13 +99,14 @@ int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center,
  * column 0), in vector lanes: cov out 6 x R (cov[t R + r]), ok[r] = 1 when
  * the row's weight is positive (else its cov is not defined). Same values
  * as row by row. */
-void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center, double *cov, int *ok);
+void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center, double *cov,
+                            int *ok);
 /* sum_j theta(g, r_j), j < k: the unoriented angles (atan2(|g x r|, |g . r|),
  * within 2 ulp of the C library's, tests/test_normals.c) between unit g and
  * the unit vectors (rx, ry, rz)[j] in vector lanes, summed in a fixed order.
  * scratch: k doubles. The inner sum of Eq. 5.10. */
-double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry, const double *rz,
-                              int k, double *scratch);
+double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
+                              const double *rz, int k, double *scratch);
 
 /* ---- features --method distance (7.1) in stages (features.c), run on the
  * whole cloud by bsurf_detect_features and tile by tile by
@@ -124,28 +125,33 @@ void bsurf_fdist_sample(const bsurf_feature_options *o, size_t n, size_t *stride
  * vals[j m + g / stride] for the point of global index g. point_index NULL:
  * the whole cloud (the m samples); else the tile's rows, each with its
  * global index, of which the multiples of stride are written. */
-bsurf_status bsurf_fdist_sample_ratios(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
-                                       const uint64_t *point_index, size_t stride, size_t m, double *vals);
+bsurf_status bsurf_fdist_sample_ratios(const double *xyz, const bsurf_neighbors *nb,
+                                       const bsurf_feature_options *o, const uint64_t *point_index,
+                                       size_t stride, size_t m, double *vals);
 /* T_{a/c} per size: max(ratio_threshold, noise_factor x the median of the
  * sample's f(K)); vals (sizes x m) is sorted in place. */
 void bsurf_fdist_thresholds(const bsurf_feature_options *o, size_t m, double *vals, double *T);
 /* The raw map of every row (the radius where the growth stops) and its
  * state (0 reached k_max, 1 exceeded T_{a/c} later, 2 at k_min); ksel may
  * be NULL. */
-bsurf_status bsurf_fdist_raw(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
-                             const double *T, double *dist, int *ksel, uint8_t *state);
+bsurf_status bsurf_fdist_raw(const double *xyz, const bsurf_neighbors *nb,
+                             const bsurf_feature_options *o, const double *T, double *dist,
+                             int *ksel, uint8_t *state);
 /* *R = max(*R, dist[0..n)), in index order. */
 void bsurf_fdist_max_radius(const double *dist, size_t n, double *R);
 /* The map after the points that stopped at once get -max(radius). */
-static inline double bsurf_fdist_fixed(double dist, int state, double R) { return state == 2 ? -R : dist; }
+static inline double bsurf_fdist_fixed(double dist, int state, double R) {
+  return state == 2 ? -R : dist;
+}
 /* The filter's neighbours (filter_k, 0 = k_min) and passes (0 when off). */
 int bsurf_fdist_filter_k(const bsurf_feature_options *o);
 int bsurf_fdist_filter_passes(const bsurf_feature_options *o, double R);
 /* One Jacobi pass of Eq. 7.1 over the rows of nb: out[r] from the values
  * `in` of the points of xyz (sigma_a = h, or R when h is 0; sigma_b =
  * sigma_range x R). */
-bsurf_status bsurf_fdist_filter(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
-                                double h, double R, const double *in, double *out);
+bsurf_status bsurf_fdist_filter(const double *xyz, const bsurf_neighbors *nb,
+                                const bsurf_feature_options *o, double h, double R,
+                                const double *in, double *out);
 /* Otsu's split of the m positive values of the map (sorted in place); 0
  * when m < 2. */
 double bsurf_fdist_otsu_positive(double *pos, size_t m);

@@ -70,8 +70,8 @@ bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int
   s->coefs = bsurf_alloc_aligned(nb * BSURF_TERMS_MAX, sizeof(double));
   s->valid = bsurf_alloc_array(nb, 1);
   s->est_scratch = bsurf_alloc_array(6 * (size_t)k + 1, sizeof(double));
-  if (!s->pred_full || !s->pred_boot || !s->counts || !s->missing || !s->draws || !s->rows || !s->coefs ||
-      !s->valid || !s->est_scratch) {
+  if (!s->pred_full || !s->pred_boot || !s->counts || !s->missing || !s->draws || !s->rows ||
+      !s->coefs || !s->valid || !s->est_scratch) {
     bsurf_error_scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -102,16 +102,19 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
   double coef[BSURF_TERMS_MAX], row[BSURF_NCOLS_MAX];
   bsurf_lanes_row(lf->ncols, s->rows, B, row);
   int degree = o->degree;
-  while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, coef) != 0) degree--;
+  while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, coef) != 0)
+    degree--;
   if (degree == 0) bsurf_localfit_solve_row(lf, 0, row, coef); /* constant: never singular */
   if (degree != o->degree) s->reduced++;
   bsurf_localfit_predict(lf, degree, 1, coef, NULL, s->pred_full);
 
   const int m = bsurf_poly_terms(degree);
   if (degree != o->degree) /* a lower degree needs fewer distinct points */
-    for (int b = 0; b < B; b++) s->valid[b] = bsurf_boot_distinct(k, &s->counts[(size_t)b * k]) >= m;
+    for (int b = 0; b < B; b++)
+      s->valid[b] = bsurf_boot_distinct(k, &s->counts[(size_t)b * k]) >= m;
   bsurf_localfit_solve_lanes(lf, degree, B, s->rows, s->valid, s->coefs);
-  for (int b = 0; b < B; b++) s->skipped += !s->valid[b];
+  for (int b = 0; b < B; b++)
+    s->skipped += !s->valid[b];
 
   bsurf_boot_result r;
   if (o->gamma == BSURF_GAMMA_FIT) {
@@ -122,13 +125,15 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
     bsurf_localfit_residual_sums(lf, degree, B, s->coefs, s->valid, s->counts, boot_j, loo_sum,
                                  loo_cnt);
     int nvalid = 0;
-    for (int b = 0; b < B; b++) nvalid += s->valid[b];
+    for (int b = 0; b < B; b++)
+      nvalid += s->valid[b];
     bsurf_boot_estimate_sums(k, nvalid, lf->z, s->pred_full, boot_j, loo_sum, loo_cnt, 0, 0,
                              o->gamma, s->est_scratch, &r);
   } else {
     /* mean or max of Eq. 4.10 over the replicates: every prediction, and
      * the rows of points left out (b in C_j) as an array */
-    for (size_t t = 0; t < (size_t)B * k; t++) s->missing[t] = s->counts[t] == 0;
+    for (size_t t = 0; t < (size_t)B * k; t++)
+      s->missing[t] = s->counts[t] == 0;
     bsurf_localfit_predict(lf, degree, B, s->coefs, s->valid, s->pred_boot);
     bsurf_boot_estimate(k, B, lf->z, s->pred_full, s->pred_boot, s->missing, s->valid, o->gamma,
                         s->est_scratch, &r);
@@ -148,7 +153,8 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
     fit->inv_scale = 1.0 / lf->scale;
     fit->degree = degree;
     const int mfull = bsurf_poly_terms(o->degree);
-    for (int a = 0; a < mfull; a++) fit->coef[a] = a < m ? coef[a] : 0.0;
+    for (int a = 0; a < mfull; a++)
+      fit->coef[a] = a < m ? coef[a] : 0.0;
     /* Eq. 6.1: the mean of the valid replicates' predictions at the centre
      * (each as bsurf_localfit_predict makes it: terms in order from 0) */
     double sum = 0;
@@ -156,7 +162,8 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
     for (int b = 0; b < B; b++)
       if (s->valid[b]) {
         double pc = 0;
-        for (int a = 0; a < m; a++) pc += s->coefs[(size_t)b * m + a] * lf->phit[(size_t)a * lf->kp];
+        for (int a = 0; a < m; a++)
+          pc += s->coefs[(size_t)b * m + a] * lf->phit[(size_t)a * lf->kp];
         sum += pc;
         used++;
       }
@@ -182,23 +189,29 @@ void bsurf_error_point(const double *xyz, const uint32_t *idx, const double *tes
 
 bsurf_status bsurf_error_check(const bsurf_error_options *o, const bsurf_neighbors *nb) {
   BSURF_REQUIRE_IN("error options", o, "no options given");
-  BSURF_REQUIRE_IN("error options", nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
-  BSURF_REQUIRE_IN("error options", o->degree >= 1 && o->degree <= BSURF_DEGREE_MAX, "degree = %d: must be in [1, %d]", o->degree,
-                BSURF_DEGREE_MAX);
-  BSURF_REQUIRE_IN("error options", o->bootstrap >= 0 && o->bootstrap <= 100000, "bootstrap (B) = %d: must be in [0, 100000]",
-                o->bootstrap);
-  BSURF_REQUIRE_IN("error options", o->k >= 2 && o->k <= 65535, "k = %d: must be in [2, 65535]", o->k);
-  BSURF_REQUIRE_IN("error options", o->k <= nb->k, "k = %d exceeds the neighbourhoods' nb->k = %d: must be in [2, %d]", o->k, nb->k,
-                nb->k);
+  BSURF_REQUIRE_IN("error options", nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build",
+                   nb ? "empty" : "NULL");
+  BSURF_REQUIRE_IN("error options", o->degree >= 1 && o->degree <= BSURF_DEGREE_MAX,
+                   "degree = %d: must be in [1, %d]", o->degree, BSURF_DEGREE_MAX);
+  BSURF_REQUIRE_IN("error options", o->bootstrap >= 0 && o->bootstrap <= 100000,
+                   "bootstrap (B) = %d: must be in [0, 100000]", o->bootstrap);
+  BSURF_REQUIRE_IN("error options", o->k >= 2 && o->k <= 65535, "k = %d: must be in [2, 65535]",
+                   o->k);
+  BSURF_REQUIRE_IN("error options", o->k <= nb->k,
+                   "k = %d exceeds the neighbourhoods' nb->k = %d: must be in [2, %d]", o->k, nb->k,
+                   nb->k);
   if ((size_t)o->k > nb->point_count)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d exceeds the %zu points", o->k, nb->point_count);
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d exceeds the %zu points", o->k,
+                             nb->point_count);
   if (o->k < bsurf_poly_terms(o->degree))
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d is too small for degree %d: a fit needs %d points",
-                             o->k, o->degree, bsurf_poly_terms(o->degree));
-  BSURF_REQUIRE_IN("error options", (unsigned)o->gamma <= BSURF_GAMMA_MAX, "gamma = %d: must be BSURF_GAMMA_FIT, _MEAN or _MAX",
-                (int)o->gamma);
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
+                             "k = %d is too small for degree %d: a fit needs %d points", o->k,
+                             o->degree, bsurf_poly_terms(o->degree));
+  BSURF_REQUIRE_IN("error options", (unsigned)o->gamma <= BSURF_GAMMA_MAX,
+                   "gamma = %d: must be BSURF_GAMMA_FIT, _MEAN or _MAX", (int)o->gamma);
   BSURF_REQUIRE_IN("error options", (unsigned)o->pca_center <= BSURF_PCA_POINT,
-                "pca_center = %d: must be BSURF_PCA_CENTROID or BSURF_PCA_POINT", (int)o->pca_center);
+                   "pca_center = %d: must be BSURF_PCA_CENTROID or BSURF_PCA_POINT",
+                   (int)o->pca_center);
   return BSURF_OK;
 }
 
@@ -212,8 +225,8 @@ typedef struct error_ctx {
 } error_ctx;
 
 static void error_point_at(error_ctx *c, int thread, size_t i) {
-  bsurf_error_point(c->xyz, &c->nb->idx[i * (size_t)c->nb->k], c->test_xyz, c->o, i, &c->scr[thread],
-                    c->out, NULL);
+  bsurf_error_point(c->xyz, &c->nb->idx[i * (size_t)c->nb->k], c->test_xyz, c->o, i,
+                    &c->scr[thread], c->out, NULL);
 }
 
 static void error_point_task(void *vctx, int thread, size_t i) {
@@ -245,7 +258,8 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) {
     error_ctx ctx = {xyz, nb, test_xyz, &o, scr, out};
-    st = bsurf_parallel_points_ordered(n, order, T, error_point_task, &ctx, o.progress, o.progress_user);
+    st = bsurf_parallel_points_ordered(n, order, T, error_point_task, &ctx, o.progress,
+                                       o.progress_user);
   }
   free(owned);
 
@@ -257,7 +271,8 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
       report->center_unestimated += scr[t].center_unestimated;
     }
   }
-  for (int t = 0; t < T; t++) bsurf_error_scratch_free(&scr[t]);
+  for (int t = 0; t < T; t++)
+    bsurf_error_scratch_free(&scr[t]);
   free(scr);
   return st;
 }

@@ -213,7 +213,8 @@ static void dist_point(void *vctx, int thread, size_t i) {
   double f_prev = NAN;
   int stop = -1, m = 0, exceeded = 0, j = 0;
   for (int K = o->k_min; K <= o->k_max; K += o->k_step, j++) {
-    while (m < K) sums_add(&s, &c->xyz[3 * (size_t)idx[m++]], p);
+    while (m < K)
+      sums_add(&s, &c->xyz[3 * (size_t)idx[m++]], p);
     double f = sums_ratio(&s);
     double g = f;
     if (o->derivative != 0 && !isnan(f_prev)) g = f + o->derivative * (f - f_prev);
@@ -232,11 +233,12 @@ static void dist_point(void *vctx, int thread, size_t i) {
   c->state[i] = (uint8_t)(exceeded ? (stop == o->k_min ? 2 : 1) : 0);
 }
 
-bsurf_status bsurf_fdist_raw(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
-                             const double *T, double *dist, int *ksel, uint8_t *state) {
+bsurf_status bsurf_fdist_raw(const double *xyz, const bsurf_neighbors *nb,
+                             const bsurf_feature_options *o, const double *T, double *dist,
+                             int *ksel, uint8_t *state) {
   dist_ctx ctx = {xyz, nb, o, T, dist, ksel, state};
-  return bsurf_parallel_points(nb->point_count, bsurf_threads_resolve(o->threads), dist_point, &ctx, o->progress,
-                               o->progress_user);
+  return bsurf_parallel_points(nb->point_count, bsurf_threads_resolve(o->threads), dist_point, &ctx,
+                               o->progress, o->progress_user);
 }
 
 /* ---- noise-adapted T_{a/c} ----
@@ -264,7 +266,8 @@ static void ratio_row(const ratio_ctx *c, size_t row, size_t s) {
   memset(&sm, 0, sizeof sm);
   int m = 0, j = 0;
   for (int K = o->k_min; K <= o->k_max; K += o->k_step, j++) {
-    while (m < K) sums_add(&sm, &c->xyz[3 * (size_t)idx[m++]], p);
+    while (m < K)
+      sums_add(&sm, &c->xyz[3 * (size_t)idx[m++]], p);
     c->vals[(size_t)j * c->m + s] = sums_ratio(&sm);
   }
 }
@@ -286,7 +289,9 @@ static void ratio_tile_row(void *vctx, int thread, size_t r) {
 
 static int cmp_double(const void *pa, const void *pb);
 
-int bsurf_fdist_sizes(const bsurf_feature_options *o) { return (o->k_max - o->k_min) / o->k_step + 1; }
+int bsurf_fdist_sizes(const bsurf_feature_options *o) {
+  return (o->k_max - o->k_min) / o->k_step + 1;
+}
 
 void bsurf_fdist_sample(const bsurf_feature_options *o, size_t n, size_t *stride, size_t *m) {
   const size_t sizes = (size_t)bsurf_fdist_sizes(o);
@@ -296,8 +301,9 @@ void bsurf_fdist_sample(const bsurf_feature_options *o, size_t n, size_t *stride
   *m = (n + *stride - 1) / *stride;
 }
 
-bsurf_status bsurf_fdist_sample_ratios(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
-                                       const uint64_t *point_index, size_t stride, size_t m, double *vals) {
+bsurf_status bsurf_fdist_sample_ratios(const double *xyz, const bsurf_neighbors *nb,
+                                       const bsurf_feature_options *o, const uint64_t *point_index,
+                                       size_t stride, size_t m, double *vals) {
   ratio_ctx rc = {xyz, nb, o, point_index, stride, m, vals};
   const int threads = bsurf_threads_resolve(o->threads);
   if (!point_index) return bsurf_parallel_points(m, threads, ratio_sample, &rc, NULL, NULL);
@@ -306,7 +312,8 @@ bsurf_status bsurf_fdist_sample_ratios(const double *xyz, const bsurf_neighbors 
 
 void bsurf_fdist_thresholds(const bsurf_feature_options *o, size_t m, double *vals, double *T) {
   const int sizes = bsurf_fdist_sizes(o);
-  for (int j = 0; j < sizes; j++) T[j] = o->ratio_threshold;
+  for (int j = 0; j < sizes; j++)
+    T[j] = o->ratio_threshold;
   if (!(o->noise_factor > 0) || !vals || !m) return;
   for (int j = 0; j < sizes; j++) {
     double *v = &vals[(size_t)j * m];
@@ -334,19 +341,26 @@ static bsurf_status ratio_thresholds(const double *xyz, const bsurf_neighbors *n
 
 bsurf_status bsurf_fdist_check(const bsurf_feature_options *o, int k, size_t n) {
   BSURF_REQUIRE_IN("feature options", o->k_min >= 3, "k_min = %d: must be at least 3", o->k_min);
-  BSURF_REQUIRE_IN("feature options", o->k_max >= o->k_min && o->k_max <= k, "k_max = %d: must be in [k_min = %d, nb->k = %d]", o->k_max,
-                o->k_min, k);
+  BSURF_REQUIRE_IN("feature options", o->k_max >= o->k_min && o->k_max <= k,
+                   "k_max = %d: must be in [k_min = %d, nb->k = %d]", o->k_max, o->k_min, k);
   BSURF_REQUIRE_IN("feature options", o->k_step >= 1, "k_step = %d: must be at least 1", o->k_step);
-  BSURF_REQUIRE_IN("feature options", o->ratio_threshold >= 0, "ratio_threshold = %g: must be >= 0", o->ratio_threshold);
-  BSURF_REQUIRE_IN("feature options", isfinite(o->derivative), "derivative = %g: must be finite", o->derivative);
-  BSURF_REQUIRE_IN("feature options", o->noise_factor >= 0 && isfinite(o->noise_factor), "noise_factor = %g: must be finite and >= 0",
-                o->noise_factor);
-  BSURF_REQUIRE_IN("feature options", o->alpha >= 0 && o->alpha <= 1, "alpha = %g: must be in [0, 1]", o->alpha);
-  BSURF_REQUIRE_IN("feature options", o->iterations >= 0, "iterations = %d: must be >= 0", o->iterations);
-  BSURF_REQUIRE_IN("feature options", o->filter_k >= 0 && o->filter_k <= k, "filter_k = %d: must be in [0, nb->k = %d]", o->filter_k, k);
-  BSURF_REQUIRE_IN("feature options", o->sigma_range > 0, "sigma_range = %g: must be > 0", o->sigma_range);
+  BSURF_REQUIRE_IN("feature options", o->ratio_threshold >= 0, "ratio_threshold = %g: must be >= 0",
+                   o->ratio_threshold);
+  BSURF_REQUIRE_IN("feature options", isfinite(o->derivative), "derivative = %g: must be finite",
+                   o->derivative);
+  BSURF_REQUIRE_IN("feature options", o->noise_factor >= 0 && isfinite(o->noise_factor),
+                   "noise_factor = %g: must be finite and >= 0", o->noise_factor);
+  BSURF_REQUIRE_IN("feature options", o->alpha >= 0 && o->alpha <= 1,
+                   "alpha = %g: must be in [0, 1]", o->alpha);
+  BSURF_REQUIRE_IN("feature options", o->iterations >= 0, "iterations = %d: must be >= 0",
+                   o->iterations);
+  BSURF_REQUIRE_IN("feature options", o->filter_k >= 0 && o->filter_k <= k,
+                   "filter_k = %d: must be in [0, nb->k = %d]", o->filter_k, k);
+  BSURF_REQUIRE_IN("feature options", o->sigma_range > 0, "sigma_range = %g: must be > 0",
+                   o->sigma_range);
   if ((size_t)o->k_max > n)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k_max = %d exceeds the %zu points", o->k_max, n);
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k_max = %d exceeds the %zu points",
+                             o->k_max, n);
   return BSURF_OK;
 }
 
@@ -363,7 +377,8 @@ static bsurf_status distance_raw(const double *xyz, const bsurf_neighbors *nb,
                                  uint8_t *state) {
   bsurf_feature_options o = opts ? *opts : bsurf_feature_options_default();
   BSURF_REQUIRE(xyz && dist, "xyz or dist is NULL");
-  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build",
+                nb ? "empty" : "NULL");
   bsurf_status st = bsurf_fdist_check(&o, nb->k, nb->point_count);
   if (st != BSURF_OK) return st;
   const size_t n = nb->point_count;
@@ -394,8 +409,8 @@ static bsurf_status distance_raw(const double *xyz, const bsurf_neighbors *nb,
 }
 
 bsurf_status bsurf_feature_distance_raw(const double *xyz, const bsurf_neighbors *nb,
-                                        const bsurf_feature_options *opts, double *dist,
-                                        int *ksel, double *max_radius, size_t *immediate) {
+                                        const bsurf_feature_options *opts, double *dist, int *ksel,
+                                        double *max_radius, size_t *immediate) {
   return distance_raw(xyz, nb, opts, dist, ksel, max_radius, immediate, NULL, NULL);
 }
 
@@ -431,17 +446,22 @@ static void filter_point(void *vctx, int thread, size_t j) {
   c->out[j] = den > 0 ? (1 - c->alpha) * hj + c->alpha * num / den : hj;
 }
 
-int bsurf_fdist_filter_k(const bsurf_feature_options *o) { return o->filter_k ? o->filter_k : o->k_min; }
+int bsurf_fdist_filter_k(const bsurf_feature_options *o) {
+  return o->filter_k ? o->filter_k : o->k_min;
+}
 
 int bsurf_fdist_filter_passes(const bsurf_feature_options *o, double R) {
   return o->iterations > 0 && o->alpha > 0 && R > 0 ? o->iterations : 0;
 }
 
-bsurf_status bsurf_fdist_filter(const double *xyz, const bsurf_neighbors *nb, const bsurf_feature_options *o,
-                                double h, double R, const double *in, double *out) {
+bsurf_status bsurf_fdist_filter(const double *xyz, const bsurf_neighbors *nb,
+                                const bsurf_feature_options *o, double h, double R,
+                                const double *in, double *out) {
   const double sa = h > 0 ? h : R, sb = o->sigma_range * R;
-  filter_ctx fc = {xyz, nb, bsurf_fdist_filter_k(o), o->alpha, 1 / (2 * sa * sa), 1 / (2 * sb * sb), in, out};
-  return bsurf_parallel_points(nb->point_count, bsurf_threads_resolve(o->threads), filter_point, &fc, NULL, NULL);
+  filter_ctx fc = {xyz, nb, bsurf_fdist_filter_k(o), o->alpha, 1 / (2 * sa * sa), 1 / (2 * sb * sb),
+                   in,  out};
+  return bsurf_parallel_points(nb->point_count, bsurf_threads_resolve(o->threads), filter_point,
+                               &fc, NULL, NULL);
 }
 
 /* ---- automatic tail threshold ---- */
@@ -471,7 +491,8 @@ static double otsu_sorted(const double *l, size_t count) {
     hist[b] += 1;
   }
   double total = (double)count, sum_all = 0;
-  for (int b = 0; b < BINS; b++) sum_all += b * hist[b];
+  for (int b = 0; b < BINS; b++)
+    sum_all += b * hist[b];
   double w0 = 0, sum0 = 0, best = -1;
   int best_b = 0;
   for (int b = 0; b < BINS - 1; b++) {
@@ -517,8 +538,8 @@ bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail
   BSURF_REQUIRE(rule == BSURF_TAIL_OTSU || rule == BSURF_TAIL_MAD,
                 "rule = %d: must be BSURF_TAIL_OTSU or BSURF_TAIL_MAD", (int)rule);
   if (count < 2)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_tail_threshold: %zu values, at least 2 needed",
-                             count);
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
+                             "bsurf_tail_threshold: %zu values, at least 2 needed", count);
   for (size_t i = 0; i < count; i++)
     if (isnan(values[i])) return BSURF_ERR_INVALID_VALUE;
   /* values at or below 1e-12 x max are rounding-level zeros (a noise-free
@@ -543,7 +564,8 @@ bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail
   double t;
   if (rule == BSURF_TAIL_MAD) {
     double med = median_sorted(l, count);
-    for (size_t i = 0; i < count; i++) l[i] = fabs(l[i] - med);
+    for (size_t i = 0; i < count; i++)
+      l[i] = fabs(l[i] - med);
     qsort(l, count, sizeof(double), cmp_double);
     double mad = median_sorted(l, count);
     t = med + 3.0 * 1.4826 * mad;
@@ -572,11 +594,13 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
   if (report) memset(report, 0, sizeof *report);
   BSURF_REQUIRE(xyz, "xyz is NULL");
   BSURF_REQUIRE(feature, "feature is NULL");
-  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build",
+                nb ? "empty" : "NULL");
   BSURF_REQUIRE(o.method == BSURF_FEATURES_DISTANCE || o.method == BSURF_FEATURES_VARIANCE,
-                "method = %d: must be BSURF_FEATURES_DISTANCE or BSURF_FEATURES_VARIANCE", (int)o.method);
-  BSURF_REQUIRE((unsigned)o.tail_rule <= BSURF_TAIL_MAD, "tail_rule = %d: must be BSURF_TAIL_OTSU or _MAD",
-                (int)o.tail_rule);
+                "method = %d: must be BSURF_FEATURES_DISTANCE or BSURF_FEATURES_VARIANCE",
+                (int)o.method);
+  BSURF_REQUIRE((unsigned)o.tail_rule <= BSURF_TAIL_MAD,
+                "tail_rule = %d: must be BSURF_TAIL_OTSU or _MAD", (int)o.tail_rule);
   BSURF_REQUIRE(o.method != BSURF_FEATURES_VARIANCE || o.normals.bootstrap >= 2,
                 "normals.bootstrap = %d: the variance method needs B >= 2", o.normals.bootstrap);
   const size_t n = nb->point_count;
@@ -602,7 +626,8 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
         thr = o.threshold;
     }
     if (st == BSURF_OK)
-      for (size_t i = 0; i < n; i++) feature[i] = sc[i] > thr;
+      for (size_t i = 0; i < n; i++)
+        feature[i] = sc[i] > thr;
   } else {
     /* the stages of the tiled run (src/tile/features_tiled.c), on the whole cloud */
     state = bsurf_alloc_array(n, 1);
@@ -624,14 +649,16 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
         thr = o.threshold * mx;
     }
     if (st == BSURF_OK)
-      for (size_t i = 0; i < n; i++) feature[i] = (uint8_t)bsurf_fdist_feature(sc[i], state[i], thr, o.threshold);
+      for (size_t i = 0; i < n; i++)
+        feature[i] = (uint8_t)bsurf_fdist_feature(sc[i], state[i], thr, o.threshold);
   }
   if (st == BSURF_OK && report) {
     report->threshold = thr;
     report->max_radius = R;
     report->immediate = imm;
     report->ratio_threshold_kmin = t_kmin;
-    for (size_t i = 0; i < n; i++) report->feature_points += feature[i];
+    for (size_t i = 0; i < n; i++)
+      report->feature_points += feature[i];
   }
   free(tmp);
   free(state);

@@ -41,23 +41,27 @@ static void filter_point(void *vctx, int thread, size_t i) {
     double dx = di[0] - dp[0], dy = di[1] - dp[1], dz = di[2] - dp[2];
     double dist2 = dx * dx + dy * dy + dz * dz;
     double w = exp(-dist2 / (c->sigma_d * c->sigma_d));
-    if (c->nu && isfinite(c->sigma_nu)) w *= exp(-(c->nu[p] * c->nu[p]) / (c->sigma_nu * c->sigma_nu));
+    if (c->nu && isfinite(c->sigma_nu))
+      w *= exp(-(c->nu[p] * c->nu[p]) / (c->sigma_nu * c->sigma_nu));
     double s = (np[0] * ni[0] + np[1] * ni[1] + np[2] * ni[2]) < 0 ? -w : w;
-    for (int t = 0; t < 3; t++) acc[t] += s * np[t];
+    for (int t = 0; t < 3; t++)
+      acc[t] += s * np[t];
     wsum += w;
   }
   double out[3];
   for (int t = 0; t < 3; t++)
     out[t] = wsum > 0 ? (1 - c->alpha) * ni[t] + c->alpha * acc[t] / wsum : ni[t];
   double len = sqrt(out[0] * out[0] + out[1] * out[1] + out[2] * out[2]);
-  for (int t = 0; t < 3; t++) c->dst[3 * i + t] = len > 0 ? out[t] / len : ni[t];
+  for (int t = 0; t < 3; t++)
+    c->dst[3 * i + t] = len > 0 ? out[t] / len : ni[t];
 }
 
 bsurf_status bsurf_smooth_normals(const double *xyz, const bsurf_neighbors *nb, int k,
                                   double *normals, const double *normal_var, int iterations,
                                   double alpha, double sigma_d, double sigma_nu, int threads) {
   BSURF_REQUIRE(xyz && normals, "xyz or normals is NULL");
-  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build",
+                nb ? "empty" : "NULL");
   BSURF_REQUIRE(k >= 1 && k <= nb->k, "k = %d: must be in [1, nb->k = %d]", k, nb->k);
   BSURF_REQUIRE(iterations >= 0, "iterations = %d: must be >= 0", iterations);
   BSURF_REQUIRE(alpha >= 0 && alpha <= 1, "alpha = %g: must be in [0, 1]", alpha);

@@ -56,16 +56,16 @@ static double angle_between(const double a[3], const double b[3], int unoriented
 
 typedef struct normal_scratch {
   bsurf_localfit lf;
-  double *terms;   /* k x PCA_COLS */
-  double *weights; /* bsurf_boot_rows(B) x k: the replicates, then P (all ones) */
-  double *rows;    /* the same count x max(PCA_COLS, ncols): PCA rows, or the fits' lanes */
-  double *coefs;   /* (B + 1) x terms */
-  uint16_t *counts; /* max(4, B) x k */
-  uint16_t *draws;  /* B x k: each replicate's indices in the order drawn */
+  double *terms;        /* k x PCA_COLS */
+  double *weights;      /* bsurf_boot_rows(B) x k: the replicates, then P (all ones) */
+  double *rows;         /* the same count x max(PCA_COLS, ncols): PCA rows, or the fits' lanes */
+  double *coefs;        /* (B + 1) x terms */
+  uint16_t *counts;     /* max(4, B) x k */
+  uint16_t *draws;      /* B x k: each replicate's indices in the order drawn */
   unsigned char *valid; /* B */
-  double *bn;      /* B x 3 bootstrap normals */
-  double *lanes;   /* (COLS + 6 + 3) x B: PCA sums, covariances, normals in lanes */
-  int *ok, *st;    /* B, B */
+  double *bn;           /* B x 3 bootstrap normals */
+  double *lanes;        /* (COLS + 6 + 3) x B: PCA sums, covariances, normals in lanes */
+  int *ok, *st;         /* B, B */
   size_t skipped, reduced, degenerate;
 } normal_scratch;
 
@@ -102,8 +102,8 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
   s->lanes = bsurf_alloc_aligned(nb, (PCA_COLS + 9) * sizeof(double));
   s->ok = bsurf_alloc_array(nb, sizeof(int));
   s->st = bsurf_alloc_array(nb, sizeof(int));
-  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws || !s->valid || !s->bn ||
-      !s->lanes || !s->ok || !s->st) {
+  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws || !s->valid ||
+      !s->bn || !s->lanes || !s->ok || !s->st) {
     scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -121,7 +121,8 @@ static int pca_normal_from_row(const double *row, bsurf_pca_center center, doubl
   double C[3][3] = {{c[0], c[1], c[2]}, {c[1], c[3], c[4]}, {c[2], c[4], c[5]}};
   double ev[3], V[3][3];
   bsurf_eigen_sym3(C, ev, V);
-  for (int t = 0; t < 3; t++) n[t] = V[0][t];
+  for (int t = 0; t < 3; t++)
+    n[t] = V[0][t];
   return (ev[2] > 0 && ev[1] > 1e-12 * ev[2]) ? 0 : -1;
 }
 
@@ -150,7 +151,8 @@ static void normals_point(void *vctx, int thread, size_t i) {
   if (pca)
     bsurf_boot_weight_rows(o->seed, key, B, k, 3, s->counts, W, NULL, s->valid);
   else
-    bsurf_boot_draw_rows(o->seed, key, B, k, bsurf_poly_terms(o->degree), s->counts, s->draws, s->valid);
+    bsurf_boot_draw_rows(o->seed, key, B, k, bsurf_poly_terms(o->degree), s->counts, s->draws,
+                         s->valid);
 
   double nP[3];
   bsurf_frame frame;
@@ -158,45 +160,52 @@ static void normals_point(void *vctx, int thread, size_t i) {
   if (pca) {
     bsurf_nested_terms(xyz, idx, k, s->terms);
     bsurf_gemm_rows(B + 1, k, PCA_COLS, W, s->terms, s->rows);
-    if (pca_normal_from_row(&s->rows[(size_t)B * PCA_COLS], o->pca_center, nP) != 0) s->degenerate++;
+    if (pca_normal_from_row(&s->rows[(size_t)B * PCA_COLS], o->pca_center, nP) != 0)
+      s->degenerate++;
     /* the replicates' normals in vector lanes (nested.c, eigen.c): the sums
      * column by column, the covariances (the single fit's formula), the
      * closed-form smallest eigenvectors */
     double *blk = s->lanes, *cov = blk + (size_t)PCA_COLS * B, *nl = cov + 6 * (size_t)B;
     for (int b = 0; b < B; b++)
-      for (int t = 0; t < PCA_COLS; t++) blk[(size_t)t * B + b] = s->rows[(size_t)b * PCA_COLS + t];
+      for (int t = 0; t < PCA_COLS; t++)
+        blk[(size_t)t * B + b] = s->rows[(size_t)b * PCA_COLS + t];
     bsurf_nested_cov_lanes(blk, B, o->pca_center, cov, s->ok);
     bsurf_eigen_sym3_smallest_lanes(B, cov, nl, s->st);
     for (int b = 0; b < B; b++) {
       s->valid[b] = s->valid[b] && s->ok[b] && s->st[b] == 0;
-      for (int t = 0; t < 3; t++) s->bn[3 * b + t] = nl[(size_t)t * B + b];
+      for (int t = 0; t < 3; t++)
+        s->bn[3 * b + t] = nl[(size_t)t * B + b];
     }
   } else {
     bsurf_local_frame(xyz, idx, k, o->pca_center, &frame);
-    if (!(frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2])) s->degenerate++;
+    if (!(frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2]))
+      s->degenerate++;
     bsurf_localfit *lf = &s->lf;
     bsurf_localfit_setup(lf, xyz, idx, k, &frame, o->degree);
     /* as lanes: four solves at a time (same bits as row by row) */
     bsurf_localfit_normal_eq_draws(lf, B, s->draws, s->rows);
     double row[BSURF_NCOLS_MAX];
     bsurf_lanes_row(lf->ncols, s->rows, B, row);
-    while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, s->coefs) != 0) degree--;
+    while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, s->coefs) != 0)
+      degree--;
     if (degree != o->degree) s->reduced++;
     if (degree == 0) {
       /* a constant height: the tangent plane itself */
-      for (int t = 0; t < 3; t++) nP[t] = frame.rot[2][t];
+      for (int t = 0; t < 3; t++)
+        nP[t] = frame.rot[2][t];
     } else {
       bsurf_localfit_normal(lf, &frame, degree, s->coefs, lf->u[0], lf->v[0], nP);
     }
     const int m = bsurf_poly_terms(degree);
     /* with a reduced degree fewer distinct points suffice: let the solve
      * decide for the replicates the first check rejected */
-    for (int b = 0; b < B; b++) s->valid[b] = (s->valid[b] || degree < o->degree) && degree > 0;
+    for (int b = 0; b < B; b++)
+      s->valid[b] = (s->valid[b] || degree < o->degree) && degree > 0;
     bsurf_localfit_solve_lanes(lf, degree, B, s->rows, s->valid, s->coefs + m);
     for (int b = 0; b < B; b++)
       if (s->valid[b])
-        bsurf_localfit_normal(lf, &frame, degree, &s->coefs[(size_t)(b + 1) * m], lf->u[0], lf->v[0],
-                              &s->bn[3 * b]);
+        bsurf_localfit_normal(lf, &frame, degree, &s->coefs[(size_t)(b + 1) * m], lf->u[0],
+                              lf->v[0], &s->bn[3 * b]);
   }
 
   /* orient the bootstrap normals to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
@@ -209,16 +218,20 @@ static void normals_point(void *vctx, int thread, size_t i) {
     }
     double *n = &s->bn[3 * b];
     if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
-      for (int t = 0; t < 3; t++) n[t] = -n[t];
-    for (int t = 0; t < 3; t++) sum[t] += n[t];
+      for (int t = 0; t < 3; t++)
+        n[t] = -n[t];
+    for (int t = 0; t < 3; t++)
+      sum[t] += n[t];
     if (first < 0) first = b;
     nvalid++;
   }
   double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
   double nrm[3];
-  for (int t = 0; t < 3; t++) nrm[t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
+  for (int t = 0; t < 3; t++)
+    nrm[t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
   if (c->out->normals)
-    for (int t = 0; t < 3; t++) c->out->normals[3 * i + t] = nrm[t];
+    for (int t = 0; t < 3; t++)
+      c->out->normals[3 * i + t] = nrm[t];
 
   if (c->out->normal_var) {
     double var = 0;
@@ -247,7 +260,8 @@ static void normals_point(void *vctx, int thread, size_t i) {
         double g[3];
         if (o->fit == BSURF_NORMAL_PCA || degree == 0) {
           const double *src = b >= 0 ? &s->bn[3 * b] : nP;
-          for (int t = 0; t < 3; t++) g[t] = src[t];
+          for (int t = 0; t < 3; t++)
+            g[t] = src[t];
         } else {
           const int m = bsurf_poly_terms(degree);
           const double *cb = b >= 0 ? &s->coefs[(size_t)(b + 1) * m] : s->coefs;
@@ -267,23 +281,27 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
   bsurf_normal_options o = opts ? *opts : bsurf_normal_options_default();
   if (report) memset(report, 0, sizeof *report);
   BSURF_REQUIRE(xyz, "xyz is NULL");
-  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build",
+                nb ? "empty" : "NULL");
   BSURF_REQUIRE(out, "out is NULL (give a bsurf_normal_fields, its unwanted outputs NULL)");
   BSURF_REQUIRE(o.fit == BSURF_NORMAL_PCA || o.fit == BSURF_NORMAL_POLY,
                 "fit = %d: must be BSURF_NORMAL_PCA or BSURF_NORMAL_POLY", (int)o.fit);
   BSURF_REQUIRE(o.fit != BSURF_NORMAL_POLY || (o.degree >= 1 && o.degree <= BSURF_DEGREE_MAX),
                 "degree = %d: must be in [1, %d]", o.degree, BSURF_DEGREE_MAX);
   BSURF_REQUIRE((unsigned)o.pca_center <= BSURF_PCA_POINT,
-                "pca_center = %d: must be BSURF_PCA_CENTROID or BSURF_PCA_POINT", (int)o.pca_center);
-  BSURF_REQUIRE(o.bootstrap >= 0 && o.bootstrap <= 100000, "bootstrap (B) = %d: must be in [0, 100000]",
-                o.bootstrap);
-  BSURF_REQUIRE(o.k >= 3 && o.k <= 65535 && o.k <= nb->k, "k = %d: must be in [3, %d] (nb->k = %d)", o.k,
-                nb->k < 65535 ? nb->k : 65535, nb->k);
+                "pca_center = %d: must be BSURF_PCA_CENTROID or BSURF_PCA_POINT",
+                (int)o.pca_center);
+  BSURF_REQUIRE(o.bootstrap >= 0 && o.bootstrap <= 100000,
+                "bootstrap (B) = %d: must be in [0, 100000]", o.bootstrap);
+  BSURF_REQUIRE(o.k >= 3 && o.k <= 65535 && o.k <= nb->k, "k = %d: must be in [3, %d] (nb->k = %d)",
+                o.k, nb->k < 65535 ? nb->k : 65535, nb->k);
   if ((size_t)o.k > nb->point_count)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d exceeds the %zu points", o.k, nb->point_count);
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d exceeds the %zu points", o.k,
+                             nb->point_count);
   if (o.fit == BSURF_NORMAL_POLY && o.k < bsurf_poly_terms(o.degree))
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d is too small for degree %d: a fit needs %d points",
-                             o.k, o.degree, bsurf_poly_terms(o.degree));
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
+                             "k = %d is too small for degree %d: a fit needs %d points", o.k,
+                             o.degree, bsurf_poly_terms(o.degree));
 
   const size_t n = nb->point_count;
   const int T = bsurf_threads_resolve(o.threads);
@@ -298,7 +316,8 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
   if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) {
     normals_ctx ctx = {xyz, nb, ref_normals, &o, scr, out};
-    st = bsurf_parallel_points_ordered(n, order, T, normals_point, &ctx, o.progress, o.progress_user);
+    st = bsurf_parallel_points_ordered(n, order, T, normals_point, &ctx, o.progress,
+                                       o.progress_user);
   }
   free(owned);
   if (report && st == BSURF_OK) {
@@ -309,7 +328,8 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
       report->degenerate += scr[t].degenerate;
     }
   }
-  for (int t = 0; t < T; t++) scratch_free(&scr[t]);
+  for (int t = 0; t < T; t++)
+    scratch_free(&scr[t]);
   free(scr);
   return st;
 }
@@ -329,17 +349,17 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
  * and the candidate with the smallest test error. */
 
 typedef struct select_scratch {
-  double *terms;   /* kmax x COLS */
-  uint32_t *u;     /* kmax */
-  uint8_t *x;      /* kmax */
-  double *Wt;      /* kmax x B */
-  double *sums;    /* nk x COLS x max(B, 1) */
-  double *fsums;   /* nk x COLS */
-  int *nz;         /* nk x B */
-  double *ref;     /* 4 x kmax: rx, ry, rz, angle scratch */
-  double *bn;      /* nk x B x 3 */
-  unsigned char *valid; /* nk x B */
-  double *nP;      /* nk x 3 */
+  double *terms;           /* kmax x COLS */
+  uint32_t *u;             /* kmax */
+  uint8_t *x;              /* kmax */
+  double *Wt;              /* kmax x B */
+  double *sums;            /* nk x COLS x max(B, 1) */
+  double *fsums;           /* nk x COLS */
+  int *nz;                 /* nk x B */
+  double *ref;             /* 4 x kmax: rx, ry, rz, angle scratch */
+  double *bn;              /* nk x B x 3 */
+  unsigned char *valid;    /* nk x B */
+  double *nP;              /* nk x 3 */
   double *err, *var, *nrm; /* nk, nk, nk x 3 */
   double *cov, *nl, *ang2; /* 6 x B, 3 x B, B: one candidate's replicates in lanes */
   int *wok, *st;           /* B, B */
@@ -391,9 +411,9 @@ static bsurf_status select_scratch_alloc(select_scratch *s, int kmax, int nk, in
   s->ang2 = bsurf_alloc_array(b1, sizeof(double));
   s->wok = bsurf_alloc_array(b1, sizeof(int));
   s->st = bsurf_alloc_array(b1, sizeof(int));
-  if (!s->terms || !s->u || !s->x || !s->Wt || !s->sums || !s->fsums || !s->nz || !s->ref || !s->bn ||
-      !s->valid || !s->nP || !s->err || !s->var || !s->nrm || !s->cov || !s->nl || !s->ang2 || !s->wok ||
-      !s->st) {
+  if (!s->terms || !s->u || !s->x || !s->Wt || !s->sums || !s->fsums || !s->nz || !s->ref ||
+      !s->bn || !s->valid || !s->nP || !s->err || !s->var || !s->nrm || !s->cov || !s->nl ||
+      !s->ang2 || !s->wok || !s->st) {
     select_scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -430,7 +450,8 @@ static void select_point(void *vctx, int thread, size_t i) {
   /* the whole neighbourhoods: the single fits (as bsurf_estimate_normals) */
   bsurf_nested_sums(s->terms, kmax, 1, NULL, ks, nk, s->fsums, NULL);
   for (int a = 0; a < nk; a++)
-    if (pca_normal_from_row(&s->fsums[a * COLS], o->pca_center, &s->nP[3 * a]) != 0) s->degenerate++;
+    if (pca_normal_from_row(&s->fsums[a * COLS], o->pca_center, &s->nP[3 * a]) != 0)
+      s->degenerate++;
 
   /* the replicates: one draw per point, shared by the candidates */
   if (B > 0) {
@@ -444,7 +465,8 @@ static void select_point(void *vctx, int thread, size_t i) {
       for (int b = 0; b < B; b++) {
         const size_t ab = (size_t)a * B + b;
         s->valid[ab] = s->nz[ab] >= 3 && s->wok[b] && s->st[b] == 0;
-        for (int t = 0; t < 3; t++) s->bn[3 * ab + t] = s->nl[(size_t)t * B + b];
+        for (int t = 0; t < 3; t++)
+          s->bn[3 * ab + t] = s->nl[(size_t)t * B + b];
       }
     }
   }
@@ -465,13 +487,16 @@ static void select_point(void *vctx, int thread, size_t i) {
       }
       double *n = &bn[3 * b];
       if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
-        for (int t = 0; t < 3; t++) n[t] = -n[t];
-      for (int t = 0; t < 3; t++) sum[t] += n[t];
+        for (int t = 0; t < 3; t++)
+          n[t] = -n[t];
+      for (int t = 0; t < 3; t++)
+        sum[t] += n[t];
       if (first < 0) first = b;
       nvalid++;
     }
     const double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
-    for (int t = 0; t < 3; t++) s->nrm[3 * a + t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
+    for (int t = 0; t < 3; t++)
+      s->nrm[3 * a + t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
     /* Eq. 5.5 */
     double var = 0;
     if (nvalid >= 2) {
@@ -502,7 +527,8 @@ static void select_point(void *vctx, int thread, size_t i) {
 
   bsurf_normal_select_fields *out = c->out;
   if (out->normals)
-    for (int t = 0; t < 3; t++) out->normals[3 * i + t] = s->nrm[3 * best + t];
+    for (int t = 0; t < 3; t++)
+      out->normals[3 * i + t] = s->nrm[3 * best + t];
   if (out->normal_var) out->normal_var[i] = s->var[best];
   if (out->normal_err) out->normal_err[i] = s->err[best];
   if (out->k_selected) out->k_selected[i] = ks[best];
@@ -512,12 +538,14 @@ static void select_point(void *vctx, int thread, size_t i) {
     memcpy(&out->cand_normals[i * (size_t)nk * 3], s->nrm, (size_t)nk * 3 * sizeof(double));
 }
 
-bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb, const double *ref_normals,
-                                    const bsurf_normal_options *opts, const int *ks, int nk,
-                                    bsurf_normal_select_fields *out, bsurf_normal_report *report) {
+bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb,
+                                    const double *ref_normals, const bsurf_normal_options *opts,
+                                    const int *ks, int nk, bsurf_normal_select_fields *out,
+                                    bsurf_normal_report *report) {
   bsurf_normal_options o = opts ? *opts : bsurf_normal_options_default();
   if (report) memset(report, 0, sizeof *report);
-  if (!xyz || !nb || !nb->idx || !ref_normals || !ks || !out || nk < 1) return BSURF_ERR_INVALID_ARG;
+  if (!xyz || !nb || !nb->idx || !ref_normals || !ks || !out || nk < 1)
+    return BSURF_ERR_INVALID_ARG;
   if (o.fit != BSURF_NORMAL_PCA) return BSURF_ERR_INVALID_ARG;
   if (o.bootstrap < 0 || o.bootstrap > 100000) return BSURF_ERR_INVALID_ARG;
   if (ks[0] < 3) return BSURF_ERR_INVALID_ARG;
@@ -531,13 +559,15 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
   select_scratch *scr = calloc((size_t)T, sizeof *scr);
   if (!scr) return BSURF_ERR_NOMEM;
   bsurf_status st = BSURF_OK;
-  for (int t = 0; t < T && st == BSURF_OK; t++) st = select_scratch_alloc(&scr[t], ks[nk - 1], nk, o.bootstrap);
+  for (int t = 0; t < T && st == BSURF_OK; t++)
+    st = select_scratch_alloc(&scr[t], ks[nk - 1], nk, o.bootstrap);
   uint32_t *owned = NULL;
   const uint32_t *order = NULL;
   if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) {
     select_ctx ctx = {xyz, nb, ref_normals, &o, ks, nk, scr, out};
-    st = bsurf_parallel_points_ordered(n, order, T, select_point, &ctx, o.progress, o.progress_user);
+    st =
+        bsurf_parallel_points_ordered(n, order, T, select_point, &ctx, o.progress, o.progress_user);
   }
   free(owned);
   if (report && st == BSURF_OK) {
@@ -547,7 +577,8 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
       report->degenerate += scr[t].degenerate;
     }
   }
-  for (int t = 0; t < T; t++) select_scratch_free(&scr[t]);
+  for (int t = 0; t < T; t++)
+    select_scratch_free(&scr[t]);
   free(scr);
   return st;
 }

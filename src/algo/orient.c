@@ -69,7 +69,8 @@ static heap_item heap_pop(heap *h) {
 bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, int k,
                                   double *normals) {
   BSURF_REQUIRE(xyz && normals, "xyz or normals is NULL");
-  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build", nb ? "empty" : "NULL");
+  BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build",
+                nb ? "empty" : "NULL");
   BSURF_REQUIRE(k >= 2 && k <= nb->k, "k = %d: must be in [2, nb->k = %d]", k, nb->k);
   const size_t n = nb->point_count;
   BSURF_REQUIRE(n <= UINT32_MAX, "nb->point_count = %zu: at most 2^32 - 1 points", n);
@@ -89,7 +90,8 @@ bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, 
       start[i + 1]++;
       start[nb->idx[i * nb->k + j] + 1]++;
     }
-  for (size_t i = 0; i < n; i++) start[i + 1] += start[i];
+  for (size_t i = 0; i < n; i++)
+    start[i + 1] += start[i];
   {
     size_t *fill = bsurf_alloc_array(n, sizeof *fill);
     if (!fill) {
@@ -124,7 +126,8 @@ bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, 
         }
     }
     if (normals[3 * root + 2] < 0)
-      for (int t = 0; t < 3; t++) normals[3 * root + t] = -normals[3 * root + t];
+      for (int t = 0; t < 3; t++)
+        normals[3 * root + t] = -normals[3 * root + t];
     /* Prim from root */
     h.n = 0;
     if (heap_push(&h, (heap_item){0.0, (uint32_t)root, (uint32_t)root})) {
@@ -138,7 +141,8 @@ bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neighbors *nb, 
       double *nv = &normals[3 * (size_t)it.node];
       const double *np = &normals[3 * (size_t)it.parent];
       if (it.node != it.parent && nv[0] * np[0] + nv[1] * np[1] + nv[2] * np[2] < 0)
-        for (int t = 0; t < 3; t++) nv[t] = -nv[t];
+        for (int t = 0; t < 3; t++)
+          nv[t] = -nv[t];
       for (size_t e = start[it.node]; e < start[it.node + 1]; e++) {
         uint32_t q = adj[e];
         if (seen[q] == 2) continue;

@@ -27,17 +27,16 @@
  *
  * multipass (6.4, Algorithm 5, Eqs. 6.3-6.5): per point, K_i = max{k_min, y}
  *   with y = (k_min - K) / k_error * W_i + K (Eq. 6.4, k_error = 3 mean W by
- *   default (the thesis: mean W), or a multiple of it, y rounded to the nearest integer); d_L, the local average
- *   distance between points, taken as the mean distance from the point to the
- *   other K_i - 1 (for a uniformly sampled disc the mean over all pairs is
- *   about 1.36 times this; it would cost K_i^2 instead of K_i); the frame and
- *   polynomial of the K_i neighbourhood, computed once (Algorithm 5's second
- *   loop), of the asked degree or lower so that there are at least two points
+ *   default (the thesis: mean W), or a multiple of it, y rounded to the nearest integer); d_L, the
+ * local average distance between points, taken as the mean distance from the point to the other K_i
+ * - 1 (for a uniformly sampled disc the mean over all pairs is about 1.36 times this; it would cost
+ * K_i^2 instead of K_i); the frame and polynomial of the K_i neighbourhood, computed once
+ * (Algorithm 5's second loop), of the asked degree or lower so that there are at least two points
  *   per coefficient (K_i = 10 would otherwise make a cubic interpolate).
- *   A fit moves only points inside the disc its neighbourhood spans. Then `iterations` passes of Eq. 6.2 with h1 = a d_L (Eq. 6.5):
- *   each pass projects the current positions onto the fixed fitted surfaces,
- *   with weights from the current distances. The passes combine as the
- *   bilateral orders above.
+ *   A fit moves only points inside the disc its neighbourhood spans. Then `iterations` passes of
+ * Eq. 6.2 with h1 = a d_L (Eq. 6.5): each pass projects the current positions onto the fixed fitted
+ * surfaces, with weights from the current distances. The passes combine as the bilateral orders
+ * above.
  *
  * Every method's fits pass the guard (guard_fit below, docs/smoothing.md "The
  * guard"): a fit of the centre's own sheet, moving only that sheet's points.
@@ -89,7 +88,9 @@ static double gauss_exponent(double a, double b) {
 }
 
 /* A weight exp(-e), cut to 0 below 2^-54. */
-static double weight_of(double e) { return e > GAUSS_CUT ? 0.0 : (e == 0 ? 1.0 : exp(-e)); }
+static double weight_of(double e) {
+  return e > GAUSS_CUT ? 0.0 : (e == 0 ? 1.0 : exp(-e));
+}
 
 /* e^x for the multipass weights (-GAUSS_CUT <= x <= 0), written once for
  * scalars and once for vector lanes with the same operations in the same
@@ -146,7 +147,9 @@ static inline double mp_exp1(double x) {
   return p * scale;
 }
 
-double bsurf_smooth_exp(double x) { return mp_exp1(x); }
+double bsurf_smooth_exp(double x) {
+  return mp_exp1(x);
+}
 
 /* ---- a fit kept for later passes: frame, scale, coefficients ----------- */
 /* Layout of one stored fit: origin[3], rot[9] (row-major), inv_scale, the
@@ -155,13 +158,17 @@ double bsurf_smooth_exp(double x) { return mp_exp1(x); }
 #define FIT_HEAD 14
 #define MP_EXTRA 3 /* multipass: e2, inv_h1sq, w2 after the coefficients */
 
-static void fit_store(double *F, const bsurf_frame *fr, double inv_scale, const double *coef, int m) {
-  for (int t = 0; t < 3; t++) F[t] = fr->origin[t];
+static void fit_store(double *F, const bsurf_frame *fr, double inv_scale, const double *coef,
+                      int m) {
+  for (int t = 0; t < 3; t++)
+    F[t] = fr->origin[t];
   for (int r = 0; r < 3; r++)
-    for (int t = 0; t < 3; t++) F[3 + 3 * r + t] = fr->rot[r][t];
+    for (int t = 0; t < 3; t++)
+      F[3 + 3 * r + t] = fr->rot[r][t];
   F[12] = inv_scale;
   F[13] = INFINITY;
-  for (int a = 0; a < m; a++) F[FIT_HEAD + a] = coef[a];
+  for (int a = 0; a < m; a++)
+    F[FIT_HEAD + a] = coef[a];
 }
 
 /* delta = f(x', y') - z' for p in the stored frame: p's projection onto the
@@ -170,8 +177,8 @@ static void fit_store(double *F, const bsurf_frame *fr, double inv_scale, const 
  * extrapolates, NAN (no move); and only for points within its prediction
  * bound F[13] (the guard: a point farther from the fit is on another sheet),
  * NAN beyond. */
-static inline __attribute__((always_inline)) double fit_delta_any(const double *F, int degree, int m,
-                                                                  const double p[3], int held) {
+static inline __attribute__((always_inline)) double
+fit_delta_any(const double *F, int degree, int m, const double p[3], int held) {
   double q[3] = {p[0] - F[0], p[1] - F[1], p[2] - F[2]};
   double x = F[3] * q[0] + F[4] * q[1] + F[5] * q[2];
   double y = F[6] * q[0] + F[7] * q[1] + F[8] * q[2];
@@ -194,7 +201,8 @@ static inline __attribute__((always_inline)) double fit_delta_any(const double *
     double phi[BSURF_TERMS_MAX];
     bsurf_poly_basis(degree, u, v, phi);
     f = 0;
-    for (int t = 0; t < bsurf_poly_terms(degree); t++) f += phi[t] * a[t];
+    for (int t = 0; t < bsurf_poly_terms(degree); t++)
+      f += phi[t] * a[t];
   }
   const double delta = f - z;
   return !held || fabs(delta) <= F[13] ? delta : NAN;
@@ -209,9 +217,11 @@ static inline __attribute__((always_inline)) double fit_delta(const double *F, i
  * the error pass does for degenerate neighbourhoods; coef zero-padded to m. */
 static int solve_with_fallback(const bsurf_localfit *lf, int degree, int m, double *coef) {
   int d = degree;
-  while (d > 0 && bsurf_localfit_solve(lf, d, NULL, coef) != 0) d--;
+  while (d > 0 && bsurf_localfit_solve(lf, d, NULL, coef) != 0)
+    d--;
   if (d == 0) bsurf_localfit_solve(lf, 0, NULL, coef);
-  for (int a = bsurf_poly_terms(d); a < m; a++) coef[a] = 0.0;
+  for (int a = bsurf_poly_terms(d); a < m; a++)
+    coef[a] = 0.0;
   return d;
 }
 
@@ -239,45 +249,45 @@ typedef struct smooth_ctx {
   int k, degree, m, stride;
   bsurf_error_scratch *scr; /* per thread */
   double *err_632, *err_632plus, *W;
-  double *fits;       /* n x stride (bilateral parallel, multipass) */
-  int *fit_degree;    /* n */
-  double *out;        /* n x 3 */
+  double *fits;    /* n x stride (bilateral parallel, multipass) */
+  int *fit_degree; /* n */
+  double *out;     /* n x 3 */
   /* multipass */
-  int *khat;          /* n */
-  double *dl;         /* n */
-  double *e2;         /* n: theta_2(W_i) = exp(-e2[i]) */
-  double *w2;         /* n: theta_2(W_i) itself (the weight at distance 0) */
-  double *inv_h1sq;   /* n: 1 / h1_i^2 (0 when h1_i = 0) */
+  int *khat;        /* n */
+  double *dl;       /* n */
+  double *e2;       /* n: theta_2(W_i) = exp(-e2[i]) */
+  double *w2;       /* n: theta_2(W_i) itself (the weight at distance 0) */
+  double *inv_h1sq; /* n: 1 / h1_i^2 (0 when h1_i = 0) */
   double h1, h2, k_error;
   double inv_h1sq_global; /* bilateral: 1 / h1^2 */
   /* reverse neighbourhoods: the i whose neighbourhood contains p */
   const size_t *rev_off; /* n + 1 */
   const uint32_t *rev;   /* rev_off[n] */
   const uint32_t *self;  /* tiled stage 2: point p's row in cur (NULL: p) */
-  const double *cur;  /* positions a pass reads */
-  double *next;       /* positions a pass writes */
+  const double *cur;     /* positions a pass reads */
+  double *next;          /* positions a pass writes */
   /* multipass: the pairs that can have a weight, rebuilt as points move */
-  uint32_t *act;      /* rev_off[n]: per p, a prefix of its slot range */
-  uint32_t *act_n;    /* n */
-  double *reach2;     /* n: (cut distance of theta_1 + 2 margin)^2 */
-  double *tmax;       /* threads x 8: largest move of a pass, per thread */
+  uint32_t *act;   /* rev_off[n]: per p, a prefix of its slot range */
+  uint32_t *act_n; /* n */
+  double *reach2;  /* n: (cut distance of theta_1 + 2 margin)^2 */
+  double *tmax;    /* threads x 8: largest move of a pass, per thread */
   /* multipass passes in blocks (gather_multipass_block): per thread, room
    * for the pairs of any block (mp_cap = the largest block's slot count) */
   size_t mp_cap;
-  uint32_t *mp_point;   /* threads x mp_cap: the pairs' p */
+  uint32_t *mp_point; /* threads x mp_cap: the pairs' p */
   size_t *act_off;    /* n + 1: the active lists compacted, point p's at act[act_off[p]] */
   double *mp_val;     /* threads x 4 mp_cap: w, target (3) */
   /* multipass time blocks (mp_tblock_task): a region's rows and pairs,
    * rebuilt with the active lists, for blocks of up to tb_S passes */
   struct mp_region *reg; /* nreg */
   size_t nreg;
-  int tb_S, tb_s;     /* passes the regions are built for; passes of the running block */
-  int tb_max;         /* passes per block that the current lists' halos allow (1: none) */
-  uint32_t *lmap;     /* threads x n: rank -> local row while a region is built (UINT32_MAX: none) */
-  size_t tb_cap;      /* rows of the largest region */
-  double *tb_pos;     /* threads x 2 tb_cap x 3: a block's local positions, two passes */
-  double *tb_step;    /* threads x MP_TSTRIDE: the largest squared move of each pass of a block */
-  uint32_t *gcount;   /* threads x k: the guard's sheet (guard_fit) */
+  int tb_S, tb_s;   /* passes the regions are built for; passes of the running block */
+  int tb_max;       /* passes per block that the current lists' halos allow (1: none) */
+  uint32_t *lmap;   /* threads x n: rank -> local row while a region is built (UINT32_MAX: none) */
+  size_t tb_cap;    /* rows of the largest region */
+  double *tb_pos;   /* threads x 2 tb_cap x 3: a block's local positions, two passes */
+  double *tb_step;  /* threads x MP_TSTRIDE: the largest squared move of each pass of a block */
+  uint32_t *gcount; /* threads x k: the guard's sheet (guard_fit) */
 } smooth_ctx;
 #define GCOUNT(c, thread) (&(c)->gcount[(size_t)(thread) * (size_t)(c)->k])
 
@@ -335,7 +345,9 @@ static double median_of(double *v, int n) {
 /* n_s: a quarter of the neighbourhood, and at least 12 points (two per
  * coefficient of a quadric, the lowest degree that follows curvature: the
  * first fit of an exact surface is then exact) */
-static int guard_near(int k) { return k / 4 > 12 ? k / 4 : (k < 12 ? k : 12); }
+static int guard_near(int k) {
+  return k / 4 > 12 ? k / 4 : (k < 12 ? k : 12);
+}
 
 /* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the
  * positions xyz: F (fit_store's record) and *degree out. Returns the
@@ -354,7 +366,8 @@ static int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act,
     /* the first fit: the centre's ns nearest points (most of them on its
      * sheet, however many of the K are not), grown from there */
     int na = ns, deg = c->degree;
-    for (int j = 0; j < ns; j++) act[j] = idx[j];
+    for (int j = 0; j < ns; j++)
+      act[j] = idx[j];
     double m = 0, bound = INFINITY;
     for (int round = 0;; round++) {
       /* the fit of the sheet's points: frame, degree with two points per
@@ -362,7 +375,8 @@ static int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act,
       bsurf_frame fr;
       bsurf_local_frame(xyz, act, na, c->o.error.pca_center, &fr);
       int d = c->degree;
-      while (d > 1 && 2 * bsurf_poly_terms(d) > na) d--;
+      while (d > 1 && 2 * bsurf_poly_terms(d) > na)
+        d--;
       bsurf_localfit_setup(lf, xyz, act, na, &fr, d);
       double coef[BSURF_TERMS_MAX];
       deg = solve_with_fallback(lf, d, c->m, coef);
@@ -403,7 +417,8 @@ static int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act,
     for (int j = 0; j < ns; j++)
       if (fabs(r[j] - m) <= bound) ss += (r[j] - mean) * (r[j] - mean);
     const double sd = n > 1 ? sqrt(ss / (n - 1)) : 0;
-    if (n >= 3 && !(fabs(mean) > tiny && fabs(mean) * sqrt((double)n) > student_t_quantile(BSURF_GUARD_Z, n - 1) * sd)) {
+    if (n >= 3 && !(fabs(mean) > tiny &&
+                    fabs(mean) * sqrt((double)n) > student_t_quantile(BSURF_GUARD_Z, n - 1) * sd)) {
       /* moves: delta = f - z = -r, so |delta| <= |m| + bound holds the sheet */
       F[13] = fabs(m) + GUARD_MOVE * bound;
       *degree = deg;
@@ -436,14 +451,16 @@ static void boot_task(void *vc, int thread, size_t i) {
       int deg = fit.degree;
       fit_store(F, &fit.frame, fit.inv_scale, fit.coef, c->m);
       int kg = guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg);
-      if (kg == 0) height = 0;
+      if (kg == 0)
+        height = 0;
       else if (kg != c->k) {
         height = fit_delta(F, deg, c->m, p);
         if (isnan(height)) height = 0;
         n = &F[9];
       }
     }
-    for (int t = 0; t < 3; t++) c->out[3 * i + t] = p[t] + height * n[t];
+    for (int t = 0; t < 3; t++)
+      c->out[3 * i + t] = p[t] + height * n[t];
   } else if (c->fits) {
     double *F = &c->fits[i * (size_t)c->stride];
     fit_store(F, &fit.frame, fit.inv_scale, fit.coef, c->m);
@@ -466,12 +483,14 @@ static void set_theta2(smooth_ctx *c, size_t i, double W) {
  * the point stays at x. 1 when projected. */
 static int naive_select(double W, double threshold, const double *x, double *out) {
   if (W < threshold) return 1;
-  for (int t = 0; t < 3; t++) out[t] = x[t];
+  for (int t = 0; t < 3; t++)
+    out[t] = x[t];
   return 0;
 }
 
 static double moved_of(const double *a, const double *b) {
-  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+  return sqrt((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) +
+              (a[2] - b[2]) * (a[2] - b[2]));
 }
 
 /* Multipass stage 2: K_i (Eqs. 6.3-6.4), d_L and the fit of the K_i points. */
@@ -501,14 +520,15 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
   /* least squares with at least two points per term: a fit that (nearly)
    * interpolates K_i noisy points follows the noise and swings between them */
   int deg = c->degree;
-  while (deg > 1 && 2 * bsurf_poly_terms(deg) > kh) deg--;
+  while (deg > 1 && 2 * bsurf_poly_terms(deg) > kh)
+    deg--;
   bsurf_localfit_setup(lf, c->xyz, idx, kh, &fr, deg);
   double coef[BSURF_TERMS_MAX];
   c->fit_degree[i] = solve_with_fallback(lf, deg, c->m, coef);
   fit_store(&c->fits[i * (size_t)c->stride], &fr, 1.0 / lf->scale, coef, c->m);
   if (c->o.guard)
-    guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, kh, &c->fits[i * (size_t)c->stride],
-              &c->fit_degree[i]);
+    guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, kh,
+              &c->fits[i * (size_t)c->stride], &c->fit_degree[i]);
 
   double h1 = c->o.a * c->dl[i];
   c->inv_h1sq[i] = h1 > 0 ? 1.0 / (h1 * h1) : 0.0;
@@ -521,13 +541,17 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
 
 /* The combined move of one point from its gathered sums: o = P x + (1 - P)
  * T / S (x where no weight reached it). Returns |o - x|^2. */
-static inline double update_finish(const double *x, double P, double S, const double T[3], double *o) {
+static inline double update_finish(const double *x, double P, double S, const double T[3],
+                                   double *o) {
   if (S > 0) {
-    for (int t = 0; t < 3; t++) o[t] = P * x[t] + (1.0 - P) * (T[t] / S);
+    for (int t = 0; t < 3; t++)
+      o[t] = P * x[t] + (1.0 - P) * (T[t] / S);
   } else {
-    for (int t = 0; t < 3; t++) o[t] = x[t];
+    for (int t = 0; t < 3; t++)
+      o[t] = x[t];
   }
-  return (o[0] - x[0]) * (o[0] - x[0]) + (o[1] - x[1]) * (o[1] - x[1]) + (o[2] - x[2]) * (o[2] - x[2]);
+  return (o[0] - x[0]) * (o[0] - x[0]) + (o[1] - x[1]) * (o[1] - x[1]) +
+         (o[2] - x[2]) * (o[2] - x[2]);
 }
 
 /* One point's gathered update (parallel order): the moves of every
@@ -558,7 +582,8 @@ static double gather_update(const smooth_ctx *c, size_t p, int multipass) {
     if (isnan(delta)) continue;
     P *= 1.0 - w;
     S += w;
-    for (int t = 0; t < 3; t++) T[t] += w * (x[t] + delta * F[9 + t]);
+    for (int t = 0; t < 3; t++)
+      T[t] += w * (x[t] + delta * F[9 + t]);
   }
   return update_finish(x, P, S, T, &c->next[3 * p]);
 }
@@ -587,7 +612,9 @@ static void gather_multipass_task(void *vc, int thread, size_t p) {
  * GCC/clang vector extensions; otherwise the passes use gather_update. */
 #define MP_BLOCK 32 /* points per block */
 static int mp_blocks_on = 1;
-void bsurf_smooth_block_passes(int on) { mp_blocks_on = on; }
+void bsurf_smooth_block_passes(int on) {
+  mp_blocks_on = on;
+}
 #if defined(__GNUC__)
 #define MP_LANES 1
 typedef double mp_v4d __attribute__((vector_size(32)));
@@ -595,15 +622,16 @@ typedef long long mp_v4l __attribute__((vector_size(32)));
 /* lanes of field k of the four records A[0..3] */
 #define MP_GATHER(A, k) ((mp_v4d){(A)[0][k], (A)[1][k], (A)[2][k], (A)[3][k]})
 /* mask ? a : b, lane by lane */
-#define MP_SELECT(mask, a, b) ((mp_v4d)(((mp_v4l)(mask) & (mp_v4l)(a)) | (~(mp_v4l)(mask) & (mp_v4l)(b))))
+#define MP_SELECT(mask, a, b)                                                                      \
+  ((mp_v4d)(((mp_v4l)(mask) & (mp_v4l)(a)) | (~(mp_v4l)(mask) & (mp_v4l)(b))))
 
 /* out = mp_exp1(x) in four lanes (a statement: no vector-valued calls) */
 #define MP_EXP4(out, x)                                                                            \
   do {                                                                                             \
     const mp_v4d magic_ = {MPX_MAGIC, MPX_MAGIC, MPX_MAGIC, MPX_MAGIC};                            \
-    const mp_v4d t_ = (x) * MPX_LOG2E + magic_;                                                    \
+    const mp_v4d t_ = (x)*MPX_LOG2E + magic_;                                                      \
     const mp_v4d n_ = t_ - magic_;                                                                 \
-    const mp_v4d r_ = ((x) - n_ * MPX_LN2_HI) - n_ * MPX_LN2_LO;                                   \
+    const mp_v4d r_ = ((x)-n_ * MPX_LN2_HI) - n_ * MPX_LN2_LO;                                     \
     mp_v4d p_;                                                                                     \
     MPX_POLY(mp_v4d, p_, r_);                                                                      \
     const mp_v4l bits_ = ((mp_v4l)t_ - (mp_v4l)magic_ + 1023) * ((long long)1 << 52);              \
@@ -614,10 +642,9 @@ typedef long long mp_v4l __attribute__((vector_size(32)));
  * and are not stored): pair e is point pp[e] (its row in pos) with the
  * centre pi[e] (its row in pos) and that centre's fit record pf[e]; M = the
  * number of terms, a constant per call site. */
-static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c, int M, const double *pos,
-                                                            const uint32_t *pi, const uint32_t *pf,
-                                                            const uint32_t *pp, size_t e0, size_t np, double *w,
-                                                            double *tg) {
+static inline __attribute__((always_inline)) void
+mp_pairs4(const smooth_ctx *c, int M, const double *pos, const uint32_t *pi, const uint32_t *pf,
+          const uint32_t *pp, size_t e0, size_t np, double *w, double *tg) {
   const double *X[4], *C[4], *F[4];
   const int L = np - e0 < 4 ? (int)(np - e0) : 4;
   for (int l = 0; l < 4; l++) {
@@ -646,7 +673,9 @@ static inline __attribute__((always_inline)) void mp_pairs4(const smooth_ctx *c,
   const mp_v4d uu = u * u, uv = u * v, vv = v * v;
   mp_v4d f = MP_GATHER(F, FIT_HEAD + 0);
   if (M > 1) f += MP_GATHER(F, FIT_HEAD + 1) * u + MP_GATHER(F, FIT_HEAD + 2) * v;
-  if (M > 3) f += MP_GATHER(F, FIT_HEAD + 3) * uu + MP_GATHER(F, FIT_HEAD + 4) * uv + MP_GATHER(F, FIT_HEAD + 5) * vv;
+  if (M > 3)
+    f += MP_GATHER(F, FIT_HEAD + 3) * uu + MP_GATHER(F, FIT_HEAD + 4) * uv +
+         MP_GATHER(F, FIT_HEAD + 5) * vv;
   if (M > 6)
     f += MP_GATHER(F, FIT_HEAD + 6) * (uu * u) + MP_GATHER(F, FIT_HEAD + 7) * (uu * v) +
          MP_GATHER(F, FIT_HEAD + 8) * (u * vv) + MP_GATHER(F, FIT_HEAD + 9) * (vv * v);
@@ -673,7 +702,8 @@ BSURF_CLONES
 static void mp_pairs(const smooth_ctx *c, const double *pos, const uint32_t *pi, const uint32_t *pf,
                      const uint32_t *pp, size_t np, double *w, double *tg) {
 #define MP_PAIRS(M)                                                                                \
-  for (size_t e0 = 0; e0 < np; e0 += 4) mp_pairs4(c, M, pos, pi, pf, pp, e0, np, w, tg)
+  for (size_t e0 = 0; e0 < np; e0 += 4)                                                            \
+  mp_pairs4(c, M, pos, pi, pf, pp, e0, np, w, tg)
   switch (c->m) {
   case 3: MP_PAIRS(3); break;
   case 6: MP_PAIRS(6); break;
@@ -696,12 +726,14 @@ typedef struct mp_view {
 
 /* Rows p0..p1-1 of a view, one block of a multipass pass; returns the
  * largest squared move, mx or above. */
-static double mp_block(const smooth_ctx *c, const mp_view *v, size_t p0, size_t p1, int thread, double mx) {
+static double mp_block(const smooth_ctx *c, const mp_view *v, size_t p0, size_t p1, int thread,
+                       double mx) {
   uint32_t *pp = &c->mp_point[(size_t)thread * c->mp_cap];
   double *w = &c->mp_val[(size_t)thread * 4 * c->mp_cap], *tg = w + c->mp_cap;
   const size_t base = v->off[p0], np = v->off[p1] - base; /* the block's pairs, side by side */
   for (size_t p = p0, e = 0; p < p1; p++)
-    for (size_t q = v->off[p]; q < v->off[p + 1]; q++) pp[e++] = (uint32_t)p;
+    for (size_t q = v->off[p]; q < v->off[p + 1]; q++)
+      pp[e++] = (uint32_t)p;
   {
     /* ask for the records and positions of the next block's pairs now */
     const size_t q1 = p1 + MP_BLOCK < v->n ? p1 + MP_BLOCK : v->n;
@@ -722,7 +754,8 @@ static double mp_block(const smooth_ctx *c, const mp_view *v, size_t p0, size_t 
       const double we = w[e];
       P *= 1.0 - we;
       S += we;
-      for (int t = 0; t < 3; t++) T[t] += we * tg[3 * e + t];
+      for (int t = 0; t < 3; t++)
+        T[t] += we * tg[3 * e + t];
     }
     double step2 = update_finish(&v->cur[3 * p], P, S, T, &v->next[3 * p]);
     if (step2 > mx) mx = step2;
@@ -770,14 +803,16 @@ void bsurf_smooth_time_blocks(int passes, int any_halo) {
 }
 
 typedef struct mp_region {
-  uint32_t *row;  /* local row -> rank: the region's own ranks, then each level of halo (in rank order) */
-  size_t *off;    /* len[1] + 1: the pairs of the rows a block computes */
-  uint32_t *ctr;  /* per pair: its centre's local row */
-  uint32_t *fit;  /* per pair: its centre's rank (fit record) */
-  size_t len[MP_SMAX + 1]; /* pass j of a block of S passes computes rows 0..len[j]-1 (len[S]: own rows) */
+  uint32_t
+      *row; /* local row -> rank: the region's own ranks, then each level of halo (in rank order) */
+  size_t *off;   /* len[1] + 1: the pairs of the rows a block computes */
+  uint32_t *ctr; /* per pair: its centre's local row */
+  uint32_t *fit; /* per pair: its centre's rank (fit record) */
+  size_t len[MP_SMAX +
+             1]; /* pass j of a block of S passes computes rows 0..len[j]-1 (len[S]: own rows) */
   size_t row_cap, off_cap, ctr_cap, fit_cap; /* each array's own capacity */
-  size_t sub_max; /* the most pairs of MP_BLOCK consecutive rows */
-  int failed;     /* out of memory */
+  size_t sub_max;                            /* the most pairs of MP_BLOCK consecutive rows */
+  int failed;                                /* out of memory */
 } mp_region;
 
 /* *a with room for `need` elements of `size` bytes (grown by half); NULL
@@ -828,12 +863,14 @@ static void mp_region_task(void *vc, int thread, size_t r) {
         g->row[nrow++] = i;
       }
     qsort(&g->row[end], nrow - end, sizeof *g->row, cmp_u32);
-    for (size_t l = end; l < nrow; l++) map[g->row[l]] = (uint32_t)l;
+    for (size_t l = end; l < nrow; l++)
+      map[g->row[l]] = (uint32_t)l;
     g->len[j] = nrow;
     beg = end;
   }
   const size_t nc = g->len[1];
-  for (size_t l = 0; l < nc; l++) np += c->act_off[g->row[l] + 1] - c->act_off[g->row[l]];
+  for (size_t l = 0; l < nc; l++)
+    np += c->act_off[g->row[l] + 1] - c->act_off[g->row[l]];
   if (!(q = mp_grow(g->off, &g->off_cap, nc + 1, sizeof *g->off))) goto out;
   g->off = q;
   /* two capacities: a shared one, reset before growing fit, let a later,
@@ -858,7 +895,8 @@ static void mp_region_task(void *vc, int thread, size_t r) {
   }
   g->failed = 0;
 out:
-  for (size_t l = 0; l < nrow; l++) map[g->row[l]] = UINT32_MAX;
+  for (size_t l = 0; l < nrow; l++)
+    map[g->row[l]] = UINT32_MAX;
 }
 
 /* One region's block of tb_s passes (the last tb_s of the tb_S it is built
@@ -870,9 +908,11 @@ static void mp_tblock_task(void *vc, int thread, size_t r) {
   const int S = c->tb_S, j0 = S - c->tb_s;
   double *a = &c->tb_pos[(size_t)thread * 6 * c->tb_cap], *b = a + 3 * c->tb_cap;
   double *step = &c->tb_step[(size_t)thread * MP_TSTRIDE];
-  for (size_t l = 0; l < g->len[j0]; l++) memcpy(&a[3 * l], &c->cur[3 * (size_t)g->row[l]], 3 * sizeof(double));
+  for (size_t l = 0; l < g->len[j0]; l++)
+    memcpy(&a[3 * l], &c->cur[3 * (size_t)g->row[l]], 3 * sizeof(double));
   for (int j = j0 + 1; j <= S; j++) {
-    const mp_view v = {a, j == S ? &c->next[3 * (size_t)g->row[0]] : b, g->len[j], g->off, g->ctr, g->fit};
+    const mp_view v = {
+        a, j == S ? &c->next[3 * (size_t)g->row[0]] : b, g->len[j], g->off, g->ctr, g->fit};
     double mx = step[j - j0 - 1];
     for (size_t p0 = 0; p0 < v.n; p0 += MP_BLOCK)
       mx = mp_block(c, &v, p0, p0 + MP_BLOCK < v.n ? p0 + MP_BLOCK : v.n, thread, mx);
@@ -901,7 +941,8 @@ static bsurf_status mp_regions_build(smooth_ctx *c, int T) {
   for (int s = 2; s <= c->tb_S; s++) {
     size_t rows_s = 0;
     for (size_t r = 0; r < c->nreg; r++)
-      for (int j = c->tb_S - s + 1; j <= c->tb_S; j++) rows_s += c->reg[r].len[j];
+      for (int j = c->tb_S - s + 1; j <= c->tb_S; j++)
+        rows_s += c->reg[r].len[j];
     if (!mp_tblock_any_halo && (double)rows_s > 1.1 * (double)s * (double)c->n) break;
     c->tb_max = s;
   }
@@ -951,7 +992,8 @@ static void active_task(void *vc, int thread, size_t p) {
  * neighbours contain p. size = NULL: all k. With a spatial order (perm[i'] =
  * i, rank[i] = i'), the lists are built in that order's indices: list rank[p]
  * holds the ranks of the neighbourhoods that contain p. */
-static bsurf_status build_reverse(smooth_ctx *c, const int *size, const uint32_t *perm, const uint32_t *rank) {
+static bsurf_status build_reverse(smooth_ctx *c, const int *size, const uint32_t *perm,
+                                  const uint32_t *rank) {
   const size_t n = c->n;
   const int stride = c->nb->k;
   size_t *rev_off = bsurf_calloc_array(n + 1, sizeof(size_t));
@@ -961,9 +1003,11 @@ static bsurf_status build_reverse(smooth_ctx *c, const int *size, const uint32_t
     const size_t i = perm ? perm[r] : r;
     int kk = size ? size[i] : c->k;
     const uint32_t *idx = &c->nb->idx[i * (size_t)stride];
-    for (int j = 0; j < kk; j++) rev_off[(rank ? rank[idx[j]] : idx[j]) + 1]++;
+    for (int j = 0; j < kk; j++)
+      rev_off[(rank ? rank[idx[j]] : idx[j]) + 1]++;
   }
-  for (size_t p = 0; p < n; p++) rev_off[p + 1] += rev_off[p];
+  for (size_t p = 0; p < n; p++)
+    rev_off[p + 1] += rev_off[p];
   uint32_t *rev = bsurf_alloc_array(rev_off[n] ? rev_off[n] : 1, sizeof(uint32_t));
   c->rev = rev;
   size_t *pos = bsurf_alloc_array(n ? n : 1, sizeof(size_t));
@@ -976,7 +1020,8 @@ static bsurf_status build_reverse(smooth_ctx *c, const int *size, const uint32_t
     const size_t i = perm ? perm[r] : r;
     int kk = size ? size[i] : c->k;
     const uint32_t *idx = &c->nb->idx[i * (size_t)stride];
-    for (int j = 0; j < kk; j++) rev[pos[rank ? rank[idx[j]] : idx[j]]++] = (uint32_t)r;
+    for (int j = 0; j < kk; j++)
+      rev[pos[rank ? rank[idx[j]] : idx[j]]++] = (uint32_t)r;
   }
   free(pos);
   return BSURF_OK;
@@ -991,7 +1036,8 @@ static bsurf_status build_reverse(smooth_ctx *c, const int *size, const uint32_t
 static bsurf_status permute_rows(void **array, size_t n, size_t row_bytes, const uint32_t *perm) {
   unsigned char *src = *array, *dst = bsurf_alloc_array(n ? n : 1, row_bytes);
   if (!dst) return BSURF_ERR_NOMEM;
-  for (size_t r = 0; r < n; r++) memcpy(dst + r * row_bytes, src + (size_t)perm[r] * row_bytes, row_bytes);
+  for (size_t r = 0; r < n; r++)
+    memcpy(dst + r * row_bytes, src + (size_t)perm[r] * row_bytes, row_bytes);
   free(src);
   *array = dst;
   return BSURF_OK;
@@ -1032,11 +1078,13 @@ static void bilateral_sequential(smooth_ctx *c) {
       if (c->o.guard) { /* the guard's fit (or none: NAN) and its bound */
         double delta = fit_delta(F, d, c->m, z);
         if (isnan(delta)) continue;
-        for (int t = 0; t < 3; t++) z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * F[9 + t]);
+        for (int t = 0; t < 3; t++)
+          z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * F[9 + t]);
         continue;
       }
       double delta = pred[j] - lf->z[j];
-      for (int t = 0; t < 3; t++) z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * fr.rot[2][t]);
+      for (int t = 0; t < 3; t++)
+        z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * fr.rot[2][t]);
     }
   }
 }
@@ -1063,12 +1111,14 @@ static void multipass_sequential_pass(smooth_ctx *c) {
       double *z = &c->out[3 * (size_t)idx[j]];
       double delta = fit_delta(F, c->fit_degree[i], c->m, z);
       if (isnan(delta)) continue;
-      for (int t = 0; t < 3; t++) z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * F[9 + t]);
+      for (int t = 0; t < 3; t++)
+        z[t] = (1.0 - w[j]) * z[t] + w[j] * (z[t] + delta * F[9 + t]);
     }
   }
 }
 
-static void ctx_init(smooth_ctx *c, const double *xyz, const bsurf_neighbors *nb, const bsurf_smooth_options *o) {
+static void ctx_init(smooth_ctx *c, const double *xyz, const bsurf_neighbors *nb,
+                     const bsurf_smooth_options *o) {
   memset(c, 0, sizeof *c);
   c->xyz = xyz;
   c->nb = nb;
@@ -1081,7 +1131,8 @@ static void ctx_init(smooth_ctx *c, const double *xyz, const bsurf_neighbors *nb
 
 static void ctx_free(smooth_ctx *c, int T) {
   if (c->scr)
-    for (int t = 0; t < T; t++) bsurf_error_scratch_free(&c->scr[t]);
+    for (int t = 0; t < T; t++)
+      bsurf_error_scratch_free(&c->scr[t]);
   free(c->scr);
   free(c->fits);
   free(c->fit_degree);
@@ -1127,17 +1178,19 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
   BSURF_REQUIRE(o.order == BSURF_ORDER_PARALLEL || o.order == BSURF_ORDER_SEQUENTIAL,
                 "order = %d: must be BSURF_ORDER_PARALLEL or _SEQUENTIAL", (int)o.order);
   BSURF_REQUIRE((unsigned)o.estimator <= BSURF_SMOOTH_EST_632PLUS,
-                "estimator = %d: must be BSURF_SMOOTH_EST_DEFAULT, _632 or _632PLUS", (int)o.estimator);
+                "estimator = %d: must be BSURF_SMOOTH_EST_DEFAULT, _632 or _632PLUS",
+                (int)o.estimator);
   BSURF_REQUIRE(!isnan(o.h1) && !isnan(o.h2) && !isnan(o.h2_fraction),
-                "h1 = %g, h2 = %g, h2_fraction = %g: NaN is not allowed (<= 0 selects the default)", o.h1, o.h2,
-                o.h2_fraction);
+                "h1 = %g, h2 = %g, h2_fraction = %g: NaN is not allowed (<= 0 selects the default)",
+                o.h1, o.h2, o.h2_fraction);
   BSURF_REQUIRE(!isnan(o.k_error) && !isnan(o.k_error_fraction),
-                "k_error = %g, k_error_fraction = %g: NaN is not allowed", o.k_error, o.k_error_fraction);
+                "k_error = %g, k_error_fraction = %g: NaN is not allowed", o.k_error,
+                o.k_error_fraction);
   if (o.method == BSURF_SMOOTH_MULTIPASS) {
     BSURF_REQUIRE(o.a >= 0 && isfinite(o.a), "a = %g: must be finite and >= 0", o.a);
     BSURF_REQUIRE(o.iterations >= 0, "iterations = %d: must be >= 0", o.iterations);
-    BSURF_REQUIRE(o.k_min >= 1 && o.k_min <= o.error.k, "k_min = %d: must be in [1, error.k = %d]", o.k_min,
-                  o.error.k);
+    BSURF_REQUIRE(o.k_min >= 1 && o.k_min <= o.error.k, "k_min = %d: must be in [1, error.k = %d]",
+                  o.k_min, o.error.k);
   }
 
   smooth_ctx c;
@@ -1146,14 +1199,16 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
   const size_t n = c.n;
   const int T = bsurf_threads_resolve(o.error.threads);
   const int seq = o.order == BSURF_ORDER_SEQUENTIAL;
-  const int stages = o.method == BSURF_SMOOTH_NAIVE ? 1 : (o.method == BSURF_SMOOTH_BILATERAL ? 2 : 3);
+  const int stages =
+      o.method == BSURF_SMOOTH_NAIVE ? 1 : (o.method == BSURF_SMOOTH_BILATERAL ? 2 : 3);
   staged_progress sp = {o.error.progress, o.error.progress_user, 0, stages};
   o.error.progress = NULL;
   o.error.progress_user = NULL;
 
   double *own632 = NULL, *own632p = NULL, *own_moved = NULL;
   uint32_t *visit_owned = NULL;
-  c.err_632 = fields && fields->err_632 ? fields->err_632 : (own632 = bsurf_alloc_array(n, sizeof(double)));
+  c.err_632 =
+      fields && fields->err_632 ? fields->err_632 : (own632 = bsurf_alloc_array(n, sizeof(double)));
   c.err_632plus = fields && fields->err_632plus ? fields->err_632plus
                                                 : (own632p = bsurf_alloc_array(n, sizeof(double)));
   c.scr = calloc((size_t)T, sizeof *c.scr);
@@ -1202,7 +1257,8 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
   }
   c.W = bsurf_smooth_w_column(&o) ? c.err_632plus : c.err_632;
   double sumW = 0;
-  for (size_t i = 0; i < n; i++) sumW += c.W[i];
+  for (size_t i = 0; i < n; i++)
+    sumW += c.W[i];
   const double meanW = n ? sumW / (double)n : 0.0; /* |W| (Algorithm 4 step 2) */
   bsurf_smooth_options ro = o;
   bsurf_smooth_resolve(&ro, nb->h, meanW);
@@ -1217,7 +1273,8 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
     /* Eq. 6.1 only where W_i < threshold (6.2, Figs. 6.2-6.3) */
     double thr = ro.threshold;
     size_t projected = 0;
-    for (size_t i = 0; i < n; i++) projected += naive_select(c.W[i], thr, &xyz[3 * i], &out_xyz[3 * i]);
+    for (size_t i = 0; i < n; i++)
+      projected += naive_select(c.W[i], thr, &xyz[3 * i], &out_xyz[3 * i]);
     if (report) {
       report->threshold = thr;
       report->projected = projected;
@@ -1229,7 +1286,8 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       st = BSURF_ERR_NOMEM;
       goto done;
     }
-    for (size_t i = 0; i < n; i++) set_theta2(&c, i, c.W[i]);
+    for (size_t i = 0; i < n; i++)
+      set_theta2(&c, i, c.W[i]);
     c.inv_h1sq_global = 1.0 / (c.h1 * c.h1);
     sp.stage = 1;
     if (seq) {
@@ -1276,24 +1334,29 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       /* the passes run in a spatial order: every per-point array is permuted
        * (rank r holds point perm[r]) and the result is put back at the end */
       st = bsurf_spatial_order(xyz, n, &perm, &rank);
-      if (st == BSURF_OK) st = permute_rows((void **)&c.fits, n, (size_t)c.stride * sizeof(double), perm);
+      if (st == BSURF_OK)
+        st = permute_rows((void **)&c.fits, n, (size_t)c.stride * sizeof(double), perm);
       if (st == BSURF_OK) st = permute_rows((void **)&c.fit_degree, n, sizeof(int), perm);
       if (st == BSURF_OK) st = permute_rows((void **)&c.e2, n, sizeof(double), perm);
       if (st == BSURF_OK) st = permute_rows((void **)&c.w2, n, sizeof(double), perm);
       if (st == BSURF_OK) st = permute_rows((void **)&c.inv_h1sq, n, sizeof(double), perm);
       if (st == BSURF_OK) {
         pos = bsurf_alloc_array(n * 3, sizeof(double));
-        if (!pos) st = BSURF_ERR_NOMEM;
+        if (!pos)
+          st = BSURF_ERR_NOMEM;
         else
-          for (size_t r = 0; r < n; r++) memcpy(&pos[3 * r], &xyz[3 * (size_t)perm[r]], 3 * sizeof(double));
+          for (size_t r = 0; r < n; r++)
+            memcpy(&pos[3 * r], &xyz[3 * (size_t)perm[r]], 3 * sizeof(double));
       }
       if (st == BSURF_OK) st = build_reverse(&c, c.khat, perm, rank);
       buf = bsurf_alloc_array(n * 3, sizeof(double));
-      c.act = bsurf_alloc_array(c.rev_off ? (c.rev_off[n] ? c.rev_off[n] : 1) : 1, sizeof(uint32_t));
+      c.act =
+          bsurf_alloc_array(c.rev_off ? (c.rev_off[n] ? c.rev_off[n] : 1) : 1, sizeof(uint32_t));
       c.act_n = bsurf_alloc_array(n, sizeof(uint32_t));
       c.reach2 = bsurf_alloc_array(n, sizeof(double));
       c.tmax = bsurf_calloc_array((size_t)T * 8, sizeof(double));
-      if (st == BSURF_OK && (!buf || !c.act || !c.act_n || !c.reach2 || !c.tmax)) st = BSURF_ERR_NOMEM;
+      if (st == BSURF_OK && (!buf || !c.act || !c.act_n || !c.reach2 || !c.tmax))
+        st = BSURF_ERR_NOMEM;
       if (st == BSURF_OK)
         for (size_t i = 0; i < n; i++) {
           /* theta_1 theta_2 >= 2^-54 needs d^2 / h1^2 <= GAUSS_CUT - e2 */
@@ -1317,8 +1380,10 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
           c.reg = bsurf_calloc_array(c.nreg ? c.nreg : 1, sizeof *c.reg);
           c.lmap = bsurf_alloc_array((size_t)T * (n ? n : 1), sizeof(uint32_t));
           c.tb_step = bsurf_alloc_array((size_t)T * MP_TSTRIDE, sizeof(double));
-          if (!c.reg || !c.lmap || !c.tb_step) st = BSURF_ERR_NOMEM;
-          else memset(c.lmap, 0xff, (size_t)T * n * sizeof(uint32_t));
+          if (!c.reg || !c.lmap || !c.tb_step)
+            st = BSURF_ERR_NOMEM;
+          else
+            memset(c.lmap, 0xff, (size_t)T * n * sizeof(uint32_t));
         }
       }
 #endif
@@ -1354,11 +1419,13 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
          * most tb - 1 more moves of 1.5 times the last pass's largest);
          * else pass by pass, up to the rebuild */
         int tb = c.reg ? (o.iterations - it < c.tb_max ? o.iterations - it : c.tb_max) : 1;
-        while (tb > 1 && !(drift + (tb - 1) * 1.5 * last <= margin)) tb--;
+        while (tb > 1 && !(drift + (tb - 1) * 1.5 * last <= margin))
+          tb--;
         if (st == BSURF_OK && tb > 1) {
           c.tb_s = tb;
           for (int t = 0; t < T; t++)
-            for (int j = 0; j < tb; j++) c.tb_step[(size_t)t * MP_TSTRIDE + (size_t)j] = 0;
+            for (int j = 0; j < tb; j++)
+              c.tb_step[(size_t)t * MP_TSTRIDE + (size_t)j] = 0;
           st = bsurf_parallel_sweep_chunk(c.nreg, T, 1, mp_tblock_task, &c);
           /* the lists held every weighted pair if no pass of the block
            * started beyond the margin */
@@ -1367,7 +1434,8 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
           for (int j = 0; j < tb && st == BSURF_OK; j++) {
             double m = 0;
             for (int t = 0; t < T; t++)
-              if (c.tb_step[(size_t)t * MP_TSTRIDE + (size_t)j] > m) m = c.tb_step[(size_t)t * MP_TSTRIDE + (size_t)j];
+              if (c.tb_step[(size_t)t * MP_TSTRIDE + (size_t)j] > m)
+                m = c.tb_step[(size_t)t * MP_TSTRIDE + (size_t)j];
             if (d > margin) ok = 0;
             d += sqrt(m);
             if (m > mx) mx = m;
@@ -1380,10 +1448,12 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
           drift = d;
           s = tb;
         } else if (st == BSURF_OK) {
-          for (int t = 0; t < T; t++) c.tmax[8 * t] = 0;
+          for (int t = 0; t < T; t++)
+            c.tmax[8 * t] = 0;
 #ifdef MP_LANES
           if (c.mp_point)
-            st = bsurf_parallel_sweep_chunk((n + MP_BLOCK - 1) / MP_BLOCK, T, 16, gather_multipass_block, &c);
+            st = bsurf_parallel_sweep_chunk((n + MP_BLOCK - 1) / MP_BLOCK, T, 16,
+                                            gather_multipass_block, &c);
           else
 #endif
             st = bsurf_parallel_sweep(n, T, gather_multipass_task, &c);
@@ -1402,7 +1472,8 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
         st = BSURF_ERR_CANCELLED;
     }
     if (st == BSURF_OK && !seq) {
-      for (size_t r = 0; r < n; r++) memcpy(&out_xyz[3 * (size_t)perm[r]], &from[3 * r], 3 * sizeof(double));
+      for (size_t r = 0; r < n; r++)
+        memcpy(&out_xyz[3 * (size_t)perm[r]], &from[3 * r], 3 * sizeof(double));
     }
     free(buf);
     if (pos != out_xyz) free(pos);
@@ -1416,14 +1487,16 @@ bsurf_status bsurf_smooth(const double *xyz, const bsurf_neighbors *nb,
       report->iterations = it;
     }
     if (fields && fields->k_hat)
-      for (size_t i = 0; i < n; i++) fields->k_hat[i] = c.khat[i];
+      for (size_t i = 0; i < n; i++)
+        fields->k_hat[i] = c.khat[i];
     if (fields && fields->d_local) memcpy(fields->d_local, c.dl, n * sizeof(double));
   }
   if (st != BSURF_OK) goto done;
 
   /* ---- how far the points moved ---- */
   {
-    double *moved = fields && fields->moved ? fields->moved : (own_moved = bsurf_alloc_array(n, sizeof(double)));
+    double *moved = fields && fields->moved ? fields->moved
+                                            : (own_moved = bsurf_alloc_array(n, sizeof(double)));
     if (!moved) {
       st = BSURF_ERR_NOMEM;
       goto done;
@@ -1493,13 +1566,14 @@ void bsurf_smooth_resolve(bsurf_smooth_options *o, double h, double mean_w) {
   if (isnan(o->threshold)) o->threshold = mean_w;
 }
 
-bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb, const bsurf_smooth_options *opts,
-                                 double *values, bsurf_error_report *report) {
+bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb,
+                                 const bsurf_smooth_options *opts, double *values,
+                                 bsurf_error_report *report) {
   if (report) memset(report, 0, sizeof *report);
   const size_t nv = bsurf_smooth_stage_values(opts);
   BSURF_REQUIRE(xyz && values, "xyz or values is NULL");
-  BSURF_REQUIRE(nv, "method %d in order %d is not tiled (stage values 0)", opts ? (int)opts->method : -1,
-                opts ? (int)opts->order : -1);
+  BSURF_REQUIRE(nv, "method %d in order %d is not tiled (stage values 0)",
+                opts ? (int)opts->method : -1, opts ? (int)opts->order : -1);
   bsurf_smooth_options o = *opts;
   bsurf_status st = bsurf_error_check(&o.error, nb);
   if (st != BSURF_OK) return st;
@@ -1517,7 +1591,8 @@ bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb, c
   else
     c.fits = bsurf_alloc_array(n, (size_t)c.stride * sizeof(double));
   if (o.guard) c.gcount = bsurf_alloc_array((size_t)T * (size_t)c.k, sizeof(uint32_t));
-  if (!c.err_632 || !c.err_632plus || !c.scr || !(c.out || c.fits) || (o.guard && !c.gcount)) st = BSURF_ERR_NOMEM;
+  if (!c.err_632 || !c.err_632plus || !c.scr || !(c.out || c.fits) || (o.guard && !c.gcount))
+    st = BSURF_ERR_NOMEM;
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = bsurf_error_scratch_alloc(&c.scr[t], c.k, o.error.bootstrap, c.degree);
   if (st == BSURF_OK) st = bsurf_parallel_sweep(n, T, boot_task, &c);
@@ -1545,13 +1620,17 @@ bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb, c
   return st;
 }
 
-bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const double *values, size_t count,
-                                 const uint32_t *point, const size_t *rev_off, const uint32_t *rev,
-                                 const bsurf_smooth_options *o, double *out_xyz, double *moved) {
+bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const double *values,
+                                 size_t count, const uint32_t *point, const size_t *rev_off,
+                                 const uint32_t *rev, const bsurf_smooth_options *o,
+                                 double *out_xyz, double *moved) {
   const size_t nv = bsurf_smooth_stage_values(o);
-  BSURF_REQUIRE(xyz && values && o && out_xyz && moved, "xyz, values, opts, out_xyz or moved is NULL");
-  BSURF_REQUIRE(nv, "method %d in order %d is not tiled (stage values 0)", (int)o->method, (int)o->order);
-  BSURF_REQUIRE(o->method != BSURF_SMOOTH_BILATERAL || rev_off, "rev_off is NULL (bilateral needs it)");
+  BSURF_REQUIRE(xyz && values && o && out_xyz && moved,
+                "xyz, values, opts, out_xyz or moved is NULL");
+  BSURF_REQUIRE(nv, "method %d in order %d is not tiled (stage values 0)", (int)o->method,
+                (int)o->order);
+  BSURF_REQUIRE(o->method != BSURF_SMOOTH_BILATERAL || rev_off,
+                "rev_off is NULL (bilateral needs it)");
   const int wc = bsurf_smooth_w_column(o);
   bsurf_status st = BSURF_OK;
   if (o->method == BSURF_SMOOTH_NAIVE) {
@@ -1578,8 +1657,11 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
     c.e2 = bsurf_alloc_array(local_count ? local_count : 1, sizeof(double));
     c.w2 = bsurf_alloc_array(local_count ? local_count : 1, sizeof(double));
     if (!c.e2 || !c.w2) st = BSURF_ERR_NOMEM;
-    for (size_t i = 0; i < local_count && st == BSURF_OK; i++) set_theta2(&c, i, values[i * nv + (size_t)wc]);
-    if (st == BSURF_OK) st = bsurf_parallel_sweep(count, bsurf_threads_resolve(o->error.threads), gather_bilateral_task, &c);
+    for (size_t i = 0; i < local_count && st == BSURF_OK; i++)
+      set_theta2(&c, i, values[i * nv + (size_t)wc]);
+    if (st == BSURF_OK)
+      st = bsurf_parallel_sweep(count, bsurf_threads_resolve(o->error.threads),
+                                gather_bilateral_task, &c);
     c.fits = NULL;
     c.rev_off = NULL;
     c.rev = NULL;

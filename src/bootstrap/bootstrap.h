@@ -7,8 +7,7 @@
 /* Multinomial counts of one bootstrap sample S_b (4.1.1): k draws with
  * replacement from k points; counts out: k. The draws come from the stream
  * keyed by (seed, point, replicate), so they do not depend on threads. */
-void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
-                       uint16_t *counts);
+void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k, uint16_t *counts);
 
 /* The counts of nrep (<= 4) consecutive replicates replicate, replicate + 1,
  * ... (counts out: nrep x k), exactly those of bsurf_boot_counts, four
@@ -53,8 +52,8 @@ int bsurf_boot_rows(int B);
 /* gamma = 1/k^2 sum_j sum_l |pred_j - y_l| (Eq. 4.10), in O(k log k) by
  * sorting. y_sorted: the k observed heights in ascending order; y_prefix:
  * k+1 prefix sums of y_sorted; scratch: k doubles. */
-double bsurf_boot_gamma(int k, const double *pred, const double *y_sorted,
-                        const double *y_prefix, double *scratch);
+double bsurf_boot_gamma(int k, const double *pred, const double *y_sorted, const double *y_prefix,
+                        double *scratch);
 
 /* Reference O(k^2) version of Eq. 4.10 for the tests. */
 double bsurf_boot_gamma_naive(int k, const double *pred, const double *y);
@@ -80,9 +79,8 @@ typedef struct bsurf_boot_result {
  * gamma follows `mode` (Eq. 4.10 on the full fit, or the mean or maximum over
  * the replicates of the same formula with f*b, 4.2.1). */
 void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
-                         const double *pred_boot, const double *missing,
-                         const unsigned char *valid, bsurf_gamma_mode mode,
-                         double *scratch, bsurf_boot_result *out);
+                         const double *pred_boot, const double *missing, const unsigned char *valid,
+                         bsurf_gamma_mode mode, double *scratch, bsurf_boot_result *out);
 
 /* The same estimators from per-point sums over the nvalid valid replicates,
  * each summed over b in increasing order: boot_j[j] = sum_b |f*b(x_j) - y_j|,

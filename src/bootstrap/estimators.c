@@ -46,8 +46,10 @@ static void rank_sort(double *a, int n) {
 #if defined(__GNUC__)
   /* padded with +inf, which no finite value exceeds or equals */
   double v[64 + 4];
-  for (int i = 0; i < n; i++) v[i] = a[i];
-  for (int i = n; i < (n + 3) / 4 * 4; i++) v[i] = INFINITY;
+  for (int i = 0; i < n; i++)
+    v[i] = a[i];
+  for (int i = n; i < (n + 3) / 4 * 4; i++)
+    v[i] = INFINITY;
   for (int i = 0; i < n; i++) {
     const double x = v[i];
     const v4d_ xv = {x, x, x, x};
@@ -64,12 +66,15 @@ static void rank_sort(double *a, int n) {
   }
 #else
   double v[64];
-  for (int i = 0; i < n; i++) v[i] = a[i];
+  for (int i = 0; i < n; i++)
+    v[i] = a[i];
   for (int i = 0; i < n; i++) {
     const double x = v[i];
     int r = 0;
-    for (int j = 0; j < i; j++) r += v[j] <= x;
-    for (int j = i + 1; j < n; j++) r += v[j] < x;
+    for (int j = 0; j < i; j++)
+      r += v[j] <= x;
+    for (int j = i + 1; j < n; j++)
+      r += v[j] < x;
     a[r] = x;
   }
 #endif
@@ -83,19 +88,21 @@ void bsurf_sort_doubles(double *a, int n) {
   rank_sort(a, n);
 }
 
-double bsurf_boot_gamma(int k, const double *pred, const double *y_sorted,
-                        const double *y_prefix, double *scratch) {
+double bsurf_boot_gamma(int k, const double *pred, const double *y_sorted, const double *y_prefix,
+                        double *scratch) {
   /* For sorted predictions a and sorted observations y,
    *   sum_l |a_j - y_l| = (c a_j - S_c) + ((S_k - S_c) - (k - c) a_j)
    * where c = #{y_l <= a_j} and S_c the sum of the first c values; c only
    * grows with j, so one merge pass does all of them. */
-  for (int j = 0; j < k; j++) scratch[j] = pred[j];
+  for (int j = 0; j < k; j++)
+    scratch[j] = pred[j];
   bsurf_sort_doubles(scratch, k);
   double total = 0;
   int c = 0;
   for (int j = 0; j < k; j++) {
     double a = scratch[j];
-    while (c < k && y_sorted[c] <= a) c++;
+    while (c < k && y_sorted[c] <= a)
+      c++;
     total += (c * a - y_prefix[c]) + ((y_prefix[k] - y_prefix[c]) - (k - c) * a);
   }
   return total / ((double)k * (double)k);
@@ -104,7 +111,8 @@ double bsurf_boot_gamma(int k, const double *pred, const double *y_sorted,
 double bsurf_boot_gamma_naive(int k, const double *pred, const double *y) {
   double total = 0;
   for (int j = 0; j < k; j++)
-    for (int l = 0; l < k; l++) total += fabs(pred[j] - y[l]);
+    for (int l = 0; l < k; l++)
+      total += fabs(pred[j] - y[l]);
   return total / ((double)k * (double)k);
 }
 
@@ -114,10 +122,10 @@ double bsurf_boot_gamma_naive(int k, const double *pred, const double *y) {
 #if defined(__GNUC__)
 __attribute__((noinline))
 #endif
-BSURF_CLONES
-static void accumulate_replicate(int k, const double *restrict pb, const double *restrict mb,
-                                        const double *restrict y, double *restrict boot_j,
-                                        double *restrict loo_sum, double *restrict loo_cnt) {
+BSURF_CLONES static void
+accumulate_replicate(int k, const double *restrict pb, const double *restrict mb,
+                     const double *restrict y, double *restrict boot_j, double *restrict loo_sum,
+                     double *restrict loo_cnt) {
   for (int j = 0; j < k; j++) {
     /* mb[j] = 1 when point j is not in the replicate (b in C_j); e is finite
      * (a full-rank fit's prediction), so mb[j] * e adds exactly e or +0 */
@@ -129,23 +137,24 @@ static void accumulate_replicate(int k, const double *restrict pb, const double 
 }
 
 static void sort_heights(int k, const double *y, double *y_sorted, double *y_prefix) {
-  for (int j = 0; j < k; j++) y_sorted[j] = y[j];
+  for (int j = 0; j < k; j++)
+    y_sorted[j] = y[j];
   bsurf_sort_doubles(y_sorted, k);
   y_prefix[0] = 0;
-  for (int j = 0; j < k; j++) y_prefix[j + 1] = y_prefix[j] + y_sorted[j];
+  for (int j = 0; j < k; j++)
+    y_prefix[j + 1] = y_prefix[j] + y_sorted[j];
 }
 
 BSURF_CLONES
 void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
-                         const double *pred_boot, const double *missing,
-                         const unsigned char *valid, bsurf_gamma_mode mode,
-                         double *scratch, bsurf_boot_result *out) {
-  double *y_sorted = scratch;                      /* k */
-  double *y_prefix = scratch + k;                  /* k + 1 */
-  double *gscratch = scratch + 2 * (size_t)k + 1;  /* k */
-  double *loo_sum = scratch + 3 * (size_t)k + 1;   /* k */
-  double *loo_cnt = scratch + 4 * (size_t)k + 1;   /* k */
-  double *boot_j = scratch + 5 * (size_t)k + 1;    /* k */
+                         const double *pred_boot, const double *missing, const unsigned char *valid,
+                         bsurf_gamma_mode mode, double *scratch, bsurf_boot_result *out) {
+  double *y_sorted = scratch;                     /* k */
+  double *y_prefix = scratch + k;                 /* k + 1 */
+  double *gscratch = scratch + 2 * (size_t)k + 1; /* k */
+  double *loo_sum = scratch + 3 * (size_t)k + 1;  /* k */
+  double *loo_cnt = scratch + 4 * (size_t)k + 1;  /* k */
+  double *boot_j = scratch + 5 * (size_t)k + 1;   /* k */
   if (mode != BSURF_GAMMA_FIT) sort_heights(k, y, y_sorted, y_prefix);
 
   /* Eq. 4.3 summed per point j (then over j), and Eqs. 4.4 / 4.11: for each
@@ -153,7 +162,8 @@ void bsurf_boot_estimate(int k, int B, const double *y, const double *pred_full,
    * over b = 0, 1, ... in order, elementwise over j (vectorised). */
   double gamma_sum = 0, gamma_max = 0;
   int nvalid = 0;
-  for (int j = 0; j < k; j++) boot_j[j] = loo_sum[j] = loo_cnt[j] = 0;
+  for (int j = 0; j < k; j++)
+    boot_j[j] = loo_sum[j] = loo_cnt[j] = 0;
   for (int b = 0; b < B; b++) {
     if (!valid[b]) continue;
     nvalid++;
@@ -174,18 +184,20 @@ void bsurf_boot_estimate_sums(int k, int nvalid, const double *y, const double *
                               const double *boot_j, const double *loo_sum, const double *loo_cnt,
                               double gamma_sum, double gamma_max, bsurf_gamma_mode mode,
                               double *scratch, bsurf_boot_result *out) {
-  double *y_sorted = scratch;                      /* k */
-  double *y_prefix = scratch + k;                  /* k + 1 */
-  double *gscratch = scratch + 2 * (size_t)k + 1;  /* k */
+  double *y_sorted = scratch;                     /* k */
+  double *y_prefix = scratch + k;                 /* k + 1 */
+  double *gscratch = scratch + 2 * (size_t)k + 1; /* k */
   sort_heights(k, y, y_sorted, y_prefix);
 
   double err = 0; /* Eq. 4.6 */
-  for (int j = 0; j < k; j++) err += fabs(pred_full[j] - y[j]);
+  for (int j = 0; j < k; j++)
+    err += fabs(pred_full[j] - y[j]);
   err /= k;
   double gamma_fit = bsurf_boot_gamma(k, pred_full, y_sorted, y_prefix, gscratch);
 
   double boot_sum = 0;
-  for (int j = 0; j < k; j++) boot_sum += boot_j[j];
+  for (int j = 0; j < k; j++)
+    boot_sum += boot_j[j];
   double loo = 0, loo_center = 0;
   int loo_points = 0, center_ok = 0;
   for (int j = 0; j < k; j++) {
@@ -223,7 +235,7 @@ void bsurf_boot_estimate_sums(int k, int nvalid, const double *y, const double *
   if (mode == BSURF_GAMMA_MAX) gamma = gamma_max;
   out->gamma = gamma;
   out->err_632 = 0.368 * err + 0.632 * out->err_loo; /* Eq. 4.5 */
-  double R = 0;                                        /* Eq. 4.9, clipped */
+  double R = 0;                                      /* Eq. 4.9, clipped */
   if (gamma > err && out->err_loo > err) {
     R = (out->err_loo - err) / (gamma - err);
     if (R > 1) R = 1;

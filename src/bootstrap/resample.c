@@ -15,7 +15,9 @@
  * draws; each one rejected is replaced by the next accepted chunk after
  * them, starting with the output that follows (the counts do not depend on
  * which draw a replacement stands for). */
-static uint32_t chunk_threshold(int k) { return 65536u % (uint32_t)k; }
+static uint32_t chunk_threshold(int k) {
+  return 65536u % (uint32_t)k;
+}
 
 /* The replacements of `rejected` draws, continuing the stream rng; the
  * indices drawn are appended at draws[n..] (draws may be NULL). */
@@ -58,8 +60,7 @@ static void boot_counts_draws(uint64_t seed, uint64_t point, uint32_t replicate,
   boot_replace(&rng, k, rejected, counts, draws, n);
 }
 
-void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
-                       uint16_t *counts) {
+void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k, uint16_t *counts) {
   boot_counts_draws(seed, point, replicate, k, counts, NULL);
 }
 
@@ -83,7 +84,8 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
      * (below k / 2^16 per draw) is redone by the scalar code at the end, so
      * the counts are always those of bsurf_boot_counts. */
     bsurf_rng r[4];
-    for (int l = 0; l < 4; l++) bsurf_rng_init(&r[l], seed, point, replicate + (uint32_t)l);
+    for (int l = 0; l < 4; l++)
+      bsurf_rng_init(&r[l], seed, point, replicate + (uint32_t)l);
     v4u s0 = {r[0].s[0], r[1].s[0], r[2].s[0], r[3].s[0]};
     v4u s1 = {r[0].s[1], r[1].s[1], r[2].s[1], r[3].s[1]};
     v4u s2 = {r[0].s[2], r[1].s[2], r[2].s[2], r[3].s[2]};
@@ -92,7 +94,8 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
     uint16_t *const c[4] = {counts, counts + k, counts + 2 * (size_t)k, counts + 3 * (size_t)k};
     uint16_t *d[4] = {NULL, NULL, NULL, NULL};
     if (draws)
-      for (int l = 0; l < 4; l++) d[l] = draws + l * (size_t)k;
+      for (int l = 0; l < 4; l++)
+        d[l] = draws + l * (size_t)k;
     const uint32_t kk = (uint32_t)k, th = chunk_threshold(k), f = 0xffffu;
     const v8u K = {kk, kk, kk, kk, kk, kk, kk, kk}, thr = {th, th, th, th, th, th, th, th};
     const v8u lo = {f, f, f, f, f, f, f, f};
@@ -124,7 +127,8 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
             memcpy(&d[l][t], &u, sizeof u); /* the four in chunk order */
 #else
-            for (int ch = 0; ch < 4; ch++) d[l][t + ch] = (uint16_t)(u >> (16 * ch) & 0xffffu);
+            for (int ch = 0; ch < 4; ch++)
+              d[l][t + ch] = (uint16_t)(u >> (16 * ch) & 0xffffu);
 #endif
           }
         }
@@ -151,7 +155,8 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
 BSURF_CLONES
 int bsurf_boot_distinct(int k, const uint16_t *counts) {
   int distinct = 0;
-  for (int j = 0; j < k; j++) distinct += counts[j] != 0;
+  for (int j = 0; j < k; j++)
+    distinct += counts[j] != 0;
   return distinct;
 }
 
@@ -160,13 +165,17 @@ int bsurf_boot_distinct(int k, const uint16_t *counts) {
 BSURF_CLONES
 static int boot_weights(int k, const uint16_t *restrict counts, double *restrict w,
                         double *restrict missing) {
-  for (int j = 0; j < k; j++) w[j] = counts[j];
+  for (int j = 0; j < k; j++)
+    w[j] = counts[j];
   if (missing)
-    for (int j = 0; j < k; j++) missing[j] = counts[j] == 0;
+    for (int j = 0; j < k; j++)
+      missing[j] = counts[j] == 0;
   return bsurf_boot_distinct(k, counts);
 }
 
-int bsurf_boot_rows(int B) { return (B + 1 + 3) / 4 * 4; }
+int bsurf_boot_rows(int B) {
+  return (B + 1 + 3) / 4 * 4;
+}
 
 void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
                             uint16_t *counts, double *W, double *missing, unsigned char *valid) {
@@ -177,8 +186,10 @@ void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min
       valid[b] = boot_weights(k, &counts[(size_t)(b - b0) * k], &W[(size_t)b * k],
                               missing ? &missing[(size_t)b * k] : NULL) >= min_distinct;
   }
-  for (int j = 0; j < k; j++) W[(size_t)B * k + j] = 1.0;
-  for (size_t t = (size_t)(B + 1) * k; t < (size_t)bsurf_boot_rows(B) * k; t++) W[t] = 0.0;
+  for (int j = 0; j < k; j++)
+    W[(size_t)B * k + j] = 1.0;
+  for (size_t t = (size_t)(B + 1) * k; t < (size_t)bsurf_boot_rows(B) * k; t++)
+    W[t] = 0.0;
 }
 
 void bsurf_boot_draw_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
@@ -204,7 +215,8 @@ BSURF_CLONES
 static void poisson_invert(int k, const uint32_t *restrict u, uint8_t *restrict x) {
   for (int j = 0; j < k; j++) {
     uint8_t c = 0;
-    for (int m = 0; m < 12; m++) c += u[j] >= poisson1_cdf[m];
+    for (int m = 0; m < 12; m++)
+      c += u[j] >= poisson1_cdf[m];
     x[j] = c;
   }
 }
@@ -220,6 +232,7 @@ void bsurf_boot_poisson_rows(uint64_t seed, uint64_t point, int B, int kmax, uin
       if (j + 1 < kmax) u[j + 1] = (uint32_t)(r >> 32);
     }
     poisson_invert(kmax, u, x);
-    for (int j = 0; j < kmax; j++) Wt[(size_t)j * B + b] = x[j];
+    for (int j = 0; j < kmax; j++)
+      Wt[(size_t)j * B + b] = x[j];
   }
 }

@@ -77,7 +77,9 @@ void bsurf_atomic_remove_temporaries(void) {
   }
 }
 
-void bsurf_atomic_interrupt(void) { interrupted = 1; }
+void bsurf_atomic_interrupt(void) {
+  interrupted = 1;
+}
 
 /* ---- paths ----------------------------------------------------------------- */
 
@@ -131,9 +133,10 @@ bsurf_status bsurf_output_check(const char *path, int force, bsurf_failure *err)
   if (is_special(&sb)) return BSURF_OK;
   int no_write_bit = (sb.st_mode & (S_IWUSR | S_IWGRP | S_IWOTH)) == 0;
   if (!force && (no_write_bit || access(path, W_OK) != 0))
-    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
-                      "the output file is read-only (mode %04o); refusing to replace it (use --force)",
-                      (unsigned)(sb.st_mode & 07777));
+    return bsurf_fail(
+        err, BSURF_ERR_INVALID_ARG, 0, -1,
+        "the output file is read-only (mode %04o); refusing to replace it (use --force)",
+        (unsigned)(sb.st_mode & 07777));
   return BSURF_OK;
 }
 
@@ -153,10 +156,12 @@ static void remove_stale(const char *dir, size_t dir_len) {
     char *end;
     errno = 0;
     long pid = strtol(tag + sizeof TMP_TAG - 1, &end, 10);
-    if (errno || pid <= 0 || end == tag + sizeof TMP_TAG - 1 || *end != '.' || strlen(end + 1) != 6) continue;
+    if (errno || pid <= 0 || end == tag + sizeof TMP_TAG - 1 || *end != '.' || strlen(end + 1) != 6)
+      continue;
     if ((pid_t)pid == getpid() || kill((pid_t)pid, 0) == 0 || errno != ESRCH) continue; /* alive */
     char full[PATH_MAX];
-    if ((size_t)snprintf(full, sizeof full, "%.*s%s", (int)dir_len, dir, name) >= sizeof full) continue;
+    if ((size_t)snprintf(full, sizeof full, "%.*s%s", (int)dir_len, dir, name) >= sizeof full)
+      continue;
     struct stat sb;
     if (lstat(full, &sb) == 0 && S_ISREG(sb.st_mode)) unlink(full);
   }
@@ -196,8 +201,9 @@ bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_fa
   af->path = path;
   char *target = resolve_links(path);
   if (!target)
-    return errno == ELOOP ? bsurf_fail(err, BSURF_ERR_IO, 0, -1, "too many levels of symbolic links")
-                          : bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
+    return errno == ELOOP
+               ? bsurf_fail(err, BSURF_ERR_IO, 0, -1, "too many levels of symbolic links")
+               : bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
   struct stat sb;
   if (stat(target, &sb) == 0 && is_special(&sb)) return open_direct(af, target, err);
   const char *slash = strrchr(target, '/');
@@ -225,15 +231,16 @@ bsurf_status bsurf_atomic_open(bsurf_atomic_file *af, const char *path, bsurf_fa
   if (fd < 0) {
     int e = errno;
     int shown = slash ? (int)(slash == target ? 1 : dir_len - 1) : 1;
-    bsurf_status st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot create a file in directory '%.*s': %s",
-                                 shown, slash ? target : ".", strerror(e));
+    bsurf_status st =
+        bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot create a file in directory '%.*s': %s", shown,
+                   slash ? target : ".", strerror(e));
     free(tmp);
     free(target);
     return st;
   }
   register_tmp(tmp);
   mode_t mode = (stat(target, &sb) == 0 && S_ISREG(sb.st_mode)) ? (sb.st_mode & 07777)
-                                                                 : (0666 & ~current_umask());
+                                                                : (0666 & ~current_umask());
   (void)fchmod(fd, mode);
   FILE *f = fdopen(fd, "wb");
   if (!f) {
@@ -264,7 +271,8 @@ bsurf_status bsurf_atomic_close(bsurf_atomic_file *af, bsurf_status status, int 
     }
     memset(af, 0, sizeof *af);
     if (status != BSURF_OK) return status;
-    return failed ? bsurf_fail(err, BSURF_ERR_IO, 0, -1, "write to standard output failed: %s", strerror(e))
+    return failed ? bsurf_fail(err, BSURF_ERR_IO, 0, -1, "write to standard output failed: %s",
+                               strerror(e))
                   : BSURF_OK;
   }
   if (!failed) {
@@ -287,12 +295,14 @@ bsurf_status bsurf_atomic_close(bsurf_atomic_file *af, bsurf_status status, int 
   bsurf_status st = BSURF_OK;
   if (af->direct) {
     if (failed)
-      st = status != BSURF_OK ? status : bsurf_fail(err, BSURF_ERR_IO, 0, -1, "write failed: %s", strerror(e));
+      st = status != BSURF_OK
+               ? status
+               : bsurf_fail(err, BSURF_ERR_IO, 0, -1, "write failed: %s", strerror(e));
   } else if (failed || interrupted) {
     unlink(af->tmp);
     st = status != BSURF_OK ? status
          : failed           ? bsurf_fail(err, BSURF_ERR_IO, 0, -1, "write failed: %s", strerror(e))
-                            : bsurf_fail(err, BSURF_ERR_CANCELLED, 0, -1, "interrupted; nothing written");
+                  : bsurf_fail(err, BSURF_ERR_CANCELLED, 0, -1, "interrupted; nothing written");
   } else if (rename(af->tmp, af->target) != 0) {
     e = errno;
     unlink(af->tmp);

@@ -32,7 +32,8 @@ void bsurf_cloud_free(bsurf_cloud *cloud) {
   if (!cloud) return;
   free(cloud->xyz);
   free(cloud->normals);
-  for (size_t i = 0; i < cloud->field_count; i++) free(cloud->fields[i].values);
+  for (size_t i = 0; i < cloud->field_count; i++)
+    free(cloud->fields[i].values);
   free(cloud->fields);
   free(cloud->faces);
   bsurf_cloud_init(cloud);
@@ -122,7 +123,8 @@ bsurf_status bsurf_cloud_add_fields(bsurf_cloud *cloud, size_t count, const char
     bsurf_nameset_insert(&set, cloud->fields[f].name, strlen(cloud->fields[f].name), f);
   size_t fresh = 0;
   for (size_t i = 0; i < count; i++)
-    if (bsurf_nameset_insert(&set, names[i], strlen(names[i]), old + fresh) == BSURF_NAMESET_NONE) fresh++;
+    if (bsurf_nameset_insert(&set, names[i], strlen(names[i]), old + fresh) == BSURF_NAMESET_NONE)
+      fresh++;
   bsurf_status st = BSURF_OK;
   if (fresh) {
     bsurf_field *fields = bsurf_alloc_array(old + fresh, sizeof *fields);

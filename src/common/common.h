@@ -23,7 +23,8 @@
  * default, chosen at load time (clang 14 rejects target_clones beside
  * noinline, so clang builds use the default path only). Kernels avoid floating-point contraction
  * (-std=c11 keeps it off) so both clones give the same bits. */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) &&                             \
+    !defined(__SANITIZE_ADDRESS__)
 #define BSURF_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
 #else
 #define BSURF_CLONES
@@ -90,8 +91,8 @@ bsurf_status bsurf_cloud_add_fields(bsurf_cloud *cloud, size_t count, const char
 /* A file written under a temporary name next to its target and renamed
  * over it only when complete (atomic_file.c). */
 typedef struct bsurf_atomic_file {
-  FILE *f; /* write here (1 MiB buffer) */
-  char *tmp;    /* NULL when direct */
+  FILE *f;   /* write here (1 MiB buffer) */
+  char *tmp; /* NULL when direct */
   const char *path;
   char *iobuf;
   char *target; /* `path` with every symbolic link followed */
@@ -125,14 +126,15 @@ bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, voi
  * 0..n-1, e.g. bsurf_spatial_order's; NULL = index order). Progress counts
  * steps. */
 bsurf_status bsurf_parallel_points_ordered(size_t n, const uint32_t *order, int threads,
-                                           bsurf_point_fn fn, void *ctx,
-                                           bsurf_progress_fn progress, void *progress_user);
+                                           bsurf_point_fn fn, void *ctx, bsurf_progress_fn progress,
+                                           void *progress_user);
 
 /* The same in one parallel region, without progress or cancellation: for
  * short sweeps repeated many times (the smoothing passes). */
 bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void *ctx);
 /* The same with OpenMP's dynamic chunks of `chunk` steps (512 above): for
  * steps that are blocks of points. */
-bsurf_status bsurf_parallel_sweep_chunk(size_t n, int threads, int chunk, bsurf_point_fn fn, void *ctx);
+bsurf_status bsurf_parallel_sweep_chunk(size_t n, int threads, int chunk, bsurf_point_fn fn,
+                                        void *ctx);
 
 #endif

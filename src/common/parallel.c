@@ -41,8 +41,8 @@ static void ordered_task(void *vctx, int thread, size_t r) {
 }
 
 bsurf_status bsurf_parallel_points_ordered(size_t n, const uint32_t *order, int threads,
-                                           bsurf_point_fn fn, void *ctx,
-                                           bsurf_progress_fn progress, void *progress_user) {
+                                           bsurf_point_fn fn, void *ctx, bsurf_progress_fn progress,
+                                           void *progress_user) {
   if (!order) return bsurf_parallel_points(n, threads, fn, ctx, progress, progress_user);
   ordered_ctx c = {fn, ctx, order};
   return bsurf_parallel_points(n, threads, ordered_task, &c, progress, progress_user);
@@ -52,7 +52,8 @@ bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void
   return bsurf_parallel_sweep_chunk(n, threads, 512, fn, ctx);
 }
 
-bsurf_status bsurf_parallel_sweep_chunk(size_t n, int threads, int chunk, bsurf_point_fn fn, void *ctx) {
+bsurf_status bsurf_parallel_sweep_chunk(size_t n, int threads, int chunk, bsurf_point_fn fn,
+                                        void *ctx) {
   const int T = bsurf_threads_resolve(threads);
   long long nn = (long long)n;
   if (chunk < 1) chunk = 1;

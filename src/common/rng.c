@@ -16,7 +16,9 @@ static uint64_t splitmix64(uint64_t *x) {
   return z ^ (z >> 31);
 }
 
-static uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
+static uint64_t rotl(uint64_t x, int k) {
+  return (x << k) | (x >> (64 - k));
+}
 
 void bsurf_rng_init(bsurf_rng *rng, uint64_t seed, uint64_t a, uint64_t b) {
   /* Mix the three keys one after the other so that (seed, a, b) and any
@@ -26,7 +28,8 @@ void bsurf_rng_init(bsurf_rng *rng, uint64_t seed, uint64_t a, uint64_t b) {
   x = k ^ (a * 0xD1B54A32D192ED03ull);
   k = splitmix64(&x);
   x = k ^ (b * 0x8CB92BA72F3D8DD7ull);
-  for (int i = 0; i < 4; i++) rng->s[i] = splitmix64(&x);
+  for (int i = 0; i < 4; i++)
+    rng->s[i] = splitmix64(&x);
   if ((rng->s[0] | rng->s[1] | rng->s[2] | rng->s[3]) == 0) rng->s[0] = 1;
 }
 

@@ -26,7 +26,9 @@ const char *bsurf_strerror(bsurf_status status) {
  * thread-local, so concurrent calls on other threads never overwrite it. */
 static _Thread_local char last_message[512];
 
-const char *bsurf_last_message(void) { return last_message; }
+const char *bsurf_last_message(void) {
+  return last_message;
+}
 
 bsurf_status bsurf_set_message(bsurf_status status, const char *fmt, ...) {
   va_list ap;
@@ -46,8 +48,8 @@ bsurf_status bsurf_invalid(const char *func, const char *fmt, ...) {
   return BSURF_ERR_INVALID_ARG;
 }
 
-bsurf_status bsurf_fail(bsurf_failure *err, bsurf_status status, long line,
-                        long long byte, const char *fmt, ...) {
+bsurf_status bsurf_fail(bsurf_failure *err, bsurf_status status, long line, long long byte,
+                        const char *fmt, ...) {
   va_list ap;
   va_start(ap, fmt);
   vsnprintf(last_message, sizeof last_message, fmt, ap);
@@ -93,6 +95,10 @@ int bsurf_threads_resolve(int threads) {
 #endif
 }
 
-unsigned bsurf_version(void) { return (unsigned)BSURF_VERSION_NUMBER; }
+unsigned bsurf_version(void) {
+  return (unsigned)BSURF_VERSION_NUMBER;
+}
 
-const char *bsurf_version_string(void) { return BSURF_VERSION_STRING; }
+const char *bsurf_version_string(void) {
+  return BSURF_VERSION_STRING;
+}

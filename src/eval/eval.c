@@ -132,10 +132,14 @@ bsurf_status bsurf_eval_features(const uint8_t *result, const uint8_t *truth, si
   memset(stats, 0, sizeof *stats);
   for (size_t i = 0; i < count; i++) {
     int r = result[i] != 0, t = truth[i] != 0;
-    if (r && t) stats->true_pos++;
-    else if (r) stats->false_pos++;
-    else if (t) stats->false_neg++;
-    else stats->true_neg++;
+    if (r && t)
+      stats->true_pos++;
+    else if (r)
+      stats->false_pos++;
+    else if (t)
+      stats->false_neg++;
+    else
+      stats->true_neg++;
   }
   double tp = (double)stats->true_pos;
   size_t det = stats->true_pos + stats->false_pos, pos = stats->true_pos + stats->false_neg;

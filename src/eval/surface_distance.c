@@ -36,7 +36,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-
 /* ---- small vector helpers ---- */
 
 static void sub3(const double *a, const double *b, double *out) {
@@ -80,7 +79,8 @@ static double degenerate_dist2(const double *p, const double *a, const double *b
   }
   if (closest) {
     const double *u = ends[be][0], *v = ends[be][1];
-    for (int k = 0; k < 3; k++) closest[k] = u[k] + bt * (v[k] - u[k]);
+    for (int k = 0; k < 3; k++)
+      closest[k] = u[k] + bt * (v[k] - u[k]);
   }
   return best;
 }
@@ -137,14 +137,18 @@ static double tri_dist2(const double *p, const double *a, const double *b, const
      * va, vb, vc lose digits to cancellation on thin triangles, while the
      * projection along n = ab x ac does not (and gives the same point). */
     double s = dot3(ap, n) / dot3(n, n);
-    for (int k = 0; k < 3; k++) q[k] = -s * n[k];
+    for (int k = 0; k < 3; k++)
+      q[k] = -s * n[k];
     if (closest)
-      for (int k = 0; k < 3; k++) closest[k] = p[k] + q[k];
+      for (int k = 0; k < 3; k++)
+        closest[k] = p[k] + q[k];
     return dot3(q, q);
   }
-  for (int k = 0; k < 3; k++) q[k] = u * dir1[k] + v * dir2[k] - off[k]; /* closest - p */
+  for (int k = 0; k < 3; k++)
+    q[k] = u * dir1[k] + v * dir2[k] - off[k]; /* closest - p */
   if (closest)
-    for (int k = 0; k < 3; k++) closest[k] = base[k] + (u * dir1[k] + v * dir2[k]);
+    for (int k = 0; k < 3; k++)
+      closest[k] = base[k] + (u * dir1[k] + v * dir2[k]);
   return dot3(q, q);
 }
 
@@ -181,7 +185,8 @@ bsurf_status bsurf_mesh_index_build(bsurf_mesh_index **index, const bsurf_cloud 
   BSURF_REQUIRE(mesh->faces && mesh->face_count > 0, "the mesh has no face");
   const size_t m = mesh->face_count, n = mesh->point_count;
   for (size_t i = 0; i < 3 * m; i++)
-    BSURF_REQUIRE(mesh->faces[i] < n, "face %zu uses vertex %u of %zu", i / 3, (unsigned)mesh->faces[i], n);
+    BSURF_REQUIRE(mesh->faces[i] < n, "face %zu uses vertex %u of %zu", i / 3,
+                  (unsigned)mesh->faces[i], n);
   for (size_t i = 0; i < 3 * n; i++)
     if (!isfinite(mesh->xyz[i])) return BSURF_ERR_INVALID_VALUE;
 
@@ -196,7 +201,8 @@ bsurf_status bsurf_mesh_index_build(bsurf_mesh_index **index, const bsurf_cloud 
   if (!ix || !box || !center || !ix->tris || !ix->face) goto fail;
   for (size_t f = 0; f < m; f++) {
     const double *v[3];
-    for (int k = 0; k < 3; k++) v[k] = &mesh->xyz[3 * (size_t)mesh->faces[3 * f + (size_t)k]];
+    for (int k = 0; k < 3; k++)
+      v[k] = &mesh->xyz[3 * (size_t)mesh->faces[3 * f + (size_t)k]];
     for (int k = 0; k < 3; k++) {
       double lo = v[0][k], hi = v[0][k];
       for (int j = 1; j < 3; j++) {
@@ -271,12 +277,8 @@ static void position_point(void *vctx, int thread, size_t i) {
   const double *p = &c->xyz[3 * i];
   const bsurf_true_surface *s = c->s;
   switch (s->kind) {
-  case BSURF_SURFACE_MESH:
-    c->dist[i] = bsurf_mesh_distance(s->mesh, p, NULL, NULL);
-    break;
-  case BSURF_SURFACE_SHAPE:
-    c->dist[i] = bsurf_shape_distance(s->shape, p);
-    break;
+  case BSURF_SURFACE_MESH: c->dist[i] = bsurf_mesh_distance(s->mesh, p, NULL, NULL); break;
+  case BSURF_SURFACE_SHAPE: c->dist[i] = bsurf_shape_distance(s->shape, p); break;
   case BSURF_SURFACE_TANGENT_PLANE: {
     size_t j = s->match ? s->match[i] : i;
     const double *t = &s->truth_xyz[3 * j], *n = &s->truth_normals[3 * j];
@@ -294,29 +296,29 @@ bsurf_status bsurf_position_errors(const double *xyz, size_t count,
   BSURF_REQUIRE(surface, "surface is NULL");
   BSURF_REQUIRE(!count || (xyz && dist), "xyz or dist is NULL");
   switch (surface->kind) {
-  case BSURF_SURFACE_MESH:
-    BSURF_REQUIRE(surface->mesh, "surface->mesh is NULL (kind MESH)");
-    break;
+  case BSURF_SURFACE_MESH: BSURF_REQUIRE(surface->mesh, "surface->mesh is NULL (kind MESH)"); break;
   case BSURF_SURFACE_SHAPE:
-    BSURF_REQUIRE((unsigned)surface->shape <= BSURF_SHAPE_PLANE, "surface->shape = %d: not a bsurf_shape",
-                  (int)surface->shape);
+    BSURF_REQUIRE((unsigned)surface->shape <= BSURF_SHAPE_PLANE,
+                  "surface->shape = %d: not a bsurf_shape", (int)surface->shape);
     break;
   case BSURF_SURFACE_TANGENT_PLANE:
     BSURF_REQUIRE(surface->truth_xyz && surface->truth_normals,
                   "surface->truth_xyz or truth_normals is NULL (kind TANGENT_PLANE)");
     BSURF_REQUIRE(surface->match || surface->truth_count == count,
-                  "surface->truth_count = %zu differs from count = %zu and no match is given", surface->truth_count,
-                  count);
+                  "surface->truth_count = %zu differs from count = %zu and no match is given",
+                  surface->truth_count, count);
     for (size_t i = 0; surface->match && i < count; i++)
-      BSURF_REQUIRE(surface->match[i] < surface->truth_count, "surface->match[%zu] = %u: must be below %zu", i,
-                    (unsigned)surface->match[i], surface->truth_count);
+      BSURF_REQUIRE(surface->match[i] < surface->truth_count,
+                    "surface->match[%zu] = %u: must be below %zu", i, (unsigned)surface->match[i],
+                    surface->truth_count);
     break;
   default:
-    return bsurf_invalid(__func__, "surface->kind = %d: not a bsurf_surface_kind", (int)surface->kind);
+    return bsurf_invalid(__func__, "surface->kind = %d: not a bsurf_surface_kind",
+                         (int)surface->kind);
   }
   position_ctx c = {xyz, surface, dist};
-  bsurf_status st = bsurf_parallel_points(count, threads, position_point, &c, progress,
-                                          progress_user);
+  bsurf_status st =
+      bsurf_parallel_points(count, threads, position_point, &c, progress, progress_user);
   if (st != BSURF_OK) return st;
   for (size_t i = 0; i < count; i++)
     if (isnan(dist[i])) return BSURF_ERR_INVALID_VALUE;
@@ -346,8 +348,8 @@ static void match_point(void *vctx, int thread, size_t i) {
 bsurf_status bsurf_match_nearest(const double *truth_xyz, size_t truth_count, const double *xyz,
                                  size_t count, int threads, uint32_t *match) {
   BSURF_REQUIRE(truth_xyz, "truth_xyz is NULL");
-  BSURF_REQUIRE(truth_count >= 1 && truth_count <= UINT32_MAX, "truth_count = %zu: must be in [1, 2^32 - 1]",
-                truth_count);
+  BSURF_REQUIRE(truth_count >= 1 && truth_count <= UINT32_MAX,
+                "truth_count = %zu: must be in [1, 2^32 - 1]", truth_count);
   BSURF_REQUIRE(!count || (xyz && match), "xyz or match is NULL");
   bsurf_knn_index *index = NULL;
   bsurf_status st = bsurf_knn_build(&index, truth_xyz, truth_count);

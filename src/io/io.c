@@ -63,13 +63,15 @@ void io_cursor_init(io_cursor *c, const char *s, size_t len, int seps) {
 
 int io_next_token(io_cursor *c, io_token *tok) {
   const char *p = c->p;
-  while (p < c->end && is_sep(*p, c->seps)) p++;
+  while (p < c->end && is_sep(*p, c->seps))
+    p++;
   if (p == c->end) {
     c->p = p;
     return 0;
   }
   const char *s = p;
-  while (p < c->end && !is_sep(*p, c->seps)) p++;
+  while (p < c->end && !is_sep(*p, c->seps))
+    p++;
   tok->s = s;
   tok->len = (size_t)(p - s);
   c->p = p;
@@ -80,7 +82,8 @@ size_t io_count_tokens(const io_cursor *c) {
   io_cursor copy = *c;
   io_token tok;
   size_t n = 0;
-  while (io_next_token(&copy, &tok)) n++;
+  while (io_next_token(&copy, &tok))
+    n++;
   return n;
 }
 
@@ -119,33 +122,33 @@ __extension__ typedef unsigned __int128 io_u128;
 
 /* 5^0 .. 5^27 (5^27 < 2^63) */
 static const uint64_t k_pow5[28] = {1ULL,
-                                  5ULL,
-                                  25ULL,
-                                  125ULL,
-                                  625ULL,
-                                  3125ULL,
-                                  15625ULL,
-                                  78125ULL,
-                                  390625ULL,
-                                  1953125ULL,
-                                  9765625ULL,
-                                  48828125ULL,
-                                  244140625ULL,
-                                  1220703125ULL,
-                                  6103515625ULL,
-                                  30517578125ULL,
-                                  152587890625ULL,
-                                  762939453125ULL,
-                                  3814697265625ULL,
-                                  19073486328125ULL,
-                                  95367431640625ULL,
-                                  476837158203125ULL,
-                                  2384185791015625ULL,
-                                  11920928955078125ULL,
-                                  59604644775390625ULL,
-                                  298023223876953125ULL,
-                                  1490116119384765625ULL,
-                                  7450580596923828125ULL};
+                                    5ULL,
+                                    25ULL,
+                                    125ULL,
+                                    625ULL,
+                                    3125ULL,
+                                    15625ULL,
+                                    78125ULL,
+                                    390625ULL,
+                                    1953125ULL,
+                                    9765625ULL,
+                                    48828125ULL,
+                                    244140625ULL,
+                                    1220703125ULL,
+                                    6103515625ULL,
+                                    30517578125ULL,
+                                    152587890625ULL,
+                                    762939453125ULL,
+                                    3814697265625ULL,
+                                    19073486328125ULL,
+                                    95367431640625ULL,
+                                    476837158203125ULL,
+                                    2384185791015625ULL,
+                                    11920928955078125ULL,
+                                    59604644775390625ULL,
+                                    298023223876953125ULL,
+                                    1490116119384765625ULL,
+                                    7450580596923828125ULL};
 
 static int bitlen128(io_u128 x) {
   uint64_t hi = (uint64_t)(x >> 64), lo = (uint64_t)x;
@@ -339,12 +342,30 @@ int io_type_is_integer(bsurf_type type) {
 double io_type_convert(double v, bsurf_type type) {
   double lo, hi;
   switch (type) {
-  case BSURF_INT8: lo = -128.0; hi = 127.0; break;
-  case BSURF_UINT8: lo = 0.0; hi = 255.0; break;
-  case BSURF_INT16: lo = -32768.0; hi = 32767.0; break;
-  case BSURF_UINT16: lo = 0.0; hi = 65535.0; break;
-  case BSURF_INT32: lo = -2147483648.0; hi = 2147483647.0; break;
-  case BSURF_UINT32: lo = 0.0; hi = 4294967295.0; break;
+  case BSURF_INT8:
+    lo = -128.0;
+    hi = 127.0;
+    break;
+  case BSURF_UINT8:
+    lo = 0.0;
+    hi = 255.0;
+    break;
+  case BSURF_INT16:
+    lo = -32768.0;
+    hi = 32767.0;
+    break;
+  case BSURF_UINT16:
+    lo = 0.0;
+    hi = 65535.0;
+    break;
+  case BSURF_INT32:
+    lo = -2147483648.0;
+    hi = 2147483647.0;
+    break;
+  case BSURF_UINT32:
+    lo = 0.0;
+    hi = 4294967295.0;
+    break;
   case BSURF_FLOAT32:
     /* Beyond FLT_MAX the conversion is undefined in ISO C: do IEEE's rounding
      * by hand (up to FLT_MAX + half an ulp rounds down to FLT_MAX). */
@@ -487,14 +508,16 @@ static size_t format_g(char *buf, double v, int p) {
     d /= 10;
   }
   int nd = p;
-  while (nd > 1 && dig[nd - 1] == '0') nd--;
+  while (nd > 1 && dig[nd - 1] == '0')
+    nd--;
   size_t o = 0;
   if (neg) buf[o++] = '-';
   if (x < -4 || x >= p) {
     buf[o++] = dig[0];
     if (nd > 1) {
       buf[o++] = '.';
-      for (int i = 1; i < nd; i++) buf[o++] = dig[i];
+      for (int i = 1; i < nd; i++)
+        buf[o++] = dig[i];
     }
     buf[o++] = 'e';
     buf[o++] = x < 0 ? '-' : '+';
@@ -503,16 +526,20 @@ static size_t format_g(char *buf, double v, int p) {
     buf[o++] = (char)('0' + ax / 10 % 10);
     buf[o++] = (char)('0' + ax % 10);
   } else if (x >= 0) {
-    for (int i = 0; i <= x; i++) buf[o++] = dig[i];
+    for (int i = 0; i <= x; i++)
+      buf[o++] = dig[i];
     if (nd > x + 1) {
       buf[o++] = '.';
-      for (int i = x + 1; i < nd; i++) buf[o++] = dig[i];
+      for (int i = x + 1; i < nd; i++)
+        buf[o++] = dig[i];
     }
   } else {
     buf[o++] = '0';
     buf[o++] = '.';
-    for (int i = 0; i < -x - 1; i++) buf[o++] = '0';
-    for (int i = 0; i < nd; i++) buf[o++] = dig[i];
+    for (int i = 0; i < -x - 1; i++)
+      buf[o++] = '0';
+    for (int i = 0; i < nd; i++)
+      buf[o++] = dig[i];
   }
   buf[o] = '\0';
   return o;
@@ -550,14 +577,18 @@ size_t io_format_value(char *buf, size_t cap, double v, bsurf_type type) {
 /* Growable arrays                                                           */
 /* ------------------------------------------------------------------------ */
 
-void io_faces_init(io_faces *f) { memset(f, 0, sizeof *f); }
+void io_faces_init(io_faces *f) {
+  memset(f, 0, sizeof *f);
+}
 
 void io_faces_free(io_faces *f) {
   free(f->tri);
   io_faces_init(f);
 }
 
-void io_faces_begin(io_faces *f) { f->corners = 0; }
+void io_faces_begin(io_faces *f) {
+  f->corners = 0;
+}
 
 bsurf_status io_faces_corner(io_faces *f, uint32_t index) {
   if (f->corners >= 2) {
@@ -639,7 +670,9 @@ void io_write_bytes(io_writer *w, const void *p, size_t n) {
   }
 }
 
-void io_write_str(io_writer *w, const char *s) { io_write_bytes(w, s, strlen(s)); }
+void io_write_str(io_writer *w, const char *s) {
+  io_write_bytes(w, s, strlen(s));
+}
 
 void io_write_fmt(io_writer *w, const char *fmt, ...) {
   if (w->failed) return;
@@ -726,15 +759,18 @@ bsurf_format bsurf_format_detect(const void *data, size_t size) {
   /* OFF's keyword, after comment and blank lines: OFF NOFF COFF STOFF ... */
   size_t i = 0;
   while (i < size) {
-    while (i < size && (p[i] == ' ' || p[i] == '\t' || p[i] == '\r' || p[i] == '\n')) i++;
+    while (i < size && (p[i] == ' ' || p[i] == '\t' || p[i] == '\r' || p[i] == '\n'))
+      i++;
     if (i < size && p[i] == '#') {
-      while (i < size && p[i] != '\n') i++;
+      while (i < size && p[i] != '\n')
+        i++;
       continue;
     }
     break;
   }
   size_t j = i;
-  while (j < size && j - i < 16 && p[j] >= 'A' && p[j] <= 'Z') j++;
+  while (j < size && j - i < 16 && p[j] >= 'A' && p[j] <= 'Z')
+    j++;
   if (j - i >= 3 && memcmp(p + j - 3, "OFF", 3) == 0 &&
       (j == size || p[j] == '\n' || p[j] == '\r' || p[j] == ' ' || p[j] == '\t' ||
        (p[j] >= '0' && p[j] <= '9')))
@@ -802,7 +838,8 @@ bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format forma
   }
   if (st != BSURF_OK) {
     bsurf_cloud_free(&c);
-    if (err && !err->message[0]) bsurf_fail(err, st, err->line, err->byte, "%s", bsurf_strerror(st));
+    if (err && !err->message[0])
+      bsurf_fail(err, st, err->line, err->byte, "%s", bsurf_strerror(st));
     return st;
   }
   *cloud = c;
@@ -839,8 +876,8 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err
   size_t n = 0;
   if (!buf) {
     if (!is_stdin) fclose(f);
-    return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1,
-                      "out of memory reading the file (%zu bytes)", cap);
+    return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory reading the file (%zu bytes)",
+                      cap);
   }
   for (;;) {
     if (n == cap) {
@@ -875,7 +912,8 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err
   /* the content's own signature wins over the extension; text without one
    * and without a known extension is sniffed (docs/formats.md) */
   bsurf_format declared = bsurf_format_detect(buf, n);
-  if (declared != BSURF_FORMAT_UNKNOWN && !(declared == BSURF_FORMAT_OFF && format == BSURF_FORMAT_OBJ))
+  if (declared != BSURF_FORMAT_UNKNOWN &&
+      !(declared == BSURF_FORMAT_OFF && format == BSURF_FORMAT_OBJ))
     format = declared;
   else if (format == BSURF_FORMAT_UNKNOWN) {
     const char *base = strrchr(path, '/');
@@ -883,8 +921,8 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err
     const char *dot = strrchr(base, '.');
     if (dot && dot != base) { /* an extension bootsurf does not know, and no signature */
       free(buf);
-      return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "%s; the content is not PLY, PCD, LAS or OFF either",
-                        k_unknown_ext);
+      return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1,
+                        "%s; the content is not PLY, PCD, LAS or OFF either", k_unknown_ext);
     }
     format = sniff_text(buf, n); /* no extension (or standard input): text */
   }
@@ -895,16 +933,19 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err
 
 /* The header check of bsurf_read_header(_buffer); *ascii_short: ascii data
  * too short for the header's counts (the whole file, read, names the line). */
-static bsurf_status header_check(const void *data, size_t size, uint64_t file_size, bsurf_format format,
-                                 uint64_t *points, int *ascii_short, bsurf_failure *err) {
+static bsurf_status header_check(const void *data, size_t size, uint64_t file_size,
+                                 bsurf_format format, uint64_t *points, int *ascii_short,
+                                 bsurf_failure *err) {
   clear_error(err);
   *points = 0;
   *ascii_short = 0;
   if (format != BSURF_FORMAT_PLY) return BSURF_OK;
   if (!data && size) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no data given");
   unsigned long long n = 0;
-  bsurf_status st = io_ply_probe(data ? (const char *)data : "", size, file_size, &n, ascii_short, err);
-  if (st != BSURF_OK && err && !err->message[0]) bsurf_fail(err, st, err->line, err->byte, "%s", bsurf_strerror(st));
+  bsurf_status st =
+      io_ply_probe(data ? (const char *)data : "", size, file_size, &n, ascii_short, err);
+  if (st != BSURF_OK && err && !err->message[0])
+    bsurf_fail(err, st, err->line, err->byte, "%s", bsurf_strerror(st));
   *points = n;
   return st;
 }
@@ -930,7 +971,8 @@ static int has_header_end(const char *buf, size_t n, size_t from) {
   static const char word[] = "end_header";
   const size_t wl = sizeof word - 1;
   for (size_t i = from; i + wl + 2 <= n; i++)
-    if (buf[i] == 'e' && i > 0 && (buf[i - 1] == '\n' || buf[i - 1] == '\r') && memcmp(buf + i, word, wl) == 0)
+    if (buf[i] == 'e' && i > 0 && (buf[i - 1] == '\n' || buf[i - 1] == '\r') &&
+        memcmp(buf + i, word, wl) == 0)
       return 1;
   return 0;
 }
@@ -964,7 +1006,8 @@ bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_failure
     size_t got = fread(buf + n, 1, cap - n, f);
     n += got;
     if (ferror(f)) {
-      st = bsurf_fail(err, BSURF_ERR_IO, 0, (long long)n, "read failed: %s", strerror(errno ? errno : EIO));
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, (long long)n, "read failed: %s",
+                      strerror(errno ? errno : EIO));
       break;
     }
     if (got == 0 || feof(f) || has_header_end(buf, n, from)) break;
@@ -973,7 +1016,8 @@ bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_failure
   }
   fclose(f);
   int ascii_short = 0;
-  if (st == BSURF_OK) st = header_check(buf, n, (uint64_t)sb.st_size, format, points, &ascii_short, err);
+  if (st == BSURF_OK)
+    st = header_check(buf, n, (uint64_t)sb.st_size, format, points, &ascii_short, err);
   free(buf);
   if (st != BSURF_OK && ascii_short) {
     /* ascii data too short for its header: the file, read whole, names the
@@ -1030,9 +1074,10 @@ static bsurf_status write_view(bsurf_cloud *view, const bsurf_cloud *cloud,
       char name[2 * BSURF_FIELD_NAME_MAX];
       snprintf(name, sizeof name, "scalar_%s", fields[i].name);
       if (strlen(name) >= BSURF_FIELD_NAME_MAX)
-        return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
-                          "field '%s': with the prefix scalar_ the name is longer than %d characters",
-                          fields[i].name, BSURF_FIELD_NAME_MAX - 1);
+        return bsurf_fail(
+            err, BSURF_ERR_INVALID_ARG, 0, -1,
+            "field '%s': with the prefix scalar_ the name is longer than %d characters",
+            fields[i].name, BSURF_FIELD_NAME_MAX - 1);
       memcpy(fields[i].name, name, strlen(name) + 1);
     }
   } else if (opts->ply_names == BSURF_PLY_NAMES_MESHLAB && cloud->field_count &&
@@ -1057,7 +1102,8 @@ bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
   if (format == BSURF_FORMAT_UNKNOWN && bsurf_output_is_stream(path)) format = BSURF_FORMAT_PLY;
   if (format == BSURF_FORMAT_UNKNOWN)
     return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "%s",
-                      strcmp(path, "-") == 0 ? "standard output needs a format (--format)" : k_unknown_ext);
+                      strcmp(path, "-") == 0 ? "standard output needs a format (--format)"
+                                             : k_unknown_ext);
   bsurf_status st = check_cloud(cloud, err);
   if (st != BSURF_OK) return st;
   /* --float32 and --ply-names: a view of the cloud with other field types and
@@ -1164,5 +1210,6 @@ void io_obuf_uint(io_obuf *b, unsigned long long v) {
     v /= 10;
   } while (v);
   obuf_room(b, n);
-  while (n) b->buf[b->n++] = tmp[--n];
+  while (n)
+    b->buf[b->n++] = tmp[--n];
 }

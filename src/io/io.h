@@ -60,8 +60,8 @@
 typedef struct io_text {
   const char *data;
   size_t size;
-  size_t pos;  /* offset of the next unread byte */
-  long line;   /* 1-based number of the line last returned (0 before any) */
+  size_t pos; /* offset of the next unread byte */
+  long line;  /* 1-based number of the line last returned (0 before any) */
 } io_text;
 
 void io_text_init(io_text *t, const char *data, size_t size);
@@ -155,8 +155,8 @@ double *io_dvec_take(io_dvec *d);
 
 typedef struct io_writer {
   FILE *f;
-  int failed;  /* set by the first failed write */
-  int err_no;  /* errno of that failure */
+  int failed; /* set by the first failed write */
+  int err_no; /* errno of that failure */
 } io_writer;
 
 void io_write_bytes(io_writer *w, const void *p, size_t n);
@@ -259,12 +259,13 @@ bsurf_status io_ply_probe(const char *data, size_t size, unsigned long long file
  * locates them (layout) and fills `schema`, a one-point cloud (point 0) with
  * the properties, types and shape bsurf_io_read_ply would give. ascii files
  * and meshes (faces) are BSURF_ERR_UNSUPPORTED. */
-bsurf_status io_ply_map(const char *data, size_t size, io_ply_layout *layout,
-                        bsurf_cloud *schema, bsurf_failure *err);
+bsurf_status io_ply_map(const char *data, size_t size, io_ply_layout *layout, bsurf_cloud *schema,
+                        bsurf_failure *err);
 void io_ply_layout_free(io_ply_layout *layout);
 /* Vertex i of the mapped file into point j of c (a cloud with the schema's
  * properties). */
-void io_ply_decode(const io_ply_layout *layout, const char *data, size_t i, bsurf_cloud *c, size_t j);
+void io_ply_decode(const io_ply_layout *layout, const char *data, size_t i, bsurf_cloud *c,
+                   size_t j);
 /* x y z of vertex i. */
 void io_ply_xyz(const io_ply_layout *layout, const char *data, size_t i, double p[3]);
 /* The header bsurf_io_write_ply (binary) writes for a cloud with `schema`'s
@@ -293,6 +294,7 @@ bsurf_status bsurf_io_write_pcd(io_writer *w, const bsurf_cloud *cloud, int asci
 /* Checks before anything is written: finite coordinates, names that fit. */
 bsurf_status bsurf_io_las_check(const bsurf_cloud *cloud, bsurf_failure *err);
 /* legacy: LAS 1.2, point format 1 or 3 (else 1.4, 6-8) */
-bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy, bsurf_failure *err);
+bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy,
+                                bsurf_failure *err);
 
 #endif

@@ -16,11 +16,11 @@
  *
  * Writing: LAS 1.4, point format 6, or 7 with red green blue, or 8 with nir
  * too (or, asked for, LAS 1.2 with point format 1 or 3 for readers that stop
- * at 1.3; overlap, scanner_channel, scan_angle and nir are then extra bytes). A field named as a standard attribute goes into its slot when the slot
- * holds every value exactly (and some value is not zero); any other field,
- * and the normals (nx ny nz), go into extra bytes of the field's type, so that
- * reading the file back gives every field with the same values. Scale and
- * offset: see choose_scale(). */
+ * at 1.3; overlap, scanner_channel, scan_angle and nir are then extra bytes). A field named as a
+ * standard attribute goes into its slot when the slot holds every value exactly (and some value is
+ * not zero); any other field, and the normals (nx ny nz), go into extra bytes of the field's type,
+ * so that reading the file back gives every field with the same values. Scale and offset: see
+ * choose_scale(). */
 #include "io/io.h"
 
 #include <math.h>
@@ -574,7 +574,8 @@ static int slot_of(const char *name, int legacy) {
   for (int a = 0; a < A_COUNT; a++)
     if (!strcmp(name, k_attr[a].name)) {
       if (a >= A_WP_INDEX) return -1;
-      if (legacy ? (a == A_OVERLAP || a == A_CHANNEL || a == A_ANGLE || a == A_NIR) : a == A_ANGLE_RANK)
+      if (legacy ? (a == A_OVERLAP || a == A_CHANNEL || a == A_ANGLE || a == A_NIR)
+                 : a == A_ANGLE_RANK)
         return -1;
       return a;
     }
@@ -712,10 +713,12 @@ typedef struct las_col {
   const char *name;
 } las_col;
 
-bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy, bsurf_failure *err) {
+bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy,
+                                bsurf_failure *err) {
   size_t n = cloud->point_count, nf = cloud->field_count;
   if (legacy && n > 0xffffffffu)
-    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "LAS 1.2 counts at most 2^32 - 1 points; write LAS 1.4");
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
+                      "LAS 1.2 counts at most 2^32 - 1 points; write LAS 1.4");
   const double *slot[A_COUNT] = {0};
   las_col *eb = bsurf_alloc_array(nf + 3, sizeof *eb);
   if (!eb) return nomem(err);
@@ -810,10 +813,12 @@ bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int lega
   }
   if (legacy) {
     put_u32(hdr + 107, (uint32_t)n);
-    for (int r = 0; r < 5; r++) put_u32(hdr + 111 + 4 * r, (uint32_t)by_return[r]);
+    for (int r = 0; r < 5; r++)
+      put_u32(hdr + 111 + 4 * r, (uint32_t)by_return[r]);
   } else {
     put_u64(hdr + 247, n);
-    for (int r = 0; r < 15; r++) put_u64(hdr + 255 + 8 * r, by_return[r]);
+    for (int r = 0; r < 15; r++)
+      put_u64(hdr + 255 + 8 * r, by_return[r]);
   }
   io_write_bytes(w, hdr, hsize);
 
@@ -866,8 +871,8 @@ bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int lega
 #define SV(a) (slot[a] ? slot[a][i] : 0.0)
       put_u16(r + 12, (unsigned)SV(A_INTENSITY));
       if (legacy) {
-        r[14] = (unsigned char)((unsigned)SV(A_RETURN) | (unsigned)SV(A_NRETURNS) << 3 | (unsigned)SV(A_SCANDIR) << 6 |
-                                (unsigned)SV(A_EDGE) << 7);
+        r[14] = (unsigned char)((unsigned)SV(A_RETURN) | (unsigned)SV(A_NRETURNS) << 3 |
+                                (unsigned)SV(A_SCANDIR) << 6 | (unsigned)SV(A_EDGE) << 7);
         r[15] = (unsigned char)((unsigned)SV(A_CLASS) | (unsigned)SV(A_SYNTHETIC) << 5 |
                                 (unsigned)SV(A_KEYPOINT) << 6 | (unsigned)SV(A_WITHHELD) << 7);
         r[16] = (unsigned char)(int8_t)SV(A_ANGLE_RANK);

@@ -15,13 +15,13 @@
 #define NO_NORMAL 0xffffffffu
 
 typedef struct obj_reader {
-  io_dvec v;       /* nv x 3 */
-  io_dvec colour;  /* nv x 3 (zero where a vertex has none) */
+  io_dvec v;      /* nv x 3 */
+  io_dvec colour; /* nv x 3 (zero where a vertex has none) */
   size_t ncoloured;
-  io_dvec vn;      /* nvn x 3 */
+  io_dvec vn;        /* nvn x 3 */
   uint32_t *first_n; /* nv: the vn of the first corner using the vertex */
   size_t first_cap;
-  int contradict;  /* some corner pairs v[i] with vn[j], j != i */
+  int contradict; /* some corner pairs v[i] with vn[j], j != i */
   io_faces faces;
   bsurf_failure *err;
 } obj_reader;
@@ -206,7 +206,8 @@ bsurf_status bsurf_io_read_obj(const char *data, size_t size, bsurf_cloud *cloud
         st = nomem(&r);
         break;
       }
-      for (size_t i = 0; i < nv; i++) f->values[i] = r.colour.v[3 * i + (size_t)k];
+      for (size_t i = 0; i < nv; i++)
+        f->values[i] = r.colour.v[3 * i + (size_t)k];
     }
   }
   if (st == BSURF_OK) io_faces_move(&r.faces, cloud);

@@ -48,13 +48,15 @@ bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud
       i = 2;
     }
     for (; i < plen; i++) {
-      int *flag = tok.s[i] == 'C' ? &has_c
+      int *flag = tok.s[i] == 'C'   ? &has_c
                   : tok.s[i] == 'N' ? &has_n
                   : tok.s[i] == '4' ? &has_4
                   : tok.s[i] == 'n' ? &has_dim
                                     : NULL;
-      if (!flag || *flag) bad = 1;
-      else *flag = 1;
+      if (!flag || *flag)
+        bad = 1;
+      else
+        *flag = 1;
     }
     if (bad)
       return bsurf_fail(err, BSURF_ERR_PARSE, t.line, -1, "unknown OFF keyword '%s'",
@@ -125,8 +127,8 @@ bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud
   for (unsigned long long i = 0; i < nv; i++) {
     if (!next_data_line(&t, &c))
       return bsurf_fail(err, BSURF_ERR_PARSE, t.line + 1, -1,
-                        "vertex %llu: unexpected end of file (header declares %llu vertices)",
-                        i, nv);
+                        "vertex %llu: unexpected end of file (header declares %llu vertices)", i,
+                        nv);
     size_t found = io_count_tokens(&c);
     if (i == 0 && has_c) {
       /* the first vertex tells whether the colours have an alpha */
@@ -137,11 +139,12 @@ bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud
           bsurf_field *f = bsurf_cloud_add_field(cloud, colour_name[k], BSURF_FLOAT32);
           if (!f) return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
         }
-        for (size_t k = 0; k < ncolour && !dry; k++) colour[k] = cloud->fields[k].values;
+        for (size_t k = 0; k < ncolour && !dry; k++)
+          colour[k] = cloud->fields[k].values;
       } else {
         return bsurf_fail(err, BSURF_ERR_PARSE, t.line, -1,
-                          "vertex 0: expected %zu or %zu values, found %zu", ncols + 3,
-                          ncols + 4, found);
+                          "vertex 0: expected %zu or %zu values, found %zu", ncols + 3, ncols + 4,
+                          found);
       }
     }
     if (found != ncols)
@@ -151,8 +154,8 @@ bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud
       double v;
       io_next_token(&c, &tok);
       if (!io_parse_double(tok.s, tok.len, &v))
-        return bsurf_fail(err, BSURF_ERR_PARSE, t.line, -1, "vertex %llu: '%s' is not a number",
-                          i, io_token_repr(tok, a));
+        return bsurf_fail(err, BSURF_ERR_PARSE, t.line, -1, "vertex %llu: '%s' is not a number", i,
+                          io_token_repr(tok, a));
       if (dry)
         continue;
       else if (k < 3)
@@ -167,7 +170,8 @@ bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud
     }
   }
   if (ncolour && colour_bytes && !dry)
-    for (size_t k = 0; k < ncolour; k++) cloud->fields[k].type = BSURF_UINT8;
+    for (size_t k = 0; k < ncolour; k++)
+      cloud->fields[k].type = BSURF_UINT8;
 
   io_faces faces;
   io_faces_init(&faces);
@@ -175,8 +179,7 @@ bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud
     if (!next_data_line(&t, &c)) {
       io_faces_free(&faces);
       return bsurf_fail(err, BSURF_ERR_PARSE, t.line + 1, -1,
-                        "face %llu: unexpected end of file (header declares %llu faces)", fi,
-                        nf);
+                        "face %llu: unexpected end of file (header declares %llu faces)", fi, nf);
     }
     size_t found = io_count_tokens(&c);
     unsigned long long corners;

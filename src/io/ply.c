@@ -20,11 +20,11 @@ typedef struct ply_prop {
   bsurf_type type;       /* scalar type, or the type of a list's items */
   bsurf_type count_type; /* list only */
   long line;
-  size_t offset;  /* binary: offset inside a fixed-size record */
-  double *dst;    /* vertex element: where the values go */
+  size_t offset; /* binary: offset inside a fixed-size record */
+  double *dst;   /* vertex element: where the values go */
   size_t stride;
-  int is_index;   /* face element: the vertex index list */
-  size_t field;   /* vertex element: its field in the cloud, or (size_t)-1 */
+  int is_index; /* face element: the vertex index list */
+  size_t field; /* vertex element: its field in the cloud, or (size_t)-1 */
 } ply_prop;
 
 typedef struct ply_elem {
@@ -49,11 +49,11 @@ typedef struct ply_reader {
   unsigned long long nv;
   io_faces faces;
   bsurf_failure *err;
-  int dry;              /* ascii data too short for the header: validate only */
-  bsurf_failure dry_err;  /* the error to report if validation finds nothing */
+  int dry;                          /* ascii data too short for the header: validate only */
+  bsurf_failure dry_err;            /* the error to report if validation finds nothing */
   char shape[BSURF_FIELD_NAME_MAX]; /* from "comment bootsurf shape NAME" */
-  io_ply_layout *layout; /* io_ply_map: vertices are located, not stored */
-  int probe;             /* io_ply_probe: the header only, checked */
+  io_ply_layout *layout;            /* io_ply_map: vertices are located, not stored */
+  int probe;                        /* io_ply_probe: the header only, checked */
 } ply_reader;
 
 /* A shape name a header line can carry: one printable word that fits. */
@@ -90,8 +90,7 @@ static bsurf_status nomem(ply_reader *r) {
 /* Header                                                                    */
 /* ------------------------------------------------------------------------ */
 
-static bsurf_status add_elem(ply_reader *r, io_token name, unsigned long long count,
-                             long line) {
+static bsurf_status add_elem(ply_reader *r, io_token name, unsigned long long count, long line) {
   if (r->nelems == r->cap) {
     size_t cap = r->cap ? 2 * r->cap : 8;
     ply_elem *e = realloc(r->elems, cap * sizeof *e);
@@ -197,10 +196,12 @@ static bsurf_status parse_header(ply_reader *r) {
                           "an element line must read 'element <name> <count>'");
       if (!io_parse_u64(count.s, count.len, &n)) {
         size_t digits = 0;
-        while (digits < count.len && count.s[digits] >= '0' && count.s[digits] <= '9') digits++;
+        while (digits < count.len && count.s[digits] >= '0' && count.s[digits] <= '9')
+          digits++;
         if (digits == count.len)
           return bsurf_fail(r->err, BSURF_ERR_PARSE, ln, -1,
-                            "element count '%s' is too large (more than 2^64 - 1)", io_token_repr(count, a));
+                            "element count '%s' is too large (more than 2^64 - 1)",
+                            io_token_repr(count, a));
         return bsurf_fail(r->err, BSURF_ERR_PARSE, ln, -1,
                           "element count '%s' is not a non-negative integer",
                           io_token_repr(count, a));
@@ -259,14 +260,16 @@ static bsurf_status parse_header(ply_reader *r) {
       if (!have_format)
         return bsurf_fail(r->err, BSURF_ERR_PARSE, ln, -1, "the header has no format line");
       r->body = t.pos;
-      if (cr_only && r->format != PLY_ASCII && t.pos >= 2 && (size_t)(line - r->data) + len + 2 == t.pos &&
-          r->data[t.pos - 2] == '\r' && r->data[t.pos - 1] == '\n')
+      if (cr_only && r->format != PLY_ASCII && t.pos >= 2 &&
+          (size_t)(line - r->data) + len + 2 == t.pos && r->data[t.pos - 2] == '\r' &&
+          r->data[t.pos - 1] == '\n')
         r->body = t.pos - 1; /* the '\n' is data */
       r->body_line = t.line + 1;
       return BSURF_OK;
     }
 
-    return bsurf_fail(r->err, BSURF_ERR_PARSE, ln, -1, "unknown header keyword '%s' (or a missing end_header line)",
+    return bsurf_fail(r->err, BSURF_ERR_PARSE, ln, -1,
+                      "unknown header keyword '%s' (or a missing end_header line)",
                       io_token_repr(tok, a));
   }
   return bsurf_fail(r->err, BSURF_ERR_PARSE, t.line, -1,
@@ -429,7 +432,8 @@ static bsurf_status setup(ply_reader *r, bsurf_cloud *cloud) {
     return BSURF_OK;
   }
   if (r->dry) {
-    for (size_t j = 0; j < vertex->nprops; j++) vertex->props[j].dst = NULL;
+    for (size_t j = 0; j < vertex->nprops; j++)
+      vertex->props[j].dst = NULL;
     return BSURF_OK;
   }
   /* io_ply_map: a one-point cloud with the file's properties (the schema) */
@@ -540,7 +544,8 @@ static double get_value(const unsigned char *p, bsurf_type type, int be) {
   case BSURF_FLOAT64:
   default: {
     uint64_t u = 0;
-    for (int i = 0; i < 8; i++) u = u << 8 | p[be ? i : 7 - i];
+    for (int i = 0; i < 8; i++)
+      u = u << 8 | p[be ? i : 7 - i];
     double d;
     memcpy(&d, &u, sizeof d);
     return d;
@@ -549,8 +554,8 @@ static double get_value(const unsigned char *p, bsurf_type type, int be) {
 }
 
 /* A face index must be an integer in [0, nv). */
-static bsurf_status check_index(ply_reader *r, const ply_elem *e, unsigned long long rec,
-                                double v, long line, long long byte, uint32_t *out) {
+static bsurf_status check_index(ply_reader *r, const ply_elem *e, unsigned long long rec, double v,
+                                long line, long long byte, uint32_t *out) {
   char a[48];
   if (!(v >= 0 && v < (double)r->nv && v == floor(v)))
     return bsurf_fail(r->err, BSURF_ERR_PARSE, line, byte,
@@ -594,8 +599,8 @@ static bsurf_status read_binary(ply_reader *r) {
         size_t s = io_type_size(q->is_list ? q->count_type : q->type);
         if (r->size - pos < s)
           return bsurf_fail(r->err, BSURF_ERR_PARSE, 0, (long long)pos,
-                            "%s %llu: the file ends in the middle of the record",
-                            elem_word(e, a), ri);
+                            "%s %llu: the file ends in the middle of the record", elem_word(e, a),
+                            ri);
         if (!q->is_list) {
           pos += s;
           continue;
@@ -712,13 +717,12 @@ static bsurf_status read_ascii(ply_reader *r) {
         if (q->is_index) io_faces_begin(&r->faces);
         for (unsigned long long k = 0; k < n; k++) {
           if (!io_next_token(&c, &tok))
-            return short_record(r, e, ri, used + (size_t)(n - k) + (e->nprops - j - 1),
-                                later_list, &c0, t.line);
+            return short_record(r, e, ri, used + (size_t)(n - k) + (e->nprops - j - 1), later_list,
+                                &c0, t.line);
           used++;
           if (!io_parse_double(tok.s, tok.len, &v))
-            return bsurf_fail(r->err, BSURF_ERR_PARSE, t.line, -1,
-                              "%s %llu: '%s' is not a number", elem_word(e, a), ri,
-                              io_token_repr(tok, b));
+            return bsurf_fail(r->err, BSURF_ERR_PARSE, t.line, -1, "%s %llu: '%s' is not a number",
+                              elem_word(e, a), ri, io_token_repr(tok, b));
           if (q->is_index) {
             uint32_t idx = 0;
             bsurf_status st = check_index(r, e, ri, v, t.line, -1, &idx);
@@ -769,7 +773,8 @@ bsurf_status bsurf_io_read_ply(const char *data, size_t size, bsurf_cloud *cloud
     memcpy(cloud->shape, r.shape, sizeof cloud->shape);
   }
   io_faces_free(&r.faces);
-  for (size_t i = 0; i < r.nelems; i++) free(r.elems[i].props);
+  for (size_t i = 0; i < r.nelems; i++)
+    free(r.elems[i].props);
   free(r.elems);
   return st;
 }
@@ -793,13 +798,14 @@ bsurf_status io_ply_probe(const char *data, size_t size, unsigned long long file
     if (st == BSURF_OK) *vertices = r.nv;
     *ascii_short = r.dry;
   }
-  for (size_t i = 0; i < r.nelems; i++) free(r.elems[i].props);
+  for (size_t i = 0; i < r.nelems; i++)
+    free(r.elems[i].props);
   free(r.elems);
   return st;
 }
 
-bsurf_status io_ply_map(const char *data, size_t size, io_ply_layout *layout,
-                        bsurf_cloud *schema, bsurf_failure *err) {
+bsurf_status io_ply_map(const char *data, size_t size, io_ply_layout *layout, bsurf_cloud *schema,
+                        bsurf_failure *err) {
   ply_reader r;
   memset(&r, 0, sizeof r);
   memset(layout, 0, sizeof *layout);
@@ -824,7 +830,8 @@ bsurf_status io_ply_map(const char *data, size_t size, io_ply_layout *layout,
     if (layout->count) io_ply_decode(layout, data, 0, schema, 0);
   }
   io_faces_free(&r.faces);
-  for (size_t i = 0; i < r.nelems; i++) free(r.elems[i].props);
+  for (size_t i = 0; i < r.nelems; i++)
+    free(r.elems[i].props);
   free(r.elems);
   if (st != BSURF_OK) {
     io_ply_layout_free(layout);
@@ -864,8 +871,7 @@ void io_ply_decode(const io_ply_layout *L, const char *data, size_t i, bsurf_clo
 bsurf_status bsurf_io_ply_check(const bsurf_cloud *cloud, bsurf_failure *err) {
   for (size_t i = 0; i < cloud->field_count; i++) {
     const char *name = cloud->fields[i].name;
-    if (!name[0])
-      return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "a field has an empty name");
+    if (!name[0]) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "a field has an empty name");
     for (const char *p = name; *p; p++)
       if ((unsigned char)*p < 0x21 || *p == 0x7f)
         return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
@@ -895,21 +901,24 @@ static unsigned char *put_value(unsigned char *o, double v, bsurf_type type) {
   case BSURF_FLOAT64: {
     uint64_t u;
     memcpy(&u, &v, sizeof u);
-    for (int i = 0; i < 8; i++) o[i] = (unsigned char)(u >> (8 * i));
+    for (int i = 0; i < 8; i++)
+      o[i] = (unsigned char)(u >> (8 * i));
     return o + 8;
   }
   case BSURF_FLOAT32: {
     float f = (float)io_type_convert(v, BSURF_FLOAT32);
     uint32_t u;
     memcpy(&u, &f, sizeof u);
-    for (int i = 0; i < 4; i++) o[i] = (unsigned char)(u >> (8 * i));
+    for (int i = 0; i < 4; i++)
+      o[i] = (unsigned char)(u >> (8 * i));
     return o + 4;
   }
   default: {
     /* two's complement of the rounded, clamped value */
     uint64_t u = (uint64_t)(long long)io_type_convert(v, type);
     size_t n = io_type_size(type);
-    for (size_t i = 0; i < n; i++) o[i] = (unsigned char)(u >> (8 * i));
+    for (size_t i = 0; i < n; i++)
+      o[i] = (unsigned char)(u >> (8 * i));
     return o + n;
   }
   }
@@ -921,7 +930,8 @@ static size_t vertex_layout(const bsurf_cloud *cloud, out_prop *props) {
   for (int k = 0; k < 3; k++)
     props[n++] = (out_prop){cloud->xyz ? cloud->xyz + k : NULL, 3, cloud->xyz_type};
   if (cloud->normals)
-    for (int k = 0; k < 3; k++) props[n++] = (out_prop){cloud->normals + k, 3, cloud->normal_type};
+    for (int k = 0; k < 3; k++)
+      props[n++] = (out_prop){cloud->normals + k, 3, cloud->normal_type};
   for (size_t i = 0; i < cloud->field_count; i++)
     props[n++] = (out_prop){cloud->fields[i].values, 1, cloud->fields[i].type};
   return n;
@@ -957,7 +967,8 @@ bsurf_status io_ply_write_header(io_writer *w, const bsurf_cloud *schema, size_t
   vertex_layout(schema, props);
   write_header(w, schema, props, np, point_count, 0);
   *record = 0;
-  for (size_t j = 0; j < np; j++) *record += io_type_size(props[j].type);
+  for (size_t j = 0; j < np; j++)
+    *record += io_type_size(props[j].type);
   free(props);
   return BSURF_OK;
 }
@@ -968,7 +979,8 @@ bsurf_status io_ply_encode(const bsurf_cloud *cloud, unsigned char *out) {
   if (!props) return BSURF_ERR_NOMEM;
   vertex_layout(cloud, props);
   for (size_t i = 0; i < cloud->point_count; i++)
-    for (size_t j = 0; j < np; j++) out = put_value(out, props[j].src[i * props[j].stride], props[j].type);
+    for (size_t j = 0; j < np; j++)
+      out = put_value(out, props[j].src[i * props[j].stride], props[j].type);
   free(props);
   return BSURF_OK;
 }
@@ -1011,7 +1023,8 @@ bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int asci
   }
 
   size_t rec = 0;
-  for (size_t j = 0; j < np; j++) rec += io_type_size(props[j].type);
+  for (size_t j = 0; j < np; j++)
+    rec += io_type_size(props[j].type);
   size_t cap = (size_t)1 << 20;
   if (cap < rec) cap = rec;
   unsigned char *buf = malloc(cap);
@@ -1024,7 +1037,8 @@ bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int asci
     size_t i1 = i0 + per_chunk < cloud->point_count ? i0 + per_chunk : cloud->point_count;
     unsigned char *o = buf;
     for (size_t i = i0; i < i1; i++)
-      for (size_t j = 0; j < np; j++) o = put_value(o, props[j].src[i * props[j].stride], props[j].type);
+      for (size_t j = 0; j < np; j++)
+        o = put_value(o, props[j].src[i * props[j].stride], props[j].type);
     io_write_bytes(w, buf, (size_t)(o - buf));
   }
   per_chunk = cap / 13;
@@ -1035,7 +1049,8 @@ bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int asci
       *o++ = 3;
       for (int k = 0; k < 3; k++) {
         uint32_t u = cloud->faces[3 * i + (size_t)k];
-        for (int b = 0; b < 4; b++) *o++ = (unsigned char)(u >> (8 * b));
+        for (int b = 0; b < 4; b++)
+          *o++ = (unsigned char)(u >> (8 * b));
       }
     }
     io_write_bytes(w, buf, (size_t)(o - buf));

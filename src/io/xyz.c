@@ -55,14 +55,20 @@ static size_t split_header(const char *s, size_t len, io_token *names, size_t ma
     s++;
     len--;
   }
-  char sep = memchr(s, ',', len) ? ',' : memchr(s, ';', len) ? ';' : memchr(s, '\t', len) ? '\t' : ' ';
+  char sep = memchr(s, ',', len)    ? ','
+             : memchr(s, ';', len)  ? ';'
+             : memchr(s, '\t', len) ? '\t'
+                                    : ' ';
   size_t n = 0, i = 0;
   while (i <= len) {
     size_t j = i;
-    while (j < len && s[j] != sep) j++;
+    while (j < len && s[j] != sep)
+      j++;
     size_t a = i, b = j;
-    while (a < b && isspace((unsigned char)s[a])) a++;
-    while (b > a && isspace((unsigned char)s[b - 1])) b--;
+    while (a < b && isspace((unsigned char)s[a]))
+      a++;
+    while (b > a && isspace((unsigned char)s[b - 1]))
+      b--;
     if (b > a || sep != ' ') {
       if (n == max) return max + 1;
       names[n].s = s + a;
@@ -88,7 +94,8 @@ static bsurf_type infer_type(const double *v, size_t stride, size_t n, int allow
   double lo = 0, hi = 0;
   for (size_t i = 0; i < n; i++) {
     double x = v[i * stride];
-    if (integral && !(x == floor(x) && fabs(x) <= 4294967295.0 && !(x == 0 && signbit(x)))) integral = 0;
+    if (integral && !(x == floor(x) && fabs(x) <= 4294967295.0 && !(x == 0 && signbit(x))))
+      integral = 0;
     if (single && !isnan(x) && (double)(float)x != x) single = 0;
     if (x < lo) lo = x;
     if (x > hi) hi = x;
@@ -133,16 +140,20 @@ static bsurf_status named_columns(bsurf_cloud *cloud, const double *rows, size_t
       cloud->xyz[3 * i + (size_t)k] = rows[i * ncols + xyz[k]];
       if (with_normals) cloud->normals[3 * i + (size_t)k] = rows[i * ncols + nrm[k]];
     }
-  cloud->xyz_type = infer_type(cloud->xyz, 1, 3 * n, 0) == BSURF_FLOAT32 ? BSURF_FLOAT32 : BSURF_FLOAT64;
+  cloud->xyz_type =
+      infer_type(cloud->xyz, 1, 3 * n, 0) == BSURF_FLOAT32 ? BSURF_FLOAT32 : BSURF_FLOAT64;
   if (with_normals)
-    cloud->normal_type = infer_type(cloud->normals, 1, 3 * n, 0) == BSURF_FLOAT32 ? BSURF_FLOAT32 : BSURF_FLOAT64;
+    cloud->normal_type =
+        infer_type(cloud->normals, 1, 3 * n, 0) == BSURF_FLOAT32 ? BSURF_FLOAT32 : BSURF_FLOAT64;
   for (size_t j = 0; j < ncols; j++) {
     int used = 0;
-    for (int k = 0; k < 3; k++) used |= j == xyz[k] || (with_normals && j == nrm[k]);
+    for (int k = 0; k < 3; k++)
+      used |= j == xyz[k] || (with_normals && j == nrm[k]);
     if (used) continue;
     char want[BSURF_FIELD_NAME_MAX], name[BSURF_FIELD_NAME_MAX];
     size_t len = names[j].len < BSURF_FIELD_NAME_MAX - 8 ? names[j].len : BSURF_FIELD_NAME_MAX - 8;
-    static const char *const cc[4][2] = {{"r", "red"}, {"g", "green"}, {"b", "blue"}, {"a", "alpha"}};
+    static const char *const cc[4][2] = {
+        {"r", "red"}, {"g", "green"}, {"b", "blue"}, {"a", "alpha"}};
     const char *alias = NULL;
     for (int q = 0; q < 4; q++)
       if (name_ci(names[j], cc[q][0])) alias = cc[q][1];
@@ -160,7 +171,8 @@ static bsurf_status named_columns(bsurf_cloud *cloud, const double *rows, size_t
     io_unique_name(cloud, want, name);
     bsurf_field *f = bsurf_cloud_add_field(cloud, name, BSURF_FLOAT64);
     if (!f) return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
-    for (size_t i = 0; i < n; i++) f->values[i] = rows[i * ncols + j];
+    for (size_t i = 0; i < n; i++)
+      f->values[i] = rows[i * ncols + j];
     f->type = infer_type(f->values, 1, n, 1);
   }
   return BSURF_OK;
@@ -190,7 +202,8 @@ bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud
     if (first) {
       first = 0;
       size_t i = 0;
-      while (i < len && (line[i] == ' ' || line[i] == '\t')) i++;
+      while (i < len && (line[i] == ' ' || line[i] == '\t'))
+        i++;
       int cc = len - i >= 2 && line[i] == '/' && line[i + 1] == '/';
       if ((cc && len - i > 2) || (!skip_line(line, len) && all_names(line, len))) {
         hdr = line;
@@ -239,7 +252,8 @@ bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud
         }
         size_t h = split_header(hdr, hdr_len, names, ncols);
         size_t q = 0;
-        while (q < hdr_len && (hdr[q] == ' ' || hdr[q] == '\t')) q++;
+        while (q < hdr_len && (hdr[q] == ' ' || hdr[q] == '\t'))
+          q++;
         int comment = hdr_len - q >= 2 && hdr[q] == '/' && hdr[q + 1] == '/';
         if (h != ncols) {
           free(names);
@@ -298,7 +312,8 @@ bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud
           st = bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
           break;
         }
-        for (size_t i = 0; i < n; i++) f->values[i] = rows.v[i * ncols + j];
+        for (size_t i = 0; i < n; i++)
+          f->values[i] = rows.v[i * ncols + j];
       }
     }
   }

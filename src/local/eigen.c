@@ -53,7 +53,8 @@ void bsurf_eigen_sym3(double a_in[3][3], double evals[3], double evecs[3][3]) {
     }
   for (int i = 0; i < 3; i++) {
     evals[i] = d[order[i]];
-    for (int k = 0; k < 3; k++) evecs[i][k] = v[k][order[i]];
+    for (int k = 0; k < 3; k++)
+      evecs[i][k] = v[k][order[i]];
   }
 }
 
@@ -119,14 +120,16 @@ int bsurf_eigen_sym3_smallest(const double c[6], double n[3]) {
       jacobi = 1;
     } else {
       const double inv = 1.0 / sqrt(best);
-      for (int t = 0; t < 3; t++) n[t] = x[bi][t] * inv;
+      for (int t = 0; t < 3; t++)
+        n[t] = x[bi][t] * inv;
     }
   }
   if (jacobi) {
     double C[3][3] = {{c[0], c[1], c[2]}, {c[1], c[3], c[4]}, {c[2], c[4], c[5]}};
     double ev[3], V[3][3];
     bsurf_eigen_sym3(C, ev, V);
-    for (int t = 0; t < 3; t++) n[t] = V[0][t];
+    for (int t = 0; t < 3; t++)
+      n[t] = V[0][t];
     return (ev[2] > 0 && ev[1] > 1e-12 * ev[2]) ? 0 : -1;
   }
   return (l2 > 0 && l1 > 1e-12 * l2) ? 0 : -1;
@@ -144,8 +147,8 @@ int bsurf_eigen_sym3_smallest(const double c[6], double n[3]) {
  * ignore FP exception flags (the values are the same) */
 __attribute__((optimize("no-trapping-math")))
 #endif
-BSURF_CLONES
-static void smallest_lanes(int R, const double *restrict c, double *restrict n, int *restrict status) {
+BSURF_CLONES static void
+smallest_lanes(int R, const double *restrict c, double *restrict n, int *restrict status) {
   for (int r = 0; r < R; r++) {
     const double c0 = c[r], c1 = c[R + r], c2 = c[2 * R + r], c3 = c[3 * R + r], c4 = c[4 * R + r],
                  c5 = c[5 * R + r];
@@ -204,6 +207,7 @@ void bsurf_eigen_sym3_smallest_lanes(int R, const double *c, double *n, int *sta
       const double m[6] = {c[r], c[R + r], c[2 * R + r], c[3 * R + r], c[4 * R + r], c[5 * R + r]};
       double v[3];
       status[r] = bsurf_eigen_sym3_smallest(m, v);
-      for (int t = 0; t < 3; t++) n[t * R + r] = v[t];
+      for (int t = 0; t < 3; t++)
+        n[t * R + r] = v[t];
     }
 }

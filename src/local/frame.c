@@ -17,11 +17,12 @@ static void canonical_sign(double v[3]) {
   for (int i = 1; i < 3; i++)
     if (fabs(v[i]) > fabs(v[best])) best = i;
   if (v[best] < 0)
-    for (int i = 0; i < 3; i++) v[i] = -v[i];
+    for (int i = 0; i < 3; i++)
+      v[i] = -v[i];
 }
 
-void bsurf_local_frame(const double *xyz, const uint32_t *idx, int k,
-                       bsurf_pca_center center, bsurf_frame *frame) {
+void bsurf_local_frame(const double *xyz, const uint32_t *idx, int k, bsurf_pca_center center,
+                       bsurf_frame *frame) {
   const double *d = &xyz[3 * (size_t)idx[0]];
   double c[3] = {d[0], d[1], d[2]};
   if (center == BSURF_PCA_CENTROID) {
@@ -29,16 +30,19 @@ void bsurf_local_frame(const double *xyz, const uint32_t *idx, int k,
     double s[3] = {0, 0, 0};
     for (int j = 0; j < k; j++) {
       const double *p = &xyz[3 * (size_t)idx[j]];
-      for (int t = 0; t < 3; t++) s[t] += p[t] - d[t];
+      for (int t = 0; t < 3; t++)
+        s[t] += p[t] - d[t];
     }
-    for (int t = 0; t < 3; t++) c[t] = d[t] + s[t] / k;
+    for (int t = 0; t < 3; t++)
+      c[t] = d[t] + s[t] / k;
   }
   double cov[3][3] = {{0}};
   for (int j = 0; j < k; j++) {
     const double *p = &xyz[3 * (size_t)idx[j]];
     double q[3] = {p[0] - c[0], p[1] - c[1], p[2] - c[2]};
     for (int a = 0; a < 3; a++)
-      for (int b = a; b < 3; b++) cov[a][b] += q[a] * q[b];
+      for (int b = a; b < 3; b++)
+        cov[a][b] += q[a] * q[b];
   }
   for (int a = 0; a < 3; a++)
     for (int b = a; b < 3; b++) {
@@ -52,8 +56,7 @@ void bsurf_local_frame(const double *xyz, const uint32_t *idx, int k,
   canonical_sign(n);
   canonical_sign(x);
   /* Y' = n x X' makes (X', Y', n) right-handed. */
-  double y[3] = {n[1] * x[2] - n[2] * x[1], n[2] * x[0] - n[0] * x[2],
-                 n[0] * x[1] - n[1] * x[0]};
+  double y[3] = {n[1] * x[2] - n[2] * x[1], n[2] * x[0] - n[0] * x[2], n[0] * x[1] - n[1] * x[0]};
   for (int t = 0; t < 3; t++) {
     frame->origin[t] = d[t];
     frame->rot[0][t] = x[t];
@@ -75,5 +78,6 @@ void bsurf_frame_dir_to_global(const bsurf_frame *f, const double l[3], double o
 
 void bsurf_frame_to_global(const bsurf_frame *f, const double l[3], double out[3]) {
   bsurf_frame_dir_to_global(f, l, out);
-  for (int t = 0; t < 3; t++) out[t] += f->origin[t];
+  for (int t = 0; t < 3; t++)
+    out[t] += f->origin[t];
 }

@@ -9,7 +9,7 @@
 #define BSURF_TERMS_MAX 15 /* bsurf_poly_terms(BSURF_DEGREE_MAX) */
 #define BSURF_PACKED_MAX (BSURF_TERMS_MAX * (BSURF_TERMS_MAX + 1) / 2)
 #define BSURF_MOMENTS_MAX 45 /* bsurf_poly_terms(2 * BSURF_DEGREE_MAX) */
-#define BSURF_NCOLS_MAX 64 /* BSURF_MOMENTS_MAX + BSURF_TERMS_MAX, padded to 8 */
+#define BSURF_NCOLS_MAX 64   /* BSURF_MOMENTS_MAX + BSURF_TERMS_MAX, padded to 8 */
 
 /* Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations (a is not modified).
  * evals ascending; evecs[i] is the unit eigenvector of evals[i]. */
@@ -43,15 +43,16 @@ void bsurf_poly_basis(int degree, double u, double v, double *phi);
 void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *dv);
 
 /* Index in column-packed upper-triangular storage: (i, j), i <= j. */
-static inline int bsurf_packed_index(int i, int j) { return j * (j + 1) / 2 + i; }
+static inline int bsurf_packed_index(int i, int j) {
+  return j * (j + 1) / 2 + i;
+}
 
 /* Solves G c = r for a symmetric positive definite m x m system by LDL^T
  * (G in column-packed upper storage; its leading m(m+1)/2 entries are used).
  * A pivot that falls below rel_tol times its original diagonal entry means
  * the columns of the design are (numerically) dependent: returns -1 and
  * leaves c undefined; 0 on success. */
-int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol,
-                            double *c);
+int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol, double *c);
 
 /* Default relative pivot tolerance for rank detection. */
 #define BSURF_RANK_TOL 1e-10
@@ -85,8 +86,8 @@ void bsurf_localfit_free(bsurf_localfit *lf);
 
 /* Localises the k points xyz[idx[j]] in `frame` and prepares fits of degree
  * <= `degree`. */
-void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t *idx,
-                          int k, const bsurf_frame *frame, int degree);
+void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t *idx, int k,
+                          const bsurf_frame *frame, int degree);
 
 /* out = W (R x k) * A (k x nc) with R a multiple of 4 and nc of 8, stored
  * in groups of four rows interleaved by column: entry (r, c) at
@@ -122,8 +123,7 @@ void bsurf_localfit_normal_eq_draws(const bsurf_localfit *lf, int B, const uint1
 /* Solves one row (bsurf_lanes_row) of bsurf_localfit_normal_eq_lanes for a fit of degree `degree`
  * (<= the setup degree; the lower degree's system is a leading block).
  * Returns 0, or -1 when the system is rank-deficient. */
-int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row,
-                             double *coef);
+int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row, double *coef);
 
 /* Solves every row b < B of bsurf_localfit_normal_eq_lanes with valid[b]
  * != 0 (coefs out: B x terms(degree)); a rank-deficient row gets valid[b]
@@ -164,8 +164,8 @@ void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, i
                            const double *coef, double u, double v, double n[3]);
 
 /* The fit's height at a point given in unscaled local coordinates. */
-double bsurf_localfit_eval(const bsurf_localfit *lf, int degree, const double *coef,
-                           double x, double y);
+double bsurf_localfit_eval(const bsurf_localfit *lf, int degree, const double *coef, double x,
+                           double y);
 
 /* Nested neighbourhoods (nested.c): for the point d = xyz[idx[0]] and the
  * ascending sizes ks[0..nk-1] (each <= the length of idx), the centroid

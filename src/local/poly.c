@@ -27,7 +27,8 @@ void bsurf_poly_basis(int degree, double u, double v, double *phi) {
   for (int d = 1; d <= degree; d++) {
     /* degree d: u^d, u^(d-1) v, ..., v^d from the previous degree */
     double cur[2 * BSURF_DEGREE_MAX + 1];
-    for (int j = 0; j < d; j++) cur[j] = prev[j] * u;
+    for (int j = 0; j < d; j++)
+      cur[j] = prev[j] * u;
     cur[d] = prev[d - 1] * v;
     for (int j = 0; j <= d; j++) {
       phi[t++] = cur[j];
@@ -53,8 +54,7 @@ void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *d
     }
 }
 
-int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol,
-                            double *c) {
+int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol, double *c) {
   /* G = L D L^T with L unit lower triangular (LDL^T: no square roots), by
    * columns: A[i][j] = G[i][j] - sum_t L[i][t] A[j][t] (t < j) is L[i][j]
    * D[j], D[j] = A[j][j], L[i][j] = A[i][j] inv[j] with inv[j] = 1 / D[j],
@@ -65,12 +65,14 @@ int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_t
   for (int j = 0; j < m; j++) {
     const double gjj = G[bsurf_packed_index(j, j)];
     double s = gjj;
-    for (int t = 0; t < j; t++) s -= L[j * m + t] * A[j * m + t];
+    for (int t = 0; t < j; t++)
+      s -= L[j * m + t] * A[j * m + t];
     if (!(s > rel_tol * gjj) || !(gjj > 0)) return -1; /* also catches NaN */
     inv[j] = 1.0 / s;
     for (int i = j + 1; i < m; i++) {
       double a = G[bsurf_packed_index(j, i)];
-      for (int t = 0; t < j; t++) a -= L[i * m + t] * A[j * m + t];
+      for (int t = 0; t < j; t++)
+        a -= L[i * m + t] * A[j * m + t];
       A[i * m + j] = a;
       L[i * m + j] = a * inv[j];
     }
@@ -78,12 +80,14 @@ int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_t
   double y[BSURF_TERMS_MAX];
   for (int i = 0; i < m; i++) { /* L y = r */
     double a = r[i];
-    for (int t = 0; t < i; t++) a -= L[i * m + t] * y[t];
+    for (int t = 0; t < i; t++)
+      a -= L[i * m + t] * y[t];
     y[i] = a;
   }
   for (int i = m - 1; i >= 0; i--) { /* L^T c = D^-1 y */
     double a = y[i] * inv[i];
-    for (int t = i + 1; t < m; t++) a -= L[t * m + i] * c[t];
+    for (int t = i + 1; t < m; t++)
+      a -= L[t * m + i] * c[t];
     c[i] = a;
   }
   return 0;
@@ -91,8 +95,7 @@ int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_t
 
 bsurf_status bsurf_localfit_alloc(bsurf_localfit *lf, int kmax, int degree_max) {
   memset(lf, 0, sizeof *lf);
-  if (kmax < 1 || degree_max < 0 || degree_max > BSURF_DEGREE_MAX)
-    return BSURF_ERR_INVALID_ARG;
+  if (kmax < 1 || degree_max < 0 || degree_max > BSURF_DEGREE_MAX) return BSURF_ERR_INVALID_ARG;
   int m = bsurf_poly_terms(degree_max), ncols = (bsurf_poly_terms(2 * degree_max) + m + 7) / 8 * 8;
   lf->kmax = kmax;
   lf->degree_max = degree_max;
@@ -132,8 +135,8 @@ static inline __attribute__((always_inline)) void monomials(int d, double u, dou
   }
 }
 
-void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t *idx,
-                          int k, const bsurf_frame *frame, int degree) {
+void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t *idx, int k,
+                          const bsurf_frame *frame, int degree) {
   lf->k = k;
   lf->degree = degree;
   lf->m = bsurf_poly_terms(degree);
@@ -169,12 +172,16 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
     case 6: monomials(6, u, v, o); break;
     default: monomials(d2, u, v, o); break;
     }
-    for (int a = 0; a < m; a++) lf->phit[(size_t)a * kp + j] = o[a];
-    for (int a = 0; a < m; a++) o[p + a] = o[a] * lf->z[j];
-    for (int c = p + m; c < nc; c++) o[c] = 0.0;
+    for (int a = 0; a < m; a++)
+      lf->phit[(size_t)a * kp + j] = o[a];
+    for (int a = 0; a < m; a++)
+      o[p + a] = o[a] * lf->z[j];
+    for (int c = p + m; c < nc; c++)
+      o[c] = 0.0;
   }
   for (int a = 0; a < m; a++)
-    for (int j = k; j < kp; j++) lf->phit[(size_t)a * kp + j] = 0.0;
+    for (int j = k; j < kp; j++)
+      lf->phit[(size_t)a * kp + j] = 0.0;
 }
 
 /* Position of the monomial phi_a phi_b among the graded monomials, for
@@ -184,21 +191,23 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
  * (Generated from that formula; a wrong entry breaks test_local's exact
  * recovery of polynomials.) */
 static const unsigned char packed_moment[BSURF_PACKED_MAX] = {
-    0, 1, 3, 2, 4, 5, 3, 6, 7, 10, 4, 7, 8, 11, 12, 5, 8, 9, 12, 13,
-    14, 6, 10, 11, 15, 16, 17, 21, 7, 11, 12, 16, 17, 18, 22, 23, 8, 12, 13, 17,
-    18, 19, 23, 24, 25, 9, 13, 14, 18, 19, 20, 24, 25, 26, 27, 10, 15, 16, 21, 22,
-    23, 28, 29, 30, 31, 36, 11, 16, 17, 22, 23, 24, 29, 30, 31, 32, 37, 38, 12, 17,
-    18, 23, 24, 25, 30, 31, 32, 33, 38, 39, 40, 13, 18, 19, 24, 25, 26, 31, 32, 33,
-    34, 39, 40, 41, 42, 14, 19, 20, 25, 26, 27, 32, 33, 34, 35, 40, 41, 42, 43, 44,
+    0,  1,  3,  2,  4,  5,  3,  6,  7,  10, 4,  7,  8,  11, 12, 5,  8,  9,  12, 13, 14, 6,  10, 11,
+    15, 16, 17, 21, 7,  11, 12, 16, 17, 18, 22, 23, 8,  12, 13, 17, 18, 19, 23, 24, 25, 9,  13, 14,
+    18, 19, 20, 24, 25, 26, 27, 10, 15, 16, 21, 22, 23, 28, 29, 30, 31, 36, 11, 16, 17, 22, 23, 24,
+    29, 30, 31, 32, 37, 38, 12, 17, 18, 23, 24, 25, 30, 31, 32, 33, 38, 39, 40, 13, 18, 19, 24, 25,
+    26, 31, 32, 33, 34, 39, 40, 41, 42, 14, 19, 20, 25, 26, 27, 32, 33, 34, 35, 40, 41, 42, 43, 44,
 };
 
-static const unsigned char *moment_map(void) { return packed_moment; }
+static const unsigned char *moment_map(void) {
+  return packed_moment;
+}
 
 /* The packed G (m x m) of one row of moments. */
 static void gram_from_moments(int m, const double *row, double *G) {
   const unsigned char *map = moment_map();
   const int pm = m * (m + 1) / 2;
-  for (int q = 0; q < pm; q++) G[q] = row[map[q]];
+  for (int q = 0; q < pm; q++)
+    G[q] = row[map[q]];
 }
 
 /* rows (B x nc) = W (B x k) * A (k x nc). Blocks of 4 rows by 8 columns are
@@ -216,11 +225,13 @@ static void gemm_plain(int b0, int b1, int c0, int c1, int k, int nc, const doub
                        const double *A, double *out) {
   for (int b = b0; b < b1; b++) {
     double *o = &out[(size_t)b * nc];
-    for (int c = c0; c < c1; c++) o[c] = 0;
+    for (int c = c0; c < c1; c++)
+      o[c] = 0;
     for (int j = 0; j < k; j++) {
       const double x = W[(size_t)b * k + j];
       const double *a = &A[(size_t)j * nc];
-      for (int c = c0; c < c1; c++) o[c] += x * a[c];
+      for (int c = c0; c < c1; c++)
+        o[c] += x * a[c];
     }
   }
 }
@@ -236,9 +247,8 @@ typedef long long v4l_idx __attribute__((vector_size(32)));
 
 /* One 4 x 8 block of W A: rows w[0..3] (k weights each) times columns
  * c..c+7 of A; acc[2 r + h] holds row r, columns c + 4h .. c + 4h + 3. */
-static inline __attribute__((always_inline)) void gemm_block(const double *const w[4], int k,
-                                                             int nc, const double *A, int c,
-                                                             v4d acc[8]) {
+static inline __attribute__((always_inline)) void
+gemm_block(const double *const w[4], int k, int nc, const double *A, int c, v4d acc[8]) {
   v4d a00 = {0, 0, 0, 0}, a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00,
       a31 = a00;
   const double *w0 = w[0], *w1 = w[1], *w2 = w[2], *w3 = w[3];
@@ -322,14 +332,16 @@ void bsurf_gemm_lanes(int R, int k, int nc, const double *restrict W, const doub
   double row[BSURF_NCOLS_MAX];
   for (int b = 0; b < R; b++) {
     gemm_plain(0, 1, 0, nc, k, nc, &W[(size_t)b * k], A, row);
-    for (int c = 0; c < nc; c++) out[(size_t)(b / 4) * 4 * nc + (size_t)c * 4 + b % 4] = row[c];
+    for (int c = 0; c < nc; c++)
+      out[(size_t)(b / 4) * 4 * nc + (size_t)c * 4 + b % 4] = row[c];
   }
 #endif
 }
 
 void bsurf_lanes_row(int nc, const double *lanes, int r, double *row) {
   const double *g = &lanes[(size_t)(r / 4) * 4 * nc];
-  for (int c = 0; c < nc; c++) row[c] = g[(size_t)c * 4 + r % 4];
+  for (int c = 0; c < nc; c++)
+    row[c] = g[(size_t)c * 4 + r % 4];
 }
 
 /* Normal equations from the draws (thesis 4.1.2, Eq. 3.9 on a resample):
@@ -354,7 +366,8 @@ static inline __attribute__((always_inline)) void draw_sum(int H, int NV, int n,
                                                            const double *A, int c0,
                                                            v4d acc[2][DRAW_VMAX]) {
   v4d a0[DRAW_VMAX], a1[DRAW_VMAX];
-  for (int v = 0; v < NV; v++) a0[v] = a1[v] = (v4d){0, 0, 0, 0};
+  for (int v = 0; v < NV; v++)
+    a0[v] = a1[v] = (v4d){0, 0, 0, 0};
   for (int t = 0; t < n; t++) {
     const double *r0 = &A[(size_t)(idx[0] ? idx[0][t] : t) * nc + c0];
     for (int v = 0; v < NV; v++) {
@@ -395,7 +408,8 @@ static inline __attribute__((always_inline)) void draw_rows2(int H, int NV, int 
         const uint16_t *const idx1[2] = {idx[1], NULL};
         v4d acc1[2][DRAW_VMAX];
         draw_sum(1, NV, k, nc, idx1, A, c0, acc1);
-        for (int v = 0; v < NV; v++) acc[1][v] = acc1[0][v];
+        for (int v = 0; v < NV; v++)
+          acc[1][v] = acc1[0][v];
       }
     }
     for (int h = 0; h < 2; h++)
@@ -463,7 +477,8 @@ void bsurf_draw_sums_lanes(int B, int k, int nc, const uint16_t *restrict draws,
     for (int c = 0; c < nc; c++) {
       double x = 0;
       if (b <= B)
-        for (int t = 0; t < k; t++) x += A[(size_t)(b < B ? draws[(size_t)b * k + t] : t) * nc + c];
+        for (int t = 0; t < k; t++)
+          x += A[(size_t)(b < B ? draws[(size_t)b * k + t] : t) * nc + c];
       g[(size_t)c * 4 + b % 4] = x;
     }
   }
@@ -482,18 +497,19 @@ typedef long long v4l __attribute__((vector_size(32)));
  * reported in the returned bit mask of failures (lane 4h + l for group h);
  * lanes not in `want` are not stored. Inlined with a constant m
  * (ldl_solve8_m) so that the compiler unrolls the small loops. */
-static inline __attribute__((always_inline)) int ldl_solve8(int m, int p,
-                                                             const double *const g4[2],
-                                                             double rel_tol, int want,
-                                                             double *const coef[8]) {
+static inline __attribute__((always_inline)) int ldl_solve8(int m, int p, const double *const g4[2],
+                                                            double rel_tol, int want,
+                                                            double *const coef[8]) {
   v4d G[2][BSURF_PACKED_MAX], r[2][BSURF_TERMS_MAX], L[2][BSURF_TERMS_MAX * BSURF_TERMS_MAX];
   v4d A[2][BSURF_TERMS_MAX * BSURF_TERMS_MAX];
   v4d inv[2][BSURF_TERMS_MAX], y[2][BSURF_TERMS_MAX], c[2][BSURF_TERMS_MAX];
   const int pm = m * (m + 1) / 2;
   const unsigned char *map = moment_map();
   for (int h = 0; h < 2; h++) {
-    for (int q = 0; q < pm; q++) memcpy(&G[h][q], &g4[h][4 * map[q]], sizeof(v4d));
-    for (int i = 0; i < m; i++) memcpy(&r[h][i], &g4[h][4 * (p + i)], sizeof(v4d));
+    for (int q = 0; q < pm; q++)
+      memcpy(&G[h][q], &g4[h][4 * map[q]], sizeof(v4d));
+    for (int i = 0; i < m; i++)
+      memcpy(&r[h][i], &g4[h][4 * (p + i)], sizeof(v4d));
   }
   const v4d one = {1, 1, 1, 1}, zero = {0, 0, 0, 0};
   const v4d tol = {rel_tol, rel_tol, rel_tol, rel_tol};
@@ -502,7 +518,8 @@ static inline __attribute__((always_inline)) int ldl_solve8(int m, int p,
     for (int h = 0; h < 2; h++) {
       const v4d gjj = G[h][bsurf_packed_index(j, j)];
       v4d s = gjj;
-      for (int t = 0; t < j; t++) s -= L[h][j * m + t] * A[h][j * m + t];
+      for (int t = 0; t < j; t++)
+        s -= L[h][j * m + t] * A[h][j * m + t];
       v4l ok = (s > tol * gjj) & (gjj > zero);
       failed[h] |= ~ok;
       s = (v4d)(((v4l)s & ok) | ((v4l)one & ~ok));
@@ -511,7 +528,8 @@ static inline __attribute__((always_inline)) int ldl_solve8(int m, int p,
     for (int i = j + 1; i < m; i++)
       for (int h = 0; h < 2; h++) {
         v4d a = G[h][bsurf_packed_index(j, i)];
-        for (int t = 0; t < j; t++) a -= L[h][i * m + t] * A[h][j * m + t];
+        for (int t = 0; t < j; t++)
+          a -= L[h][i * m + t] * A[h][j * m + t];
         A[h][i * m + j] = a;
         L[h][i * m + j] = a * inv[h][j];
       }
@@ -519,20 +537,24 @@ static inline __attribute__((always_inline)) int ldl_solve8(int m, int p,
   for (int i = 0; i < m; i++)
     for (int h = 0; h < 2; h++) {
       v4d a = r[h][i];
-      for (int t = 0; t < i; t++) a -= L[h][i * m + t] * y[h][t];
+      for (int t = 0; t < i; t++)
+        a -= L[h][i * m + t] * y[h][t];
       y[h][i] = a;
     }
   for (int i = m - 1; i >= 0; i--)
     for (int h = 0; h < 2; h++) {
       v4d a = y[h][i] * inv[h][i];
-      for (int t = i + 1; t < m; t++) a -= L[h][t * m + i] * c[h][t];
+      for (int t = i + 1; t < m; t++)
+        a -= L[h][t * m + i] * c[h][t];
       c[h][i] = a;
     }
   int mask = 0;
   for (int l = 0; l < 8; l++) {
-    if (failed[l / 4][l % 4]) mask |= 1 << l;
+    if (failed[l / 4][l % 4])
+      mask |= 1 << l;
     else if (want & (1 << l))
-      for (int i = 0; i < m; i++) coef[l][i] = c[l / 4][i][l % 4];
+      for (int i = 0; i < m; i++)
+        coef[l][i] = c[l / 4][i][l % 4];
   }
   return mask;
 }
@@ -544,7 +566,7 @@ static inline __attribute__((always_inline)) int ldl_solve8(int m, int p,
 
 BSURF_CLONES
 static int ldl_solve8_m(int m, int p, const double *const g4[2], double rel_tol, int want,
-                         double *const coef[8]) {
+                        double *const coef[8]) {
   switch (m) {
   case 3: return ldl_solve8_3(p, g4, rel_tol, want, coef);
   case 6: return ldl_solve8_6(p, g4, rel_tol, want, coef);
@@ -564,9 +586,11 @@ void bsurf_localfit_solve_lanes(const bsurf_localfit *lf, int degree, int B, con
     if (!want) continue;
 #ifdef HAVE_V4D
     /* a missing second group repeats the first (its lanes are not wanted) */
-    const double *g4[2] = {&lanes[(size_t)b0 * nc], &lanes[(size_t)(b0 + 4 < B ? b0 + 4 : b0) * nc]};
+    const double *g4[2] = {&lanes[(size_t)b0 * nc],
+                           &lanes[(size_t)(b0 + 4 < B ? b0 + 4 : b0) * nc]};
     double *cp[8];
-    for (int l = 0; l < 8; l++) cp[l] = &coefs[(size_t)(want & (1 << l) ? b0 + l : b0) * m];
+    for (int l = 0; l < 8; l++)
+      cp[l] = &coefs[(size_t)(want & (1 << l) ? b0 + l : b0) * m];
     int failed = ldl_solve8_m(m, lf->p, g4, BSURF_RANK_TOL, want, cp) & want;
     for (int l = 0; l < 8; l++)
       if (failed & (1 << l)) valid[b0 + l] = 0;
@@ -613,7 +637,8 @@ int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *c
     if (w == 0) continue;
     distinct++;
     const double *o = &lf->op[(size_t)j * nc];
-    for (int a = 0; a < nc; a++) row[a] += w * o[a];
+    for (int a = 0; a < nc; a++)
+      row[a] += w * o[a];
   }
   if (distinct < m) return -1; /* fewer distinct points than coefficients */
   return bsurf_localfit_solve_row(lf, degree, row, coef);
@@ -624,13 +649,13 @@ int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *c
  * values are ph[a * stride + 0..7]: p[2 r], p[2 r + 1] for fit r, the terms
  * added in order a = 0..m-1 from 0, as the plain loop. The fits share each
  * load of the basis, and their 2 R chains of additions are independent. */
-static inline __attribute__((always_inline)) void predict8(int m, int R, const double *ph,
-                                                           size_t stride, const double *const *c,
-                                                           v4d p[8]) {
+static inline __attribute__((always_inline)) void
+predict8(int m, int R, const double *ph, size_t stride, const double *const *c, v4d p[8]) {
   v4d acc[8];
-  for (int i = 0; i < 2 * R; i++) acc[i] = (v4d){0, 0, 0, 0};
-  /* kept a loop: unrolled (m = 10), GCC hoisted all 4 m broadcasts and
-   * spilled the accumulators */
+  for (int i = 0; i < 2 * R; i++)
+    acc[i] = (v4d){0, 0, 0, 0};
+    /* kept a loop: unrolled (m = 10), GCC hoisted all 4 m broadcasts and
+     * spilled the accumulators */
 #pragma GCC unroll 1
   for (int a = 0; a < m; a++) {
     v4d x0, x1;
@@ -642,7 +667,8 @@ static inline __attribute__((always_inline)) void predict8(int m, int R, const d
       acc[2 * r + 1] += ca * x1;
     }
   }
-  for (int i = 0; i < 2 * R; i++) p[i] = acc[i];
+  for (int i = 0; i < 2 * R; i++)
+    p[i] = acc[i];
 }
 #endif
 
@@ -670,11 +696,13 @@ void bsurf_localfit_predict(const bsurf_localfit *lf, int degree, int B, const d
     if (valid && !valid[b]) continue;
     double *restrict pb = &pred[(size_t)b * k];
     const double *cb = &coef[(size_t)b * m];
-    for (int j = 0; j < k; j++) pb[j] = 0;
+    for (int j = 0; j < k; j++)
+      pb[j] = 0;
     for (int a = 0; a < m; a++) {
       const double ca = cb[a];
       const double *restrict ph = &lf->phit[(size_t)a * kp];
-      for (int j = 0; j < k; j++) pb[j] += ca * ph[j];
+      for (int j = 0; j < k; j++)
+        pb[j] += ca * ph[j];
     }
   }
 #endif
@@ -696,7 +724,8 @@ static inline __attribute__((always_inline)) void res_add(const v4d *p, const v4
   /* 1.0 where the count is 0 (the point is not in replicate b), else 0 */
   const v4d w = (v4d)((mc == zero) & (v4l)one);
   v4d e = *p - *y;
-  for (int l = 0; l < 4; l++) e[l] = fabs(e[l]); /* lane by lane (vectorised) */
+  for (int l = 0; l < 4; l++)
+    e[l] = fabs(e[l]); /* lane by lane (vectorised) */
   acc->s += e;
   acc->o += w * e;
   acc->c += w;
@@ -721,10 +750,10 @@ static inline __attribute__((always_inline)) void res_fits(int m, int R, const d
  * four (else two) valid replicates at a time where they follow each other;
  * for every point the replicates are added in order b = 0..B-1 as one at a
  * time. With pad (only when k < 8) the n = k - j0 points are padded to 8. */
-static inline __attribute__((always_inline)) void residual_block(
-    int m, int pad, int k, int kp, const double *phit, const double *z, int j0, int B,
-    const double *coef, const unsigned char *valid, const uint16_t *counts, double *all, double *out,
-    double *cnt) {
+static inline __attribute__((always_inline)) void
+residual_block(int m, int pad, int k, int kp, const double *phit, const double *z, int j0, int B,
+               const double *coef, const unsigned char *valid, const uint16_t *counts, double *all,
+               double *out, double *cnt) {
   const int n = pad ? k - j0 : 8;
   /* the block's basis values packed (constant offsets, not m row pointers);
    * phit is zero-padded to kp, a multiple of 8 */
@@ -738,9 +767,11 @@ static inline __attribute__((always_inline)) void residual_block(
   }
   double yb[8] = {0, 0, 0, 0, 0, 0, 0, 0};
   uint16_t wb[4][8];
-  for (int l = 0; l < n; l++) yb[l] = z[j0 + l];
+  for (int l = 0; l < n; l++)
+    yb[l] = z[j0 + l];
   for (int r = 0; r < 4; r++)
-    for (int l = 0; l < 8; l++) wb[r][l] = 1; /* padding: drawn once, not missing */
+    for (int l = 0; l < 8; l++)
+      wb[r][l] = 1; /* padding: drawn once, not missing */
   v4d y[2];
   memcpy(&y[0], yb, 32);
   memcpy(&y[1], yb + 4, 32);
@@ -763,7 +794,8 @@ static inline __attribute__((always_inline)) void residual_block(
       c[r] = &coef[(size_t)(b + r) * m];
       w[r] = &counts[(size_t)(b + r) * k + j0];
       if (pad) {
-        for (int l = 0; l < n; l++) wb[r][l] = w[r][l];
+        for (int l = 0; l < n; l++)
+          wb[r][l] = w[r][l];
         w[r] = wb[r];
       }
     }
@@ -798,8 +830,8 @@ void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, c
     residual_block(M, 1, k, kp, lf->phit, lf->z, 0, B, coef, valid, counts, all, out, cnt);        \
   else                                                                                             \
     for (int j0 = 0; j0 < k; j0 += 8)                                                              \
-      residual_block(M, 0, k, kp, lf->phit, lf->z, j0 + 8 > k ? k - 8 : j0, B, coef, valid, counts,  \
-                     all, out, cnt)
+    residual_block(M, 0, k, kp, lf->phit, lf->z, j0 + 8 > k ? k - 8 : j0, B, coef, valid, counts,  \
+                   all, out, cnt)
   switch (m) {
   case 3: RESIDUAL_BLOCKS(3); break;
   case 6: RESIDUAL_BLOCKS(6); break;
@@ -808,13 +840,15 @@ void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, c
   }
 #undef RESIDUAL_BLOCKS
 #else
-  for (int j = 0; j < k; j++) all[j] = out[j] = cnt[j] = 0;
+  for (int j = 0; j < k; j++)
+    all[j] = out[j] = cnt[j] = 0;
   for (int b = 0; b < B; b++) {
     if (valid && !valid[b]) continue;
     const double *cb = &coef[(size_t)b * m];
     for (int j = 0; j < k; j++) {
       double p = 0;
-      for (int a = 0; a < m; a++) p += cb[a] * lf->phit[(size_t)a * kp + j];
+      for (int a = 0; a < m; a++)
+        p += cb[a] * lf->phit[(size_t)a * kp + j];
       const double e = fabs(p - lf->z[j]), w = counts[(size_t)b * k + j] == 0 ? 1.0 : 0.0;
       all[j] += e;
       out[j] += w * e;
@@ -836,15 +870,17 @@ void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, i
   /* r = (x, y, f(x, y)): r_x x r_y = (-f_x, -f_y, 1) (Eq. 5.9) */
   double l[3] = {-fu / lf->scale, -fv / lf->scale, 1.0};
   double len = sqrt(l[0] * l[0] + l[1] * l[1] + 1.0);
-  for (int t = 0; t < 3; t++) l[t] /= len;
+  for (int t = 0; t < 3; t++)
+    l[t] /= len;
   bsurf_frame_dir_to_global(frame, l, n);
 }
 
-double bsurf_localfit_eval(const bsurf_localfit *lf, int degree, const double *coef,
-                           double x, double y) {
+double bsurf_localfit_eval(const bsurf_localfit *lf, int degree, const double *coef, double x,
+                           double y) {
   double phi[BSURF_TERMS_MAX];
   bsurf_poly_basis(degree, x / lf->scale, y / lf->scale, phi);
   double s = 0;
-  for (int a = 0; a < bsurf_poly_terms(degree); a++) s += phi[a] * coef[a];
+  for (int a = 0; a < bsurf_poly_terms(degree); a++)
+    s += phi[a] * coef[a];
   return s;
 }

@@ -20,9 +20,10 @@ int bsurf_draw_text_width(const char *text, int scale);
 void bsurf_draw_text(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3]);
 /* Text rotated by 90 degrees counter-clockwise (reads bottom to top), its
  * bottom-left corner at (x, y). */
-void bsurf_draw_text_up(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3]);
+void bsurf_draw_text_up(canvas *c, int x, int y, const char *text, int scale,
+                        const uint8_t color[3]);
 void bsurf_draw_rect(canvas *c, int x0, int y0, int x1, int y1,
-               const uint8_t color[3]); /* filled, inclusive */
+                     const uint8_t color[3]); /* filled, inclusive */
 void bsurf_draw_hline(canvas *c, int x0, int x1, int y, const uint8_t color[3]);
 void bsurf_draw_vline(canvas *c, int x, int y0, int y1, const uint8_t color[3]);
 void bsurf_draw_fill(canvas *c, const uint8_t color[3]);

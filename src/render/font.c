@@ -133,7 +133,8 @@ void bsurf_draw_text(canvas *c, int x, int y, const char *text, int scale, const
   }
 }
 
-void bsurf_draw_text_up(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3]) {
+void bsurf_draw_text_up(canvas *c, int x, int y, const char *text, int scale,
+                        const uint8_t color[3]) {
   /* glyph pixel (col, r) goes to (x + r, y - col) */
   for (; *text; text++, y -= (FONT_W + 1) * scale) {
     const uint8_t *g = glyph_of(*text);

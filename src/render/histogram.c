@@ -78,8 +78,8 @@ bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values, size_t c
   int bottom = opt.height - (FONT_H * 2 + 16) * s;
   if (right - left < 20 || bottom - top < 20) {
     free(bins);
-    return bsurf_invalid(__func__, "width x height = %d x %d: too small for the axes and labels", opt.width,
-                         opt.height);
+    return bsurf_invalid(__func__, "width x height = %d x %d: too small for the axes and labels",
+                         opt.width, opt.height);
   }
   double ymax = opt.log_counts ? log10(1.0 + (double)maxc) : (double)maxc;
   if (!(ymax > 0)) ymax = 1;
@@ -109,7 +109,8 @@ bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values, size_t c
       snprintf(buf, sizeof buf, "%.0f", pow(10.0, ticks[k]) - 1.0);
     else
       bsurf_draw_format_value(ticks[k], ticks[k] == floor(ticks[k]) ? 1.0 : step, buf, sizeof buf);
-    bsurf_draw_text(&c, left - 6 * s - bsurf_draw_text_width(buf, s), y - FONT_H * s / 2, buf, s, ink);
+    bsurf_draw_text(&c, left - 6 * s - bsurf_draw_text_width(buf, s), y - FONT_H * s / 2, buf, s,
+                    ink);
   }
   /* bars */
   double bw = (double)(right - left) / opt.bins;
@@ -147,12 +148,14 @@ bsurf_status bsurf_render_histogram(uint8_t *rgb, const double *values, size_t c
   }
   /* captions */
   const char *xl = opt.label ? opt.label : "value";
-  bsurf_draw_text(&c, left + (right - left - bsurf_draw_text_width(xl, s)) / 2, opt.height - (FONT_H + 4) * s,
-            xl, s, ink);
+  bsurf_draw_text(&c, left + (right - left - bsurf_draw_text_width(xl, s)) / 2,
+                  opt.height - (FONT_H + 4) * s, xl, s, ink);
   const char *yl = opt.log_counts ? "count (log)" : "count";
-  bsurf_draw_text_up(&c, 4 * s, top + (bottom - top + bsurf_draw_text_width(yl, s)) / 2, yl, s, ink);
+  bsurf_draw_text_up(&c, 4 * s, top + (bottom - top + bsurf_draw_text_width(yl, s)) / 2, yl, s,
+                     ink);
   if (opt.title)
-    bsurf_draw_text(&c, (opt.width - bsurf_draw_text_width(opt.title, s)) / 2, 5 * s, opt.title, s, ink);
+    bsurf_draw_text(&c, (opt.width - bsurf_draw_text_width(opt.title, s)) / 2, 5 * s, opt.title, s,
+                    ink);
   /* threshold */
   if (isfinite(opt.threshold) && opt.threshold >= lo && opt.threshold <= hi) {
     int x = left + (int)floor((opt.threshold - lo) / (hi - lo) * (right - left) + 0.5);

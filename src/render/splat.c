@@ -441,16 +441,18 @@ bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals
   BSURF_REQUIRE(rgb, "rgb is NULL");
   BSURF_REQUIRE(xyz || !point_count, "xyz is NULL");
   /* indices are 32-bit in the z-buffer */
-  BSURF_REQUIRE(point_count < 0xFFFFFFFFu, "point_count = %zu: must be below 2^32 - 1", point_count);
+  BSURF_REQUIRE(point_count < 0xFFFFFFFFu, "point_count = %zu: must be below 2^32 - 1",
+                point_count);
   BSURF_REQUIRE(opt.width >= 16 && opt.height >= 16 && opt.width <= 16384 && opt.height <= 16384,
                 "width x height = %d x %d: each must be in [16, 16384]", opt.width, opt.height);
   BSURF_REQUIRE(opt.views == 1 || opt.views == 4, "views = %d: must be 1 or 4", opt.views);
   BSURF_REQUIRE(opt.supersample >= 1 && opt.supersample <= 4, "supersample = %d: must be in [1, 4]",
                 opt.supersample);
-  BSURF_REQUIRE(opt.up_axis >= 0 && opt.up_axis <= 2, "up_axis = %d: must be 0, 1 or 2", opt.up_axis);
+  BSURF_REQUIRE(opt.up_axis >= 0 && opt.up_axis <= 2, "up_axis = %d: must be 0, 1 or 2",
+                opt.up_axis);
   BSURF_REQUIRE(opt.point_size > 0, "point_size = %g: must be > 0", opt.point_size);
-  BSURF_REQUIRE(isfinite(opt.azimuth) && isfinite(opt.elevation), "azimuth = %g, elevation = %g: must be finite",
-                opt.azimuth, opt.elevation);
+  BSURF_REQUIRE(isfinite(opt.azimuth) && isfinite(opt.elevation),
+                "azimuth = %g, elevation = %g: must be finite", opt.azimuth, opt.elevation);
   canvas img = {rgb, opt.width, opt.height};
   bsurf_draw_fill(&img, opt.background);
   uint8_t ink[3];

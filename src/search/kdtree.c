@@ -98,7 +98,7 @@ typedef struct knn_node {
 struct bsurf_knn_index {
   size_t n;
   double *xyz[3]; /* x, y, z: n (+ KNN_PAD) each, tree order; one block at xyz[0] */
-  uint32_t *ids; /* n: original index of each tree position */
+  uint32_t *ids;  /* n: original index of each tree position */
   knn_node *nodes;
   size_t node_count;
   double box_lo[3], box_hi[3]; /* bounding box of the non-NaN coordinates */
@@ -350,17 +350,15 @@ static inline void swap_points(double *const c[3], uint32_t *ids, size_t a, size
  * before it and no smaller one after (nth_element). Wirth's variant of Hoare's
  * selection; the scans stop on equal keys, which keeps the partitions balanced
  * on grids with many equal coordinates. Deterministic. */
-static void select_nth(double *const c[3], uint32_t *ids, int64_t lo, int64_t hi, int64_t nth, int dim) {
+static void select_nth(double *const c[3], uint32_t *ids, int64_t lo, int64_t hi, int64_t nth,
+                       int dim) {
   const double *key = c[dim];
   while (lo < hi) {
     const int64_t mid = lo + (hi - lo) / 2;
     /* Median of three into position nth (the pivot). */
-    if (coord_less(key[mid], key[lo]))
-      swap_points(c, ids, (size_t)mid, (size_t)lo);
-    if (coord_less(key[hi], key[lo]))
-      swap_points(c, ids, (size_t)hi, (size_t)lo);
-    if (coord_less(key[hi], key[mid]))
-      swap_points(c, ids, (size_t)hi, (size_t)mid);
+    if (coord_less(key[mid], key[lo])) swap_points(c, ids, (size_t)mid, (size_t)lo);
+    if (coord_less(key[hi], key[lo])) swap_points(c, ids, (size_t)hi, (size_t)lo);
+    if (coord_less(key[hi], key[mid])) swap_points(c, ids, (size_t)hi, (size_t)mid);
     if (mid != nth) swap_points(c, ids, (size_t)mid, (size_t)nth);
     {
       const double x = key[nth];
@@ -459,9 +457,11 @@ bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz, size_t 
 
   BSURF_REQUIRE(index, "index is NULL");
   *index = NULL;
-  if (point_count == 0) return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_knn_build: no points");
+  if (point_count == 0)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_knn_build: no points");
   BSURF_REQUIRE(xyz, "xyz is NULL");
-  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points", point_count);
+  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points",
+                point_count);
 
   ix = calloc(1, sizeof *ix);
   if (!ix) return BSURF_ERR_NOMEM;
@@ -508,7 +508,9 @@ bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz, size_t 
   return BSURF_OK;
 }
 
-const uint32_t *bsurf_knn_tree_ids(const bsurf_knn_index *index) { return index->ids; }
+const uint32_t *bsurf_knn_tree_ids(const bsurf_knn_index *index) {
+  return index->ids;
+}
 
 void bsurf_knn_free(bsurf_knn_index *index) {
   if (!index) return;
@@ -527,9 +529,9 @@ typedef struct knn_search {
   const uint32_t *ids;
   const knn_node *nodes;
   double q[3];
-  double off[3]; /* per-dimension offset from q to the current node's box */
-  size_t skip;   /* tree position to leave out (the query itself), or SIZE_MAX */
-  knn_list list; /* the candidates; with buf, only list.worst (the bound) */
+  double off[3];   /* per-dimension offset from q to the current node's box */
+  size_t skip;     /* tree position to leave out (the query itself), or SIZE_MAX */
+  knn_list list;   /* the candidates; with buf, only list.worst (the bound) */
   knn_buffer *buf; /* all-kNN: the candidates buffered (NULL: in list) */
 } knn_search;
 
@@ -669,7 +671,8 @@ bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3]
 
   s.buf = NULL;
   BSURF_REQUIRE(index && query && idx, "index, query or idx is NULL");
-  BSURF_REQUIRE(k >= 1 && (size_t)k <= index->n, "k = %d: must be in [1, %zu] (the indexed points)", k, index->n);
+  BSURF_REQUIRE(k >= 1 && (size_t)k <= index->n, "k = %d: must be in [1, %zu] (the indexed points)",
+                k, index->n);
 
   for (int d = 0; d < 3; d++)
     s.c[d] = index->xyz[d];
@@ -710,7 +713,8 @@ bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3]
  * this bound instead of none and prunes from its first leaf; the k nearest
  * and their order are the same, since no candidate within the bound (ties
  * included: the tests are d > bound) is skipped. NaN when it cannot help. */
-static double knn_warm_bound(const bsurf_knn_index *ix, size_t j, size_t prev, const knn_entry *e, int m) {
+static double knn_warm_bound(const bsurf_knn_index *ix, size_t j, size_t prev, const knn_entry *e,
+                             int m) {
   const double *const *xyz = (const double *const *)ix->xyz;
   const double q[3] = {xyz[0][j], xyz[1][j], xyz[2][j]};
   double bound = -INFINITY;
@@ -767,8 +771,8 @@ static inline void knn_prefetch_row(const bsurf_knn_index *ix, size_t j, int k, 
  * `buf` is the thread's buffer (k - 1 = buf->k); *prev is the tree position
  * of the query whose results the buffer holds (SIZE_MAX: none), and becomes
  * j. */
-static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_buffer *buf, size_t *prev, uint32_t *idx,
-                    double *dist2, double *nn_dist2) {
+static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_buffer *buf, size_t *prev,
+                    uint32_t *idx, double *dist2, double *nn_dist2) {
   const uint32_t self = ix->ids[j];
   const size_t row = (size_t)self * (size_t)k;
   const int m = k - 1;
@@ -906,10 +910,13 @@ bsurf_status bsurf_knn_all_brute(const double *xyz, size_t point_count, int k, u
   knn_list l;
   const int m = k - 1;
 
-  if (point_count == 0) return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_knn_all_brute: no points");
+  if (point_count == 0)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_knn_all_brute: no points");
   BSURF_REQUIRE(xyz && idx, "xyz or idx is NULL");
-  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points", point_count);
-  BSURF_REQUIRE(k >= 1 && (size_t)k <= point_count, "k = %d: must be in [1, %zu] (the points)", k, point_count);
+  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points",
+                point_count);
+  BSURF_REQUIRE(k >= 1 && (size_t)k <= point_count, "k = %d: must be in [1, %zu] (the points)", k,
+                point_count);
 
   l.k = m;
   l.e = bsurf_alloc_array(m > 0 ? (size_t)m : 1, sizeof *l.e);

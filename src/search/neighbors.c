@@ -36,8 +36,8 @@ static bsurf_status knn_with_spacing(const double *xyz, size_t point_count, int 
    * neighbourhood-based estimate would be NaN: refuse them here. */
   for (size_t i = 0; i < 3 * point_count; i++)
     if (!isfinite(xyz[i]))
-      return bsurf_set_message(BSURF_ERR_INVALID_VALUE, "point %zu has a NaN or infinite coordinate (%g)", i / 3,
-                               xyz[i]);
+      return bsurf_set_message(BSURF_ERR_INVALID_VALUE,
+                               "point %zu has a NaN or infinite coordinate (%g)", i / 3, xyz[i]);
   bsurf_knn_index *index = NULL;
   double *nn;
   bsurf_status st;
@@ -66,9 +66,11 @@ bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz, size_
   memset(nb, 0, sizeof *nb);
   BSURF_REQUIRE(xyz, "xyz is NULL");
   BSURF_REQUIRE(k >= 2, "k = %d: must be at least 2 (the point and a neighbour)", k);
-  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points", point_count);
+  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points",
+                point_count);
   if (point_count == 0 || (size_t)k > point_count)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_neighbors_build: k = %d exceeds the %zu points", k,
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
+                             "bsurf_neighbors_build: k = %d exceeds the %zu points", k,
                              point_count);
 
   idx = bsurf_alloc_array(point_count, (size_t)k * sizeof *idx);
@@ -103,10 +105,11 @@ bsurf_status bsurf_mean_spacing_progress(const double *xyz, size_t point_count, 
                                          double *h, bsurf_progress_fn progress, void *user) {
   BSURF_REQUIRE(h, "h is NULL");
   BSURF_REQUIRE(xyz, "xyz is NULL");
-  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points", point_count);
+  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points",
+                point_count);
   if (point_count < 2)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_mean_spacing: %zu points, at least 2 needed",
-                             point_count);
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
+                             "bsurf_mean_spacing: %zu points, at least 2 needed", point_count);
   return knn_with_spacing(xyz, point_count, 2, threads, NULL, NULL, h, progress, user);
 }
 

@@ -33,7 +33,8 @@ static int morton_cmp(const void *a, const void *b) {
   return x->index < y->index ? -1 : (x->index > y->index);
 }
 
-bsurf_status bsurf_spatial_order(const double *xyz, size_t n, uint32_t **perm_out, uint32_t **rank_out) {
+bsurf_status bsurf_spatial_order(const double *xyz, size_t n, uint32_t **perm_out,
+                                 uint32_t **rank_out) {
   morton_key *keys = bsurf_alloc_array(n ? n : 1, sizeof *keys);
   uint32_t *perm = bsurf_alloc_array(n ? n : 1, sizeof *perm);
   uint32_t *rank = rank_out ? bsurf_alloc_array(n ? n : 1, sizeof *rank) : NULL;
@@ -72,7 +73,6 @@ bsurf_status bsurf_spatial_order(const double *xyz, size_t n, uint32_t **perm_ou
   if (rank_out) *rank_out = rank;
   return BSURF_OK;
 }
-
 
 const uint32_t *bsurf_visit_order(const bsurf_neighbors *nb, const double *xyz, uint32_t **owned) {
   *owned = NULL;

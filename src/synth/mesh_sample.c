@@ -77,7 +77,8 @@ static bsurf_status check_mesh(const bsurf_cloud *mesh) {
   BSURF_REQUIRE_IN("mesh", mesh->faces && mesh->face_count > 0, "the mesh has no face");
   const size_t n = mesh->point_count;
   for (size_t i = 0; i < 3 * mesh->face_count; i++)
-    BSURF_REQUIRE_IN("mesh", mesh->faces[i] < n, "face %zu uses vertex %u of %zu", i / 3, (unsigned)mesh->faces[i], n);
+    BSURF_REQUIRE_IN("mesh", mesh->faces[i] < n, "face %zu uses vertex %u of %zu", i / 3,
+                     (unsigned)mesh->faces[i], n);
   for (size_t i = 0; i < 3 * n; i++)
     if (!isfinite(mesh->xyz[i])) return BSURF_ERR_INVALID_VALUE;
   return BSURF_OK;
@@ -284,7 +285,8 @@ static void seg_tree_free(seg_tree *t) {
 }
 
 /* The tree of the m segments (pairs of point indices into xyz). */
-static bsurf_status seg_tree_build(seg_tree *t, const double *xyz, const uint32_t *pairs, size_t m) {
+static bsurf_status seg_tree_build(seg_tree *t, const double *xyz, const uint32_t *pairs,
+                                   size_t m) {
   memset(t, 0, sizeof *t);
   double *box = bsurf_alloc_array(m, 6 * sizeof(double));
   double *center = bsurf_alloc_array(m, 3 * sizeof(double));
@@ -362,10 +364,10 @@ bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
   BSURF_REQUIRE(out, "out is NULL");
   bsurf_cloud_init(out);
   bsurf_sample_options o = opts ? *opts : bsurf_sample_options_default();
-  BSURF_REQUIRE(o.sharp_angle_deg >= 0 && o.sharp_angle_deg <= 180, "sharp_angle_deg = %g: must be in [0, 180]",
-                o.sharp_angle_deg);
-  BSURF_REQUIRE(o.feature_width >= 0 && isfinite(o.feature_width), "feature_width = %g: must be finite and >= 0",
-                o.feature_width);
+  BSURF_REQUIRE(o.sharp_angle_deg >= 0 && o.sharp_angle_deg <= 180,
+                "sharp_angle_deg = %g: must be in [0, 180]", o.sharp_angle_deg);
+  BSURF_REQUIRE(o.feature_width >= 0 && isfinite(o.feature_width),
+                "feature_width = %g: must be finite and >= 0", o.feature_width);
   BSURF_REQUIRE(o.threads >= 0, "threads = %d: must be >= 0 (0 = all cores)", o.threads);
   bsurf_status st = check_mesh(mesh);
   if (st != BSURF_OK) return st;

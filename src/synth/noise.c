@@ -10,8 +10,7 @@
 #include <math.h>
 
 bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_t point_count,
-                             bsurf_noise_model model, double level, double scale,
-                             uint64_t seed) {
+                             bsurf_noise_model model, double level, double scale, uint64_t seed) {
   BSURF_REQUIRE(point_count == 0 || (xyz && normals), "xyz or normals is NULL");
   BSURF_REQUIRE(model == BSURF_NOISE_GAUSSIAN || model == BSURF_NOISE_UNIFORM,
                 "model = %d: must be BSURF_NOISE_GAUSSIAN or BSURF_NOISE_UNIFORM", (int)model);
@@ -29,7 +28,8 @@ bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_t point_co
                                             : level * bsurf_rng_normal(&rng);
     const double *n = &normals[3 * i];
     double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    for (int c = 0; c < 3; c++) xyz[3 * i + c] += t * scale * n[c] / len;
+    for (int c = 0; c < 3; c++)
+      xyz[3 * i + c] += t * scale * n[c] / len;
   }
   return BSURF_OK;
 }

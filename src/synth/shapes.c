@@ -40,8 +40,8 @@ static double shape_area(bsurf_shape shape) {
   return 1.0;
 }
 
-static void set_point(bsurf_cloud *c, size_t i, double x, double y, double z, double nx,
-                      double ny, double nz) {
+static void set_point(bsurf_cloud *c, size_t i, double x, double y, double z, double nx, double ny,
+                      double nz) {
   c->xyz[3 * i] = x;
   c->xyz[3 * i + 1] = y;
   c->xyz[3 * i + 2] = z;
@@ -81,9 +81,10 @@ bsurf_status bsurf_generate(bsurf_cloud *cloud, bsurf_shape shape, size_t n,
   BSURF_REQUIRE(n >= 1, "n = 0: at least one point");
   BSURF_REQUIRE((unsigned)shape <= BSURF_SHAPE_PLANE, "shape = %d: not a bsurf_shape", (int)shape);
   BSURF_REQUIRE(sampling == BSURF_SAMPLING_REGULAR || sampling == BSURF_SAMPLING_RANDOM,
-                "sampling = %d: must be BSURF_SAMPLING_REGULAR or BSURF_SAMPLING_RANDOM", (int)sampling);
-  BSURF_REQUIRE(feature_width >= 0 && isfinite(feature_width), "feature_width = %g: must be finite and >= 0",
-                feature_width);
+                "sampling = %d: must be BSURF_SAMPLING_REGULAR or BSURF_SAMPLING_RANDOM",
+                (int)sampling);
+  BSURF_REQUIRE(feature_width >= 0 && isfinite(feature_width),
+                "feature_width = %g: must be finite and >= 0", feature_width);
   size_t count = n;
   int grid = 0, rings = 0;
   if (sampling == BSURF_SAMPLING_REGULAR) {
@@ -128,8 +129,8 @@ bsurf_status bsurf_generate(bsurf_cloud *cloud, bsurf_shape shape, size_t n,
       size_t i = 0;
       for (int a = 0; a < grid; a++)
         for (int b = 0; b < grid; b++)
-          set_point(cloud, i++, -1.0 + (2.0 * a + 1.0) / grid, -1.0 + (2.0 * b + 1.0) / grid, 0,
-                    0, 0, 1);
+          set_point(cloud, i++, -1.0 + (2.0 * a + 1.0) / grid, -1.0 + (2.0 * b + 1.0) / grid, 0, 0,
+                    0, 1);
       break;
     }
     case BSURF_SHAPE_TORUS: {
@@ -210,8 +211,7 @@ bsurf_status bsurf_generate(bsurf_cloud *cloud, bsurf_shape shape, size_t n,
 
 double bsurf_shape_distance(bsurf_shape shape, const double p[3]) {
   switch (shape) {
-  case BSURF_SHAPE_SPHERE:
-    return fabs(sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) - 1.0);
+  case BSURF_SHAPE_SPHERE: return fabs(sqrt(p[0] * p[0] + p[1] * p[1] + p[2] * p[2]) - 1.0);
   case BSURF_SHAPE_TORUS: {
     double q = sqrt(p[0] * p[0] + p[1] * p[1]) - TORUS_R;
     return fabs(sqrt(q * q + p[2] * p[2]) - TORUS_r);

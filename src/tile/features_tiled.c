@@ -47,16 +47,16 @@
 typedef struct fd_run {
   bsurf_feature_options o; /* no progress: the engine reports it */
   const bsurf_tile_ops *base;
-  double *T;               /* T_{a/c} per size */
-  size_t stride, m;        /* the sample of the medians */
-  double *sample;          /* sizes x m */
+  double *T;        /* T_{a/c} per size */
+  size_t stride, m; /* the sample of the medians */
+  double *sample;   /* sizes x m */
   double h, R;
-  int fixup;               /* the -R fix-up is still to apply to the values read */
-  size_t immediate;        /* points that stopped at k_min */
-  double mx;               /* the largest map value */
-  double *pos;             /* auto T_h: the positive map values, index order */
+  int fixup;        /* the -R fix-up is still to apply to the values read */
+  size_t immediate; /* points that stopped at k_min */
+  double mx;        /* the largest map value */
+  double *pos;      /* auto T_h: the positive map values, index order */
   size_t npos;
-  double thr;              /* T_h, absolute */
+  double thr; /* T_h, absolute */
   size_t features;
 } fd_run;
 
@@ -71,7 +71,8 @@ static bsurf_status run_sample(void *user, const bsurf_tile *t, bsurf_cloud *cor
   (void)sums;
   fd_run *f = user;
   /* no values per point: the sample is kept by sample number in f->sample */
-  return bsurf_fdist_sample_ratios(t->xyz, t->nb, &f->o, t->point_index, f->stride, f->m, f->sample);
+  return bsurf_fdist_sample_ratios(t->xyz, t->nb, &f->o, t->point_index, f->stride, f->m,
+                                   f->sample);
 }
 
 /* (b) */
@@ -82,7 +83,8 @@ static bsurf_status run_raw(void *user, const bsurf_tile *t, bsurf_cloud *core, 
   const size_t nc = t->core_count;
   double *dist = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
   uint8_t *state = bsurf_alloc_array(nc ? nc : 1, 1);
-  bsurf_status st = dist && state ? bsurf_fdist_raw(t->xyz, t->nb, &f->o, f->T, dist, NULL, state) : BSURF_ERR_NOMEM;
+  bsurf_status st = dist && state ? bsurf_fdist_raw(t->xyz, t->nb, &f->o, f->T, dist, NULL, state)
+                                  : BSURF_ERR_NOMEM;
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
     t->values_out[2 * r] = dist[r];
     t->values_out[2 * r + 1] = state[r];
@@ -98,13 +100,16 @@ static bsurf_status run_filter(void *user, const bsurf_tile *t, bsurf_cloud *cor
   (void)sums;
   const fd_run *f = user;
   const size_t nc = t->core_count, nl = t->local_count;
-  double *in = bsurf_alloc_array(nl ? nl : 1, sizeof(double)), *out = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
+  double *in = bsurf_alloc_array(nl ? nl : 1, sizeof(double)),
+         *out = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
   bsurf_status st = in && out ? BSURF_OK : BSURF_ERR_NOMEM;
-  for (size_t l = 0; l < nl && st == BSURF_OK; l++) in[l] = fd_value(f, &t->values[2 * l]);
+  for (size_t l = 0; l < nl && st == BSURF_OK; l++)
+    in[l] = fd_value(f, &t->values[2 * l]);
   if (st == BSURF_OK) st = bsurf_fdist_filter(t->xyz, t->nb, &f->o, f->h, f->R, in, out);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
     t->values_out[2 * r] = out[r];
-    t->values_out[2 * r + 1] = t->values[2 * (size_t)t->nb->idx[r * (size_t)t->nb->k] + 1]; /* the state */
+    t->values_out[2 * r + 1] =
+        t->values[2 * (size_t)t->nb->idx[r * (size_t)t->nb->k] + 1]; /* the state */
   }
   free(in);
   free(out);
@@ -146,7 +151,8 @@ static void scan_final(fd_run *f, size_t count, const double *v) {
 
 static void scan_count(fd_run *f, size_t count, const double *v) {
   for (size_t i = 0; i < count; i++)
-    f->features += (size_t)bsurf_fdist_feature(fd_value(f, &v[2 * i]), (int)v[2 * i + 1], f->thr, f->o.threshold);
+    f->features += (size_t)bsurf_fdist_feature(fd_value(f, &v[2 * i]), (int)v[2 * i + 1], f->thr,
+                                               f->o.threshold);
 }
 
 /* the output: the caller's fields, then feature_dist and feature */
@@ -158,7 +164,8 @@ static bsurf_status prepare_out(void *user, bsurf_cloud *c) {
 static bsurf_status map_out(void *user, size_t first, bsurf_cloud *c, const double *values) {
   (void)first;
   const fd_run *f = user;
-  bsurf_field *score = bsurf_cloud_field(c, "feature_dist"), *feat = bsurf_cloud_field(c, "feature");
+  bsurf_field *score = bsurf_cloud_field(c, "feature_dist"),
+              *feat = bsurf_cloud_field(c, "feature");
   if (!score || !feat) return BSURF_ERR_INVALID_ARG;
   for (size_t i = 0; i < c->point_count; i++) {
     double x = fd_value(f, &values[2 * i]);
@@ -172,8 +179,8 @@ static bsurf_status map_out(void *user, size_t first, bsurf_cloud *c, const doub
  * (nvalues per point; 0 and out NULL: the tiles keep their results in f). */
 static bsurf_status stage(const char *input, const char *output, fd_run *f, int k, size_t nvalues,
                           bsurf_status (*run)(void *, const bsurf_tile *, bsurf_cloud *, double *),
-                          const bsurf_tile_values *in, bsurf_tile_values *out, bsurf_tile_report *rep,
-                          bsurf_failure *err) {
+                          const bsurf_tile_values *in, bsurf_tile_values *out,
+                          bsurf_tile_report *rep, bsurf_failure *err) {
   bsurf_tile_ops ops = *f->base;
   ops.k = k;
   ops.user = f;
@@ -220,9 +227,11 @@ static size_t ply_points(const char *path) {
   return n;
 }
 
-bsurf_status bsurf_features_distance_tiled(const char *input, const char *output, const bsurf_tile_ops *ops,
-                                           const bsurf_feature_options *opts, bsurf_feature_report *report,
-                                           bsurf_tile_report *tiles, bsurf_failure *err) {
+bsurf_status bsurf_features_distance_tiled(const char *input, const char *output,
+                                           const bsurf_tile_ops *ops,
+                                           const bsurf_feature_options *opts,
+                                           bsurf_feature_report *report, bsurf_tile_report *tiles,
+                                           bsurf_failure *err) {
   if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
   if (report) memset(report, 0, sizeof *report);
   if (!input || !output || !ops || !ops->prepare || !tiles)
@@ -233,7 +242,8 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
   f.o.progress = NULL;
   f.o.progress_user = NULL;
   f.base = ops;
-  if (f.o.method != BSURF_FEATURES_DISTANCE || bsurf_fdist_check(&f.o, f.o.k_max, SIZE_MAX) != BSURF_OK)
+  if (f.o.method != BSURF_FEATURES_DISTANCE ||
+      bsurf_fdist_check(&f.o, f.o.k_max, SIZE_MAX) != BSURF_OK)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid options of the distance method");
   const int sizes = bsurf_fdist_sizes(&f.o), fk = bsurf_fdist_filter_k(&f.o);
   const bsurf_tile_comm *cm = ops->comm;
@@ -282,11 +292,13 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
 
   /* (e) T_h over the final map, the feature count, the output */
   const bsurf_status passed = st; /* the same on every rank (the runs agree) */
-  if (st == BSURF_OK && isnan(f.o.threshold) && !(f.pos = bsurf_alloc_array(cur.count ? cur.count : 1, sizeof(double))))
+  if (st == BSURF_OK && isnan(f.o.threshold) &&
+      !(f.pos = bsurf_alloc_array(cur.count ? cur.count : 1, sizeof(double))))
     st = BSURF_ERR_NOMEM;
   f.mx = -INFINITY;
   if (st == BSURF_OK) st = values_scan(&f, &cur, scan_final);
-  if (st == BSURF_OK) f.thr = isnan(f.o.threshold) ? bsurf_fdist_otsu_positive(f.pos, f.npos) : f.o.threshold * f.mx;
+  if (st == BSURF_OK)
+    f.thr = isnan(f.o.threshold) ? bsurf_fdist_otsu_positive(f.pos, f.npos) : f.o.threshold * f.mx;
   free(f.pos);
   f.pos = NULL;
   if (st == BSURF_OK) st = values_scan(&f, &cur, scan_count);

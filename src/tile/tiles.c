@@ -167,8 +167,9 @@ static bsurf_status scratch_create(const char *near, size_t bytes, int map, tile
   if (e) {
     if (name) unlink(tmp);
     map_close(m);
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot make a scratch file of %zu bytes beside %s: %s",
-                      bytes, near, strerror(e));
+    return bsurf_fail(err, BSURF_ERR_IO, 0, -1,
+                      "cannot make a scratch file of %zu bytes beside %s: %s", bytes, near,
+                      strerror(e));
   }
   return BSURF_OK;
 }
@@ -209,7 +210,7 @@ typedef struct tiles_ctx {
   const bsurf_tile_comm *comm;
   tile_map in;
   io_ply_layout layout;
-  bsurf_cloud schema; /* the input's properties (point 0) */
+  bsurf_cloud schema;     /* the input's properties (point 0) */
   bsurf_cloud out_schema; /* the same prepared by the command */
   size_t n;
   int k;
@@ -228,19 +229,19 @@ typedef struct tiles_ctx {
   int af_open;
   int out; /* the output's (temporary) file: every rank, -1 */
   /* the tiles' results (assemble below): one block per tile at block[t] */
-  int scr; /* file descriptor, -1 */
+  int scr;      /* file descriptor, -1 */
   size_t range; /* at most this many points per range of the output */
   size_t nranges;
-  size_t *range_lo; /* nranges + 1: range r is the points [range_lo[r], range_lo[r + 1]) */
-  size_t *block; /* ntiles + 1 offsets */
+  size_t *range_lo;  /* nranges + 1: range r is the points [range_lo[r], range_lo[r + 1]) */
+  size_t *block;     /* ntiles + 1 offsets */
   double *tile_sums; /* ntiles x (nsums + 1): the accumulators, then duplicates */
   /* two-stage runs (docs/scaling.md) */
-  size_t vcols;   /* values per point written: nvalues + the K-th squared distance; 0: none */
-  int vfd;        /* the values file in index order (every rank has it open), -1 */
-  tile_map vin;   /* values_in, mapped read-only */
+  size_t vcols;    /* values per point written: nvalues + the K-th squared distance; 0: none */
+  int vfd;         /* the values file in index order (every rank has it open), -1 */
+  tile_map vin;    /* values_in, mapped read-only */
   size_t vin_cols; /* its columns (values_in->nvalues + 1) */
   double *cellmax; /* reverse: per cell, the largest K-th squared distance of its points */
-  double rmax2;   /* the largest of all */
+  double rmax2;    /* the largest of all */
 } tiles_ctx;
 
 static void xyz_of(const tiles_ctx *c, uint64_t i, double p[3]) {
@@ -254,7 +255,8 @@ static bsurf_status cloud_like(const bsurf_cloud *schema, size_t n, bsurf_cloud 
   out->normal_type = schema->normal_type;
   memcpy(out->shape, schema->shape, sizeof out->shape);
   for (size_t f = 0; f < schema->field_count && st == BSURF_OK; f++)
-    if (!bsurf_cloud_add_field(out, schema->fields[f].name, schema->fields[f].type)) st = BSURF_ERR_NOMEM;
+    if (!bsurf_cloud_add_field(out, schema->fields[f].name, schema->fields[f].type))
+      st = BSURF_ERR_NOMEM;
   return st;
 }
 
@@ -271,8 +273,12 @@ static size_t cell_id(const tiles_ctx *c, const uint32_t cc[3]) {
 
 /* ---- the ranks --------------------------------------------------------------- */
 
-static int rank_of(const tiles_ctx *c) { return c->comm ? c->comm->rank : 0; }
-static int ranks_of(const tiles_ctx *c) { return c->comm ? c->comm->ranks : 1; }
+static int rank_of(const tiles_ctx *c) {
+  return c->comm ? c->comm->rank : 0;
+}
+static int ranks_of(const tiles_ctx *c) {
+  return c->comm ? c->comm->ranks : 1;
+}
 
 /* The first of rank r's share of n items in order (contiguous shares that
  * differ by at most one; r = ranks gives n). */
@@ -287,7 +293,8 @@ static bsurf_status agree(const bsurf_tile_comm *cm, bsurf_status st) {
 }
 
 /* Opens (and maps, when `map`) the scratch file `name` another rank made. */
-static bsurf_status scratch_open(const char *name, size_t bytes, int map, tile_map *m, bsurf_failure *err) {
+static bsurf_status scratch_open(const char *name, size_t bytes, int map, tile_map *m,
+                                 bsurf_failure *err) {
   m->data = NULL;
   m->size = bytes;
   m->fd = open(name, O_RDWR);
@@ -298,7 +305,8 @@ static bsurf_status scratch_open(const char *name, size_t bytes, int map, tile_m
   }
   if (e) {
     map_close(m);
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open the scratch file %s: %s", name, strerror(e));
+    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open the scratch file %s: %s", name,
+                      strerror(e));
   }
   return BSURF_OK;
 }
@@ -306,8 +314,8 @@ static bsurf_status scratch_open(const char *name, size_t bytes, int map, tile_m
 /* A scratch file every rank shares (collective): rank 0 creates it beside
  * `near`, the others open it by name, and the name is removed as soon as
  * every rank has it open, so no exit, however abrupt, leaves it behind. */
-static bsurf_status shared_scratch(const tiles_ctx *c, const char *near, size_t bytes, int map, tile_map *m,
-                                   bsurf_failure *err) {
+static bsurf_status shared_scratch(const tiles_ctx *c, const char *near, size_t bytes, int map,
+                                   tile_map *m, bsurf_failure *err) {
   const bsurf_tile_comm *cm = c->comm;
   m->data = NULL;
   m->size = 0;
@@ -352,10 +360,12 @@ typedef struct bounds_part {
  * first of equal values stays), and the first rank that failed gives the
  * status: its bad point is the lowest index of any. */
 static bsurf_status pass_bounds(tiles_ctx *c, bsurf_tile_report *rep) {
-  const size_t a = share_start(c->n, rank_of(c), ranks_of(c)), b = share_start(c->n, rank_of(c) + 1, ranks_of(c));
+  const size_t a = share_start(c->n, rank_of(c), ranks_of(c)),
+               b = share_start(c->n, rank_of(c) + 1, ranks_of(c));
   bounds_part mine;
   memset(&mine, 0, sizeof mine);
-  for (int d = 0; d < 3; d++) mine.lo[d] = INFINITY, mine.hi[d] = -INFINITY;
+  for (int d = 0; d < 3; d++)
+    mine.lo[d] = INFINITY, mine.hi[d] = -INFINITY;
   bsurf_cloud one;
   bsurf_status st = cloud_like(&c->schema, 1, &one);
   for (size_t i = a; i < b && st == BSURF_OK; i++) {
@@ -392,7 +402,8 @@ static bsurf_status pass_bounds(tiles_ctx *c, bsurf_tile_report *rep) {
     }
     c->comm->allgather(c->comm->user, &mine, all, sizeof mine);
   }
-  for (int d = 0; d < 3; d++) c->lo[d] = INFINITY, c->hi[d] = -INFINITY;
+  for (int d = 0; d < 3; d++)
+    c->lo[d] = INFINITY, c->hi[d] = -INFINITY;
   st = BSURF_OK;
   for (int r = 0; r < ranks && st == BSURF_OK; r++) {
     st = (bsurf_status)all[r].st;
@@ -434,7 +445,8 @@ static void make_grid(tiles_ctx *c) {
     s *= 1.25;
   }
   c->cell = s;
-  for (int a = 0; a < 3; a++) c->origin[a] = c->lo[a];
+  for (int a = 0; a < 3; a++)
+    c->origin[a] = c->lo[a];
 }
 
 /* Passes 2 and 3: counts per cell, then the point indices sorted by cell
@@ -444,7 +456,8 @@ static void make_grid(tiles_ctx *c) {
  * of a cell after those of ranks 0 .. r-1, so the file is the one-process
  * pass's whatever the rank count. */
 static bsurf_status pass_sort(tiles_ctx *c, const char *output, bsurf_failure *err) {
-  const size_t a = share_start(c->n, rank_of(c), ranks_of(c)), b = share_start(c->n, rank_of(c) + 1, ranks_of(c));
+  const size_t a = share_start(c->n, rank_of(c), ranks_of(c)),
+               b = share_start(c->n, rank_of(c) + 1, ranks_of(c));
   c->cell_start = bsurf_calloc_array(c->cells + 1, sizeof *c->cell_start);
   uint64_t *cursor = bsurf_calloc_array(c->cells, sizeof *cursor);
   bsurf_status st = c->cell_start && cursor ? BSURF_OK : BSURF_ERR_NOMEM;
@@ -541,7 +554,8 @@ static bsurf_status make_tiles(tiles_ctx *c) {
     int split = 0;
     tile_box lo_box = b, hi_box = b;
     if (b.count > c->ops->tile_points) {
-      for (int a = 0; a < 3; a++) memset(slab[a], 0, (b.hi[a] - b.lo[a]) * sizeof(size_t));
+      for (int a = 0; a < 3; a++)
+        memset(slab[a], 0, (b.hi[a] - b.lo[a]) * sizeof(size_t));
       box_count(c, &b, slab);
       int order[3] = {0, 1, 2};
       for (int i = 0; i < 3; i++) /* widest side first (ties: x, y, z) */
@@ -597,7 +611,8 @@ static bsurf_status make_tiles(tiles_ctx *c) {
     }
   }
   free(stack);
-  for (int a = 0; a < 3; a++) free(slab[a]);
+  for (int a = 0; a < 3; a++)
+    free(slab[a]);
   return st;
 }
 
@@ -644,12 +659,12 @@ typedef struct search_ctx {
   size_t m;
   const bsurf_knn_index *index;
   const uint64_t *core; /* the points searched (the tile's, and in reverse mode its candidates) */
-  size_t *pending; /* their positions to search */
+  size_t *pending;      /* their positions to search */
   double rlo[3], rhi[3];
-  int complete; /* the region holds the whole cloud */
-  uint64_t *rows;  /* core x k global indices */
-  double *nn2;     /* core */
-  double *kth2;    /* core: squared distance to the K-th (the row's last) */
+  int complete;   /* the region holds the whole cloud */
+  uint64_t *rows; /* core x k global indices */
+  double *nn2;    /* core */
+  double *kth2;   /* core: squared distance to the K-th (the row's last) */
   uint8_t *done, *dup;
   uint32_t *qidx; /* threads x k */
   double *qd2;    /* threads x k */
@@ -707,7 +722,8 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
                            const double rhi[3], u64vec *G) {
   uint32_t clo[3], chi[3];
   for (int a = 0; a < 3; a++) {
-    double tl = floor((rlo[a] - c->origin[a]) / c->cell) - 1, th = floor((rhi[a] - c->origin[a]) / c->cell) + 2;
+    double tl = floor((rlo[a] - c->origin[a]) / c->cell) - 1,
+           th = floor((rhi[a] - c->origin[a]) / c->cell) + 2;
     clo[a] = !(tl > 0) ? 0 : tl >= c->dim[a] ? c->dim[a] : (uint32_t)tl;
     chi[a] = !(th > 0) ? 0 : th >= c->dim[a] ? c->dim[a] : (uint32_t)th;
     if (clo[a] > b->lo[a]) clo[a] = b->lo[a];
@@ -722,8 +738,8 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
       for (uint32_t x = clo[0]; x < chi[0]; x++) {
         uint32_t cc[3] = {x, y, z};
         size_t j = cell_id(c, cc);
-        int in_tile = x >= b->lo[0] && x < b->hi[0] && y >= b->lo[1] && y < b->hi[1] && z >= b->lo[2] &&
-                      z < b->hi[2];
+        int in_tile = x >= b->lo[0] && x < b->hi[0] && y >= b->lo[1] && y < b->hi[1] &&
+                      z >= b->lo[2] && z < b->hi[2];
         for (uint64_t s = c->cell_start[j]; s < c->cell_start[j + 1]; s++) {
           if (u64_push(in_tile ? G : &cand, sorted[s])) {
             free(cand.v);
@@ -738,8 +754,8 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
     uint64_t i = cand.v[j];
     xyz_of(c, i, p);
     sweep_at(&sw, c->layout.body + (size_t)i * c->layout.record);
-    if (p[0] >= rlo[0] && p[0] <= rhi[0] && p[1] >= rlo[1] && p[1] <= rhi[1] && p[2] >= rlo[2] && p[2] <= rhi[2] &&
-        u64_push(G, i)) {
+    if (p[0] >= rlo[0] && p[0] <= rhi[0] && p[1] >= rlo[1] && p[1] <= rhi[1] && p[2] >= rlo[2] &&
+        p[2] <= rhi[2] && u64_push(G, i)) {
       free(cand.v);
       return BSURF_ERR_NOMEM;
     }
@@ -821,7 +837,9 @@ static void work_free(tile_work *w) {
 
 #define BLOCK_CHUNK ((size_t)1 << 20) /* bytes per read or write of entries */
 
-static size_t entry_bytes(const tiles_ctx *c) { return 16 + c->vcols * sizeof(double) + c->record; }
+static size_t entry_bytes(const tiles_ctx *c) {
+  return 16 + c->vcols * sizeof(double) + c->record;
+}
 
 /* The ranges are the subtrees of bsurf_sum_sqrt's cascade (halves, the
  * lower n / 2 first) that hold at most c->range points, in index order: each
@@ -866,19 +884,21 @@ static bsurf_status plan_blocks(tiles_ctx *c) {
   c->range_lo[c->nranges] = c->n;
   c->block[0] = 0;
   for (size_t t = 0; t < c->ntiles; t++)
-    c->block[t + 1] = c->block[t] + (c->nranges + 1) * sizeof(uint64_t) + c->tiles[t].count * entry_bytes(c);
+    c->block[t + 1] =
+        c->block[t] + (c->nranges + 1) * sizeof(uint64_t) + c->tiles[t].count * entry_bytes(c);
   return BSURF_OK;
 }
 
 static bsurf_status scratch_error(bsurf_failure *err, const char *what, int e) {
-  return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot %s the scratch file of the tiles' rows: %s", what,
-                    strerror(e));
+  return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot %s the scratch file of the tiles' rows: %s",
+                    what, strerror(e));
 }
 
 /* Tile t's block: core (increasing global indices), nn2, the values (vcols
  * each) and the encoded rows of its nc points. */
-static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *core, const double *nn2,
-                                const double *vals, const unsigned char *enc, size_t nc, bsurf_failure *err) {
+static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *core,
+                                const double *nn2, const double *vals, const unsigned char *enc,
+                                size_t nc, bsurf_failure *err) {
   assert(nc == c->tiles[t].count);
   const size_t eb = entry_bytes(c), per = BLOCK_CHUNK / eb ? BLOCK_CHUNK / eb : 1;
   uint64_t *cuts = bsurf_alloc_array(c->nranges + 1, sizeof *cuts);
@@ -888,7 +908,8 @@ static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *co
     free(buf);
     return BSURF_ERR_NOMEM;
   }
-  for (size_t r = 0; r < c->nranges; r++) cuts[r] = find_u64(core, nc, (uint64_t)c->range_lo[r]);
+  for (size_t r = 0; r < c->nranges; r++)
+    cuts[r] = find_u64(core, nc, (uint64_t)c->range_lo[r]);
   cuts[c->nranges] = nc;
   size_t off = c->block[t];
   int e = pwrite_all(c->scr, cuts, (c->nranges + 1) * sizeof *cuts, off);
@@ -900,7 +921,8 @@ static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *co
       memcpy(p, &core[j + q], 8);
       memcpy(p + 8, &nn2[j + q], 8);
       if (c->vcols) memcpy(p + 16, vals + (j + q) * c->vcols, c->vcols * sizeof(double));
-      if (c->record) memcpy(p + 16 + c->vcols * sizeof(double), enc + (j + q) * c->record, c->record);
+      if (c->record)
+        memcpy(p + 16 + c->vcols * sizeof(double), enc + (j + q) * c->record, c->record);
     }
     e = pwrite_all(c->scr, buf, m * eb, off);
     off += m * eb;
@@ -914,8 +936,8 @@ static bsurf_status write_block(const tiles_ctx *c, size_t t, const uint64_t *co
  * and placed in rows (record bytes each), vals (vcols doubles each: a first
  * stage's values) and nn (squared nearest distances); buf holds `per`
  * entries. */
-static bsurf_status load_range(const tiles_ctx *c, size_t r, unsigned char *rows, double *vals, double *nn,
-                               unsigned char *buf, size_t per, bsurf_failure *err) {
+static bsurf_status load_range(const tiles_ctx *c, size_t r, unsigned char *rows, double *vals,
+                               double *nn, unsigned char *buf, size_t per, bsurf_failure *err) {
   const size_t eb = entry_bytes(c), lo = c->range_lo[r], hi = c->range_lo[r + 1];
   size_t placed = 0;
   int e = 0;
@@ -941,7 +963,8 @@ static bsurf_status load_range(const tiles_ctx *c, size_t r, unsigned char *rows
         }
         memcpy(&nn[i - lo], p + 8, 8);
         if (c->vcols) memcpy(vals + (i - lo) * c->vcols, p + 16, c->vcols * sizeof(double));
-        if (c->record) memcpy(rows + (i - lo) * c->record, p + 16 + c->vcols * sizeof(double), c->record);
+        if (c->record)
+          memcpy(rows + (i - lo) * c->record, p + 16 + c->vcols * sizeof(double), c->record);
       }
       placed += m;
     }
@@ -977,7 +1000,8 @@ static bsurf_status assemble(const tiles_ctx *c, double *range_sum, bsurf_failur
     int e = c->record ? pwrite_all(c->out, rows, m * c->record, c->header + lo * c->record) : 0;
     if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(e));
     if (st == BSURF_OK && vb && (e = pwrite_all(c->vfd, vals, m * vb, lo * vb)))
-      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the scratch file of the values: %s", strerror(e));
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the scratch file of the values: %s",
+                      strerror(e));
   }
   free(rows);
   free(vals);
@@ -993,14 +1017,15 @@ static bsurf_status assemble(const tiles_ctx *c, double *range_sum, bsurf_failur
  * 1e-9 on the distances. */
 static double cell_slack(const tiles_ctx *c) {
   double m = 0;
-  for (int a = 0; a < 3; a++) m = fmax(m, fmax(fabs(c->lo[a]), fabs(c->hi[a])));
+  for (int a = 0; a < 3; a++)
+    m = fmax(m, fmax(fabs(c->lo[a]), fabs(c->hi[a])));
   return 1e-9 * c->cell + 1e-12 * m;
 }
 
 /* The extent on axis a of the cells [lo, hi), widened by slack; the outer
  * cells reach to infinity (the grid clamps points beyond it into them). */
-static void cells_span(const tiles_ctx *c, int a, uint32_t lo, uint32_t hi, double slack, double *blo,
-                       double *bhi) {
+static void cells_span(const tiles_ctx *c, int a, uint32_t lo, uint32_t hi, double slack,
+                       double *blo, double *bhi) {
   *blo = lo == 0 ? -INFINITY : c->origin[a] + c->cell * lo - slack;
   *bhi = hi >= c->dim[a] ? INFINITY : c->origin[a] + c->cell * hi + slack;
 }
@@ -1055,7 +1080,8 @@ static bsurf_status cell_maxima(tiles_ctx *c) {
  * is tested with its own r_i. A superset (margins for rounding): the exact
  * K-neighbourhoods of the candidates, searched with the tile's, decide.
  * *r2max: the candidates' largest r_i^2. */
-static bsurf_status reverse_candidates(const tiles_ctx *c, const tile_box *b, u64vec *cand, double *r2max) {
+static bsurf_status reverse_candidates(const tiles_ctx *c, const tile_box *b, u64vec *cand,
+                                       double *r2max) {
   const double slack = cell_slack(c), reach = sqrt(c->rmax2) * (1 + 1e-9) + 2 * slack;
   double blo[3], bhi[3];
   uint32_t clo[3], chi[3];
@@ -1074,7 +1100,8 @@ static bsurf_status reverse_candidates(const tiles_ctx *c, const tile_box *b, u6
         uint32_t cc[3] = {x, y, z};
         size_t j = cell_id(c, cc);
         if (c->cell_start[j] == c->cell_start[j + 1]) continue;
-        if (x >= b->lo[0] && x < b->hi[0] && y >= b->lo[1] && y < b->hi[1] && z >= b->lo[2] && z < b->hi[2])
+        if (x >= b->lo[0] && x < b->hi[0] && y >= b->lo[1] && y < b->hi[1] && z >= b->lo[2] &&
+            z < b->hi[2])
           continue; /* the tile's own */
         double d2 = 0;
         for (int a = 0; a < 3; a++) {
@@ -1156,19 +1183,23 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
   w.cpos = bsurf_alloc_array(nc, sizeof *w.cpos);
   w.qidx = bsurf_alloc_array((size_t)T, (size_t)k * sizeof *w.qidx);
   w.qd2 = bsurf_alloc_array((size_t)T, (size_t)k * sizeof *w.qd2);
-  if (!w.S.v || !w.rows || !w.nn2 || !w.kth2 || !w.done || !w.dup || !w.pending || !w.cpos || !w.qidx ||
-      !w.qd2) {
+  if (!w.S.v || !w.rows || !w.nn2 || !w.kth2 || !w.done || !w.dup || !w.pending || !w.cpos ||
+      !w.qidx || !w.qd2) {
     free(by_cell);
     st = BSURF_ERR_NOMEM;
     goto out;
   }
   for (size_t q = 0, a = 0, e = 0; q < ns; q++)
-    w.S.v[q] = e >= w.cand.n || (a < nc && w.core.v[a] < w.cand.v[e]) ? w.core.v[a++] : w.cand.v[e++];
+    w.S.v[q] =
+        e >= w.cand.n || (a < nc && w.core.v[a] < w.cand.v[e]) ? w.core.v[a++] : w.cand.v[e++];
   w.S.n = w.S.cap = ns;
   size_t npend = ns;
-  for (size_t j = 0; j < nc; j++) w.pending[j] = find_u64(w.S.v, ns, by_cell[j]);
-  for (size_t q = 0; q < w.cand.n; q++) w.pending[nc + q] = find_u64(w.S.v, ns, w.cand.v[q]);
-  for (size_t j = 0; j < nc; j++) w.cpos[j] = find_u64(w.S.v, ns, w.core.v[j]);
+  for (size_t j = 0; j < nc; j++)
+    w.pending[j] = find_u64(w.S.v, ns, by_cell[j]);
+  for (size_t q = 0; q < w.cand.n; q++)
+    w.pending[nc + q] = find_u64(w.S.v, ns, w.cand.v[q]);
+  for (size_t j = 0; j < nc; j++)
+    w.cpos[j] = find_u64(w.S.v, ns, w.core.v[j]);
   free(by_cell);
 
   /* the candidates lie within r_i of the tile and their balls within 2 r_i:
@@ -1259,7 +1290,8 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
           w.mark[find_u64(w.G.v, m, w.S.v[q])] = 1;
         }
       }
-    for (size_t j = 0; j < nc; j++) w.rev_off[j + 1] += w.rev_off[j];
+    for (size_t j = 0; j < nc; j++)
+      w.rev_off[j + 1] += w.rev_off[j];
   }
   size_t nl = 0;
   for (size_t j = 0; j < m; j++)
@@ -1271,7 +1303,8 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
   }
   for (size_t j = 0; j < m; j++)
     if (w.mark[j]) memcpy(w.lxyz + 3 * (size_t)w.local[j], w.gx + 3 * j, 3 * sizeof(double));
-  for (size_t e = 0; e < nc * (size_t)k; e++) w.idx[e] = w.local[w.idx[e]];
+  for (size_t e = 0; e < nc * (size_t)k; e++)
+    w.idx[e] = w.local[w.idx[e]];
   if (c->ops->reverse) { /* the lists, each in increasing index (S is) */
     size_t *fill = bsurf_alloc_array(nc + 1, sizeof *fill);
     w.rev = bsurf_alloc_array(w.rev_off[nc] + 1, sizeof *w.rev);
@@ -1335,12 +1368,14 @@ static bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsur
   }
 
   bsurf_neighbors nb = {nc, k, w.idx, 0.0, NULL};
-  bsurf_tile tile = {t, c->ntiles, nc, nl, w.lxyz, w.core.v, &nb, halo, w.lvals, w.vout, w.rev_off, w.rev};
+  bsurf_tile tile = {t,   c->ntiles, nc,      nl,     w.lxyz,    w.core.v,
+                     &nb, halo,      w.lvals, w.vout, w.rev_off, w.rev};
   double *sums = c->tile_sums + t * (c->ops->nsums + 1);
   st = c->ops->run(c->ops->user, &tile, &core, sums);
   if (st != BSURF_OK) goto out;
   size_t dups = 0;
-  for (size_t j = 0; j < nc; j++) dups += w.dup[j];
+  for (size_t j = 0; j < nc; j++)
+    dups += w.dup[j];
   sums[c->ops->nsums] = (double)dups;
 
   /* the rows, values and squared nearest distances (for h) to the block */
@@ -1384,7 +1419,8 @@ out:
 static size_t record_of(const bsurf_cloud *schema) {
   size_t record = 3 * io_type_size(schema->xyz_type);
   if (schema->normals) record += 3 * io_type_size(schema->normal_type);
-  for (size_t f = 0; f < schema->field_count; f++) record += io_type_size(schema->fields[f].type);
+  for (size_t f = 0; f < schema->field_count; f++)
+    record += io_type_size(schema->fields[f].type);
   return record;
 }
 
@@ -1395,7 +1431,8 @@ static bsurf_status create_output(tiles_ctx *c, const char *output, bsurf_failur
   if (st != BSURF_OK) return st;
   c->af_open = 1;
   if (c->af.direct) /* its ranges are written at their offsets */
-    return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "tiled runs write a regular file, not a FIFO or device");
+    return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1,
+                      "tiled runs write a regular file, not a FIFO or device");
   io_writer w = {c->af.f, 0, 0};
   size_t record = 0;
   st = io_ply_write_header(&w, &c->out_schema, c->n, &record);
@@ -1403,12 +1440,14 @@ static bsurf_status create_output(tiles_ctx *c, const char *output, bsurf_failur
   if (fflush(c->af.f) != 0) w.failed = 1, w.err_no = errno;
   long pos = ftell(c->af.f);
   if (w.failed || pos < 0)
-    st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write: %s", strerror(w.err_no ? w.err_no : EIO));
+    st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write: %s",
+                    strerror(w.err_no ? w.err_no : EIO));
   c->header = (size_t)pos;
   if (st == BSURF_OK) {
     size_t total = c->header + c->n * c->record;
     int e = posix_fallocate(fileno(c->af.f), 0, (off_t)total);
-    if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write %zu bytes: %s", total, strerror(e));
+    if (e)
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write %zu bytes: %s", total, strerror(e));
   }
   return st;
 }
@@ -1439,14 +1478,16 @@ static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_failure
       if (strlen(c->af.tmp) < sizeof out.name)
         strcpy(out.name, c->af.tmp);
       else
-        st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "the output's path is too long for a distributed run");
+        st = bsurf_fail(err, BSURF_ERR_IO, 0, -1,
+                        "the output's path is too long for a distributed run");
     }
     st = agree(cm, st);
     if (st == BSURF_OK) cm->broadcast(cm->user, &out, sizeof out);
     if (st == BSURF_OK && rank != 0) {
       c->header = (size_t)out.header;
       c->out = open(out.name, O_WRONLY);
-      if (c->out < 0) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", out.name, strerror(errno));
+      if (c->out < 0)
+        st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot open %s: %s", out.name, strerror(errno));
     }
     st = agree(cm, st);
   }
@@ -1464,30 +1505,35 @@ static bsurf_status open_outputs(tiles_ctx *c, const char *output, bsurf_failure
 
 /* ---- the values of a first stage ----------------------------------------- */
 
-static size_t values_bytes(const bsurf_tile_values *v) { return v->count * (v->nvalues + 1) * sizeof(double); }
+static size_t values_bytes(const bsurf_tile_values *v) {
+  return v->count * (v->nvalues + 1) * sizeof(double);
+}
 
 /* The values of a first stage over the same input (n points), mapped
  * read-only (the descriptor stays the caller's). */
-static bsurf_status map_values(const bsurf_tile_values *v, size_t n, tile_map *m, bsurf_failure *err) {
+static bsurf_status map_values(const bsurf_tile_values *v, size_t n, tile_map *m,
+                               bsurf_failure *err) {
   m->fd = -1;
   m->data = NULL;
   m->size = 0;
   if (v->fd < 0 || v->count != n)
-    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "the first stage's values are of %zu points, not %zu",
-                      v->count, n);
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
+                      "the first stage's values are of %zu points, not %zu", v->count, n);
   m->data = mmap(NULL, values_bytes(v), PROT_READ, MAP_SHARED, v->fd, 0);
   if (m->data == MAP_FAILED) {
     m->data = NULL;
-    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot map the scratch file of the values: %s", strerror(errno));
+    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot map the scratch file of the values: %s",
+                      strerror(errno));
   }
   m->size = values_bytes(v);
   return BSURF_OK;
 }
 
-bsurf_status bsurf_tile_values_read(const bsurf_tile_values *v, size_t first, size_t count, double *out) {
+bsurf_status bsurf_tile_values_read(const bsurf_tile_values *v, size_t first, size_t count,
+                                    double *out) {
   BSURF_REQUIRE(v && v->fd >= 0, "no values file (v is NULL or closed)");
-  BSURF_REQUIRE(first <= v->count && count <= v->count - first, "points [%zu, %zu + %zu) outside [0, %zu)", first,
-                first, count, v->count);
+  BSURF_REQUIRE(first <= v->count && count <= v->count - first,
+                "points [%zu, %zu + %zu) outside [0, %zu)", first, first, count, v->count);
   BSURF_REQUIRE(out || !count, "out is NULL");
   const size_t cols = v->nvalues + 1, per = 65536;
   double *buf = bsurf_alloc_array(per, cols * sizeof(double));
@@ -1511,8 +1557,9 @@ void bsurf_tile_values_close(bsurf_tile_values *v) {
 bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_tile_ops *ops,
                              bsurf_tile_report *report, bsurf_failure *err) {
   if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
-  if (!input || !output || !ops || !report || !ops->run || ops->k < 1 || (ops->nsums && !report->sums) ||
-      (ops->nvalues && !ops->values_out) || (ops->reverse && !ops->values_in))
+  if (!input || !output || !ops || !report || !ops->run || ops->k < 1 ||
+      (ops->nsums && !report->sums) || (ops->nvalues && !ops->values_out) ||
+      (ops->reverse && !ops->values_in))
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
   double *user_sums = report->sums;
   memset(report, 0, sizeof *report);
@@ -1535,10 +1582,11 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
     c.n = c.layout.count;
     report->points = c.n;
     if (c.n < (size_t)c.k || c.n == 0)
-      st = bsurf_fail(err, BSURF_ERR_TOO_FEW_POINTS, 0, -1, "has %zu points, fewer than K = %d", c.n, c.k);
+      st = bsurf_fail(err, BSURF_ERR_TOO_FEW_POINTS, 0, -1, "has %zu points, fewer than K = %d",
+                      c.n, c.k);
     else if (ops->tile_points < 2 * (size_t)c.k)
-      st = bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "tiles of %zu points are too small for K = %d",
-                      ops->tile_points, c.k);
+      st = bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
+                      "tiles of %zu points are too small for K = %d", ops->tile_points, c.k);
   }
   if (st == BSURF_OK) {
     st = cloud_like(&c.schema, 1, &c.out_schema);
@@ -1573,7 +1621,8 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   if (st == BSURF_OK) st = open_outputs(&c, output, err);
 
   size_t done = 0, mine = 0;
-  for (size_t t = (size_t)rank; t < c.ntiles; t += (size_t)ranks) mine += c.tiles[t].count;
+  for (size_t t = (size_t)rank; t < c.ntiles; t += (size_t)ranks)
+    mine += c.tiles[t].count;
   for (size_t t = (size_t)rank; t < c.ntiles && st == BSURF_OK; t += (size_t)ranks) {
     st = do_tile(&c, t, report, err);
     done += c.tiles[t].count;
@@ -1587,9 +1636,11 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
     /* the accumulators of every tile, then the totals in tile order */
     size_t width = ops->nsums + 1;
     if (c.comm) c.comm->sum(c.comm->user, c.tile_sums, c.ntiles * width);
-    for (size_t i = 0; i < ops->nsums; i++) report->sums[i] = 0;
+    for (size_t i = 0; i < ops->nsums; i++)
+      report->sums[i] = 0;
     for (size_t t = 0; t < c.ntiles; t++) {
-      for (size_t i = 0; i < ops->nsums; i++) report->sums[i] += c.tile_sums[t * width + i];
+      for (size_t i = 0; i < ops->nsums; i++)
+        report->sums[i] += c.tile_sums[t * width + i];
       report->duplicates += (size_t)c.tile_sums[t * width + ops->nsums];
     }
     if (c.comm) {
@@ -1602,8 +1653,10 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
         c.comm->sum(c.comm->user, all, (size_t)ranks * 3);
         report->halo_grown = 0;
         for (int r = 0; r < ranks; r++) {
-          if (all[3 * r] > (double)report->max_tile_points) report->max_tile_points = (size_t)all[3 * r];
-          if (all[3 * r + 1] > (double)report->max_local_points) report->max_local_points = (size_t)all[3 * r + 1];
+          if (all[3 * r] > (double)report->max_tile_points)
+            report->max_tile_points = (size_t)all[3 * r];
+          if (all[3 * r + 1] > (double)report->max_local_points)
+            report->max_local_points = (size_t)all[3 * r + 1];
           report->halo_grown += (size_t)all[3 * r + 2];
         }
         free(all);
@@ -1632,7 +1685,8 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
       double *all = range_sum + c.nranges;
       c.comm->allgather(c.comm->user, range_sum, all, c.nranges * sizeof *range_sum);
       for (int r = 0; r < ranks; r++)
-        for (size_t q = share_start(c.nranges, r, ranks); q < share_start(c.nranges, r + 1, ranks); q++)
+        for (size_t q = share_start(c.nranges, r, ranks); q < share_start(c.nranges, r + 1, ranks);
+             q++)
           range_sum[q] = all[(size_t)r * c.nranges + q];
     }
     size_t next = 0;
@@ -1676,7 +1730,8 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
 /* ---- a pointwise second stage ------------------------------------------------ */
 
 bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_tile_ops *ops,
-                             const bsurf_tile_values *values, bsurf_tile_map_fn map, bsurf_failure *err) {
+                             const bsurf_tile_values *values, bsurf_tile_map_fn map,
+                             bsurf_failure *err) {
   if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
   if (!input || !output || !ops || !ops->prepare || !values || !map)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
@@ -1728,12 +1783,16 @@ bsurf_status bsurf_tiles_map(const char *input, const char *output, const bsurf_
       if (st == BSURF_OK) st = ops->prepare(ops->user, &part);
       if (st == BSURF_OK) st = map(ops->user, first, &part, vals);
       if (st == BSURF_OK) st = io_ply_encode(&part, enc);
-      int e = st == BSURF_OK ? pwrite_all(fileno(c.af.f), enc, m * c.record, c.header + first * c.record) : 0;
+      int e = st == BSURF_OK
+                  ? pwrite_all(fileno(c.af.f), enc, m * c.record, c.header + first * c.record)
+                  : 0;
       if (e) st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot write the output: %s", strerror(e));
-      drop_pages(&c.in, c.layout.body + first * c.layout.record, c.layout.body + (first + m) * c.layout.record);
+      drop_pages(&c.in, c.layout.body + first * c.layout.record,
+                 c.layout.body + (first + m) * c.layout.record);
       drop_pages(&c.vin, first * cols * sizeof(double), (first + m) * cols * sizeof(double));
     }
-    if (st == BSURF_ERR_NOMEM && err && !err->message[0]) bsurf_fail(err, st, 0, -1, "out of memory");
+    if (st == BSURF_ERR_NOMEM && err && !err->message[0])
+      bsurf_fail(err, st, 0, -1, "out of memory");
     if (c.af_open) {
       bsurf_failure cerr;
       bsurf_status cst = bsurf_atomic_close(&c.af, st, 0, &cerr);
