@@ -16,6 +16,17 @@
  * sources and the linker sees them as bsurf_i_io_*. A new non-static io_
  * function gets its line here (tests/cli/library.sh checks the archive). */
 #define io_count_tokens bsurf_i_io_count_tokens
+#define io_i64_exact bsurf_i_io_i64_exact
+#define io_le16 bsurf_i_io_le16
+#define io_le32 bsurf_i_io_le32
+#define io_le64 bsurf_i_io_le64
+#define io_le_f32 bsurf_i_io_le_f32
+#define io_le_f64 bsurf_i_io_le_f64
+#define io_le_value bsurf_i_io_le_value
+#define io_ply_probe bsurf_i_io_ply_probe
+#define io_put_le bsurf_i_io_put_le
+#define io_u64_exact bsurf_i_io_u64_exact
+#define io_unique_name bsurf_i_io_unique_name
 #define io_cursor_init bsurf_i_io_cursor_init
 #define io_dvec_push bsurf_i_io_dvec_push
 #define io_dvec_take bsurf_i_io_dvec_take
