@@ -20,8 +20,11 @@ int cli_usage_error(const cli_command *cmd, const char *fmt, ...) {
   return CLI_USAGE;
 }
 
+volatile sig_atomic_t cli_error_reported = 0;
+
 int cli_error(const char *fmt, ...) {
   va_list ap;
+  cli_error_reported = 1;
   fprintf(stderr, "bootsurf: error: ");
   va_start(ap, fmt);
   vfprintf(stderr, fmt, ap);

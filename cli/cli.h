@@ -9,6 +9,7 @@
 #include "algo/smooth_stages.h"
 #include "tile/tile_engine.h"
 
+#include <signal.h>
 #include <stdio.h>
 
 /* ---- options ---- */
@@ -141,6 +142,9 @@ int cli_usage_error(const cli_command *cmd, const char *fmt, ...)
 #endif
     ;
 /* Prints "bootsurf: error: message"; returns 1. */
+/* Set once an error has been printed: a signal arriving afterwards (mpirun
+ * ending the other ranks) then adds no second message. */
+extern volatile sig_atomic_t cli_error_reported;
 int cli_error(const char *fmt, ...)
 #if defined(__GNUC__)
     __attribute__((format(printf, 1, 2)))

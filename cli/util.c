@@ -303,7 +303,9 @@ static void say(const char *s) {
 static void die_of(int sig) {
   bsurf_atomic_remove_temporaries();
   const char *in = current_input;
-  if (cli_mpi_rank() == 0) { /* one message from a distributed run (a plain read of an int) */
+  /* one message from a distributed run (a plain read of an int), and none
+   * after the run's own error (mpirun then ends every rank) */
+  if (cli_mpi_rank() == 0 && !cli_error_reported) {
     say("bootsurf: error: ");
     if (in) {
       say(in);
