@@ -444,10 +444,10 @@ static void boot_task(void *vc, int thread, size_t i) {
     /* Eq. 6.1: the centre has local coordinates (0, 0, 0) (the frame's
      * origin is the point), so it moves by boot_center along n. */
     double height = fit.boot_center, *n = fit.frame.rot[2];
+    double F[FIT_HEAD + BSURF_TERMS_MAX]; /* n may point into it below */
     if (c->o.guard) {
       /* a biased fit: the height of the guard's smaller fit at the point
        * (no bootstrap mean there), or no move */
-      double F[FIT_HEAD + BSURF_TERMS_MAX];
       int deg = fit.degree;
       fit_store(F, &fit.frame, fit.inv_scale, fit.coef, c->m);
       int kg = guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg);

@@ -451,7 +451,7 @@ bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud
     las_extra *x = &extra[i];
     if (x->base == 0) continue; /* undocumented bytes: no name, no type */
     for (int k = 0; k < x->dim && st == BSURF_OK; k++) {
-      char want[LAS_NAME_MAX + 8], name[BSURF_FIELD_NAME_MAX];
+      char want[LAS_NAME_MAX + 16], name[BSURF_FIELD_NAME_MAX];
       if (x->dim > 1)
         snprintf(want, sizeof want, "%s_%d", x->name, k);
       else
