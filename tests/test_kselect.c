@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "bootsurf.h"
+#include "algo/algo.h"
 #include "local/local.h"
 
 static const int KS[] = {15, 20, 25, 30, 40, 50, 60, 70, 80};
@@ -95,10 +96,15 @@ static void test_nested_moments(void **state) {
   noisy_shape s;
   shape_make(&s, BSURF_SHAPE_TORUS, 3000, BSURF_NOISE_GAUSSIAN, 0.5);
   const int ks[] = {12, 20, 33, 80};
-  double mu[4 * 3], cov[4 * 6];
+  double mu[4 * 3], cov[4 * 6], terms[80 * BSURF_NESTED_COLS], sums[4 * BSURF_NESTED_COLS];
   for (size_t i = 0; i < s.c.point_count; i += 97) {
     const uint32_t *idx = &s.nb.idx[i * (size_t)s.nb.k];
-    bsurf_nested_moments(s.c.xyz, idx, ks, 4, mu, cov);
+    bsurf_nested_terms(s.c.xyz, idx, 80, terms);
+    bsurf_nested_sums(terms, 80, 1, NULL, ks, 4, sums, NULL);
+    for (int a = 0; a < 4; a++)
+      assert_int_equal(bsurf_nested_cov(&sums[a * BSURF_NESTED_COLS], 1, BSURF_PCA_CENTROID,
+                                        &mu[3 * a], &cov[6 * a]),
+                       0);
     for (int a = 0; a < 4; a++) {
       const double *d = &s.c.xyz[3 * (size_t)idx[0]];
       double m[3] = {0, 0, 0}, C[6] = {0};

@@ -55,11 +55,12 @@
  * normal of that K, and sqrt(V + max(Q, D)) its estimated RMS angle error.
  *
  * Candidates' centroids and covariances come from one pass over the sorted
- * neighbours (bsurf_nested_moments); the quadrics' normal equations likewise
- * from running sums of the monomials u^i v^j (i + j <= 4) and of z times the
+ * neighbours (the nested running sums of src/algo/nested.c, one weight row); the quadrics' normal
+ * equations likewise from running sums of the monomials u^i v^j (i + j <= 4) and of z times the
  * basis, in the PCA frame of the K_max neighbours, so a point costs about one K_max
  * sum plus a 6 x 6 solve per candidate. Deterministic: no random draws, and
  * a point's result depends on its neighbours' neighbourhoods only, not on threads or order. */
+#include "algo/algo.h"
 #include "common/common.h"
 #include "local/local.h"
 #include "search/search.h"
@@ -154,6 +155,7 @@ static double local_coords(const double *xyz, const uint32_t *idx, int kn, int k
 
 typedef struct ksel_scratch {
   double *u, *v, *z;      /* kmax */
+  double *terms, *sums;   /* kmax x BSURF_NESTED_COLS, nk x BSURF_NESTED_COLS */
   double *mu, *cov;       /* nk x 3, nk x 6 */
   double *pool;           /* noise_k */
   double *nrm, *var, *qb; /* nk x 3, nk, nk: each candidate's normal, variance, quadric bias^2 */
@@ -241,7 +243,12 @@ static void select_point(void *vctx, int thread, size_t i) {
   const int nk = o->nk;
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const double s2 = c->noise[i];
-  bsurf_nested_moments(c->xyz, idx, o->ks, nk, s->mu, s->cov);
+  /* every candidate's centroid and covariance from one pass (nested.c) */
+  bsurf_nested_terms(c->xyz, idx, c->kmax, s->terms);
+  bsurf_nested_sums(s->terms, c->kmax, 1, NULL, o->ks, nk, s->sums, NULL);
+  for (int a = 0; a < nk; a++)
+    bsurf_nested_cov(&s->sums[(size_t)a * BSURF_NESTED_COLS], 1, BSURF_PCA_CENTROID, &s->mu[3 * a],
+                     &s->cov[6 * a]);
   bsurf_frame f;
   const double scale = local_coords(c->xyz, idx, c->kmax, c->kmax, &f, s->u, s->v, s->z);
   quad_sums q;
@@ -346,13 +353,16 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
     s->u = bsurf_alloc_array((size_t)kmax, sizeof(double));
     s->v = bsurf_alloc_array((size_t)kmax, sizeof(double));
     s->z = bsurf_alloc_array((size_t)kmax, sizeof(double));
+    s->terms = bsurf_alloc_array((size_t)kmax, BSURF_NESTED_COLS * sizeof(double));
+    s->sums = bsurf_alloc_array((size_t)o->nk, BSURF_NESTED_COLS * sizeof(double));
     s->mu = bsurf_alloc_array((size_t)o->nk, 3 * sizeof(double));
     s->cov = bsurf_alloc_array((size_t)o->nk, 6 * sizeof(double));
     s->pool = bsurf_alloc_array((size_t)o->noise_k, sizeof(double));
     s->nrm = bsurf_alloc_array((size_t)o->nk, 3 * sizeof(double));
     s->var = bsurf_alloc_array((size_t)o->nk, sizeof(double));
     s->qb = bsurf_alloc_array((size_t)o->nk, sizeof(double));
-    if (!s->u || !s->v || !s->z || !s->mu || !s->cov || !s->pool || !s->nrm || !s->var || !s->qb)
+    if (!s->u || !s->v || !s->z || !s->terms || !s->sums || !s->mu || !s->cov || !s->pool ||
+        !s->nrm || !s->var || !s->qb)
       st = BSURF_ERR_NOMEM;
   }
   uint32_t *owned = NULL;
@@ -375,6 +385,8 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
       free(scr[t].u);
       free(scr[t].v);
       free(scr[t].z);
+      free(scr[t].terms);
+      free(scr[t].sums);
       free(scr[t].mu);
       free(scr[t].cov);
       free(scr[t].pool);

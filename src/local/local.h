@@ -167,12 +167,4 @@ void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, i
 double bsurf_localfit_eval(const bsurf_localfit *lf, int degree, const double *coef, double x,
                            double y);
 
-/* Nested neighbourhoods (nested.c): for the point d = xyz[idx[0]] and the
- * ascending sizes ks[0..nk-1] (each <= the length of idx), the centroid
- * offset mu[3a..3a+2] = (1/K) sum_j (p_j - d) and the covariance about the
- * centroid cov[6a..6a+5] (xx xy xz yy yz zz, divided by K) of its first K =
- * ks[a] neighbours, all from one pass of running sums. */
-void bsurf_nested_moments(const double *xyz, const uint32_t *idx, const int *ks, int nk, double *mu,
-                          double *cov);
-
 #endif
