@@ -500,8 +500,8 @@ typedef struct bsurf_kselect_options {
   bsurf_kselect_rule rule; /* MSE (bsurf_select_k accepts only MSE) */
   const int *ks;           /* candidate K, strictly ascending, each >= 7 */
   int nk;                  /* number of candidates */
-  int noise_k;             /* neighbourhood of the quadric noise fits and of
-                              their pooling (20; >= 12) */
+  int noise_k;             /* neighbourhood of the quadric noise fits, of
+                              their pooling and of the bias pooling (12; >= 12) */
   int threads;             /* 0 = all cores */
   bsurf_progress_fn progress;
   void *progress_user;

@@ -4,7 +4,7 @@
 usage:
   /usr/bin/python3 scripts/bench_ksel.py DEVSET_DIR --bootsurf BUILD/bootsurf [--peers DIR]
       [--out WORK_DIR] [--quick] [--only SUBSTR] [--noise LIST] [--sampling LIST]
-      [--rules LIST] [--fresh] [--markdown FILE]
+      [--cases LIST] [--rules LIST] [--fresh] [--markdown FILE]
 
 DEVSET_DIR is built by scripts/devset.py. For every case it runs, on the noisy
 points (x y z only):
@@ -80,6 +80,7 @@ def main():
     ap.add_argument("--out", default="bench_ksel_work")
     ap.add_argument("--quick", action="store_true", help="devset's quick models and noises only")
     ap.add_argument("--only", default=None)
+    ap.add_argument("--cases", default=None, help="comma-separated case names (default: all)")
     ap.add_argument("--noise", default=None, help="comma-separated noises (default: all)")
     ap.add_argument("--sampling", default=None, help="comma-separated samplings (default: all)")
     ap.add_argument("--rules", default="mse,test-error", help="comma-separated: mse, test-error")
@@ -101,6 +102,8 @@ def main():
     if a.quick:
         cases = [c for c in cases if (c.model in devset.QUICK_MODELS or c.sampling == "thin" or c.model == "cube")
                  and c.noise in devset.QUICK_NOISES and c.sampling != "regular"]
+    if a.cases:
+        cases = [c for c in cases if c.name in a.cases.split(",")]
     if a.noise:
         cases = [c for c in cases if c.noise in a.noise.split(",")]
     if a.sampling:
@@ -154,7 +157,7 @@ def main():
         rows.append("CGAL jet K=30")
     rows += rules
     emit("%d cases (%s). Each metric is the mean over the cases; `/best` and `/Open3D` are the means of "
-         "the per-case ratios of the mean angle error.\n" % (len(names), "quick subset" if a.quick else "development set"))
+         "the per-case ratios of the mean angle error.\n" % (len(names), "quick subset" if a.quick else "listed cases" if a.cases else "development set"))
     emit("| row | mean (rad) | RMS (rad) | PGP5 | PGP10 | /best | /Open3D | time (s) |")
     emit("|---|---|---|---|---|---|---|---|")
     for r in rows:
