@@ -4,22 +4,18 @@
  * Usage: denoise INPUT OUTPUT.ply */
 #include <bootsurf.h>
 
+#include "example.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 int main(int argc, char **argv) {
-  if (argc != 3) {
-    fprintf(stderr, "usage: %s INPUT OUTPUT.ply\n", argv[0]);
-    return 2;
-  }
   bsurf_cloud cloud;
+  int rc = example_read_input(argc, argv, &cloud);
+  if (rc) return rc;
   bsurf_failure where;
-  bsurf_status st = bsurf_read(argv[1], &cloud, &where);
-  if (st != BSURF_OK) {
-    fprintf(stderr, "%s:%ld: %s\n", argv[1], where.line, where.message);
-    return 1;
-  }
+  bsurf_status st;
   bsurf_smooth_options opt = bsurf_smooth_options_default(); /* bilateral, K = 50 */
   bsurf_neighbors nb;
   double *out_xyz = malloc(cloud.point_count * 3 * sizeof *out_xyz);

@@ -2,20 +2,16 @@
  * Usage: estimate_error INPUT.ply OUTPUT.ply */
 #include <bootsurf.h>
 
+#include "example.h"
+
 #include <stdio.h>
 
 int main(int argc, char **argv) {
-  if (argc != 3) {
-    fprintf(stderr, "usage: %s INPUT OUTPUT.ply\n", argv[0]);
-    return 2;
-  }
   bsurf_cloud cloud;
+  int rc = example_read_input(argc, argv, &cloud);
+  if (rc) return rc;
   bsurf_failure where;
-  bsurf_status st = bsurf_read(argv[1], &cloud, &where);
-  if (st != BSURF_OK) {
-    fprintf(stderr, "%s:%ld: %s\n", argv[1], where.line, where.message);
-    return 1;
-  }
+  bsurf_status st;
 
   bsurf_error_options opt = bsurf_error_options_default(); /* K=50, cubic, B=50, seed 1 */
   bsurf_neighbors nb;                                      /* built once, shared */

@@ -4,21 +4,17 @@
  * Usage: normals_confidence INPUT OUTPUT.ply */
 #include <bootsurf.h>
 
+#include "example.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 
 int main(int argc, char **argv) {
-  if (argc != 3) {
-    fprintf(stderr, "usage: %s INPUT OUTPUT.ply\n", argv[0]);
-    return 2;
-  }
   bsurf_cloud cloud;
+  int rc = example_read_input(argc, argv, &cloud);
+  if (rc) return rc;
   bsurf_failure where;
-  bsurf_status st = bsurf_read(argv[1], &cloud, &where);
-  if (st != BSURF_OK) {
-    fprintf(stderr, "%s:%ld: %s\n", argv[1], where.line, where.message);
-    return 1;
-  }
+  bsurf_status st;
   bsurf_normal_options opt = bsurf_normal_options_default(); /* PCA, K = 30, B = 50 */
   bsurf_neighbors nb;
   st = bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count, opt.k, 0, NULL, NULL);
