@@ -17,12 +17,24 @@
  * function gets its line here (tests/cli/library.sh checks the archive). */
 #define io_count_tokens bsurf_i_io_count_tokens
 #define io_i64_exact bsurf_i_io_i64_exact
+#define io_las_attr bsurf_i_io_las_attr
+#define io_las_has_attr bsurf_i_io_las_has_attr
+#define io_nomem bsurf_i_io_nomem
+#define io_pcd_parse_header bsurf_i_io_pcd_parse_header
+#define io_las_record_size bsurf_i_io_las_record_size
 #define io_le16 bsurf_i_io_le16
 #define io_le32 bsurf_i_io_le32
 #define io_le64 bsurf_i_io_le64
 #define io_le_f32 bsurf_i_io_le_f32
 #define io_le_f64 bsurf_i_io_le_f64
 #define io_le_value bsurf_i_io_le_value
+#define io_ply_elem_plural bsurf_i_io_ply_elem_plural
+#define io_ply_elem_word bsurf_i_io_ply_elem_word
+#define io_ply_nomem bsurf_i_io_ply_nomem
+#define io_ply_parse_header bsurf_i_io_ply_parse_header
+#define io_ply_setup bsurf_i_io_ply_setup
+#define io_ply_shape_name_ok bsurf_i_io_ply_shape_name_ok
+#define io_ply_too_short bsurf_i_io_ply_too_short
 #define io_ply_probe bsurf_i_io_ply_probe
 #define io_put_le bsurf_i_io_put_le
 #define io_u64_exact bsurf_i_io_u64_exact
@@ -151,6 +163,9 @@ bsurf_status io_faces_corner(io_faces *f, uint32_t index);
 /* Moves the triangles into the cloud (shrinking the array). */
 void io_faces_move(io_faces *f, bsurf_cloud *cloud);
 
+/* "out of memory" in *err; returns BSURF_ERR_NOMEM. */
+bsurf_status io_nomem(bsurf_failure *err);
+
 /* ---- growable arrays of doubles ---------------------------------------------- */
 
 typedef struct io_dvec {
@@ -238,7 +253,8 @@ void io_unique_name(const bsurf_cloud *cloud, const char *name, char out[BSURF_F
 /* ---- binary PLY by offset (the tiled runs of src/tile) ------------------ */
 
 /* One vertex property: where it is in a record and where it goes in a cloud
- * with the schema's arrays (array 0: xyz, 1: normals, 2: field `at`). */
+ * with the schema's arrays (array 0: xyz, 1: normals, 2: field `at`, 3:
+ * nowhere). */
 typedef struct io_ply_column {
   size_t offset;
   bsurf_type type;
@@ -291,8 +307,10 @@ bsurf_status io_ply_encode(const bsurf_cloud *cloud, unsigned char *out);
 
 /* Checks that the fields can be named in a PLY header. */
 bsurf_status bsurf_io_ply_check(const bsurf_cloud *cloud, bsurf_failure *err);
+/* names: the fields' names were made for a viewer (write_view in io.c): a
+ * header comment says so, and the reader takes them back. */
 bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int ascii,
-                                bsurf_failure *err);
+                                bsurf_ply_names names, bsurf_failure *err);
 bsurf_status bsurf_io_write_off(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err);
 bsurf_status bsurf_io_write_obj(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err);
 bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err);
