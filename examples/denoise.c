@@ -14,15 +14,13 @@ int main(int argc, char **argv) {
   bsurf_cloud cloud;
   int rc = example_read_input(argc, argv, &cloud);
   if (rc) return rc;
-  bsurf_failure where;
-  bsurf_status st;
   bsurf_smooth_options opt = bsurf_smooth_options_default(); /* bilateral, K = 50 */
   bsurf_neighbors nb;
   double *out_xyz = malloc(cloud.point_count * 3 * sizeof *out_xyz);
   bsurf_field *moved = bsurf_cloud_add_field(&cloud, "moved", BSURF_FLOAT32);
-  st = out_xyz && moved
-           ? bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count, opt.error.k, 0, NULL, NULL)
-           : BSURF_ERR_NOMEM;
+  bsurf_status st = out_xyz && moved ? bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count,
+                                                             opt.error.k, 0, NULL, NULL)
+                                     : BSURF_ERR_NOMEM;
   bsurf_smooth_report rep;
   if (st == BSURF_OK) {
     bsurf_smooth_fields fields = {0};
@@ -32,6 +30,7 @@ int main(int argc, char **argv) {
   }
   if (st == BSURF_OK) {
     memcpy(cloud.xyz, out_xyz, cloud.point_count * 3 * sizeof *out_xyz);
+    bsurf_failure where;
     st = bsurf_write(argv[2], &cloud, NULL, &where);
   }
   free(out_xyz);

@@ -1,6 +1,6 @@
-/* LAS reading (las_write.c: writing; las_attrs.c: the tables). LAS (ASPRS LiDAR data exchange format) 1.0-1.4, point data record formats
- * 0-10, uncompressed. Debian has no LAS library (docs/formats.md), so this is
- * written from the specification (LAS 1.4 R15), with the header never
+/* LAS reading (las_write.c: writing; las_attrs.c: the tables). LAS (ASPRS LiDAR data exchange
+ * format) 1.0-1.4, point data record formats 0-10, uncompressed. Debian has no LAS library
+ * (docs/formats.md), so this is written from the specification (LAS 1.4 R15), with the header never
  * trusted: every offset, length and count is checked against the file before
  * it is used or anything is allocated.
  *
@@ -26,7 +26,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-
 
 /* The 29 bytes of a wave packet descriptor (formats 4, 5, 9, 10); an offset
  * beyond 2^53 becomes NaN, which the reader refuses. */
@@ -464,4 +463,3 @@ bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud
   free(extra);
   return st;
 }
-

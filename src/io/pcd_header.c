@@ -30,7 +30,6 @@ static int token_eq_ci(io_token t, const char *w) {
 
 /* ---- header ---------------------------------------------------------------- */
 
-
 static bsurf_status expect_per_field(io_cursor *c, const pcd_header *h, long ln, const char *kw,
                                      bsurf_failure *err) {
   if (!h->fields) return bsurf_fail(err, BSURF_ERR_PARSE, ln, -1, "%s before FIELDS", kw);

@@ -6,7 +6,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-
 /* Where one element goes. */
 enum { DST_SKIP, DST_XYZ, DST_NORMAL, DST_FIELD, DST_RGB, DST_RGBA };
 

@@ -11,7 +11,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-
 /* A shape name a header line can carry: one printable word that fits. */
 int io_ply_shape_name_ok(const char *s, size_t len) {
   if (len == 0 || len >= BSURF_FIELD_NAME_MAX) return 0;
@@ -266,7 +265,8 @@ bsurf_status io_ply_too_short(ply_reader *r, const ply_elem *e, unsigned long lo
   return bsurf_fail(r->err, BSURF_ERR_PARSE, 0, (long long)(offset + whole * per),
                     "header declares %llu %s (%llu bytes) but only %llu bytes follow: the data "
                     "ends inside %s %llu",
-                    e->count, io_ply_elem_plural(e, b), e->count * per, left, io_ply_elem_word(e, a), whole);
+                    e->count, io_ply_elem_plural(e, b), e->count * per, left,
+                    io_ply_elem_word(e, a), whole);
 }
 
 /* Checks the layout, checks the declared counts against the data size and

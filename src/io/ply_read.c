@@ -88,8 +88,8 @@ static bsurf_status read_binary(ply_reader *r) {
         size_t s = io_type_size(q->is_list ? q->count_type : q->type);
         if (r->size - pos < s)
           return bsurf_fail(r->err, BSURF_ERR_PARSE, 0, (long long)pos,
-                            "%s %llu: the file ends in the middle of the record", io_ply_elem_word(e, a),
-                            ri);
+                            "%s %llu: the file ends in the middle of the record",
+                            io_ply_elem_word(e, a), ri);
         if (!q->is_list) {
           pos += s;
           continue;
@@ -222,8 +222,8 @@ static bsurf_status read_ascii(ply_reader *r) {
       }
       if (io_next_token(&c, &tok))
         return bsurf_fail(r->err, BSURF_ERR_PARSE, t.line, -1,
-                          "%s %llu: expected %zu values, found %zu", io_ply_elem_word(e, a), ri, used,
-                          io_count_tokens(&c0));
+                          "%s %llu: expected %zu values, found %zu", io_ply_elem_word(e, a), ri,
+                          used, io_count_tokens(&c0));
     }
   }
   while (io_text_next_line(&t, &line, &len)) {

@@ -48,7 +48,7 @@ typedef struct ply_reader {
   char shape[BSURF_FIELD_NAME_MAX]; /* from "comment bootsurf shape NAME" */
   io_ply_layout *layout;            /* io_ply_map: vertices are located, not stored */
   int probe;                        /* io_ply_probe: the header only, checked */
-  int names; /* bsurf_ply_names from "comment bootsurf ply-names ..." */
+  int names;                        /* bsurf_ply_names from "comment bootsurf ply-names ..." */
 } ply_reader;
 
 /* "vertex", "face" or the element's own name, printable. */

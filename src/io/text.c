@@ -471,4 +471,3 @@ size_t io_format_value(char *buf, size_t cap, double v, bsurf_type type) {
   if ((size_t)n >= cap) n = (int)cap - 1;
   return fix_decimal_point(buf, (size_t)n);
 }
-
