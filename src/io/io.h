@@ -53,6 +53,7 @@
 #define io_obuf_done bsurf_i_io_obuf_done
 #define io_obuf_flush bsurf_i_io_obuf_flush
 #define io_obuf_init bsurf_i_io_obuf_init
+#define io_obuf_point bsurf_i_io_obuf_point
 #define io_obuf_str bsurf_i_io_obuf_str
 #define io_obuf_uint bsurf_i_io_obuf_uint
 #define io_obuf_value bsurf_i_io_obuf_value
@@ -209,6 +210,9 @@ void io_obuf_str(io_obuf *b, const char *s);
 void io_obuf_char(io_obuf *b, char c);
 /* One value formatted as io_format_value does. */
 void io_obuf_value(io_obuf *b, double v, bsurf_type type);
+/* Point i's x y z (and nx ny nz when the cloud has normals), exactly (17
+ * digits), separated by sep; no line break. */
+void io_obuf_point(io_obuf *b, const bsurf_cloud *cloud, size_t i, char sep);
 void io_obuf_uint(io_obuf *b, unsigned long long v);
 
 /* ---- readers: fill an initialised cloud; on failure may leave it partly

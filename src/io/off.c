@@ -240,15 +240,7 @@ bsurf_status bsurf_io_write_off(io_writer *w, const bsurf_cloud *cloud, bsurf_fa
   io_obuf_uint(&ob, cloud->face_count);
   io_obuf_str(&ob, " 0\n");
   for (size_t i = 0; i < cloud->point_count && !w->failed; i++) {
-    for (int k = 0; k < 3; k++) {
-      if (k) io_obuf_char(&ob, ' ');
-      io_obuf_value(&ob, cloud->xyz[3 * i + (size_t)k], BSURF_FLOAT64);
-    }
-    if (cloud->normals)
-      for (int k = 0; k < 3; k++) {
-        io_obuf_char(&ob, ' ');
-        io_obuf_value(&ob, cloud->normals[3 * i + (size_t)k], BSURF_FLOAT64);
-      }
+    io_obuf_point(&ob, cloud, i, ' ');
     io_obuf_char(&ob, '\n');
   }
   for (size_t i = 0; i < cloud->face_count && !w->failed; i++) {

@@ -159,6 +159,18 @@ void io_obuf_value(io_obuf *b, double v, bsurf_type type) {
   b->n += io_format_value(b->buf + b->n, IO_VALUE_MAX, v, type);
 }
 
+void io_obuf_point(io_obuf *b, const bsurf_cloud *cloud, size_t i, char sep) {
+  for (int k = 0; k < 3; k++) {
+    if (k) io_obuf_char(b, sep);
+    io_obuf_value(b, cloud->xyz[3 * i + (size_t)k], BSURF_FLOAT64);
+  }
+  if (cloud->normals)
+    for (int k = 0; k < 3; k++) {
+      io_obuf_char(b, sep);
+      io_obuf_value(b, cloud->normals[3 * i + (size_t)k], BSURF_FLOAT64);
+    }
+}
+
 void io_obuf_uint(io_obuf *b, unsigned long long v) {
   char tmp[24];
   size_t n = 0;
