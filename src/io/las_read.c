@@ -191,9 +191,30 @@ static bsurf_status laz_refused(bsurf_failure *err, long long at) {
       "OUT.las' or 'pdal translate IN.laz OUT.las'");
 }
 
-bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err) {
-  const unsigned char *d = (const unsigned char *)data;
+/* The reader's state: the header's numbers, the extra bytes, where each
+ * standard attribute goes. */
+typedef struct las_reader {
+  const unsigned char *d;
+  size_t size;
+  bsurf_failure *err;
+  unsigned minor;
+  size_t header_size, point_offset, nvlr, record;
+  int fmt;
+  uint64_t count;
+  double scale[3], offset[3];
+  las_extra *extra;
+  size_t nextra;
+  char shape[BSURF_FIELD_NAME_MAX];
+  /* the field of each standard attribute; (size_t)-1: none, -2: taken over
+   * by extra bytes of the same name */
+  size_t attr_field[A_COUNT];
+} las_reader;
+
+/* The public header block, every number checked against the file. */
+static bsurf_status read_header(las_reader *r) {
+  const unsigned char *d = r->d;
+  size_t size = r->size;
+  bsurf_failure *err = r->err;
   if (size < 4 || memcmp(d, "LASF", 4) != 0)
     return bsurf_fail(err, BSURF_ERR_PARSE, 0, 0, "not a LAS file: it does not start with 'LASF'");
   if (size < LAS_HEADER_12)
@@ -204,151 +225,157 @@ bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud
   if (major != 1 || minor > 4)
     return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, 24,
                       "LAS version %u.%u is not supported (1.0 to 1.4)", major, minor);
-  size_t header_size = io_le16(d + 94);
+  r->minor = minor;
+  r->header_size = io_le16(d + 94);
   size_t need = minor >= 4 ? LAS_HEADER_14 : minor == 3 ? LAS_HEADER_13 : LAS_HEADER_12;
-  if (header_size < need)
+  if (r->header_size < need)
     return bsurf_fail(err, BSURF_ERR_PARSE, 0, 94,
-                      "the header size %zu is less than LAS 1.%u's %zu bytes", header_size, minor,
-                      need);
-  if (header_size > size)
+                      "the header size %zu is less than LAS 1.%u's %zu bytes", r->header_size,
+                      minor, need);
+  if (r->header_size > size)
     return bsurf_fail(err, BSURF_ERR_PARSE, 0, 94,
-                      "truncated header: it declares %zu bytes, the file has %zu", header_size,
+                      "truncated header: it declares %zu bytes, the file has %zu", r->header_size,
                       size);
-  size_t point_offset = io_le32(d + 96);
-  size_t nvlr = io_le32(d + 100);
+  r->point_offset = io_le32(d + 96);
+  r->nvlr = io_le32(d + 100);
   unsigned fmt_byte = d[104];
   if (fmt_byte & 0xc0) return laz_refused(err, 104);
-  int fmt = (int)fmt_byte;
-  if (fmt > 10)
+  r->fmt = (int)fmt_byte;
+  if (r->fmt > 10)
     return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, 104,
-                      "unknown point data record format %d (LAS has 0 to 10)", fmt);
-  size_t record = io_le16(d + 105);
-  if (record < io_las_record_size[fmt])
+                      "unknown point data record format %d (LAS has 0 to 10)", r->fmt);
+  r->record = io_le16(d + 105);
+  if (r->record < io_las_record_size[r->fmt])
     return bsurf_fail(err, BSURF_ERR_PARSE, 0, 105,
                       "the point record length %zu is less than point format %d's %zu bytes",
-                      record, fmt, io_las_record_size[fmt]);
-  uint64_t count = io_le32(d + 107);
+                      r->record, r->fmt, io_las_record_size[r->fmt]);
+  r->count = io_le32(d + 107);
   if (minor >= 4) {
     uint64_t c64 = io_le64(d + 247);
-    if (c64 || !count) count = c64;
+    if (c64 || !r->count) r->count = c64;
   }
-  double scale[3], offset[3];
   for (int k = 0; k < 3; k++) {
-    scale[k] = io_le_f64(d + 131 + 8 * k);
-    offset[k] = io_le_f64(d + 155 + 8 * k);
-    if (!isfinite(scale[k]) || scale[k] == 0 || !isfinite(offset[k]))
+    r->scale[k] = io_le_f64(d + 131 + 8 * k);
+    r->offset[k] = io_le_f64(d + 155 + 8 * k);
+    if (!isfinite(r->scale[k]) || r->scale[k] == 0 || !isfinite(r->offset[k]))
       return bsurf_fail(err, BSURF_ERR_PARSE, 0, 131 + 8 * k,
                         "the %c scale factor or offset is zero or not finite", "xyz"[k]);
   }
-  if (point_offset < header_size || point_offset > size)
+  if (r->point_offset < r->header_size || r->point_offset > size)
     return bsurf_fail(
-        err, BSURF_ERR_PARSE, 0, 96, "the offset to the point data (%zu) is %s", point_offset,
-        point_offset < header_size ? "inside the header" : "beyond the end of the file");
+        err, BSURF_ERR_PARSE, 0, 96, "the offset to the point data (%zu) is %s", r->point_offset,
+        r->point_offset < r->header_size ? "inside the header" : "beyond the end of the file");
+  return BSURF_OK;
+}
 
-  las_extra *extra = NULL;
-  size_t nextra = 0;
-  char shape[BSURF_FIELD_NAME_MAX] = "";
-  bsurf_status st = BSURF_OK;
-  size_t at = header_size;
-  /* variable length records between the header and the points */
-  for (size_t v = 0; v < nvlr && st == BSURF_OK; v++) {
-    if (point_offset - at < LAS_VLR_HEADER) {
-      st = bsurf_fail(err, BSURF_ERR_PARSE, 0, (long long)at,
-                      "VLR %zu of %zu: its header runs past the point data offset %zu", v + 1, nvlr,
-                      point_offset);
-      break;
-    }
-    const unsigned char *h = d + at;
+/* The variable length records between the header and the points: extra
+ * bytes, bootsurf's shape, LAZ refused. */
+static bsurf_status read_vlrs(las_reader *r) {
+  size_t at = r->header_size, end = r->point_offset;
+  for (size_t v = 0; v < r->nvlr; v++) {
+    if (end - at < LAS_VLR_HEADER)
+      return bsurf_fail(r->err, BSURF_ERR_PARSE, 0, (long long)at,
+                        "VLR %zu of %zu: its header runs past the point data offset %zu", v + 1,
+                        r->nvlr, end);
+    const unsigned char *h = r->d + at;
     unsigned rid = io_le16(h + 18);
     size_t len = io_le16(h + 20);
-    if (len > point_offset - at - LAS_VLR_HEADER) {
-      st = bsurf_fail(err, BSURF_ERR_PARSE, 0, (long long)at + 20,
-                      "wrong VLR length: VLR %zu (record %u) has %zu bytes, which run past the "
-                      "point data offset %zu",
-                      v + 1, rid, len, point_offset);
-      break;
+    if (len > end - at - LAS_VLR_HEADER)
+      return bsurf_fail(r->err, BSURF_ERR_PARSE, 0, (long long)at + 20,
+                        "wrong VLR length: VLR %zu (record %u) has %zu bytes, which run past the "
+                        "point data offset %zu",
+                        v + 1, rid, len, end);
+    if (user_is(h + 2, "laszip encoded")) return laz_refused(r->err, (long long)at);
+    if (user_is(h + 2, "LASF_Spec") && rid == 4) {
+      bsurf_status st = parse_extra(h + LAS_VLR_HEADER, len, (long long)(at + LAS_VLR_HEADER),
+                                    &r->extra, &r->nextra, r->err);
+      if (st != BSURF_OK) return st;
     }
-    if (user_is(h + 2, "laszip encoded")) {
-      st = laz_refused(err, (long long)at);
-      break;
-    }
-    if (user_is(h + 2, "LASF_Spec") && rid == 4)
-      st = parse_extra(h + LAS_VLR_HEADER, len, (long long)(at + LAS_VLR_HEADER), &extra, &nextra,
-                       err);
     if (user_is(h + 2, "bootsurf") && rid == 1 && len < BSURF_FIELD_NAME_MAX) {
       size_t k = 0;
       while (k < len && h[LAS_VLR_HEADER + k] > 0x20 && h[LAS_VLR_HEADER + k] < 0x7f)
         k++;
       if (k == len) {
-        memcpy(shape, h + LAS_VLR_HEADER, len);
-        shape[len] = 0;
+        memcpy(r->shape, h + LAS_VLR_HEADER, len);
+        r->shape[len] = 0;
       }
     }
     at += LAS_VLR_HEADER + len;
   }
-  /* extended VLRs after the points (1.4) */
-  if (st == BSURF_OK && minor >= 4) {
-    uint64_t eat = io_le64(d + 235);
-    size_t nevlr = io_le32(d + 243);
-    for (size_t v = 0; v < nevlr && eat && st == BSURF_OK; v++) {
-      if (eat > size || size - eat < LAS_EVLR_HEADER) {
-        st = bsurf_fail(err, BSURF_ERR_PARSE, 0, 235,
-                        "EVLR %zu of %zu starts beyond the end of the file", v + 1, nevlr);
-        break;
-      }
-      const unsigned char *h = d + eat;
-      unsigned rid = io_le16(h + 18);
-      uint64_t len = io_le64(h + 20);
-      if (len > size - eat - LAS_EVLR_HEADER) {
-        st = bsurf_fail(
-            err, BSURF_ERR_PARSE, 0, (long long)eat + 20,
-            "wrong EVLR length: EVLR %zu (record %u) has %llu bytes, beyond the end of the file",
-            v + 1, rid, (unsigned long long)len);
-        break;
-      }
-      if (user_is(h + 2, "LASF_Spec") && rid == 4)
-        st = parse_extra(h + LAS_EVLR_HEADER, (size_t)len, (long long)(eat + LAS_EVLR_HEADER),
-                         &extra, &nextra, err);
-      eat += LAS_EVLR_HEADER + len;
-    }
-  }
-  size_t avail = size - point_offset;
-  if (st == BSURF_OK && count > avail / record)
-    st = bsurf_fail(err, BSURF_ERR_PARSE, 0, (long long)point_offset,
-                    "point count beyond the file: %llu points of %zu bytes need %llu bytes, the "
-                    "file has %zu after "
-                    "offset %zu",
-                    (unsigned long long)count, record, (unsigned long long)count * record, avail,
-                    point_offset);
-  size_t eb_total = 0;
-  for (size_t i = 0; st == BSURF_OK && i < nextra; i++) {
-    extra[i].offset = io_las_record_size[fmt] + eb_total;
-    eb_total += extra[i].bytes;
-  }
-  if (st == BSURF_OK && eb_total > record - io_las_record_size[fmt])
-    st = bsurf_fail(
-        err, BSURF_ERR_PARSE, 0, 105,
-        "the extra bytes records describe %zu bytes, the point records have %zu after format %d's "
-        "attributes",
-        eb_total, record - io_las_record_size[fmt], fmt);
-  size_t n = (size_t)count;
-  if (st == BSURF_OK && bsurf_cloud_alloc(cloud, n, 0) != BSURF_OK) st = io_nomem(err);
+  return BSURF_OK;
+}
 
-  /* the standard attributes, all first; removed afterwards where zero */
-  size_t attr_field[A_COUNT];
-  for (int a = 0; a < A_COUNT && st == BSURF_OK; a++) {
-    attr_field[a] = (size_t)-1;
-    if (!io_las_has_attr(fmt, a)) continue;
-    if (!bsurf_cloud_add_field(cloud, io_las_attr[a].name, io_las_attr[a].type)) st = io_nomem(err);
-    attr_field[a] = cloud->field_count - 1;
+/* The extended VLRs after the points (LAS 1.4): extra bytes. */
+static bsurf_status read_evlrs(las_reader *r) {
+  if (r->minor < 4) return BSURF_OK;
+  size_t size = r->size;
+  uint64_t eat = io_le64(r->d + 235);
+  size_t nevlr = io_le32(r->d + 243);
+  for (size_t v = 0; v < nevlr && eat; v++) {
+    if (eat > size || size - eat < LAS_EVLR_HEADER)
+      return bsurf_fail(r->err, BSURF_ERR_PARSE, 0, 235,
+                        "EVLR %zu of %zu starts beyond the end of the file", v + 1, nevlr);
+    const unsigned char *h = r->d + eat;
+    unsigned rid = io_le16(h + 18);
+    uint64_t len = io_le64(h + 20);
+    if (len > size - eat - LAS_EVLR_HEADER)
+      return bsurf_fail(
+          r->err, BSURF_ERR_PARSE, 0, (long long)eat + 20,
+          "wrong EVLR length: EVLR %zu (record %u) has %llu bytes, beyond the end of the file",
+          v + 1, rid, (unsigned long long)len);
+    if (user_is(h + 2, "LASF_Spec") && rid == 4) {
+      bsurf_status st =
+          parse_extra(h + LAS_EVLR_HEADER, (size_t)len, (long long)(eat + LAS_EVLR_HEADER),
+                      &r->extra, &r->nextra, r->err);
+      if (st != BSURF_OK) return st;
+    }
+    eat += LAS_EVLR_HEADER + len;
   }
-  /* extra bytes: named fields (a name taken by a standard attribute is
-   * the extra bytes' own: bootsurf writes a field that its slot cannot hold
-   * exactly there) */
-  for (size_t i = 0; i < nextra && st == BSURF_OK; i++) {
-    las_extra *x = &extra[i];
+  return BSURF_OK;
+}
+
+/* The points fit the file, the extra bytes fit the records (their offsets
+ * set). */
+static bsurf_status check_records(las_reader *r) {
+  size_t avail = r->size - r->point_offset, base = io_las_record_size[r->fmt];
+  if (r->count > avail / r->record)
+    return bsurf_fail(r->err, BSURF_ERR_PARSE, 0, (long long)r->point_offset,
+                      "point count beyond the file: %llu points of %zu bytes need %llu bytes, the "
+                      "file has %zu after "
+                      "offset %zu",
+                      (unsigned long long)r->count, r->record,
+                      (unsigned long long)r->count * r->record, avail, r->point_offset);
+  size_t eb_total = 0;
+  for (size_t i = 0; i < r->nextra; i++) {
+    r->extra[i].offset = base + eb_total;
+    eb_total += r->extra[i].bytes;
+  }
+  if (eb_total > r->record - base)
+    return bsurf_fail(r->err, BSURF_ERR_PARSE, 0, 105,
+                      "the extra bytes records describe %zu bytes, the point records have %zu "
+                      "after format %d's "
+                      "attributes",
+                      eb_total, r->record - base, r->fmt);
+  return BSURF_OK;
+}
+
+/* The fields: every standard attribute of the format first (removed
+ * afterwards where zero), then the extra bytes by name (a name taken by a
+ * standard attribute is the extra bytes' own: bootsurf writes a field that
+ * its slot cannot hold exactly there). */
+static bsurf_status make_fields(las_reader *r, bsurf_cloud *cloud) {
+  if (bsurf_cloud_alloc(cloud, (size_t)r->count, 0) != BSURF_OK) return io_nomem(r->err);
+  for (int a = 0; a < A_COUNT; a++) {
+    r->attr_field[a] = (size_t)-1;
+    if (!io_las_has_attr(r->fmt, a)) continue;
+    if (!bsurf_cloud_add_field(cloud, io_las_attr[a].name, io_las_attr[a].type))
+      return io_nomem(r->err);
+    r->attr_field[a] = cloud->field_count - 1;
+  }
+  for (size_t i = 0; i < r->nextra; i++) {
+    las_extra *x = &r->extra[i];
     if (x->base == 0) continue; /* undocumented bytes: no name, no type */
-    for (int k = 0; k < x->dim && st == BSURF_OK; k++) {
+    for (int k = 0; k < x->dim; k++) {
       char want[LAS_NAME_MAX + 16], name[BSURF_FIELD_NAME_MAX];
       if (x->dim > 1)
         snprintf(want, sizeof want, "%s_%d", x->name, k);
@@ -360,106 +387,134 @@ bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud
         size_t idx = (size_t)(same - cloud->fields);
         int standard = 0;
         for (int a = 0; a < A_COUNT; a++)
-          standard |= attr_field[a] == idx;
+          standard |= r->attr_field[a] == idx;
         if (standard) {
           same->type = type; /* take over the standard attribute's field */
           for (int a = 0; a < A_COUNT; a++)
-            if (attr_field[a] == idx) attr_field[a] = (size_t)-2; /* not decoded, not dropped */
+            if (r->attr_field[a] == idx) r->attr_field[a] = (size_t)-2; /* not decoded or dropped */
           x->field[k] = idx;
           continue;
         }
       }
       io_unique_name(cloud, want, name);
-      if (!bsurf_cloud_add_field(cloud, name, type)) {
-        st = io_nomem(err);
-        break;
-      }
+      if (!bsurf_cloud_add_field(cloud, name, type)) return io_nomem(r->err);
       x->field[k] = cloud->field_count - 1;
     }
   }
-  /* the points */
-  double v[A_COUNT];
-  for (size_t i = 0; i < n && st == BSURF_OK; i++) {
-    const unsigned char *p = d + point_offset + i * record;
-    for (int k = 0; k < 3; k++)
-      cloud->xyz[3 * i + (size_t)k] = fma((double)(int32_t)io_le32(p + 4 * k), scale[k], offset[k]);
-    decode_attrs(p, fmt, v);
-    for (int a = 0; a < A_COUNT; a++)
-      if (attr_field[a] < (size_t)-2) {
-        if (isnan(v[a]) && a == A_WP_OFFSET) {
-          st = bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, (long long)(point_offset + i * record),
-                          "point %zu: the wave packet offset is beyond 2^53, which a double cannot "
-                          "hold exactly",
-                          i);
-          break;
-        }
-        cloud->fields[attr_field[a]].values[i] = v[a];
-      }
-    for (size_t e = 0; e < nextra && st == BSURF_OK; e++) {
-      const las_extra *x = &extra[e];
-      if (x->base == 0) continue;
-      size_t es = k_eb_size[x->base];
-      for (int k = 0; k < x->dim; k++) {
-        const unsigned char *q = p + x->offset + (size_t)k * es;
-        double val;
-        int ok = 1;
-        if (x->base == 7)
-          val = io_u64_exact(io_le64(q), &ok);
-        else if (x->base == 8)
-          val = io_i64_exact((int64_t)io_le64(q), &ok);
-        else
-          val = io_le_value(q, k_eb_type[x->base]);
-        if (!ok) {
-          st = bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0,
-                          (long long)(point_offset + i * record + x->offset),
+  return BSURF_OK;
+}
+
+/* Point i's extra bytes (record p) into its fields. */
+static bsurf_status decode_extra(const las_reader *r, const unsigned char *p, size_t i,
+                                 bsurf_cloud *cloud) {
+  for (size_t e = 0; e < r->nextra; e++) {
+    const las_extra *x = &r->extra[e];
+    if (x->base == 0) continue;
+    size_t es = k_eb_size[x->base];
+    for (int k = 0; k < x->dim; k++) {
+      const unsigned char *q = p + x->offset + (size_t)k * es;
+      double val;
+      int ok = 1;
+      if (x->base == 7)
+        val = io_u64_exact(io_le64(q), &ok);
+      else if (x->base == 8)
+        val = io_i64_exact((int64_t)io_le64(q), &ok);
+      else
+        val = io_le_value(q, k_eb_type[x->base]);
+      if (!ok)
+        return bsurf_fail(r->err, BSURF_ERR_UNSUPPORTED, 0,
+                          (long long)(r->point_offset + i * r->record + x->offset),
                           "point %zu: the 8-byte integer of extra bytes '%s' is beyond 2^53, which "
                           "a double cannot "
                           "hold exactly",
                           i, x->name);
-          break;
-        }
-        if (x->scaled) val = fma(val, x->scale[k], x->offset_v[k]);
-        cloud->fields[x->field[k]].values[i] = val;
-      }
+      if (x->scaled) val = fma(val, x->scale[k], x->offset_v[k]);
+      cloud->fields[x->field[k]].values[i] = val;
     }
   }
-  /* standard attributes that are zero everywhere carry nothing */
-  for (int a = A_COUNT - 1; a >= 0 && st == BSURF_OK; a--) {
-    if (attr_field[a] >= (size_t)-2) continue;
-    const double *vals = cloud->fields[attr_field[a]].values;
+  return BSURF_OK;
+}
+
+/* The point records: coordinates as X * scale + offset (one fma, the double
+ * nearest the exact value), standard attributes, extra bytes. */
+static bsurf_status read_points(const las_reader *r, bsurf_cloud *cloud) {
+  double v[A_COUNT];
+  for (size_t i = 0; i < (size_t)r->count; i++) {
+    const unsigned char *p = r->d + r->point_offset + i * r->record;
+    for (int k = 0; k < 3; k++)
+      cloud->xyz[3 * i + (size_t)k] =
+          fma((double)(int32_t)io_le32(p + 4 * k), r->scale[k], r->offset[k]);
+    decode_attrs(p, r->fmt, v);
+    for (int a = 0; a < A_COUNT; a++) {
+      if (r->attr_field[a] >= (size_t)-2) continue;
+      if (isnan(v[a]) && a == A_WP_OFFSET)
+        return bsurf_fail(r->err, BSURF_ERR_UNSUPPORTED, 0,
+                          (long long)(r->point_offset + i * r->record),
+                          "point %zu: the wave packet offset is beyond 2^53, which a double cannot "
+                          "hold exactly",
+                          i);
+      cloud->fields[r->attr_field[a]].values[i] = v[a];
+    }
+    bsurf_status st = decode_extra(r, p, i, cloud);
+    if (st != BSURF_OK) return st;
+  }
+  return BSURF_OK;
+}
+
+/* Standard attributes that are zero everywhere carry nothing: removed. */
+static void drop_zero_attributes(las_reader *r, bsurf_cloud *cloud) {
+  size_t n = (size_t)r->count;
+  for (int a = A_COUNT - 1; a >= 0; a--) {
+    if (r->attr_field[a] >= (size_t)-2) continue;
+    const double *vals = cloud->fields[r->attr_field[a]].values;
     size_t i = 0;
     while (i < n && vals[i] == 0 && !signbit(vals[i]))
       i++;
-    if (i == n) {
-      size_t idx = attr_field[a];
-      bsurf_cloud_remove_field(cloud, io_las_attr[a].name);
-      for (size_t e = 0; e < nextra; e++)
-        for (int k = 0; k < 3; k++)
-          if (extra[e].field[k] > idx) extra[e].field[k]--;
-    }
+    if (i < n) continue;
+    size_t idx = r->attr_field[a];
+    bsurf_cloud_remove_field(cloud, io_las_attr[a].name);
+    for (size_t e = 0; e < r->nextra; e++)
+      for (int k = 0; k < 3; k++)
+        if (r->extra[e].field[k] > idx) r->extra[e].field[k]--;
   }
-  /* extra bytes nx ny nz: the normals */
-  if (st == BSURF_OK) {
-    bsurf_field *nx = bsurf_cloud_field(cloud, "nx"), *ny = bsurf_cloud_field(cloud, "ny"),
-                *nz = bsurf_cloud_field(cloud, "nz");
-    if (nx && ny && nz) {
-      cloud->normals = bsurf_alloc_array(n ? 3 * n : 1, sizeof(double));
-      if (!cloud->normals) {
-        st = io_nomem(err);
-      } else {
-        for (size_t i = 0; i < n; i++) {
-          cloud->normals[3 * i] = nx->values[i];
-          cloud->normals[3 * i + 1] = ny->values[i];
-          cloud->normals[3 * i + 2] = nz->values[i];
-        }
-        cloud->normal_type = nx->type;
-        bsurf_cloud_remove_field(cloud, "nx");
-        bsurf_cloud_remove_field(cloud, "ny");
-        bsurf_cloud_remove_field(cloud, "nz");
-      }
-    }
+}
+
+/* Extra bytes nx ny nz are the normals. */
+static bsurf_status take_normals(las_reader *r, bsurf_cloud *cloud) {
+  size_t n = (size_t)r->count;
+  bsurf_field *nx = bsurf_cloud_field(cloud, "nx"), *ny = bsurf_cloud_field(cloud, "ny"),
+              *nz = bsurf_cloud_field(cloud, "nz");
+  if (!nx || !ny || !nz) return BSURF_OK;
+  cloud->normals = bsurf_alloc_array(n ? 3 * n : 1, sizeof(double));
+  if (!cloud->normals) return io_nomem(r->err);
+  for (size_t i = 0; i < n; i++) {
+    cloud->normals[3 * i] = nx->values[i];
+    cloud->normals[3 * i + 1] = ny->values[i];
+    cloud->normals[3 * i + 2] = nz->values[i];
   }
-  if (st == BSURF_OK) memcpy(cloud->shape, shape, sizeof shape);
-  free(extra);
+  cloud->normal_type = nx->type;
+  bsurf_cloud_remove_field(cloud, "nx");
+  bsurf_cloud_remove_field(cloud, "ny");
+  bsurf_cloud_remove_field(cloud, "nz");
+  return BSURF_OK;
+}
+
+bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud,
+                               bsurf_failure *err) {
+  las_reader r;
+  memset(&r, 0, sizeof r);
+  r.d = (const unsigned char *)data;
+  r.size = size;
+  r.err = err;
+  bsurf_status st = read_header(&r);
+  if (st == BSURF_OK) st = read_vlrs(&r);
+  if (st == BSURF_OK) st = read_evlrs(&r);
+  if (st == BSURF_OK) st = check_records(&r);
+  if (st == BSURF_OK) st = make_fields(&r, cloud);
+  if (st == BSURF_OK) st = read_points(&r, cloud);
+  if (st == BSURF_OK) drop_zero_attributes(&r, cloud);
+  if (st == BSURF_OK) st = take_normals(&r, cloud);
+  if (st == BSURF_OK) memcpy(cloud->shape, r.shape, sizeof r.shape);
+  free(r.extra);
   return st;
 }
