@@ -73,7 +73,7 @@ static bsurf_status fields_line(io_cursor *c, pcd_header *h, long ln, bsurf_fail
     f->count = 1;
     f->size = 4;
     f->kind = 'F';
-    if (f->name.len >= BSURF_FIELD_NAME_MAX - 8)
+    if (f->name.len >= BSURF_FIELD_NAME_MAX)
       return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, ln, -1, "field name '%s' is too long",
                         io_token_repr(f->name, a));
   }
