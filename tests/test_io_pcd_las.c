@@ -434,6 +434,20 @@ static const char *file_head(const char *name, char *buf, size_t cap) {
   return buf;
 }
 
+/* Reads an ascii PLY of one vertex: x y z (0 0 0) and `props` (property
+ * lines) with `values`, the header comment `comment` ("" or a line). */
+static void read_one_vertex(const char *comment, const char *props, const char *values,
+                            bsurf_cloud *b) {
+  char text[1024];
+  bsurf_failure err;
+  snprintf(text, sizeof text,
+           "ply\nformat ascii 1.0\n%selement vertex 1\nproperty float x\nproperty float y\n"
+           "property float z\n%send_header\n0 0 0 %s\n",
+           comment, props, values);
+  if (read_bytes("one_vertex.ply", text, strlen(text), b, &err) != BSURF_OK)
+    fail_msg("one vertex: %s", err.message);
+}
+
 /* --float32 and --ply-names change only the PLY header's types and names, and
  * bootsurf reads the names it wrote for a viewer back as they were
  * (docs/formats.md): scalar_NAME is NAME again, MeshLab's quality copy is
@@ -480,33 +494,20 @@ static void test_write_views(void **state) {
   /* names are taken back only from files that say bootsurf wrote them so:
    * CloudCompare's own scalar_ names stay, as does a marked file in which
    * some field lacks the prefix or would become a coordinate */
-  bsurf_failure err;
-  const char *plain = "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
-                      "property float y\nproperty float z\nproperty float scalar_a\n"
-                      "property float quality\nend_header\n0 0 0 1 2\n";
-  assert_int_equal(read_bytes("cc_own.ply", plain, strlen(plain), &b, &err), BSURF_OK);
+  const char *ccmark = "comment bootsurf ply-names cloudcompare\n";
+  read_one_vertex("", "property float scalar_a\nproperty float quality\n", "1 2", &b);
   assert_non_null(bsurf_cloud_field(&b, "scalar_a"));
   assert_non_null(bsurf_cloud_field(&b, "quality"));
   bsurf_cloud_free(&b);
-  const char *mixed = "ply\nformat ascii 1.0\ncomment bootsurf ply-names cloudcompare\n"
-                      "element vertex 1\nproperty float x\nproperty float y\n"
-                      "property float z\nproperty float scalar_a\nproperty float a\n"
-                      "end_header\n0 0 0 1 2\n";
-  assert_int_equal(read_bytes("cc_mixed.ply", mixed, strlen(mixed), &b, &err), BSURF_OK);
+  read_one_vertex(ccmark, "property float scalar_a\nproperty float a\n", "1 2", &b);
   assert_true(bsurf_cloud_field(&b, "scalar_a")->values[0] == 1.0);
   assert_true(bsurf_cloud_field(&b, "a")->values[0] == 2.0);
   bsurf_cloud_free(&b);
-  const char *coord = "ply\nformat ascii 1.0\ncomment bootsurf ply-names cloudcompare\n"
-                      "element vertex 1\nproperty float x\nproperty float y\n"
-                      "property float z\nproperty float scalar_x\nend_header\n0 0 0 1\n";
-  assert_int_equal(read_bytes("cc_coord.ply", coord, strlen(coord), &b, &err), BSURF_OK);
+  read_one_vertex(ccmark, "property float scalar_x\n", "1", &b);
   assert_non_null(bsurf_cloud_field(&b, "scalar_x"));
   bsurf_cloud_free(&b);
-  const char *ml = "ply\nformat ascii 1.0\ncomment bootsurf ply-names meshlab\n"
-                   "element vertex 1\nproperty float x\nproperty float y\n"
-                   "property float z\nproperty double w\nproperty float quality\n"
-                   "end_header\n0 0 0 0.1 0.1\n";
-  assert_int_equal(read_bytes("ml.ply", ml, strlen(ml), &b, &err), BSURF_OK);
+  read_one_vertex("comment bootsurf ply-names meshlab\n",
+                  "property double w\nproperty float quality\n", "0.1 0.1", &b);
   assert_int_equal(b.field_count, 1);
   assert_true(b.fields[0].values[0] == 0.1);
   bsurf_cloud_free(&b);

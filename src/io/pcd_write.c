@@ -167,18 +167,18 @@ bsurf_status bsurf_io_write_pcd(io_writer *w, const bsurf_cloud *cloud, int asci
   const char *shape_end = memchr(cloud->shape, 0, sizeof cloud->shape);
   if (shape_end && shape_end != cloud->shape && !strpbrk(cloud->shape, " \t\r\n"))
     io_write_fmt(w, "# bootsurf shape %s\n", cloud->shape);
-  io_write_str(w, "VERSION 0.7\nFIELDS");
-  for (size_t j = 0; j < no; j++)
-    io_write_fmt(w, " %s", outs[j].name);
-  io_write_str(w, "\nSIZE");
-  for (size_t j = 0; j < no; j++)
-    io_write_fmt(w, " %zu", outs[j].size);
-  io_write_str(w, "\nTYPE");
-  for (size_t j = 0; j < no; j++)
-    io_write_fmt(w, " %c", outs[j].kind);
-  io_write_str(w, "\nCOUNT");
-  for (size_t j = 0; j < no; j++)
-    io_write_fmt(w, " %zu", outs[j].count);
+  /* one line a keyword, one entry a field */
+  static const char *const keyword[4] = {"\nFIELDS", "\nSIZE", "\nTYPE", "\nCOUNT"};
+  io_write_str(w, "VERSION 0.7");
+  for (int q = 0; q < 4; q++) {
+    io_write_str(w, keyword[q]);
+    for (size_t j = 0; j < no; j++) {
+      if (q == 0) io_write_fmt(w, " %s", outs[j].name);
+      if (q == 1) io_write_fmt(w, " %zu", outs[j].size);
+      if (q == 2) io_write_fmt(w, " %c", outs[j].kind);
+      if (q == 3) io_write_fmt(w, " %zu", outs[j].count);
+    }
+  }
   io_write_fmt(w, "\nWIDTH %zu\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS %zu\nDATA %s\n", n, n,
                ascii ? "ascii" : "binary");
 

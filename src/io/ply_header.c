@@ -269,8 +269,6 @@ bsurf_status io_ply_too_short(ply_reader *r, const ply_elem *e, unsigned long lo
                     io_ply_elem_word(e, a), whole);
 }
 
-/* Checks the layout, checks the declared counts against the data size and
- * allocates the cloud. */
 /* A file bootsurf wrote with --ply-names cloudcompare ("comment bootsurf
  * ply-names cloudcompare") has every field as scalar_NAME: its fields are read
  * as NAME again. Returns the length of the prefix to drop from every field's
@@ -302,17 +300,18 @@ static const ply_prop *quality_copy(const ply_reader *r, const ply_elem *vertex)
   return io_token_is(last->name, "quality") && last->type == BSURF_FLOAT32 ? last : NULL;
 }
 
-bsurf_status io_ply_setup(ply_reader *r, bsurf_cloud *cloud) {
-  char a[48], b[64];
-  ply_elem *vertex = NULL;
-  int have_faces = 0;
+/* Element kinds (vertex, face with its index list) and each element's
+ * smallest record: binary bytes, or values on an ascii line. */
+static bsurf_status classify_elements(ply_reader *r, ply_elem **vertex, int *have_faces) {
+  *vertex = NULL;
+  *have_faces = 0;
   for (size_t i = 0; i < r->nelems; i++) {
     ply_elem *e = &r->elems[i];
     if (io_token_is(e->name, "vertex")) {
-      if (vertex)
+      if (*vertex)
         return bsurf_fail(r->err, BSURF_ERR_PARSE, e->line, -1,
                           "the header declares a second vertex element");
-      vertex = e;
+      *vertex = e;
       e->kind = ELEM_VERTEX;
     } else if (io_token_is(e->name, "face")) {
       e->kind = ELEM_FACE;
@@ -321,12 +320,11 @@ bsurf_status io_ply_setup(ply_reader *r, bsurf_cloud *cloud) {
         if (p->is_list &&
             (io_token_is(p->name, "vertex_indices") || io_token_is(p->name, "vertex_index"))) {
           p->is_index = 1;
-          if (e->count) have_faces = 1;
+          if (e->count) *have_faces = 1;
           break;
         }
       }
     }
-    /* sizes: binary bytes of the smallest record, or values on an ascii line */
     for (size_t j = 0; j < e->nprops; j++) {
       ply_prop *p = &e->props[j];
       p->offset = e->min_record;
@@ -337,10 +335,16 @@ bsurf_status io_ply_setup(ply_reader *r, bsurf_cloud *cloud) {
       if (p->is_list) e->has_list = 1;
     }
   }
-  if (!vertex)
+  if (!*vertex)
     return bsurf_fail(r->err, BSURF_ERR_PARSE, r->body_line - 1, -1,
                       "the file has no vertex element");
+  return BSURF_OK;
+}
 
+/* The vertex properties: single values, printable names of a field's
+ * length, each declared once. */
+static bsurf_status check_vertex_props(ply_reader *r, const ply_elem *vertex) {
+  char a[48];
   for (size_t j = 0; j < vertex->nprops; j++) {
     ply_prop *p = &vertex->props[j];
     if (p->is_list)
@@ -375,22 +379,14 @@ bsurf_status io_ply_setup(ply_reader *r, bsurf_cloud *cloud) {
     }
     bsurf_nameset_free(&names);
   }
-  static const char *const coord[3] = {"x", "y", "z"};
-  static const char *const ncoord[3] = {"nx", "ny", "nz"};
-  ply_prop *pc[3], *pn[3];
-  for (int k = 0; k < 3; k++) {
-    pc[k] = find_prop(vertex, coord[k]);
-    if (!pc[k])
-      return bsurf_fail(r->err, BSURF_ERR_PARSE, vertex->line, -1,
-                        "the vertex element has no '%s' property", coord[k]);
-  }
-  int with_normals = 1;
-  for (int k = 0; k < 3; k++) {
-    pn[k] = find_prop(vertex, ncoord[k]);
-    if (!pn[k]) with_normals = 0;
-  }
+  return BSURF_OK;
+}
 
-  /* Never trust the header: the smallest possible data must fit. */
+/* Never trust the header: the smallest possible data of every element must
+ * fit in the bytes after it (ascii: too little data is only validated, in a
+ * dry run that finds the line where it ends). */
+static bsurf_status check_sizes(ply_reader *r) {
+  char b[64];
   unsigned long long left = r->size - r->body, offset = r->body;
   for (size_t i = 0; i < r->nelems; i++) {
     ply_elem *e = &r->elems[i];
@@ -414,6 +410,116 @@ bsurf_status io_ply_setup(ply_reader *r, bsurf_cloud *cloud) {
     left = used > left ? 0 : left - used;
     offset += used;
   }
+  return BSURF_OK;
+}
+
+/* The other properties become fields, all at once (one allocation, no name
+ * lookups: the names are distinct); then every property's destination, now
+ * that the field array no longer moves. pn: NULL without normals. */
+static bsurf_status make_fields(ply_reader *r, ply_elem *vertex, bsurf_cloud *cloud, size_t n,
+                                ply_prop *const pc[3], ply_prop *const pn[3]) {
+  /* --ply-names read back: the names bootsurf wrote for a viewer */
+  size_t strip = strip_prefix(r, vertex, pc, pn);
+  const ply_prop *copy = quality_copy(r, vertex);
+  size_t nf = 0, cap = vertex->nprops ? vertex->nprops : 1;
+  char *names = bsurf_alloc_array(cap, BSURF_FIELD_NAME_MAX);
+  const char **np = bsurf_alloc_array(cap, sizeof *np);
+  bsurf_type *types = bsurf_alloc_array(cap, sizeof *types);
+  bsurf_status st = names && np && types ? BSURF_OK : BSURF_ERR_NOMEM;
+  for (size_t j = 0; j < vertex->nprops && st == BSURF_OK; j++) {
+    ply_prop *p = &vertex->props[j];
+    int special = 0;
+    for (int k = 0; k < 3; k++)
+      if (p == pc[k] || (pn && p == pn[k])) special = 1;
+    if (special || p == copy) continue;
+    char *name = names + nf * BSURF_FIELD_NAME_MAX;
+    memcpy(name, p->name.s + strip, p->name.len - strip);
+    name[p->name.len - strip] = '\0';
+    np[nf] = name;
+    types[nf++] = p->type;
+  }
+  if (st == BSURF_OK) st = bsurf_cloud_add_fields(cloud, nf, np, types);
+  free(names);
+  free(np);
+  free(types);
+  if (st != BSURF_OK) return io_ply_nomem(r);
+  size_t f = 0;
+  for (size_t j = 0; j < vertex->nprops; j++) {
+    ply_prop *p = &vertex->props[j];
+    p->dst = NULL;
+    p->stride = 1;
+    int special = 0;
+    for (int k = 0; k < 3; k++) {
+      if (p == pc[k]) {
+        special = 1;
+        p->dst = n ? cloud->xyz + k : NULL; /* no offsets from NULL */
+        p->stride = 3;
+      } else if (pn && p == pn[k]) {
+        special = 1;
+        p->dst = n ? cloud->normals + k : NULL;
+        p->stride = 3;
+      }
+    }
+    p->field = special || p == copy ? (size_t)-1 : f;
+    if (p->field != (size_t)-1) p->dst = cloud->fields[f++].values;
+  }
+  return BSURF_OK;
+}
+
+/* io_ply_map: where each vertex property is in a record and where it goes
+ * in a cloud with the schema's arrays. */
+static bsurf_status fill_layout(ply_reader *r, const ply_elem *vertex, ply_prop *const pc[3],
+                                ply_prop *const pn[3]) {
+  const ply_prop *copy = quality_copy(r, vertex);
+  io_ply_layout *L = r->layout;
+  L->count = (size_t)vertex->count;
+  L->record = vertex->min_record;
+  L->big_endian = r->format == PLY_BE;
+  L->nprops = vertex->nprops;
+  L->props = bsurf_alloc_array(vertex->nprops ? vertex->nprops : 1, sizeof *L->props);
+  if (!L->props) return io_ply_nomem(r);
+  for (size_t j = 0; j < vertex->nprops; j++) {
+    const ply_prop *p = &vertex->props[j];
+    io_ply_column *col = &L->props[j];
+    col->offset = p->offset;
+    col->type = p->type;
+    col->stride = p->stride;
+    col->array = 0;
+    col->at = 0;
+    for (int k = 0; k < 3; k++) {
+      if (p == pc[k]) col->at = (size_t)k;
+      if (pn && p == pn[k]) col->array = 1, col->at = (size_t)k;
+    }
+    if (p->field != (size_t)-1) col->array = 2, col->at = p->field;
+    if (p == copy) col->array = 3;
+  }
+  return BSURF_OK;
+}
+
+/* Checks the layout, checks the declared counts against the data size and
+ * allocates the cloud. */
+bsurf_status io_ply_setup(ply_reader *r, bsurf_cloud *cloud) {
+  ply_elem *vertex;
+  int have_faces;
+  bsurf_status st = classify_elements(r, &vertex, &have_faces);
+  if (st == BSURF_OK) st = check_vertex_props(r, vertex);
+  if (st != BSURF_OK) return st;
+  static const char *const coord[3] = {"x", "y", "z"};
+  static const char *const ncoord[3] = {"nx", "ny", "nz"};
+  ply_prop *pc[3], *pn[3];
+  for (int k = 0; k < 3; k++) {
+    pc[k] = find_prop(vertex, coord[k]);
+    if (!pc[k])
+      return bsurf_fail(r->err, BSURF_ERR_PARSE, vertex->line, -1,
+                        "the vertex element has no '%s' property", coord[k]);
+  }
+  int with_normals = 1;
+  for (int k = 0; k < 3; k++) {
+    pn[k] = find_prop(vertex, ncoord[k]);
+    if (!pn[k]) with_normals = 0;
+  }
+  st = check_sizes(r);
+  if (st != BSURF_OK) return st;
   if (have_faces && vertex->count > 0xffffffffULL)
     return bsurf_fail(r->err, BSURF_ERR_UNSUPPORTED, vertex->line, -1,
                       "meshes with more than 4294967295 vertices are not supported");
@@ -438,83 +544,9 @@ bsurf_status io_ply_setup(ply_reader *r, bsurf_cloud *cloud) {
   if (bsurf_cloud_alloc(cloud, n, with_normals) != BSURF_OK) return io_ply_nomem(r);
   cloud->xyz_type = pc[0]->type;
   if (with_normals) cloud->normal_type = pn[0]->type;
-
-  /* --ply-names read back: the names bootsurf wrote for a viewer */
-  size_t strip = strip_prefix(r, vertex, pc, with_normals ? pn : NULL);
-  const ply_prop *copy = quality_copy(r, vertex);
-  {
-    /* the other properties become fields, all at once (one allocation, no
-     * name lookups: the names are distinct) */
-    size_t nf = 0;
-    char *names = bsurf_alloc_array(vertex->nprops ? vertex->nprops : 1, BSURF_FIELD_NAME_MAX);
-    const char **np = bsurf_alloc_array(vertex->nprops ? vertex->nprops : 1, sizeof *np);
-    bsurf_type *types = bsurf_alloc_array(vertex->nprops ? vertex->nprops : 1, sizeof *types);
-    bsurf_status st = names && np && types ? BSURF_OK : BSURF_ERR_NOMEM;
-    for (size_t j = 0; j < vertex->nprops && st == BSURF_OK; j++) {
-      ply_prop *p = &vertex->props[j];
-      int special = 0;
-      for (int k = 0; k < 3; k++)
-        if (p == pc[k] || (with_normals && p == pn[k])) special = 1;
-      if (special || p == copy) continue;
-      char *name = names + nf * BSURF_FIELD_NAME_MAX;
-      memcpy(name, p->name.s + strip, p->name.len - strip);
-      name[p->name.len - strip] = '\0';
-      np[nf] = name;
-      types[nf++] = p->type;
-    }
-    if (st == BSURF_OK) st = bsurf_cloud_add_fields(cloud, nf, np, types);
-    free(names);
-    free(np);
-    free(types);
-    if (st != BSURF_OK) return io_ply_nomem(r);
-  }
-  /* Destinations, now that the field array no longer moves. */
-  size_t f = 0;
-  for (size_t j = 0; j < vertex->nprops; j++) {
-    ply_prop *p = &vertex->props[j];
-    p->dst = NULL;
-    p->stride = 1;
-    int special = 0;
-    for (int k = 0; k < 3; k++) {
-      if (p == pc[k]) {
-        special = 1;
-        p->dst = n ? cloud->xyz + k : NULL; /* no offsets from NULL */
-        p->stride = 3;
-      } else if (with_normals && p == pn[k]) {
-        special = 1;
-        p->dst = n ? cloud->normals + k : NULL;
-        p->stride = 3;
-      }
-    }
-    p->field = special || p == copy ? (size_t)-1 : f;
-    if (p->field != (size_t)-1) p->dst = cloud->fields[f++].values;
-  }
-  if (r->layout) {
-    io_ply_layout *L = r->layout;
-    L->count = (size_t)vertex->count;
-    L->record = vertex->min_record;
-    L->big_endian = r->format == PLY_BE;
-    L->nprops = vertex->nprops;
-    L->props = bsurf_alloc_array(vertex->nprops ? vertex->nprops : 1, sizeof *L->props);
-    if (!L->props) return io_ply_nomem(r);
-    for (size_t j = 0; j < vertex->nprops; j++) {
-      const ply_prop *p = &vertex->props[j];
-      io_ply_column *col = &L->props[j];
-      col->offset = p->offset;
-      col->type = p->type;
-      col->stride = p->stride;
-      /* where the value goes in a cloud with the schema's arrays */
-      col->array = 0;
-      col->at = 0;
-      for (int k = 0; k < 3; k++) {
-        if (p == pc[k]) col->at = (size_t)k;
-        if (with_normals && p == pn[k]) col->array = 1, col->at = (size_t)k;
-      }
-      if (p->field != (size_t)-1) col->array = 2, col->at = p->field;
-      if (p == copy) col->array = 3;
-    }
-  }
-  return BSURF_OK;
+  st = make_fields(r, vertex, cloud, n, pc, with_normals ? pn : NULL);
+  if (st == BSURF_OK && r->layout) st = fill_layout(r, vertex, pc, with_normals ? pn : NULL);
+  return st;
 }
 
 /* ------------------------------------------------------------------------ */
