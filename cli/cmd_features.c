@@ -141,8 +141,9 @@ static int features_tiled(const char *input, const char *output, const bsurf_fea
   return rc;
 }
 
-/* The tiled distance method: the library's chain of tiled stages
- * (bsurf_features_distance_tiled, src/tile/features_tiled.c). 0 or 1. */
+/* The tiled distance method and the variance method's null rule: the
+ * library's chains of tiled stages (bsurf_features_distance_tiled and
+ * bsurf_features_variance_tiled, src/tile/features_tiled.c). 0 or 1. */
 typedef struct features_distance_arg {
   const bsurf_feature_options *fo;
   bsurf_feature_report *rep;
@@ -152,7 +153,9 @@ static bsurf_status features_distance_fn(void *arg, const char *input, const cha
                                          bsurf_tile_ops *ops, bsurf_tile_report *rep,
                                          bsurf_failure *err) {
   const features_distance_arg *a = arg;
-  return bsurf_features_distance_tiled(input, output, ops, a->fo, a->rep, rep, err);
+  return a->fo->method == BSURF_FEATURES_DISTANCE
+             ? bsurf_features_distance_tiled(input, output, ops, a->fo, a->rep, rep, err)
+             : bsurf_features_variance_tiled(input, output, ops, a->fo, a->rep, rep, err);
 }
 
 static int features_distance_tiled(const char *input, const char *output,
@@ -162,7 +165,7 @@ static int features_distance_tiled(const char *input, const char *output,
   bsurf_tile_ops ops;
   memset(&ops, 0, sizeof ops);
   ops.tile_points = *plan;
-  ops.k = fo->k_max;
+  ops.k = fo->method == BSURF_FEATURES_DISTANCE ? fo->k_max : fo->normals.k;
   ops.threads = fo->threads;
   ops.user = ft;
   ops.prepare = features_prepare;
@@ -179,14 +182,13 @@ static int features_distance_tiled(const char *input, const char *output,
 
 int cmd_features(const cli_command *cmd, int argc, char **argv) {
   bsurf_feature_options fo = bsurf_feature_options_default();
-  const char *method = "distance", *output = NULL, *threshold_s = "auto", *tail = "otsu";
+  const char *method = "distance", *output = NULL, *threshold_s = "auto", *tail = "null";
   const char *memory_limit = "auto";
   size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
       {0, "method", ARG_STRING, &method, "M",
-       "distance (PCA distance map, 7.1; tiled in stages) or variance (7.2; tiled in two stages)",
-       1, 0},
+       "distance (PCA distance map, 7.1) or variance (7.2); both tiled in stages", 1, 0},
       {'k', "neighbors", ARG_INT, &fo.normals.k, "K", "variance: neighbourhood of the normals", 3,
        65535},
       {'B', "bootstrap", ARG_INT, &fo.normals.bootstrap, "B",
@@ -211,7 +213,14 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
        "distance: range sigma of the filter, fraction of max radius", 1e-12, 1e6},
       {0, "threshold", ARG_STRING, &threshold_s, "T",
        "distance: fraction of max(feature_dist) or auto; variance: normal_var value or auto", 1, 0},
-      {0, "tail-rule", ARG_STRING, &tail, "R", "variance auto threshold: otsu or mad", 1, 0},
+      {0, "tail-rule", ARG_STRING, &tail, "R",
+       "variance auto threshold: null (test against a flat patch at the measured noise), otsu "
+       "or mad (on log normal_var)",
+       1, 0},
+      {0, "false-positive-rate", ARG_DOUBLE, &fo.false_positive_rate, "A",
+       "variance, rule null: share of a flat area flagged", 1e-9, 0.999999},
+      {0, "variance-filter-k", ARG_INT, &fo.variance_filter_k, "K",
+       "variance, rule null: neighbours of the median filter (0 = K/2, 1 = none)", 0, 65535},
       CLI_OPT_SEED(fo.normals.seed),
       CLI_OPT_THREADS(fo.threads),
       CLI_OPTS_OUTPUT(output, ascii, force),
@@ -224,10 +233,11 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
   if (rc != CLI_PARSED) return rc;
   if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
-  static const char *const methods[] = {"distance", "variance"}, *const tails[] = {"otsu", "mad"};
-  int m = cli_choice(method, methods, 2), tr = cli_choice(tail, tails, 2);
+  static const char *const methods[] = {"distance", "variance"}, *const tails[] = {"otsu", "mad",
+                                                                                   "null"};
+  int m = cli_choice(method, methods, 2), tr = cli_choice(tail, tails, 3);
   if (m < 0) return cli_usage_error(cmd, "--method must be distance or variance, not '%s'", method);
-  if (tr < 0) return cli_usage_error(cmd, "--tail-rule must be otsu or mad, not '%s'", tail);
+  if (tr < 0) return cli_usage_error(cmd, "--tail-rule must be null, otsu or mad, not '%s'", tail);
   fo.method = (bsurf_feature_method)m;
   fo.tail_rule = (bsurf_tail_rule)tr;
   if (strcmp(threshold_s, "auto") != 0) {
@@ -251,7 +261,11 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   memset(&nb, 0, sizeof nb);
   uint8_t *feat = NULL;
   double *score = NULL;
-  const char *score_name = fo.method == BSURF_FEATURES_DISTANCE ? "feature_dist" : "normal_var";
+  const int null_rule = fo.method == BSURF_FEATURES_VARIANCE && isnan(fo.threshold) &&
+                        fo.tail_rule == BSURF_TAIL_NULL;
+  const char *score_name = fo.method == BSURF_FEATURES_DISTANCE ? "feature_dist"
+                           : null_rule                          ? "variance_z"
+                                                                : "normal_var";
   const char *out_names[2] = {"feature", score_name};
   int kept[2] = {0, 0}, replaced[2] = {0, 0};
   size_t n = 0;
@@ -263,7 +277,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     memset(&ft, 0, sizeof ft);
     ft.names[0] = out_names[0];
     ft.names[1] = out_names[1];
-    if (fo.method == BSURF_FEATURES_DISTANCE
+    if (fo.method == BSURF_FEATURES_DISTANCE || null_rule
             ? features_distance_tiled(pos[0], output, &fo, &plan, quiet, &ft, &tiles, &n, &h, &rep)
             : features_tiled(pos[0], output, &fo, &plan, quiet, &ft, &tiles, &n, &h, &rep))
       goto done;
@@ -334,6 +348,13 @@ summary:;
       json_int(&j, "bootstrap", fo.normals.bootstrap);
       json_int(&j, "seed", (long long)fo.normals.seed);
       json_str(&j, "tail_rule", tail);
+      if (null_rule) {
+        json_num(&j, "false_positive_rate", fo.false_positive_rate);
+        json_int(&j, "variance_filter_k",
+                 fo.variance_filter_k ? fo.variance_filter_k
+                                      : (fo.normals.k / 2 > 1 ? fo.normals.k / 2 : 1));
+        json_num(&j, "noise_level", rep.noise_level);
+      }
     }
     json_str(&j, "threshold_mode", isnan(fo.threshold) ? "auto" : "value");
     json_close_obj(&j);

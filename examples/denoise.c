@@ -4,29 +4,23 @@
  * Usage: denoise INPUT OUTPUT.ply */
 #include <bootsurf.h>
 
+#include "example.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 int main(int argc, char **argv) {
-  if (argc != 3) {
-    fprintf(stderr, "usage: %s INPUT OUTPUT.ply\n", argv[0]);
-    return 2;
-  }
   bsurf_cloud cloud;
-  bsurf_failure where;
-  bsurf_status st = bsurf_read(argv[1], &cloud, &where);
-  if (st != BSURF_OK) {
-    fprintf(stderr, "%s:%ld: %s\n", argv[1], where.line, where.message);
-    return 1;
-  }
+  int rc = example_read_input(argc, argv, &cloud);
+  if (rc) return rc;
   bsurf_smooth_options opt = bsurf_smooth_options_default(); /* bilateral, K = 50 */
   bsurf_neighbors nb;
   double *out_xyz = malloc(cloud.point_count * 3 * sizeof *out_xyz);
   bsurf_field *moved = bsurf_cloud_add_field(&cloud, "moved", BSURF_FLOAT32);
-  st = out_xyz && moved
-           ? bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count, opt.error.k, 0, NULL, NULL)
-           : BSURF_ERR_NOMEM;
+  bsurf_status st = out_xyz && moved ? bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count,
+                                                             opt.error.k, 0, NULL, NULL)
+                                     : BSURF_ERR_NOMEM;
   bsurf_smooth_report rep;
   if (st == BSURF_OK) {
     bsurf_smooth_fields fields = {0};
@@ -36,6 +30,7 @@ int main(int argc, char **argv) {
   }
   if (st == BSURF_OK) {
     memcpy(cloud.xyz, out_xyz, cloud.point_count * 3 * sizeof *out_xyz);
+    bsurf_failure where;
     st = bsurf_write(argv[2], &cloud, NULL, &where);
   }
   free(out_xyz);

@@ -2,24 +2,18 @@
  * Usage: estimate_error INPUT.ply OUTPUT.ply */
 #include <bootsurf.h>
 
+#include "example.h"
+
 #include <stdio.h>
 
 int main(int argc, char **argv) {
-  if (argc != 3) {
-    fprintf(stderr, "usage: %s INPUT OUTPUT.ply\n", argv[0]);
-    return 2;
-  }
   bsurf_cloud cloud;
-  bsurf_failure where;
-  bsurf_status st = bsurf_read(argv[1], &cloud, &where);
-  if (st != BSURF_OK) {
-    fprintf(stderr, "%s:%ld: %s\n", argv[1], where.line, where.message);
-    return 1;
-  }
+  int rc = example_read_input(argc, argv, &cloud);
+  if (rc) return rc;
 
   bsurf_error_options opt = bsurf_error_options_default(); /* K=50, cubic, B=50, seed 1 */
   bsurf_neighbors nb;                                      /* built once, shared */
-  st = bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count, opt.k, 0, NULL, NULL);
+  bsurf_status st = bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count, opt.k, 0, NULL, NULL);
   if (st != BSURF_OK) {
     fprintf(stderr, "neighbourhoods: %s\n", bsurf_strerror(st));
     bsurf_cloud_free(&cloud);
@@ -31,6 +25,7 @@ int main(int argc, char **argv) {
   out.err_632plus = f->values; /* outputs you don't need stay NULL */
   bsurf_error_report rep;
   st = bsurf_estimate_error(cloud.xyz, &nb, NULL, &opt, &out, &rep);
+  bsurf_failure where;
   if (st == BSURF_OK) st = bsurf_write(argv[2], &cloud, NULL, &where); /* binary PLY, atomic */
   if (st != BSURF_OK)
     fprintf(stderr, "%s\n", bsurf_strerror(st));

@@ -4,24 +4,18 @@
  * Usage: normals_confidence INPUT OUTPUT.ply */
 #include <bootsurf.h>
 
+#include "example.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 
 int main(int argc, char **argv) {
-  if (argc != 3) {
-    fprintf(stderr, "usage: %s INPUT OUTPUT.ply\n", argv[0]);
-    return 2;
-  }
   bsurf_cloud cloud;
-  bsurf_failure where;
-  bsurf_status st = bsurf_read(argv[1], &cloud, &where);
-  if (st != BSURF_OK) {
-    fprintf(stderr, "%s:%ld: %s\n", argv[1], where.line, where.message);
-    return 1;
-  }
+  int rc = example_read_input(argc, argv, &cloud);
+  if (rc) return rc;
   bsurf_normal_options opt = bsurf_normal_options_default(); /* PCA, K = 30, B = 50 */
   bsurf_neighbors nb;
-  st = bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count, opt.k, 0, NULL, NULL);
+  bsurf_status st = bsurf_neighbors_build(&nb, cloud.xyz, cloud.point_count, opt.k, 0, NULL, NULL);
   if (st != BSURF_OK) {
     fprintf(stderr, "%s: %s\n", argv[1], bsurf_strerror(st));
     bsurf_cloud_free(&cloud);
@@ -41,6 +35,7 @@ int main(int argc, char **argv) {
     st = bsurf_estimate_normals(cloud.xyz, &nb, NULL, &opt, &out, &rep);
   }
   bsurf_neighbors_free(&nb);
+  bsurf_failure where;
   if (st == BSURF_OK) st = bsurf_write(argv[2], &cloud, NULL, &where);
   if (st != BSURF_OK) {
     fprintf(stderr, "normals_confidence: %s\n", bsurf_strerror(st));

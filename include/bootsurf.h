@@ -683,7 +683,13 @@ typedef enum bsurf_tail_rule {
   BSURF_TAIL_OTSU = 0, /* Otsu's two-class split of log(value) (256 bins);
                           the default: best on the cube and Fandisk (see
                           src/algo/features.c) */
-  BSURF_TAIL_MAD       /* median + 3 x 1.4826 x MAD of log(value) */
+  BSURF_TAIL_MAD,      /* median + 3 x 1.4826 x MAD of log(value) */
+  BSURF_TAIL_NULL      /* features --method variance only, the default: a
+                          test against the variance of a flat patch at the
+                          measured noise level, at the false-positive rate
+                          false_positive_rate (src/algo/features_variance.c,
+                          docs/features.md); needs the geometry, so
+                          bsurf_tail_threshold refuses it */
 } bsurf_tail_rule;
 
 /* The start of the upper tail of a distribution of non-negative values.
@@ -727,8 +733,16 @@ typedef struct bsurf_feature_options {
    * at some size (the band that met a feature before k_max, apart from the
    * plateau near max radius of those that met none).
    * variance: normal_var > threshold; NAN = auto (tail_rule). */
-  double threshold;             /* NAN */
-  bsurf_tail_rule tail_rule;    /* OTSU */
+  double threshold;          /* NAN */
+  bsurf_tail_rule tail_rule; /* NULL (variance) */
+  /* variance, tail_rule NULL: the score is z = nu tr / s^2 (tr the trace of
+   * the covariance of the normals.k-neighbourhood, s^2 the median of its
+   * smallest eigenvalue over the cloud), median-filtered over the first
+   * variance_filter_k neighbours; a point is a feature when it exceeds the
+   * (1 - false_positive_rate) quantile of the same score on a simulated flat
+   * patch with the cloud's noise level (docs/features.md). */
+  double false_positive_rate;   /* in (0, 1) (0.01) */
+  int variance_filter_k;        /* 1 = no filter; 0 = normals.k / 2 (0) */
   bsurf_normal_options normals; /* variance: the bootstrap normals (defaults) */
   int threads;                  /* 0 = all cores (also used for normals) */
   bsurf_progress_fn progress;
@@ -746,12 +760,16 @@ typedef struct bsurf_feature_report {
   double ratio_threshold_kmin; /* distance: the T_{a/c} applied at k_min
                                   (above ratio_threshold when noise_factor
                                   raised it); NAN for VARIANCE */
+  double noise_level;          /* variance, rule NULL: sqrt of the median
+                                  smallest PCA eigenvalue (the noise sigma
+                                  the null patch is given); else NAN */
 } bsurf_feature_report;
 
 /* Feature detection. nb: neighbourhoods with nb->k >= k_max (distance) or
  * >= normals.k (variance). feature out: point_count, 0/1; score out:
- * point_count (feature_dist for DISTANCE, normal_var for VARIANCE), may be
- * NULL. Deterministic for any thread count. */
+ * point_count (feature_dist for DISTANCE, normal_var for VARIANCE with the
+ * OTSU or MAD rule, the filtered score z for VARIANCE with the NULL rule),
+ * may be NULL. Deterministic for any thread count. */
 BSURF_API bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
                                              const bsurf_feature_options *opts, uint8_t *feature,
                                              double *score, bsurf_feature_report *report);

@@ -422,25 +422,95 @@ static void test_detect(void **state) {
   bsurf_cloud_free(&c);
 }
 
-/* --float32 and --ply-names change only the PLY header's types and names. */
+/* The first `cap` - 1 bytes of a file written by roundtrip(), as a string. */
+static const char *file_head(const char *name, char *buf, size_t cap) {
+  char path[4096];
+  tmp_path(path, sizeof path, name);
+  FILE *f = fopen(path, "rb");
+  assert_non_null(f);
+  size_t n = fread(buf, 1, cap - 1, f);
+  fclose(f);
+  buf[n] = 0;
+  return buf;
+}
+
+/* Reads an ascii PLY of one vertex: x y z (0 0 0) and `props` (property
+ * lines) with `values`, the header comment `comment` ("" or a line). */
+static void read_one_vertex(const char *comment, const char *props, const char *values,
+                            bsurf_cloud *b) {
+  char text[1024];
+  bsurf_failure err;
+  snprintf(text, sizeof text,
+           "ply\nformat ascii 1.0\n%selement vertex 1\nproperty float x\nproperty float y\n"
+           "property float z\n%send_header\n0 0 0 %s\n",
+           comment, props, values);
+  if (read_bytes("one_vertex.ply", text, strlen(text), b, &err) != BSURF_OK)
+    fail_msg("one vertex: %s", err.message);
+}
+
+/* --float32 and --ply-names change only the PLY header's types and names, and
+ * bootsurf reads the names it wrote for a viewer back as they were
+ * (docs/formats.md): scalar_NAME is NAME again, MeshLab's quality copy is
+ * dropped, so PLY -> viewer names -> PLY keeps every field. */
 static void test_write_views(void **state) {
   (void)state;
   bsurf_cloud a, b;
+  char head[4096];
   make_cloud(&a, 10);
   bsurf_write_options o = {.float32 = 1, .ply_names = BSURF_PLY_NAMES_CLOUDCOMPARE};
   roundtrip(&a, "views.ply", &o, &b);
+  assert_non_null(strstr(file_head("views.ply", head, sizeof head),
+                         "comment bootsurf ply-names cloudcompare\n"));
+  assert_non_null(strstr(head, "property float scalar_err_632\n"));
+  assert_non_null(strstr(head, "property char scalar_label\n"));
   assert_int_equal(b.xyz_type, BSURF_FLOAT32);
-  assert_non_null(bsurf_cloud_field(&b, "scalar_err_632"));
-  assert_int_equal(bsurf_cloud_field(&b, "scalar_err_632")->type, BSURF_FLOAT32);
-  assert_int_equal(bsurf_cloud_field(&b, "scalar_label")->type, BSURF_INT8);
+  assert_int_equal(b.field_count, a.field_count);
+  assert_null(bsurf_cloud_field(&b, "scalar_err_632"));
+  assert_int_equal(bsurf_cloud_field(&b, "err_632")->type, BSURF_FLOAT32);
+  assert_int_equal(bsurf_cloud_field(&b, "label")->type, BSURF_INT8);
   assert_int_equal(a.xyz_type, BSURF_FLOAT64); /* the cloud itself is unchanged */
+  bsurf_cloud_free(&b);
+  /* without --float32 the round trip is exact, names and values */
+  bsurf_write_options cc = {.ply_names = BSURF_PLY_NAMES_CLOUDCOMPARE};
+  roundtrip(&a, "cc.ply", &cc, &b);
+  same_fields(&a, &b, 0, "cloudcompare names");
   bsurf_cloud_free(&b);
   bsurf_write_options m = {.ply_names = BSURF_PLY_NAMES_MESHLAB};
   roundtrip(&a, "meshlab.ply", &m, &b);
-  assert_int_equal(b.field_count, a.field_count + 1);
-  assert_true(bsurf_cloud_field(&b, "quality")->values[3] == (double)(float)a.fields[0].values[3]);
+  assert_non_null(
+      strstr(file_head("meshlab.ply", head, sizeof head), "comment bootsurf ply-names meshlab\n"));
+  assert_non_null(strstr(head, "property float quality\nend_header"));
+  same_fields(&a, &b, 0, "meshlab names");
+  assert_null(bsurf_cloud_field(&b, "quality"));
+  bsurf_cloud_free(&b);
+  /* a field of the cloud called quality: no copy, no comment, kept */
+  assert_non_null(bsurf_cloud_add_field(&a, "quality", BSURF_FLOAT32));
+  roundtrip(&a, "meshlab_q.ply", &m, &b);
+  assert_null(strstr(file_head("meshlab_q.ply", head, sizeof head), "ply-names"));
+  same_fields(&a, &b, 0, "meshlab names, own quality");
   bsurf_cloud_free(&b);
   bsurf_cloud_free(&a);
+
+  /* names are taken back only from files that say bootsurf wrote them so:
+   * CloudCompare's own scalar_ names stay, as does a marked file in which
+   * some field lacks the prefix or would become a coordinate */
+  const char *ccmark = "comment bootsurf ply-names cloudcompare\n";
+  read_one_vertex("", "property float scalar_a\nproperty float quality\n", "1 2", &b);
+  assert_non_null(bsurf_cloud_field(&b, "scalar_a"));
+  assert_non_null(bsurf_cloud_field(&b, "quality"));
+  bsurf_cloud_free(&b);
+  read_one_vertex(ccmark, "property float scalar_a\nproperty float a\n", "1 2", &b);
+  assert_true(bsurf_cloud_field(&b, "scalar_a")->values[0] == 1.0);
+  assert_true(bsurf_cloud_field(&b, "a")->values[0] == 2.0);
+  bsurf_cloud_free(&b);
+  read_one_vertex(ccmark, "property float scalar_x\n", "1", &b);
+  assert_non_null(bsurf_cloud_field(&b, "scalar_x"));
+  bsurf_cloud_free(&b);
+  read_one_vertex("comment bootsurf ply-names meshlab\n",
+                  "property double w\nproperty float quality\n", "0.1 0.1", &b);
+  assert_int_equal(b.field_count, 1);
+  assert_true(b.fields[0].values[0] == 0.1);
+  bsurf_cloud_free(&b);
 }
 
 int main(void) {

@@ -551,6 +551,9 @@ static void test_features_two_stage(void **state) {
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 14, 2, NULL, NULL), BSURF_OK);
   bsurf_feature_options fo = bsurf_feature_options_default();
   fo.method = BSURF_FEATURES_VARIANCE;
+  /* the rule this sketch of two stages reproduces; the null rule, in three
+   * stages, is bsurf_features_variance_tiled (cli_tiles checks it) */
+  fo.tail_rule = BSURF_TAIL_OTSU;
   fo.normals.k = 14;
   fo.normals.bootstrap = 6;
   fo.threads = 2;

@@ -159,6 +159,44 @@ double bsurf_fdist_otsu_positive(double *pos, size_t m);
  * threshold: the option (NAN = auto). */
 int bsurf_fdist_feature(double v, int state, double thr, double threshold);
 
+/* lambda0 (>= 0) and the trace of the covariance (about the centroid) of
+ * the first k points xyz[idx[0..k-1]]. */
+void bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr);
+
+/* ---- features --method variance, rule NULL (features_variance.c): the
+ * stages of bsurf_detect_features, also run tile by tile. Rows of nb as
+ * above; nu and the outputs by row, u of bsurf_fvar_filter by point. ---- */
+typedef struct bsurf_fvar_result {
+  double threshold;      /* t = max(null_threshold, split) on the filtered z */
+  double null_threshold; /* t_alpha: the null patch's (1 - alpha) quantile */
+  double split;          /* Otsu's split of log z (NAN without noise) */
+  double noise_level;    /* s = sqrt(median lambda0) */
+  double sigma0;         /* the null patch's noise (unit density); 0 if none */
+} bsurf_fvar_result;
+/* The filter's neighbours k_f (variance_filter_k, 0 = normals.k / 2). */
+int bsurf_fvar_filter_k(const bsurf_feature_options *o);
+/* Per row of the k-neighbourhoods: u = nu tr, lambda0 and lambda0 / tr. */
+bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
+                              const double *nu, double *u, double *l0, double *ratio);
+/* z[r] = median of u over the first kf neighbours of row r, / s2 (s2 <= 0:
+ * not divided). */
+bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, double s2,
+                               const double *u, double *z);
+/* The median of v[0..n) (sorted in place); 0 when n = 0. */
+double bsurf_fvar_median(double *v, size_t n);
+/* t: the (1 - false_positive_rate) quantile of z on the flat null patch
+ * whose median lambda0 / tr is eta; sigma0 out may be NULL. */
+bsurf_status bsurf_fvar_null_threshold(const bsurf_feature_options *o, double eta, double *t,
+                                       double *sigma0);
+/* The threshold from s2 = median lambda0 and eta = median lambda0 / tr of
+ * the cloud (z: the filtered scores, for the noise-free case). */
+bsurf_status bsurf_fvar_threshold(const bsurf_feature_options *o, const double *z, size_t n,
+                                  double s2, double eta, bsurf_fvar_result *res);
+/* In memory: score in nu, out z; feature out z > t. */
+bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
+                               const bsurf_feature_options *o, double *score, uint8_t *feature,
+                               bsurf_fvar_result *res);
+
 #include "algo/smooth_stages.h"
 
 #endif

@@ -108,7 +108,9 @@ bsurf_feature_options bsurf_feature_options_default(void) {
   o.filter_k = 0;
   o.sigma_range = 0.05;
   o.threshold = NAN;
-  o.tail_rule = BSURF_TAIL_OTSU;
+  o.tail_rule = BSURF_TAIL_NULL;
+  o.false_positive_rate = 0.01;
+  o.variance_filter_k = 0;
   o.normals = bsurf_normal_options_default();
   return o;
 }
@@ -177,6 +179,27 @@ static double sums_ratio(const pca_sums *s) {
   if (!(ev[2] > 0)) return 0;
   double r = ev[0] / ev[2];
   return r > 0 ? r : 0; /* rounding can make lambda0 a hair negative */
+}
+
+void bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr) {
+  pca_sums s;
+  memset(&s, 0, sizeof s);
+  const double *o = &xyz[3 * (size_t)idx[0]];
+  for (int m = 0; m < k; m++)
+    sums_add(&s, &xyz[3 * (size_t)idx[m]], o);
+  const double w = s.m;
+  double mu[3] = {s.s1[0] / w, s.s1[1] / w, s.s1[2] / w};
+  double C[3][3];
+  C[0][0] = s.s2[0] / w - mu[0] * mu[0];
+  C[0][1] = C[1][0] = s.s2[1] / w - mu[0] * mu[1];
+  C[0][2] = C[2][0] = s.s2[2] / w - mu[0] * mu[2];
+  C[1][1] = s.s2[3] / w - mu[1] * mu[1];
+  C[1][2] = C[2][1] = s.s2[4] / w - mu[1] * mu[2];
+  C[2][2] = s.s2[5] / w - mu[2] * mu[2];
+  double ev[3];
+  eigvals_sym3((const double(*)[3])C, ev);
+  *l0 = ev[0] > 0 ? ev[0] : 0;
+  *tr = C[0][0] + C[1][1] + C[2][2];
 }
 
 void bsurf_incremental_pca_ratios(const double *xyz, const uint32_t *idx, int k, double *ratio) {
@@ -536,7 +559,9 @@ bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail
   BSURF_REQUIRE(values, "values is NULL");
   BSURF_REQUIRE(threshold, "threshold is NULL");
   BSURF_REQUIRE(rule == BSURF_TAIL_OTSU || rule == BSURF_TAIL_MAD,
-                "rule = %d: must be BSURF_TAIL_OTSU or BSURF_TAIL_MAD", (int)rule);
+                "rule = %d: must be BSURF_TAIL_OTSU or BSURF_TAIL_MAD (BSURF_TAIL_NULL needs "
+                "the points: bsurf_detect_features)",
+                (int)rule);
   if (count < 2)
     return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
                              "bsurf_tail_threshold: %zu values, at least 2 needed", count);
@@ -591,7 +616,10 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
                                    const bsurf_feature_options *opts, uint8_t *feature,
                                    double *score, bsurf_feature_report *report) {
   bsurf_feature_options o = opts ? *opts : bsurf_feature_options_default();
-  if (report) memset(report, 0, sizeof *report);
+  if (report) {
+    memset(report, 0, sizeof *report);
+    report->noise_level = NAN;
+  }
   BSURF_REQUIRE(xyz, "xyz is NULL");
   BSURF_REQUIRE(feature, "feature is NULL");
   BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build",
@@ -599,8 +627,8 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
   BSURF_REQUIRE(o.method == BSURF_FEATURES_DISTANCE || o.method == BSURF_FEATURES_VARIANCE,
                 "method = %d: must be BSURF_FEATURES_DISTANCE or BSURF_FEATURES_VARIANCE",
                 (int)o.method);
-  BSURF_REQUIRE((unsigned)o.tail_rule <= BSURF_TAIL_MAD,
-                "tail_rule = %d: must be BSURF_TAIL_OTSU or _MAD", (int)o.tail_rule);
+  BSURF_REQUIRE((unsigned)o.tail_rule <= BSURF_TAIL_NULL,
+                "tail_rule = %d: must be BSURF_TAIL_OTSU, _MAD or _NULL", (int)o.tail_rule);
   BSURF_REQUIRE(o.method != BSURF_FEATURES_VARIANCE || o.normals.bootstrap >= 2,
                 "normals.bootstrap = %d: the variance method needs B >= 2", o.normals.bootstrap);
   const size_t n = nb->point_count;
@@ -619,15 +647,21 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
     if (no.bootstrap < 2) st = BSURF_ERR_INVALID_ARG;
     bsurf_normal_fields nf = {NULL, sc, NULL};
     if (st == BSURF_OK) st = bsurf_estimate_normals(xyz, nb, NULL, &no, &nf, NULL);
-    if (st == BSURF_OK) {
+    if (st == BSURF_OK && isnan(o.threshold) && o.tail_rule == BSURF_TAIL_NULL) {
+      /* the null test (features_variance.c): sc becomes the filtered z */
+      bsurf_fvar_result vr;
+      st = bsurf_fvar_detect(xyz, nb, &o, sc, feature, &vr);
+      thr = vr.threshold;
+      if (report) report->noise_level = vr.noise_level;
+    } else if (st == BSURF_OK) {
       if (isnan(o.threshold))
         st = bsurf_tail_threshold(sc, n, o.tail_rule, &thr);
       else
         thr = o.threshold;
+      if (st == BSURF_OK)
+        for (size_t i = 0; i < n; i++)
+          feature[i] = sc[i] > thr;
     }
-    if (st == BSURF_OK)
-      for (size_t i = 0; i < n; i++)
-        feature[i] = sc[i] > thr;
   } else {
     /* the stages of the tiled run (src/tile/features_tiled.c), on the whole cloud */
     state = bsurf_alloc_array(n, 1);

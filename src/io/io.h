@@ -17,12 +17,24 @@
  * function gets its line here (tests/cli/library.sh checks the archive). */
 #define io_count_tokens bsurf_i_io_count_tokens
 #define io_i64_exact bsurf_i_io_i64_exact
+#define io_las_attr bsurf_i_io_las_attr
+#define io_las_has_attr bsurf_i_io_las_has_attr
+#define io_nomem bsurf_i_io_nomem
+#define io_pcd_parse_header bsurf_i_io_pcd_parse_header
+#define io_las_record_size bsurf_i_io_las_record_size
 #define io_le16 bsurf_i_io_le16
 #define io_le32 bsurf_i_io_le32
 #define io_le64 bsurf_i_io_le64
 #define io_le_f32 bsurf_i_io_le_f32
 #define io_le_f64 bsurf_i_io_le_f64
 #define io_le_value bsurf_i_io_le_value
+#define io_ply_elem_plural bsurf_i_io_ply_elem_plural
+#define io_ply_elem_word bsurf_i_io_ply_elem_word
+#define io_ply_nomem bsurf_i_io_ply_nomem
+#define io_ply_parse_header bsurf_i_io_ply_parse_header
+#define io_ply_setup bsurf_i_io_ply_setup
+#define io_ply_shape_name_ok bsurf_i_io_ply_shape_name_ok
+#define io_ply_too_short bsurf_i_io_ply_too_short
 #define io_ply_probe bsurf_i_io_ply_probe
 #define io_put_le bsurf_i_io_put_le
 #define io_u64_exact bsurf_i_io_u64_exact
@@ -41,6 +53,7 @@
 #define io_obuf_done bsurf_i_io_obuf_done
 #define io_obuf_flush bsurf_i_io_obuf_flush
 #define io_obuf_init bsurf_i_io_obuf_init
+#define io_obuf_point bsurf_i_io_obuf_point
 #define io_obuf_str bsurf_i_io_obuf_str
 #define io_obuf_uint bsurf_i_io_obuf_uint
 #define io_obuf_value bsurf_i_io_obuf_value
@@ -151,6 +164,9 @@ bsurf_status io_faces_corner(io_faces *f, uint32_t index);
 /* Moves the triangles into the cloud (shrinking the array). */
 void io_faces_move(io_faces *f, bsurf_cloud *cloud);
 
+/* "out of memory" in *err; returns BSURF_ERR_NOMEM. */
+bsurf_status io_nomem(bsurf_failure *err);
+
 /* ---- growable arrays of doubles ---------------------------------------------- */
 
 typedef struct io_dvec {
@@ -194,6 +210,9 @@ void io_obuf_str(io_obuf *b, const char *s);
 void io_obuf_char(io_obuf *b, char c);
 /* One value formatted as io_format_value does. */
 void io_obuf_value(io_obuf *b, double v, bsurf_type type);
+/* Point i's x y z (and nx ny nz when the cloud has normals), exactly (17
+ * digits), separated by sep; no line break. */
+void io_obuf_point(io_obuf *b, const bsurf_cloud *cloud, size_t i, char sep);
 void io_obuf_uint(io_obuf *b, unsigned long long v);
 
 /* ---- readers: fill an initialised cloud; on failure may leave it partly
@@ -238,7 +257,8 @@ void io_unique_name(const bsurf_cloud *cloud, const char *name, char out[BSURF_F
 /* ---- binary PLY by offset (the tiled runs of src/tile) ------------------ */
 
 /* One vertex property: where it is in a record and where it goes in a cloud
- * with the schema's arrays (array 0: xyz, 1: normals, 2: field `at`). */
+ * with the schema's arrays (array 0: xyz, 1: normals, 2: field `at`, 3:
+ * nowhere). */
 typedef struct io_ply_column {
   size_t offset;
   bsurf_type type;
@@ -291,8 +311,10 @@ bsurf_status io_ply_encode(const bsurf_cloud *cloud, unsigned char *out);
 
 /* Checks that the fields can be named in a PLY header. */
 bsurf_status bsurf_io_ply_check(const bsurf_cloud *cloud, bsurf_failure *err);
+/* names: the fields' names were made for a viewer (write_view in io.c): a
+ * header comment says so, and the reader takes them back. */
 bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int ascii,
-                                bsurf_failure *err);
+                                bsurf_ply_names names, bsurf_failure *err);
 bsurf_status bsurf_io_write_off(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err);
 bsurf_status bsurf_io_write_obj(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err);
 bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_failure *err);

@@ -327,15 +327,7 @@ bsurf_status bsurf_io_write_xyz(io_writer *w, const bsurf_cloud *cloud, bsurf_fa
   if (io_obuf_init(&ob, w) != BSURF_OK)
     return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
   for (size_t i = 0; i < cloud->point_count && !w->failed; i++) {
-    for (int k = 0; k < 3; k++) {
-      if (k) io_obuf_char(&ob, ' ');
-      io_obuf_value(&ob, cloud->xyz[3 * i + (size_t)k], BSURF_FLOAT64);
-    }
-    if (cloud->normals)
-      for (int k = 0; k < 3; k++) {
-        io_obuf_char(&ob, ' ');
-        io_obuf_value(&ob, cloud->normals[3 * i + (size_t)k], BSURF_FLOAT64);
-      }
+    io_obuf_point(&ob, cloud, i, ' ');
     io_obuf_char(&ob, '\n');
   }
   io_obuf_done(&ob);
@@ -356,15 +348,7 @@ bsurf_status bsurf_io_write_csv(io_writer *w, const bsurf_cloud *cloud, int clou
   io_obuf_char(&ob, '\n');
   /* every value with 17 significant digits: read back exactly */
   for (size_t i = 0; i < cloud->point_count && !w->failed; i++) {
-    for (int k = 0; k < 3; k++) {
-      if (k) io_obuf_char(&ob, ',');
-      io_obuf_value(&ob, cloud->xyz[3 * i + (size_t)k], BSURF_FLOAT64);
-    }
-    if (cloud->normals)
-      for (int k = 0; k < 3; k++) {
-        io_obuf_char(&ob, ',');
-        io_obuf_value(&ob, cloud->normals[3 * i + (size_t)k], BSURF_FLOAT64);
-      }
+    io_obuf_point(&ob, cloud, i, ',');
     for (size_t j = 0; j < cloud->field_count; j++) {
       io_obuf_char(&ob, ',');
       io_obuf_value(&ob, cloud->fields[j].values[i], BSURF_FLOAT64);

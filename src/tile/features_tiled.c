@@ -116,12 +116,11 @@ static bsurf_status run_filter(void *user, const bsurf_tile *t, bsurf_cloud *cor
   return st;
 }
 
-/* The values (map, state) of every point in index order, a chunk at a time. */
-typedef void (*fd_scan_fn)(fd_run *f, size_t count, const double *v);
-
-static bsurf_status values_scan(fd_run *f, const bsurf_tile_values *vals, fd_scan_fn fn) {
+/* The values (nv per point) of every point in index order, a chunk at a time. */
+static bsurf_status values_scan_n(void *f, const bsurf_tile_values *vals, size_t nv,
+                                  void (*fn)(void *, size_t, const double *)) {
   const size_t per = 65536;
-  double *buf = bsurf_alloc_array(per, 2 * sizeof(double));
+  double *buf = bsurf_alloc_array(per, nv * sizeof(double));
   bsurf_status st = buf ? BSURF_OK : BSURF_ERR_NOMEM;
   for (size_t i = 0; i < vals->count && st == BSURF_OK; i += per) {
     size_t m = vals->count - i < per ? vals->count - i : per;
@@ -132,8 +131,14 @@ static bsurf_status values_scan(fd_run *f, const bsurf_tile_values *vals, fd_sca
   return st;
 }
 
+static bsurf_status values_scan(fd_run *f, const bsurf_tile_values *vals,
+                                void (*fn)(void *, size_t, const double *)) {
+  return values_scan_n(f, vals, 2, fn);
+}
+
 /* (c): R = max of the raw map, in index order as distance_raw takes it */
-static void scan_radius(fd_run *f, size_t count, const double *v) {
+static void scan_radius(void *vf, size_t count, const double *v) {
+  fd_run *f = vf;
   for (size_t i = 0; i < count; i++) {
     bsurf_fdist_max_radius(&v[2 * i], 1, &f->R);
     f->immediate += v[2 * i + 1] == 2;
@@ -141,7 +146,8 @@ static void scan_radius(fd_run *f, size_t count, const double *v) {
 }
 
 /* (e): the maximum and the positive values of the final map */
-static void scan_final(fd_run *f, size_t count, const double *v) {
+static void scan_final(void *vf, size_t count, const double *v) {
+  fd_run *f = vf;
   for (size_t i = 0; i < count; i++) {
     double x = fd_value(f, &v[2 * i]);
     bsurf_fdist_max_radius(&x, 1, &f->mx);
@@ -149,7 +155,8 @@ static void scan_final(fd_run *f, size_t count, const double *v) {
   }
 }
 
-static void scan_count(fd_run *f, size_t count, const double *v) {
+static void scan_count(void *vf, size_t count, const double *v) {
+  fd_run *f = vf;
   for (size_t i = 0; i < count; i++)
     f->features += (size_t)bsurf_fdist_feature(fd_value(f, &v[2 * i]), (int)v[2 * i + 1], f->thr,
                                                f->o.threshold);
@@ -320,5 +327,177 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
   free(f.T);
   bsurf_tile_values_close(&cur);
   bsurf_tile_values_close(&next);
+  return st;
+}
+
+/* ---- features --method variance with the NULL rule in stages (the other
+ * rules: cli/cmd_features.c) ----
+ *  (v1) K = normals.k: nu (bootstrap normals keyed by global index, as in
+ *       memory) and, per point, u = nu tr, lambda0, lambda0 / tr;
+ *  (v2) s^2 = median lambda0 and eta = median lambda0 / tr over the values
+ *       read back in index order (8 bytes per point in memory at a time);
+ *  (v3) K = k_f, reading (v1)'s values of the tile's points: z = the median
+ *       of u over the first k_f neighbours / s^2;
+ *  (v4) t from z (all of it in memory, for Otsu) and the null patch
+ *       (bsurf_fvar_threshold, the in-memory function); the feature count;
+ *       the output by a pointwise stage. */
+
+typedef struct fv_run {
+  fd_run fd; /* first: the stages get &fd as their user */
+  double s2;
+  double *all;
+  size_t nall, features;
+  bsurf_fvar_result res;
+} fv_run;
+
+/* (v1) */
+static bsurf_status run_var_local(void *user, const bsurf_tile *t, bsurf_cloud *core,
+                                  double *sums) {
+  (void)core;
+  (void)sums;
+  const fv_run *v = user;
+  const size_t nc = t->core_count;
+  double *nu = bsurf_alloc_array(4 * (nc ? nc : 1), sizeof(double));
+  if (!nu) return BSURF_ERR_NOMEM;
+  double *u = nu + nc, *l0 = u + nc, *ratio = l0 + nc;
+  bsurf_normal_options no = v->fd.o.normals;
+  no.threads = v->fd.o.threads;
+  no.progress = NULL;
+  no.point_index = t->point_index;
+  bsurf_normal_fields nf = {NULL, nu, NULL};
+  bsurf_status st = bsurf_estimate_normals(t->xyz, t->nb, NULL, &no, &nf, NULL);
+  if (st == BSURF_OK) st = bsurf_fvar_local(t->xyz, t->nb, no.k, v->fd.o.threads, nu, u, l0, ratio);
+  for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
+    t->values_out[3 * r] = u[r];
+    t->values_out[3 * r + 1] = l0[r];
+    t->values_out[3 * r + 2] = ratio[r];
+  }
+  free(nu);
+  return st;
+}
+
+/* (v3) */
+static bsurf_status run_var_filter(void *user, const bsurf_tile *t, bsurf_cloud *core,
+                                   double *sums) {
+  (void)core;
+  (void)sums;
+  const fv_run *v = user;
+  const size_t nl = t->local_count;
+  double *u = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
+  if (!u) return BSURF_ERR_NOMEM;
+  for (size_t l = 0; l < nl; l++)
+    u[l] = t->values[3 * l];
+  bsurf_status st = bsurf_fvar_filter(t->nb, bsurf_fvar_filter_k(&v->fd.o), v->fd.o.threads, v->s2,
+                                      u, t->values_out);
+  free(u);
+  return st;
+}
+
+/* (v2): the second or third of the 3 values into v->all */
+static void scan_col1(void *vv, size_t count, const double *x) {
+  fv_run *v = vv;
+  for (size_t i = 0; i < count; i++)
+    v->all[v->nall++] = x[3 * i + 1];
+}
+
+static void scan_col2(void *vv, size_t count, const double *x) {
+  fv_run *v = vv;
+  for (size_t i = 0; i < count; i++)
+    v->all[v->nall++] = x[3 * i + 2];
+}
+
+/* (v4) */
+static void scan_z(void *vv, size_t count, const double *x) {
+  fv_run *v = vv;
+  for (size_t i = 0; i < count; i++)
+    v->all[v->nall++] = x[i];
+}
+
+static bsurf_status map_var(void *user, size_t first, bsurf_cloud *c, const double *values) {
+  (void)first;
+  const fv_run *v = user;
+  bsurf_field *score = bsurf_cloud_field(c, "variance_z"), *feat = bsurf_cloud_field(c, "feature");
+  if (!score || !feat) return BSURF_ERR_INVALID_ARG;
+  for (size_t i = 0; i < c->point_count; i++) {
+    score->values[i] = values[i];
+    feat->values[i] = values[i] > v->res.threshold;
+  }
+  return BSURF_OK;
+}
+
+static bsurf_status prepare_var(void *user, bsurf_cloud *c) {
+  const fv_run *v = user;
+  return v->fd.base->prepare(v->fd.base->user, c);
+}
+
+bsurf_status bsurf_features_variance_tiled(const char *input, const char *output,
+                                           const bsurf_tile_ops *ops,
+                                           const bsurf_feature_options *opts,
+                                           bsurf_feature_report *report, bsurf_tile_report *tiles,
+                                           bsurf_failure *err) {
+  if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
+  if (report) memset(report, 0, sizeof *report);
+  if (!input || !output || !ops || !ops->prepare || !tiles)
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
+  fv_run v;
+  memset(&v, 0, sizeof v);
+  v.fd.o = opts ? *opts : bsurf_feature_options_default();
+  v.fd.o.progress = NULL;
+  v.fd.o.progress_user = NULL;
+  v.fd.base = ops;
+  const bsurf_feature_options *o = &v.fd.o;
+  const int kf = bsurf_fvar_filter_k(o);
+  if (o->method != BSURF_FEATURES_VARIANCE || o->tail_rule != BSURF_TAIL_NULL ||
+      !isnan(o->threshold) || o->normals.bootstrap < 2 || o->normals.k < 3 ||
+      !(o->false_positive_rate > 0 && o->false_positive_rate < 1) || o->variance_filter_k < 0)
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
+                      "invalid options of the variance method's null rule");
+  const bsurf_tile_comm *cm = ops->comm;
+  bsurf_tile_values local = {-1, 0, 0}, z = {-1, 0, 0};
+  bsurf_tile_report rep;
+  memset(&rep, 0, sizeof rep);
+  /* (v1) */
+  bsurf_status st =
+      stage(input, output, &v.fd, o->normals.k, 3, run_var_local, NULL, &local, tiles, err);
+  /* (v2) */
+  double eta = 0;
+  if (st == BSURF_OK && !(v.all = bsurf_alloc_array(local.count ? local.count : 1, sizeof(double))))
+    st = BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, 3, scan_col1);
+  if (st == BSURF_OK) v.s2 = bsurf_fvar_median(v.all, v.nall);
+  v.nall = 0;
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, 3, scan_col2);
+  if (st == BSURF_OK) eta = bsurf_fvar_median(v.all, v.nall);
+  st = agree_local(cm, st);
+  /* (v3) */
+  if (st == BSURF_OK)
+    st = stage(input, output, &v.fd, kf, 1, run_var_filter, &local, &z, &rep, err);
+  bsurf_tile_values_close(&local);
+  /* (v4) */
+  const bsurf_status passed = st;
+  v.nall = 0;
+  if (st == BSURF_OK) st = values_scan_n(&v, &z, 1, scan_z);
+  if (st == BSURF_OK) st = bsurf_fvar_threshold(o, v.all, v.nall, v.s2, eta, &v.res);
+  for (size_t i = 0; st == BSURF_OK && i < v.nall; i++)
+    v.features += v.all[i] > v.res.threshold;
+  free(v.all);
+  v.all = NULL;
+  if (passed == BSURF_OK) st = agree_local(cm, st);
+  if (st == BSURF_OK) {
+    bsurf_tile_ops mo = *ops;
+    mo.user = &v;
+    mo.prepare = prepare_var;
+    st = bsurf_tiles_map(input, output, &mo, &z, map_var, err);
+  }
+  if (st == BSURF_ERR_NOMEM && err && !err->message[0]) bsurf_fail(err, st, 0, -1, "out of memory");
+  if (st == BSURF_OK && report) {
+    report->threshold = v.res.threshold;
+    report->feature_points = v.features;
+    report->noise_level = v.res.noise_level;
+    report->ratio_threshold_kmin = NAN;
+  }
+  free(v.all);
+  bsurf_tile_values_close(&local);
+  bsurf_tile_values_close(&z);
   return st;
 }

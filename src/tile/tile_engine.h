@@ -159,6 +159,21 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
                                            bsurf_feature_report *report, bsurf_tile_report *tiles,
                                            bsurf_failure *err);
 
+/* features --method variance with the NULL rule (src/algo/features_variance.c)
+ * tile by tile: the same output as bsurf_detect_features (variance_z and
+ * feature, byte for byte) and report (threshold, feature count, noise
+ * level). Stages: bootstrap normals with u = nu tr, lambda0 and lambda0 / tr
+ * per point (K = normals.k); their medians over the values read back; the
+ * median filter of u (K = k_f); the threshold (null patch and Otsu over
+ * every z in memory, 8 bytes per point); the output. ops as for
+ * bsurf_features_distance_tiled, prepare adding "variance_z" and
+ * "feature". tiles out: the first stage's run. */
+bsurf_status bsurf_features_variance_tiled(const char *input, const char *output,
+                                           const bsurf_tile_ops *ops,
+                                           const bsurf_feature_options *opts,
+                                           bsurf_feature_report *report, bsurf_tile_report *tiles,
+                                           bsurf_failure *err);
+
 #ifdef __cplusplus
 }
 #endif

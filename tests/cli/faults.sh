@@ -11,9 +11,6 @@
 IN="$T/in"
 mkdir -p "$IN"
 OUT="$T/out.ply"
-ply_head() { # ply_head FORMAT COUNT -- an x y z vertex header
-  printf 'ply\nformat %s 1.0\nelement vertex %s\nproperty float x\nproperty float y\nproperty float z\nend_header\n' "$1" "$2"
-}
 PY=/usr/bin/python3
 [ -x "$PY" ] || PY=$(command -v python3 || true)
 

@@ -54,8 +54,14 @@ expect 0 "eval at noise 1.0" -- "$BSURF" eval "$T/d1.ply" --truth "$T/c2.ply" --
 f1=$(sed 's/.*"f1":\([0-9.e-]*\).*/\1/' "$T/out")
 awk -v f="$f1" 'BEGIN { exit !(f > 0.7) }' && ok || fail "noise 1.0 cube edges F1 $f1 <= 0.7"
 expect 0 "variance auto" -- "$BSURF" features "$T/n.ply" --method variance -k 20 -B 10 -o "$T/v.ply" --json
-grep -qF '"method":"variance"' "$T/out" && grep -qF '"tail_rule":"otsu"' "$T/out" && ok || fail "variance json"
-grep -a -q "property float normal_var$" "$T/v.ply" && ok || fail "normal_var written"
+grep -qF '"method":"variance"' "$T/out" && grep -qF '"tail_rule":"null"' "$T/out" &&
+  grep -qF '"false_positive_rate":0.01' "$T/out" && grep -qF '"variance_filter_k":10' "$T/out" &&
+  grep -qF '"noise_level":' "$T/out" && ok || fail "variance json"
+grep -a -q "property float variance_z$" "$T/v.ply" && ok || fail "variance_z written (null rule)"
+expect 0 "variance otsu" -- "$BSURF" features "$T/n.ply" --method variance -k 20 -B 10 --tail-rule otsu -o "$T/v.ply" --json
+grep -qF '"tail_rule":"otsu"' "$T/out" && ok || fail "variance otsu json"
+grep -a -q "property float normal_var$" "$T/v.ply" && ok || fail "normal_var written (otsu)"
+expect 2 "false-positive rate 1" -- "$BSURF" features "$T/n.ply" --method variance --false-positive-rate 1 -o "$T/x.ply"
 expect 0 "variance mad + value" -- "$BSURF" features "$T/n.ply" --method variance -B 5 --tail-rule mad -o "$T/w.ply" -q
 expect 0 "variance value" -- "$BSURF" features "$T/n.ply" --method variance -B 5 --threshold 0.01 -o "$T/w.ply" --json
 grep -qF '"threshold":0.01' "$T/out" && ok || fail "given threshold reported"

@@ -159,4 +159,18 @@ PY
   fi
 fi
 
+# ---- --ply-names read back (docs/formats.md): the names bootsurf wrote for a
+# viewer come back as they were, in memory and in tiled runs ----
+expect 0 "cube" -- "$BSURF" generate cube -n 3000 --seed 2 -o "$T/s.ply" -q
+expect 0 "plain error" -- "$BSURF" error "$T/s.ply" -o "$T/e_plain.ply" -q
+for n in cloudcompare meshlab; do
+  expect 0 "--ply-names $n" -- "$BSURF" convert "$T/s.ply" "$T/s_$n.ply" --ply-names "$n" -q
+  grep -aq "^comment bootsurf ply-names $n\$" "$T/s_$n.ply" && ok || fail "--ply-names $n: no header comment"
+  expect 0 "$n back to csv" -- "$BSURF" convert "$T/s_$n.ply" "$T/s_$n.csv" -q
+  expect 0 "plain to csv" -- "$BSURF" convert "$T/s.ply" "$T/s_plain.csv" -q
+  cmp -s "$T/s_$n.csv" "$T/s_plain.csv" && ok || fail "--ply-names $n: read back with other names or values"
+  expect 0 "tiled error of $n names" -- "$BSURF" error "$T/s_$n.ply" -o "$T/e_$n.ply" --tile-points 1000 -q
+  cmp -s "$T/e_$n.ply" "$T/e_plain.ply" && ok || fail "tiled error of a $n-named file differs from the plain file's"
+done
+
 finish

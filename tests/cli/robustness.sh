@@ -11,9 +11,6 @@
 IN="$T/in"
 mkdir -p "$IN"
 OUT="$T/out.ply"
-ply_head() { # ply_head FORMAT COUNT -- an x y z vertex header
-  printf 'ply\nformat %s 1.0\nelement vertex %s\nproperty float x\nproperty float y\nproperty float z\nend_header\n' "$1" "$2"
-}
 # ascii_values FILE: the data lines of an ascii PLY file
 ascii_values() { sed '1,/^end_header/d' "$1"; }
 no_nan() { # no_nan FILE DESCRIPTION: no NaN or infinity in an ascii PLY's data
@@ -266,28 +263,29 @@ pcd_head() { # pcd_head FIELDS SIZE TYPE COUNT POINTS DATA
 pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 2 ascii >"$IN/good.pcd"
 printf '1 2 3\n4 5 6\n' >>"$IN/good.pcd"
 expect 0 "good pcd" -- "$BSURF" convert "$IN/good.pcd" "$T/good_pcd.csv" -q
+# bad_convert FILE DESCRIPTION PLACE MESSAGE: FILE (in $IN) through convert:
+# one message with "$IN/FILE" + PLACE and MESSAGE
+bad_convert() { bad 1 "$2" "$IN/$1$3" "$4" -- "$BSURF" convert "$IN/$1" "$OUT" </dev/null; }
 printf 'VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\n' >"$IN/p_trunc.pcd"
-bad 1 "pcd truncated header" "$IN/p_trunc.pcd:3:" "without a DATA line" -- "$BSURF" convert "$IN/p_trunc.pcd" "$OUT"
+bad_convert p_trunc.pcd "pcd truncated header" ":3:" "without a DATA line"
 { pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 100 binary; head -c 240 /dev/zero; } >"$IN/p_count.pcd"
-bad 1 "pcd points beyond the file" "$IN/p_count.pcd: byte" "POINTS 100 needs 1200 bytes" -- "$BSURF" convert "$IN/p_count.pcd" "$OUT"
-{ pcd_head "x y z" "4 4 4" "F F F" "1 0 1" 1 ascii; echo "1 2 3"; } >"$IN/p_count0.pcd"
-bad 1 "pcd COUNT 0" "$IN/p_count0.pcd:5:" "COUNT '0' of field 2" -- "$BSURF" convert "$IN/p_count0.pcd" "$OUT"
-{ pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 1 zipped; echo "1 2 3"; } >"$IN/p_data.pcd"
-bad 1 "pcd bad DATA kind" "$IN/p_data.pcd:9:" "unknown DATA kind 'zipped'" -- "$BSURF" convert "$IN/p_data.pcd" "$OUT"
-{ pcd_head "x y z" "4 2 4" "F F F" "1 1 1" 1 ascii; echo "1 2 3"; } >"$IN/p_sizetype.pcd"
-bad 1 "pcd SIZE/TYPE mismatch" "$IN/p_sizetype.pcd:9:" "TYPE F needs SIZE 4 or 8" -- "$BSURF" convert "$IN/p_sizetype.pcd" "$OUT"
-{ pcd_head "x y z" "4 4" "F F F" "1 1 1" 1 ascii; echo "1 2 3"; } >"$IN/p_sizes.pcd"
-bad 1 "pcd SIZE entries" "$IN/p_sizes.pcd:3:" "SIZE has 2 entries for 3 FIELDS" -- "$BSURF" convert "$IN/p_sizes.pcd" "$OUT"
-{ pcd_head "x y" "4 4" "F F" "1 1" 1 ascii; echo "1 2"; } >"$IN/p_noz.pcd"
-bad 1 "pcd without z" "$IN/p_noz.pcd:" "needs one each of the fields x, y and z" -- "$BSURF" convert "$IN/p_noz.pcd" "$OUT"
-{ pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 3 ascii; printf '1 2 3\n4 5 6\n'; } >"$IN/p_short.pcd"
-bad 1 "pcd ascii points missing" "$IN/p_short.pcd:12:" "POINTS 3 but the data end after 2 points" -- "$BSURF" convert "$IN/p_short.pcd" "$OUT"
-{ pcd_head "x y z" "1 1 1" "U U U" "1 1 1" 1 ascii; echo "1 2 300"; } >"$IN/p_range.pcd"
-bad 1 "pcd value out of its type" "$IN/p_range.pcd:10:" "'300' is not a U1 integer" -- "$BSURF" convert "$IN/p_range.pcd" "$OUT"
-{ pcd_head "x y z" "4 4 4" "F F F" "1 1 1" 1 binary_compressed; printf '\005\000\000\000\014\000\000\000\001\001\001\001\001'; } >"$IN/p_lzf.pcd"
-bad 1 "pcd corrupt LZF" "$IN/p_lzf.pcd: byte" "corrupt LZF data" -- "$BSURF" convert "$IN/p_lzf.pcd" "$OUT"
+bad_convert p_count.pcd "pcd points beyond the file" ": byte" "POINTS 100 needs 1200 bytes"
 printf 'VERSION 0.7\nFIELDS x y z\nCOLOUR red\n' >"$IN/p_kw.pcd"
-bad 1 "pcd unknown keyword" "$IN/p_kw.pcd:3:" "unknown keyword 'COLOUR'" -- "$BSURF" convert "$IN/p_kw.pcd" "$OUT"
+bad_convert p_kw.pcd "pcd unknown keyword" ":3:" "unknown keyword 'COLOUR'"
+# a header (pcd_head's arguments) and data (printf's format) per case
+while IFS='|' read -r name fields size type count points data body what place message; do
+  { pcd_head "$fields" "$size" "$type" "$count" "$points" "$data"; printf "$body"; } >"$IN/$name"
+  bad_convert "$name" "$what" "$place" "$message"
+done <<'CASES'
+p_count0.pcd|x y z|4 4 4|F F F|1 0 1|1|ascii|1 2 3\n|pcd COUNT 0|:5:|COUNT '0' of field 2
+p_data.pcd|x y z|4 4 4|F F F|1 1 1|1|zipped|1 2 3\n|pcd bad DATA kind|:9:|unknown DATA kind 'zipped'
+p_sizetype.pcd|x y z|4 2 4|F F F|1 1 1|1|ascii|1 2 3\n|pcd SIZE/TYPE mismatch|:9:|TYPE F needs SIZE 4 or 8
+p_sizes.pcd|x y z|4 4|F F F|1 1 1|1|ascii|1 2 3\n|pcd SIZE entries|:3:|SIZE has 2 entries for 3 FIELDS
+p_noz.pcd|x y|4 4|F F|1 1|1|ascii|1 2\n|pcd without z|:|needs one each of the fields x, y and z
+p_short.pcd|x y z|4 4 4|F F F|1 1 1|3|ascii|1 2 3\n4 5 6\n|pcd ascii points missing|:12:|POINTS 3 but the data end after 2 points
+p_range.pcd|x y z|1 1 1|U U U|1 1 1|1|ascii|1 2 300\n|pcd value out of its type|:10:|'300' is not a U1 integer
+p_lzf.pcd|x y z|4 4 4|F F F|1 1 1|1|binary_compressed|\005\000\000\000\014\000\000\000\001\001\001\001\001|pcd corrupt LZF|: byte|corrupt LZF data
+CASES
 
 # LAS: a good file written by bootsurf (1.4, format 6, extra bytes), then
 # one byte or length changed at a time
@@ -297,31 +295,31 @@ las_patch() { # las_patch NAME OFFSET BYTES(printf): a copy of good.las with byt
   printf "$3" | dd of="$IN/$1" bs=1 seek="$2" conv=notrunc status=none
 }
 head -c 120 "$IN/good.las" >"$IN/l_trunc.las"
-bad 1 "las truncated header" "$IN/l_trunc.las: byte 120:" "truncated header" -- "$BSURF" convert "$IN/l_trunc.las" "$OUT"
-las_patch l_fmt.las 104 '\014'
-bad 1 "las unknown point format" "$IN/l_fmt.las: byte 104:" "unknown point data record format 12" -- "$BSURF" convert "$IN/l_fmt.las" "$OUT"
-las_patch l_laz.laz 104 '\206'
-bad 1 "las LAZ" "$IN/l_laz.laz: byte 104:" "LAZ (compressed LAS) is not supported" -- "$BSURF" convert "$IN/l_laz.laz" "$OUT"
-las_patch l_count.las 247 '\377\377'
-bad 1 "las point count beyond the file" "$IN/l_count.las: byte" "point count beyond the file" -- "$BSURF" convert "$IN/l_count.las" "$OUT"
-las_patch l_version.las 25 '\007'
-bad 1 "las version" "$IN/l_version.las: byte 24:" "LAS version 1.7 is not supported" -- "$BSURF" convert "$IN/l_version.las" "$OUT"
-las_patch l_record.las 105 '\020\000'
-bad 1 "las short records" "$IN/l_record.las: byte 105:" "less than point format 6's 30 bytes" -- "$BSURF" convert "$IN/l_record.las" "$OUT"
-las_patch l_scale.las 131 '\000\000\000\000\000\000\000\000'
-bad 1 "las zero scale" "$IN/l_scale.las: byte 131:" "x scale factor or offset is zero" -- "$BSURF" convert "$IN/l_scale.las" "$OUT"
-las_patch l_offset.las 96 '\377\377\000\000'
-bad 1 "las point offset beyond the file" "$IN/l_offset.las: byte 96:" "beyond the end of the file" -- "$BSURF" convert "$IN/l_offset.las" "$OUT"
-las_patch l_hsize.las 94 '\100\000'
-bad 1 "las header size" "$IN/l_hsize.las: byte 94:" "header size 64 is less than" -- "$BSURF" convert "$IN/l_hsize.las" "$OUT"
+bad_convert l_trunc.las "las truncated header" ": byte 120:" "truncated header"
+# las_cases: a copy of good.las with bytes replaced (printf's format) per case
+las_cases() {
+  while IFS='|' read -r name offset bytes what place message; do
+    las_patch "$name" "$offset" "$bytes"
+    bad_convert "$name" "$what" "$place" "$message"
+  done
+}
+las_cases <<'CASES'
+l_fmt.las|104|\014|las unknown point format|: byte 104:|unknown point data record format 12
+l_laz.laz|104|\206|las LAZ|: byte 104:|LAZ (compressed LAS) is not supported
+l_count.las|247|\377\377|las point count beyond the file|: byte|point count beyond the file
+l_version.las|25|\007|las version|: byte 24:|LAS version 1.7 is not supported
+l_record.las|105|\020\000|las short records|: byte 105:|less than point format 6's 30 bytes
+l_scale.las|131|\000\000\000\000\000\000\000\000|las zero scale|: byte 131:|x scale factor or offset is zero
+l_offset.las|96|\377\377\000\000|las point offset beyond the file|: byte 96:|beyond the end of the file
+l_hsize.las|94|\100\000|las header size|: byte 94:|header size 64 is less than
+CASES
 # a cloud with a field: the extra bytes VLR right after the 375-byte header
 printf 'x y z w\n1 2 3 0.5\n4 5 6 0.25\n' >"$IN/w.txt"
 expect 0 "las with extra bytes" -- "$BSURF" convert "$IN/w.txt" "$IN/good.las" -q
-las_patch l_vlr.las 395 '\377\377'
-bad 1 "las wrong VLR length" "$IN/l_vlr.las: byte 395:" "wrong VLR length" -- "$BSURF" convert "$IN/l_vlr.las" "$OUT"
-las_patch l_eb.las 395 '\277\000'
-bad 1 "las extra bytes length" "$IN/l_eb.las: byte 429:" "not a multiple of 192" -- "$BSURF" convert "$IN/l_eb.las" "$OUT"
-las_patch l_ebtype.las 431 '\077'
-bad 1 "las extra bytes type" "$IN/l_ebtype.las: byte 431:" "unknown data type 63" -- "$BSURF" convert "$IN/l_ebtype.las" "$OUT"
+las_cases <<'CASES'
+l_vlr.las|395|\377\377|las wrong VLR length|: byte 395:|wrong VLR length
+l_eb.las|395|\277\000|las extra bytes length|: byte 429:|not a multiple of 192
+l_ebtype.las|431|\077|las extra bytes type|: byte 431:|unknown data type 63
+CASES
 
 finish

@@ -55,7 +55,7 @@ expect 0 "smooth cube tiles" -- "$BSURF" smooth "$T/c.ply" -k 10 -d 2 -B 4 -o "$
 stderr_has "tiles of" "smooth: automatic tiling warns"
 cmp -s "$T/sc.ply" "$T/sct.ply" && ok || fail "smooth cube --memory-limit 1M: output differs"
 for f in c n; do
-  for args in "" "--tail-rule mad" "--threshold 0.002"; do
+  for args in "" "--tail-rule otsu" "--tail-rule mad" "--threshold 0.002"; do
     expect 0 "features $f $args" -- "$BSURF" features "$T/$f.ply" --method variance -k 15 -B 5 $args -o "$T/fm.ply" --json
     cp "$T/out" "$T/fm.json"
     cp "$T/err" "$T/fm.err"
