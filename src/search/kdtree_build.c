@@ -8,7 +8,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-
 /* Strict weak order of coordinates used by the selection: numbers by value,
  * NaN after all numbers (all NaN equivalent). Keeps the selection well-defined
  * (and in bounds) with NaN input. */
@@ -203,4 +202,3 @@ void bsurf_knn_free(bsurf_knn_index *index) {
   free(index->nodes);
   free(index);
 }
-
