@@ -276,6 +276,37 @@ static void flat_patch(uint64_t seed, int K, flat_patch_t *p) {
   assert_int_equal(bsurf_localfit_alloc(&p->lf, K, 4), BSURF_OK);
 }
 
+/* bsurf_gemm_rows for any row count and column count (the PCA's 10 columns,
+ * odd counts, fewer than 4 rows, a partial last group of 4) gives the bits of
+ * the plain product: each entry summed over j = 0..k-1 in order, a multiply
+ * then an add (C11 without contraction, as the library is built). */
+static void test_gemm_rows_any_shape(void **state) {
+  (void)state;
+  enum { K = 23 };
+  const int rows[] = {1, 3, 4, 7, 51}, cols[] = {1, 2, 9, 10, 11, 16, 17};
+  static double W[51 * K], A[K * 17], out[51 * 17];
+  bsurf_rng r;
+  bsurf_rng_init(&r, 5, 6, 7);
+  for (int t = 0; t < 51 * K; t++)
+    W[t] = (double)(bsurf_rng_next(&r) % 4);
+  for (int t = 0; t < K * 17; t++)
+    A[t] = bsurf_rng_normal(&r) * 1e3;
+  for (size_t a = 0; a < sizeof rows / sizeof rows[0]; a++)
+    for (size_t c = 0; c < sizeof cols / sizeof cols[0]; c++) {
+      const int B = rows[a], nc = cols[c];
+      bsurf_gemm_rows(B, K, nc, W, A, out);
+      for (int b = 0; b < B; b++)
+        for (int col = 0; col < nc; col++) {
+          double want = 0;
+          for (int j = 0; j < K; j++) {
+            const double term = W[b * K + j] * A[j * nc + col];
+            want = want + term;
+          }
+          assert_memory_equal(&out[b * nc + col], &want, sizeof want);
+        }
+    }
+}
+
 /* The normal equations of many weighted fits as one matrix product in
  * vector lanes (the dense reference that the bootstrap's sums from draws
  * are checked against, test_draw_sums) give the same bits as the row
@@ -467,6 +498,7 @@ int main(void) {
       cmocka_unit_test(test_poly_basis_order),
       cmocka_unit_test(test_poly_exact_recovery),
       cmocka_unit_test(test_rank_deficient_detected),
+      cmocka_unit_test(test_gemm_rows_any_shape),
       cmocka_unit_test(test_lanes_equal_rows),
       cmocka_unit_test(test_draw_sums),
       cmocka_unit_test(test_residual_sums_equal_plain),

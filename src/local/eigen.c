@@ -142,61 +142,133 @@ int bsurf_eigen_sym3_smallest(const double c[6], double n[3]) {
  * function; so every lane gets exactly the scalar result. */
 #define SMALLEST_STEPS 6
 
-#if defined(__GNUC__) && !defined(__clang__)
-/* selects between computed values: GCC vectorises the loop only when it may
- * ignore FP exception flags (the values are the same) */
-__attribute__((optimize("no-trapping-math")))
+/* The lanes' arithmetic is written once over eig_vec: four doubles (GCC
+ * vector types: AVX2 in the x86-64-v3 clone, SSE2 pairs otherwise) or one
+ * double elsewhere. Comparisons give masks (all ones or all zeros); EIG_SEL
+ * picks between computed values lane by lane. GCC did not vectorise the
+ * scalar loop this replaces (the selects and the status array defeated it),
+ * so every lane ran alone. */
+#if defined(__GNUC__)
+#define EIG_LANES 4
+typedef double eig_vec __attribute__((vector_size(32)));
+typedef long long eig_mask __attribute__((vector_size(32)));
+/* macros, since vector arguments change the ABI of the default clone */
+#define EIG_SEL(m, a, b) ((eig_vec)(((eig_mask)(a) & (m)) | ((eig_mask)(b) & ~(m))))
+#define EIG_MASK(cond) (cond)
+#define EIG_LANE(v, t) ((v)[t])
+#define EIG_BCAST(x) ((eig_vec){(x), (x), (x), (x)})
+#else
+#define EIG_LANES 1
+typedef double eig_vec;
+typedef long long eig_mask;
+#define EIG_SEL(m, a, b) ((m) ? (a) : (b))
+#define EIG_MASK(cond) (-(long long)(cond))
+#define EIG_LANE(v, t) ((void)(t), (v))
+#define EIG_BCAST(x) (x)
 #endif
-BSURF_CLONES static void
-smallest_lanes(int R, const double *restrict c, double *restrict n, int *restrict status) {
-  for (int r = 0; r < R; r++) {
-    const double c0 = c[r], c1 = c[R + r], c2 = c[2 * R + r], c3 = c[3 * R + r], c4 = c[4 * R + r],
-                 c5 = c[5 * R + r];
-    const double tr0 = c0 + c3 + c5;
-    const double s = 1.0 / tr0;
-    const double a = c0 * s, b = c1 * s, e = c2 * s, d = c3 * s, f = c4 * s, g = c5 * s;
-    const double tr = a + d + g;
-    const double m = (a * d - b * b) + (a * g - e * e) + (d * g - f * f);
-    const double det = a * (d * g - f * f) - b * (b * g - f * e) + e * (b * f - d * e);
-    double l = 0;
-    for (int it = 0; it < SMALLEST_STEPS; it++) {
-      const double p = det - l * (m - l * (tr - l));
-      const double dp = -m + l * (2 * tr - 3 * l);
-      const double nl = l - p / dp;
-      l = (dp < 0 && nl > l) ? nl : l;
+
+static inline void eig_sqrt(eig_vec *x) {
+  double t[EIG_LANES];
+  memcpy(t, x, sizeof t);
+  for (int l = 0; l < EIG_LANES; l++)
+    t[l] = sqrt(t[l]);
+  memcpy(x, t, sizeof t);
+}
+
+/* Lanes r .. r + EIG_LANES - 1 of the R matrices c (six rows of R: entry e
+ * of matrix r at c[e R + r]): bsurf_eigen_sym3_smallest's expressions, with
+ * Newton run SMALLEST_STEPS steps; status 1 where the lane must be redone
+ * by the scalar function (not settled, the sweeps needed). */
+static inline __attribute__((always_inline)) void
+smallest_block(int R, int r, const double *restrict c, double *restrict n, int *restrict status) {
+  eig_vec c0, c1, c2, c3, c4, c5;
+  memcpy(&c0, &c[r], sizeof c0);
+  memcpy(&c1, &c[R + r], sizeof c1);
+  memcpy(&c2, &c[2 * R + r], sizeof c2);
+  memcpy(&c3, &c[3 * R + r], sizeof c3);
+  memcpy(&c4, &c[4 * R + r], sizeof c4);
+  memcpy(&c5, &c[5 * R + r], sizeof c5);
+  const eig_vec one = EIG_BCAST(1.0), zero = EIG_BCAST(0.0), inf = EIG_BCAST(INFINITY);
+  const eig_vec tr0 = c0 + c3 + c5;
+  const eig_vec s = one / tr0;
+  const eig_vec a = c0 * s, b = c1 * s, e = c2 * s, d = c3 * s, f = c4 * s, g = c5 * s;
+  const eig_vec tr = a + d + g;
+  const eig_vec m = (a * d - b * b) + (a * g - e * e) + (d * g - f * f);
+  const eig_vec det = a * (d * g - f * f) - b * (b * g - f * e) + e * (b * f - d * e);
+  eig_vec l = zero;
+  for (int it = 0; it < SMALLEST_STEPS; it++) {
+    const eig_vec p = det - l * (m - l * (tr - l));
+    const eig_vec dp = -m + l * (2 * tr - 3 * l);
+    const eig_vec nl = l - p / dp;
+    l = EIG_SEL(EIG_MASK(dp < 0) & EIG_MASK(nl > l), nl, l);
+  }
+  const eig_vec p = det - l * (m - l * (tr - l));
+  const eig_vec dp = -m + l * (2 * tr - 3 * l);
+  const eig_vec nl = l - p / dp;
+  const eig_mask unsettled = EIG_MASK(dp < 0) & EIG_MASK(nl > l);
+  /* l1 + l2 = tr - l0, l1 l2 = m - l0 (l1 + l2) */
+  const eig_vec sum = tr - l, prod = m - l * sum;
+  const eig_vec disc = sum * sum - 4 * prod;
+  eig_vec root = EIG_SEL(EIG_MASK(disc > 0), disc, zero);
+  eig_sqrt(&root);
+  const eig_vec l2 = 0.5 * (sum + root);
+  const eig_vec q = prod / l2;
+  const eig_vec l1 = EIG_SEL(EIG_MASK(l2 > 0), q, zero);
+  const eig_vec r00 = a - l, r11 = d - l, r22 = g - l;
+  /* the cross products of the rows (r00 b e), (b r11 f), (e f r22) */
+  const eig_vec x0 = b * f - e * r11, x1 = e * b - r00 * f, x2 = r00 * r11 - b * b;
+  const eig_vec y0 = b * r22 - e * f, y1 = e * e - r00 * r22, y2 = r00 * f - b * e;
+  const eig_vec z0 = r11 * r22 - f * f, z1 = f * e - b * r22, z2 = b * f - r11 * e;
+  const eig_vec nx = x0 * x0 + x1 * x1 + x2 * x2, ny = y0 * y0 + y1 * y1 + y2 * y2,
+                nz = z0 * z0 + z1 * z1 + z2 * z2;
+  eig_vec best = nx, v0 = x0, v1 = x1, v2 = x2;
+  best = EIG_SEL(EIG_MASK(ny > best), ny, best);
+  const eig_mask ywin = EIG_MASK(ny > nx);
+  v0 = EIG_SEL(ywin, y0, v0);
+  v1 = EIG_SEL(ywin, y1, v1);
+  v2 = EIG_SEL(ywin, y2, v2);
+  const eig_mask zwin = EIG_MASK(nz > best);
+  best = EIG_SEL(zwin, nz, best);
+  v0 = EIG_SEL(zwin, z0, v0);
+  v1 = EIG_SEL(zwin, z1, v1);
+  v2 = EIG_SEL(zwin, z2, v2);
+  eig_vec rbest = best;
+  eig_sqrt(&rbest);
+  const eig_vec inv = one / rbest;
+  v0 = v0 * inv;
+  v1 = v1 * inv;
+  v2 = v2 * inv;
+  memcpy(&n[r], &v0, sizeof v0);
+  memcpy(&n[R + r], &v1, sizeof v1);
+  memcpy(&n[2 * R + r], &v2, sizeof v2);
+  const eig_mask redo =
+      ~(EIG_MASK(tr0 > 0) & EIG_MASK(tr0 < inf)) | unsettled | ~EIG_MASK(best > 1e-10);
+  const eig_mask plane = EIG_MASK(l2 > 0) & EIG_MASK(l1 > 1e-12 * l2);
+  for (int t = 0; t < EIG_LANES; t++)
+    status[r + t] = EIG_LANE(redo, t) ? 1 : EIG_LANE(plane, t) ? 0 : -1;
+}
+
+/* All R lanes, EIG_LANES at a time; the last R % EIG_LANES through a
+ * padded copy (its extra lanes repeat the last matrix, and are dropped). */
+BSURF_CLONES static void smallest_lanes(int R, const double *restrict c, double *restrict n,
+                                        int *restrict status) {
+  int r = 0;
+  for (; r + EIG_LANES <= R; r += EIG_LANES)
+    smallest_block(R, r, c, n, status);
+  if (r < R) {
+    double tc[6 * EIG_LANES], tn[3 * EIG_LANES];
+    int ts[EIG_LANES];
+    for (int l = 0; l < EIG_LANES; l++) {
+      const int src = r + l < R ? r + l : R - 1;
+      for (int e = 0; e < 6; e++)
+        tc[e * EIG_LANES + l] = c[(size_t)e * R + src];
     }
-    const double p = det - l * (m - l * (tr - l));
-    const double dp = -m + l * (2 * tr - 3 * l);
-    const double nl = l - p / dp;
-    const int settled = !(dp < 0 && nl > l);
-    const double sum = tr - l, prod = m - l * sum;
-    const double disc = sum * sum - 4 * prod;
-    const double l2 = 0.5 * (sum + sqrt(disc > 0 ? disc : 0));
-    const double q = prod / l2;
-    const double l1 = l2 > 0 ? q : 0;
-    const double r00 = a - l, r11 = d - l, r22 = g - l;
-    /* rows (r00 b e), (b r11 f), (e f r22) */
-    const double x0 = b * f - e * r11, x1 = e * b - r00 * f, x2 = r00 * r11 - b * b;
-    const double y0 = b * r22 - e * f, y1 = e * e - r00 * r22, y2 = r00 * f - b * e;
-    const double z0 = r11 * r22 - f * f, z1 = f * e - b * r22, z2 = b * f - r11 * e;
-    const double nx = x0 * x0 + x1 * x1 + x2 * x2, ny = y0 * y0 + y1 * y1 + y2 * y2,
-                 nz = z0 * z0 + z1 * z1 + z2 * z2;
-    double best = nx, v0 = x0, v1 = x1, v2 = x2;
-    best = ny > best ? ny : best;
-    v0 = ny > nx ? y0 : v0;
-    v1 = ny > nx ? y1 : v1;
-    v2 = ny > nx ? y2 : v2;
-    const int zwin = nz > best;
-    best = zwin ? nz : best;
-    v0 = zwin ? z0 : v0;
-    v1 = zwin ? z1 : v1;
-    v2 = zwin ? z2 : v2;
-    const double inv = 1.0 / sqrt(best);
-    n[r] = v0 * inv;
-    n[R + r] = v1 * inv;
-    n[2 * R + r] = v2 * inv;
-    const int redo = !(tr0 > 0 && tr0 < INFINITY) | !settled | !(best > 1e-10);
-    status[r] = redo ? 1 : (l2 > 0 && l1 > 1e-12 * l2) ? 0 : -1;
+    smallest_block(EIG_LANES, 0, tc, tn, ts);
+    for (int l = 0; r + l < R; l++) {
+      for (int t = 0; t < 3; t++)
+        n[(size_t)t * R + r + l] = tn[t * EIG_LANES + l];
+      status[r + l] = ts[l];
+    }
   }
 }
 
