@@ -20,22 +20,13 @@
 #include <string.h>
 
 #include "bootsurf.h"
-
-static char tmp_dir[1024];
-
-static const char *tmp_path(const char *name) {
-  static char buf[4][1200];
-  static int slot = 0;
-  slot = (slot + 1) % 4;
-  snprintf(buf[slot], sizeof buf[slot], "%s/jobs_%s", tmp_dir, name);
-  return buf[slot];
-}
+#include "test_util.h"
 
 /* The input: a noisy cube (sharp edges; its feature and feature_dist
  * fields are the truth the features job keeps as *_in), binary PLY. */
 static const char *input_path(void) {
   static int made = 0;
-  const char *path = tmp_path("cube.ply");
+  const char *path = tmp_path("jobs_cube.ply");
   if (!made) {
     bsurf_cloud c;
     assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 7, 2),
@@ -88,9 +79,9 @@ static void pair_open(pair *p, const char *name) {
   bsurf_cloud_init(&p->c);
   assert_int_equal(bsurf_read(input_path(), &p->c, &err), BSURF_OK);
   char file[64];
-  snprintf(file, sizeof file, "%s_mem.ply", name);
+  snprintf(file, sizeof file, "jobs_%s_mem.ply", name);
   snprintf(p->mem_path, sizeof p->mem_path, "%s", tmp_path(file));
-  snprintf(file, sizeof file, "%s_tiled.ply", name);
+  snprintf(file, sizeof file, "jobs_%s_tiled.ply", name);
   snprintf(p->tiled_path, sizeof p->tiled_path, "%s", tmp_path(file));
   memset(&p->mem, 0, sizeof p->mem);
   p->mem.cloud = &p->c;
@@ -236,16 +227,6 @@ static void test_features_job(void **state) {
   run_features(&o, "variance");
 }
 
-/* status INVALID_ARG and a message naming the job and `needle` */
-#define assert_invalid(call, func, needle)                                                         \
-  do {                                                                                             \
-    bsurf_status st_ = (call);                                                                     \
-    assert_int_equal(st_, BSURF_ERR_INVALID_ARG);                                                  \
-    const char *m_ = bsurf_last_message();                                                         \
-    if (!strstr(m_, func ":") || !strstr(m_, needle))                                              \
-      fail_msg("message '%s' lacks '%s' / '%s'", m_, func, needle);                                \
-  } while (0)
-
 static void test_bad_options(void **state) {
   (void)state;
   pair p;
@@ -310,8 +291,7 @@ static void test_bad_options(void **state) {
 }
 
 int main(void) {
-  const char *t = getenv("BSURF_TMP");
-  snprintf(tmp_dir, sizeof tmp_dir, "%s", t ? t : "/tmp");
+  tmp_dir_init();
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_normals_job),
       cmocka_unit_test(test_smooth_job),
