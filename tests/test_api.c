@@ -19,17 +19,7 @@
 #include <string.h>
 
 #include "bootsurf.h"
-
-/* status and a message that contains `needle` (the parameter's name and
- * value) and names the function */
-#define assert_invalid(call, func, needle)                                                         \
-  do {                                                                                             \
-    bsurf_status st_ = (call);                                                                     \
-    assert_int_equal(st_, BSURF_ERR_INVALID_ARG);                                                  \
-    const char *m_ = bsurf_last_message();                                                         \
-    if (!strstr(m_, func ":") || !strstr(m_, needle))                                              \
-      fail_msg("message '%s' lacks '%s' / '%s'", m_, func, needle);                                \
-  } while (0)
+#include "test_util.h"
 
 static bsurf_cloud sphere(size_t n) {
   bsurf_cloud c;

@@ -20,16 +20,7 @@
 #include "bootsurf.h"
 #include "algo/smooth_stages.h"
 #include "tile/tile_engine.h"
-
-static char tmp_dir[1024];
-
-static const char *tmp_path(const char *name) {
-  static char buf[4][1200];
-  static int slot = 0;
-  slot = (slot + 1) % 4;
-  snprintf(buf[slot], sizeof buf[slot], "%s/%s", tmp_dir, name);
-  return buf[slot];
-}
+#include "test_util.h"
 
 static const char *const names[4] = {"err_632", "err_632plus", "err_loo", "gamma"};
 
@@ -1069,8 +1060,7 @@ static void test_ranks(void **state) {
 }
 
 int main(void) {
-  const char *t = getenv("BSURF_TMP");
-  snprintf(tmp_dir, sizeof tmp_dir, "%s", t ? t : "/tmp");
+  tmp_dir_init();
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_uniform_error),      cmocka_unit_test(test_uniform_normals),
       cmocka_unit_test(test_nonuniform),         cmocka_unit_test(test_big_endian),
