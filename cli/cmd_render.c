@@ -85,11 +85,7 @@ int render_up_option(const cli_command *cmd, const char *up, int *axis) {
 }
 
 int render_auto_up(const bsurf_cloud *c) {
-  /* --up auto: bootsurf's generated shapes (a "bootsurf shape" comment)
-   * are z-up, like LiDAR and GIS data; scans and meshes from graphics
-   * (Stanford's PLY scans, CGAL's OFF data, OBJ) are y-up, OpenGL's
-   * convention: the Stanford bunny then stands upright (docs/gallery.md) */
-  return c->shape[0] ? 2 : 1;
+  return bsurf_render_auto_up(c->shape);
 }
 
 int cli_write_png(const char *path, const uint8_t *rgb, int w, int h) {

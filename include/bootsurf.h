@@ -929,6 +929,12 @@ BSURF_API bsurf_status bsurf_render_spacing(const double *xyz, size_t point_coun
                                             bsurf_progress_fn progress, void *progress_user,
                                             double *h, double *point_spacing, int *filled);
 
+/* The up axis (bsurf_render_options.up_axis) of `--up auto` for a cloud
+ * whose bsurf_cloud.shape is `shape`: 2 (z) for bootsurf's generated shapes,
+ * like LiDAR and GIS data; else 1 (y), the convention of scans and meshes
+ * from graphics (OpenGL's). */
+BSURF_API int bsurf_render_auto_up(const char *shape);
+
 /* The value range between two percentiles (in percent) of the finite values;
  * BSURF_ERR_INVALID_VALUE when there is none. */
 BSURF_API bsurf_status bsurf_render_range(const double *values, size_t count, double percentile_lo,

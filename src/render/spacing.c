@@ -50,3 +50,11 @@ bsurf_status bsurf_render_spacing(const double *xyz, size_t point_count, int thr
   *filled = okay;
   return BSURF_OK;
 }
+
+/* --up auto: bootsurf's generated shapes (a "bootsurf shape" comment) are
+ * z-up, like LiDAR and GIS data; scans and meshes from graphics (Stanford's
+ * PLY scans, CGAL's OFF data, OBJ) are y-up, OpenGL's convention: the
+ * Stanford bunny then stands upright (docs/gallery.md). */
+int bsurf_render_auto_up(const char *shape) {
+  return shape && shape[0] ? 2 : 1;
+}

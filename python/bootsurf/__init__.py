@@ -1,0 +1,428 @@
+"""bootsurf: statistics for 3D point clouds, on numpy arrays.
+
+The Python front end of libbootsurf (include/bootsurf.h), which implements
+the thesis "Bootstrap Based Surface Reconstruction": bootstrap test-error
+estimates of local polynomial fits (chapter 4), normals with a confidence
+value (chapter 5), denoising (chapter 6) and feature detection (chapter 7).
+
+Every function mirrors a command of the ``bootsurf`` command line: the same
+option names (``--pca-center`` is ``pca_center=``), the same defaults, the
+same results to the last bit for the same input and seed. Points are any
+(N, 3) array-like of float32 or float64 (converted to C-contiguous float64
+with one copy only when they are not already). Clouds (``read``,
+``generate``, ``sample``) are dicts of numpy arrays: ``points`` (N, 3),
+optionally ``normals`` (N, 3) and ``faces`` (F, 3), and one (N,) array per
+named field.
+
+The library computes with the GIL released; Ctrl-C raises
+KeyboardInterrupt within a chunk of points (16384), and ``progress=`` takes
+a callable ``progress(done, total)`` (raise in it to stop). Bad arguments
+raise ValueError or TypeError with the library's message; file errors raise
+OSError naming the file and the line.
+
+Example::
+
+    import bootsurf
+    cloud = bootsurf.generate("cube", points=20000)
+    noisy = bootsurf.noise(cloud["points"], cloud["normals"], level=0.5)
+    fields, summary = bootsurf.error(noisy, bootstrap=20)
+    print(summary["means"]["err_632plus"] / summary["h"])
+"""
+
+import math as _math
+
+from . import _core
+
+__version__ = _core.version()
+
+__all__ = [
+    "Cloud", "read", "write", "knn", "spacing", "error", "generate", "noise", "sample",
+    "evaluate", "render", "__version__",
+]
+
+_GAMMAS = ("fit", "mean", "max")
+_CENTERS = ("centroid", "point")
+_SAMPLINGS = ("regular", "random")
+_MODELS = ("gaussian", "uniform")
+_PLY_NAMES = ("plain", "cloudcompare", "meshlab")
+
+
+class Cloud(dict):
+    """A point cloud or mesh: a dict of numpy arrays ('points' (N, 3), optional
+    'normals' (N, 3), 'faces' (F, 3) and one (N,) array per field).
+
+    ``shape_name`` is the generated shape the points sample ('' if none): PLY
+    keeps it as the header comment "bootsurf shape NAME", and ``render(up=
+    'auto')`` draws such clouds z-up."""
+
+    def __init__(self, *args, shape_name="", **kwargs):
+        super().__init__(*args, **kwargs)
+        self.shape_name = shape_name
+
+
+def _choice(value, names, option):
+    if value not in names:
+        raise ValueError("%s must be %s, not %r" % (option, " or ".join(names), value))
+    return names.index(value)
+
+
+def _cloud(d, shape_name):
+    return Cloud(d, shape_name=shape_name)
+
+
+def _maybe_read(x):
+    """A path (str or os.PathLike) is read; anything else is returned."""
+    if isinstance(x, str) or hasattr(x, "__fspath__"):
+        import os
+        return read(os.fspath(x))
+    return x
+
+
+def _points(x):
+    """(points, cloud or None) of an array-like or a cloud dict."""
+    x = _maybe_read(x)
+    if isinstance(x, dict):
+        return x["points"], x
+    return x, None
+
+
+# ---------------------------------------------------------------- files
+
+
+def read(path):
+    """read(path) -> Cloud
+
+    Read a cloud or mesh, like every command's INPUT: .ply (ascii or binary),
+    .pcd (PCL v0.7), .las (1.0-1.4, point formats 0-10), .csv/.asc (a header
+    line naming the columns), .xyz/.txt/.pts, .off, .obj. The format comes
+    from the content when it declares one, else from the extension.
+
+    Returns a Cloud (a dict of numpy arrays): 'points' (N, 3) as stored
+    (float32 or float64), 'normals' (N, 3) if present, 'faces' (F, 3) uint32
+    for meshes (polygons fan-triangulated), and every other per-point
+    property under its name in the type it is stored with (uint8 'feature',
+    float32 'normal_var', ...). The arrays are the library's, not copies.
+
+    Raises OSError "PATH:LINE: message" for a missing, unreadable or
+    malformed file.
+    """
+    import os
+    d, shape = _core.read(os.fspath(path))
+    return _cloud(d, shape)
+
+
+def write(path, cloud, *, ascii=False, format=None, float32=False, ply_names="plain",
+          las_version="1.4"):
+    """write(path, cloud, *, ascii=False, format=None, float32=False,
+    ply_names='plain', las_version='1.4')
+
+    Write a cloud (a dict with 'points' and optional 'normals', 'faces' and
+    per-point fields, or an (N, 3) array) atomically: a temporary file in the
+    same directory renamed into place, so a failed write leaves no partial
+    file. Each field is stored in its array's dtype (uint8, int32, float32,
+    float64, ...); float32 'points' are written as float.
+
+    Options (as the command line's):
+      ascii        write ascii PLY (default: binary little-endian)
+      format       ply pcd las csv asc xyz off obj, whatever the extension
+      float32      write double coordinates, normals and fields as float
+      ply_names    PLY field names: plain, cloudcompare (scalar_ prefix) or
+                   meshlab (+ quality)
+      las_version  LAS output: 1.4 (point formats 6-8) or 1.2 (formats 1, 3)
+
+    Formats that cannot carry every field (OFF, OBJ, XYZ) write what they
+    can. Raises OSError naming the file when it cannot be written.
+    """
+    import os
+    if not isinstance(cloud, dict):
+        cloud = {"points": cloud}
+    if las_version not in ("1.2", "1.4"):
+        raise ValueError("las_version must be 1.2 or 1.4, not %r" % (las_version,))
+    _core.write(os.fspath(path), cloud, getattr(cloud, "shape_name", ""), format, bool(ascii),
+                _choice(ply_names, _PLY_NAMES, "ply_names"), bool(float32),
+                las_version == "1.2")
+
+
+# ---------------------------------------------------------------- neighbourhoods
+
+
+def knn(points, k, *, threads=0, progress=None):
+    """knn(points, k, *, threads=0, progress=None) -> (idx, dist2)
+
+    The K nearest neighbours of every point among the points themselves
+    (exact k-d tree). Row i lists point i first, then the k-1 nearest other
+    points sorted by (squared distance, index), so duplicates of a point
+    never displace the point itself.
+
+    Returns idx (N, k) uint32 and dist2 (N, k) float64 (squared distances).
+    The same for any thread count. k must be in [1, N].
+    """
+    return _core.knn(points, int(k), int(threads), progress)
+
+
+def spacing(points, *, threads=0, progress=None):
+    """spacing(points, *, threads=0, progress=None) -> float
+
+    h, the mean distance from each point to its nearest other point: the
+    thesis's unit of noise levels and errors (4.2). Needs at least 2 points.
+    """
+    return _core.spacing(_points(points)[0], int(threads), progress)
+
+
+# ---------------------------------------------------------------- chapter 4
+
+
+def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_center="centroid",
+          seed=1, threads=0, test_sample=None, progress=None):
+    """error(points, *, neighbors=50, degree=3, bootstrap=50, gamma='fit',
+    pca_center='centroid', seed=1, threads=0, test_sample=None,
+    progress=None) -> (fields, summary)
+
+    Bootstrap test-error estimates of local polynomial fits (thesis ch. 4);
+    ``bootsurf error``.
+
+    For every point: PCA frame of its K nearest neighbours (Eq. 3.4),
+    least-squares fit of a height polynomial of degree d, B bootstrap refits
+    (Algorithm 1), and the estimators err_train (Eq. 4.6), err_boot (4.3),
+    err_loo (4.4), err_loo_center (4.11), err_632 (4.5), err_632plus
+    (4.7-4.10), gamma (the no-information rate, 4.10) and overfit_rate (R,
+    4.9). All per point in model units; the summary gives their means.
+
+    Options:
+      neighbors    neighbourhood size K, the point included (default: 50)
+      degree       degree of the height polynomial, 1..4 (default: 3)
+      bootstrap    bootstrap replicates per point, at least 1 (default: 50)
+      gamma        no-information rate: fit (Eq. 4.10), mean or max over
+                   replicates (4.2.1) (default: fit)
+      pca_center   PCA about the centroid or the point (default: centroid)
+      seed         random seed (default: 1)
+      threads      threads, 0 = all cores (default: 0); results do not
+                   depend on it
+      test_sample  the same points with independent noise ((N, 3) or a
+                   path): also err_test and err_test_center (validation)
+      progress     callable(done, total), or None
+
+    points: an (N, 3) array-like, a Cloud, or a path to read.
+
+    Returns (fields, summary): fields maps each estimator's name to an (N,)
+    float64 array; summary is {'points', 'h' (mean spacing), 'duplicates',
+    'report': {'replicates_total', 'replicates_skipped', 'degree_reduced',
+    'center_unestimated'}, 'means': {field: mean}}.
+    """
+    if int(bootstrap) < 1:
+        raise ValueError("bootstrap = %d: the bootstrap estimators need at least one replicate"
+                         % int(bootstrap))
+    test = _maybe_read(test_sample)
+    if isinstance(test, dict):
+        test = test["points"]
+    return _core.error(_points(points)[0], test, int(neighbors), int(degree), int(bootstrap),
+                       int(seed), _choice(gamma, _GAMMAS, "gamma"),
+                       _choice(pca_center, _CENTERS, "pca_center"), int(threads), progress)
+
+
+# ---------------------------------------------------------------- data
+
+
+def generate(shape, *, points=10000, sampling="regular", seed=1, feature_width=2.0):
+    """generate(shape, *, points=10000, sampling='regular', seed=1,
+    feature_width=2.0) -> Cloud
+
+    Points on a shape with exact normals and feature labels; ``bootsurf
+    generate``. shape: sphere (radius 1), cube (edge 2, sharp edges), torus
+    (radii 1 and 0.35), plane ([-1, 1]^2 at z = 0).
+
+    Options:
+      points         number of points (regular sampling rounds it)
+      sampling       regular (even, deterministic) or random (uniform by area)
+      seed           random seed (random sampling)
+      feature_width  cube: feature = within W nominal spacings of an edge
+
+    Returns a Cloud with 'points', exact 'normals' and, for the cube,
+    'feature_dist' and 'feature'.
+    """
+    d, name = _core.generate(shape, int(points), _choice(sampling, _SAMPLINGS, "sampling"),
+                             int(seed), float(feature_width))
+    return _cloud(d, name)
+
+
+def noise(points, normals=None, *, level=0.5, sigma_diag=None, model="gaussian", seed=1,
+          threads=0, progress=None):
+    """noise(points, normals=None, *, level=0.5, sigma_diag=None,
+    model='gaussian', seed=1, threads=0, progress=None) -> points
+
+    Displace points along their normals by t*h (thesis 4.2); ``bootsurf
+    noise``. t ~ N(0, level^2) (gaussian, default) or U[-level, level]
+    (uniform, the thesis text's model); h is the input's mean
+    nearest-neighbour distance. Or, with sigma_diag=s, gaussian noise of
+    sigma = s x bounding-box diagonal (PCPNet's protocol: 0.00125, 0.006,
+    0.012). The draw of point i depends only on (seed, i).
+
+    points: (N, 3), or a Cloud (then its normals are used); normals: (N, 3).
+    Returns the displaced points, a new (N, 3) float64 array (the input is
+    not modified). noise.last_report holds h, diagonal, level and scale.
+    """
+    pts, cloud = _points(points)
+    if normals is None and cloud is not None:
+        normals = cloud.get("normals")
+    if normals is None:
+        raise ValueError("noise moves points along their normals: give normals")
+    if sigma_diag is not None and level != 0.5:
+        raise ValueError("level and sigma_diag are exclusive (noise in units of h or of the "
+                         "diagonal)")
+    m = _choice(model, _MODELS, "model")
+    if sigma_diag is not None and m != 0:
+        raise ValueError("sigma_diag is gaussian noise; it cannot be used with model %r" % model)
+    lvl = float(level)
+    sd = 0.0
+    if sigma_diag is not None:
+        sd = float(sigma_diag)
+        if sd == 0:
+            lvl = 0.0  # sigma_diag=0: no noise, as the command line
+    out, report = _core.noise(pts, normals, m, lvl, sd, int(seed), int(threads), progress)
+    noise.last_report = report
+    return out
+
+
+noise.last_report = None
+
+
+def sample(mesh, *, points=0, sharp_angle=30.0, feature_width=2.0, seed=1, threads=0):
+    """sample(mesh, *, points=0, sharp_angle=30.0, feature_width=2.0, seed=1,
+    threads=0) -> Cloud
+
+    Points from a triangle mesh with ground-truth normals and feature labels
+    (thesis 5.2.2: vertex normals from the mesh connectivity; 7.1.2: feature
+    areas around the sharp edges); ``bootsurf sample``.
+
+    mesh: a Cloud with 'points' and 'faces' (e.g. read('fandisk.off')) or a
+    path. points=0: the mesh's vertices with area-weighted normals; points=n:
+    n points uniform by area with face normals (from seed). Both get
+    'feature_dist' (exact distance to the nearest sharp edge: faces' normals
+    differing by more than sharp_angle degrees) and 'feature' (within
+    feature_width nominal spacings sqrt(area / points) of one).
+    sample.last_report holds the mesh statistics.
+    """
+    mesh = _maybe_read(mesh)
+    d, report = _core.sample(mesh, int(points), int(seed), float(sharp_angle),
+                             float(feature_width), int(threads))
+    sample.last_report = report
+    return _cloud(d, "")
+
+
+sample.last_report = None
+
+
+# ---------------------------------------------------------------- evaluation
+
+
+def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None, split=None,
+             split_q=0.85):
+    """evaluate(normals=None, true_normals=None, *, feature=None,
+    true_feature=None, split=None, split_q=0.85) -> dict
+
+    Compare results with ground truth of the same points (``bootsurf eval``'s
+    normals and features sections).
+
+    normals: unoriented angle errors atan2(|a x b|, |a . b|) against
+    true_normals (thesis 5.2.2, Tables 5.1, 5.3-5.9): 'angles' (N,) in
+    radians and 'normals': {'all': stats} with count, mean_rad, median_rad,
+    rms_rad, mean_deg, under5deg, under10deg (PCPNet's PGP5/PGP10). With
+    split (a per-point value such as normal_var), also 'high' and 'low': the
+    points above the split_q quantile and the others (5.2.3, Table 5.2:
+    split_q = 0.85 is "the highest 15%").
+
+    feature / true_feature (0/1 per point): precision, recall and F1 (thesis
+    ch. 7) under 'features'.
+    """
+    out = {}
+    if normals is not None or true_normals is not None:
+        if normals is None or true_normals is None:
+            raise ValueError("normals and true_normals go together")
+        mask = None
+        if split is not None:
+            mask, threshold, count = _core.quantile_split(split, float(split_q))
+            out["split"] = {"q": float(split_q), "threshold": threshold, "high_points": count}
+        angles, stats = _core.eval_normals(normals, true_normals, mask)
+        out["angles"] = angles
+        out["normals"] = stats
+    if feature is not None or true_feature is not None:
+        if feature is None or true_feature is None:
+            raise ValueError("feature and true_feature go together")
+        out["features"] = _core.eval_features(feature, true_feature)
+    if not out:
+        raise ValueError("nothing to evaluate: give normals and true_normals, or feature and "
+                         "true_feature")
+    return out
+
+
+# ---------------------------------------------------------------- pictures
+
+
+def render(points, *, output=None, normals=None, field=None, colormap="viridis", range=None,
+           view=None, azimuth=None, elevation=None, up="auto", views=1, size=(1024, 768),
+           point_size=2.0, title=None, flat=False, square=False, threads=0, progress=None):
+    """render(points, *, output=None, normals=None, field=None,
+    colormap='viridis', range=None, view=None, azimuth=None, elevation=None,
+    up='auto', views=1, size=(1024, 768), point_size=2.0, title=None,
+    flat=False, square=False, threads=0, progress=None) -> image or None
+
+    Render a cloud, shaded by its normals or coloured by a field (the
+    thesis's figures); ``bootsurf render``. Orthographic, z-buffered splats
+    of point_size x h (larger in sparse regions); the same picture for any
+    thread count.
+
+    points: (N, 3), a Cloud or a path. field: the name of a field of the
+    cloud, or an (N,) array of values. Options as the command line's:
+      output      a PNG file to write (then None is returned); without it
+                  the (height, width, 3) uint8 image is returned
+      colormap    viridis, magma, gray or coolwarm
+      range       (lo, hi) at the colormap's ends (default: 1st-99th
+                  percentile)
+      view        front, back, left, right, top, bottom or iso (default iso)
+      azimuth, elevation   the view direction in degrees instead
+      up          x, y, z or auto (z for generated shapes, else y)
+      views       1, or 4 for front, right, top and iso in a 2x2 grid
+      size        (width, height) in pixels
+      point_size  splat diameter in units of h
+      title, flat (no shading of field colours), square (square splats)
+    render.last_info holds the value range used, h and the covered pixels.
+    """
+    pts, cloud = _points(points)
+    shape_name = getattr(cloud, "shape_name", "") if cloud is not None else ""
+    if normals is None and cloud is not None:
+        normals = cloud.get("normals")
+    label = None
+    values = None
+    if field is not None:
+        if isinstance(field, str):
+            if cloud is None or field not in cloud:
+                have = ", ".join(k for k in (cloud or {}) if k not in ("points", "normals",
+                                                                       "faces")) or "none"
+                raise ValueError("no field '%s'; available fields: %s" % (field, have))
+            label, values = field, cloud[field]
+        else:
+            values = field
+    if view is not None and (azimuth is not None or elevation is not None):
+        raise ValueError("give view or azimuth/elevation, not both")
+    if views not in (1, 4):
+        raise ValueError("views must be 1 or 4, not %r" % (views,))
+    w, h = size
+    if not (64 <= int(w) <= 8192 and 64 <= int(h) <= 8192):
+        raise ValueError("size needs (width, height) with each in 64..8192, not %r" % (size,))
+    lo = hi = _math.nan
+    if range is not None:
+        lo, hi = float(range[0]), float(range[1])
+        if not (_math.isfinite(lo) and _math.isfinite(hi) and hi > lo):
+            raise ValueError("range needs (lo, hi) with lo < hi, not %r" % (range,))
+    import os
+    img, info = _core.render(pts, normals, values, None if output is None else os.fspath(output),
+                             colormap, view,
+                             _math.nan if azimuth is None else float(azimuth),
+                             _math.nan if elevation is None else float(elevation), up,
+                             shape_name, int(views), int(w), int(h), float(point_size), lo, hi,
+                             title, label, bool(flat), bool(square), int(threads), progress)
+    render.last_info = info
+    return img
+
+
+render.last_info = None
