@@ -1274,6 +1274,168 @@ typedef struct bsurf_error_job_summary {
 BSURF_API bsurf_status bsurf_error_job(const bsurf_job_io *io, const bsurf_error_options *opts,
                                        bsurf_error_job_summary *summary, bsurf_failure *err);
 
+/* ---- normals (thesis chapter 5) ---- */
+
+typedef enum bsurf_orient_mode {
+  BSURF_ORIENT_NONE = 0, /* unoriented, as estimated */
+  BSURF_ORIENT_MST       /* bsurf_orient_normals (Hoppe et al. 1992) */
+} bsurf_orient_mode;
+
+/* One candidate (K, degree) of a selection: its means over the points
+ * (figs. 5.6-5.11), summed in point order. */
+typedef struct bsurf_normals_curve_row {
+  int k, degree;          /* degree 1 for PCA */
+  double mean_normal_err; /* Eq. 5.10 */
+  double mean_normal_var; /* Eq. 5.5 */
+  double mean_angle_err;  /* against curve_truth (rad); NAN without it */
+} bsurf_normals_curve_row;
+
+/* What `bootsurf normals` does, its options with the command's defaults
+ * (bsurf_normals_job_options_default). New fields are added at the end. */
+typedef struct bsurf_normals_job_options {
+  bsurf_normal_options normals; /* fit, PCA centre, K (30), degree (2), B (50),
+                                   seed, threads, and the progress callback of
+                                   the whole job (which may cancel); its
+                                   point_index is the job's own */
+  int test_error;               /* 1: also normal_err (Eq. 5.10) against the
+                                   reference normals (0; 1 when selecting) */
+  int k_ref;                    /* K of the reference PCA normals of Eq. 5.10,
+                                   >= 3 (0 = normals.k) */
+  /* Per-point selection (5.5, Algorithm 3): candidate K values, strictly
+   * ascending, each >= 3 (NULL: none, normals.k alone), and with POLY
+   * candidate degrees 1..4 (NULL: normals.degree alone). K >= the degree's
+   * terms. At most 1024 candidates of K. */
+  const int *select_k;
+  int select_k_count;
+  const int *select_degree;
+  int select_degree_count;
+  bsurf_kselect_rule select_rule; /* TEST_ERROR (the thesis's), or MSE
+                                     (bsurf_select_k: PCA, select_k only,
+                                     candidates >= 7, in memory only) */
+  int noise_k;                    /* MSE: the noise fits' neighbourhood (20; >= 12) */
+  /* Bilateral normal smoothing after the estimate (bsurf_smooth_normals,
+   * Eq. 5.6; in memory only): passes (0), strength alpha (0.1, in [0, 1]),
+   * spatial sigma (<= 0: h), variance sigma (NAN: auto, the 85th percentile
+   * of normal_var; INFINITY: the single Gaussian filter; else > 0). */
+  int smooth_iterations;
+  double alpha;
+  double sigma_d;
+  double sigma_nu;
+  bsurf_orient_mode orient; /* NONE (MST: in memory only) */
+  /* In memory only, with select_k and the TEST_ERROR rule: NULL, or room
+   * for select_k_count x max(1, select_degree_count) rows, filled with each
+   * candidate's means in the order K, then degree (summary->curve_rows). */
+  bsurf_normals_curve_row *curve;
+  const double *curve_truth; /* NULL or point_count x 3 true normals: the
+                                curve's mean_angle_err */
+} bsurf_normals_job_options;
+
+BSURF_API bsurf_normals_job_options bsurf_normals_job_options_default(void);
+
+#define BSURF_NORMALS_JOB_FIELDS 4
+
+/* What `bootsurf normals` prints (text and --json). */
+typedef struct bsurf_normals_job_summary {
+  size_t points;
+  double h;                                          /* mean nearest-neighbour distance */
+  size_t duplicates;                                 /* points at the same place as another */
+  bsurf_normal_report report;                        /* over every candidate run */
+  int field_count;                                   /* the fields written besides the normals */
+  const char *field_names[BSURF_NORMALS_JOB_FIELDS]; /* of normal_var (B >= 2),
+                                 normal_err, k_selected, degree_selected */
+  double means[BSURF_NORMALS_JOB_FIELDS];            /* each field's mean over the
+                                                        points (as the error job's) */
+  double sigma_d, sigma_nu;  /* smoothing: the sigmas applied (INFINITY: single Gaussian) */
+  size_t curve_rows;         /* rows filled in opts->curve */
+  size_t tile_points, tiles; /* tiled runs: the tile size used, the tiles */
+  size_t bad_point;          /* BSURF_ERR_INVALID_VALUE in a tiled run: the
+                                first non-finite point */
+} bsurf_normals_job_summary;
+
+/* Normals with bootstrap confidence of every point (bsurf_estimate_normals,
+ * or the per-point selection of K and degree; then smoothing and
+ * orientation if asked), in memory or tiled through the same call. The
+ * normals replace the cloud's (FLOAT32 when it had none) and the fields
+ * (field_names: normal_var FLOAT32, normal_err FLOAT32, k_selected UINT16,
+ * degree_selected UINT8) are added to io->cloud, or written with the
+ * input's to io->output. Tiled runs with normal_err run two stages (the
+ * reference normals of every point first). err (may be NULL): where a tiled
+ * run's input is wrong. BSURF_ERR_INVALID_ARG (message:
+ * bsurf_last_message()) for bad options or io, BSURF_ERR_TOO_FEW_POINTS for
+ * fewer points than the largest K; otherwise the statuses of the calls
+ * above. */
+BSURF_API bsurf_status bsurf_normals_job(const bsurf_job_io *io,
+                                         const bsurf_normals_job_options *opts,
+                                         bsurf_normals_job_summary *summary, bsurf_failure *err);
+
+/* ---- smooth (thesis chapter 6) ---- */
+
+/* What `bootsurf smooth` does (bsurf_smooth_job_options_default: the
+ * command's defaults). Lengths of `smooth` may be given in units of h, the
+ * mean spacing, which is known only once the neighbourhoods are: a flag
+ * set to 1 multiplies that length by h (NAN, INFINITY and values <= 0 keep
+ * their meaning). New fields are added at the end. */
+typedef struct bsurf_smooth_job_options {
+  bsurf_smooth_options smooth;                        /* method, error (K, degree, B, seed, gamma,
+                                                         PCA centre, threads, progress of the whole
+                                                         job), estimator, lengths, guard ... */
+  int threshold_in_h, h1_in_h, h2_in_h, k_error_in_h; /* (0) */
+} bsurf_smooth_job_options;
+
+BSURF_API bsurf_smooth_job_options bsurf_smooth_job_options_default(void);
+
+#define BSURF_SMOOTH_JOB_FIELDS 5
+
+/* What `bootsurf smooth` prints (text and --json). */
+typedef struct bsurf_smooth_job_summary {
+  size_t points;
+  double h;
+  size_t duplicates;
+  bsurf_smooth_report report;                       /* mean |W|, threshold, sigmas,
+                                                       moved points, counters */
+  const char *estimator;                            /* W: "err_632" or "err_632plus" */
+  int field_count;                                  /* 3, or 5 for multipass */
+  const char *field_names[BSURF_SMOOTH_JOB_FIELDS]; /* err_632, err_632plus,
+                                                       moved, k_hat, d_local */
+  double means[BSURF_SMOOTH_JOB_FIELDS];
+  size_t tile_points, tiles, bad_point; /* as bsurf_normals_job_summary */
+} bsurf_smooth_job_summary;
+
+/* Denoising driven by the bootstrap error (bsurf_smooth), in memory or
+ * tiled through the same call (naive and bilateral with the parallel order:
+ * two tiled stages; multipass and the sequential order are in memory only).
+ * The points move; the input's normals are dropped (they belong to the old
+ * positions); the fields are added to io->cloud or written to io->output.
+ * Statuses as bsurf_normals_job. */
+BSURF_API bsurf_status bsurf_smooth_job(const bsurf_job_io *io,
+                                        const bsurf_smooth_job_options *opts,
+                                        bsurf_smooth_job_summary *summary, bsurf_failure *err);
+
+/* ---- features (thesis chapter 7) ---- */
+
+/* What `bootsurf features` prints (text and --json). */
+typedef struct bsurf_features_job_summary {
+  size_t points;
+  double h;
+  size_t duplicates;
+  bsurf_feature_report report;
+  const char *field_names[2]; /* "feature" (UINT8) and the score: "feature_dist"
+                                 (distance) or "normal_var" (variance), FLOAT32 */
+  /* An input field of that name: kept[i] = 1 when it was renamed NAME_in
+   * (ground truth, most often); replaced[i] = 1 when NAME_in existed (NAME
+   * was an earlier result and is overwritten). */
+  int kept[2], replaced[2];
+  size_t tile_points, tiles, bad_point; /* as bsurf_normals_job_summary */
+} bsurf_features_job_summary;
+
+/* Feature detection (bsurf_detect_features, both methods), in memory or
+ * tiled through the same call (distance: a chain of tiled stages, one per
+ * filter pass; variance: two). opts: NULL = bsurf_feature_options_default();
+ * its progress callback is the whole job's. The fields are added to
+ * io->cloud or written to io->output. Statuses as bsurf_normals_job. */
+BSURF_API bsurf_status bsurf_features_job(const bsurf_job_io *io, const bsurf_feature_options *opts,
+                                          bsurf_features_job_summary *summary, bsurf_failure *err);
+
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */
 /* ------------------------------------------------------------------------ */

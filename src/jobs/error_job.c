@@ -2,8 +2,7 @@
  * of a cloud, in memory or tile by tile (under MPI through the caller's
  * bsurf_tile_comm), through one call. The command line parses its options
  * and prints the summary; everything between is here. */
-#include "common/common.h"
-#include "tile/tile_engine.h"
+#include "jobs/jobs.h"
 
 #include <string.h>
 
@@ -33,14 +32,6 @@ static bsurf_status add_fields(bsurf_cloud *c, int nfields, bsurf_error_fields *
   for (int f = 0; f < nfields; f++)
     *slots[f] = bsurf_cloud_field(c, error_field_names[f])->values;
   return BSURF_OK;
-}
-
-/* The mean of a field summed in point order (what the summary reports). */
-static double field_mean(const double *v, size_t n) {
-  double s = 0;
-  for (size_t i = 0; i < n; i++)
-    s += v[i];
-  return n ? s / (double)n : 0.0;
 }
 
 /* ---- tiled: the same fields, tile by tile (bsurf_tiles_run) ---- */
@@ -78,7 +69,7 @@ static bsurf_status error_run(void *user, const bsurf_tile *tile, bsurf_cloud *c
   sums[2] += (double)rep.degree_reduced;
   sums[3] += (double)rep.center_unestimated;
   for (int f = 0; f < et->nfields; f++)
-    sums[4 + f] += field_mean(*slots[f], core->point_count) * (double)core->point_count;
+    sums[4 + f] += bsurf_jobs_mean(*slots[f], core->point_count) * (double)core->point_count;
   return BSURF_OK;
 }
 
@@ -87,18 +78,10 @@ static bsurf_status error_tiled(const bsurf_job_io *io, const bsurf_error_option
   error_tiles et = {*o, s->field_count};
   double sums[ERROR_SUMS] = {0};
   bsurf_tile_ops ops;
-  memset(&ops, 0, sizeof ops);
-  ops.tile_points = io->tile_points;
-  ops.k = o->k;
-  ops.threads = o->threads;
-  ops.user = &et;
+  bsurf_jobs_tile_ops(&ops, io, o->k, o->threads, o->progress, o->progress_user, &et);
   ops.prepare = error_prepare;
   ops.run = error_run;
   ops.nsums = ERROR_SUMS;
-  ops.comm = io->comm;
-  ops.progress = o->progress;
-  ops.progress_user = o->progress_user;
-  ops.range_points = io->range_points;
   bsurf_tile_report tr;
   memset(&tr, 0, sizeof tr);
   tr.sums = sums;
@@ -131,16 +114,10 @@ static bsurf_status error_in_memory(const bsurf_job_io *io, const bsurf_error_op
                          io->test->point_count, n);
   bsurf_neighbors nb;
   bsurf_status st =
-      bsurf_neighbors_build(&nb, c->xyz, n, o->k, o->threads, o->progress, o->progress_user);
+      bsurf_jobs_neighbors(c, o->k, o->threads, o->progress, o->progress_user, &nb, &s->duplicates);
   if (st != BSURF_OK) return st;
   s->points = n;
   s->h = nb.h;
-  /* points at the same place as another: the nearest other neighbour (the
-   * point itself comes first) is at distance 0 */
-  for (size_t i = 0; i < n; i++) {
-    const double *a = c->xyz + 3 * i, *b = c->xyz + 3 * (size_t)nb.idx[i * (size_t)nb.k + 1];
-    s->duplicates += a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
-  }
   bsurf_error_fields out;
   st = add_fields(c, s->field_count, &out);
   if (st == BSURF_OK)
@@ -148,7 +125,7 @@ static bsurf_status error_in_memory(const bsurf_job_io *io, const bsurf_error_op
   bsurf_neighbors_free(&nb);
   if (st != BSURF_OK) return st;
   for (int f = 0; f < s->field_count; f++)
-    s->means[f] = field_mean(bsurf_cloud_field(c, s->field_names[f])->values, n);
+    s->means[f] = bsurf_jobs_mean(bsurf_cloud_field(c, s->field_names[f])->values, n);
   return BSURF_OK;
 }
 
@@ -161,14 +138,9 @@ bsurf_status bsurf_error_job(const bsurf_job_io *io, const bsurf_error_options *
   summary->field_count = io->test ? BSURF_ERROR_JOB_FIELDS : BSURF_ERROR_JOB_FIELDS - 2;
   for (int f = 0; f < BSURF_ERROR_JOB_FIELDS; f++)
     summary->field_names[f] = error_field_names[f];
-  BSURF_REQUIRE(!io->cloud != !io->input,
-                "give either io->cloud (in memory) or io->input (tiled), not %s",
-                io->cloud ? "both" : "neither");
-  if (io->cloud) {
-    BSURF_REQUIRE(io->cloud->xyz || !io->cloud->point_count, "io->cloud has no coordinates");
-    return error_in_memory(io, &o, summary);
-  }
+  bsurf_status st = bsurf_jobs_check_io(__func__, io);
+  if (st != BSURF_OK) return st;
+  if (io->cloud) return error_in_memory(io, &o, summary);
   BSURF_REQUIRE(!io->test, "io->test: a test sample is only available in memory");
-  BSURF_REQUIRE(io->tile_points > 0, "io->tile_points = 0: a tiled run needs the tile size");
   return error_tiled(io, &o, summary, err);
 }

@@ -1,0 +1,34 @@
+/* Pieces every job (src/jobs, issue 18) shares: the check of bsurf_job_io,
+ * the in-memory neighbourhoods with the duplicate count, the tile engine's
+ * options of a job's tiled stages and the summary's tile numbers. */
+#ifndef BSURF_JOBS_H
+#define BSURF_JOBS_H
+
+#include "common/common.h"
+#include "tile/tile_engine.h"
+
+/* io: either a cloud (in memory, with coordinates) or an input file with a
+ * tile size; `func` names the job in the message. */
+bsurf_status bsurf_jobs_check_io(const char *func, const bsurf_job_io *io);
+
+/* The neighbourhoods of an in-memory cloud (BSURF_ERR_TOO_FEW_POINTS with a
+ * message when it has fewer than k points), h and the points at the same
+ * place as another. */
+bsurf_status bsurf_jobs_neighbors(const bsurf_cloud *c, int k, int threads,
+                                  bsurf_progress_fn progress, void *progress_user,
+                                  bsurf_neighbors *nb, size_t *duplicates);
+
+/* The tile engine's options of one stage of a tiled job: io's tile size,
+ * range and communicator, the job's progress. */
+void bsurf_jobs_tile_ops(bsurf_tile_ops *ops, const bsurf_job_io *io, int k, int threads,
+                         bsurf_progress_fn progress, void *progress_user, void *user);
+
+/* The mean of n values summed in point order (what the summaries report). */
+double bsurf_jobs_mean(const double *v, size_t n);
+
+/* Adds the value of a field to the cloud's storage type in memory (names
+ * and types: count of each); BSURF_ERR_NOMEM with a message. */
+bsurf_status bsurf_jobs_add_fields(bsurf_cloud *c, const char *const *names,
+                                   const bsurf_type *types, int count);
+
+#endif /* BSURF_JOBS_H */
