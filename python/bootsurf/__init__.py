@@ -36,7 +36,7 @@ from . import _core
 __version__ = _core.version()
 
 __all__ = [
-    "Cloud", "read", "write", "knn", "spacing", "error", "generate", "noise", "sample",
+    "Cloud", "read", "write", "knn", "spacing", "error", "normals", "generate", "noise", "sample",
     "evaluate", "render", "__version__",
 ]
 
@@ -218,6 +218,110 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
     return _core.error(_points(points)[0], test, int(neighbors), int(degree), int(bootstrap),
                        int(seed), _choice(gamma, _GAMMAS, "gamma"),
                        _choice(pca_center, _CENTERS, "pca_center"), int(threads), progress)
+
+
+# ---------------------------------------------------------------- chapter 5
+
+_FITS = ("pca", "poly")
+_RULES = ("test-error", "mse")
+_ORIENTS = ("none", "mst")
+
+
+def _ks(select_k):
+    """select_k as a list: 'A:B:STEP' (the command line's) or a sequence."""
+    if select_k is None:
+        return None
+    if isinstance(select_k, str):
+        try:
+            a, b, step = (int(x) for x in select_k.split(":"))
+        except ValueError:
+            raise ValueError("select_k needs A:B:STEP, not %r" % select_k) from None
+        if not (3 <= a <= b and step >= 1):
+            raise ValueError("select_k needs A:B:STEP with 3 <= A <= B and STEP >= 1, not %r"
+                             % select_k)
+        return list(_builtin_range(a, b + 1, step))
+    return [int(k) for k in select_k]
+
+
+_builtin_range = range
+
+
+def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid", bootstrap=50,
+            seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="test-error",
+            noise_k=20, select_degree=None, curve=False, truth=None, smooth_iterations=0,
+            alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", progress=None):
+    """normals(points, *, neighbors=30, fit='pca', degree=2,
+    pca_center='centroid', bootstrap=50, seed=1, threads=0, test_error=False,
+    k_ref=0, select_k=None, select_rule='test-error', noise_k=20,
+    select_degree=None, curve=False, truth=None, smooth_iterations=0,
+    alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', progress=None)
+    -> (fields, summary)
+
+    Normals with bootstrap confidence and test error (thesis ch. 5);
+    ``bootsurf normals`` (bsurf_normals_job).
+
+    For every point: the normal of its K nearest neighbours (PCA plane, 2.2
+    and 5.2, or the gradient of a height polynomial, Eq. 5.9), B bootstrap
+    refits, the normalised mean of the bootstrap normals (Eq. 5.4) and
+    normal_var, the variance of their angles (Eq. 5.5): a per-point
+    confidence. normal_err is the bootstrap test error of the normal (Eq.
+    5.10, Algorithm 3) against reference PCA normals of k_ref neighbours.
+
+    Options:
+      neighbors          neighbourhood size K, the point included (30)
+      fit                pca (plane) or poly (height polynomial, Eq. 5.9)
+      degree             degree of the polynomial for fit='poly', 1..4 (2)
+      pca_center         PCA about the centroid or the point (Eq. 2.1)
+      bootstrap          bootstrap replicates; 0 = a single fit (50)
+      seed, threads      random seed (1); threads, 0 = all cores
+      test_error         also normal_err, the bootstrap test error (Eq. 5.10)
+      k_ref              neighbourhood of the reference normals (0 = K)
+      select_k           per point, the K chosen by select_rule: 'A:B:STEP'
+                         or a list of K (5.5, Algorithm 3)
+      select_rule        test-error (Eq. 5.10) or mse (estimated variance +
+                         bias^2 of the PCA normal)
+      noise_k            with select_rule='mse': the noise fits' K (20)
+      select_degree      with fit='poly': also choose the degree, e.g. [1, 2, 3]
+      curve              with select_k: return each candidate's mean errors
+                         (figs. 5.6-5.11) in summary['curve']
+      truth              (N, 3) ground-truth normals for the curve's
+                         mean_angle_err
+      smooth_iterations  bilateral normal smoothing passes (Eqs. 5.6-5.8)
+      alpha              strength of one smoothing pass (0.1)
+      sigma_d            spatial sigma of the smoothing (0 = h)
+      sigma_nu           variance sigma: a value, 'auto' (85th percentile of
+                         normal_var) or 'inf' (single Gaussian)
+      orient             none or mst (consistent orientation, Hoppe 1992)
+      progress           callable(done, total), or None
+
+    Returns (fields, summary): fields has 'normals' (N, 3) and, as
+    computed, 'normal_var', 'normal_err' (float64), 'k_selected' (uint16),
+    'degree_selected' (uint8); summary has points, h, duplicates, report,
+    means (per field), sigma_d, sigma_nu and curve (a list of rows).
+    """
+    if sigma_nu == "auto":
+        snu = _math.nan
+    elif sigma_nu == "inf":
+        snu = _math.inf
+    else:
+        snu = float(sigma_nu)
+        if not snu > 0:
+            raise ValueError("sigma_nu must be a positive number, 'auto' or 'inf'")
+    ks = _ks(select_k)
+    if curve and not ks:
+        raise ValueError("curve needs select_k")
+    ds = None if select_degree is None else [int(d) for d in select_degree]
+    pts, cloud = _points(points)
+    if truth is not None:
+        truth = _maybe_read(truth)
+        if isinstance(truth, dict):
+            truth = truth["normals"]
+    return _core.normals(pts, int(neighbors), _choice(fit, _FITS, "fit"), int(degree),
+                         _choice(pca_center, _CENTERS, "pca_center"), int(bootstrap), int(seed),
+                         int(threads), bool(test_error), int(k_ref), ks,
+                         _choice(select_rule, _RULES, "select_rule"), int(noise_k), ds,
+                         int(smooth_iterations), float(alpha), float(sigma_d), snu,
+                         _choice(orient, _ORIENTS, "orient"), bool(curve), truth, progress)
 
 
 # ---------------------------------------------------------------- data

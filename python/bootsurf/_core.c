@@ -471,8 +471,12 @@ static PyObject *take_fields(bsurf_cloud *c) {
   PyObject *d = PyDict_New();
   npy_intp n1[1] = {(npy_intp)c->point_count}, n3[2] = {(npy_intp)c->point_count, 3};
   for (size_t f = 0; d && f < c->field_count; f++) {
-    /* the job's values are doubles whatever the type they are written with */
-    if (set_item(d, c->fields[f].name, adopt(c->fields[f].values, 1, n1, NPY_DOUBLE))) Py_CLEAR(d);
+    /* float32 fields stay doubles (the job's values, before they are
+     * rounded for a file); integer fields (labels, selected K) take their
+     * type, which holds them exactly */
+    int t = npy_type_of(c->fields[f].type);
+    if (t == NPY_FLOAT32) t = NPY_DOUBLE;
+    if (set_item(d, c->fields[f].name, doubles_as(c->fields[f].values, 1, n1, t))) Py_CLEAR(d);
     else c->fields[f].values = NULL;
   }
   if (d && c->normals) {
@@ -549,6 +553,138 @@ static PyObject *py_error(PyObject *self, PyObject *args) {
     return NULL;
   }
   return Py_BuildValue("(NN)", fields, sum);
+}
+
+/* An optional sequence of ints into buf (at most max); -1 with an error. */
+static int int_list(PyObject *obj, const char *what, int *buf, int max) {
+  if (obj == Py_None) return 0;
+  PyObject *seq = PySequence_Fast(obj, "a sequence of integers");
+  if (!seq) return -1;
+  Py_ssize_t n = PySequence_Fast_GET_SIZE(seq);
+  if (n > max) {
+    Py_DECREF(seq);
+    PyErr_Format(PyExc_ValueError, "%s: at most %d values, not %zd", what, max, n);
+    return -1;
+  }
+  for (Py_ssize_t i = 0; i < n; i++) {
+    long v = PyLong_AsLong(PySequence_Fast_GET_ITEM(seq, i));
+    if (v == -1 && PyErr_Occurred()) {
+      Py_DECREF(seq);
+      return -1;
+    }
+    buf[i] = (int)v;
+  }
+  Py_DECREF(seq);
+  return (int)n;
+}
+
+static PyObject *normal_report(const bsurf_normal_report *r) {
+  return Py_BuildValue("{s:n,s:n,s:n,s:n}", "replicates_total", (Py_ssize_t)r->replicates_total,
+                       "replicates_skipped", (Py_ssize_t)r->replicates_skipped, "degree_reduced",
+                       (Py_ssize_t)r->degree_reduced, "degenerate", (Py_ssize_t)r->degenerate);
+}
+
+/* The means of a job's fields as a dict. */
+static PyObject *means_dict(const char *const *names, const double *means, int count) {
+  PyObject *m = PyDict_New();
+  for (int f = 0; m && f < count; f++)
+    if (set_item(m, names[f], PyFloat_FromDouble(means[f]))) Py_CLEAR(m);
+  return m;
+}
+
+#define MAX_KS 1024
+
+static PyObject *py_normals(PyObject *self, PyObject *args) {
+  (void)self;
+  PyObject *pts, *ks_obj, *ds_obj, *truth_obj, *progress;
+  bsurf_normals_job_options o = bsurf_normals_job_options_default();
+  int fit, center, rule, orient, want_curve;
+  unsigned long long seed;
+  if (!PyArg_ParseTuple(args, "OiiiiiKipiOiiOidddipOO", &pts, &o.normals.k, &fit, &o.normals.degree,
+                        &center, &o.normals.bootstrap, &seed, &o.normals.threads, &o.test_error,
+                        &o.k_ref, &ks_obj, &rule, &o.noise_k, &ds_obj, &o.smooth_iterations,
+                        &o.alpha, &o.sigma_d, &o.sigma_nu, &orient, &want_curve, &truth_obj,
+                        &progress))
+    return NULL;
+  o.normals.fit = (bsurf_normal_fit)fit;
+  o.normals.pca_center = (bsurf_pca_center)center;
+  o.normals.seed = seed;
+  o.select_rule = (bsurf_kselect_rule)rule;
+  o.orient = (bsurf_orient_mode)orient;
+  int kbuf[MAX_KS], dbuf[4];
+  int nk = int_list(ks_obj, "select_k", kbuf, MAX_KS);
+  int nd = nk < 0 ? -1 : int_list(ds_obj, "select_degree", dbuf, 4);
+  if (nk < 0 || nd < 0) return NULL;
+  o.select_k = nk ? kbuf : NULL;
+  o.select_k_count = nk;
+  o.select_degree = nd ? dbuf : NULL;
+  o.select_degree_count = nd;
+  PyArrayObject *a = as_f64(pts, "points", 3), *tr = NULL;
+  if (!a) return NULL;
+  size_t n = (size_t)PyArray_DIM(a, 0);
+  if (opt_f64(truth_obj, "truth", 3, n, &tr)) {
+    Py_DECREF(a);
+    return NULL;
+  }
+  bsurf_normals_curve_row *curve = NULL;
+  if (want_curve && nk) {
+    curve = PyMem_Calloc((size_t)nk * (size_t)(nd ? nd : 1), sizeof *curve);
+    if (!curve) {
+      Py_DECREF(a);
+      Py_XDECREF(tr);
+      return PyErr_NoMemory();
+    }
+  }
+  o.curve = curve;
+  o.curve_truth = f64(tr);
+  bsurf_cloud cloud;
+  bsurf_cloud_init(&cloud);
+  cloud.point_count = n;
+  cloud.xyz = f64(a);
+  bsurf_job_io io;
+  memset(&io, 0, sizeof io);
+  io.cloud = &cloud;
+  call_ctx c;
+  ctx_init(&c, progress);
+  o.normals.progress = progress_cb;
+  o.normals.progress_user = &c;
+  bsurf_normals_job_summary s;
+  RELEASE(&c);
+  bsurf_status st = bsurf_normals_job(&io, &o, &s, NULL);
+  ACQUIRE(&c);
+  PyObject *fields = NULL, *ret = NULL;
+  if (st == BSURF_OK) {
+    fields = take_fields(&cloud);
+  } else {
+    cloud.xyz = NULL;
+    bsurf_cloud_free(&cloud);
+    fail(st, &c, NULL, NULL);
+  }
+  if (fields) {
+    PyObject *rows = PyList_New(0);
+    for (size_t r = 0; rows && r < s.curve_rows; r++) {
+      PyObject *row = Py_BuildValue("{s:i,s:i,s:d,s:d,s:d}", "k", curve[r].k, "degree",
+                                    curve[r].degree, "mean_normal_err", curve[r].mean_normal_err,
+                                    "mean_normal_var", curve[r].mean_normal_var, "mean_angle_err",
+                                    curve[r].mean_angle_err);
+      if (!row || PyList_Append(rows, row)) Py_CLEAR(rows);
+      Py_XDECREF(row);
+    }
+    PyObject *sum = rows ? Py_BuildValue("{s:n,s:d,s:n,s:N,s:N,s:d,s:d,s:N}", "points",
+                                         (Py_ssize_t)s.points, "h", s.h, "duplicates",
+                                         (Py_ssize_t)s.duplicates, "report",
+                                         normal_report(&s.report), "means",
+                                         means_dict(s.field_names, s.means, s.field_count),
+                                         "sigma_d", s.sigma_d, "sigma_nu", s.sigma_nu, "curve",
+                                         rows)
+                         : NULL;
+    ret = sum ? Py_BuildValue("(ON)", fields, sum) : NULL;
+  }
+  Py_XDECREF(fields);
+  PyMem_Free(curve);
+  Py_DECREF(a);
+  Py_XDECREF(tr);
+  return ret;
 }
 
 /* ---- synthetic data ---- */
@@ -867,6 +1003,7 @@ static PyMethodDef methods[] = {
     {"knn", py_knn, METH_VARARGS, "knn(points, k, threads, progress) -> (idx, dist2)"},
     {"spacing", py_spacing, METH_VARARGS, "spacing(points, threads, progress) -> h"},
     {"error", py_error, METH_VARARGS, "error(points, test, k, ...) -> (fields, summary)"},
+    {"normals", py_normals, METH_VARARGS, "normals(points, ...) -> (fields, summary)"},
     {"generate", py_generate, METH_VARARGS, "generate(shape, n, sampling, seed, width)"},
     {"noise", py_noise, METH_VARARGS, "noise(points, normals, model, level, ...)"},
     {"sample", py_sample, METH_VARARGS, "sample(mesh, points, seed, angle, width, threads)"},
