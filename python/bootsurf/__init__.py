@@ -361,13 +361,17 @@ def noise(points, normals=None, *, level=0.5, sigma_diag=None, model="gaussian",
     sigma = s x bounding-box diagonal (PCPNet's protocol: 0.00125, 0.006,
     0.012). The draw of point i depends only on (seed, i).
 
-    points: (N, 3), or a Cloud (then its normals are used); normals: (N, 3).
+    points: (N, 3), or a Cloud (then its normals, or the true_nx true_ny
+    true_nz of an earlier noise output, are used); normals: (N, 3).
     Returns the displaced points, a new (N, 3) float64 array (the input is
     not modified). noise.last_report holds h, diagonal, level and scale.
     """
     pts, cloud = _points(points)
     if normals is None and cloud is not None:
         normals = cloud.get("normals")
+        if normals is None and "true_nx" in cloud:  # an earlier noise output's exact normals
+            import numpy as np
+            normals = np.stack([cloud["true_nx"], cloud["true_ny"], cloud["true_nz"]], axis=1)
     if normals is None:
         raise ValueError("noise moves points along their normals: give normals")
     if sigma_diag is not None and level != 0.5:

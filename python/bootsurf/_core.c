@@ -418,7 +418,8 @@ static PyObject *py_knn(PyObject *self, PyObject *args) {
                         n);
   }
   npy_intp dims[2] = {(npy_intp)n, k};
-  PyObject *idx = PyArray_SimpleNew(2, dims, NPY_UINT32), *d2 = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
+  PyObject *idx = PyArray_SimpleNew(2, dims, NPY_UINT32),
+           *d2 = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
   if (!idx || !d2) goto bad;
   call_ctx c;
   ctx_init(&c, progress);
@@ -455,8 +456,8 @@ static PyObject *py_spacing(PyObject *self, PyObject *args) {
   ctx_init(&c, progress);
   double h = 0;
   RELEASE(&c);
-  bsurf_status st = bsurf_mean_spacing_progress(f64(a), (size_t)PyArray_DIM(a, 0), threads, &h,
-                                                progress_cb, &c);
+  bsurf_status st =
+      bsurf_mean_spacing_progress(f64(a), (size_t)PyArray_DIM(a, 0), threads, &h, progress_cb, &c);
   ACQUIRE(&c);
   Py_DECREF(a);
   if (st != BSURF_OK) return fail(st, &c, NULL, NULL);
@@ -476,12 +477,16 @@ static PyObject *take_fields(bsurf_cloud *c) {
      * type, which holds them exactly */
     int t = npy_type_of(c->fields[f].type);
     if (t == NPY_FLOAT32) t = NPY_DOUBLE;
-    if (set_item(d, c->fields[f].name, doubles_as(c->fields[f].values, 1, n1, t))) Py_CLEAR(d);
-    else c->fields[f].values = NULL;
+    if (set_item(d, c->fields[f].name, doubles_as(c->fields[f].values, 1, n1, t)))
+      Py_CLEAR(d);
+    else
+      c->fields[f].values = NULL;
   }
   if (d && c->normals) {
-    if (set_item(d, "normals", adopt(c->normals, 2, n3, NPY_DOUBLE))) Py_CLEAR(d);
-    else c->normals = NULL;
+    if (set_item(d, "normals", adopt(c->normals, 2, n3, NPY_DOUBLE)))
+      Py_CLEAR(d);
+    else
+      c->normals = NULL;
   }
   c->xyz = NULL;
   bsurf_cloud_free(c);
@@ -545,9 +550,9 @@ static PyObject *py_error(PyObject *self, PyObject *args) {
   PyObject *means = PyDict_New();
   for (int f = 0; means && f < s.field_count; f++)
     if (set_item(means, s.field_names[f], PyFloat_FromDouble(s.means[f]))) Py_CLEAR(means);
-  PyObject *sum = Py_BuildValue("{s:n,s:d,s:n,s:N,s:N}", "points", (Py_ssize_t)s.points, "h", s.h,
-                                "duplicates", (Py_ssize_t)s.duplicates, "report",
-                                report_error(&s.report), "means", means);
+  PyObject *sum =
+      Py_BuildValue("{s:n,s:d,s:n,s:N,s:N}", "points", (Py_ssize_t)s.points, "h", s.h, "duplicates",
+                    (Py_ssize_t)s.duplicates, "report", report_error(&s.report), "means", means);
   if (!sum) {
     Py_DECREF(fields);
     return NULL;
@@ -663,21 +668,20 @@ static PyObject *py_normals(PyObject *self, PyObject *args) {
   if (fields) {
     PyObject *rows = PyList_New(0);
     for (size_t r = 0; rows && r < s.curve_rows; r++) {
-      PyObject *row = Py_BuildValue("{s:i,s:i,s:d,s:d,s:d}", "k", curve[r].k, "degree",
-                                    curve[r].degree, "mean_normal_err", curve[r].mean_normal_err,
-                                    "mean_normal_var", curve[r].mean_normal_var, "mean_angle_err",
-                                    curve[r].mean_angle_err);
+      PyObject *row =
+          Py_BuildValue("{s:i,s:i,s:d,s:d,s:d}", "k", curve[r].k, "degree", curve[r].degree,
+                        "mean_normal_err", curve[r].mean_normal_err, "mean_normal_var",
+                        curve[r].mean_normal_var, "mean_angle_err", curve[r].mean_angle_err);
       if (!row || PyList_Append(rows, row)) Py_CLEAR(rows);
       Py_XDECREF(row);
     }
-    PyObject *sum = rows ? Py_BuildValue("{s:n,s:d,s:n,s:N,s:N,s:d,s:d,s:N}", "points",
-                                         (Py_ssize_t)s.points, "h", s.h, "duplicates",
-                                         (Py_ssize_t)s.duplicates, "report",
-                                         normal_report(&s.report), "means",
-                                         means_dict(s.field_names, s.means, s.field_count),
-                                         "sigma_d", s.sigma_d, "sigma_nu", s.sigma_nu, "curve",
-                                         rows)
-                         : NULL;
+    PyObject *sum =
+        rows ? Py_BuildValue("{s:n,s:d,s:n,s:N,s:N,s:d,s:d,s:N}", "points", (Py_ssize_t)s.points,
+                             "h", s.h, "duplicates", (Py_ssize_t)s.duplicates, "report",
+                             normal_report(&s.report), "means",
+                             means_dict(s.field_names, s.means, s.field_count), "sigma_d",
+                             s.sigma_d, "sigma_nu", s.sigma_nu, "curve", rows)
+             : NULL;
     ret = sum ? Py_BuildValue("(ON)", fields, sum) : NULL;
   }
   Py_XDECREF(fields);
@@ -786,8 +790,7 @@ static PyObject *py_sample(PyObject *self, PyObject *args) {
       (Py_ssize_t)r.inconsistent_edges, "degenerate_faces", (Py_ssize_t)r.degenerate_faces,
       "vertices_dropped", (Py_ssize_t)r.vertices_dropped, "feature_points",
       (Py_ssize_t)r.feature_points, "area", r.area, "mean_edge_length", r.mean_edge_length,
-      "spacing", r.spacing, "feature_width", r.feature_width, "no_feature_dist",
-      r.no_feature_dist);
+      "spacing", r.spacing, "feature_width", r.feature_width, "no_feature_dist", r.no_feature_dist);
 }
 
 /* ---- pictures ---- */
@@ -799,8 +802,8 @@ static PyObject *py_render(PyObject *self, PyObject *args) {
   double az, el;
   bsurf_render_options ro = bsurf_render_options_default();
   int flat, square;
-  if (!PyArg_ParseTuple(args, "OOOzszddssiiidddzzppiO", &pts, &nrm, &vals, &path, &cmap, &view,
-                        &az, &el, &up, &shape, &ro.views, &ro.width, &ro.height, &ro.point_size,
+  if (!PyArg_ParseTuple(args, "OOOzszddssiiidddzzppiO", &pts, &nrm, &vals, &path, &cmap, &view, &az,
+                        &el, &up, &shape, &ro.views, &ro.width, &ro.height, &ro.point_size,
                         &ro.range_lo, &ro.range_hi, &title, &label, &flat, &square, &ro.threads,
                         &progress))
     return NULL;
@@ -847,7 +850,8 @@ static PyObject *py_render(PyObject *self, PyObject *args) {
   int filled = 0;
   double h = 0;
   RELEASE(&c);
-  bsurf_status st = bsurf_render_spacing(f64(a), n, ro.threads, progress_cb, &c, &h, local, &filled);
+  bsurf_status st =
+      bsurf_render_spacing(f64(a), n, ro.threads, progress_cb, &c, &h, local, &filled);
   ro.spacing = h;
   ro.point_spacing = filled ? local : NULL;
   if (st == BSURF_OK)
@@ -912,8 +916,8 @@ static PyObject *py_eval_normals(PyObject *self, PyObject *args) {
   if (st == BSURF_OK && m) st = bsurf_angle_stats_compute(ang, PyArray_DATA(m), 1, n, &high);
   if (st == BSURF_OK && m) st = bsurf_angle_stats_compute(ang, PyArray_DATA(m), 0, n, &low);
   Py_END_ALLOW_THREADS if (st == BSURF_ERR_INVALID_VALUE) {
-    PyErr_Format(PyExc_ValueError,
-                 "normals[%zu] or true_normals[%zu]: zero length or not finite", bad, bad);
+    PyErr_Format(PyExc_ValueError, "normals[%zu] or true_normals[%zu]: zero length or not finite",
+                 bad, bad);
     goto done;
   }
   if (st != BSURF_OK) {
@@ -948,8 +952,8 @@ static PyObject *py_eval_features(PyObject *self, PyObject *args) {
     goto done;
   }
   bsurf_feature_stats s;
-  bsurf_status st = bsurf_eval_features(PyArray_DATA(a), PyArray_DATA(b),
-                                        (size_t)PyArray_DIM(a, 0), &s);
+  bsurf_status st =
+      bsurf_eval_features(PyArray_DATA(a), PyArray_DATA(b), (size_t)PyArray_DIM(a, 0), &s);
   if (st != BSURF_OK) {
     fail(st, NULL, NULL, NULL);
     goto done;
@@ -1014,9 +1018,15 @@ static PyMethodDef methods[] = {
     {"version", py_version, METH_NOARGS, "the library's version string"},
     {NULL, NULL, 0, NULL}};
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "bootsurf._core",
-                                    "The C binding of libbootsurf (use the bootsurf package).", -1,
-                                    methods, NULL, NULL, NULL, NULL};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT,
+                                    "bootsurf._core",
+                                    "The C binding of libbootsurf (use the bootsurf package).",
+                                    -1,
+                                    methods,
+                                    NULL,
+                                    NULL,
+                                    NULL,
+                                    NULL};
 
 PyMODINIT_FUNC PyInit__core(void) {
   import_array();
