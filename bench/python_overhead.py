@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """The Python package's overhead: bootsurf.normals on N points against the C
 library call it makes (bench/bench_normals_job.c: bsurf_normals_job in
-memory), on the same points (a noisy random sphere, seed 1), alternating
+memory, with a progress callback as the binding and the CLI have), on the
+same points (a noisy random sphere, seed 1), alternating
 C, Python, C, Python ... so that a shared machine's load hits both alike.
 Prints every pair and the median ratio python / C (the target: within 5%).
 
