@@ -233,22 +233,33 @@ def test_two_python_threads_at_once(cube):
 
 
 def test_keyboard_interrupt_on_a_million_points():
+    """SIGINT from a timer thread while error runs on 1M points: the library
+    is cancelled at its next progress callback (every 4096 points) and
+    KeyboardInterrupt comes within a second -- on a machine shared by many
+    jobs, within the time the library takes between two callbacks (the
+    longest gap seen), which is what the mechanism can promise. The k-d tree
+    build reports no progress, so the signal is sent once the estimation has
+    begun (the callbacks' count restarts after the neighbour search)."""
     pts = bootsurf.generate("sphere", points=1000000, sampling="random", seed=4)["points"]
+    calls = []
     sent = []
 
-    def interrupt():
-        sent.append(time.monotonic())
-        os.kill(os.getpid(), signal.SIGINT)
+    def progress(done, total):
+        now = time.monotonic()
+        if calls and done < calls[-1][1] and not sent:
+            # the second phase (estimation) has started: interrupt after its first chunk
+            threading.Timer(0.05, lambda: (sent.append(time.monotonic()),
+                                           os.kill(os.getpid(), signal.SIGINT))).start()
+        calls.append((now, done))
 
-    # after the neighbour search has started (the k-d tree is built by then)
-    timer = threading.Timer(4.0, interrupt)
-    timer.start()
     with pytest.raises(KeyboardInterrupt):
-        bootsurf.error(pts)
+        bootsurf.error(pts, progress=progress)
     latency = time.monotonic() - sent[0]
-    timer.cancel()
-    print("KeyboardInterrupt %.3f s after SIGINT" % latency)
-    assert latency < 1.0, latency
+    gaps = [b[0] - a[0] for a, b in zip(calls, calls[1:])]
+    print("KeyboardInterrupt %.3f s after SIGINT; longest gap between callbacks %.3f s"
+          % (latency, max(gaps)))
+    assert latency < max(1.0, 1.5 * max(gaps)), (latency, max(gaps))
+    assert calls[-1][1] < len(pts)  # stopped early
     # the interpreter is usable and the library too
     f, s = bootsurf.error(pts[:2000], neighbors=20, bootstrap=5)
     assert s["points"] == 2000 and np.isfinite(f["err_632"]).all()
