@@ -52,6 +52,39 @@ int cli_choice(const char *value, const char *const *names, int count) {
   return -1;
 }
 
+int cli_parse_input(const cli_command *cmd, const cli_option *opts, int nopts, int argc,
+                    char **argv, char **input) {
+  int npos;
+  int rc = cli_parse(cmd, opts, nopts, argc, argv, input, 1, &npos);
+  if (rc != CLI_PARSED) return rc;
+  if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
+  return CLI_PARSED;
+}
+
+int cli_pca_center(const cli_command *cmd, const char *text, bsurf_pca_center *out) {
+  static const char *const centers[] = {"centroid", "point"};
+  int pc = cli_choice(text, centers, 2);
+  if (pc < 0) return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", text);
+  *out = (bsurf_pca_center)pc;
+  return 0;
+}
+
+int cli_gamma(const cli_command *cmd, const char *text, bsurf_gamma_mode *out) {
+  static const char *const gammas[] = {"fit", "mean", "max"};
+  int g = cli_choice(text, gammas, 3);
+  if (g < 0) return cli_usage_error(cmd, "--gamma must be fit, mean or max, not '%s'", text);
+  *out = (bsurf_gamma_mode)g;
+  return 0;
+}
+
+int cli_check_terms(const cli_command *cmd, int k, int degree) {
+  int terms = bsurf_poly_terms(degree);
+  if (k < terms)
+    return cli_usage_error(cmd, "K = %d is too small for degree %d: a fit needs at least %d points",
+                           k, degree, terms);
+  return 0;
+}
+
 static int in_range(const cli_option *o, double v) {
   return o->min > o->max || (v >= o->min && v <= o->max);
 }

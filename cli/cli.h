@@ -3,11 +3,6 @@
 #define BSURF_CLI_H
 
 #include "bootsurf.h"
-/* Internal: the tile engine, for the tiled pipelines of normals, smooth and
- * features that have not yet moved into library jobs (src/jobs, issue 18).
- * `error` runs through bsurf_error_job and uses only bootsurf.h. */
-#include "algo/smooth_stages.h"
-#include "tile/tile_engine.h"
 
 #include <signal.h>
 #include <stdio.h>
@@ -129,6 +124,11 @@ extern int cli_drop_invalid;
         0, 4294967295.0                                                                            \
   }
 
+/* The options every job command (error, normals, smooth, features) ends with. */
+#define CLI_OPTS_JOB(out, ascii, force, tile_points, memory_limit, json, quiet)                    \
+  CLI_OPTS_OUTPUT(out, ascii, force), CLI_OPTS_TILES(tile_points, memory_limit),                   \
+      CLI_OPT_DROP_INVALID, CLI_OPTS_REPORT(json, quiet)
+
 #define CLI_PARSED 0
 #define CLI_HELP_SHOWN (-1)
 #define CLI_USAGE 2
@@ -162,6 +162,15 @@ void cli_warn(const char *fmt, ...)
 
 /* Picks `value` from a list of names; returns its index or -1. */
 int cli_choice(const char *value, const char *const *names, int count);
+/* cli_parse for a command with exactly one INPUT: *input = it. */
+int cli_parse_input(const cli_command *cmd, const cli_option *opts, int nopts, int argc,
+                    char **argv, char **input);
+/* --pca-center (centroid, point) and --gamma (fit, mean, max): 0, or the
+ * usage error printed (CLI_USAGE). */
+int cli_pca_center(const cli_command *cmd, const char *text, bsurf_pca_center *out);
+int cli_gamma(const cli_command *cmd, const char *text, bsurf_gamma_mode *out);
+/* K large enough for a fit of the degree: 0, or the usage error printed. */
+int cli_check_terms(const cli_command *cmd, int k, int degree);
 
 /* ---- files ---- */
 /* Reads a cloud; on failure prints "error: PATH:LINE: message" and returns 1.
@@ -200,7 +209,7 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
 int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
                         bsurf_neighbors *nb);
 
-/* --range-points (bsurf_tile_ops.range_points; 0: the library's choice) */
+/* --range-points (bsurf_job_io.range_points; 0: the library's choice) */
 extern size_t cli_range_points;
 
 /* --tile-points / --memory-limit: *plan = the tile size, or 0 for the
@@ -209,28 +218,22 @@ extern size_t cli_range_points;
 int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
                    size_t tile_points, const char *memory_limit, int k, int out_fields,
                    size_t *plan);
-/* bsurf_tiles_run with a progress bar, MPI when started by mpirun, messages
- * naming the file and place. 0 or 1 (printed). */
-int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops,
-                  bsurf_tile_report *rep, int quiet);
-/* The same around any run of tiled runs with bsurf_tiles_run's arguments
- * (a library's chain of stages, e.g. bsurf_features_distance_tiled). */
-typedef bsurf_status (*cli_tiles_fn)(void *arg, const char *input, const char *output,
-                                     bsurf_tile_ops *ops, bsurf_tile_report *rep,
-                                     bsurf_failure *err);
-int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops,
-                   bsurf_tile_report *rep, int quiet, cli_tiles_fn fn, void *arg);
-/* bsurf_tiles_map (a pointwise second stage) with a progress bar, MPI when
- * started by mpirun, messages naming the file. 0 or 1 (printed). */
-int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops,
-                  const bsurf_tile_values *values, bsurf_tile_map_fn map, const char *label,
-                  int quiet);
 /* Before a tiled run: an empty input is refused by name. 0 or 1 (printed). */
 int cli_check_tiled_input(const char *input);
 /* A failed tiled run's message (rank 0): the file, the line or byte, the
  * reason. Returns 1. */
 int cli_tiles_failed(const char *input, const char *output, bsurf_status st,
                      const bsurf_failure *err);
+/* A job's io (bsurf_job_io): with a plan, the tiled input and output (an
+ * empty input refused by name) and a "tiles" progress bar (rank 0); without,
+ * the input read into c and a progress bar named label. 0, or 1 (printed). */
+struct cli_progress;
+int cli_job_io(bsurf_job_io *io, const char *input, const char *output, size_t plan, bsurf_cloud *c,
+               struct cli_progress *prog, const char *label, int quiet);
+/* A failed job's message (tiled: as cli_tiles_failed; in memory: the input,
+ * the library's message). Returns 1. */
+int cli_job_failed(const char *input, const char *output, size_t plan, bsurf_status st,
+                   const bsurf_failure *err);
 /* The duplicate count of a tiled run, for the summaries. */
 void cli_set_duplicates(size_t count);
 /* MPI (a build with BSURF_MPI, started by mpirun); otherwise one rank. */
@@ -277,6 +280,8 @@ void json_bool(cli_json *j, const char *key, int v);
 void json_field_means(cli_json *j, const bsurf_cloud *cloud, const char *const *names, int count,
                       double h);
 /* The same from means computed elsewhere (tiled runs). */
+/* A tiled run's keys: tile_points, tiles, ranks. */
+void json_tiles(cli_json *j, size_t tile_points, size_t tiles);
 void json_means(cli_json *j, const char *const *names, const double *means, int count, double h);
 void print_means(FILE *f, const char *const *names, const double *means, int count, double h);
 /* The same as a table on `f` for people. */

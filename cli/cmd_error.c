@@ -22,33 +22,19 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
       CLI_OPT_THREADS(eo.threads),
       {0, "test-sample", ARG_STRING, &test_path, "FILE",
        "same points with independent noise: also write err_test (validation)", 1, 0},
-      CLI_OPTS_OUTPUT(output, ascii, force),
-      CLI_OPTS_TILES(tile_points, memory_limit),
-      CLI_OPT_DROP_INVALID,
-      CLI_OPTS_REPORT(json, quiet),
+      CLI_OPTS_JOB(output, ascii, force, tile_points, memory_limit, json, quiet),
   };
   char *pos[1];
-  int npos;
-  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
+  int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
-  if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
-  static const char *const gammas[] = {"fit", "mean", "max"};
-  static const char *const centers[] = {"centroid", "point"};
-  int g = cli_choice(gamma, gammas, 3), pc = cli_choice(center, centers, 2);
-  if (g < 0) return cli_usage_error(cmd, "--gamma must be fit, mean or max, not '%s'", gamma);
-  if (pc < 0)
-    return cli_usage_error(cmd, "--pca-center must be centroid or point, not '%s'", center);
+  if (cli_gamma(cmd, gamma, &eo.gamma) || cli_pca_center(cmd, center, &eo.pca_center))
+    return CLI_USAGE;
   /* -B 0 computes no bootstrap estimator: err_boot, err_loo, err_632 and
    * err_632plus would be err_train under other names (docs/robustness.md) */
   if (eo.bootstrap < 1)
     return cli_usage_error(cmd, "-B 0: the bootstrap estimators need at least one replicate "
                                 "(err_boot, err_loo and err_632* would only repeat err_train)");
-  eo.gamma = (bsurf_gamma_mode)g;
-  eo.pca_center = (bsurf_pca_center)pc;
-  int terms = (eo.degree + 1) * (eo.degree + 2) / 2;
-  if (eo.k < terms)
-    return cli_usage_error(cmd, "K = %d is too small for degree %d: a fit needs at least %d points",
-                           eo.k, eo.degree, terms);
+  if (cli_check_terms(cmd, eo.k, eo.degree)) return CLI_USAGE;
   if (output && cli_check_output(output, pos[0], force)) return 1;
   if (output && test_path && cli_check_output(output, test_path, force)) return 1;
 
@@ -62,48 +48,30 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
   bsurf_cloud c, test;
   bsurf_cloud_init(&c);
   bsurf_cloud_init(&test);
-  bsurf_job_io io = {0};
+  bsurf_job_io io;
   bsurf_error_job_summary sum;
   bsurf_failure where = {0, -1, ""};
   cli_progress prog;
   eo.progress = cli_progress_cb;
   eo.progress_user = &prog;
-  if (plan) {
-    io.input = pos[0];
-    io.output = output;
-    io.tile_points = plan;
-    io.range_points = cli_range_points;
-    io.comm = cli_mpi_comm();
-    if (cli_check_tiled_input(pos[0])) return 1;
-    cli_progress_init(&prog, "tiles", quiet || cli_mpi_rank() != 0);
-  } else {
-    if (cli_read_cloud(pos[0], &c)) return 1;
-    if (test_path) {
-      if (cli_read_cloud(test_path, &test)) {
-        bsurf_cloud_free(&c);
-        return 1;
-      }
-      if (test.point_count != c.point_count) {
-        rc = cli_error(
-            "%s: has %zu points but %s has %zu; the test sample must list the same points",
-            test_path, test.point_count, pos[0], c.point_count);
-        goto done;
-      }
-      io.test = &test;
-    }
-    if (c.point_count < (size_t)eo.k) {
-      rc = cli_error("%s: has %zu points, fewer than K = %d", pos[0], c.point_count, eo.k);
+  if (cli_job_io(&io, pos[0], output, plan, &c, &prog, "error", quiet)) return 1;
+  if (test_path) {
+    if (cli_read_cloud(test_path, &test)) {
+      rc = 1;
       goto done;
     }
-    io.cloud = &c;
-    cli_progress_init(&prog, "error", quiet);
+    if (test.point_count != c.point_count) {
+      rc = cli_error("%s: has %zu points but %s has %zu; the test sample must list the same points",
+                     test_path, test.point_count, pos[0], c.point_count);
+      goto done;
+    }
+    io.test = &test;
   }
   bsurf_status st = bsurf_error_job(&io, &eo, &sum, &where);
   cli_progress_done(&prog);
   if (plan) plan = sum.tile_points;
   if (st != BSURF_OK) {
-    rc = plan ? cli_tiles_failed(pos[0], output, st, &where)
-              : cli_error("%s: %s", pos[0], cli_interrupted() ? "interrupted" : bsurf_strerror(st));
+    rc = cli_job_failed(pos[0], output, plan, st, &where);
     goto done;
   }
   cli_set_duplicates(sum.duplicates);
@@ -132,11 +100,7 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
     json_int(&j, "replicates_skipped", (long long)sum.report.replicates_skipped);
     json_int(&j, "degree_reduced", (long long)sum.report.degree_reduced);
     json_int(&j, "center_unestimated", (long long)sum.report.center_unestimated);
-    if (plan) {
-      json_int(&j, "tile_points", (long long)plan);
-      json_int(&j, "tiles", (long long)sum.tiles);
-      json_int(&j, "ranks", cli_mpi_ranks());
-    }
+    if (plan) json_tiles(&j, plan, sum.tiles);
     json_means(&j, sum.field_names, sum.means, sum.field_count, sum.h);
     json_num(&j, "seconds", secs);
     json_end(&j);

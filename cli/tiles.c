@@ -94,8 +94,7 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
   }
   if (tile_points < 2 * (size_t)k) tile_points = 2 * (size_t)k;
   if (cli_mpi_comm()) {
-    /* at least two tiles per rank (cli_tiles_call does the same for the
-     * commands that do not yet run through a library job) */
+    /* at least two tiles per rank */
     size_t ranks = (size_t)cli_mpi_ranks(), per = (n + 2 * ranks - 1) / (2 * ranks);
     if (n && per < tile_points) tile_points = per < 2 * (size_t)k ? 2 * (size_t)k : per;
   }
@@ -105,17 +104,6 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
         input, need / 1e9, limit / 1e9, tile_points);
   *plan = tile_points;
   return 0;
-}
-
-static bsurf_status tiles_run_fn(void *arg, const char *input, const char *output,
-                                 bsurf_tile_ops *ops, bsurf_tile_report *rep, bsurf_failure *err) {
-  (void)arg;
-  return bsurf_tiles_run(input, output, ops, rep, err);
-}
-
-int cli_tiles_run(const char *input, const char *output, bsurf_tile_ops *ops,
-                  bsurf_tile_report *rep, int quiet) {
-  return cli_tiles_call(input, output, ops, rep, quiet, tiles_run_fn, NULL);
 }
 
 /* A failure of the output, not of the input (a full disk, the directory):
@@ -151,52 +139,33 @@ int cli_tiles_failed(const char *input, const char *output, bsurf_status st,
   return cli_error("%s: %s", input, msg);
 }
 
-int cli_tiles_call(const char *input, const char *output, bsurf_tile_ops *ops,
-                   bsurf_tile_report *rep, int quiet, cli_tiles_fn fn, void *arg) {
-  if (cli_check_tiled_input(input)) return 1;
-  cli_progress prog;
-  cli_progress_init(&prog, "tiles", quiet || cli_mpi_rank() != 0);
-  ops->progress = cli_progress_cb;
-  ops->progress_user = &prog;
-  ops->comm = cli_mpi_comm();
-  ops->range_points = cli_range_points;
-  if (ops->comm && ops->tile_points > 0) {
-    /* at least two tiles per rank */
-    uint64_t n64 = 0;
-    bsurf_failure herr;
-    if (bsurf_read_header(input, &n64, &herr) != BSURF_OK) n64 = 0; /* the run names the fault */
-    size_t n = (size_t)n64,
-           per = (n + 2 * (size_t)ops->comm->ranks - 1) / (2 * (size_t)ops->comm->ranks);
-    if (n && per < ops->tile_points)
-      ops->tile_points = per < 2 * (size_t)ops->k ? 2 * (size_t)ops->k : per;
-  }
-  bsurf_failure err = {0, -1, ""};
-  bsurf_status st = fn(arg, input, output, ops, rep, &err);
-  cli_progress_done(&prog);
-  if (st == BSURF_OK) {
-    cli_set_duplicates(rep->duplicates);
+int cli_job_io(bsurf_job_io *io, const char *input, const char *output, size_t plan, bsurf_cloud *c,
+               cli_progress *prog, const char *label, int quiet) {
+  memset(io, 0, sizeof *io);
+  if (plan) {
+    if (cli_check_tiled_input(input)) return 1;
+    io->input = input;
+    io->output = output;
+    io->tile_points = plan;
+    io->range_points = cli_range_points;
+    io->comm = cli_mpi_comm();
+    cli_progress_init(prog, "tiles", quiet || cli_mpi_rank() != 0);
     return 0;
   }
-  return cli_tiles_failed(input, output, st, &err);
+  if (cli_read_cloud(input, c)) return 1;
+  io->cloud = c;
+  cli_progress_init(prog, label, quiet);
+  return 0;
 }
 
-int cli_tiles_map(const char *input, const char *output, bsurf_tile_ops *ops,
-                  const bsurf_tile_values *values, bsurf_tile_map_fn map, const char *label,
-                  int quiet) {
-  cli_progress prog;
-  cli_progress_init(&prog, label, quiet || cli_mpi_rank() != 0);
-  ops->progress = cli_progress_cb;
-  ops->progress_user = &prog;
-  ops->comm = cli_mpi_comm();
-  bsurf_failure err = {0, -1, ""};
-  bsurf_status st = bsurf_tiles_map(input, output, ops, values, map, &err);
-  cli_progress_done(&prog);
-  if (st == BSURF_OK) return 0;
-  if (cli_mpi_rank() != 0) return 1;
+int cli_job_failed(const char *input, const char *output, size_t plan, bsurf_status st,
+                   const bsurf_failure *err) {
+  if (plan) return cli_tiles_failed(input, output, st, err);
   const char *msg = cli_interrupted() ? "interrupted"
-                    : err.message[0]  ? err.message
-                                      : bsurf_strerror(st);
-  return cli_error("%s: %s", about_output(msg) ? output : input, msg);
+                    : st == BSURF_ERR_INVALID_ARG || st == BSURF_ERR_TOO_FEW_POINTS
+                        ? bsurf_last_message()
+                        : bsurf_strerror(st);
+  return cli_error("%s: %s", input, msg);
 }
 
 /* ---- MPI ---------------------------------------------------------------------- */

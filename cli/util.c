@@ -509,6 +509,12 @@ static void field_means(const bsurf_cloud *cloud, const char *const *names, int 
   }
 }
 
+void json_tiles(cli_json *j, size_t tile_points, size_t tiles) {
+  json_int(j, "tile_points", (long long)tile_points);
+  json_int(j, "tiles", (long long)tiles);
+  json_int(j, "ranks", cli_mpi_ranks());
+}
+
 void json_means(cli_json *j, const char *const *names, const double *means, int count, double h) {
   json_obj(j, "mean");
   for (int t = 0; t < count && t < 64; t++)

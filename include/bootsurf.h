@@ -1411,6 +1411,12 @@ BSURF_API bsurf_status bsurf_smooth_job(const bsurf_job_io *io,
                                         const bsurf_smooth_job_options *opts,
                                         bsurf_smooth_job_summary *summary, bsurf_failure *err);
 
+/* The doubles per point a smooth job keeps besides the cloud and its
+ * neighbourhoods (the values of its first tiled stage), for a caller's
+ * choice between memory and tiles; 0: the method and order run in memory
+ * only (multipass, the sequential order). */
+BSURF_API size_t bsurf_smooth_job_point_values(const bsurf_smooth_job_options *opts);
+
 /* ---- features (thesis chapter 7) ---- */
 
 /* What `bootsurf features` prints (text and --json). */

@@ -1,6 +1,5 @@
-/* Smoothing in two stages, for the tiled smoothing of cli/cmd_smooth.c
- * (internal: moved from bootsurf.h by issue 18; to be called from a
- * src/jobs smoothing job instead of cli/ once that exists). */
+/* Smoothing in two stages, for the tiled smoothing of bsurf_smooth_job
+ * (src/jobs/smooth_job.c; internal: moved from bootsurf.h by issue 18). */
 #ifndef BSURF_SMOOTH_STAGES_H
 #define BSURF_SMOOTH_STAGES_H
 

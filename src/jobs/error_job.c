@@ -87,12 +87,8 @@ static bsurf_status error_tiled(const bsurf_job_io *io, const bsurf_error_option
   tr.sums = sums;
   bsurf_status st = bsurf_tiles_run(io->input, io->output, &ops, &tr, err);
   s->tile_points = ops.tile_points;
-  s->tiles = tr.tiles;
-  s->bad_point = tr.bad_point;
+  bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   if (st != BSURF_OK) return st;
-  s->points = tr.points;
-  s->h = tr.h;
-  s->duplicates = tr.duplicates;
   s->report.replicates_total = (size_t)sums[0];
   s->report.replicates_skipped = (size_t)sums[1];
   s->report.degree_reduced = (size_t)sums[2];

@@ -51,6 +51,15 @@ void bsurf_jobs_tile_ops(bsurf_tile_ops *ops, const bsurf_job_io *io, int k, int
   ops->range_points = io->range_points;
 }
 
+void bsurf_jobs_tiled_numbers(const bsurf_tile_report *tr, size_t *points, double *h,
+                              size_t *duplicates, size_t *tiles, size_t *bad_point) {
+  *points = tr->points;
+  *h = tr->h;
+  *duplicates = tr->duplicates;
+  *tiles = tr->tiles;
+  *bad_point = tr->bad_point;
+}
+
 double bsurf_jobs_mean(const double *v, size_t n) {
   double s = 0;
   for (size_t i = 0; i < n; i++)

@@ -23,6 +23,12 @@ bsurf_status bsurf_jobs_neighbors(const bsurf_cloud *c, int k, int threads,
 void bsurf_jobs_tile_ops(bsurf_tile_ops *ops, const bsurf_job_io *io, int k, int threads,
                          bsurf_progress_fn progress, void *progress_user, void *user);
 
+/* The numbers of a tiled run every job summary holds (points, h,
+ * duplicates, tiles, the first non-finite point) from the report of its
+ * first stage. */
+void bsurf_jobs_tiled_numbers(const bsurf_tile_report *tr, size_t *points, double *h,
+                              size_t *duplicates, size_t *tiles, size_t *bad_point);
+
 /* The mean of n values summed in point order (what the summaries report). */
 double bsurf_jobs_mean(const double *v, size_t n);
 

@@ -357,12 +357,8 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
   }
   bsurf_tile_values_close(&refs);
   s->tile_points = io->tile_points;
-  s->tiles = tr.tiles;
-  s->bad_point = tr.bad_point;
+  bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   if (st != BSURF_OK) return st;
-  s->points = tr.points;
-  s->h = tr.h;
-  s->duplicates = tr.duplicates;
   s->report.replicates_total = (size_t)sums[0];
   s->report.replicates_skipped = (size_t)sums[1];
   s->report.degree_reduced = (size_t)sums[2];

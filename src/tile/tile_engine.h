@@ -1,8 +1,7 @@
 /* The tile engine and the tiled stages (internal: not part of the installed
  * API, never exported from libbootsurf.so). Front ends run tiled jobs
- * through bootsurf.h (bsurf_job_io, bsurf_error_job); the commands whose
- * pipelines have not yet moved into src/jobs (normals, smooth, features)
- * still drive these from cli/ (issue 18, docs/architecture.md). */
+ * through bootsurf.h (bsurf_job_io and the jobs of src/jobs); only the
+ * library uses this header (issue 18, docs/architecture.md). */
 #ifndef BSURF_TILE_ENGINE_H
 #define BSURF_TILE_ENGINE_H
 

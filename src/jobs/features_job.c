@@ -1,0 +1,224 @@
+/* The `features` job (issue 18): feature detection by the distance map
+ * (7.1) or the normal variance (7.2), in memory or tile by tile, through one
+ * call. The command line parses its options and prints the summary;
+ * everything between is here.
+ *
+ * Input fields named like the outputs (`feature`, and `feature_dist` or
+ * `normal_var`) are most often ground truth (`generate` and `sample` write
+ * feature and feature_dist; `noise` keeps them) or an earlier run's results.
+ * Overwriting would silently lose the truth -- and `feature_dist` of the
+ * truth (exact distance to an edge) is not the distance map of 7.1 -- so
+ * an input field NAME is kept as NAME_in. When NAME_in exists already (the
+ * input is itself a features output, NAME_in the original), NAME is an
+ * earlier result and is replaced; NAME_in stays. Refusing would break the
+ * common generate | noise | features pipeline. Both cases are reported in
+ * the summary (kept, replaced). */
+#include "jobs/jobs.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define FJ "bsurf_features_job"
+
+/* The output fields: an input field NAME is kept as NAME_in, unless NAME_in
+ * exists (then NAME is an earlier result and is replaced); then the score
+ * and `feature` are added (their values zero). kept / replaced: per name. */
+static bsurf_status features_fields(bsurf_cloud *c, const char *const names[2], int kept[2],
+                                    int replaced[2]) {
+  for (int t = 0; t < 2; t++) {
+    kept[t] = replaced[t] = 0;
+    bsurf_field *old = bsurf_cloud_field(c, names[t]);
+    if (!old) continue;
+    char in_name[BSURF_FIELD_NAME_MAX];
+    snprintf(in_name, sizeof in_name, "%s_in", names[t]);
+    if (bsurf_cloud_field(c, in_name)) {
+      replaced[t] = 1;
+    } else {
+      strcpy(old->name, in_name);
+      kept[t] = 1;
+    }
+  }
+  /* adding a field may move the field array: look both up once both exist */
+  const char *const order[2] = {names[1], names[0]};
+  const bsurf_type types[2] = {BSURF_FLOAT32, BSURF_UINT8};
+  return bsurf_jobs_add_fields(c, order, types, 2);
+}
+
+/* ---- tiled runs (docs/scaling.md) ----
+ * variance: stage 1 (tiles): normal_var of every point from its
+ * K-neighbourhood, kept by index. The automatic threshold of Eq. 7.2 needs
+ * every value: they are read back in index order into memory (8 bytes per
+ * point) for bsurf_tail_threshold. Stage 2 streams the points with their
+ * values and writes normal_var and feature = normal_var > t_h.
+ * distance: the library's chain of tiled stages
+ * (bsurf_features_distance_tiled, src/tile/features_tiled.c). */
+
+typedef struct features_tiles {
+  bsurf_normal_options no;
+  double threshold;
+  bsurf_features_job_summary *s; /* field names; kept and replaced out */
+} features_tiles;
+
+static bsurf_status features_stage1_run(void *user, const bsurf_tile *tile, bsurf_cloud *core,
+                                        double *sums) {
+  (void)core;
+  (void)sums;
+  const features_tiles *ft = user;
+  bsurf_normal_options no = ft->no;
+  no.point_index = tile->point_index;
+  bsurf_normal_fields nf = {NULL, tile->values_out, NULL};
+  return bsurf_estimate_normals(tile->xyz, tile->nb, NULL, &no, &nf, NULL);
+}
+
+static bsurf_status features_prepare(void *user, bsurf_cloud *c) {
+  features_tiles *ft = user;
+  return features_fields(c, ft->s->field_names, ft->s->kept, ft->s->replaced);
+}
+
+static bsurf_status features_map(void *user, size_t first, bsurf_cloud *c, const double *values) {
+  (void)first;
+  const features_tiles *ft = user;
+  double *score = bsurf_cloud_field(c, ft->s->field_names[1])->values,
+         *feat = bsurf_cloud_field(c, ft->s->field_names[0])->values;
+  for (size_t i = 0; i < c->point_count; i++) {
+    score[i] = values[i];
+    feat[i] = values[i] > ft->threshold; /* Eq. 7.2 */
+  }
+  return BSURF_OK;
+}
+
+/* variance: normal_var tile by tile, the threshold (given or automatic) over
+ * every value in index order, then the output by a pointwise stage. */
+static bsurf_status variance_tiled(const bsurf_job_io *io, const bsurf_feature_options *fo,
+                                   features_tiles *ft, bsurf_failure *err) {
+  bsurf_features_job_summary *s = ft->s;
+  bsurf_tile_values vals = {-1, 0, 0};
+  ft->no = fo->normals;
+  ft->no.threads = fo->threads;
+  ft->no.progress = NULL;
+  bsurf_tile_ops ops;
+  bsurf_jobs_tile_ops(&ops, io, fo->normals.k, fo->threads, fo->progress, fo->progress_user, ft);
+  ops.run = features_stage1_run;
+  ops.nvalues = 1;
+  ops.values_out = &vals;
+  bsurf_tile_report tr;
+  memset(&tr, 0, sizeof tr);
+  bsurf_status st = bsurf_tiles_run(io->input, io->output, &ops, &tr, err);
+  bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
+  double *v = NULL;
+  if (st == BSURF_OK) {
+    v = bsurf_alloc_array(s->points ? s->points : 1, sizeof(double));
+    if (!v)
+      st = BSURF_ERR_NOMEM;
+    else if (bsurf_tile_values_read(&vals, 0, s->points, v) != BSURF_OK)
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot read the scratch file of the first stage");
+  }
+  if (st == BSURF_OK && isnan(fo->threshold))
+    st = bsurf_tail_threshold(v, s->points, fo->tail_rule, &ft->threshold);
+  else
+    ft->threshold = fo->threshold;
+  s->report.threshold = ft->threshold;
+  s->report.ratio_threshold_kmin = NAN;
+  for (size_t i = 0; st == BSURF_OK && i < s->points; i++)
+    s->report.feature_points += v[i] > ft->threshold;
+  free(v);
+  if (st == BSURF_OK) {
+    ops.prepare = features_prepare;
+    st = bsurf_tiles_map(io->input, io->output, &ops, &vals, features_map, err);
+  }
+  bsurf_tile_values_close(&vals);
+  return st;
+}
+
+static bsurf_status distance_tiled(const bsurf_job_io *io, const bsurf_feature_options *fo,
+                                   features_tiles *ft, bsurf_failure *err) {
+  bsurf_features_job_summary *s = ft->s;
+  bsurf_tile_ops ops;
+  bsurf_jobs_tile_ops(&ops, io, fo->k_max, fo->threads, fo->progress, fo->progress_user, ft);
+  ops.prepare = features_prepare;
+  bsurf_tile_report tr;
+  memset(&tr, 0, sizeof tr);
+  bsurf_status st =
+      bsurf_features_distance_tiled(io->input, io->output, &ops, fo, &s->report, &tr, err);
+  bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
+  return st;
+}
+
+/* ---- in memory ---- */
+
+static bsurf_status features_in_memory(const bsurf_job_io *io, const bsurf_feature_options *fo,
+                                       bsurf_features_job_summary *s) {
+  bsurf_cloud *c = io->cloud;
+  const int kmax = fo->method == BSURF_FEATURES_DISTANCE ? fo->k_max : fo->normals.k;
+  bsurf_neighbors nb;
+  bsurf_status st = bsurf_jobs_neighbors(c, kmax, fo->threads, fo->progress, fo->progress_user, &nb,
+                                         &s->duplicates);
+  if (st != BSURF_OK) return st;
+  const size_t n = c->point_count;
+  s->points = n;
+  s->h = nb.h;
+  uint8_t *feat = malloc(n ? n : 1);
+  double *score = malloc((n ? n : 1) * sizeof(double));
+  st = feat && score ? bsurf_detect_features(c->xyz, &nb, fo, feat, score, &s->report)
+                     : BSURF_ERR_NOMEM;
+  bsurf_neighbors_free(&nb);
+  if (st == BSURF_OK) st = features_fields(c, s->field_names, s->kept, s->replaced);
+  if (st == BSURF_OK) {
+    memcpy(bsurf_cloud_field(c, s->field_names[1])->values, score, n * sizeof(double));
+    double *fv = bsurf_cloud_field(c, s->field_names[0])->values;
+    for (size_t i = 0; i < n; i++)
+      fv[i] = feat[i];
+  }
+  free(feat);
+  free(score);
+  return st;
+}
+
+static bsurf_status features_check(const bsurf_feature_options *fo) {
+  BSURF_REQUIRE_IN(FJ,
+                   fo->method == BSURF_FEATURES_DISTANCE || fo->method == BSURF_FEATURES_VARIANCE,
+                   "opts->method = %d must be BSURF_FEATURES_DISTANCE or BSURF_FEATURES_VARIANCE",
+                   (int)fo->method);
+  if (fo->method == BSURF_FEATURES_DISTANCE) {
+    BSURF_REQUIRE_IN(FJ, fo->k_min >= 3 && fo->k_min <= 65535,
+                     "opts->k_min = %d must be in [3, 65535]", fo->k_min);
+    BSURF_REQUIRE_IN(FJ, fo->k_max >= fo->k_min && fo->k_max <= 65535,
+                     "opts->k_max = %d must be in [k_min = %d, 65535]", fo->k_max, fo->k_min);
+    BSURF_REQUIRE_IN(FJ, fo->k_step >= 1, "opts->k_step = %d must be at least 1", fo->k_step);
+    BSURF_REQUIRE_IN(FJ, fo->filter_k >= 0 && fo->filter_k <= fo->k_max,
+                     "opts->filter_k = %d must be in [0, k_max = %d]", fo->filter_k, fo->k_max);
+  } else {
+    BSURF_REQUIRE_IN(FJ, fo->normals.k >= 3 && fo->normals.k <= 65535,
+                     "opts->normals.k = %d must be in [3, 65535]", fo->normals.k);
+    BSURF_REQUIRE_IN(
+        FJ, fo->normals.bootstrap >= 2,
+        "opts->normals.bootstrap = %d: the variance method needs at least 2 replicates",
+        fo->normals.bootstrap);
+    BSURF_REQUIRE_IN(FJ, fo->tail_rule == BSURF_TAIL_OTSU || fo->tail_rule == BSURF_TAIL_MAD,
+                     "opts->tail_rule = %d must be BSURF_TAIL_OTSU or BSURF_TAIL_MAD",
+                     (int)fo->tail_rule);
+  }
+  BSURF_REQUIRE_IN(FJ, isnan(fo->threshold) || isfinite(fo->threshold),
+                   "opts->threshold = %g must be finite, or NAN (auto)", fo->threshold);
+  return BSURF_OK;
+}
+
+bsurf_status bsurf_features_job(const bsurf_job_io *io, const bsurf_feature_options *opts,
+                                bsurf_features_job_summary *summary, bsurf_failure *err) {
+  BSURF_REQUIRE(summary, "summary is NULL");
+  memset(summary, 0, sizeof *summary);
+  bsurf_feature_options fo = opts ? *opts : bsurf_feature_options_default();
+  bsurf_status st = bsurf_jobs_check_io(FJ, io);
+  if (st == BSURF_OK) st = features_check(&fo);
+  if (st != BSURF_OK) return st;
+  summary->field_names[0] = "feature";
+  summary->field_names[1] = fo.method == BSURF_FEATURES_DISTANCE ? "feature_dist" : "normal_var";
+  if (io->cloud) return features_in_memory(io, &fo, summary);
+  summary->tile_points = io->tile_points;
+  features_tiles ft;
+  memset(&ft, 0, sizeof ft);
+  ft.s = summary;
+  return fo.method == BSURF_FEATURES_DISTANCE ? distance_tiled(io, &fo, &ft, err)
+                                              : variance_tiled(io, &fo, &ft, err);
+}

@@ -1,0 +1,322 @@
+/* The jobs of include/bootsurf.h (issue 18): bsurf_normals_job,
+ * bsurf_smooth_job and bsurf_features_job, each in memory and tiled on the
+ * same noisy cube. The tiled output file must hold the bytes the in-memory
+ * cloud writes (every field bit-identical), and the summaries the same
+ * numbers (counts and h exactly; field means summed per tile agree to
+ * rounding). Bad options: BSURF_ERR_INVALID_ARG with a message naming the
+ * job and the parameter. Only the public header is used. */
+// clang-format off
+/* cmocka.h needs these first */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+// clang-format on
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bootsurf.h"
+
+static char tmp_dir[1024];
+
+static const char *tmp_path(const char *name) {
+  static char buf[4][1200];
+  static int slot = 0;
+  slot = (slot + 1) % 4;
+  snprintf(buf[slot], sizeof buf[slot], "%s/jobs_%s", tmp_dir, name);
+  return buf[slot];
+}
+
+/* The input: a noisy cube (sharp edges; its feature and feature_dist
+ * fields are the truth the features job keeps as *_in), binary PLY. */
+static const char *input_path(void) {
+  static int made = 0;
+  const char *path = tmp_path("cube.ply");
+  if (!made) {
+    bsurf_cloud c;
+    assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 7, 2),
+                     BSURF_OK);
+    assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3,
+                                     sqrt(24.0 / (double)c.point_count), 3),
+                     BSURF_OK);
+    bsurf_failure err;
+    assert_int_equal(bsurf_write(path, &c, NULL, &err), BSURF_OK);
+    bsurf_cloud_free(&c);
+    made = 1;
+  }
+  return path;
+}
+
+static void read_file(const char *path, char **data, size_t *size) {
+  FILE *f = fopen(path, "rb");
+  assert_non_null(f);
+  fseek(f, 0, SEEK_END);
+  *size = (size_t)ftell(f);
+  fseek(f, 0, SEEK_SET);
+  *data = malloc(*size ? *size : 1);
+  assert_non_null(*data);
+  assert_int_equal(fread(*data, 1, *size, f), *size);
+  fclose(f);
+}
+
+/* The same bytes: every field of every point bit-identical. */
+static void assert_same_file(const char *a, const char *b) {
+  char *da, *db;
+  size_t na, nb;
+  read_file(a, &da, &na);
+  read_file(b, &db, &nb);
+  assert_int_equal(na, nb);
+  if (memcmp(da, db, na) != 0) fail_msg("%s and %s differ", a, b);
+  free(da);
+  free(db);
+}
+
+/* One job run twice: in memory on the input read into c, and tiled (tiles
+ * of about 700 points: several, with halos) into tiled_path. */
+typedef struct pair {
+  bsurf_cloud c;
+  bsurf_job_io mem, tiled;
+  char mem_path[1200], tiled_path[1200];
+} pair;
+
+static void pair_open(pair *p, const char *name) {
+  bsurf_failure err;
+  bsurf_cloud_init(&p->c);
+  assert_int_equal(bsurf_read(input_path(), &p->c, &err), BSURF_OK);
+  char file[64];
+  snprintf(file, sizeof file, "%s_mem.ply", name);
+  snprintf(p->mem_path, sizeof p->mem_path, "%s", tmp_path(file));
+  snprintf(file, sizeof file, "%s_tiled.ply", name);
+  snprintf(p->tiled_path, sizeof p->tiled_path, "%s", tmp_path(file));
+  memset(&p->mem, 0, sizeof p->mem);
+  p->mem.cloud = &p->c;
+  memset(&p->tiled, 0, sizeof p->tiled);
+  p->tiled.input = input_path();
+  p->tiled.output = p->tiled_path;
+  p->tiled.tile_points = 700;
+}
+
+/* After both runs: the in-memory cloud written holds the tiled file's bytes. */
+static void pair_close(pair *p, size_t tiles) {
+  bsurf_failure err;
+  assert_true(tiles > 1);
+  assert_int_equal(bsurf_write(p->mem_path, &p->c, NULL, &err), BSURF_OK);
+  assert_same_file(p->mem_path, p->tiled_path);
+  bsurf_cloud_free(&p->c);
+}
+
+/* the per-tile sums of the means: equal to rounding */
+static void assert_means(const double *a, const double *b, int count) {
+  for (int f = 0; f < count; f++)
+    assert_true(fabs(a[f] - b[f]) <= 1e-12 * fabs(a[f]) + 1e-300);
+}
+
+static void run_normals(const bsurf_normals_job_options *o, const char *name) {
+  pair p;
+  pair_open(&p, name);
+  bsurf_normals_job_summary sm, st;
+  bsurf_failure err = {0, -1, ""};
+  assert_int_equal(bsurf_normals_job(&p.mem, o, &sm, NULL), BSURF_OK);
+  assert_int_equal(bsurf_normals_job(&p.tiled, o, &st, &err), BSURF_OK);
+  assert_int_equal(sm.points, st.points);
+  assert_memory_equal(&sm.h, &st.h, sizeof sm.h);
+  assert_int_equal(sm.duplicates, st.duplicates);
+  assert_memory_equal(&sm.report, &st.report, sizeof sm.report);
+  assert_int_equal(sm.field_count, st.field_count);
+  for (int f = 0; f < sm.field_count; f++)
+    assert_string_equal(sm.field_names[f], st.field_names[f]);
+  assert_means(sm.means, st.means, sm.field_count);
+  pair_close(&p, st.tiles);
+}
+
+static void test_normals_job(void **state) {
+  (void)state;
+  bsurf_normals_job_options o = bsurf_normals_job_options_default();
+  o.normals.k = 15;
+  o.normals.bootstrap = 6;
+  o.test_error = 1; /* two tiled stages: the reference normals first */
+  run_normals(&o, "normals");
+  /* the per-point choice of K (nested candidates in one pass) */
+  const int ks[3] = {10, 15, 20};
+  o.select_k = ks;
+  o.select_k_count = 3;
+  run_normals(&o, "normals_select");
+  /* and of the polynomial degree */
+  const int ds[2] = {1, 2};
+  o.normals.fit = BSURF_NORMAL_POLY;
+  o.select_degree = ds;
+  o.select_degree_count = 2;
+  run_normals(&o, "normals_degree");
+}
+
+static void run_smooth(const bsurf_smooth_job_options *o, const char *name) {
+  pair p;
+  pair_open(&p, name);
+  bsurf_smooth_job_summary sm, st;
+  bsurf_failure err = {0, -1, ""};
+  assert_int_equal(bsurf_smooth_job(&p.mem, o, &sm, NULL), BSURF_OK);
+  assert_int_equal(bsurf_smooth_job(&p.tiled, o, &st, &err), BSURF_OK);
+  assert_null(p.c.normals); /* they belonged to the points before they moved */
+  assert_int_equal(sm.points, st.points);
+  assert_memory_equal(&sm.h, &st.h, sizeof sm.h);
+  assert_string_equal(sm.estimator, st.estimator);
+  assert_int_equal(sm.field_count, st.field_count);
+  /* summed in index order in both: the same bits */
+  assert_memory_equal(sm.means, st.means, (size_t)sm.field_count * sizeof(double));
+  const bsurf_smooth_report *a = &sm.report, *b = &st.report;
+  assert_memory_equal(&a->error, &b->error, sizeof a->error);
+  assert_memory_equal(&a->mean_error, &b->mean_error, sizeof(double));
+  if (o->smooth.method == BSURF_SMOOTH_NAIVE) { /* what the command prints of each */
+    assert_memory_equal(&a->threshold, &b->threshold, sizeof(double));
+    assert_int_equal(a->projected, b->projected);
+    assert_true(a->projected > 0 && a->projected < sm.points);
+  } else {
+    assert_memory_equal(&a->h1, &b->h1, sizeof(double));
+    assert_memory_equal(&a->h2, &b->h2, sizeof(double));
+  }
+  assert_int_equal(a->moved_points, b->moved_points);
+  assert_memory_equal(&a->moved_mean, &b->moved_mean, sizeof(double));
+  assert_memory_equal(&a->moved_max, &b->moved_max, sizeof(double));
+  pair_close(&p, st.tiles);
+}
+
+static void test_smooth_job(void **state) {
+  (void)state;
+  bsurf_smooth_job_options o = bsurf_smooth_job_options_default();
+  o.smooth.error.k = 20;
+  o.smooth.error.bootstrap = 6;
+  o.smooth.h1 = 1.5; /* 1.5 h */
+  o.h1_in_h = 1;
+  run_smooth(&o, "bilateral");
+  o.smooth.method = BSURF_SMOOTH_NAIVE;
+  o.smooth.threshold = 0.8; /* 0.8 h */
+  o.threshold_in_h = 1;
+  run_smooth(&o, "naive");
+}
+
+static void run_features(const bsurf_feature_options *o, const char *name) {
+  pair p;
+  pair_open(&p, name);
+  bsurf_features_job_summary sm, st;
+  bsurf_failure err = {0, -1, ""};
+  assert_int_equal(bsurf_features_job(&p.mem, o, &sm, NULL), BSURF_OK);
+  assert_int_equal(bsurf_features_job(&p.tiled, o, &st, &err), BSURF_OK);
+  assert_int_equal(sm.points, st.points);
+  assert_memory_equal(&sm.h, &st.h, sizeof sm.h);
+  assert_string_equal(sm.field_names[1], st.field_names[1]);
+  /* the generated cube's truth: kept as feature_in (and feature_dist_in) */
+  assert_int_equal(sm.kept[0], 1);
+  assert_int_equal(st.kept[0], 1);
+  assert_int_equal(sm.kept[1], st.kept[1]);
+  assert_non_null(bsurf_cloud_field(&p.c, "feature_in"));
+  assert_memory_equal(&sm.report.threshold, &st.report.threshold, sizeof(double));
+  assert_int_equal(sm.report.feature_points, st.report.feature_points);
+  assert_true(sm.report.feature_points > 0 && sm.report.feature_points < sm.points);
+  if (o->method == BSURF_FEATURES_DISTANCE) {
+    assert_memory_equal(&sm.report.max_radius, &st.report.max_radius, sizeof(double));
+    assert_int_equal(sm.report.immediate, st.report.immediate);
+  }
+  pair_close(&p, st.tiles);
+}
+
+static void test_features_job(void **state) {
+  (void)state;
+  bsurf_feature_options o = bsurf_feature_options_default();
+  o.k_min = 10;
+  o.k_max = 24;
+  o.iterations = 2;
+  run_features(&o, "distance");
+  o.method = BSURF_FEATURES_VARIANCE;
+  o.normals.k = 15;
+  o.normals.bootstrap = 6;
+  run_features(&o, "variance");
+}
+
+/* status INVALID_ARG and a message naming the job and `needle` */
+#define assert_invalid(call, func, needle)                                                         \
+  do {                                                                                             \
+    bsurf_status st_ = (call);                                                                     \
+    assert_int_equal(st_, BSURF_ERR_INVALID_ARG);                                                  \
+    const char *m_ = bsurf_last_message();                                                         \
+    if (!strstr(m_, func ":") || !strstr(m_, needle))                                              \
+      fail_msg("message '%s' lacks '%s' / '%s'", m_, func, needle);                                \
+  } while (0)
+
+static void test_bad_options(void **state) {
+  (void)state;
+  pair p;
+  pair_open(&p, "bad");
+  bsurf_job_io mem = p.mem, tiled = p.tiled;
+  bsurf_job_io none = {0};
+  bsurf_normals_job_summary ns;
+  bsurf_normals_job_options no = bsurf_normals_job_options_default();
+  assert_invalid(bsurf_normals_job(NULL, &no, &ns, NULL), "bsurf_normals_job", "io is NULL");
+  assert_invalid(bsurf_normals_job(&none, &no, &ns, NULL), "bsurf_normals_job", "neither");
+  no.normals.k = 2;
+  assert_invalid(bsurf_normals_job(&mem, &no, &ns, NULL), "bsurf_normals_job",
+                 "opts->normals.k = 2");
+  no = bsurf_normals_job_options_default();
+  const int down[2] = {20, 10};
+  no.select_k = down;
+  no.select_k_count = 2;
+  assert_invalid(bsurf_normals_job(&mem, &no, &ns, NULL), "bsurf_normals_job",
+                 "opts->select_k[1] = 10");
+  no = bsurf_normals_job_options_default();
+  no.alpha = 2;
+  assert_invalid(bsurf_normals_job(&mem, &no, &ns, NULL), "bsurf_normals_job", "opts->alpha = 2");
+  no = bsurf_normals_job_options_default();
+  no.orient = BSURF_ORIENT_MST;
+  assert_invalid(bsurf_normals_job(&tiled, &no, &ns, NULL), "bsurf_normals_job", "in memory only");
+  no = bsurf_normals_job_options_default();
+  no.normals.k = 4000; /* more than the 3000 points */
+  assert_int_equal(bsurf_normals_job(&mem, &no, &ns, NULL), BSURF_ERR_TOO_FEW_POINTS);
+  assert_non_null(strstr(bsurf_last_message(), "fewer than K = 4000"));
+
+  bsurf_smooth_job_summary ss;
+  bsurf_smooth_job_options so = bsurf_smooth_job_options_default();
+  so.smooth.method = (bsurf_smooth_method)7;
+  assert_invalid(bsurf_smooth_job(&mem, &so, &ss, NULL), "bsurf_smooth_job",
+                 "opts->smooth.method = 7");
+  so = bsurf_smooth_job_options_default();
+  so.smooth.error.k = 5; /* degree 3 needs 10 */
+  assert_invalid(bsurf_smooth_job(&mem, &so, &ss, NULL), "bsurf_smooth_job",
+                 "opts->smooth.error.k = 5");
+  so = bsurf_smooth_job_options_default();
+  so.smooth.method = BSURF_SMOOTH_MULTIPASS;
+  assert_invalid(bsurf_smooth_job(&tiled, &so, &ss, NULL), "bsurf_smooth_job", "MULTIPASS");
+
+  bsurf_features_job_summary fs;
+  bsurf_feature_options fo = bsurf_feature_options_default();
+  fo.method = (bsurf_feature_method)5;
+  assert_invalid(bsurf_features_job(&mem, &fo, &fs, NULL), "bsurf_features_job",
+                 "opts->method = 5");
+  fo = bsurf_feature_options_default();
+  fo.k_max = fo.k_min - 1;
+  assert_invalid(bsurf_features_job(&mem, &fo, &fs, NULL), "bsurf_features_job", "opts->k_max");
+  fo = bsurf_feature_options_default();
+  fo.method = BSURF_FEATURES_VARIANCE;
+  fo.normals.bootstrap = 1;
+  assert_invalid(bsurf_features_job(&mem, &fo, &fs, NULL), "bsurf_features_job",
+                 "opts->normals.bootstrap = 1");
+  assert_invalid(bsurf_features_job(&mem, NULL, NULL, NULL), "bsurf_features_job",
+                 "summary is NULL");
+  /* nothing was added to the cloud by the refused calls */
+  assert_null(bsurf_cloud_field(&p.c, "normal_var"));
+  bsurf_cloud_free(&p.c);
+}
+
+int main(void) {
+  const char *t = getenv("BSURF_TMP");
+  snprintf(tmp_dir, sizeof tmp_dir, "%s", t ? t : "/tmp");
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_normals_job),
+      cmocka_unit_test(test_smooth_job),
+      cmocka_unit_test(test_features_job),
+      cmocka_unit_test(test_bad_options),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
