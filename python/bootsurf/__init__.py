@@ -36,7 +36,7 @@ from . import _core
 __version__ = _core.version()
 
 __all__ = [
-    "Cloud", "read", "write", "knn", "spacing", "error", "normals", "generate", "noise", "sample",
+    "Cloud", "read", "write", "knn", "spacing", "error", "normals", "smooth", "features", "generate", "noise", "sample",
     "evaluate", "render", "__version__",
 ]
 
@@ -322,6 +322,160 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
                          _choice(select_rule, _RULES, "select_rule"), int(noise_k), ds,
                          int(smooth_iterations), float(alpha), float(sigma_d), snu,
                          _choice(orient, _ORIENTS, "orient"), bool(curve), truth, progress)
+
+
+# ---------------------------------------------------------------- chapter 6
+
+_METHODS = ("naive", "bilateral", "multipass")
+_ORDERS = ("parallel", "sequential")
+_ESTIMATORS = ("auto", "632", "632plus")
+
+
+def _length(value, option, allow_w=False):
+    """A length as the command line takes it: a number (model units), 'Xh'
+    (X times the mean spacing h, which the library knows) or, with allow_w,
+    'XW' (X times the mean error |W|). Returns (value, in_h, fraction)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if not (_math.isfinite(value) and value >= 0):
+            raise ValueError("%s must be a finite length >= 0, not %r" % (option, value))
+        return float(value), False, _math.nan
+    text = str(value)
+    unit = text[-1:] if text[-1:] in ("h", "W") else ""
+    if unit == "W" and not allow_w:
+        unit = "?"
+    try:
+        x = float(text[:-1] or "1") if unit else float(text)
+    except ValueError:
+        x = _math.nan
+    if unit == "?" or not (_math.isfinite(x) and x >= 0):
+        raise ValueError("%s must be a length (e.g. 0.01 or 0.5h%s), not %r"
+                         % (option, ", or 1W" if allow_w else "", value))
+    if unit == "W":
+        return 0.0, False, x
+    return x, unit == "h", _math.nan
+
+
+def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, gamma="fit",
+           pca_center="centroid", estimator="auto", threshold="auto", h1="h", h2="auto",
+           order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on", seed=1,
+           threads=0, progress=None):
+    """smooth(points, *, method='bilateral', neighbors=50, degree=3,
+    bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
+    threshold='auto', h1='h', h2='auto', order='parallel', a=0.1,
+    iterations=300, k_min=10, k_error='auto', guard='on', seed=1, threads=0,
+    progress=None) -> (points, fields, summary)
+
+    Denoise: move points towards the bootstrap fits (thesis ch. 6);
+    ``bootsurf smooth`` (bsurf_smooth_job).
+
+    naive (6.2, Eq. 6.1): project a point onto the mean of its bootstrap fits
+    where its error W_i is below threshold. bilateral (6.3, Algorithm 4, Eq.
+    6.2): every neighbourhood's fit moves its points, weighted by distance
+    (h1) and error (h2). multipass (6.4, Algorithm 5, Eqs. 6.3-6.5): per point
+    a neighbourhood K_i shrinking with the error, fits made again each pass.
+
+    Options (lengths: a number in model units, 'Xh' in units of the mean
+    spacing h, and for h2 and k_error 'XW', X times the mean error |W|):
+      method       naive, bilateral or multipass
+      neighbors, degree, bootstrap, gamma, pca_center, seed: as error()
+      estimator    the error W_i: 632, 632plus or auto (.632+ for naive,
+                   .632 otherwise)
+      threshold    naive: a length, 'auto' (the mean W_i) or 'none' (every point)
+      h1           bilateral: distance sigma of Eq. 6.2 ('h')
+      h2           bilateral, multipass: error sigma of Eq. 6.2 ('auto' = 2W)
+      order        parallel (order-independent) or sequential (the thesis's
+                   in-place sweep, one thread)
+      a            multipass: h1 = a x d_L (Eq. 6.5)
+      iterations   multipass: passes (300)
+      k_min        multipass: the smallest neighbourhood (Eq. 6.3)
+      k_error      multipass: the error at which K_i reaches k_min (Eq. 6.4;
+                   'auto' = 3W)
+      guard        on (a fit biased at its centre by a second sheet or an
+                   edge is made again from fewer points, or moves nothing)
+                   or off (the thesis's methods as written)
+
+    Returns (points, fields, summary): the moved points (N, 3) (the input is
+    not modified), fields err_632, err_632plus, moved (and k_hat, d_local
+    for multipass), and the summary (h, estimator, means, report).
+    """
+    thr, thr_h = _math.nan, False
+    if threshold == "none":
+        thr = _math.inf
+    elif threshold != "auto":
+        thr, thr_h, _ = _length(threshold, "threshold")
+    v1, h1_h, _ = _length(h1, "h1")
+    if not v1 > 0:
+        raise ValueError("h1 must be a positive length (e.g. 0.01 or 1.5h), not %r" % (h1,))
+    v2, h2_h, f2 = (_math.nan, False, _math.nan) if h2 == "auto" else _length(h2, "h2", True)
+    ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error == "auto"
+                    else _length(k_error, "k_error", True))
+    pts, _ = _points(points)
+    return _core.smooth(pts, _choice(method, _METHODS, "method"), int(neighbors), int(degree),
+                        int(bootstrap), int(seed), _choice(gamma, _GAMMAS, "gamma"),
+                        _choice(pca_center, _CENTERS, "pca_center"),
+                        _choice(estimator, _ESTIMATORS, "estimator"), thr, thr_h, v1, h1_h, v2,
+                        h2_h, f2, _choice(order, _ORDERS, "order"), float(a), int(iterations),
+                        int(k_min), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
+                        int(threads), progress)
+
+
+# ---------------------------------------------------------------- chapter 7
+
+_FEATURE_METHODS = ("distance", "variance")
+_TAIL_RULES = ("otsu", "mad")
+
+
+def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15, k_max=60,
+             k_step=2, ratio_threshold=0.1, noise_factor=1.75, derivative=0.0, alpha=0.5,
+             iterations=5, filter_k=0, sigma_range=0.05, threshold="auto", tail_rule="otsu",
+             seed=1, threads=0, progress=None):
+    """features(points, *, method='distance', neighbors=30, bootstrap=50,
+    k_min=15, k_max=60, k_step=2, ratio_threshold=0.1, noise_factor=1.75,
+    derivative=0.0, alpha=0.5, iterations=5, filter_k=0, sigma_range=0.05,
+    threshold='auto', tail_rule='otsu', seed=1, threads=0, progress=None)
+    -> (fields, summary)
+
+    Feature detection (thesis ch. 7); ``bootsurf features``
+    (bsurf_features_job).
+
+    distance (7.1): for each point the radius of the first neighbourhood size
+    whose PCA ratio lambda0/lambda2 exceeds T_{a/c}, smoothed by a bilateral
+    filter (Eq. 7.1): feature_dist; feature = 1 near the features. variance
+    (7.2, Eq. 7.2): the bootstrap normal variance normal_var (Eq. 5.5) above
+    a threshold (the start of its tail, by Otsu's split or the MAD rule).
+
+    Options:
+      method           distance or variance
+      neighbors        variance: neighbourhood of the normals (30)
+      bootstrap        variance: bootstrap replicates, >= 2 (50)
+      k_min, k_max, k_step   distance: neighbourhood sizes (15, 60, 2)
+      ratio_threshold  distance: T_{a/c} on lambda0/lambda2 (0.1)
+      noise_factor     distance: T_{a/c} of size K = max(T, C x median
+                       f(K)) (0 = T alone) (1.75)
+      derivative       distance: threshold f + D f' instead of f (0 = off)
+      alpha            distance: bilateral filter strength (Eq. 7.1) (0.5)
+      iterations       distance: bilateral filter passes (5)
+      filter_k         distance: neighbours of the filter (0 = k_min)
+      sigma_range      distance: range sigma of the filter, fraction of max
+                       radius (0.05)
+      threshold        distance: fraction of max(feature_dist); variance:
+                       normal_var value; or 'auto'
+      tail_rule        variance auto threshold: otsu or mad
+      seed, threads, progress
+
+    Returns (fields, summary): fields 'feature' (uint8 0/1) and the score
+    ('feature_dist' or 'normal_var', float64); summary with points, h,
+    duplicates and report (threshold, feature_points, max_radius, immediate,
+    ratio_threshold_kmin).
+    """
+    thr = _math.nan if threshold == "auto" else float(threshold)
+    pts, _ = _points(points)
+    return _core.features(pts, _choice(method, _FEATURE_METHODS, "method"), int(neighbors),
+                          int(bootstrap), int(k_min), int(k_max), int(k_step),
+                          float(ratio_threshold), float(noise_factor), float(derivative),
+                          float(alpha), int(iterations), int(filter_k), float(sigma_range), thr,
+                          _choice(tail_rule, _TAIL_RULES, "tail_rule"), int(seed), int(threads),
+                          progress)
 
 
 # ---------------------------------------------------------------- data

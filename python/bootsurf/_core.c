@@ -691,6 +691,148 @@ static PyObject *py_normals(PyObject *self, PyObject *args) {
   return ret;
 }
 
+/* ---- smoothing (chapter 6) and features (chapter 7): the library's jobs ---- */
+
+static PyObject *py_smooth(PyObject *self, PyObject *args) {
+  (void)self;
+  PyObject *pts, *progress;
+  bsurf_smooth_job_options o = bsurf_smooth_job_options_default();
+  bsurf_smooth_options *so = &o.smooth;
+  int method, gamma, center, estimator, order;
+  unsigned long long seed;
+  if (!PyArg_ParseTuple(args, "OiiiiKiiidpdpdpdidiidpdpiO", &pts, &method, &so->error.k,
+                        &so->error.degree, &so->error.bootstrap, &seed, &gamma, &center, &estimator,
+                        &so->threshold, &o.threshold_in_h, &so->h1, &o.h1_in_h, &so->h2, &o.h2_in_h,
+                        &so->h2_fraction, &order, &so->a, &so->iterations, &so->k_min, &so->k_error,
+                        &o.k_error_in_h, &so->k_error_fraction, &so->guard, &so->error.threads,
+                        &progress))
+    return NULL;
+  /* NAN: the library's default (the command's "auto") */
+  const bsurf_smooth_options def = bsurf_smooth_options_default();
+  if (isnan(so->h2)) so->h2 = def.h2;
+  if (isnan(so->h2_fraction)) so->h2_fraction = def.h2_fraction;
+  if (isnan(so->k_error)) so->k_error = def.k_error;
+  if (isnan(so->k_error_fraction)) so->k_error_fraction = def.k_error_fraction;
+  so->method = (bsurf_smooth_method)method;
+  so->error.seed = seed;
+  so->error.gamma = (bsurf_gamma_mode)gamma;
+  so->error.pca_center = (bsurf_pca_center)center;
+  so->estimator = (bsurf_smooth_estimator)estimator;
+  so->order = (bsurf_smooth_order)order;
+  PyArrayObject *a = as_f64(pts, "points", 3);
+  if (!a) return NULL;
+  size_t n = (size_t)PyArray_DIM(a, 0);
+  /* the job moves the cloud's points: a copy the result array then owns */
+  bsurf_cloud cloud;
+  bsurf_cloud_init(&cloud);
+  cloud.point_count = n;
+  cloud.xyz = n ? malloc(n * 3 * sizeof(double)) : NULL;
+  if (n && !cloud.xyz) {
+    Py_DECREF(a);
+    return PyErr_NoMemory();
+  }
+  if (n) memcpy(cloud.xyz, f64(a), n * 3 * sizeof(double));
+  Py_DECREF(a);
+  bsurf_job_io io;
+  memset(&io, 0, sizeof io);
+  io.cloud = &cloud;
+  call_ctx c;
+  ctx_init(&c, progress);
+  so->error.progress = progress_cb;
+  so->error.progress_user = &c;
+  bsurf_smooth_job_summary s;
+  RELEASE(&c);
+  bsurf_status st = bsurf_smooth_job(&io, &o, &s, NULL);
+  ACQUIRE(&c);
+  if (st != BSURF_OK) {
+    bsurf_cloud_free(&cloud);
+    return fail(st, &c, NULL, NULL);
+  }
+  npy_intp n3[2] = {(npy_intp)n, 3};
+  double *moved = cloud.xyz;
+  PyObject *points = adopt(moved, 2, n3, NPY_DOUBLE);
+  if (!points) {
+    bsurf_cloud_free(&cloud);
+    return NULL;
+  }
+  PyObject *fields = take_fields(&cloud); /* frees the cloud, not xyz (adopted) */
+  if (!fields) {
+    Py_DECREF(points);
+    return NULL;
+  }
+  const bsurf_smooth_report *r = &s.report;
+  PyObject *sum = Py_BuildValue(
+      "{s:n,s:d,s:n,s:s,s:N,s:N}", "points", (Py_ssize_t)s.points, "h", s.h, "duplicates",
+      (Py_ssize_t)s.duplicates, "estimator", s.estimator ? s.estimator : "", "means",
+      means_dict(s.field_names, s.means, s.field_count), "report",
+      Py_BuildValue("{s:N,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:d,s:d,s:i}", "error",
+                    report_error(&r->error), "mean_error", r->mean_error, "threshold", r->threshold,
+                    "h1", r->h1, "h2", r->h2, "k_error", r->k_error, "projected",
+                    (Py_ssize_t)r->projected, "moved_points", (Py_ssize_t)r->moved_points,
+                    "moved_mean", r->moved_mean, "moved_max", r->moved_max, "iterations",
+                    r->iterations));
+  if (!sum) {
+    Py_DECREF(points);
+    Py_DECREF(fields);
+    return NULL;
+  }
+  return Py_BuildValue("(NNN)", points, fields, sum);
+}
+
+static PyObject *py_features(PyObject *self, PyObject *args) {
+  (void)self;
+  PyObject *pts, *progress;
+  bsurf_feature_options o = bsurf_feature_options_default();
+  int method, rule;
+  unsigned long long seed;
+  if (!PyArg_ParseTuple(args, "OiiiiiiddddiiddiKiO", &pts, &method, &o.normals.k,
+                        &o.normals.bootstrap, &o.k_min, &o.k_max, &o.k_step, &o.ratio_threshold,
+                        &o.noise_factor, &o.derivative, &o.alpha, &o.iterations, &o.filter_k,
+                        &o.sigma_range, &o.threshold, &rule, &seed, &o.threads, &progress))
+    return NULL;
+  o.method = (bsurf_feature_method)method;
+  o.tail_rule = (bsurf_tail_rule)rule;
+  o.normals.seed = seed;
+  PyArrayObject *a = as_f64(pts, "points", 3);
+  if (!a) return NULL;
+  bsurf_cloud cloud;
+  bsurf_cloud_init(&cloud);
+  cloud.point_count = (size_t)PyArray_DIM(a, 0);
+  cloud.xyz = f64(a);
+  bsurf_job_io io;
+  memset(&io, 0, sizeof io);
+  io.cloud = &cloud;
+  call_ctx c;
+  ctx_init(&c, progress);
+  o.progress = progress_cb;
+  o.progress_user = &c;
+  bsurf_features_job_summary s;
+  RELEASE(&c);
+  bsurf_status st = bsurf_features_job(&io, &o, &s, NULL);
+  ACQUIRE(&c);
+  PyObject *fields = NULL;
+  if (st == BSURF_OK) {
+    fields = take_fields(&cloud);
+  } else {
+    cloud.xyz = NULL;
+    bsurf_cloud_free(&cloud);
+  }
+  Py_DECREF(a);
+  if (st != BSURF_OK) return fail(st, &c, NULL, NULL);
+  if (!fields) return NULL;
+  const bsurf_feature_report *r = &s.report;
+  PyObject *sum = Py_BuildValue(
+      "{s:n,s:d,s:n,s:{s:d,s:n,s:d,s:n,s:d}}", "points", (Py_ssize_t)s.points, "h", s.h,
+      "duplicates", (Py_ssize_t)s.duplicates, "report", "threshold", r->threshold, "feature_points",
+      (Py_ssize_t)r->feature_points, "max_radius", r->max_radius, "immediate",
+      (Py_ssize_t)r->immediate, "ratio_threshold_kmin", r->ratio_threshold_kmin);
+  if (!sum) {
+    Py_DECREF(fields);
+    return NULL;
+  }
+  return Py_BuildValue("(NN)", fields, sum);
+}
+
 /* ---- synthetic data ---- */
 
 static PyObject *py_generate(PyObject *self, PyObject *args) {
@@ -1008,6 +1150,8 @@ static PyMethodDef methods[] = {
     {"spacing", py_spacing, METH_VARARGS, "spacing(points, threads, progress) -> h"},
     {"error", py_error, METH_VARARGS, "error(points, test, k, ...) -> (fields, summary)"},
     {"normals", py_normals, METH_VARARGS, "normals(points, ...) -> (fields, summary)"},
+    {"smooth", py_smooth, METH_VARARGS, "smooth(points, ...) -> (points, fields, summary)"},
+    {"features", py_features, METH_VARARGS, "features(points, ...) -> (fields, summary)"},
     {"generate", py_generate, METH_VARARGS, "generate(shape, n, sampling, seed, width)"},
     {"noise", py_noise, METH_VARARGS, "noise(points, normals, model, level, ...)"},
     {"sample", py_sample, METH_VARARGS, "sample(mesh, points, seed, angle, width, threads)"},

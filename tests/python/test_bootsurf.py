@@ -98,6 +98,32 @@ def test_normals_equal_cli(cube):
     same_bits(fields["normal_err"].astype(np.float32), ref["normal_err"])
 
 
+def test_smooth_equals_cli(cube):
+    for method, extra in (("bilateral", []), ("naive", ["--threshold", "0.5h"]),
+                          ("multipass", ["--iterations", 3, "--h2", "1W"])):
+        cli("smooth", tmp("noisy.ply"), "--method", method, "-k", 20, "-B", 8, *extra, "-o",
+            tmp("sm.ply"), "-q")
+        ref = bootsurf.read(tmp("sm.ply"))
+        kw = {"threshold": "0.5h"} if method == "naive" else {}
+        if method == "multipass":
+            kw = {"iterations": 3, "h2": "1W"}
+        pts, fields, s = bootsurf.smooth(cube, method=method, neighbors=20, bootstrap=8, **kw)
+        same_bits(pts, ref["points"])
+        for name in fields:
+            same_bits(fields[name].astype(np.float32), ref[name])
+
+
+def test_features_equal_cli(cube):
+    for method in ("distance", "variance"):
+        cli("features", tmp("noisy.ply"), "--method", method, "-B", 8, "-o", tmp("ft.ply"), "-q")
+        ref = bootsurf.read(tmp("ft.ply"))
+        fields, s = bootsurf.features(cube, method=method, bootstrap=8)
+        same_bits(fields["feature"], ref["feature"])
+        score = "feature_dist" if method == "distance" else "normal_var"
+        same_bits(fields[score].astype(np.float32), ref[score])
+        assert s["report"]["feature_points"] == int(ref["feature"].sum())
+
+
 def test_render_equals_cli(cube):
     cli("render", tmp("noisy.ply"), "--size", "160x120", "-o", tmp("cli.png"), "-q")
     bootsurf.render(tmp("noisy.ply"), size=(160, 120), output=tmp("py.png"))
@@ -204,6 +230,12 @@ def test_threads_do_not_change_results(cube):
     nb, _ = bootsurf.normals(cube, bootstrap=10, threads=2)
     for k in na:
         same_bits(na[k], nb[k])
+    pa, fa, _ = bootsurf.smooth(cube, neighbors=20, bootstrap=8, threads=1)
+    pb, fb, _ = bootsurf.smooth(cube, neighbors=20, bootstrap=8, threads=2)
+    same_bits(pa, pb)
+    ga, _ = bootsurf.features(cube, method="variance", bootstrap=8, threads=1)
+    gb, _ = bootsurf.features(cube, method="variance", bootstrap=8, threads=2)
+    same_bits(ga["normal_var"], gb["normal_var"])
     ia, da = bootsurf.knn(cube["points"], 8, threads=1)
     ib, db = bootsurf.knn(cube["points"], 8, threads=2)
     same_bits(ia, ib)
@@ -309,6 +341,10 @@ def test_bad_input(cube):
         bootsurf.noise(p)
     with pytest.raises(ValueError, match="shape"):
         bootsurf.generate("dodecahedron")
+    with pytest.raises(ValueError, match="h1"):
+        bootsurf.smooth(p, h1="2W")
+    with pytest.raises(ValueError, match="method"):
+        bootsurf.features(p, method="curvature")
     with pytest.raises(ValueError, match="select_k"):
         bootsurf.normals(p, select_k="30:10:1")
     with pytest.raises(OSError, match="nonexistent.ply"):
