@@ -1,9 +1,12 @@
 #!/usr/bin/env bash
-# bootsurf's front door. Usage: ./build.sh [build|test|quick|demo|bench|clean]
+# bootsurf's front door. Usage: ./build.sh [build|test|quick|demo|python|bench|clean]
 #   build  configure and compile (Release) into build/
 #   test   build, then run the whole test suite through ctest
 #   quick  build, then run the tests labelled quick (about a minute on 2 cores)
 #   demo   build, then generate a noisy cube, estimate its errors, print the summary
+#   python build, then install the Python package bootsurf into /usr/bin/python3
+#          (pip install --no-build-isolation .; Debian's python3-dev, python3-numpy,
+#          python3-setuptools, python3-pytest are installed first when missing)
 #   bench  build, then run the side-by-side benchmark harness bench/run.sh: bootsurf
 #          beside PCL, Open3D, CGAL and nanoflann (their Debian packages installed
 #          when missing, as root); env N, REPS, PARTS, ... (see docs/performance.md)
@@ -24,6 +27,13 @@ need_packages() {
   command -v pkg-config >/dev/null 2>&1 || missing+=(pkg-config)
   [ -f /usr/include/cmocka.h ] || missing+=(libcmocka-dev)
   [ -f /usr/include/png.h ] || missing+=(libpng-dev)
+  # the Python package (python/, docs/python.md) and its tests: Debian's python3
+  local py=/usr/bin/python3
+  compgen -G "/usr/include/python3*/Python.h" >/dev/null || missing+=(python3-dev)
+  "$py" -c 'import numpy' >/dev/null 2>&1 || missing+=(python3-numpy)
+  "$py" -c 'import setuptools' >/dev/null 2>&1 || missing+=(python3-setuptools)
+  "$py" -c 'import pytest' >/dev/null 2>&1 || missing+=(python3-pytest)
+  "$py" -m pip --version >/dev/null 2>&1 || missing+=(python3-pip)
   echo "${missing[@]:-}"
 }
 
@@ -61,9 +71,18 @@ case "$cmd" in
   demo)
     build
     BSURF="$BUILD/bootsurf" bash "$ROOT/scripts/demo.sh" ;;
+  python)
+    build
+    # Debian marks its python3 externally managed (PEP 668): pip needs
+    # --break-system-packages to install into it
+    brk=""
+    /usr/bin/python3 -m pip install --help 2>/dev/null | grep -q -- --break-system-packages &&
+      brk=--break-system-packages
+    /usr/bin/python3 -m pip install --no-build-isolation --no-index --no-deps $brk "$ROOT"
+    (cd / && /usr/bin/python3 -c 'import bootsurf; print("bootsurf", bootsurf.__version__, "installed:", bootsurf.__file__)') ;;
   bench)
     build
     bash "$ROOT/bench/run.sh" "$BUILD" ;;
   clean) rm -rf "$BUILD" ;;
-  *) echo "usage: ./build.sh [build|test|quick|demo|bench|clean]" >&2; exit 2 ;;
+  *) echo "usage: ./build.sh [build|test|quick|demo|python|bench|clean]" >&2; exit 2 ;;
 esac

@@ -19,20 +19,6 @@ static int option_given(int argc, char **argv, const char *name) {
   return 0;
 }
 
-static double bbox_diagonal(const bsurf_cloud *c) {
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t i = 0; i < c->point_count; i++)
-    for (int k = 0; k < 3; k++) {
-      double v = c->xyz[3 * i + k];
-      if (v < lo[k]) lo[k] = v;
-      if (v > hi[k]) hi[k] = v;
-    }
-  double s = 0;
-  for (int k = 0; k < 3; k++)
-    s += (hi[k] - lo[k]) * (hi[k] - lo[k]);
-  return c->point_count ? sqrt(s) : 0.0;
-}
-
 int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   double level = 0.5, sigma_diag = 0;
   uint64_t seed = 1;
@@ -86,17 +72,20 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
     bsurf_cloud_free(&c);
     return cli_error("%s: needs at least 2 points to measure the spacing h", pos[0]);
   }
-  double h = 0, diag = bbox_diagonal(&c);
-  /* --sigma-diag s: t ~ N(0, 1) scaled by s x diagonal, i.e. level 1 */
+  bsurf_noise_options no = bsurf_noise_options_default();
+  no.model = (bsurf_noise_model)m;
+  no.level = by_diag && sigma_diag == 0 ? 0.0 : level; /* --sigma-diag 0: no noise */
+  no.sigma_diag = by_diag ? sigma_diag : 0.0;
+  no.seed = seed;
+  no.threads = threads;
   cli_progress prog;
   cli_progress_init(&prog, "spacing", quiet);
-  bsurf_status st =
-      bsurf_mean_spacing_progress(c.xyz, c.point_count, threads, &h, cli_progress_cb, &prog);
+  no.progress = cli_progress_cb;
+  no.progress_user = &prog;
+  bsurf_noise_report nr = {0, 0, 0, 0};
+  bsurf_status st = bsurf_noise_points(c.xyz, c.normals, c.point_count, &no, &nr);
   cli_progress_done(&prog);
-  double use_level = by_diag ? 1.0 : level, scale = by_diag ? sigma_diag * diag : h;
-  if (st == BSURF_OK)
-    st = bsurf_add_noise(c.xyz, c.normals, c.point_count, (bsurf_noise_model)m, use_level, scale,
-                         seed);
+  double h = nr.h, diag = nr.diagonal, use_level = nr.level, scale = nr.scale;
   if (st == BSURF_ERR_INVALID_VALUE) {
     bsurf_cloud_free(&c);
     return cli_error("%s: some normals have zero length", pos[0]);

@@ -62,46 +62,14 @@ int render_view_option(const cli_command *cmd, const char *view, double az, doub
   return 0;
 }
 
-/* Per-point spacing for the splat size: h times the ratio of the point's
- * distance to its 6th nearest neighbour to the median of those distances,
- * clamped to [1, 4]: evenly sampled regions keep splats of h, sparse regions
- * of a scan get larger ones, so they look closed too. NULL on failure (the
- * renderer then uses h everywhere). */
+/* bsurf_render_spacing into a new array: NULL when the renderer is to use
+ * h everywhere (or on failure, *status). */
 double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn progress, void *user,
                        double *h, bsurf_status *status) {
-  const int k = 7;
-  size_t n = c->point_count;
-  *h = 0;
-  *status = BSURF_OK;
-  if (n < 2) return NULL;
-  if (n < (size_t)k + 1) {
-    *status = bsurf_mean_spacing_progress(c->xyz, n, threads, h, progress, user);
-    return NULL;
-  }
-  /* one search: the nearest neighbour gives h (as bsurf_mean_spacing), the
-   * 7th the local spacing */
-  bsurf_neighbors nb;
-  *status = bsurf_neighbors_build(&nb, c->xyz, n, k, threads, progress, user);
-  if (*status != BSURF_OK) return NULL;
-  *h = nb.h;
-  double *out = malloc(n * sizeof *out);
-  double med = 0, unused = 0;
-  int okay = out != NULL && nb.h > 0;
-  if (okay) {
-    for (size_t i = 0; i < n; i++) {
-      const double *p = &c->xyz[3 * i], *q = &c->xyz[3 * (size_t)nb.idx[i * k + k - 1]];
-      out[i] = sqrt((p[0] - q[0]) * (p[0] - q[0]) + (p[1] - q[1]) * (p[1] - q[1]) +
-                    (p[2] - q[2]) * (p[2] - q[2]));
-    }
-    okay = bsurf_render_range(out, n, 50, 50, &med, &unused) == BSURF_OK && med > 0;
-  }
-  if (okay)
-    for (size_t i = 0; i < n; i++) {
-      double r = out[i] / med;
-      out[i] = nb.h * (r < 1 ? 1 : r > 4 ? 4 : r);
-    }
-  bsurf_neighbors_free(&nb);
-  if (!okay) {
+  double *out = c->point_count ? malloc(c->point_count * sizeof *out) : NULL;
+  int filled = 0;
+  *status = bsurf_render_spacing(c->xyz, c->point_count, threads, progress, user, h, out, &filled);
+  if (*status != BSURF_OK || !filled) {
     free(out);
     return NULL;
   }
@@ -117,11 +85,7 @@ int render_up_option(const cli_command *cmd, const char *up, int *axis) {
 }
 
 int render_auto_up(const bsurf_cloud *c) {
-  /* --up auto: bootsurf's generated shapes (a "bootsurf shape" comment)
-   * are z-up, like LiDAR and GIS data; scans and meshes from graphics
-   * (Stanford's PLY scans, CGAL's OFF data, OBJ) are y-up, OpenGL's
-   * convention: the Stanford bunny then stands upright (docs/gallery.md) */
-  return c->shape[0] ? 2 : 1;
+  return bsurf_render_auto_up(c->shape);
 }
 
 int cli_write_png(const char *path, const uint8_t *rgb, int w, int h) {

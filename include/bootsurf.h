@@ -834,6 +834,39 @@ BSURF_API bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_
                                        bsurf_noise_model model, double level, double scale,
                                        uint64_t seed);
 
+/* `bootsurf noise` as one call: the thesis's protocol (4.2), t * h with h
+ * the points' mean nearest-neighbour distance, or PCPNet's (gaussian with
+ * sigma = sigma_diag x the bounding-box diagonal). */
+typedef struct bsurf_noise_options {
+  bsurf_noise_model model; /* GAUSSIAN */
+  double level;            /* xi in units of h (0.5) */
+  double sigma_diag;       /* > 0: instead of level, gaussian noise of sigma =
+                              sigma_diag x the bounding-box diagonal (0) */
+  uint64_t seed;           /* (1) */
+  int threads;             /* for measuring h; 0 = all cores */
+  bsurf_progress_fn progress;
+  void *progress_user;
+} bsurf_noise_options;
+
+BSURF_API bsurf_noise_options bsurf_noise_options_default(void);
+
+typedef struct bsurf_noise_report {
+  double h;        /* mean nearest-neighbour distance before the noise */
+  double diagonal; /* of the bounding box */
+  double level;    /* the level applied: opts->level, or 1 with sigma_diag */
+  double scale;    /* its unit: h, or sigma_diag x diagonal (gaussian sigma =
+                      level x scale; uniform half-width the same) */
+} bsurf_noise_report;
+
+/* Measures h (bsurf_mean_spacing_progress, cancellable) and the bounding
+ * box, then displaces the points along their normals (bsurf_add_noise with
+ * level x scale). xyz in/out: point_count x 3 (at least 2 points); normals
+ * in: point_count x 3, non-zero. opts NULL: defaults; report may be NULL.
+ * BSURF_ERR_INVALID_VALUE (message naming the point) for a zero normal. */
+BSURF_API bsurf_status bsurf_noise_points(double *xyz, const double *normals, size_t point_count,
+                                          const bsurf_noise_options *opts,
+                                          bsurf_noise_report *report);
+
 /* ------------------------------------------------------------------------ */
 /* Pictures                                                                  */
 /* ------------------------------------------------------------------------ */
@@ -902,6 +935,23 @@ typedef struct bsurf_render_info {
 BSURF_API bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals,
                                     size_t point_count, const double *values,
                                     const bsurf_render_options *opt, bsurf_render_info *info);
+
+/* The spacings `bootsurf render` draws with: *h, the mean nearest-neighbour
+ * distance, and per point h times the ratio of its distance to its 6th
+ * nearest other point to the median of those distances, clamped to [1, 4]
+ * (sparse regions of a scan get larger splats, so they look closed).
+ * point_spacing out: point_count or NULL; *filled = 1 when it was filled
+ * (pass it as bsurf_render_options.point_spacing), 0 when h is to be used
+ * everywhere (fewer than 8 points, a zero median). Cancellable. */
+BSURF_API bsurf_status bsurf_render_spacing(const double *xyz, size_t point_count, int threads,
+                                            bsurf_progress_fn progress, void *progress_user,
+                                            double *h, double *point_spacing, int *filled);
+
+/* The up axis (bsurf_render_options.up_axis) of `--up auto` for a cloud
+ * whose bsurf_cloud.shape is `shape`: 2 (z) for bootsurf's generated shapes,
+ * like LiDAR and GIS data; else 1 (y), the convention of scans and meshes
+ * from graphics (OpenGL's). */
+BSURF_API int bsurf_render_auto_up(const char *shape);
 
 /* The value range between two percentiles (in percent) of the finite values;
  * BSURF_ERR_INVALID_VALUE when there is none. */

@@ -8,6 +8,7 @@
 #include "common/common.h"
 
 #include <math.h>
+#include <string.h>
 
 bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_t point_count,
                              bsurf_noise_model model, double level, double scale, uint64_t seed) {
@@ -19,7 +20,11 @@ bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_t point_co
   for (size_t i = 0; i < point_count; i++) {
     const double *n = &normals[3 * i];
     double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-    if (!(len > 0) || !isfinite(len)) return BSURF_ERR_INVALID_VALUE;
+    if (!(len > 0) || !isfinite(len))
+      return bsurf_set_message(BSURF_ERR_INVALID_VALUE,
+                               "bsurf_add_noise: the normal of point %zu has zero length or is "
+                               "not finite",
+                               i);
   }
   for (size_t i = 0; i < point_count; i++) {
     bsurf_rng rng;
@@ -32,4 +37,55 @@ bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_t point_co
       xyz[3 * i + c] += t * scale * n[c] / len;
   }
   return BSURF_OK;
+}
+
+bsurf_noise_options bsurf_noise_options_default(void) {
+  bsurf_noise_options o;
+  memset(&o, 0, sizeof o);
+  o.model = BSURF_NOISE_GAUSSIAN;
+  o.level = 0.5;
+  o.sigma_diag = 0;
+  o.seed = 1;
+  return o;
+}
+
+/* The length of the diagonal of the axis-aligned bounding box (0 when empty). */
+static double bbox_diagonal(const double *xyz, size_t n) {
+  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < n; i++)
+    for (int k = 0; k < 3; k++) {
+      double v = xyz[3 * i + k];
+      if (v < lo[k]) lo[k] = v;
+      if (v > hi[k]) hi[k] = v;
+    }
+  double s = 0;
+  for (int k = 0; k < 3; k++)
+    s += (hi[k] - lo[k]) * (hi[k] - lo[k]);
+  return n ? sqrt(s) : 0.0;
+}
+
+bsurf_status bsurf_noise_points(double *xyz, const double *normals, size_t point_count,
+                                const bsurf_noise_options *opts, bsurf_noise_report *report) {
+  bsurf_noise_options o = opts ? *opts : bsurf_noise_options_default();
+  BSURF_REQUIRE(xyz && normals, "xyz or normals is NULL");
+  BSURF_REQUIRE(point_count >= 2, "point_count = %zu: at least 2 points are needed to measure h",
+                point_count);
+  BSURF_REQUIRE(o.sigma_diag >= 0 && isfinite(o.sigma_diag),
+                "opts->sigma_diag = %g: must be finite and >= 0", o.sigma_diag);
+  BSURF_REQUIRE(o.sigma_diag == 0 || o.model == BSURF_NOISE_GAUSSIAN,
+                "opts->sigma_diag = %g is gaussian noise: opts->model must be "
+                "BSURF_NOISE_GAUSSIAN",
+                o.sigma_diag);
+  bsurf_noise_report r;
+  memset(&r, 0, sizeof r);
+  r.diagonal = bbox_diagonal(xyz, point_count);
+  bsurf_status st =
+      bsurf_mean_spacing_progress(xyz, point_count, o.threads, &r.h, o.progress, o.progress_user);
+  if (st != BSURF_OK) return st;
+  /* sigma_diag s: t ~ N(0, 1) scaled by s x diagonal, i.e. level 1 */
+  r.level = o.sigma_diag > 0 ? 1.0 : o.level;
+  r.scale = o.sigma_diag > 0 ? o.sigma_diag * r.diagonal : r.h;
+  st = bsurf_add_noise(xyz, normals, point_count, o.model, r.level, r.scale, o.seed);
+  if (st == BSURF_OK && report) *report = r;
+  return st;
 }

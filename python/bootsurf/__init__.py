@@ -1,0 +1,690 @@
+"""bootsurf: statistics for 3D point clouds, on numpy arrays.
+
+The Python front end of libbootsurf (include/bootsurf.h), which implements
+the thesis "Bootstrap Based Surface Reconstruction": bootstrap test-error
+estimates of local polynomial fits (chapter 4), normals with a confidence
+value (chapter 5), denoising (chapter 6) and feature detection (chapter 7).
+
+Every function mirrors a command of the ``bootsurf`` command line: the same
+option names (``--pca-center`` is ``pca_center=``), the same defaults, the
+same results to the last bit for the same input and seed. Points are any
+(N, 3) array-like of float32 or float64 (converted to C-contiguous float64
+with one copy only when they are not already). Clouds (``read``,
+``generate``, ``sample``) are dicts of numpy arrays: ``points`` (N, 3),
+optionally ``normals`` (N, 3) and ``faces`` (F, 3), and one (N,) array per
+named field.
+
+The library computes with the GIL released; Ctrl-C raises
+KeyboardInterrupt within a chunk of points (16384), and ``progress=`` takes
+a callable ``progress(done, total)`` (raise in it to stop). Bad arguments
+raise ValueError or TypeError with the library's message; file errors raise
+OSError naming the file and the line.
+
+Example::
+
+    import bootsurf
+    cloud = bootsurf.generate("cube", points=20000)
+    noisy = bootsurf.noise(cloud["points"], cloud["normals"], level=0.5)
+    fields, summary = bootsurf.error(noisy, bootstrap=20)
+    print(summary["means"]["err_632plus"] / summary["h"])
+"""
+
+import math as _math
+
+from . import _core
+
+__version__ = _core.version()
+
+__all__ = [
+    "Cloud", "read", "write", "knn", "spacing", "error", "normals", "smooth", "features", "generate", "noise", "sample",
+    "evaluate", "render", "__version__",
+]
+
+_GAMMAS = ("fit", "mean", "max")
+_CENTERS = ("centroid", "point")
+_SAMPLINGS = ("regular", "random")
+_MODELS = ("gaussian", "uniform")
+_PLY_NAMES = ("plain", "cloudcompare", "meshlab")
+
+
+class Cloud(dict):
+    """A point cloud or mesh: a dict of numpy arrays ('points' (N, 3), optional
+    'normals' (N, 3), 'faces' (F, 3) and one (N,) array per field).
+
+    ``shape_name`` is the generated shape the points sample ('' if none): PLY
+    keeps it as the header comment "bootsurf shape NAME", and ``render(up=
+    'auto')`` draws such clouds z-up."""
+
+    def __init__(self, *args, shape_name="", **kwargs):
+        super().__init__(*args, **kwargs)
+        self.shape_name = shape_name
+
+
+def _choice(value, names, option):
+    if value not in names:
+        raise ValueError("%s must be %s, not %r" % (option, " or ".join(names), value))
+    return names.index(value)
+
+
+def _cloud(d, shape_name):
+    return Cloud(d, shape_name=shape_name)
+
+
+def _maybe_read(x):
+    """A path (str or os.PathLike) is read; anything else is returned."""
+    if isinstance(x, str) or hasattr(x, "__fspath__"):
+        import os
+        return read(os.fspath(x))
+    return x
+
+
+def _points(x):
+    """(points, cloud or None) of an array-like or a cloud dict."""
+    x = _maybe_read(x)
+    if isinstance(x, dict):
+        return x["points"], x
+    return x, None
+
+
+# ---------------------------------------------------------------- files
+
+
+def read(path):
+    """read(path) -> Cloud
+
+    Read a cloud or mesh, like every command's INPUT: .ply (ascii or binary),
+    .pcd (PCL v0.7), .las (1.0-1.4, point formats 0-10), .csv/.asc (a header
+    line naming the columns), .xyz/.txt/.pts, .off, .obj. The format comes
+    from the content when it declares one, else from the extension.
+
+    Returns a Cloud (a dict of numpy arrays): 'points' (N, 3) as stored
+    (float32 or float64), 'normals' (N, 3) if present, 'faces' (F, 3) uint32
+    for meshes (polygons fan-triangulated), and every other per-point
+    property under its name in the type it is stored with (uint8 'feature',
+    float32 'normal_var', ...). The arrays are the library's, not copies.
+
+    Raises OSError "PATH:LINE: message" for a missing, unreadable or
+    malformed file.
+    """
+    import os
+    d, shape = _core.read(os.fspath(path))
+    return _cloud(d, shape)
+
+
+def write(path, cloud, *, ascii=False, format=None, float32=False, ply_names="plain",
+          las_version="1.4"):
+    """write(path, cloud, *, ascii=False, format=None, float32=False,
+    ply_names='plain', las_version='1.4')
+
+    Write a cloud (a dict with 'points' and optional 'normals', 'faces' and
+    per-point fields, or an (N, 3) array) atomically: a temporary file in the
+    same directory renamed into place, so a failed write leaves no partial
+    file. Each field is stored in its array's dtype (uint8, int32, float32,
+    float64, ...); float32 'points' are written as float.
+
+    Options (as the command line's):
+      ascii        write ascii PLY (default: binary little-endian)
+      format       ply pcd las csv asc xyz off obj, whatever the extension
+      float32      write double coordinates, normals and fields as float
+      ply_names    PLY field names: plain, cloudcompare (scalar_ prefix) or
+                   meshlab (+ quality)
+      las_version  LAS output: 1.4 (point formats 6-8) or 1.2 (formats 1, 3)
+
+    Formats that cannot carry every field (OFF, OBJ, XYZ) write what they
+    can. Raises OSError naming the file when it cannot be written.
+    """
+    import os
+    if not isinstance(cloud, dict):
+        cloud = {"points": cloud}
+    if las_version not in ("1.2", "1.4"):
+        raise ValueError("las_version must be 1.2 or 1.4, not %r" % (las_version,))
+    _core.write(os.fspath(path), cloud, getattr(cloud, "shape_name", ""), format, bool(ascii),
+                _choice(ply_names, _PLY_NAMES, "ply_names"), bool(float32),
+                las_version == "1.2")
+
+
+# ---------------------------------------------------------------- neighbourhoods
+
+
+def knn(points, k, *, threads=0, progress=None):
+    """knn(points, k, *, threads=0, progress=None) -> (idx, dist2)
+
+    The K nearest neighbours of every point among the points themselves
+    (exact k-d tree). Row i lists point i first, then the k-1 nearest other
+    points sorted by (squared distance, index), so duplicates of a point
+    never displace the point itself.
+
+    Returns idx (N, k) uint32 and dist2 (N, k) float64 (squared distances).
+    The same for any thread count. k must be in [1, N].
+    """
+    return _core.knn(points, int(k), int(threads), progress)
+
+
+def spacing(points, *, threads=0, progress=None):
+    """spacing(points, *, threads=0, progress=None) -> float
+
+    h, the mean distance from each point to its nearest other point: the
+    thesis's unit of noise levels and errors (4.2). Needs at least 2 points.
+    """
+    return _core.spacing(_points(points)[0], int(threads), progress)
+
+
+# ---------------------------------------------------------------- chapter 4
+
+
+def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_center="centroid",
+          seed=1, threads=0, test_sample=None, progress=None):
+    """error(points, *, neighbors=50, degree=3, bootstrap=50, gamma='fit',
+    pca_center='centroid', seed=1, threads=0, test_sample=None,
+    progress=None) -> (fields, summary)
+
+    Bootstrap test-error estimates of local polynomial fits (thesis ch. 4);
+    ``bootsurf error``.
+
+    For every point: PCA frame of its K nearest neighbours (Eq. 3.4),
+    least-squares fit of a height polynomial of degree d, B bootstrap refits
+    (Algorithm 1), and the estimators err_train (Eq. 4.6), err_boot (4.3),
+    err_loo (4.4), err_loo_center (4.11), err_632 (4.5), err_632plus
+    (4.7-4.10), gamma (the no-information rate, 4.10) and overfit_rate (R,
+    4.9). All per point in model units; the summary gives their means.
+
+    Options:
+      neighbors    neighbourhood size K, the point included (default: 50)
+      degree       degree of the height polynomial, 1..4 (default: 3)
+      bootstrap    bootstrap replicates per point, at least 1 (default: 50)
+      gamma        no-information rate: fit (Eq. 4.10), mean or max over
+                   replicates (4.2.1) (default: fit)
+      pca_center   PCA about the centroid or the point (default: centroid)
+      seed         random seed (default: 1)
+      threads      threads, 0 = all cores (default: 0); results do not
+                   depend on it
+      test_sample  the same points with independent noise ((N, 3) or a
+                   path): also err_test and err_test_center (validation)
+      progress     callable(done, total), or None
+
+    points: an (N, 3) array-like, a Cloud, or a path to read.
+
+    Returns (fields, summary): fields maps each estimator's name to an (N,)
+    float64 array; summary is {'points', 'h' (mean spacing), 'duplicates',
+    'report': {'replicates_total', 'replicates_skipped', 'degree_reduced',
+    'center_unestimated'}, 'means': {field: mean}}.
+    """
+    if int(bootstrap) < 1:
+        raise ValueError("bootstrap = %d: the bootstrap estimators need at least one replicate"
+                         % int(bootstrap))
+    test = _maybe_read(test_sample)
+    if isinstance(test, dict):
+        test = test["points"]
+    return _core.error(_points(points)[0], test, int(neighbors), int(degree), int(bootstrap),
+                       int(seed), _choice(gamma, _GAMMAS, "gamma"),
+                       _choice(pca_center, _CENTERS, "pca_center"), int(threads), progress)
+
+
+# ---------------------------------------------------------------- chapter 5
+
+_FITS = ("pca", "poly")
+_RULES = ("test-error", "mse")
+_ORIENTS = ("none", "mst")
+
+
+def _ks(select_k):
+    """select_k as a list: 'A:B:STEP' (the command line's) or a sequence."""
+    if select_k is None:
+        return None
+    if isinstance(select_k, str):
+        try:
+            a, b, step = (int(x) for x in select_k.split(":"))
+        except ValueError:
+            raise ValueError("select_k needs A:B:STEP, not %r" % select_k) from None
+        if not (3 <= a <= b and step >= 1):
+            raise ValueError("select_k needs A:B:STEP with 3 <= A <= B and STEP >= 1, not %r"
+                             % select_k)
+        return list(_builtin_range(a, b + 1, step))
+    return [int(k) for k in select_k]
+
+
+_builtin_range = range
+
+
+def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid", bootstrap=50,
+            seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="test-error",
+            noise_k=20, select_degree=None, curve=False, truth=None, smooth_iterations=0,
+            alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", progress=None):
+    """normals(points, *, neighbors=30, fit='pca', degree=2,
+    pca_center='centroid', bootstrap=50, seed=1, threads=0, test_error=False,
+    k_ref=0, select_k=None, select_rule='test-error', noise_k=20,
+    select_degree=None, curve=False, truth=None, smooth_iterations=0,
+    alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', progress=None)
+    -> (fields, summary)
+
+    Normals with bootstrap confidence and test error (thesis ch. 5);
+    ``bootsurf normals`` (bsurf_normals_job).
+
+    For every point: the normal of its K nearest neighbours (PCA plane, 2.2
+    and 5.2, or the gradient of a height polynomial, Eq. 5.9), B bootstrap
+    refits, the normalised mean of the bootstrap normals (Eq. 5.4) and
+    normal_var, the variance of their angles (Eq. 5.5): a per-point
+    confidence. normal_err is the bootstrap test error of the normal (Eq.
+    5.10, Algorithm 3) against reference PCA normals of k_ref neighbours.
+
+    Options:
+      neighbors          neighbourhood size K, the point included (30)
+      fit                pca (plane) or poly (height polynomial, Eq. 5.9)
+      degree             degree of the polynomial for fit='poly', 1..4 (2)
+      pca_center         PCA about the centroid or the point (Eq. 2.1)
+      bootstrap          bootstrap replicates; 0 = a single fit (50)
+      seed, threads      random seed (1); threads, 0 = all cores
+      test_error         also normal_err, the bootstrap test error (Eq. 5.10)
+      k_ref              neighbourhood of the reference normals (0 = K)
+      select_k           per point, the K chosen by select_rule: 'A:B:STEP'
+                         or a list of K (5.5, Algorithm 3)
+      select_rule        test-error (Eq. 5.10) or mse (estimated variance +
+                         bias^2 of the PCA normal)
+      noise_k            with select_rule='mse': the noise fits' K (20)
+      select_degree      with fit='poly': also choose the degree, e.g. [1, 2, 3]
+      curve              with select_k: return each candidate's mean errors
+                         (figs. 5.6-5.11) in summary['curve']
+      truth              (N, 3) ground-truth normals for the curve's
+                         mean_angle_err
+      smooth_iterations  bilateral normal smoothing passes (Eqs. 5.6-5.8)
+      alpha              strength of one smoothing pass (0.1)
+      sigma_d            spatial sigma of the smoothing (0 = h)
+      sigma_nu           variance sigma: a value, 'auto' (85th percentile of
+                         normal_var) or 'inf' (single Gaussian)
+      orient             none or mst (consistent orientation, Hoppe 1992)
+      progress           callable(done, total), or None
+
+    Returns (fields, summary): fields has 'normals' (N, 3) and, as
+    computed, 'normal_var', 'normal_err' (float64), 'k_selected' (uint16),
+    'degree_selected' (uint8); summary has points, h, duplicates, report,
+    means (per field), sigma_d, sigma_nu and curve (a list of rows).
+    """
+    if sigma_nu == "auto":
+        snu = _math.nan
+    elif sigma_nu == "inf":
+        snu = _math.inf
+    else:
+        snu = float(sigma_nu)
+        if not snu > 0:
+            raise ValueError("sigma_nu must be a positive number, 'auto' or 'inf'")
+    ks = _ks(select_k)
+    if curve and not ks:
+        raise ValueError("curve needs select_k")
+    ds = None if select_degree is None else [int(d) for d in select_degree]
+    pts, cloud = _points(points)
+    if truth is not None:
+        truth = _maybe_read(truth)
+        if isinstance(truth, dict):
+            truth = truth["normals"]
+    return _core.normals(pts, int(neighbors), _choice(fit, _FITS, "fit"), int(degree),
+                         _choice(pca_center, _CENTERS, "pca_center"), int(bootstrap), int(seed),
+                         int(threads), bool(test_error), int(k_ref), ks,
+                         _choice(select_rule, _RULES, "select_rule"), int(noise_k), ds,
+                         int(smooth_iterations), float(alpha), float(sigma_d), snu,
+                         _choice(orient, _ORIENTS, "orient"), bool(curve), truth, progress)
+
+
+# ---------------------------------------------------------------- chapter 6
+
+_METHODS = ("naive", "bilateral", "multipass")
+_ORDERS = ("parallel", "sequential")
+_ESTIMATORS = ("auto", "632", "632plus")
+
+
+def _length(value, option, allow_w=False):
+    """A length as the command line takes it: a number (model units), 'Xh'
+    (X times the mean spacing h, which the library knows) or, with allow_w,
+    'XW' (X times the mean error |W|). Returns (value, in_h, fraction)."""
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if not (_math.isfinite(value) and value >= 0):
+            raise ValueError("%s must be a finite length >= 0, not %r" % (option, value))
+        return float(value), False, _math.nan
+    text = str(value)
+    unit = text[-1:] if text[-1:] in ("h", "W") else ""
+    if unit == "W" and not allow_w:
+        unit = "?"
+    try:
+        x = float(text[:-1] or "1") if unit else float(text)
+    except ValueError:
+        x = _math.nan
+    if unit == "?" or not (_math.isfinite(x) and x >= 0):
+        raise ValueError("%s must be a length (e.g. 0.01 or 0.5h%s), not %r"
+                         % (option, ", or 1W" if allow_w else "", value))
+    if unit == "W":
+        return 0.0, False, x
+    return x, unit == "h", _math.nan
+
+
+def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, gamma="fit",
+           pca_center="centroid", estimator="auto", threshold="auto", h1="h", h2="auto",
+           order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on", seed=1,
+           threads=0, progress=None):
+    """smooth(points, *, method='bilateral', neighbors=50, degree=3,
+    bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
+    threshold='auto', h1='h', h2='auto', order='parallel', a=0.1,
+    iterations=300, k_min=10, k_error='auto', guard='on', seed=1, threads=0,
+    progress=None) -> (points, fields, summary)
+
+    Denoise: move points towards the bootstrap fits (thesis ch. 6);
+    ``bootsurf smooth`` (bsurf_smooth_job).
+
+    naive (6.2, Eq. 6.1): project a point onto the mean of its bootstrap fits
+    where its error W_i is below threshold. bilateral (6.3, Algorithm 4, Eq.
+    6.2): every neighbourhood's fit moves its points, weighted by distance
+    (h1) and error (h2). multipass (6.4, Algorithm 5, Eqs. 6.3-6.5): per point
+    a neighbourhood K_i shrinking with the error, fits made again each pass.
+
+    Options (lengths: a number in model units, 'Xh' in units of the mean
+    spacing h, and for h2 and k_error 'XW', X times the mean error |W|):
+      method       naive, bilateral or multipass
+      neighbors, degree, bootstrap, gamma, pca_center, seed: as error()
+      estimator    the error W_i: 632, 632plus or auto (.632+ for naive,
+                   .632 otherwise)
+      threshold    naive: a length, 'auto' (the mean W_i) or 'none' (every point)
+      h1           bilateral: distance sigma of Eq. 6.2 ('h')
+      h2           bilateral, multipass: error sigma of Eq. 6.2 ('auto' = 2W)
+      order        parallel (order-independent) or sequential (the thesis's
+                   in-place sweep, one thread)
+      a            multipass: h1 = a x d_L (Eq. 6.5)
+      iterations   multipass: passes (300)
+      k_min        multipass: the smallest neighbourhood (Eq. 6.3)
+      k_error      multipass: the error at which K_i reaches k_min (Eq. 6.4;
+                   'auto' = 3W)
+      guard        on (a fit biased at its centre by a second sheet or an
+                   edge is made again from fewer points, or moves nothing)
+                   or off (the thesis's methods as written)
+
+    Returns (points, fields, summary): the moved points (N, 3) (the input is
+    not modified), fields err_632, err_632plus, moved (and k_hat, d_local
+    for multipass), and the summary (h, estimator, means, report).
+    """
+    thr, thr_h = _math.nan, False
+    if threshold == "none":
+        thr = _math.inf
+    elif threshold != "auto":
+        thr, thr_h, _ = _length(threshold, "threshold")
+    v1, h1_h, _ = _length(h1, "h1")
+    if not v1 > 0:
+        raise ValueError("h1 must be a positive length (e.g. 0.01 or 1.5h), not %r" % (h1,))
+    v2, h2_h, f2 = (_math.nan, False, _math.nan) if h2 == "auto" else _length(h2, "h2", True)
+    ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error == "auto"
+                    else _length(k_error, "k_error", True))
+    pts, _ = _points(points)
+    return _core.smooth(pts, _choice(method, _METHODS, "method"), int(neighbors), int(degree),
+                        int(bootstrap), int(seed), _choice(gamma, _GAMMAS, "gamma"),
+                        _choice(pca_center, _CENTERS, "pca_center"),
+                        _choice(estimator, _ESTIMATORS, "estimator"), thr, thr_h, v1, h1_h, v2,
+                        h2_h, f2, _choice(order, _ORDERS, "order"), float(a), int(iterations),
+                        int(k_min), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
+                        int(threads), progress)
+
+
+# ---------------------------------------------------------------- chapter 7
+
+_FEATURE_METHODS = ("distance", "variance")
+_TAIL_RULES = ("otsu", "mad")
+
+
+def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15, k_max=60,
+             k_step=2, ratio_threshold=0.1, noise_factor=1.75, derivative=0.0, alpha=0.5,
+             iterations=5, filter_k=0, sigma_range=0.05, threshold="auto", tail_rule="otsu",
+             seed=1, threads=0, progress=None):
+    """features(points, *, method='distance', neighbors=30, bootstrap=50,
+    k_min=15, k_max=60, k_step=2, ratio_threshold=0.1, noise_factor=1.75,
+    derivative=0.0, alpha=0.5, iterations=5, filter_k=0, sigma_range=0.05,
+    threshold='auto', tail_rule='otsu', seed=1, threads=0, progress=None)
+    -> (fields, summary)
+
+    Feature detection (thesis ch. 7); ``bootsurf features``
+    (bsurf_features_job).
+
+    distance (7.1): for each point the radius of the first neighbourhood size
+    whose PCA ratio lambda0/lambda2 exceeds T_{a/c}, smoothed by a bilateral
+    filter (Eq. 7.1): feature_dist; feature = 1 near the features. variance
+    (7.2, Eq. 7.2): the bootstrap normal variance normal_var (Eq. 5.5) above
+    a threshold (the start of its tail, by Otsu's split or the MAD rule).
+
+    Options:
+      method           distance or variance
+      neighbors        variance: neighbourhood of the normals (30)
+      bootstrap        variance: bootstrap replicates, >= 2 (50)
+      k_min, k_max, k_step   distance: neighbourhood sizes (15, 60, 2)
+      ratio_threshold  distance: T_{a/c} on lambda0/lambda2 (0.1)
+      noise_factor     distance: T_{a/c} of size K = max(T, C x median
+                       f(K)) (0 = T alone) (1.75)
+      derivative       distance: threshold f + D f' instead of f (0 = off)
+      alpha            distance: bilateral filter strength (Eq. 7.1) (0.5)
+      iterations       distance: bilateral filter passes (5)
+      filter_k         distance: neighbours of the filter (0 = k_min)
+      sigma_range      distance: range sigma of the filter, fraction of max
+                       radius (0.05)
+      threshold        distance: fraction of max(feature_dist); variance:
+                       normal_var value; or 'auto'
+      tail_rule        variance auto threshold: otsu or mad
+      seed, threads, progress
+
+    Returns (fields, summary): fields 'feature' (uint8 0/1) and the score
+    ('feature_dist' or 'normal_var', float64); summary with points, h,
+    duplicates and report (threshold, feature_points, max_radius, immediate,
+    ratio_threshold_kmin).
+    """
+    thr = _math.nan if threshold == "auto" else float(threshold)
+    pts, _ = _points(points)
+    return _core.features(pts, _choice(method, _FEATURE_METHODS, "method"), int(neighbors),
+                          int(bootstrap), int(k_min), int(k_max), int(k_step),
+                          float(ratio_threshold), float(noise_factor), float(derivative),
+                          float(alpha), int(iterations), int(filter_k), float(sigma_range), thr,
+                          _choice(tail_rule, _TAIL_RULES, "tail_rule"), int(seed), int(threads),
+                          progress)
+
+
+# ---------------------------------------------------------------- data
+
+
+def generate(shape, *, points=10000, sampling="regular", seed=1, feature_width=2.0):
+    """generate(shape, *, points=10000, sampling='regular', seed=1,
+    feature_width=2.0) -> Cloud
+
+    Points on a shape with exact normals and feature labels; ``bootsurf
+    generate``. shape: sphere (radius 1), cube (edge 2, sharp edges), torus
+    (radii 1 and 0.35), plane ([-1, 1]^2 at z = 0).
+
+    Options:
+      points         number of points (regular sampling rounds it)
+      sampling       regular (even, deterministic) or random (uniform by area)
+      seed           random seed (random sampling)
+      feature_width  cube: feature = within W nominal spacings of an edge
+
+    Returns a Cloud with 'points', exact 'normals' and, for the cube,
+    'feature_dist' and 'feature'.
+    """
+    d, name = _core.generate(shape, int(points), _choice(sampling, _SAMPLINGS, "sampling"),
+                             int(seed), float(feature_width))
+    return _cloud(d, name)
+
+
+def noise(points, normals=None, *, level=0.5, sigma_diag=None, model="gaussian", seed=1,
+          threads=0, progress=None):
+    """noise(points, normals=None, *, level=0.5, sigma_diag=None,
+    model='gaussian', seed=1, threads=0, progress=None) -> points
+
+    Displace points along their normals by t*h (thesis 4.2); ``bootsurf
+    noise``. t ~ N(0, level^2) (gaussian, default) or U[-level, level]
+    (uniform, the thesis text's model); h is the input's mean
+    nearest-neighbour distance. Or, with sigma_diag=s, gaussian noise of
+    sigma = s x bounding-box diagonal (PCPNet's protocol: 0.00125, 0.006,
+    0.012). The draw of point i depends only on (seed, i).
+
+    points: (N, 3), or a Cloud (then its normals, or the true_nx true_ny
+    true_nz of an earlier noise output, are used); normals: (N, 3).
+    Returns the displaced points, a new (N, 3) float64 array (the input is
+    not modified). noise.last_report holds h, diagonal, level and scale.
+    """
+    pts, cloud = _points(points)
+    if normals is None and cloud is not None:
+        normals = cloud.get("normals")
+        if normals is None and "true_nx" in cloud:  # an earlier noise output's exact normals
+            import numpy as np
+            normals = np.stack([cloud["true_nx"], cloud["true_ny"], cloud["true_nz"]], axis=1)
+    if normals is None:
+        raise ValueError("noise moves points along their normals: give normals")
+    if sigma_diag is not None and level != 0.5:
+        raise ValueError("level and sigma_diag are exclusive (noise in units of h or of the "
+                         "diagonal)")
+    m = _choice(model, _MODELS, "model")
+    if sigma_diag is not None and m != 0:
+        raise ValueError("sigma_diag is gaussian noise; it cannot be used with model %r" % model)
+    lvl = float(level)
+    sd = 0.0
+    if sigma_diag is not None:
+        sd = float(sigma_diag)
+        if sd == 0:
+            lvl = 0.0  # sigma_diag=0: no noise, as the command line
+    out, report = _core.noise(pts, normals, m, lvl, sd, int(seed), int(threads), progress)
+    noise.last_report = report
+    return out
+
+
+noise.last_report = None
+
+
+def sample(mesh, *, points=0, sharp_angle=30.0, feature_width=2.0, seed=1, threads=0):
+    """sample(mesh, *, points=0, sharp_angle=30.0, feature_width=2.0, seed=1,
+    threads=0) -> Cloud
+
+    Points from a triangle mesh with ground-truth normals and feature labels
+    (thesis 5.2.2: vertex normals from the mesh connectivity; 7.1.2: feature
+    areas around the sharp edges); ``bootsurf sample``.
+
+    mesh: a Cloud with 'points' and 'faces' (e.g. read('fandisk.off')) or a
+    path. points=0: the mesh's vertices with area-weighted normals; points=n:
+    n points uniform by area with face normals (from seed). Both get
+    'feature_dist' (exact distance to the nearest sharp edge: faces' normals
+    differing by more than sharp_angle degrees) and 'feature' (within
+    feature_width nominal spacings sqrt(area / points) of one).
+    sample.last_report holds the mesh statistics.
+    """
+    mesh = _maybe_read(mesh)
+    d, report = _core.sample(mesh, int(points), int(seed), float(sharp_angle),
+                             float(feature_width), int(threads))
+    sample.last_report = report
+    return _cloud(d, "")
+
+
+sample.last_report = None
+
+
+# ---------------------------------------------------------------- evaluation
+
+
+def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None, split=None,
+             split_q=0.85):
+    """evaluate(normals=None, true_normals=None, *, feature=None,
+    true_feature=None, split=None, split_q=0.85) -> dict
+
+    Compare results with ground truth of the same points (``bootsurf eval``'s
+    normals and features sections).
+
+    normals: unoriented angle errors atan2(|a x b|, |a . b|) against
+    true_normals (thesis 5.2.2, Tables 5.1, 5.3-5.9): 'angles' (N,) in
+    radians and 'normals': {'all': stats} with count, mean_rad, median_rad,
+    rms_rad, mean_deg, under5deg, under10deg (PCPNet's PGP5/PGP10). With
+    split (a per-point value such as normal_var), also 'high' and 'low': the
+    points above the split_q quantile and the others (5.2.3, Table 5.2:
+    split_q = 0.85 is "the highest 15%").
+
+    feature / true_feature (0/1 per point): precision, recall and F1 (thesis
+    ch. 7) under 'features'.
+    """
+    out = {}
+    if normals is not None or true_normals is not None:
+        if normals is None or true_normals is None:
+            raise ValueError("normals and true_normals go together")
+        mask = None
+        if split is not None:
+            mask, threshold, count = _core.quantile_split(split, float(split_q))
+            out["split"] = {"q": float(split_q), "threshold": threshold, "high_points": count}
+        angles, stats = _core.eval_normals(normals, true_normals, mask)
+        out["angles"] = angles
+        out["normals"] = stats
+    if feature is not None or true_feature is not None:
+        if feature is None or true_feature is None:
+            raise ValueError("feature and true_feature go together")
+        out["features"] = _core.eval_features(feature, true_feature)
+    if not out:
+        raise ValueError("nothing to evaluate: give normals and true_normals, or feature and "
+                         "true_feature")
+    return out
+
+
+# ---------------------------------------------------------------- pictures
+
+
+def render(points, *, output=None, normals=None, field=None, colormap="viridis", range=None,
+           view=None, azimuth=None, elevation=None, up="auto", views=1, size=(1024, 768),
+           point_size=2.0, title=None, flat=False, square=False, threads=0, progress=None):
+    """render(points, *, output=None, normals=None, field=None,
+    colormap='viridis', range=None, view=None, azimuth=None, elevation=None,
+    up='auto', views=1, size=(1024, 768), point_size=2.0, title=None,
+    flat=False, square=False, threads=0, progress=None) -> image or None
+
+    Render a cloud, shaded by its normals or coloured by a field (the
+    thesis's figures); ``bootsurf render``. Orthographic, z-buffered splats
+    of point_size x h (larger in sparse regions); the same picture for any
+    thread count.
+
+    points: (N, 3), a Cloud or a path. field: the name of a field of the
+    cloud, or an (N,) array of values. Options as the command line's:
+      output      a PNG file to write (then None is returned); without it
+                  the (height, width, 3) uint8 image is returned
+      colormap    viridis, magma, gray or coolwarm
+      range       (lo, hi) at the colormap's ends (default: 1st-99th
+                  percentile)
+      view        front, back, left, right, top, bottom or iso (default iso)
+      azimuth, elevation   the view direction in degrees instead
+      up          x, y, z or auto (z for generated shapes, else y)
+      views       1, or 4 for front, right, top and iso in a 2x2 grid
+      size        (width, height) in pixels
+      point_size  splat diameter in units of h
+      title, flat (no shading of field colours), square (square splats)
+    render.last_info holds the value range used, h and the covered pixels.
+    """
+    pts, cloud = _points(points)
+    shape_name = getattr(cloud, "shape_name", "") if cloud is not None else ""
+    if normals is None and cloud is not None:
+        normals = cloud.get("normals")
+    label = None
+    values = None
+    if field is not None:
+        if isinstance(field, str):
+            if cloud is None or field not in cloud:
+                have = ", ".join(k for k in (cloud or {}) if k not in ("points", "normals",
+                                                                       "faces")) or "none"
+                raise ValueError("no field '%s'; available fields: %s" % (field, have))
+            label, values = field, cloud[field]
+        else:
+            values = field
+    if view is not None and (azimuth is not None or elevation is not None):
+        raise ValueError("give view or azimuth/elevation, not both")
+    if views not in (1, 4):
+        raise ValueError("views must be 1 or 4, not %r" % (views,))
+    w, h = size
+    if not (64 <= int(w) <= 8192 and 64 <= int(h) <= 8192):
+        raise ValueError("size needs (width, height) with each in 64..8192, not %r" % (size,))
+    lo = hi = _math.nan
+    if range is not None:
+        lo, hi = float(range[0]), float(range[1])
+        if not (_math.isfinite(lo) and _math.isfinite(hi) and hi > lo):
+            raise ValueError("range needs (lo, hi) with lo < hi, not %r" % (range,))
+    import os
+    img, info = _core.render(pts, normals, values, None if output is None else os.fspath(output),
+                             colormap, view,
+                             _math.nan if azimuth is None else float(azimuth),
+                             _math.nan if elevation is None else float(elevation), up,
+                             shape_name, int(views), int(w), int(h), float(point_size), lo, hi,
+                             title, label, bool(flat), bool(square), int(threads), progress)
+    render.last_info = info
+    return img
+
+
+render.last_info = None

@@ -1,0 +1,370 @@
+"""The Python package against the command line (same input, same seed: the
+same bits), input conversions, determinism, interrupts, threads, bad input.
+
+Run through ctest (tests/python/run.sh): PYTHONPATH holds build/python,
+BSURF_CLI the bootsurf binary, BSURF_PY_TMP a scratch directory."""
+import json
+import os
+import signal
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import bootsurf
+
+CLI = os.environ.get("BSURF_CLI", "bootsurf")
+TMP = os.environ.get("BSURF_PY_TMP") or "/tmp"
+
+
+def tmp(name):
+    return os.path.join(TMP, name)
+
+
+def cli(*args):
+    """Runs the CLI; returns its JSON summary when --json is among args."""
+    r = subprocess.run([CLI] + [str(a) for a in args], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    return json.loads(r.stdout) if "--json" in args else None
+
+
+def true_normals(cloud):
+    """The exact normals a CLI noise output carries as true_nx true_ny true_nz."""
+    return np.stack([cloud["true_nx"], cloud["true_ny"], cloud["true_nz"]], axis=1)
+
+
+def same_bits(a, b):
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape and a.dtype == b.dtype, (a.shape, b.shape, a.dtype, b.dtype)
+    assert a.tobytes() == b.tobytes()
+
+
+@pytest.fixture(scope="module")
+def cube():
+    """A noisy cube written by the CLI (generate, then noise) and read back."""
+    cli("generate", "cube", "-n", 3000, "-o", tmp("cube.ply"), "-q")
+    cli("noise", tmp("cube.ply"), "--level", 0.5, "--seed", 3, "-o", tmp("noisy.ply"), "-q")
+    return bootsurf.read(tmp("noisy.ply"))
+
+
+# ------------------------------------------------------------ the CLI's bits
+
+
+def test_generate_and_noise_equal_cli(cube):
+    c = bootsurf.generate("cube", points=3000)
+    ref = bootsurf.read(tmp("cube.ply"))
+    same_bits(c["points"], ref["points"])
+    same_bits(c["feature"], ref["feature"])
+    assert c.shape_name == ref.shape_name == "cube"
+    noisy = bootsurf.noise(c, level=0.5, seed=3)
+    same_bits(noisy, cube["points"])
+    assert bootsurf.noise.last_report["h"] == pytest.approx(bootsurf.spacing(c["points"]),
+                                                            abs=0)
+
+
+def test_noise_sigma_diag_equals_cli():
+    cli("noise", tmp("cube.ply"), "--sigma-diag", 0.006, "--seed", 5, "-o", tmp("pcp.ply"), "-q")
+    c = bootsurf.read(tmp("cube.ply"))
+    same_bits(bootsurf.noise(c, sigma_diag=0.006, seed=5), bootsurf.read(tmp("pcp.ply"))["points"])
+
+
+def test_error_equals_cli(cube):
+    summ = cli("error", tmp("noisy.ply"), "-k", 20, "-B", 10, "--seed", 7, "-o", tmp("err.ply"),
+               "--json")
+    ref = bootsurf.read(tmp("err.ply"))
+    fields, s = bootsurf.error(cube["points"], neighbors=20, bootstrap=10, seed=7)
+    assert set(fields) == set(s["means"])
+    for name, values in fields.items():
+        # the CLI writes the fields as float32: the same doubles rounded
+        same_bits(values.astype(np.float32), ref[name])
+        # the CLI prints %.10g of the library's numbers
+        assert float("%.10g" % s["means"][name]) == summ["mean"][name]
+    assert float("%.10g" % s["h"]) == summ["h"]
+    assert s["points"] == summ["points"]
+    for key in ("replicates_total", "replicates_skipped", "degree_reduced",
+                "center_unestimated"):
+        assert s["report"][key] == summ[key]
+
+
+def test_normals_equal_cli(cube):
+    cli("normals", tmp("noisy.ply"), "-k", 20, "-B", 8, "--test-error", "-o", tmp("nrm.ply"),
+        "-q")
+    ref = bootsurf.read(tmp("nrm.ply"))
+    fields, s = bootsurf.normals(tmp("noisy.ply"), neighbors=20, bootstrap=8, test_error=True)
+    same_bits(fields["normals"].astype(np.float32), ref["normals"].astype(np.float32))
+    same_bits(fields["normal_var"].astype(np.float32), ref["normal_var"])
+    same_bits(fields["normal_err"].astype(np.float32), ref["normal_err"])
+
+
+def test_smooth_equals_cli(cube):
+    for method, extra in (("bilateral", []), ("naive", ["--threshold", "0.5h"]),
+                          ("multipass", ["--iterations", 3, "--h2", "1W"])):
+        cli("smooth", tmp("noisy.ply"), "--method", method, "-k", 20, "-B", 8, *extra, "-o",
+            tmp("sm.ply"), "-q")
+        ref = bootsurf.read(tmp("sm.ply"))
+        kw = {"threshold": "0.5h"} if method == "naive" else {}
+        if method == "multipass":
+            kw = {"iterations": 3, "h2": "1W"}
+        pts, fields, s = bootsurf.smooth(cube, method=method, neighbors=20, bootstrap=8, **kw)
+        same_bits(pts, ref["points"])
+        for name in fields:
+            same_bits(fields[name].astype(np.float32), ref[name])
+
+
+def test_features_equal_cli(cube):
+    for method in ("distance", "variance"):
+        cli("features", tmp("noisy.ply"), "--method", method, "-B", 8, "-o", tmp("ft.ply"), "-q")
+        ref = bootsurf.read(tmp("ft.ply"))
+        fields, s = bootsurf.features(cube, method=method, bootstrap=8)
+        same_bits(fields["feature"], ref["feature"])
+        score = "feature_dist" if method == "distance" else "normal_var"
+        same_bits(fields[score].astype(np.float32), ref[score])
+        assert s["report"]["feature_points"] == int(ref["feature"].sum())
+
+
+def test_render_equals_cli(cube):
+    cli("render", tmp("noisy.ply"), "--size", "160x120", "-o", tmp("cli.png"), "-q")
+    bootsurf.render(tmp("noisy.ply"), size=(160, 120), output=tmp("py.png"))
+    with open(tmp("cli.png"), "rb") as a, open(tmp("py.png"), "rb") as b:
+        assert a.read() == b.read()
+    img = bootsurf.render(cube, size=(160, 120))
+    assert img.shape == (120, 160, 3) and img.dtype == np.uint8
+    assert bootsurf.render.last_info["covered_pixels"] > 0
+    # a field, four views
+    cli("render", tmp("err.ply"), "--field", "err_632", "--views", 4, "--size", "200x160", "-o",
+        tmp("cli4.png"), "-q")
+    bootsurf.render(tmp("err.ply"), field="err_632", views=4, size=(200, 160),
+                    output=tmp("py4.png"))
+    with open(tmp("cli4.png"), "rb") as a, open(tmp("py4.png"), "rb") as b:
+        assert a.read() == b.read()
+
+
+def test_sample_equals_cli():
+    # a tetrahedron: four sharp edges at every vertex
+    mesh = {"points": np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float),
+            "faces": np.array([[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], np.uint32)}
+    bootsurf.write(tmp("tet.off"), mesh)
+    cli("sample", tmp("tet.off"), "-n", 800, "--seed", 2, "-o", tmp("tet.ply"), "-q")
+    ref = bootsurf.read(tmp("tet.ply"))
+    s = bootsurf.sample(tmp("tet.off"), points=800, seed=2)
+    for key in ref:
+        same_bits(s[key].astype(ref[key].dtype), ref[key])
+    assert bootsurf.sample.last_report["sharp_edges"] == 6
+
+
+def test_read_write_round_trip(cube):
+    for ext in ("ply", "pcd", "csv", "las"):
+        d = bootsurf.Cloud(cube)
+        d["score"] = np.arange(len(d["points"]), dtype=np.float32)
+        d["label"] = (np.arange(len(d["points"])) % 3).astype(np.uint8)
+        bootsurf.write(tmp("rt." + ext), d)
+        r = bootsurf.read(tmp("rt." + ext))
+        assert np.array_equal(r["label"], d["label"]), ext
+        assert np.array_equal(r["score"], d["score"]), ext
+        if ext != "las":  # LAS stores scaled integer coordinates
+            same_bits(r["points"], d["points"])
+    bootsurf.write(tmp("rt.xyz"), cube["points"])
+    assert np.allclose(bootsurf.read(tmp("rt.xyz"))["points"], cube["points"])
+
+
+def test_evaluate_uses_eval_numbers(cube):
+    fields, _ = bootsurf.normals(cube, neighbors=20, bootstrap=8)
+    truth = bootsurf.read(tmp("cube.ply"))
+    bootsurf.write(tmp("res.ply"), {"points": cube["points"], "normals": fields["normals"],
+                                    "normal_var": fields["normal_var"]})
+    bootsurf.write(tmp("truth.ply"), truth)
+    summ = cli("eval", tmp("res.ply"), "--truth", tmp("truth.ply"), "--split", "normal_var:0.85", "--json")
+    # float64 arrays are written as float64: the CLI reads the same numbers
+    e = bootsurf.evaluate(fields["normals"], truth["normals"], split=fields["normal_var"],
+                          feature=truth["feature"], true_feature=truth["feature"])
+    assert float("%.10g" % e["normals"]["all"]["mean_deg"]) == summ["normals"]["mean_deg"]
+    assert float("%.10g" % e["split"]["threshold"]) == summ["split"]["threshold"]
+    high = summ["split"]["high"]
+    assert e["normals"]["high"]["count"] == high["points"]
+    assert float("%.10g" % e["normals"]["high"]["mean_rad"]) == high["normals"]["mean_rad"]
+    assert e["features"]["f1"] == 1.0
+
+
+def _find(obj, key):
+    if isinstance(obj, dict):
+        if key in obj:
+            return obj[key]
+        for v in obj.values():
+            r = _find(v, key)
+            if r is not None:
+                return r
+    return None
+
+
+# ------------------------------------------------------------ conversions
+
+
+def test_float32_and_non_contiguous(cube):
+    p = cube["points"]
+    ref, _ = bootsurf.error(p, neighbors=15, bootstrap=5)
+    f32 = p.astype(np.float32)
+    a, _ = bootsurf.error(f32, neighbors=15, bootstrap=5)
+    b, _ = bootsurf.error(f32.astype(np.float64), neighbors=15, bootstrap=5)
+    same_bits(a["err_632"], b["err_632"])
+    big = np.zeros((len(p), 5))
+    big[:, 1:4] = p
+    strided = big[:, 1:4]
+    assert not strided.flags.c_contiguous
+    c, _ = bootsurf.error(strided, neighbors=15, bootstrap=5)
+    same_bits(c["err_632"], ref["err_632"])
+    d, _ = bootsurf.error(np.asfortranarray(p), neighbors=15, bootstrap=5)
+    same_bits(d["err_632"], ref["err_632"])
+    e, _ = bootsurf.error(p.tolist(), neighbors=15, bootstrap=5)
+    same_bits(e["err_632"], ref["err_632"])
+
+
+def test_threads_do_not_change_results(cube):
+    a, sa = bootsurf.error(cube, neighbors=20, bootstrap=10, threads=1)
+    b, sb = bootsurf.error(cube, neighbors=20, bootstrap=10, threads=2)
+    for k in a:
+        same_bits(a[k], b[k])
+    assert sa == sb
+    na, _ = bootsurf.normals(cube, bootstrap=10, threads=1)
+    nb, _ = bootsurf.normals(cube, bootstrap=10, threads=2)
+    for k in na:
+        same_bits(na[k], nb[k])
+    pa, fa, _ = bootsurf.smooth(cube, neighbors=20, bootstrap=8, threads=1)
+    pb, fb, _ = bootsurf.smooth(cube, neighbors=20, bootstrap=8, threads=2)
+    same_bits(pa, pb)
+    ga, _ = bootsurf.features(cube, method="variance", bootstrap=8, threads=1)
+    gb, _ = bootsurf.features(cube, method="variance", bootstrap=8, threads=2)
+    same_bits(ga["normal_var"], gb["normal_var"])
+    ia, da = bootsurf.knn(cube["points"], 8, threads=1)
+    ib, db = bootsurf.knn(cube["points"], 8, threads=2)
+    same_bits(ia, ib)
+    same_bits(da, db)
+
+
+def test_two_python_threads_at_once(cube):
+    p = cube["points"]
+    q = bootsurf.noise(p, true_normals(cube), seed=9)
+    want = [bootsurf.error(x, neighbors=20, bootstrap=10)[0]["err_632plus"] for x in (p, q)]
+    got = [None, None]
+
+    def run(i, x):
+        for _ in range(3):
+            got[i] = bootsurf.error(x, neighbors=20, bootstrap=10)[0]["err_632plus"]
+
+    ts = [threading.Thread(target=run, args=(i, x)) for i, x in enumerate((p, q))]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join()
+    for w, g in zip(want, got):
+        same_bits(w, g)
+
+
+# ------------------------------------------------------------ interrupts, progress
+
+
+def test_keyboard_interrupt_on_a_million_points():
+    """SIGINT from a timer thread while error runs on 1M points: the library
+    is cancelled at its next progress callback (every 4096 points) and
+    KeyboardInterrupt comes within a second -- on a machine shared by many
+    jobs, within the time the library takes between two callbacks (the
+    longest gap seen), which is what the mechanism can promise. The k-d tree
+    build reports no progress, so the signal is sent once the estimation has
+    begun (the callbacks' count restarts after the neighbour search)."""
+    pts = bootsurf.generate("sphere", points=1000000, sampling="random", seed=4)["points"]
+    calls = []
+    sent = []
+
+    def progress(done, total):
+        now = time.monotonic()
+        if calls and done < calls[-1][1] and not sent:
+            # the second phase (estimation) has started: interrupt after its first chunk
+            threading.Timer(0.05, lambda: (sent.append(time.monotonic()),
+                                           os.kill(os.getpid(), signal.SIGINT))).start()
+        calls.append((now, done))
+
+    with pytest.raises(KeyboardInterrupt):
+        bootsurf.error(pts, progress=progress)
+    latency = time.monotonic() - sent[0]
+    gaps = [b[0] - a[0] for a, b in zip(calls, calls[1:])]
+    print("KeyboardInterrupt %.3f s after SIGINT; longest gap between callbacks %.3f s"
+          % (latency, max(gaps)))
+    assert latency < max(1.0, 1.5 * max(gaps)), (latency, max(gaps))
+    assert calls[-1][1] < len(pts)  # stopped early
+    # the interpreter is usable and the library too
+    f, s = bootsurf.error(pts[:2000], neighbors=20, bootstrap=5)
+    assert s["points"] == 2000 and np.isfinite(f["err_632"]).all()
+
+
+def test_progress_callable_and_its_exception(cube):
+    seen = []
+    bootsurf.error(cube, neighbors=20, bootstrap=5, progress=lambda d, t: seen.append((d, t)))
+    assert seen and seen[-1][0] == seen[-1][1]
+
+    class Stop(Exception):
+        pass
+
+    def stop(done, total):
+        raise Stop()
+
+    with pytest.raises(Stop):
+        bootsurf.normals(cube, progress=stop)
+
+
+# ------------------------------------------------------------ bad input
+
+
+def test_bad_input(cube):
+    p = cube["points"]
+    with pytest.raises(ValueError, match=r"shape \(N, 3\)"):
+        bootsurf.error(np.zeros((10, 2)))
+    with pytest.raises(TypeError, match="float32 or float64"):
+        bootsurf.error(np.array([["a", "b", "c"]]))
+    with pytest.raises(TypeError):
+        bootsurf.error(np.zeros((10, 3), dtype=complex))
+    q = p.copy()
+    q[7, 1] = np.nan
+    with pytest.raises(ValueError, match="point 7"):
+        bootsurf.error(q)
+    with pytest.raises(ValueError, match="fewer than K|exceeds"):
+        bootsurf.error(p[:20])
+    with pytest.raises(ValueError, match=r"k = 9"):
+        bootsurf.knn(p[:8], 9)
+    with pytest.raises(ValueError, match="gamma"):
+        bootsurf.error(p, gamma="median")
+    with pytest.raises(ValueError, match="too small for degree"):
+        bootsurf.error(p, neighbors=5)
+    with pytest.raises(ValueError):
+        bootsurf.error(p, bootstrap=0)
+    with pytest.raises(ValueError, match="normals"):
+        bootsurf.noise(p)
+    with pytest.raises(ValueError, match="shape"):
+        bootsurf.generate("dodecahedron")
+    with pytest.raises(ValueError, match="h1"):
+        bootsurf.smooth(p, h1="2W")
+    with pytest.raises(ValueError, match="method"):
+        bootsurf.features(p, method="curvature")
+    with pytest.raises(ValueError, match="select_k"):
+        bootsurf.normals(p, select_k="30:10:1")
+    with pytest.raises(OSError, match="nonexistent.ply"):
+        bootsurf.read(tmp("nonexistent.ply"))
+    with open(tmp("bad.ply"), "w") as f:
+        f.write("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                "property float z\nend_header\n1 2 3\n1 2\n")
+    with pytest.raises(OSError, match=r"bad.ply:9:"):
+        bootsurf.read(tmp("bad.ply"))
+    with pytest.raises(OSError):
+        bootsurf.write(os.path.join(TMP, "no-such-dir", "x.ply"), p)
+    # the input is never modified
+    before = p.copy()
+    bootsurf.noise(p, true_normals(cube))
+    same_bits(p, before)
+
+
+def test_help_reads_like_the_cli():
+    doc = bootsurf.error.__doc__
+    for word in ("neighbors", "degree", "bootstrap", "gamma", "pca_center", "seed", "threads",
+                 "(4.3)", "4.11", "err_632plus"):
+        assert word in doc
+    assert "Eq. 5.5" in bootsurf.normals.__doc__
