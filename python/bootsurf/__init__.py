@@ -422,17 +422,18 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
 # ---------------------------------------------------------------- chapter 7
 
 _FEATURE_METHODS = ("distance", "variance")
-_TAIL_RULES = ("otsu", "mad")
+_TAIL_RULES = ("otsu", "mad", "null")  # BSURF_TAIL_OTSU, _MAD, _NULL
 
 
 def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15, k_max=60,
              k_step=2, ratio_threshold=0.1, noise_factor=1.75, derivative=0.0, alpha=0.5,
-             iterations=5, filter_k=0, sigma_range=0.05, threshold="auto", tail_rule="otsu",
-             seed=1, threads=0, progress=None):
+             iterations=5, filter_k=0, sigma_range=0.05, threshold="auto", tail_rule="null",
+             false_positive_rate=0.01, variance_filter_k=0, seed=1, threads=0, progress=None):
     """features(points, *, method='distance', neighbors=30, bootstrap=50,
     k_min=15, k_max=60, k_step=2, ratio_threshold=0.1, noise_factor=1.75,
     derivative=0.0, alpha=0.5, iterations=5, filter_k=0, sigma_range=0.05,
-    threshold='auto', tail_rule='otsu', seed=1, threads=0, progress=None)
+    threshold='auto', tail_rule='null', false_positive_rate=0.01,
+    variance_filter_k=0, seed=1, threads=0, progress=None)
     -> (fields, summary)
 
     Feature detection (thesis ch. 7); ``bootsurf features``
@@ -441,8 +442,13 @@ def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15,
     distance (7.1): for each point the radius of the first neighbourhood size
     whose PCA ratio lambda0/lambda2 exceeds T_{a/c}, smoothed by a bilateral
     filter (Eq. 7.1): feature_dist; feature = 1 near the features. variance
-    (7.2, Eq. 7.2): the bootstrap normal variance normal_var (Eq. 5.5) above
-    a threshold (the start of its tail, by Otsu's split or the MAD rule).
+    (7.2, Eq. 7.2): the bootstrap normal variance (Eq. 5.5) above a
+    threshold. The default automatic rule (tail_rule='null') tests the
+    normalised, median-filtered variance z = median(nu tr / s^2) against the
+    same score on a simulated flat patch at the cloud's measured noise, at
+    false_positive_rate, and splits by Otsu on log z above that
+    (docs/features.md); the score field is then 'variance_z'. 'otsu' and
+    'mad' split log normal_var (the score field 'normal_var').
 
     Options:
       method           distance or variance
@@ -460,13 +466,19 @@ def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15,
                        radius (0.05)
       threshold        distance: fraction of max(feature_dist); variance:
                        normal_var value; or 'auto'
-      tail_rule        variance auto threshold: otsu or mad
+      tail_rule        variance auto threshold: null (test against a flat
+                       patch at the measured noise), otsu or mad (on log
+                       normal_var) (null)
+      false_positive_rate  variance, rule null: share of a flat area
+                       flagged (0.01)
+      variance_filter_k    variance, rule null: neighbours of the median
+                       filter (0 = K/2, 1 = none) (0)
       seed, threads, progress
 
     Returns (fields, summary): fields 'feature' (uint8 0/1) and the score
-    ('feature_dist' or 'normal_var', float64); summary with points, h,
-    duplicates and report (threshold, feature_points, max_radius, immediate,
-    ratio_threshold_kmin).
+    ('feature_dist', 'variance_z' or 'normal_var', float64); summary with
+    points, h, duplicates and report (threshold, feature_points, max_radius,
+    immediate, ratio_threshold_kmin, noise_level).
     """
     thr = _math.nan if threshold == "auto" else float(threshold)
     pts, _ = _points(points)
@@ -474,8 +486,9 @@ def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15,
                           int(bootstrap), int(k_min), int(k_max), int(k_step),
                           float(ratio_threshold), float(noise_factor), float(derivative),
                           float(alpha), int(iterations), int(filter_k), float(sigma_range), thr,
-                          _choice(tail_rule, _TAIL_RULES, "tail_rule"), int(seed), int(threads),
-                          progress)
+                          _choice(tail_rule, _TAIL_RULES, "tail_rule"),
+                          float(false_positive_rate), int(variance_filter_k), int(seed),
+                          int(threads), progress)
 
 
 # ---------------------------------------------------------------- data

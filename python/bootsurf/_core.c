@@ -785,10 +785,11 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   bsurf_feature_options o = bsurf_feature_options_default();
   int method, rule;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OiiiiiiddddiiddiKiO", &pts, &method, &o.normals.k,
+  if (!PyArg_ParseTuple(args, "OiiiiiiddddiiddidiKiO", &pts, &method, &o.normals.k,
                         &o.normals.bootstrap, &o.k_min, &o.k_max, &o.k_step, &o.ratio_threshold,
                         &o.noise_factor, &o.derivative, &o.alpha, &o.iterations, &o.filter_k,
-                        &o.sigma_range, &o.threshold, &rule, &seed, &o.threads, &progress))
+                        &o.sigma_range, &o.threshold, &rule, &o.false_positive_rate,
+                        &o.variance_filter_k, &seed, &o.threads, &progress))
     return NULL;
   o.method = (bsurf_feature_method)method;
   o.tail_rule = (bsurf_tail_rule)rule;
@@ -821,11 +822,12 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   if (st != BSURF_OK) return fail(st, &c, NULL, NULL);
   if (!fields) return NULL;
   const bsurf_feature_report *r = &s.report;
-  PyObject *sum = Py_BuildValue(
-      "{s:n,s:d,s:n,s:{s:d,s:n,s:d,s:n,s:d}}", "points", (Py_ssize_t)s.points, "h", s.h,
-      "duplicates", (Py_ssize_t)s.duplicates, "report", "threshold", r->threshold, "feature_points",
-      (Py_ssize_t)r->feature_points, "max_radius", r->max_radius, "immediate",
-      (Py_ssize_t)r->immediate, "ratio_threshold_kmin", r->ratio_threshold_kmin);
+  PyObject *sum =
+      Py_BuildValue("{s:n,s:d,s:n,s:{s:d,s:n,s:d,s:n,s:d,s:d}}", "points", (Py_ssize_t)s.points,
+                    "h", s.h, "duplicates", (Py_ssize_t)s.duplicates, "report", "threshold",
+                    r->threshold, "feature_points", (Py_ssize_t)r->feature_points, "max_radius",
+                    r->max_radius, "immediate", (Py_ssize_t)r->immediate, "ratio_threshold_kmin",
+                    r->ratio_threshold_kmin, "noise_level", r->noise_level);
   if (!sum) {
     Py_DECREF(fields);
     return NULL;

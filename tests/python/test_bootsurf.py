@@ -114,12 +114,14 @@ def test_smooth_equals_cli(cube):
 
 
 def test_features_equal_cli(cube):
-    for method in ("distance", "variance"):
-        cli("features", tmp("noisy.ply"), "--method", method, "-B", 8, "-o", tmp("ft.ply"), "-q")
+    for method, rule, score in (("distance", "null", "feature_dist"),
+                                ("variance", "null", "variance_z"),
+                                ("variance", "otsu", "normal_var")):
+        cli("features", tmp("noisy.ply"), "--method", method, "--tail-rule", rule, "-B", 8,
+            "-o", tmp("ft.ply"), "-q")
         ref = bootsurf.read(tmp("ft.ply"))
-        fields, s = bootsurf.features(cube, method=method, bootstrap=8)
+        fields, s = bootsurf.features(cube, method=method, tail_rule=rule, bootstrap=8)
         same_bits(fields["feature"], ref["feature"])
-        score = "feature_dist" if method == "distance" else "normal_var"
         same_bits(fields[score].astype(np.float32), ref[score])
         assert s["report"]["feature_points"] == int(ref["feature"].sum())
 
@@ -235,7 +237,7 @@ def test_threads_do_not_change_results(cube):
     same_bits(pa, pb)
     ga, _ = bootsurf.features(cube, method="variance", bootstrap=8, threads=1)
     gb, _ = bootsurf.features(cube, method="variance", bootstrap=8, threads=2)
-    same_bits(ga["normal_var"], gb["normal_var"])
+    same_bits(ga["variance_z"], gb["variance_z"])
     ia, da = bootsurf.knn(cube["points"], 8, threads=1)
     ib, db = bootsurf.knn(cube["points"], 8, threads=2)
     same_bits(ia, ib)
