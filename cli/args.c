@@ -52,13 +52,18 @@ int cli_choice(const char *value, const char *const *names, int count) {
   return -1;
 }
 
+int cli_parse_one(const cli_command *cmd, const cli_option *opts, int nopts, int argc, char **argv,
+                  char **arg, const char *what) {
+  int npos;
+  int rc = cli_parse(cmd, opts, nopts, argc, argv, arg, 1, &npos);
+  if (rc != CLI_PARSED) return rc;
+  if (npos != 1) return cli_usage_error(cmd, "expected one %s", what);
+  return CLI_PARSED;
+}
+
 int cli_parse_input(const cli_command *cmd, const cli_option *opts, int nopts, int argc,
                     char **argv, char **input) {
-  int npos;
-  int rc = cli_parse(cmd, opts, nopts, argc, argv, input, 1, &npos);
-  if (rc != CLI_PARSED) return rc;
-  if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
-  return CLI_PARSED;
+  return cli_parse_one(cmd, opts, nopts, argc, argv, input, "INPUT file");
 }
 
 int cli_pca_center(const cli_command *cmd, const char *text, bsurf_pca_center *out) {

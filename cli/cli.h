@@ -91,6 +91,13 @@ bsurf_status cli_write_png_to(const char *path, const uint8_t *rgb, int w, int h
 /* For every command that reads clouds: cli_read_cloud() then drops points
  * with a NaN or infinite coordinate or normal instead of rejecting the file. */
 extern int cli_drop_invalid;
+/* option rows that several commands share (one text each) */
+#define CLI_OPT_IMAGE(out)                                                                         \
+  { 'o', "output", ARG_STRING, &(out), "IMAGE", "output PNG file", 1, 0 }
+#define CLI_OPT_COLORMAP(cmap)                                                                     \
+  { 0, "colormap", ARG_STRING, &(cmap), "MAP", "viridis, magma, gray or coolwarm", 1, 0 }
+#define CLI_OPT_FORCE_SAME(force)                                                                  \
+  { 0, "force", ARG_FLAG, &(force), "", "allow the output to be the input file", 1, 0 }
 #define CLI_OPT_DROP_INVALID                                                                       \
   {                                                                                                \
     0, "drop-invalid", ARG_FLAG, &cli_drop_invalid, "",                                            \
@@ -163,6 +170,10 @@ void cli_warn(const char *fmt, ...)
 /* Picks `value` from a list of names; returns its index or -1. */
 int cli_choice(const char *value, const char *const *names, int count);
 /* cli_parse for a command with exactly one INPUT: *input = it. */
+/* cli_parse with exactly one positional argument, WHAT in the message
+ * ("expected one WHAT") */
+int cli_parse_one(const cli_command *cmd, const cli_option *opts, int nopts, int argc, char **argv,
+                  char **arg, const char *what);
 int cli_parse_input(const cli_command *cmd, const cli_option *opts, int nopts, int argc,
                     char **argv, char **input);
 /* --pca-center (centroid, point) and --gamma (fit, mean, max): 0, or the

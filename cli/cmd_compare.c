@@ -17,10 +17,10 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
   ro.width = 512;
   ro.height = 512;
   cli_option opts[] = {
-      {'o', "output", ARG_STRING, &output, "IMAGE", "output PNG file", 1, 0},
+      CLI_OPT_IMAGE(output),
       {0, "field", ARG_STRING, &field, "NAME", "colour by this field (default: shade by normals)",
        1, 0},
-      {0, "colormap", ARG_STRING, &cmap, "MAP", "viridis, magma, gray or coolwarm", 1, 0},
+      CLI_OPT_COLORMAP(cmap),
       {0, "range", ARG_STRING, &range, "LO:HI",
        "values at the colormap's ends (default: 1st-99th percentile of all inputs)", 1, 0},
       {0, "titles", ARG_STRING, &titles, "A,B,...", "panel titles (default: the file names)", 1, 0},

@@ -506,10 +506,9 @@ int cmd_eval(const cli_command *cmd, int argc, char **argv) {
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
-  int npos;
-  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
+  int rc =
+      cli_parse_one(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, "RESULT file");
   if (rc != CLI_PARSED) return rc;
-  if (npos != 1) return cli_usage_error(cmd, "expected one RESULT file");
   if (!truth_path) return cli_usage_error(cmd, "missing --truth TRUTH");
   char split_field[BSURF_FIELD_NAME_MAX];
   double split_q = 0;

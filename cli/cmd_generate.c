@@ -22,10 +22,9 @@ int cmd_generate(const cli_command *cmd, int argc, char **argv) {
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
-  int npos;
-  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
+  int rc = cli_parse_one(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos,
+                         "SHAPE (sphere, cube, torus, plane)");
   if (rc != CLI_PARSED) return rc;
-  if (npos != 1) return cli_usage_error(cmd, "expected one SHAPE (sphere, cube, torus, plane)");
   bsurf_shape shape;
   if (bsurf_shape_from_name(pos[0], &shape) != 0)
     return cli_usage_error(cmd, "unknown shape '%s' (sphere, cube, torus, plane)", pos[0]);

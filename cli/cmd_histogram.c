@@ -10,7 +10,7 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
   const char *output = NULL, *field = NULL, *size = NULL, *range = NULL, *title = NULL;
   int json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
-      {'o', "output", ARG_STRING, &output, "IMAGE", "output PNG file", 1, 0},
+      CLI_OPT_IMAGE(output),
       {0, "field", ARG_STRING, &field, "NAME", "the field to count (required)", 1, 0},
       {0, "bins", ARG_INT, &ho.bins, "N", "number of bins", 1, 10000},
       {0, "threshold", ARG_DOUBLE, &ho.threshold, "T",
@@ -19,15 +19,13 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
       {0, "range", ARG_STRING, &range, "LO:HI", "the x range (default: min to max)", 1, 0},
       {0, "size", ARG_STRING, &size, "WxH", "image size in pixels (default: 800x500)", 1, 0},
       {0, "title", ARG_STRING, &title, "TEXT", "a title at the top", 1, 0},
-      {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
+      CLI_OPT_FORCE_SAME(force),
       CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
-  int npos;
-  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
+  int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
-  if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
   if (!output) return cli_usage_error(cmd, "-o IMAGE.png is required");
   if (!field) return cli_usage_error(cmd, "--field NAME is required");
   if (size && render_parse_size(cmd, size, &ho.width, &ho.height)) return CLI_USAGE;

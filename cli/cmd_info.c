@@ -17,10 +17,8 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
-  int npos;
-  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
+  int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
-  if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
   double t0 = cli_now();
   bsurf_cloud c;
   bsurf_cloud_init(&c);

@@ -38,10 +38,8 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
-  int npos;
-  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
+  int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
-  if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
   static const char *const models[] = {"gaussian", "uniform"};
   int m = cli_choice(model, models, 2);
   if (m < 0) return cli_usage_error(cmd, "--model must be gaussian or uniform, not '%s'", model);

@@ -104,10 +104,10 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
   double az = NAN, el = NAN;
   int views = 1, json = 0, quiet = 0, force = 0, flat = 0, square = 0;
   cli_option opts[] = {
-      {'o', "output", ARG_STRING, &output, "IMAGE", "output PNG file", 1, 0},
+      CLI_OPT_IMAGE(output),
       {0, "field", ARG_STRING, &field, "NAME", "colour by this field (default: shade by normals)",
        1, 0},
-      {0, "colormap", ARG_STRING, &cmap, "MAP", "viridis, magma, gray or coolwarm", 1, 0},
+      CLI_OPT_COLORMAP(cmap),
       {0, "range", ARG_STRING, &range, "LO:HI",
        "values at the colormap's ends (default: 1st-99th percentile)", 1, 0},
       {0, "view", ARG_STRING, &view, "VIEW",
@@ -129,15 +129,13 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
       {0, "flat", ARG_FLAG, &flat, "", "field colours without shading", 1, 0},
       {0, "square", ARG_FLAG, &square, "", "square splats instead of discs", 1, 0},
       CLI_OPT_THREADS(ro.threads),
-      {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
+      CLI_OPT_FORCE_SAME(force),
       CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
-  int npos;
-  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
+  int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
-  if (npos != 1) return cli_usage_error(cmd, "expected one INPUT file");
   if (!output) return cli_usage_error(cmd, "-o IMAGE.png is required");
   if (bsurf_colormap_from_name(cmap, &ro.colormap) != 0)
     return cli_usage_error(cmd, "--colormap must be viridis, magma, gray or coolwarm, not '%s'",

@@ -21,15 +21,14 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
       {'o', "output", ARG_STRING, &output, "FILE",
        "output file (.ply keeps feature_dist and feature)", 1, 0},
       {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
-      {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
+      CLI_OPT_FORCE_SAME(force),
       CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
-  int npos;
-  int rc = cli_parse(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, 1, &npos);
+  int rc =
+      cli_parse_one(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos, "MESH file");
   if (rc != CLI_PARSED) return rc;
-  if (npos != 1) return cli_usage_error(cmd, "expected one MESH file");
   if (vertices && so.points > 0) return cli_usage_error(cmd, "--vertices and -n are exclusive");
   if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   if (cli_check_output(output, pos[0], force)) return 1;
