@@ -349,18 +349,50 @@ static int guard_near(int k) {
   return k / 4 > 12 ? k / 4 : (k < 12 ? k : 12);
 }
 
+/* Two sheets apart: the largest gap between the sorted residuals v[0..n-1]
+ * of the first fit, as a scan test. On a single sheet the residuals near
+ * any value c are locally uniform with density lambda (points per unit
+ * residual), so the spacing after a point exceeds x / lambda with
+ * probability e^-x, and the largest of n spacings exceeds ln(n / alpha) /
+ * lambda with probability about alpha (the guard's level, 1%). lambda at a
+ * gap: the q = max(3, n/4) points on each side over the width they span. A
+ * gap with lambda g above that bound separates two sheets (the opposite face
+ * of a thin part: on a 2 x 2 plate whose faces are 1.3 spacings apart, at
+ * uniform noise 0.25 h, the faces' residuals leave a gap of 0.8 h); only
+ * gaps with at least q points on each side count. Returns the gap's
+ * midpoint, NAN when there is none. */
+static double guard_gap(const double *v, int n) {
+  const int q = n / 4 > 3 ? n / 4 : 3;
+  double best = log((double)n / 0.01), cut = NAN;
+  for (int i = q - 1; i + q < n; i++) {
+    const double g = v[i + 1] - v[i];
+    const double wl = v[i] - v[i - q + 1], wr = v[i + q] - v[i + 1];
+    if (!(g > 0)) continue;
+    const double lambda = (wl + wr > 0) ? 2.0 * (q - 1) / (wl + wr) : INFINITY;
+    if (lambda * g > best) {
+      best = lambda * g;
+      cut = 0.5 * (v[i] + v[i + 1]);
+    }
+  }
+  return cut;
+}
+
 /* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the
  * positions xyz: F (fit_store's record) and *degree out. Returns the
  * neighbourhood size whose fit passes (negative when the fit is of only part
  * of it, a sheet); 0 when none down to k_min does, F's scale is then NAN,
  * which fit_delta and the pair lanes read as "moves nothing". s: the
- * thread's scratch (its localfit and est_scratch); act: k entries. */
+ * thread's scratch (its localfit and est_scratch); act: k entries.
+ * Where the first fit's residuals fall in two groups apart (guard_gap), the
+ * centre's group is its sheet: the offset and scale come from that sheet's
+ * nearest points, and no point beyond the gap belongs to it or is moved. */
 static int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
                      const uint32_t *idx, int k, double *F, int *degree) {
   const double tiny = 1e-9 * (c->nb ? c->nb->h : c->h1);
   const int kmin = c->o.k_min > 3 ? c->o.k_min : 3;
   bsurf_localfit *lf = &s->lf;
   double *r = s->est_scratch + k, *tmp = s->est_scratch + 2 * (size_t)k;
+  double *srt = s->est_scratch + 3 * (size_t)k, *in = s->est_scratch + 4 * (size_t)k;
   for (int kc = k; kc >= kmin; kc /= 2) {
     const int ns = guard_near(kc);
     /* the first fit: the centre's ns nearest points (most of them on its
@@ -369,6 +401,52 @@ static int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act,
     for (int j = 0; j < ns; j++)
       act[j] = idx[j];
     double m = 0, bound = INFINITY;
+    /* two sheets: the residuals about the fit of all kc points (through
+     * both sheets) fall in two groups with a gap between them (guard_gap);
+     * the centre's group is its sheet (side), and lim is half the distance
+     * between the groups' medians: no point farther than that from the
+     * sheet belongs to it or is moved by its fit */
+    int side = 0;
+    double lim = INFINITY;
+    {
+      bsurf_frame fr;
+      bsurf_local_frame(xyz, idx, kc, c->o.error.pca_center, &fr);
+      /* a plane: a fit of higher degree bends between the sheets and
+       * fills the gap (a cubic of 50 points on the plate above hides it in
+       * most neighbourhoods) */
+      bsurf_localfit_setup(lf, xyz, idx, kc, &fr, 1);
+      double coef[BSURF_TERMS_MAX];
+      const int dd = solve_with_fallback(lf, 1, c->m, coef);
+      fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
+      int nv = 0;
+      for (int j = 0; j < kc; j++) {
+        r[j] = -fit_delta_any(F, dd, c->m, &xyz[3 * (size_t)idx[j]], 0);
+        if (!isnan(r[j])) srt[nv++] = r[j];
+      }
+      qsort(srt, (size_t)nv, sizeof *srt, cmp_double);
+      const double cut = nv >= 8 && !isnan(r[0]) ? guard_gap(srt, nv) : NAN;
+      if (!isnan(cut)) {
+        side = r[0] > cut ? 1 : -1;
+        int lo = 0, hi = 0;
+        for (int j = 0; j < nv; j++)
+          if (srt[j] > cut)
+            hi++;
+          else
+            lo++;
+        /* the groups' medians: srt[0..lo) and srt[lo..nv) */
+        const double m_lo = lo % 2 ? srt[lo / 2] : 0.5 * (srt[lo / 2 - 1] + srt[lo / 2]);
+        const double m_hi =
+            hi % 2 ? srt[lo + hi / 2] : 0.5 * (srt[lo + hi / 2 - 1] + srt[lo + hi / 2]);
+        lim = 0.5 * (m_hi - m_lo);
+        na = 0;
+        for (int j = 0; j < kc; j++)
+          if (!isnan(r[j]) && (r[j] > cut ? 1 : -1) == side) act[na++] = idx[j];
+        if (na < 3) side = 0, na = ns, lim = INFINITY;
+        if (!side)
+          for (int j = 0; j < ns; j++)
+            act[j] = idx[j];
+      }
+    }
     for (int round = 0;; round++) {
       /* the fit of the sheet's points: frame, degree with two points per
        * coefficient, least squares */
@@ -384,23 +462,30 @@ static int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act,
       /* residuals of every point of the neighbourhood (beyond the fit's
        * disc too: the sheet grows from its nearest points) */
       int nn = 0;
-      for (int j = 0; j < kc; j++) {
+      for (int j = 0; j < kc; j++)
         r[j] = -fit_delta_any(F, deg, c->m, &xyz[3 * (size_t)idx[j]], 0);
-        if (j < ns && !isnan(r[j])) tmp[nn++] = r[j];
+      if (side) { /* which of the neighbourhood's points are the sheet's now */
+        for (int j = 0; j < kc; j++)
+          in[j] = 0;
+        for (int a = 0, j = 0; a < na && j < kc; j++)
+          if (idx[j] == act[a]) in[j] = 1, a++;
       }
-      if (nn < 3) break;
       /* 1: the centre's sheet: offset and noise scale from its nearest
-       * points */
+       * points (of its side of a gap) */
+      for (int j = 0; j < kc && nn < ns; j++)
+        if (!isnan(r[j]) && (side ? in[j] != 0 : j < ns)) tmp[nn++] = r[j];
+      if (nn < 3) break;
       m = median_of(tmp, nn);
       int t = 0;
-      for (int j = 0; j < ns; j++)
-        if (!isnan(r[j])) tmp[t++] = fabs(r[j] - m);
+      for (int j = 0; j < kc && t < nn; j++)
+        if (!isnan(r[j]) && (side ? in[j] != 0 : j < ns)) tmp[t++] = fabs(r[j] - m);
       const double sc = 1.4826 * median_of(tmp, t);
       bound = fmax(student_t_quantile(BSURF_GUARD_Z, t - 1) * sc * sqrt(1.0 + 1.0 / t), tiny);
+      const double bin = fmin(bound, lim);
       /* 2: the points of that sheet (the centre always) */
       int n_in = 1, changed = 0;
       for (int j = 1; j < kc; j++) {
-        if (!(fabs(r[j] - m) <= bound)) continue;
+        if (!(fabs(r[j] - m) <= bin)) continue;
         if (n_in >= na || act[n_in] != idx[j]) changed = 1;
         act[n_in++] = idx[j];
       }
@@ -409,18 +494,20 @@ static int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act,
       na = n_in;
     }
     /* 3: unbiased at the centre: the t test on the sheet's nearest points */
+    const double bin = fmin(bound, lim);
     double sum = 0, ss = 0;
     int n = 0;
     for (int j = 0; j < ns; j++)
-      if (fabs(r[j] - m) <= bound) sum += r[j], n++;
+      if (fabs(r[j] - m) <= bin) sum += r[j], n++;
     const double mean = n ? sum / n : 0;
     for (int j = 0; j < ns; j++)
-      if (fabs(r[j] - m) <= bound) ss += (r[j] - mean) * (r[j] - mean);
+      if (fabs(r[j] - m) <= bin) ss += (r[j] - mean) * (r[j] - mean);
     const double sd = n > 1 ? sqrt(ss / (n - 1)) : 0;
     if (n >= 3 && !(fabs(mean) > tiny &&
                     fabs(mean) * sqrt((double)n) > student_t_quantile(BSURF_GUARD_Z, n - 1) * sd)) {
-      /* moves: delta = f - z = -r, so |delta| <= |m| + bound holds the sheet */
-      F[13] = fabs(m) + GUARD_MOVE * bound;
+      /* moves: delta = f - z = -r, so |delta| <= |m| + bound holds the sheet
+       * (and no point beyond a gap) */
+      F[13] = fabs(m) + fmin(GUARD_MOVE * bound, lim);
       *degree = deg;
       return na < kc ? -kc : kc;
     }
