@@ -45,7 +45,8 @@ typedef struct cli_command {
   {'o',    "output", ARG_STRING,                                                                     \
    &(out), "FILE",   "output file (.ply .pcd .las .csv keep every field; - = standard output)",      \
    1,      0},                                                                                       \
-      {0, "ascii", ARG_FLAG, &(ascii), "", "write ascii PLY (default: binary little-endian)", 1, 0}, \
+      {0, "ascii", ARG_FLAG, &(ascii), "", "write ascii PLY or PCD (default: binary little-endian)", \
+       1, 0},                                                                                        \
       {0,        "force", ARG_FLAG,                                                                  \
        &(force), "",      "allow the output to be the input file, or a read-only file",              \
        1,        0},                                                                                 \
@@ -89,6 +90,9 @@ bsurf_format cli_output_format(const char *path);
 /* bsurf_write, "-" to the real standard output. */
 bsurf_status cli_write_to(const char *path, const bsurf_cloud *cloud, const bsurf_write_options *wo,
                           bsurf_failure *err);
+/* a PNG to PATH; "-" is the real standard output under "-o -" */
+bsurf_status cli_write_png_to(const char *path, const uint8_t *rgb, int w, int h,
+                              bsurf_failure *err);
 /* For every command that reads clouds: cli_read_cloud() then drops points
  * with a NaN or infinite coordinate or normal instead of rejecting the file. */
 extern int cli_drop_invalid;

@@ -11,7 +11,8 @@ int cmd_convert(const cli_command *cmd, int argc, char **argv) {
   cli_option opts[] = {
       {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY or PCD (default: binary little-endian)",
        1, 0},
-      {0, "force", ARG_FLAG, &force, "", "allow the output to be the input file", 1, 0},
+      {0, "force", ARG_FLAG, &force, "",
+       "allow the output to be the input file, or a read-only file", 1, 0},
       CLI_OPTS_FORMATS,
       CLI_OPT_DROP_INVALID,
       CLI_OPTS_REPORT(json, quiet),
@@ -30,14 +31,17 @@ int cmd_convert(const cli_command *cmd, int argc, char **argv) {
   } else if (cli_check_output(output, strcmp(input, "-") ? input : NULL, force)) {
     return 1;
   }
+  double t0 = cli_now();
   bsurf_cloud c;
   if (cli_read_cloud(input, &c)) return 1;
   bsurf_format out_fmt = wo.format ? wo.format : bsurf_format_from_path(output);
   rc = cli_write_cloud(output, &c, ascii);
-  if (rc == 0 && !quiet) {
+  if (rc == 0 && (json || !quiet)) {
     if (json) {
+      /* a conversion searches no neighbours: no "h" (as sample) */
       cli_json j;
       json_begin(&j, stdout);
+      json_str(&j, "command", "convert");
       json_str(&j, "input", input);
       json_str(&j, "output", output);
       json_str(&j, "format", bsurf_format_name(out_fmt));
@@ -45,6 +49,7 @@ int cmd_convert(const cli_command *cmd, int argc, char **argv) {
       json_int(&j, "fields", (long long)c.field_count);
       json_bool(&j, "normals", c.normals != NULL);
       json_int(&j, "faces", (long long)c.face_count);
+      json_num(&j, "seconds", cli_now() - t0);
       json_end(&j);
     } else {
       printf("convert: %zu points%s, %zu field(s)%s: %s -> %s (%s)\n", c.point_count,

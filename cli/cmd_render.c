@@ -127,7 +127,7 @@ int render_auto_up(const bsurf_cloud *c) {
 int cli_write_png(const char *path, const uint8_t *rgb, int w, int h) {
   bsurf_failure err = {0, -1, ""};
   if (cli_interrupted()) return cli_error("%s: interrupted; nothing written", path);
-  bsurf_status st = bsurf_write_png(path, rgb, w, h, &err);
+  bsurf_status st = cli_write_png_to(path, rgb, w, h, &err);
   if (st != BSURF_OK)
     return cli_error("%s: %s", path, err.message[0] ? err.message : bsurf_strerror(st));
   return 0;

@@ -68,22 +68,40 @@ bsurf_format cli_output_format(const char *path) {
   return bsurf_format_from_path(path);
 }
 
+/* The data to the real standard output while "-o -" has text going to
+ * standard error: returns the descriptor to restore (or -1). */
+static int data_stdout_enter(const char *path) {
+  if (strcmp(path, "-") != 0 || data_fd < 0) return -1;
+  fflush(stdout);
+  int text_fd = dup(STDOUT_FILENO);
+  dup2(data_fd, STDOUT_FILENO);
+  return text_fd;
+}
+
+static void data_stdout_leave(int text_fd) {
+  fflush(stdout);
+  if (text_fd >= 0) {
+    dup2(text_fd, STDOUT_FILENO);
+    close(text_fd);
+  }
+}
+
 bsurf_status cli_write_to(const char *path, const bsurf_cloud *cloud, const bsurf_write_options *wo,
                           bsurf_failure *err) {
   bsurf_format f = wo && wo->format ? wo->format : bsurf_format_from_path(path);
   if (cloud->face_count && f != BSURF_FORMAT_PLY && f != BSURF_FORMAT_OFF && f != BSURF_FORMAT_OBJ)
     cli_warn("%s: %s holds points only: the %zu faces are not written (use .ply, .off or .obj)",
              path, bsurf_format_name(f), cloud->face_count);
-  if (strcmp(path, "-") != 0 || data_fd < 0) return bsurf_write(path, cloud, wo, err);
-  /* the data to the real standard output, then back to standard error */
-  fflush(stdout);
-  int text_fd = dup(STDOUT_FILENO);
-  dup2(data_fd, STDOUT_FILENO);
+  int text_fd = data_stdout_enter(path);
   bsurf_status st = bsurf_write(path, cloud, wo, err);
-  fflush(stdout);
-  if (text_fd >= 0) {
-    dup2(text_fd, STDOUT_FILENO);
-    close(text_fd);
-  }
+  data_stdout_leave(text_fd);
+  return st;
+}
+
+bsurf_status cli_write_png_to(const char *path, const uint8_t *rgb, int w, int h,
+                              bsurf_failure *err) {
+  int text_fd = data_stdout_enter(path);
+  bsurf_status st = bsurf_write_png(path, rgb, w, h, err);
+  data_stdout_leave(text_fd);
   return st;
 }

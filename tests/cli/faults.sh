@@ -103,6 +103,8 @@ if mkfifo "$T/fifo.ply" 2>/dev/null; then
   [ -p "$T/fifo.ply" ] && ok || fail "the FIFO was replaced"
   mv "$T/fifo.out" "$T/fifo_out.ply"
   expect 0 "the FIFO's bytes are a PLY file" -- "$BSURF" info "$T/fifo_out.ply"
+else
+  echo "SKIP: mkfifo failed here, the FIFO output case is skipped"
 fi
 dead=$(sh -c 'echo $$')
 while kill -0 "$dead" 2>/dev/null; do dead=$((dead + 100000)); done
@@ -156,7 +158,7 @@ PYEOF
   [ -e "$T/loop2.ply" ] && fail "shell loop started the next file" || ok
   no_temporaries "shell loop"
 else
-  echo "note: no python3, the shell-loop case is skipped"
+  echo "SKIP: no python3, the shell-loop case is skipped"
 fi
 
 # ---- honest truth: noise keeps it as true_*, eval never scores it as a result ----------
@@ -198,4 +200,16 @@ for r in "${quiet_runs[@]}"; do
   [ -s "$T/out" ] || [ -s "$T/err" ] && fail "-q $r: printed $(head -c 200 "$T/out" "$T/err")" || ok
 done
 
+
+# ---- output options are usage, checked before any work; pictures to a pipe ----------------
+bad 2 "--las-version 1.3" "--las-version 1.3: expected 1.2 or 1.4" -- "$BSURF" smooth "$IN/n.ply" -k 20 -d 2 -B 4 --las-version 1.3 -o "$T/s.las"
+[ -e "$T/s.las" ] && fail "--las-version 1.3: an output was written" || ok
+bad 2 "--ply-names bad" "--ply-names gray: expected plain, cloudcompare or meshlab" -- "$BSURF" noise "$IN/c.ply" --ply-names gray -o "$T/p.ply"
+bad 2 "--format bad" "--format tiff: unknown format" -- "$BSURF" noise "$IN/c.ply" --format tiff -o "$T/p.ply"
+for pic in "render $IN/n.ply --size 120x90" "histogram $IN/c.ply --field feature_dist --size 200x120"; do
+  # shellcheck disable=SC2086
+  "$BSURF" $pic -o - -q >"$T/pic.png" 2>"$T/pic.err" && ok || fail "$pic -o -: exit $?"
+  head -c 8 "$T/pic.png" | od -An -c | grep -q "P   N   G" && ok || fail "$pic -o -: standard output is not a PNG"
+  [ -s "$T/pic.err" ] && fail "$pic -o -: the picture went to standard error" || ok
+done
 finish

@@ -64,3 +64,15 @@ run render_field -- render cube_err.ply --field err_632plus --size 160x120 -o cu
 run render_views -- render torus_n.ply --views 4 --size 160x120 -o torus_views.png
 run histogram -- histogram cube_err.ply --field err_632plus --threshold 0.05 --log --size 200x120 -o cube_hist.png
 run compare -- compare cube_sm.ply cube_sm_naive.ply --field err_632plus --size 120x120 -o cube_compare.png
+
+# convert: every format bootsurf writes, with fields (docs/formats.md)
+run convert_pcd_ascii -- convert cube_err.ply --ascii cube_err_a.pcd
+run convert_pcd_binary -- convert cube_err.ply cube_err_b.pcd
+run convert_las14 -- convert cube_err.ply cube_err.las
+run convert_las12 -- convert cube_n.ply --las-version 1.2 cube_n12.las
+run convert_csv -- convert cube_err.ply cube_err.csv
+run convert_back -- convert cube_err.las cube_err_las.ply
+run convert_cloudcompare -- convert cube_err.ply --ply-names cloudcompare --float32 cube_err_cc.ply
+
+# the MSE selection rule (docs/normals.md)
+run normals_select_mse -- normals cube_noisy.ply --select-k 10:30:10 --select-rule mse -B 0 -o cube_nmse.ply
