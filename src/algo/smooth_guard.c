@@ -108,60 +108,76 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
   const double tiny = 1e-9 * (c->nb ? c->nb->h : c->h1);
   const int kmin = c->o.k_min > 3 ? c->o.k_min : 3;
   bsurf_localfit *lf = &s->lf;
-  double *r = s->est_scratch + k, *tmp = s->est_scratch + 2 * (size_t)k;
-  double *srt = s->est_scratch + 3 * (size_t)k, *in = s->est_scratch + 4 * (size_t)k;
+  /* the scratch is sized for the full neighbourhood size c->k (k <= c->k) */
+  const int K = c->k;
+  double *r = s->est_scratch + K, *tmp = s->est_scratch + 2 * (size_t)K;
+  double *srt = s->est_scratch + 3 * (size_t)K, *in = s->est_scratch + 4 * (size_t)K;
+  double *mine = s->est_scratch + 5 * (size_t)K;
+  /* two sheets: the residuals about a plane through all K points of the
+   * neighbourhood (both sheets; K even where the fit is of fewer points, as
+   * multipass's K_i) fall in two groups with a gap between them
+   * (guard_gap); the centre's group is its sheet (mine[j] = 1), and lim is
+   * half the distance between the groups' medians: no point farther than
+   * that from the sheet belongs to it or is moved by its fit. A plane: a fit
+   * of higher degree bends between the sheets and fills the gap (a cubic of
+   * 50 points hid it in most neighbourhoods of the development set's thin
+   * plate). */
+  int split = 0;
+  double lim = INFINITY;
+  {
+    bsurf_frame fr;
+    bsurf_local_frame(xyz, idx, K, c->o.error.pca_center, &fr);
+    bsurf_localfit_setup(lf, xyz, idx, K, &fr, 1);
+    double coef[BSURF_TERMS_MAX];
+    const int dd = solve_with_fallback(lf, 1, c->m, coef);
+    fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
+    int nv = 0;
+    for (int j = 0; j < K; j++) {
+      r[j] = -fit_delta_any(F, dd, c->m, &xyz[3 * (size_t)idx[j]], 0);
+      if (!isnan(r[j])) srt[nv++] = r[j];
+    }
+    qsort(srt, (size_t)nv, sizeof *srt, cmp_double);
+    const double cut = nv >= 8 && !isnan(r[0]) ? guard_gap(srt, nv) : NAN;
+    if (!isnan(cut)) {
+      split = 1;
+      const int side = r[0] > cut ? 1 : -1;
+      int lo = 0, hi = 0;
+      for (int j = 0; j < nv; j++)
+        if (srt[j] > cut)
+          hi++;
+        else
+          lo++;
+      /* the groups' medians: srt[0..lo) and srt[lo..nv) */
+      const double m_lo = lo % 2 ? srt[lo / 2] : 0.5 * (srt[lo / 2 - 1] + srt[lo / 2]);
+      const double m_hi =
+          hi % 2 ? srt[lo + hi / 2] : 0.5 * (srt[lo + hi / 2 - 1] + srt[lo + hi / 2]);
+      lim = 0.5 * (m_hi - m_lo);
+      for (int j = 0; j < K; j++)
+        mine[j] = !isnan(r[j]) && (r[j] > cut ? 1 : -1) == side;
+    }
+  }
   for (int kc = k; kc >= kmin; kc /= 2) {
     const int ns = guard_near(kc);
     /* the first fit: the centre's ns nearest points (most of them on its
-     * sheet, however many of the K are not), grown from there */
+     * sheet, however many of the K are not), grown from there; or, split,
+     * the centre's sheet's points among the kc */
     int na = ns, deg = c->degree;
     for (int j = 0; j < ns; j++)
       act[j] = idx[j];
     double m = 0, bound = INFINITY;
-    /* two sheets: the residuals about the fit of all kc points (through
-     * both sheets) fall in two groups with a gap between them (guard_gap);
-     * the centre's group is its sheet (side), and lim is half the distance
-     * between the groups' medians: no point farther than that from the
-     * sheet belongs to it or is moved by its fit */
     int side = 0;
-    double lim = INFINITY;
-    {
-      bsurf_frame fr;
-      bsurf_local_frame(xyz, idx, kc, c->o.error.pca_center, &fr);
-      /* a plane: a fit of higher degree bends between the sheets and
-       * fills the gap (a cubic of 50 points on the plate above hides it in
-       * most neighbourhoods) */
-      bsurf_localfit_setup(lf, xyz, idx, kc, &fr, 1);
-      double coef[BSURF_TERMS_MAX];
-      const int dd = solve_with_fallback(lf, 1, c->m, coef);
-      fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
-      int nv = 0;
-      for (int j = 0; j < kc; j++) {
-        r[j] = -fit_delta_any(F, dd, c->m, &xyz[3 * (size_t)idx[j]], 0);
-        if (!isnan(r[j])) srt[nv++] = r[j];
-      }
-      qsort(srt, (size_t)nv, sizeof *srt, cmp_double);
-      const double cut = nv >= 8 && !isnan(r[0]) ? guard_gap(srt, nv) : NAN;
-      if (!isnan(cut)) {
-        side = r[0] > cut ? 1 : -1;
-        int lo = 0, hi = 0;
-        for (int j = 0; j < nv; j++)
-          if (srt[j] > cut)
-            hi++;
-          else
-            lo++;
-        /* the groups' medians: srt[0..lo) and srt[lo..nv) */
-        const double m_lo = lo % 2 ? srt[lo / 2] : 0.5 * (srt[lo / 2 - 1] + srt[lo / 2]);
-        const double m_hi =
-            hi % 2 ? srt[lo + hi / 2] : 0.5 * (srt[lo + hi / 2 - 1] + srt[lo + hi / 2]);
-        lim = 0.5 * (m_hi - m_lo);
-        na = 0;
-        for (int j = 0; j < kc; j++)
-          if (!isnan(r[j]) && (r[j] > cut ? 1 : -1) == side) act[na++] = idx[j];
-        if (na < 3) side = 0, na = ns, lim = INFINITY;
-        if (!side)
-          for (int j = 0; j < ns; j++)
-            act[j] = idx[j];
+    double lim_kc = INFINITY;
+    if (split) {
+      int nm = 0;
+      for (int j = 0; j < kc; j++)
+        if (mine[j] != 0) act[nm++] = idx[j];
+      if (nm >= 3) {
+        side = 1;
+        na = nm;
+        lim_kc = lim;
+      } else {
+        for (int j = 0; j < ns; j++)
+          act[j] = idx[j];
       }
     }
     for (int round = 0;; round++) {
@@ -198,7 +214,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
         if (!isnan(r[j]) && (side ? in[j] != 0 : j < ns)) tmp[t++] = fabs(r[j] - m);
       const double sc = 1.4826 * median_of(tmp, t);
       bound = fmax(student_t_quantile(BSURF_GUARD_Z, t - 1) * sc * sqrt(1.0 + 1.0 / t), tiny);
-      const double bin = fmin(bound, lim);
+      const double bin = fmin(bound, lim_kc);
       /* 2: the points of that sheet (the centre always) */
       int n_in = 1, changed = 0;
       for (int j = 1; j < kc; j++) {
@@ -211,7 +227,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
       na = n_in;
     }
     /* 3: unbiased at the centre: the t test on the sheet's nearest points */
-    const double bin = fmin(bound, lim);
+    const double bin = fmin(bound, lim_kc);
     double sum = 0, ss = 0;
     int n = 0;
     for (int j = 0; j < ns; j++)
@@ -224,7 +240,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
                     fabs(mean) * sqrt((double)n) > student_t_quantile(BSURF_GUARD_Z, n - 1) * sd)) {
       /* moves: delta = f - z = -r, so |delta| <= |m| + bound holds the sheet
        * (and no point beyond a gap) */
-      F[13] = fabs(m) + fmin(GUARD_MOVE * bound, lim);
+      F[13] = fabs(m) + fmin(GUARD_MOVE * bound, lim_kc);
       *degree = deg;
       return na < kc ? -kc : kc;
     }
