@@ -174,6 +174,39 @@ static void test_noisy_plane_gets_flatter(void **state) {
   bsurf_cloud_free(&c);
 }
 
+/* Two parallel sheets gap_h spacings h apart (the plane's mean spacing h):
+ * even points on z = +gap/2, odd ones on z = -gap/2, uniform noise of
+ * noise_h h along z; nb their 50-neighbourhoods. */
+static void sheets_make(bsurf_cloud *c, bsurf_neighbors *nb, double gap_h, double noise_h,
+                        unsigned seed, double *h, double *gap) {
+  assert_int_equal(bsurf_generate(c, BSURF_SHAPE_PLANE, 8000, BSURF_SAMPLING_RANDOM, 3, 0),
+                   BSURF_OK);
+  assert_int_equal(bsurf_mean_spacing(c->xyz, c->point_count, 2, h), BSURF_OK);
+  const size_t n = c->point_count;
+  *gap = gap_h * *h;
+  for (size_t i = 0; i < n; i++)
+    c->xyz[3 * i + 2] = (i % 2 ? -0.5 : 0.5) * *gap;
+  assert_int_equal(bsurf_add_noise(c->xyz, c->normals, n, BSURF_NOISE_UNIFORM, noise_h, *h, seed),
+                   BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(nb, c->xyz, n, 50, 2, NULL, NULL), BSURF_OK);
+}
+
+/* Mean distance of the points P (rows of c's points) away from the border
+ * to the point's own sheet, or (nearer) to the nearer sheet, as `bootsurf
+ * eval --surface` measures it. */
+static double sheets_err(const bsurf_cloud *c, const double *P, double gap, int nearer) {
+  double s = 0;
+  size_t m = 0;
+  for (size_t i = 0; i < c->point_count; i++) {
+    if (fabs(c->xyz[3 * i]) > 0.8 || fabs(c->xyz[3 * i + 1]) > 0.8) continue;
+    const double z = P[3 * i + 2];
+    s += nearer ? fmin(fabs(z - 0.5 * gap), fabs(z + 0.5 * gap))
+                : fabs(z - (i % 2 ? -0.5 : 0.5) * gap);
+    m++;
+  }
+  return s / (double)m;
+}
+
 /* Two parallel sheets 6 spacings h apart (a thin plate: the other sheet
  * lies inside most 50-neighbourhoods; each sheet's own mean spacing is about
  * 1.4 h, and where the gap is below the radius of a sheet's 12 nearest
@@ -188,33 +221,12 @@ static void test_noisy_plane_gets_flatter(void **state) {
 static void test_two_sheets(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 8000, BSURF_SAMPLING_RANDOM, 3, 0),
-                   BSURF_OK);
-  double h;
-  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
-  const size_t n = c.point_count;
-  const double gap = 6 * h;
-  /* even points on the sheet z = +gap/2, odd ones on z = -gap/2 */
-  for (size_t i = 0; i < n; i++)
-    c.xyz[3 * i + 2] = (i % 2 ? -0.5 : 0.5) * gap;
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_UNIFORM, 0.5, h, 13), BSURF_OK);
   bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 50, 2, NULL, NULL), BSURF_OK);
+  double h, gap;
+  sheets_make(&c, &nb, 6, 0.5, 13, &h, &gap);
+  const size_t n = c.point_count;
   double *out = malloc(n * 3 * sizeof(double));
-  /* mean distance to the point's own sheet, away from the border */
-#define SHEET_ERR(P, res)                                                                          \
-  do {                                                                                             \
-    double s_ = 0;                                                                                 \
-    size_t m_ = 0;                                                                                 \
-    for (size_t i = 0; i < n; i++) {                                                               \
-      if (fabs(c.xyz[3 * i]) > 0.8 || fabs(c.xyz[3 * i + 1]) > 0.8) continue;                      \
-      s_ += fabs((P)[3 * i + 2] - (i % 2 ? -0.5 : 0.5) * gap);                                     \
-      m_++;                                                                                        \
-    }                                                                                              \
-    (res) = s_ / (double)m_;                                                                       \
-  } while (0)
-  double e0;
-  SHEET_ERR(c.xyz, e0);
+  const double e0 = sheets_err(&c, c.xyz, gap, 0);
   for (int m = 0; m < 3; m++)
     for (int order = 0; order < 2; order++) {
       bsurf_smooth_options o = bsurf_smooth_options_default();
@@ -224,8 +236,7 @@ static void test_two_sheets(void **state) {
       o.error.threads = 2;
       if (methods[m] == BSURF_SMOOTH_MULTIPASS && order) o.iterations = 30;
       assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
-      double e;
-      SHEET_ERR(out, e);
+      const double e = sheets_err(&c, out, gap, 0);
       print_message("two sheets, method %d order %d: %.3f h -> %.3f h\n", m, order, e0 / h, e / h);
       assert_true(e < e0);
       if (methods[m] == BSURF_SMOOTH_MULTIPASS && !order) assert_true(e < sqrt(2.0 * 10 / 25) * e0);
@@ -235,11 +246,9 @@ static void test_two_sheets(void **state) {
   o.error.threads = 2;
   o.guard = 0;
   assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
-  double e;
-  SHEET_ERR(out, e);
+  const double e = sheets_err(&c, out, gap, 0);
   print_message("two sheets, bilateral without the guard: %.3f h -> %.3f h\n", e0 / h, e / h);
   assert_true(e > e0);
-#undef SHEET_ERR
   free(out);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
@@ -257,46 +266,22 @@ static void test_two_sheets(void **state) {
 static void test_thin_sheets(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 8000, BSURF_SAMPLING_RANDOM, 3, 0),
-                   BSURF_OK);
-  double h;
-  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
-  const size_t n = c.point_count;
-  const double gap = 0.6 * h;
-  for (size_t i = 0; i < n; i++)
-    c.xyz[3 * i + 2] = (i % 2 ? -0.5 : 0.5) * gap;
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_UNIFORM, 0.12, h, 17),
-                   BSURF_OK);
   bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 50, 2, NULL, NULL), BSURF_OK);
+  double h, gap;
+  sheets_make(&c, &nb, 0.6, 0.12, 17, &h, &gap);
+  const size_t n = c.point_count;
   double *out = malloc(n * 3 * sizeof(double));
-  /* mean distance to the nearer sheet (as `bootsurf eval --surface`), away
-   * from the border */
-#define NEAR_ERR(P, res)                                                                           \
-  do {                                                                                             \
-    double s_ = 0;                                                                                 \
-    size_t m_ = 0;                                                                                 \
-    for (size_t i = 0; i < n; i++) {                                                               \
-      if (fabs(c.xyz[3 * i]) > 0.8 || fabs(c.xyz[3 * i + 1]) > 0.8) continue;                      \
-      s_ += fmin(fabs((P)[3 * i + 2] - 0.5 * gap), fabs((P)[3 * i + 2] + 0.5 * gap));              \
-      m_++;                                                                                        \
-    }                                                                                              \
-    (res) = s_ / (double)m_;                                                                       \
-  } while (0)
-  double e0;
-  NEAR_ERR(c.xyz, e0);
+  const double e0 = sheets_err(&c, c.xyz, gap, 1);
   for (int m = 0; m < 3; m++) {
     bsurf_smooth_options o = bsurf_smooth_options_default();
     o.method = methods[m];
     o.error.bootstrap = 20;
     o.error.threads = 2;
     assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
-    double e;
-    NEAR_ERR(out, e);
+    const double e = sheets_err(&c, out, gap, 1);
     print_message("thin sheets, method %d: %.3f h -> %.3f h\n", m, e0 / h, e / h);
     assert_true(e <= e0);
   }
-#undef NEAR_ERR
   free(out);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);

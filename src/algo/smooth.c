@@ -349,35 +349,42 @@ void ctx_free(smooth_ctx *c, int T) {
   free(c->gcount);
 }
 
+/* (its messages name bsurf_smooth, the public function) */
 bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
                                 const bsurf_smooth_options *opts, const bsurf_smooth_tuning *tune,
                                 double *out_xyz, bsurf_smooth_fields *fields,
                                 bsurf_smooth_report *report) {
   bsurf_smooth_options o = opts ? *opts : bsurf_smooth_options_default();
   if (report) memset(report, 0, sizeof *report);
-  BSURF_REQUIRE(xyz, "xyz is NULL");
-  BSURF_REQUIRE(out_xyz, "out_xyz is NULL");
-  BSURF_REQUIRE(out_xyz != xyz, "out_xyz is xyz: the output may not alias the input");
+  BSURF_REQUIRE_IN("bsurf_smooth", xyz, "xyz is NULL");
+  BSURF_REQUIRE_IN("bsurf_smooth", out_xyz, "out_xyz is NULL");
+  BSURF_REQUIRE_IN("bsurf_smooth", out_xyz != xyz,
+                   "out_xyz is xyz: the output may not alias the input");
   bsurf_status st = bsurf_error_check(&o.error, nb);
   if (st != BSURF_OK) return st;
-  BSURF_REQUIRE(o.method >= BSURF_SMOOTH_NAIVE && o.method <= BSURF_SMOOTH_MULTIPASS,
-                "method = %d: must be BSURF_SMOOTH_NAIVE, _BILATERAL or _MULTIPASS", (int)o.method);
-  BSURF_REQUIRE(o.order == BSURF_ORDER_PARALLEL || o.order == BSURF_ORDER_SEQUENTIAL,
-                "order = %d: must be BSURF_ORDER_PARALLEL or _SEQUENTIAL", (int)o.order);
-  BSURF_REQUIRE((unsigned)o.estimator <= BSURF_SMOOTH_EST_632PLUS,
-                "estimator = %d: must be BSURF_SMOOTH_EST_DEFAULT, _632 or _632PLUS",
-                (int)o.estimator);
-  BSURF_REQUIRE(!isnan(o.h1) && !isnan(o.h2) && !isnan(o.h2_fraction),
-                "h1 = %g, h2 = %g, h2_fraction = %g: NaN is not allowed (<= 0 selects the default)",
-                o.h1, o.h2, o.h2_fraction);
-  BSURF_REQUIRE(!isnan(o.k_error) && !isnan(o.k_error_fraction),
-                "k_error = %g, k_error_fraction = %g: NaN is not allowed", o.k_error,
-                o.k_error_fraction);
+  BSURF_REQUIRE_IN(
+      "bsurf_smooth", o.method >= BSURF_SMOOTH_NAIVE && o.method <= BSURF_SMOOTH_MULTIPASS,
+      "method = %d: must be BSURF_SMOOTH_NAIVE, _BILATERAL or _MULTIPASS", (int)o.method);
+  BSURF_REQUIRE_IN("bsurf_smooth",
+                   o.order == BSURF_ORDER_PARALLEL || o.order == BSURF_ORDER_SEQUENTIAL,
+                   "order = %d: must be BSURF_ORDER_PARALLEL or _SEQUENTIAL", (int)o.order);
+  BSURF_REQUIRE_IN("bsurf_smooth", (unsigned)o.estimator <= BSURF_SMOOTH_EST_632PLUS,
+                   "estimator = %d: must be BSURF_SMOOTH_EST_DEFAULT, _632 or _632PLUS",
+                   (int)o.estimator);
+  BSURF_REQUIRE_IN(
+      "bsurf_smooth", !isnan(o.h1) && !isnan(o.h2) && !isnan(o.h2_fraction),
+      "h1 = %g, h2 = %g, h2_fraction = %g: NaN is not allowed (<= 0 selects the default)", o.h1,
+      o.h2, o.h2_fraction);
+  BSURF_REQUIRE_IN("bsurf_smooth", !isnan(o.k_error) && !isnan(o.k_error_fraction),
+                   "k_error = %g, k_error_fraction = %g: NaN is not allowed", o.k_error,
+                   o.k_error_fraction);
   if (o.method == BSURF_SMOOTH_MULTIPASS) {
-    BSURF_REQUIRE(o.a >= 0 && isfinite(o.a), "a = %g: must be finite and >= 0", o.a);
-    BSURF_REQUIRE(o.iterations >= 0, "iterations = %d: must be >= 0", o.iterations);
-    BSURF_REQUIRE(o.k_min >= 1 && o.k_min <= o.error.k, "k_min = %d: must be in [1, error.k = %d]",
-                  o.k_min, o.error.k);
+    BSURF_REQUIRE_IN("bsurf_smooth", o.a >= 0 && isfinite(o.a), "a = %g: must be finite and >= 0",
+                     o.a);
+    BSURF_REQUIRE_IN("bsurf_smooth", o.iterations >= 0, "iterations = %d: must be >= 0",
+                     o.iterations);
+    BSURF_REQUIRE_IN("bsurf_smooth", o.k_min >= 1 && o.k_min <= o.error.k,
+                     "k_min = %d: must be in [1, error.k = %d]", o.k_min, o.error.k);
   }
 
   smooth_ctx c;
