@@ -636,6 +636,15 @@ bsurf_status bsurf_io_las_check(const bsurf_cloud *cloud, bsurf_failure *err) {
       return bsurf_fail(err, BSURF_ERR_INVALID_VALUE, 0, -1,
                         "point %zu has a NaN or infinite coordinate, which LAS cannot store",
                         i / 3);
+  /* the extra-bytes VLR's record length is 16 bits: at most 65535 / 192
+   * descriptors (LAS 1.4 R15, 2.5). Counted before the standard attributes
+   * take their slots (so a little strict), since the slots depend on the
+   * values */
+  size_t extra = cloud->field_count + (cloud->normals ? 3 : 0);
+  if (extra > 65535 / LAS_EB_SIZE)
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
+                      "%zu fields: LAS holds at most %d extra-bytes fields (write PLY, PCD or CSV)",
+                      extra, 65535 / LAS_EB_SIZE);
   for (size_t i = 0; i < cloud->field_count; i++) {
     if (strlen(cloud->fields[i].name) > LAS_NAME_MAX)
       return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,

@@ -178,7 +178,7 @@ static bsurf_status parse_header(const char *data, size_t size, pcd_header *h, b
         h->fields[i].count = 1;
         h->fields[i].size = 4;
         h->fields[i].kind = 'F';
-        if (h->fields[i].name.len >= BSURF_FIELD_NAME_MAX - 8)
+        if (h->fields[i].name.len >= BSURF_FIELD_NAME_MAX)
           return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, ln, -1, "field name '%s' is too long",
                             io_token_repr(h->fields[i].name, a));
       }
@@ -361,9 +361,14 @@ static bsurf_status setup(const pcd_header *h, bsurf_cloud *cloud, pcd_column **
     const pcd_field *f = &h->fields[i];
     int wide;
     bsurf_type type = field_type(f, &wide);
+    /* the name as written (a name bsurf writes has at most 63 characters;
+     * io_unique_name shortens a COUNT > 1 element's name to fit its suffix) */
     char base[BSURF_FIELD_NAME_MAX];
-    char a[48];
-    snprintf(base, sizeof base, "%s", io_token_repr(f->name, a));
+    size_t blen = f->name.len < sizeof base - 1 ? f->name.len : sizeof base - 1;
+    memcpy(base, f->name.s, blen);
+    base[blen] = 0;
+    for (size_t q = 0; q < blen; q++) /* a NUL or control byte in a name */
+      if ((unsigned char)base[q] < 0x21 || base[q] == 0x7f) base[q] = '_';
     for (size_t e = 0; e < f->count; e++, c++) {
       pcd_column *col = &cols[c];
       col->f = f;

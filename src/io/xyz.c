@@ -151,7 +151,7 @@ static bsurf_status named_columns(bsurf_cloud *cloud, const double *rows, size_t
       used |= j == xyz[k] || (with_normals && j == nrm[k]);
     if (used) continue;
     char want[BSURF_FIELD_NAME_MAX], name[BSURF_FIELD_NAME_MAX];
-    size_t len = names[j].len < BSURF_FIELD_NAME_MAX - 8 ? names[j].len : BSURF_FIELD_NAME_MAX - 8;
+    size_t len = names[j].len < BSURF_FIELD_NAME_MAX - 1 ? names[j].len : BSURF_FIELD_NAME_MAX - 1;
     static const char *const cc[4][2] = {
         {"r", "red"}, {"g", "green"}, {"b", "blue"}, {"a", "alpha"}};
     const char *alias = NULL;

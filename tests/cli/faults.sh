@@ -212,4 +212,23 @@ for pic in "render $IN/n.ply --size 120x90" "histogram $IN/c.ply --field feature
   head -c 8 "$T/pic.png" | od -An -c | grep -q "P   N   G" && ok || fail "$pic -o -: standard output is not a PNG"
   [ -s "$T/pic.err" ] && fail "$pic -o -: the picture went to standard error" || ok
 done
+
+# ---- wide and long-named fields: refused by LAS, kept whole by PCD ----------------------------
+{
+  printf 'x,y,z'
+  for i in $(seq 1 400); do printf ',f%d' "$i"; done
+  printf '\n'
+  for p in 1 2 3; do
+    printf '%d,0,0' "$p"
+    for i in $(seq 1 400); do printf ',%d' "$i"; done
+    printf '\n'
+  done
+} >"$IN/wide.csv"
+bad 1 "LAS with 400 fields" "$T/wide.las: 400 fields: LAS holds at most 341 extra-bytes fields" -- "$BSURF" convert "$IN/wide.csv" "$T/wide.las"
+[ -e "$T/wide.las" ] && fail "LAS with 400 fields: a file was written" || ok
+long=field_name_of_sixty_characters_for_the_pcd_round_trip_check
+printf 'x,y,z,%s,%sb\n1,2,3,4,5\n2,3,4,5,6\n' "$long" "$long" >"$IN/long.csv"
+expect 0 "PCD long names" -- "$BSURF" convert "$IN/long.csv" "$T/long.pcd" -q
+expect 0 "PCD long names back" -- "$BSURF" convert "$T/long.pcd" "$T/long.csv" -q
+[ "$(head -1 "$T/long.csv")" = "$(head -1 "$IN/long.csv")" ] && ok || fail "PCD long names: $(head -1 "$T/long.csv")"
 finish
