@@ -76,15 +76,16 @@ static int guard_near(int k) {
  * gap with lambda g above that bound separates two sheets (the opposite face
  * of a thin part: on a 2 x 2 plate whose faces are 1.3 spacings apart, at
  * uniform noise 0.25 h, the faces' residuals leave a gap of 0.8 h); only
- * gaps with at least q points on each side count. Returns the gap's
+ * gaps with at least q points on each side count, and only gaps wider than
+ * tiny (1e-9 h: on exact data the residuals are rounding). Returns the gap's
  * midpoint, NAN when there is none. */
-static double guard_gap(const double *v, int n) {
+static double guard_gap(const double *v, int n, double tiny) {
   const int q = n / 4 > 3 ? n / 4 : 3;
   double best = log((double)n / 0.01), cut = NAN;
   for (int i = q - 1; i + q < n; i++) {
     const double g = v[i + 1] - v[i];
     const double wl = v[i] - v[i - q + 1], wr = v[i + q] - v[i + 1];
-    if (!(g > 0)) continue;
+    if (!(g > tiny)) continue; /* rounding, not a gap */
     const double lambda = (wl + wr > 0) ? 2.0 * (q - 1) / (wl + wr) : INFINITY;
     if (lambda * g > best) {
       best = lambda * g;
@@ -137,7 +138,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
       if (!isnan(r[j])) srt[nv++] = r[j];
     }
     qsort(srt, (size_t)nv, sizeof *srt, cmp_double);
-    const double cut = nv >= 8 && !isnan(r[0]) ? guard_gap(srt, nv) : NAN;
+    const double cut = nv >= 8 && !isnan(r[0]) ? guard_gap(srt, nv, tiny) : NAN;
     if (!isnan(cut)) {
       split = 1;
       const int side = r[0] > cut ? 1 : -1;
