@@ -77,8 +77,8 @@ static int guard_near(int k) {
  * of a thin part: on a 2 x 2 plate whose faces are 1.3 spacings apart, at
  * uniform noise 0.25 h, the faces' residuals leave a gap of 0.8 h); only
  * gaps with at least q points on each side count, and only gaps wider than
- * tiny (1e-9 h: on exact data the residuals are rounding). Returns the gap's
- * midpoint, NAN when there is none. */
+ * tiny (1e-9 of the neighbourhood's radius: on exact data the residuals are
+ * rounding). Returns the gap's midpoint, NAN when there is none. */
 static double guard_gap(const double *v, int n, double tiny) {
   const int q = n / 4 > 3 ? n / 4 : 3;
   double best = log((double)n / 0.01), cut = NAN;
@@ -106,7 +106,14 @@ static double guard_gap(const double *v, int n, double tiny) {
  * nearest points, and no point beyond the gap belongs to it or is moved. */
 int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
               const uint32_t *idx, int k, double *F, int *degree) {
-  const double tiny = 1e-9 * (c->nb ? c->nb->h : c->h1);
+  /* tiny: the rounding level of residuals, 1e-9 of the neighbourhood's
+   * radius in its frame (lf->scale of the plane fit below). Of the
+   * neighbourhood's own points only: a tile's neighbour graph has no global
+   * spacing h (a tiled stage 1 runs before h is known; its nb->h is 0), and
+   * 1e-9 h in memory against 0 in a tile made the tests (the gap, the
+   * interval's floor, the t test) count rounding in one run and not in the
+   * other: test_tiles' tiled naive/bilateral differed from bsurf_smooth. */
+  double tiny = 0;
   const int kmin = c->o.k_min > 3 ? c->o.k_min : 3;
   bsurf_localfit *lf = &s->lf;
   /* the scratch is sized for the full neighbourhood size c->k (k <= c->k) */
@@ -129,6 +136,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
     bsurf_frame fr;
     bsurf_local_frame(xyz, idx, K, c->o.error.pca_center, &fr);
     bsurf_localfit_setup(lf, xyz, idx, K, &fr, 1);
+    tiny = 1e-9 * lf->scale;
     double coef[BSURF_TERMS_MAX];
     const int dd = solve_with_fallback(lf, 1, c->m, coef);
     fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
