@@ -24,17 +24,26 @@ typedef struct bsurf_error_scratch {
   size_t skipped, reduced, center_unestimated;
 } bsurf_error_scratch;
 
-/* For tests only (not thread-safe): 0 runs the multipass passes point by
- * point (smooth.c, gather_update) instead of in blocks with the pairs in
- * vector lanes, so the two can be compared bit for bit; 1 (the default)
- * restores the blocks. */
-void bsurf_smooth_block_passes(int on);
-/* For tests only (not thread-safe): the multipass passes per time block
- * (smooth.c, mp_tblock_task), 1 to 16; 1 runs them pass by pass, so the two
- * can be compared bit for bit. any_halo = 1 runs blocks however wide their
- * halos (by default a block's halo rows are at most a tenth of its rows).
- * The defaults are (8, 0). */
-void bsurf_smooth_time_blocks(int passes, int any_halo);
+/* How the multipass passes run (src/algo/smooth_lanes.c); every setting
+ * gives the same bits, so tests compare them: lanes = 0 runs the passes
+ * point by point (gather_update) instead of in blocks with the pairs in
+ * vector lanes; tblock_passes (1 to 16) passes per time block, 1 pass by
+ * pass; any_halo = 1 runs time blocks however wide their halos (by default a
+ * block's halo rows are at most a tenth of its rows). */
+typedef struct bsurf_smooth_tuning {
+  int lanes;         /* 1 */
+  int tblock_passes; /* 8 */
+  int any_halo;      /* 0 */
+} bsurf_smooth_tuning;
+static inline bsurf_smooth_tuning bsurf_smooth_tuning_defaults(void) {
+  bsurf_smooth_tuning t = {1, 8, 0};
+  return t;
+}
+/* bsurf_smooth with the passes run as `tune` says (NULL: the defaults). */
+bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
+                                const bsurf_smooth_options *opts, const bsurf_smooth_tuning *tune,
+                                double *out_xyz, bsurf_smooth_fields *fields,
+                                bsurf_smooth_report *report);
 /* The multipass weights' e^x (-37.5 <= x <= 0), exposed for its test. */
 double bsurf_smooth_exp(double x);
 

@@ -1,0 +1,259 @@
+/* The two-sheet guard of every smoothing method (docs/smoothing.md, "The
+ * guard"). */
+#include "algo/smooth_ctx.h"
+#include "search/search.h"
+#include "common/common.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ---- the guard (docs/smoothing.md, "The guard") ------------------------
+ * A least-squares fit to a neighbourhood that mixes two sheets (the
+ * opposite face of a thin part, the other side of a sharp edge) runs
+ * between them, and every point it moves goes off its own surface. The guard
+ * makes each neighbourhood's fit a fit of its centre's sheet, and moves with
+ * it only the points of that sheet:
+ *  1. the centre's sheet: the n_s = max(K/4, 12) points nearest the centre,
+ *     fitted first; their residuals give the sheet's offset m (median) and
+ *     noise scale s (1.4826 x the median absolute deviation, robust to the
+ *     few points of another sheet among them);
+ *  2. a point belongs to the sheet when its residual lies in the prediction
+ *     interval |r - m| <= t s sqrt(1 + 1/n_s) (t: Student's quantile at
+ *     two-sided level 1%, n_s - 1 degrees of freedom); the fit is made again
+ *     from these points only, and 1-2 repeat until the set stops changing
+ *     (at most GUARD_ROUNDS times);
+ *  3. the fit must be unbiased at the centre: Student's one-sample t test
+ *     of "the mean residual of the centre's sheet's n_s nearest points is 0"
+ *     (two-sided, same level). A fit that fails is made again from the
+ *     nearest K/2 points (the degree drops so that there are two points per
+ *     coefficient), down to k_min points; a neighbourhood whose smallest fit
+ *     still fails moves no point.
+ * The fit then moves only points within GUARD_MOVE prediction half-widths of
+ * it (fit_delta's bound). The level is the tests' false-alarm rate on a single sheet: a false
+ * alarm costs a fit from fewer points, or one point left to other fits. */
+#define BSURF_GUARD_Z 2.5758293035489 /* the normal quantile of 1 - 0.01 / 2 */
+#define GUARD_ROUNDS 6
+/* A fit moves the points within GUARD_MOVE prediction half-widths of it:
+ * with one, the noise's own tail (1% of a sheet at this level, more where
+ * n_s points underestimate the scale) was never moved (cube, gaussian 0.5:
+ * 0.156 h against 0.147 h with two); a second sheet lies farther out. */
+#define GUARD_MOVE 2.0
+
+/* Student's t quantile with nu degrees of freedom at the normal quantile z
+ * (Cornish-Fisher expansion, Abramowitz & Stegun 26.7.5: within 1% of the
+ * table for nu >= 5 at z = 2.58). */
+static double student_t_quantile(double z, double nu) {
+  const double z2 = z * z, z3 = z2 * z, z5 = z3 * z2, z7 = z5 * z2;
+  return z + (z3 + z) / (4 * nu) + (5 * z5 + 16 * z3 + 3 * z) / (96 * nu * nu) +
+         (3 * z7 + 19 * z5 + 17 * z3 - 15 * z) / (384 * nu * nu * nu);
+}
+
+static int cmp_double(const void *a, const void *b) {
+  double x = *(const double *)a, y = *(const double *)b;
+  return (x > y) - (x < y);
+}
+
+static double median_of(double *v, int n) {
+  qsort(v, (size_t)n, sizeof *v, cmp_double);
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* n_s: a quarter of the neighbourhood, and at least 12 points (two per
+ * coefficient of a quadric, the lowest degree that follows curvature: the
+ * first fit of an exact surface is then exact) */
+static int guard_near(int k) {
+  return k / 4 > 12 ? k / 4 : (k < 12 ? k : 12);
+}
+
+/* Two sheets apart: the largest gap between the sorted residuals v[0..n-1]
+ * of the first fit, as a scan test. On a single sheet the residuals near
+ * any value c are locally uniform with density lambda (points per unit
+ * residual), so the spacing after a point exceeds x / lambda with
+ * probability e^-x, and the largest of n spacings exceeds ln(n / alpha) /
+ * lambda with probability about alpha (the guard's level, 1%). lambda at a
+ * gap: the q = max(3, n/4) points on each side over the width they span. A
+ * gap with lambda g above that bound separates two sheets (the opposite face
+ * of a thin part: on a 2 x 2 plate whose faces are 1.3 spacings apart, at
+ * uniform noise 0.25 h, the faces' residuals leave a gap of 0.8 h); only
+ * gaps with at least q points on each side count, and only gaps wider than
+ * tiny (1e-9 of the neighbourhood's radius: on exact data the residuals are
+ * rounding). Returns the gap's midpoint, NAN when there is none. */
+static double guard_gap(const double *v, int n, double tiny) {
+  const int q = n / 4 > 3 ? n / 4 : 3;
+  double best = log((double)n / 0.01), cut = NAN;
+  for (int i = q - 1; i + q < n; i++) {
+    const double g = v[i + 1] - v[i];
+    const double wl = v[i] - v[i - q + 1], wr = v[i + q] - v[i + 1];
+    if (!(g > tiny)) continue; /* rounding, not a gap */
+    const double lambda = (wl + wr > 0) ? 2.0 * (q - 1) / (wl + wr) : INFINITY;
+    if (lambda * g > best) {
+      best = lambda * g;
+      cut = 0.5 * (v[i] + v[i + 1]);
+    }
+  }
+  return cut;
+}
+
+/* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the
+ * positions xyz: F (fit_store's record) and *degree out. Returns the
+ * neighbourhood size whose fit passes (negative when the fit is of only part
+ * of it, a sheet); 0 when none down to k_min does, F's scale is then NAN,
+ * which fit_delta and the pair lanes read as "moves nothing". s: the
+ * thread's scratch (its localfit and est_scratch); act: k entries.
+ * Where the first fit's residuals fall in two groups apart (guard_gap), the
+ * centre's group is its sheet: the offset and scale come from that sheet's
+ * nearest points, and no point beyond the gap belongs to it or is moved. */
+int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
+              const uint32_t *idx, int k, double *F, int *degree) {
+  /* tiny: the rounding level of residuals, 1e-9 of the neighbourhood's
+   * radius in its frame (lf->scale of the plane fit below). Of the
+   * neighbourhood's own points only: a tile's neighbour graph has no global
+   * spacing h (a tiled stage 1 runs before h is known; its nb->h is 0), and
+   * 1e-9 h in memory against 0 in a tile made the tests (the gap, the
+   * interval's floor, the t test) count rounding in one run and not in the
+   * other: test_tiles' tiled naive/bilateral differed from bsurf_smooth. */
+  double tiny = 0;
+  const int kmin = c->o.k_min > 3 ? c->o.k_min : 3;
+  bsurf_localfit *lf = &s->lf;
+  /* the scratch is sized for the full neighbourhood size c->k (k <= c->k) */
+  const int K = c->k;
+  double *r = s->est_scratch + K, *tmp = s->est_scratch + 2 * (size_t)K;
+  double *srt = s->est_scratch + 3 * (size_t)K, *in = s->est_scratch + 4 * (size_t)K;
+  double *mine = s->est_scratch + 5 * (size_t)K;
+  /* two sheets: the residuals about a plane through all K points of the
+   * neighbourhood (both sheets; K even where the fit is of fewer points, as
+   * multipass's K_i) fall in two groups with a gap between them
+   * (guard_gap); the centre's group is its sheet (mine[j] = 1), and lim is
+   * half the distance between the groups' medians: no point farther than
+   * that from the sheet belongs to it or is moved by its fit. A plane: a fit
+   * of higher degree bends between the sheets and fills the gap (a cubic of
+   * 50 points hid it in most neighbourhoods of the development set's thin
+   * plate). */
+  int split = 0;
+  double lim = INFINITY;
+  {
+    bsurf_frame fr;
+    bsurf_local_frame(xyz, idx, K, c->o.error.pca_center, &fr);
+    bsurf_localfit_setup(lf, xyz, idx, K, &fr, 1);
+    tiny = 1e-9 * lf->scale;
+    double coef[BSURF_TERMS_MAX];
+    const int dd = solve_with_fallback(lf, 1, c->m, coef);
+    fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
+    int nv = 0;
+    for (int j = 0; j < K; j++) {
+      r[j] = -fit_delta_any(F, dd, c->m, &xyz[3 * (size_t)idx[j]], 0);
+      if (!isnan(r[j])) srt[nv++] = r[j];
+    }
+    qsort(srt, (size_t)nv, sizeof *srt, cmp_double);
+    const double cut = nv >= 8 && !isnan(r[0]) ? guard_gap(srt, nv, tiny) : NAN;
+    if (!isnan(cut)) {
+      split = 1;
+      const int side = r[0] > cut ? 1 : -1;
+      int lo = 0, hi = 0;
+      for (int j = 0; j < nv; j++)
+        if (srt[j] > cut)
+          hi++;
+        else
+          lo++;
+      /* the groups' medians: srt[0..lo) and srt[lo..nv) */
+      const double m_lo = lo % 2 ? srt[lo / 2] : 0.5 * (srt[lo / 2 - 1] + srt[lo / 2]);
+      const double m_hi =
+          hi % 2 ? srt[lo + hi / 2] : 0.5 * (srt[lo + hi / 2 - 1] + srt[lo + hi / 2]);
+      lim = 0.5 * (m_hi - m_lo);
+      for (int j = 0; j < K; j++)
+        mine[j] = !isnan(r[j]) && (r[j] > cut ? 1 : -1) == side;
+    }
+  }
+  for (int kc = k; kc >= kmin; kc /= 2) {
+    const int ns = guard_near(kc);
+    /* the first fit: the centre's ns nearest points (most of them on its
+     * sheet, however many of the K are not), grown from there; or, split,
+     * the centre's sheet's points among the kc */
+    int na = ns, deg = c->degree;
+    for (int j = 0; j < ns; j++)
+      act[j] = idx[j];
+    double m = 0, bound = INFINITY;
+    int side = 0;
+    double lim_kc = INFINITY;
+    if (split) {
+      int nm = 0;
+      for (int j = 0; j < kc; j++)
+        if (mine[j] != 0) act[nm++] = idx[j];
+      if (nm >= 3) {
+        side = 1;
+        na = nm;
+        lim_kc = lim;
+      } else {
+        for (int j = 0; j < ns; j++)
+          act[j] = idx[j];
+      }
+    }
+    for (int round = 0;; round++) {
+      /* the fit of the sheet's points: frame, degree with two points per
+       * coefficient, least squares */
+      bsurf_frame fr;
+      bsurf_local_frame(xyz, act, na, c->o.error.pca_center, &fr);
+      int d = c->degree;
+      while (d > 1 && 2 * bsurf_poly_terms(d) > na)
+        d--;
+      bsurf_localfit_setup(lf, xyz, act, na, &fr, d);
+      double coef[BSURF_TERMS_MAX];
+      deg = solve_with_fallback(lf, d, c->m, coef);
+      fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
+      /* residuals of every point of the neighbourhood (beyond the fit's
+       * disc too: the sheet grows from its nearest points) */
+      int nn = 0;
+      for (int j = 0; j < kc; j++)
+        r[j] = -fit_delta_any(F, deg, c->m, &xyz[3 * (size_t)idx[j]], 0);
+      if (side) { /* which of the neighbourhood's points are the sheet's now */
+        for (int j = 0; j < kc; j++)
+          in[j] = 0;
+        for (int a = 0, j = 0; a < na && j < kc; j++)
+          if (idx[j] == act[a]) in[j] = 1, a++;
+      }
+      /* 1: the centre's sheet: offset and noise scale from its nearest
+       * points (of its side of a gap) */
+      for (int j = 0; j < kc && nn < ns; j++)
+        if (!isnan(r[j]) && (side ? in[j] != 0 : j < ns)) tmp[nn++] = r[j];
+      if (nn < 3) break;
+      m = median_of(tmp, nn);
+      int t = 0;
+      for (int j = 0; j < kc && t < nn; j++)
+        if (!isnan(r[j]) && (side ? in[j] != 0 : j < ns)) tmp[t++] = fabs(r[j] - m);
+      const double sc = 1.4826 * median_of(tmp, t);
+      bound = fmax(student_t_quantile(BSURF_GUARD_Z, t - 1) * sc * sqrt(1.0 + 1.0 / t), tiny);
+      const double bin = fmin(bound, lim_kc);
+      /* 2: the points of that sheet (the centre always) */
+      int n_in = 1, changed = 0;
+      for (int j = 1; j < kc; j++) {
+        if (!(fabs(r[j] - m) <= bin)) continue;
+        if (n_in >= na || act[n_in] != idx[j]) changed = 1;
+        act[n_in++] = idx[j];
+      }
+      changed |= n_in != na;
+      if (!changed || round == GUARD_ROUNDS || n_in < 3) break;
+      na = n_in;
+    }
+    /* 3: unbiased at the centre: the t test on the sheet's nearest points */
+    const double bin = fmin(bound, lim_kc);
+    double sum = 0, ss = 0;
+    int n = 0;
+    for (int j = 0; j < ns; j++)
+      if (fabs(r[j] - m) <= bin) sum += r[j], n++;
+    const double mean = n ? sum / n : 0;
+    for (int j = 0; j < ns; j++)
+      if (fabs(r[j] - m) <= bin) ss += (r[j] - mean) * (r[j] - mean);
+    const double sd = n > 1 ? sqrt(ss / (n - 1)) : 0;
+    if (n >= 3 && !(fabs(mean) > tiny &&
+                    fabs(mean) * sqrt((double)n) > student_t_quantile(BSURF_GUARD_Z, n - 1) * sd)) {
+      /* moves: delta = f - z = -r, so |delta| <= |m| + bound holds the sheet
+       * (and no point beyond a gap) */
+      F[13] = fabs(m) + fmin(GUARD_MOVE * bound, lim_kc);
+      *degree = deg;
+      return na < kc ? -kc : kc;
+    }
+  }
+  F[12] = NAN;
+  return 0;
+}
