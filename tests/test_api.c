@@ -250,6 +250,45 @@ static void test_error_bad_input(void **state) {
                  "k = 50");
 }
 
+/* the two K selections: every refusal names its argument */
+static void test_select_bad_input(void **state) {
+  fixture *f = *state;
+  bsurf_normal_options o = bsurf_normal_options_default();
+  o.bootstrap = 4;
+  int ks[3] = {10, 20, 30}, down[3] = {10, 30, 20}, big[2] = {10, 40};
+  bsurf_normal_select_fields sel;
+  memset(&sel, 0, sizeof sel);
+  sel.normals = f->b;
+  assert_invalid(bsurf_select_normals_k(NULL, &f->nb, f->a, &o, ks, 3, &sel, NULL),
+                 "bsurf_select_normals_k", "must not be NULL");
+  assert_invalid(bsurf_select_normals_k(f->c.xyz, &f->nb, f->a, &o, ks, 0, &sel, NULL),
+                 "bsurf_select_normals_k", "nk = 0");
+  assert_invalid(bsurf_select_normals_k(f->c.xyz, &f->nb, f->a, &o, down, 3, &sel, NULL),
+                 "bsurf_select_normals_k", "ks[2] = 20 must be above ks[1] = 30");
+  assert_invalid(bsurf_select_normals_k(f->c.xyz, &f->nb, f->a, &o, big, 2, &sel, NULL),
+                 "bsurf_select_normals_k", "ks[1] = 40 must be at most the neighbourhoods' k = 30");
+  bsurf_normal_options poly = o;
+  poly.fit = BSURF_NORMAL_POLY;
+  assert_invalid(bsurf_select_normals_k(f->c.xyz, &f->nb, f->a, &poly, ks, 3, &sel, NULL),
+                 "bsurf_select_normals_k", "takes PCA normals");
+  bsurf_kselect_options ko = bsurf_kselect_options_default();
+  ko.ks = ks;
+  ko.nk = 3;
+  bsurf_kselect_fields kf = {f->b, NULL, NULL, NULL};
+  assert_invalid(bsurf_select_k(f->c.xyz, &f->nb, NULL, &kf, NULL), "bsurf_select_k",
+                 "must not be NULL");
+  bsurf_kselect_options bad = ko;
+  bad.noise_k = 4;
+  assert_invalid(bsurf_select_k(f->c.xyz, &f->nb, &bad, &kf, NULL), "bsurf_select_k",
+                 "noise_k = 4");
+  bad = ko;
+  bad.ks = down;
+  assert_invalid(bsurf_select_k(f->c.xyz, &f->nb, &bad, &kf, NULL), "bsurf_select_k", "ks[2] = 20");
+  bad = ko;
+  bad.nk = 0;
+  assert_invalid(bsurf_select_k(f->c.xyz, &f->nb, &bad, &kf, NULL), "bsurf_select_k", "nk = 0");
+}
+
 static void test_normals_bad_input(void **state) {
   fixture *f = *state;
   bsurf_normal_options o = bsurf_normal_options_default();
@@ -450,6 +489,7 @@ int main(void) {
       cmocka_unit_test(test_neighbors_bad_input),
       cmocka_unit_test_setup_teardown(test_error_bad_input, setup, teardown),
       cmocka_unit_test_setup_teardown(test_normals_bad_input, setup, teardown),
+      cmocka_unit_test_setup_teardown(test_select_bad_input, setup, teardown),
       cmocka_unit_test_setup_teardown(test_smooth_bad_input, setup, teardown),
       cmocka_unit_test_setup_teardown(test_features_bad_input, setup, teardown),
       cmocka_unit_test_setup_teardown(test_synth_eval_bad_input, setup, teardown),

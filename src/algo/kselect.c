@@ -420,14 +420,20 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
                             const bsurf_kselect_options *opts, bsurf_kselect_fields *out,
                             bsurf_kselect_report *report) {
   if (report) memset(report, 0, sizeof *report);
-  if (!xyz || !nb || !nb->idx || !opts || !out || !opts->ks || opts->nk < 1)
-    return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz && nb && nb->idx && opts && out && opts->ks,
+                "xyz, nb, nb->idx, opts, opts->ks and out must not be NULL");
   const bsurf_kselect_options *o = opts;
-  if (o->rule != BSURF_KSELECT_MSE) return BSURF_ERR_INVALID_ARG;
-  if (o->noise_k < 2 * QT || o->noise_k > nb->k) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(o->nk >= 1, "opts->nk = %d: at least one candidate K", o->nk);
+  BSURF_REQUIRE(o->rule == BSURF_KSELECT_MSE, "opts->rule = %d must be BSURF_KSELECT_MSE",
+                (int)o->rule);
+  BSURF_REQUIRE(o->noise_k >= 2 * QT && o->noise_k <= nb->k,
+                "opts->noise_k = %d must be in [%d, the neighbourhoods' k = %d]", o->noise_k,
+                2 * QT, nb->k);
   for (int a = 0; a < o->nk; a++)
-    if (o->ks[a] <= QT || o->ks[a] > nb->k || (a > 0 && o->ks[a] <= o->ks[a - 1]))
-      return BSURF_ERR_INVALID_ARG;
+    BSURF_REQUIRE(o->ks[a] > QT && o->ks[a] <= nb->k && (a == 0 || o->ks[a] > o->ks[a - 1]),
+                  "opts->ks[%d] = %d must be in (%d, the neighbourhoods' k = %d] and above the "
+                  "K before it",
+                  a, o->ks[a], QT, nb->k);
   const int kmax = o->ks[o->nk - 1] > o->noise_k ? o->ks[o->nk - 1] : o->noise_k;
   if ((size_t)kmax > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
   const size_t n = nb->point_count;

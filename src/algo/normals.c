@@ -544,14 +544,20 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
                                     bsurf_normal_report *report) {
   bsurf_normal_options o = opts ? *opts : bsurf_normal_options_default();
   if (report) memset(report, 0, sizeof *report);
-  if (!xyz || !nb || !nb->idx || !ref_normals || !ks || !out || nk < 1)
-    return BSURF_ERR_INVALID_ARG;
-  if (o.fit != BSURF_NORMAL_PCA) return BSURF_ERR_INVALID_ARG;
-  if (o.bootstrap < 0 || o.bootstrap > 100000) return BSURF_ERR_INVALID_ARG;
-  if (ks[0] < 3) return BSURF_ERR_INVALID_ARG;
+  BSURF_REQUIRE(xyz && nb && nb->idx && ref_normals && ks && out,
+                "xyz, nb, nb->idx, ref_normals, ks and out must not be NULL");
+  BSURF_REQUIRE(nk >= 1, "nk = %d: at least one candidate K", nk);
+  BSURF_REQUIRE(o.fit == BSURF_NORMAL_PCA, "opts->fit = %d: selection of K takes PCA normals",
+                (int)o.fit);
+  BSURF_REQUIRE(o.bootstrap >= 0 && o.bootstrap <= 100000,
+                "opts->bootstrap = %d must be in [0, 100000]", o.bootstrap);
+  BSURF_REQUIRE(ks[0] >= 3, "ks[0] = %d must be at least 3", ks[0]);
   for (int a = 1; a < nk; a++)
-    if (ks[a] <= ks[a - 1]) return BSURF_ERR_INVALID_ARG;
-  if (ks[nk - 1] > 65535 || ks[nk - 1] > nb->k) return BSURF_ERR_INVALID_ARG;
+    BSURF_REQUIRE(ks[a] > ks[a - 1], "ks[%d] = %d must be above ks[%d] = %d (increasing)", a, ks[a],
+                  a - 1, ks[a - 1]);
+  BSURF_REQUIRE(ks[nk - 1] <= 65535 && ks[nk - 1] <= nb->k,
+                "ks[%d] = %d must be at most the neighbourhoods' k = %d (and 65535)", nk - 1,
+                ks[nk - 1], nb->k);
   if ((size_t)ks[nk - 1] > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
 
   const size_t n = nb->point_count;
