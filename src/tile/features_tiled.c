@@ -234,21 +234,32 @@ static size_t ply_points(const char *path) {
   return n;
 }
 
+/* The start of both tiled methods: err and report cleared, the arguments
+ * checked, f zeroed with the options (no progress: the engine reports it). */
+static bsurf_status fd_begin(fd_run *f, const char *input, const char *output,
+                             const bsurf_tile_ops *ops, const bsurf_feature_options *opts,
+                             bsurf_feature_report *report, bsurf_tile_report *tiles,
+                             bsurf_failure *err) {
+  if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
+  if (report) memset(report, 0, sizeof *report);
+  if (!input || !output || !ops || !ops->prepare || !tiles)
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
+  memset(f, 0, sizeof *f);
+  f->o = opts ? *opts : bsurf_feature_options_default();
+  f->o.progress = NULL;
+  f->o.progress_user = NULL;
+  f->base = ops;
+  return BSURF_OK;
+}
+
 bsurf_status bsurf_features_distance_tiled(const char *input, const char *output,
                                            const bsurf_tile_ops *ops,
                                            const bsurf_feature_options *opts,
                                            bsurf_feature_report *report, bsurf_tile_report *tiles,
                                            bsurf_failure *err) {
-  if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
-  if (report) memset(report, 0, sizeof *report);
-  if (!input || !output || !ops || !ops->prepare || !tiles)
-    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
   fd_run f;
-  memset(&f, 0, sizeof f);
-  f.o = opts ? *opts : bsurf_feature_options_default();
-  f.o.progress = NULL;
-  f.o.progress_user = NULL;
-  f.base = ops;
+  bsurf_status st0 = fd_begin(&f, input, output, ops, opts, report, tiles, err);
+  if (st0 != BSURF_OK) return st0;
   if (f.o.method != BSURF_FEATURES_DISTANCE ||
       bsurf_fdist_check(&f.o, f.o.k_max, SIZE_MAX) != BSURF_OK)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid options of the distance method");
@@ -435,16 +446,10 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
                                            const bsurf_feature_options *opts,
                                            bsurf_feature_report *report, bsurf_tile_report *tiles,
                                            bsurf_failure *err) {
-  if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
-  if (report) memset(report, 0, sizeof *report);
-  if (!input || !output || !ops || !ops->prepare || !tiles)
-    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
   fv_run v;
   memset(&v, 0, sizeof v);
-  v.fd.o = opts ? *opts : bsurf_feature_options_default();
-  v.fd.o.progress = NULL;
-  v.fd.o.progress_user = NULL;
-  v.fd.base = ops;
+  bsurf_status st0 = fd_begin(&v.fd, input, output, ops, opts, report, tiles, err);
+  if (st0 != BSURF_OK) return st0;
   const bsurf_feature_options *o = &v.fd.o;
   const int kf = bsurf_fvar_filter_k(o);
   if (o->method != BSURF_FEATURES_VARIANCE || o->tail_rule != BSURF_TAIL_NULL ||
