@@ -27,7 +27,8 @@ grep -oE '^BSURF_API [^;(]*[ *]bsurf_[a-z0-9_]+\(' "$HDR" | grep -oE 'bsurf_[a-z
 [ -s "$T/declared" ] && cmp -s "$T/declared" "$T/exported" && ok ||
   fail "exported != declared: $(diff "$T/declared" "$T/exported" | grep '^[<>]' | tr '\n' ' ')"
 # the static archive: defined global symbols (T, D, B, R, W, i, ...) all prefixed
-bad=$(nm -g --defined-only "$B/libbootsurf.a" | awk 'NF == 3 && $3 !~ /^bsurf_/ {print $3}' | sort -u)
+# (an ASan build adds __odr_asan.NAME beside each global NAME: those of ours count as NAME)
+bad=$(nm -g --defined-only "$B/libbootsurf.a" | awk 'NF == 3 {s = $3; sub(/^__odr_asan\./, "", s); if (s !~ /^bsurf_/) print $3}' | sort -u)
 [ -z "$bad" ] && ok || fail "libbootsurf.a defines unprefixed globals: $bad"
 
 # ---- install into a temporary prefix ----
