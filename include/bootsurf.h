@@ -519,6 +519,11 @@ typedef struct bsurf_kselect_fields {
                       pi / 2 where no candidate could be assessed */
   double *noise;   /* the estimated noise standard deviation along the
                       normal (length) */
+  int *two_sheet;  /* 1 where the chosen neighbourhood mixes two sheets
+                      (a thin part's faces, or two surfaces): its heights
+                      about a quadric split into two groups beyond what one
+                      sheet with any unimodal noise gives at level 0.001
+                      (docs/normals.md, "Two sheets"); else 0 */
 } bsurf_kselect_fields;
 
 typedef struct bsurf_kselect_report {
