@@ -536,9 +536,8 @@ def noise(points, normals=None, *, level=0.5, sigma_diag=None, model="gaussian",
     pts, cloud = _points(points)
     if normals is None and cloud is not None:
         normals = cloud.get("normals")
-        if normals is None and "true_nx" in cloud:  # an earlier noise output's exact normals
-            import numpy as np
-            normals = np.stack([cloud["true_nx"], cloud["true_ny"], cloud["true_nz"]], axis=1)
+        if normals is None:  # an earlier noise output's exact normals (true_nx ...)
+            normals = _truth(cloud).get("normals")
     if normals is None:
         raise ValueError("noise moves points along their normals: give normals")
     if sigma_diag is not None and level != 0.5:
@@ -590,33 +589,83 @@ sample.last_report = None
 # ---------------------------------------------------------------- evaluation
 
 
-def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None, split=None,
-             split_q=0.85):
-    """evaluate(normals=None, true_normals=None, *, feature=None,
-    true_feature=None, split=None, split_q=0.85) -> dict
+def _truth(cloud):
+    """A truth cloud as ``bootsurf eval --truth`` reads it: the true_nx true_ny
+    true_nz, true_feature and true_feature_dist fields that ``noise`` keeps
+    are its normals, feature and feature_dist."""
+    if not any(k.startswith("true_") for k in cloud):
+        return cloud
+    import numpy as np
+    t = Cloud(cloud, shape_name=getattr(cloud, "shape_name", ""))
+    if all(k in t for k in ("true_nx", "true_ny", "true_nz")):
+        t["normals"] = np.stack([t["true_nx"], t["true_ny"], t["true_nz"]], axis=1)
+    for named in ("true_feature", "true_feature_dist"):
+        if named in t:
+            t[named[5:]] = t.pop(named)
+    return t
 
-    Compare results with ground truth of the same points (``bootsurf eval``'s
-    normals and features sections).
+
+def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None, split=None,
+             split_q=0.85, points=None, truth=None, surface=None, threads=0, progress=None):
+    """evaluate(normals=None, true_normals=None, *, feature=None,
+    true_feature=None, split=None, split_q=0.85, points=None, truth=None,
+    surface=None, threads=0, progress=None) -> dict
+
+    Compare results with ground truth; ``bootsurf eval`` (the same numbers as
+    its --json, from the same library calls).
 
     normals: unoriented angle errors atan2(|a x b|, |a . b|) against
-    true_normals (thesis 5.2.2, Tables 5.1, 5.3-5.9): 'angles' (N,) in
-    radians and 'normals': {'all': stats} with count, mean_rad, median_rad,
-    rms_rad, mean_deg, under5deg, under10deg (PCPNet's PGP5/PGP10). With
-    split (a per-point value such as normal_var), also 'high' and 'low': the
-    points above the split_q quantile and the others (5.2.3, Table 5.2:
-    split_q = 0.85 is "the highest 15%").
+    true_normals of the same points (thesis 5.2.2, Tables 5.1, 5.3-5.9):
+    'angles' (N,) in radians and 'normals': {'all': stats} with count,
+    mean_rad, median_rad, rms_rad, mean_deg, under5deg, under10deg (PCPNet's
+    PGP5/PGP10). With split (a per-point value such as normal_var), also
+    'high' and 'low': the points above the split_q quantile and the others
+    (5.2.3, Table 5.2: split_q = 0.85 is "the highest 15%").
 
     feature / true_feature (0/1 per point): precision, recall and F1 (thesis
     ch. 7) under 'features'.
+
+    points with truth: the position error (smoothing, ch. 6): 'distances'
+    (N,), each point's distance to the true surface, and 'position' with
+    surface (mesh, shape or tangent_plane), correspondence (index, nearest
+    or none), h (the truth's mean spacing) and per group ('all', and with
+    split 'high' and 'low') points, mean, rms, max and the same over h, also
+    for the 'feature' and 'non_feature' points when the truth has 'feature'.
+    The true surface, in order: surface (a mesh Cloud or path, --surface),
+    the truth's faces, its generated shape (shape_name), its normals
+    (tangent planes). A point corresponds to truth point i when the counts
+    agree, else to the nearest truth point.
+
+    truth: a Cloud or path (``--truth``); its normals and feature stand in for
+    true_normals and true_feature (a noise output's true_nx ... too). A
+    points Cloud or path gives its normals and feature as the results, as
+    ``eval RESULT`` does.
     """
     out = {}
+    res = None
+    pts = None
+    if points is not None:
+        pts, res = _points(points)
+    if truth is not None:
+        truth = _truth(_maybe_read(truth))
+        if res is not None:  # a result cloud: its normals and labels, as eval RESULT
+            if normals is None and "normals" in res and "normals" in truth:
+                normals = res["normals"]
+            if feature is None and "feature" in res and "feature" in truth:
+                feature = res["feature"]
+        if normals is not None and true_normals is None:
+            true_normals = truth.get("normals")
+        if feature is not None and true_feature is None:
+            true_feature = truth.get("feature")
+    elif pts is not None:
+        raise ValueError("points: the position error needs truth= (a Cloud or path)")
+    mask = None
+    if split is not None:
+        mask, threshold, count = _core.quantile_split(split, float(split_q))
+        out["split"] = {"q": float(split_q), "threshold": threshold, "high_points": count}
     if normals is not None or true_normals is not None:
         if normals is None or true_normals is None:
             raise ValueError("normals and true_normals go together")
-        mask = None
-        if split is not None:
-            mask, threshold, count = _core.quantile_split(split, float(split_q))
-            out["split"] = {"q": float(split_q), "threshold": threshold, "high_points": count}
         angles, stats = _core.eval_normals(normals, true_normals, mask)
         out["angles"] = angles
         out["normals"] = stats
@@ -624,9 +673,14 @@ def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None
         if feature is None or true_feature is None:
             raise ValueError("feature and true_feature go together")
         out["features"] = _core.eval_features(feature, true_feature)
-    if not out:
-        raise ValueError("nothing to evaluate: give normals and true_normals, or feature and "
-                         "true_feature")
+    if pts is not None:
+        if surface is not None:
+            surface = _maybe_read(surface)
+        out["distances"], out["position"] = _core.eval_position(
+            pts, truth, getattr(truth, "shape_name", ""), surface, mask, int(threads), progress)
+    if not out or list(out) == ["split"]:
+        raise ValueError("nothing to evaluate: give normals and true_normals, feature and "
+                         "true_feature, or points and truth")
     return out
 
 

@@ -153,6 +153,19 @@ static int opt_f64(PyObject *obj, const char *what, int cols, size_t n, PyArrayO
   return 0;
 }
 
+/* A (n,) array of 0/1 labels as C-contiguous uint8; NULL with ValueError
+ * naming `what` when its length is not n. */
+static PyArrayObject *mask_u8(PyObject *obj, const char *what, size_t n) {
+  PyArrayObject *m = (PyArrayObject *)PyArray_FROMANY(obj, NPY_UINT8, 1, 1,
+                                                      NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+  if (m && (size_t)PyArray_DIM(m, 0) != n) {
+    PyErr_Format(PyExc_ValueError, "%s: has %zd values, the points %zu", what, PyArray_DIM(m, 0),
+                 n);
+    Py_CLEAR(m);
+  }
+  return m;
+}
+
 static double *f64(PyArrayObject *a) {
   return a ? (double *)PyArray_DATA(a) : NULL;
 }
@@ -1040,15 +1053,7 @@ static PyObject *py_eval_normals(PyObject *self, PyObject *args) {
     PyErr_SetString(PyExc_ValueError, "true_normals: required");
     goto done;
   }
-  if (mask_obj != Py_None) {
-    m = (PyArrayObject *)PyArray_FROMANY(mask_obj, NPY_UINT8, 1, 1,
-                                         NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
-    if (!m) goto done;
-    if ((size_t)PyArray_DIM(m, 0) != n) {
-      PyErr_SetString(PyExc_ValueError, "split: one value per point is needed");
-      goto done;
-    }
-  }
+  if (mask_obj != Py_None && !(m = mask_u8(mask_obj, "split", n))) goto done;
   npy_intp dims[1] = {(npy_intp)n};
   angles = PyArray_SimpleNew(1, dims, NPY_DOUBLE);
   if (!angles) goto done;
@@ -1112,6 +1117,91 @@ done:
   return ret;
 }
 
+static PyObject *distance_stats(const bsurf_distance_stats *s, double h) {
+  return Py_BuildValue("{s:n,s:d,s:d,s:d,s:d,s:d,s:d}", "points", (Py_ssize_t)s->count, "mean",
+                       s->mean, "rms", s->rms, "max", s->max, "mean_h", s->mean / h, "rms_h",
+                       s->rms / h, "max_h", s->max / h);
+}
+
+/* A group's statistics: {"points", "mean", ..., "feature": {...}, "non_feature": {...}} */
+static PyObject *position_group(const bsurf_position_eval *r, int g) {
+  static const char *const parts[BSURF_POSITION_PARTS] = {NULL, "feature", "non_feature"};
+  PyObject *d = distance_stats(&r->stats[g][BSURF_POSITION_PART_ALL], r->h);
+  for (int p = 1; d && r->has_feature && p < BSURF_POSITION_PARTS; p++)
+    if (set_item(d, parts[p], distance_stats(&r->stats[g][p], r->h))) Py_CLEAR(d);
+  return d;
+}
+
+static PyObject *py_eval_position(PyObject *self, PyObject *args) {
+  (void)self;
+  PyObject *pts, *truth_obj, *surface_obj, *mask_obj, *progress;
+  const char *shape;
+  int threads;
+  if (!PyArg_ParseTuple(args, "OOsOOiO", &pts, &truth_obj, &shape, &surface_obj, &mask_obj,
+                        &threads, &progress))
+    return NULL;
+  PyArrayObject *a = as_f64(pts, "points", 3), *m = NULL;
+  if (!a) return NULL;
+  size_t n = (size_t)PyArray_DIM(a, 0);
+  PyObject *dist = NULL, *ret = NULL;
+  borrowed truth, surface;
+  memset(&truth, 0, sizeof truth);
+  memset(&surface, 0, sizeof surface);
+  if (borrow_cloud(truth_obj, &truth) ||
+      (surface_obj != Py_None && borrow_cloud(surface_obj, &surface)))
+    goto done;
+  snprintf(truth.cloud.shape, sizeof truth.cloud.shape, "%s", shape);
+  if (surface_obj != Py_None && !surface.cloud.face_count) {
+    PyErr_SetString(PyExc_ValueError, "surface: has no 'faces': a triangle mesh is needed");
+    goto done;
+  }
+  if (mask_obj != Py_None && !(m = mask_u8(mask_obj, "split", n))) goto done;
+  npy_intp dims[1] = {(npy_intp)n};
+  if (!(dist = PyArray_SimpleNew(1, dims, NPY_DOUBLE))) goto done;
+  bsurf_position_eval_options o;
+  memset(&o, 0, sizeof o);
+  o.surface = surface_obj != Py_None ? &surface.cloud : NULL;
+  o.high = m ? PyArray_DATA(m) : NULL;
+  o.threads = threads;
+  call_ctx c;
+  ctx_init(&c, progress);
+  o.progress = progress_cb;
+  o.progress_user = &c;
+  bsurf_position_eval r;
+  RELEASE(&c);
+  bsurf_status st =
+      bsurf_eval_position(f64(a), n, &truth.cloud, &o, &r, PyArray_DATA((PyArrayObject *)dist));
+  ACQUIRE(&c);
+  if (st == BSURF_ERR_INVALID_VALUE && r.stage == BSURF_POSITION_STAGE_DISTANCE) {
+    PyErr_Format(PyExc_ValueError,
+                 "truth: point %zu (for points[%zu]) has a zero-length normal, or points[%zu] is "
+                 "not finite",
+                 r.bad_truth_point, r.bad_point, r.bad_point);
+    goto done;
+  }
+  if (st != BSURF_OK) {
+    fail(st, &c, NULL, NULL);
+    goto done;
+  }
+  static const char *const kinds[] = {"mesh", "shape", "tangent_plane"};
+  static const char *const groups[BSURF_POSITION_GROUPS] = {"all", "high", "low"};
+  PyObject *d = Py_BuildValue("{s:s,s:s,s:d}", "surface", kinds[r.surface], "correspondence",
+                              n == truth.cloud.point_count ? "index"
+                              : r.nearest                  ? "nearest"
+                                                           : "none",
+                              "h", r.h);
+  for (int g = 0; d && g < r.groups; g++)
+    if (set_item(d, groups[g], position_group(&r, g))) Py_CLEAR(d);
+  if (d) ret = Py_BuildValue("(ON)", dist, d);
+done:
+  borrowed_free(&truth);
+  borrowed_free(&surface);
+  Py_XDECREF(dist);
+  Py_XDECREF(m);
+  Py_DECREF(a);
+  return ret;
+}
+
 static PyObject *py_quantile_split(PyObject *self, PyObject *args) {
   (void)self;
   PyObject *vals;
@@ -1161,6 +1251,8 @@ static PyMethodDef methods[] = {
     {"eval_normals", py_eval_normals, METH_VARARGS, "eval_normals(normals, truth, mask)"},
     {"eval_features", py_eval_features, METH_VARARGS, "eval_features(feature, truth)"},
     {"quantile_split", py_quantile_split, METH_VARARGS, "quantile_split(values, q)"},
+    {"eval_position", py_eval_position, METH_VARARGS,
+     "eval_position(points, truth, shape, surface, mask, threads, progress)"},
     {"version", py_version, METH_NOARGS, "the library's version string"},
     {NULL, NULL, 0, NULL}};
 

@@ -189,6 +189,75 @@ def test_evaluate_uses_eval_numbers(cube):
     assert e["features"]["f1"] == 1.0
 
 
+def _same_json(py, js, path="position"):
+    """Every number of the CLI's JSON object js equals py's, as the CLI prints
+    it (%.10g: all the digits the JSON has)."""
+    for key, want in js.items():
+        if key == "source":
+            continue
+        assert key in py, (path, key)
+        got = py[key]
+        if isinstance(want, dict):
+            _same_json(got, want, path + "." + key)
+        elif isinstance(want, str) or isinstance(got, int):
+            assert got == want, (path, key, got, want)
+        else:
+            assert float("%.10g" % got) == want, (path, key, got, want)
+
+
+def test_evaluate_position_equals_cli(cube):
+    """The position section: the generated cube as the surface (index
+    correspondence, feature parts, split), a mesh given as surface=, and the
+    tangent planes of a truth with fewer points (nearest correspondence)."""
+    moved, fields, _ = bootsurf.smooth(cube, neighbors=20, bootstrap=8)
+    res = {"points": moved, "err_632": fields["err_632"]}
+    bootsurf.write(tmp("pos.ply"), res)
+    summ = cli("eval", tmp("pos.ply"), "--truth", tmp("noisy.ply"), "--split", "err_632:0.8",
+               "--json")
+    e = bootsurf.evaluate(points=moved, truth=tmp("noisy.ply"), split=fields["err_632"],
+                          split_q=0.8)
+    assert e["position"]["surface"] == "shape" and e["position"]["correspondence"] == "index"
+    assert "feature" in e["position"]["all"]
+    _same_json(e["position"], {k: v for k, v in summ["position"].items()
+                               if k in ("surface", "correspondence", "h")})
+    _same_json(e["position"]["all"], {k: v for k, v in summ["position"].items()
+                                      if k not in ("surface", "correspondence", "h", "source")})
+    for g in ("high", "low"):
+        _same_json(e["position"][g], summ["split"][g]["position"])
+    assert e["distances"].shape == (len(moved),)
+    assert e["position"]["all"]["max"] == e["distances"].max()
+    # a triangle mesh as the true surface (--surface)
+    mesh = {"points": np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
+                                [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], float),
+            "faces": np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                               [2, 3, 7], [2, 7, 6], [1, 2, 6], [1, 6, 5], [0, 4, 7], [0, 7, 3]],
+                              np.uint32)}
+    bootsurf.write(tmp("box.off"), mesh)
+    summ = cli("eval", tmp("pos.ply"), "--truth", tmp("noisy.ply"), "--surface", tmp("box.off"),
+               "--json")
+    e = bootsurf.evaluate(points=tmp("pos.ply"), truth=tmp("noisy.ply"), surface=mesh)
+    assert e["position"]["surface"] == "mesh"
+    _same_json(e["position"], {k: v for k, v in summ["position"].items() if k == "surface"})
+    _same_json(e["position"]["all"], {k: v for k, v in summ["position"].items()
+                                      if k not in ("surface", "correspondence", "h", "source")})
+    # tangent planes of a truth of other points: the nearest truth point
+    truth = bootsurf.read(tmp("cube.ply"))
+    sub = {"points": truth["points"][::2], "normals": truth["normals"][::2]}
+    bootsurf.write(tmp("half.ply"), sub)
+    summ = cli("eval", tmp("pos.ply"), "--truth", tmp("half.ply"), "--json")
+    e = bootsurf.evaluate(points=moved, truth=sub, threads=1)
+    assert e["position"]["surface"] == "tangent_plane"
+    assert e["position"]["correspondence"] == "nearest"
+    _same_json(e["position"], {k: v for k, v in summ["position"].items()
+                               if k in ("surface", "correspondence", "h")})
+    _same_json(e["position"]["all"], {k: v for k, v in summ["position"].items()
+                                      if k not in ("surface", "correspondence", "h", "source")})
+    with pytest.raises(ValueError, match="truth"):
+        bootsurf.evaluate(points=moved)
+    with pytest.raises(ValueError, match="no true surface"):
+        bootsurf.evaluate(points=moved, truth={"points": truth["points"]})
+
+
 def _find(obj, key):
     if isinstance(obj, dict):
         if key in obj:
