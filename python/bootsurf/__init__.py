@@ -86,6 +86,36 @@ def _points(x):
     return x, None
 
 
+def _job_input(points, output, tile_points):
+    """(points, tiled) of a job: in memory (points, None), or a tiled run from
+    a binary PLY file to another (None, (input, output, tile_points))."""
+    import os
+    if tile_points is None:
+        if output is not None:
+            raise ValueError("output: only tiled runs (tile_points=) write their results; write() "
+                             "saves results held in memory")
+        return _points(points)[0], None
+    if not (isinstance(points, str) or hasattr(points, "__fspath__")):
+        raise TypeError("points: a tiled run reads a binary PLY file: give its path, not %s"
+                        % type(points).__name__)
+    if output is None or not os.fspath(output).lower().endswith(".ply"):
+        raise ValueError("output: a tiled run writes binary PLY: give output='FILE.ply', not %r"
+                         % (output,))
+    if not os.fspath(points).lower().endswith(".ply"):
+        raise ValueError("%s: tiled runs read binary PLY files (write one with write())"
+                         % os.fspath(points))
+    return None, (os.fspath(points), os.fspath(output), int(tile_points))
+
+
+_TILED_DOC = """
+    Tiled (out-of-core) run, as the command's --tile-points N -o OUT.ply:
+    with tile_points=N, points is the path of a binary PLY file and output
+    the .ply file to write; the cloud is processed N points at a time with
+    exact halos (the same bytes as the command line writes, the same results
+    as in memory) and the returned fields (and points) are None: the
+    results are in output. summary then also has tile_points and tiles."""
+
+
 # ---------------------------------------------------------------- files
 
 
@@ -173,10 +203,10 @@ def spacing(points, *, threads=0, progress=None):
 
 
 def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_center="centroid",
-          seed=1, threads=0, test_sample=None, progress=None):
+          seed=1, threads=0, test_sample=None, output=None, tile_points=None, progress=None):
     """error(points, *, neighbors=50, degree=3, bootstrap=50, gamma='fit',
     pca_center='centroid', seed=1, threads=0, test_sample=None,
-    progress=None) -> (fields, summary)
+    output=None, tile_points=None, progress=None) -> (fields, summary)
 
     Bootstrap test-error estimates of local polynomial fits (thesis ch. 4);
     ``bootsurf error``.
@@ -212,10 +242,13 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
     if int(bootstrap) < 1:
         raise ValueError("bootstrap = %d: the bootstrap estimators need at least one replicate"
                          % int(bootstrap))
+    pts, tiled = _job_input(points, output, tile_points)
     test = _maybe_read(test_sample)
     if isinstance(test, dict):
         test = test["points"]
-    return _core.error(_points(points)[0], test, int(neighbors), int(degree), int(bootstrap),
+    if tiled and test is not None:
+        raise ValueError("test_sample: err_test needs the cloud in memory, not a tiled run")
+    return _core.error(pts, tiled, test, int(neighbors), int(degree), int(bootstrap),
                        int(seed), _choice(gamma, _GAMMAS, "gamma"),
                        _choice(pca_center, _CENTERS, "pca_center"), int(threads), progress)
 
@@ -249,12 +282,14 @@ _builtin_range = range
 def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid", bootstrap=50,
             seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="test-error",
             noise_k=20, select_degree=None, curve=False, truth=None, smooth_iterations=0,
-            alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", progress=None):
+            alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", output=None,
+            tile_points=None, progress=None):
     """normals(points, *, neighbors=30, fit='pca', degree=2,
     pca_center='centroid', bootstrap=50, seed=1, threads=0, test_error=False,
     k_ref=0, select_k=None, select_rule='test-error', noise_k=20,
     select_degree=None, curve=False, truth=None, smooth_iterations=0,
-    alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', progress=None)
+    alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', output=None,
+    tile_points=None, progress=None)
     -> (fields, summary)
 
     Normals with bootstrap confidence and test error (thesis ch. 5);
@@ -311,12 +346,12 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
     if curve and not ks:
         raise ValueError("curve needs select_k")
     ds = None if select_degree is None else [int(d) for d in select_degree]
-    pts, cloud = _points(points)
+    pts, tiled = _job_input(points, output, tile_points)
     if truth is not None:
         truth = _maybe_read(truth)
         if isinstance(truth, dict):
             truth = truth["normals"]
-    return _core.normals(pts, int(neighbors), _choice(fit, _FITS, "fit"), int(degree),
+    return _core.normals(pts, tiled, int(neighbors), _choice(fit, _FITS, "fit"), int(degree),
                          _choice(pca_center, _CENTERS, "pca_center"), int(bootstrap), int(seed),
                          int(threads), bool(test_error), int(k_ref), ks,
                          _choice(select_rule, _RULES, "select_rule"), int(noise_k), ds,
@@ -358,12 +393,13 @@ def _length(value, option, allow_w=False):
 def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, gamma="fit",
            pca_center="centroid", estimator="auto", threshold="auto", h1="h", h2="auto",
            order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on", seed=1,
-           threads=0, progress=None):
+           threads=0, output=None, tile_points=None, progress=None):
     """smooth(points, *, method='bilateral', neighbors=50, degree=3,
     bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
     threshold='auto', h1='h', h2='auto', order='parallel', a=0.1,
     iterations=300, k_min=10, k_error='auto', guard='on', seed=1, threads=0,
-    progress=None) -> (points, fields, summary)
+    output=None, tile_points=None, progress=None)
+    -> (points, fields, summary)
 
     Denoise: move points towards the bootstrap fits (thesis ch. 6);
     ``bootsurf smooth`` (bsurf_smooth_job).
@@ -409,8 +445,8 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
     v2, h2_h, f2 = (_math.nan, False, _math.nan) if h2 == "auto" else _length(h2, "h2", True)
     ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error == "auto"
                     else _length(k_error, "k_error", True))
-    pts, _ = _points(points)
-    return _core.smooth(pts, _choice(method, _METHODS, "method"), int(neighbors), int(degree),
+    pts, tiled = _job_input(points, output, tile_points)
+    return _core.smooth(pts, tiled, _choice(method, _METHODS, "method"), int(neighbors), int(degree),
                         int(bootstrap), int(seed), _choice(gamma, _GAMMAS, "gamma"),
                         _choice(pca_center, _CENTERS, "pca_center"),
                         _choice(estimator, _ESTIMATORS, "estimator"), thr, thr_h, v1, h1_h, v2,
@@ -428,12 +464,14 @@ _TAIL_RULES = ("otsu", "mad", "null")  # BSURF_TAIL_OTSU, _MAD, _NULL
 def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15, k_max=60,
              k_step=2, ratio_threshold=0.1, noise_factor=1.75, derivative=0.0, alpha=0.5,
              iterations=5, filter_k=0, sigma_range=0.05, threshold="auto", tail_rule="null",
-             false_positive_rate=0.01, variance_filter_k=0, seed=1, threads=0, progress=None):
+             false_positive_rate=0.01, variance_filter_k=0, seed=1, threads=0, output=None,
+             tile_points=None, progress=None):
     """features(points, *, method='distance', neighbors=30, bootstrap=50,
     k_min=15, k_max=60, k_step=2, ratio_threshold=0.1, noise_factor=1.75,
     derivative=0.0, alpha=0.5, iterations=5, filter_k=0, sigma_range=0.05,
     threshold='auto', tail_rule='null', false_positive_rate=0.01,
-    variance_filter_k=0, seed=1, threads=0, progress=None)
+    variance_filter_k=0, seed=1, threads=0, output=None,
+    tile_points=None, progress=None)
     -> (fields, summary)
 
     Feature detection (thesis ch. 7); ``bootsurf features``
@@ -481,14 +519,19 @@ def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15,
     immediate, ratio_threshold_kmin, noise_level).
     """
     thr = _math.nan if threshold == "auto" else float(threshold)
-    pts, _ = _points(points)
-    return _core.features(pts, _choice(method, _FEATURE_METHODS, "method"), int(neighbors),
+    pts, tiled = _job_input(points, output, tile_points)
+    return _core.features(pts, tiled, _choice(method, _FEATURE_METHODS, "method"), int(neighbors),
                           int(bootstrap), int(k_min), int(k_max), int(k_step),
                           float(ratio_threshold), float(noise_factor), float(derivative),
                           float(alpha), int(iterations), int(filter_k), float(sigma_range), thr,
                           _choice(tail_rule, _TAIL_RULES, "tail_rule"),
                           float(false_positive_rate), int(variance_filter_k), int(seed),
                           int(threads), progress)
+
+
+for _f in (error, normals, smooth, features):
+    if _f.__doc__:  # None under python -OO
+        _f.__doc__ += _TILED_DOC
 
 
 # ---------------------------------------------------------------- data

@@ -156,6 +156,39 @@ def test_sample_equals_cli():
     assert bootsurf.sample.last_report["sharp_edges"] == 6
 
 
+def test_tiled_runs_equal_cli_bytes(cube):
+    """error, normals, smooth and features with tile_points= write the same
+    bytes as the command's --tile-points, and the same values as in memory."""
+    src = tmp("noisy.ply")
+    runs = [("error", bootsurf.error, ["-k", 20, "-B", 5], dict(neighbors=20, bootstrap=5)),
+            ("normals", bootsurf.normals, ["-k", 20, "-B", 5, "--test-error"],
+             dict(neighbors=20, bootstrap=5, test_error=True)),
+            ("smooth", bootsurf.smooth, ["-k", 20, "-B", 5], dict(neighbors=20, bootstrap=5)),
+            ("features", bootsurf.features, ["--method", "variance", "-B", 5],
+             dict(method="variance", bootstrap=5))]
+    for name, fn, args, kw in runs:
+        cli(name, src, *args, "--tile-points", 700, "-o", tmp("t_cli.ply"), "-q")
+        r = fn(src, output=tmp("t_py.ply"), tile_points=700, **kw)
+        summary = r[-1]
+        assert all(x is None for x in r[:-1])
+        assert summary["tiles"] > 1 and summary["points"] == len(cube["points"]), summary
+        with open(tmp("t_cli.ply"), "rb") as a, open(tmp("t_py.ply"), "rb") as b:
+            assert a.read() == b.read(), name
+        if name == "normals":  # the tiles' values are those of the run in memory
+            mem, _ = fn(src, **kw)
+            got = bootsurf.read(tmp("t_py.ply"))
+            same_bits(got["normal_var"], mem["normal_var"].astype(np.float32))
+    with pytest.raises(TypeError, match="path"):
+        bootsurf.normals(cube["points"], output=tmp("x.ply"), tile_points=500)
+    with pytest.raises(ValueError, match="output"):
+        bootsurf.normals(src, tile_points=500)
+    with pytest.raises(ValueError, match="output"):
+        bootsurf.normals(src, output=tmp("x.ply"))
+    with pytest.raises(OSError, match="missing.ply"):
+        bootsurf.normals(tmp("missing.ply"), output=tmp("x.ply"), tile_points=500)
+    assert not os.path.exists(tmp("x.ply"))
+
+
 def test_read_write_round_trip(cube):
     for ext in ("ply", "pcd", "csv", "las"):
         d = bootsurf.Cloud(cube)
