@@ -108,6 +108,12 @@ static PyObject *fail(bsurf_status st, const call_ctx *c, const char *path,
   }
 }
 
+/* In memory, the subject of the data's faults (too few points, a NaN
+ * coordinate), where the command line names the input file: "points". */
+static const char *about_points(bsurf_status st) {
+  return st == BSURF_ERR_TOO_FEW_POINTS || st == BSURF_ERR_INVALID_VALUE ? "points" : NULL;
+}
+
 /* ---- arrays ---- */
 
 /* `obj` as a C-contiguous float64 array of shape (N, cols) (cols 0: (N,)),
@@ -432,6 +438,15 @@ static PyObject *py_knn(PyObject *self, PyObject *args) {
     return PyErr_Format(PyExc_ValueError, "k = %d: must be in [1, %zu] (the number of points)", k,
                         n);
   }
+  /* bsurf_knn_build takes any doubles (a NaN point lands somewhere in the
+   * tree): refuse them as bsurf_neighbors_build does for the jobs */
+  const double *xyz = f64(a);
+  for (size_t i = 0; i < 3 * n; i++)
+    if (!isfinite(xyz[i])) {
+      Py_DECREF(a);
+      return PyErr_Format(PyExc_ValueError, "points: point %zu has a NaN or infinite coordinate",
+                          i / 3);
+    }
   npy_intp dims[2] = {(npy_intp)n, k};
   PyObject *idx = PyArray_SimpleNew(2, dims, NPY_UINT32),
            *d2 = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
@@ -450,7 +465,7 @@ static PyObject *py_knn(PyObject *self, PyObject *args) {
   if (st != BSURF_OK) {
     Py_DECREF(idx);
     Py_DECREF(d2);
-    return fail(st, &c, NULL, NULL);
+    return fail(st, &c, about_points(st), NULL);
   }
   return Py_BuildValue("(NN)", idx, d2);
 bad:
@@ -467,6 +482,12 @@ static PyObject *py_spacing(PyObject *self, PyObject *args) {
   if (!PyArg_ParseTuple(args, "OiO", &pts, &threads, &progress)) return NULL;
   PyArrayObject *a = as_f64(pts, "points", 3);
   if (!a) return NULL;
+  if (PyArray_DIM(a, 0) < 2) {
+    Py_DECREF(a);
+    return PyErr_Format(PyExc_ValueError,
+                        "points: has %zd point(s); the spacing h needs at least 2",
+                        PyArray_DIM(a, 0));
+  }
   call_ctx c;
   ctx_init(&c, progress);
   double h = 0;
@@ -475,7 +496,7 @@ static PyObject *py_spacing(PyObject *self, PyObject *args) {
       bsurf_mean_spacing_progress(f64(a), (size_t)PyArray_DIM(a, 0), threads, &h, progress_cb, &c);
   ACQUIRE(&c);
   Py_DECREF(a);
-  if (st != BSURF_OK) return fail(st, &c, NULL, NULL);
+  if (st != BSURF_OK) return fail(st, &c, about_points(st), NULL);
   return PyFloat_FromDouble(h);
 }
 
@@ -567,14 +588,15 @@ static void job_free(job_call *j) {
 /* After the job: its fields as a dict (None for a tiled run, whose results
  * are in the output file), or NULL with the exception: OSError naming the
  * input (and the line or byte) or, when the input is readable and nothing
- * places the failure in it, the output. `points` (may be NULL): the moved
+ * places the failure in it, the output; ValueError "points: ..." for the
+ * points' faults in memory. `points` (may be NULL): the moved
  * points of a job that moves them (None when tiled). Frees what job_begin
  * took. */
 static PyObject *job_end(job_call *j, bsurf_status st, PyObject **points) {
   PyObject *fields = NULL;
   if (points) *points = NULL;
   if (st != BSURF_OK) {
-    const char *path = NULL;
+    const char *path = about_points(st);
     if (j->io.input) {
       int located = j->err.line > 0 || j->err.byte >= 0;
       path = st == BSURF_ERR_IO && !located && access(j->io.input, R_OK) == 0 ? j->io.output

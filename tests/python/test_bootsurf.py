@@ -429,10 +429,17 @@ def test_bad_input(cube):
         bootsurf.error(np.zeros((10, 3), dtype=complex))
     q = p.copy()
     q[7, 1] = np.nan
-    with pytest.raises(ValueError, match="point 7"):
+    # the library's message, with its subject (the CLI names the file there)
+    with pytest.raises(ValueError, match=r"^points: point 7 has a NaN"):
         bootsurf.error(q)
-    with pytest.raises(ValueError, match="fewer than K|exceeds"):
+    with pytest.raises(ValueError, match=r"^points: point 7 has a NaN"):
+        bootsurf.knn(q, 4)
+    with pytest.raises(ValueError, match=r"^points: has 20 points, fewer than K = 50"):
         bootsurf.error(p[:20])
+    with pytest.raises(ValueError, match=r"^points: has 5 points, fewer than K = 30"):
+        bootsurf.normals(p[:5])
+    with pytest.raises(ValueError, match=r"^points: has 1 point"):
+        bootsurf.spacing(p[:1])
     with pytest.raises(ValueError, match=r"k = 9"):
         bootsurf.knn(p[:8], 9)
     with pytest.raises(ValueError, match="gamma"):
@@ -458,7 +465,7 @@ def test_bad_input(cube):
                 "property float z\nend_header\n1 2 3\n1 2\n")
     with pytest.raises(OSError, match=r"bad.ply:9:"):
         bootsurf.read(tmp("bad.ply"))
-    with pytest.raises(OSError):
+    with pytest.raises(OSError, match="no-such-dir"):
         bootsurf.write(os.path.join(TMP, "no-such-dir", "x.ply"), p)
     # the input is never modified
     before = p.copy()
