@@ -64,6 +64,14 @@ static int progress_cb(void *user, size_t done, size_t total) {
   return c->stop;
 }
 
+/* ctx_init (progress != NULL) and the library's progress members of an
+ * options struct set to the binding's callback. */
+static void ctx_hook(call_ctx *c, PyObject *progress, bsurf_progress_fn *fn, void **user) {
+  if (progress) ctx_init(c, progress);
+  *fn = progress_cb;
+  *user = c;
+}
+
 #define RELEASE(c) ((c)->ts = PyEval_SaveThread())
 #define ACQUIRE(c) PyEval_RestoreThread((c)->ts)
 
@@ -272,6 +280,15 @@ bad:
   return NULL;
 }
 
+/* (dict, shape name) of a cloud the library made (read, generate), whose
+ * arrays the dict takes. */
+static PyObject *cloud_result(bsurf_cloud *c) {
+  char shape[BSURF_FIELD_NAME_MAX];
+  memcpy(shape, c->shape, sizeof shape);
+  PyObject *d = dict_from_cloud(c);
+  return d ? Py_BuildValue("(Ns)", d, shape) : NULL;
+}
+
 /* A cloud that borrows the buffers of a dict's arrays (never freed by the
  * library: only read). `keep` holds the converted arrays; `fields` is
  * PyMem-allocated (free it after use). */
@@ -385,11 +402,7 @@ static PyObject *py_read(PyObject *self, PyObject *args) {
   bsurf_status st;
   Py_BEGIN_ALLOW_THREADS st = bsurf_read(path, &c, &err);
   Py_END_ALLOW_THREADS if (st != BSURF_OK) return fail(st, NULL, path, &err);
-  char shape[BSURF_FIELD_NAME_MAX];
-  memcpy(shape, c.shape, sizeof shape);
-  PyObject *d = dict_from_cloud(&c);
-  if (!d) return NULL;
-  return Py_BuildValue("(Ns)", d, shape);
+  return cloud_result(&c);
 }
 
 static PyObject *py_write(PyObject *self, PyObject *args) {
@@ -688,8 +701,7 @@ static PyObject *py_error(PyObject *self, PyObject *args) {
   test.point_count = j.cloud.point_count;
   test.xyz = f64(t);
   j.io.test = t ? &test : NULL;
-  eo.progress = progress_cb;
-  eo.progress_user = &j.c;
+  ctx_hook(&j.c, NULL, &eo.progress, &eo.progress_user);
   bsurf_error_job_summary s;
   RELEASE(&j.c);
   bsurf_status st = bsurf_error_job(&j.io, &eo, &s, &j.err);
@@ -789,8 +801,7 @@ static PyObject *py_normals(PyObject *self, PyObject *args) {
   }
   o.curve = curve;
   o.curve_truth = f64(tr);
-  o.normals.progress = progress_cb;
-  o.normals.progress_user = &j.c;
+  ctx_hook(&j.c, NULL, &o.normals.progress, &o.normals.progress_user);
   bsurf_normals_job_summary s;
   RELEASE(&j.c);
   bsurf_status st = bsurf_normals_job(&j.io, &o, &s, &j.err);
@@ -840,8 +851,7 @@ static PyObject *py_smooth(PyObject *self, PyObject *args) {
   /* the job moves the cloud's points: a copy the result array then owns */
   job_call j;
   if (job_begin(&j, pts, tiled, 1, progress)) return NULL;
-  so->error.progress = progress_cb;
-  so->error.progress_user = &j.c;
+  ctx_hook(&j.c, NULL, &so->error.progress, &so->error.progress_user);
   bsurf_smooth_job_summary s;
   RELEASE(&j.c);
   bsurf_status st = bsurf_smooth_job(&j.io, &o, &s, &j.err);
@@ -881,8 +891,7 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   o.normals.seed = seed;
   job_call j;
   if (job_begin(&j, pts, tiled, 0, progress)) return NULL;
-  o.progress = progress_cb;
-  o.progress_user = &j.c;
+  ctx_hook(&j.c, NULL, &o.progress, &o.progress_user);
   bsurf_features_job_summary s;
   RELEASE(&j.c);
   bsurf_status st = bsurf_features_job(&j.io, &o, &s, &j.err);
@@ -920,11 +929,7 @@ static PyObject *py_generate(PyObject *self, PyObject *args) {
   Py_BEGIN_ALLOW_THREADS st =
       bsurf_generate(&c, shape, (size_t)n, (bsurf_sampling)sampling, seed, width);
   Py_END_ALLOW_THREADS if (st != BSURF_OK) return fail(st, NULL, NULL, NULL);
-  char sh[BSURF_FIELD_NAME_MAX];
-  memcpy(sh, c.shape, sizeof sh);
-  PyObject *d = dict_from_cloud(&c);
-  if (!d) return NULL;
-  return Py_BuildValue("(Ns)", d, sh);
+  return cloud_result(&c);
 }
 
 static PyObject *py_noise(PyObject *self, PyObject *args) {
@@ -950,9 +955,7 @@ static PyObject *py_noise(PyObject *self, PyObject *args) {
     return NULL;
   }
   call_ctx c;
-  ctx_init(&c, progress);
-  no.progress = progress_cb;
-  no.progress_user = &c;
+  ctx_hook(&c, progress, &no.progress, &no.progress_user);
   bsurf_noise_report r;
   RELEASE(&c);
   bsurf_status st = bsurf_noise_points(f64(out), f64(nr), n, &no, &r);
@@ -1216,9 +1219,7 @@ static PyObject *py_eval_position(PyObject *self, PyObject *args) {
   o.high = m ? PyArray_DATA(m) : NULL;
   o.threads = threads;
   call_ctx c;
-  ctx_init(&c, progress);
-  o.progress = progress_cb;
-  o.progress_user = &c;
+  ctx_hook(&c, progress, &o.progress, &o.progress_user);
   bsurf_position_eval r;
   RELEASE(&c);
   bsurf_status st =
