@@ -39,9 +39,9 @@ static bsurf_status position_stats(const double *dist, size_t n, const uint8_t *
   for (int g = 0; g < out->groups; g++)
     for (int part = 0; part < (feat ? BSURF_POSITION_PARTS : 1); part++) {
       for (size_t i = 0; i < n; i++)
-        sel[i] = (g == BSURF_POSITION_ALL || high[i] == (g == BSURF_POSITION_HIGH)) &&
-                 (part == BSURF_POSITION_PART_ALL ||
-                  feat[i] == (part == BSURF_POSITION_PART_FEATURE));
+        sel[i] =
+            (g == BSURF_POSITION_ALL || high[i] == (g == BSURF_POSITION_HIGH)) &&
+            (part == BSURF_POSITION_PART_ALL || feat[i] == (part == BSURF_POSITION_PART_FEATURE));
       bsurf_distance_stats_compute(dist, sel, 1, n, &out->stats[g][part]);
     }
   free(sel);
