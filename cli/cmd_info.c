@@ -52,10 +52,7 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
   }
   double secs = cli_now() - t0;
   if (json) {
-    cli_json j;
-    json_begin(&j, stdout);
-    json_str(&j, "command", "info");
-    json_str(&j, "input", pos[0]);
+    cli_json j = json_start("info", pos[0], NULL);
     json_int(&j, "points", (long long)c.point_count);
     json_int(&j, "faces", (long long)c.face_count);
     json_bool(&j, "normals", c.normals != NULL);

@@ -186,6 +186,11 @@ void cli_print_input_report(FILE *f) {
     fprintf(f, "  %zu points coincide with another point (duplicates)\n", input_duplicates);
 }
 
+void cli_print_footer(const char *output) {
+  cli_print_input_report(stdout);
+  if (output) printf("  -> %s\n", output);
+}
+
 int cli_check_output(const char *output, const char *input, int force) {
   if (!strcmp(output, "-"))
     return cli_out_format ? 0 : cli_error("-: standard output needs --format");
@@ -412,6 +417,20 @@ void json_begin(cli_json *j, FILE *f) {
   memset(j, 0, sizeof *j);
   j->f = f;
   fputc('{', f);
+}
+
+cli_json json_start(const char *command, const char *input, const char *output) {
+  cli_json j;
+  json_begin(&j, stdout);
+  json_str(&j, "command", command);
+  if (input) json_str(&j, "input", input);
+  if (output) json_str(&j, "output", output);
+  return j;
+}
+
+void json_points_h(cli_json *j, size_t points, double h) {
+  json_int(j, "points", (long long)points);
+  json_num(j, "h", h);
 }
 
 void json_end(cli_json *j) {
