@@ -238,11 +238,6 @@ typedef enum bsurf_ply_names {
  * resources from the declared counts. *points: the declared vertex count (0
  * for formats without a header count, which are not checked here). */
 BSURF_API bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_failure *err);
-/* The same on the first `size` bytes (the header among them) of a file of
- * `file_size` bytes (used by the fuzzers). */
-BSURF_API bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
-                                                bsurf_format format, uint64_t *points,
-                                                bsurf_failure *err);
 
 /* The output-path policy of every writer (docs/robustness.md): BSURF_OK for
  * a new file, a writable regular file, a FIFO or a device (written directly,

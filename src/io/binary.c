@@ -1,5 +1,6 @@
-/* Little-endian values in unaligned bytes, for the binary readers and
- * writers of PCD and LAS (PLY keeps its own, which also reads big-endian). */
+/* Little-endian values in unaligned bytes, for the binary readers of PCD
+ * and LAS and the writers of PLY, PCD and LAS (PLY's reader keeps its own,
+ * which also reads big-endian). */
 #include "io/io.h"
 
 #include <stdlib.h>
@@ -58,6 +59,10 @@ unsigned char *io_put_le(unsigned char *p, double v, bsurf_type type) {
   } else {
     u = (uint64_t)(long long)io_type_convert(v, type); /* two's complement */
   }
+  return io_put_le_bytes(p, u, n);
+}
+
+unsigned char *io_put_le_bytes(unsigned char *p, uint64_t u, size_t n) {
   for (size_t i = 0; i < n; i++)
     p[i] = (unsigned char)(u >> (8 * i));
   return p + n;

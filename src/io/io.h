@@ -37,6 +37,7 @@
 #define io_ply_too_short bsurf_i_io_ply_too_short
 #define io_ply_probe bsurf_i_io_ply_probe
 #define io_put_le bsurf_i_io_put_le
+#define io_put_le_bytes bsurf_i_io_put_le_bytes
 #define io_u64_exact bsurf_i_io_u64_exact
 #define io_names_init bsurf_i_io_names_init
 #define io_names_add bsurf_i_io_names_add
@@ -250,6 +251,8 @@ double io_le_value(const unsigned char *p, bsurf_type type);
 /* Stores v as `type` little-endian (rounded and clamped as io_type_convert);
  * returns p + the type's size. */
 unsigned char *io_put_le(unsigned char *p, double v, bsurf_type type);
+/* The n low bytes of u, least significant first; returns p + n. */
+unsigned char *io_put_le_bytes(unsigned char *p, uint64_t u, size_t n);
 /* A 64-bit integer as a double, or 0 when a double cannot hold it exactly
  * (beyond 2^53): *ok is cleared then. */
 double io_i64_exact(int64_t v, int *ok);
