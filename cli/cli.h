@@ -207,7 +207,8 @@ int cli_truth_to_fields(bsurf_cloud *c);
  * its normals, feature and feature_dist. 0 or 1 (printed). */
 int cli_truth_from_fields(bsurf_cloud *c);
 /* Text summaries: the points dropped by --drop-invalid and the duplicate
- * points cli_build_neighbors() found, when there are any. (JSON summaries get
+ * points the job counted (cli_set_duplicates: the library's count, in
+ * memory bsurf_jobs_neighbors, tiled the engine's), when there are any. (JSON summaries get
  * "dropped_invalid" and "duplicate_points" from json_end().) */
 void cli_print_input_report(FILE *f);
 /* The end of a text summary on stdout: cli_print_input_report, then
@@ -221,12 +222,6 @@ int cli_check_writable(const char *output, const char *input, int force);
 /* Writes atomically; warns about fields the format cannot carry; writes
  * nothing once SIGINT/SIGTERM arrived. 0 or 1. */
 int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
-
-/* Builds the K-neighbourhoods of a cloud read from `path`, with a progress
- * bar, and counts the duplicate points; on failure (fewer points than K,
- * interrupted, no memory) prints the reason and returns 1. */
-int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
-                        bsurf_neighbors *nb);
 
 /* --range-points (bsurf_job_io.range_points; 0: the library's choice) */
 extern size_t cli_range_points;
@@ -258,7 +253,7 @@ int cli_job_failed(const char *input, const char *output, size_t plan, bsurf_sta
  * returns 1), or the run's duplicate count kept for the summary (returns 0). */
 int cli_job_done(struct cli_progress *prog, const char *input, const char *output, size_t plan,
                  bsurf_status st, const bsurf_failure *err, size_t duplicates);
-/* The duplicate count of a tiled run, for the summaries. */
+/* The duplicate count a job reported, for the summaries. */
 void cli_set_duplicates(size_t count);
 /* MPI (a build with BSURF_MPI, started by mpirun); otherwise one rank. */
 void cli_mpi_init(int *argc, char ***argv);

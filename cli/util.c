@@ -259,31 +259,6 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii) {
   return 0;
 }
 
-int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
-                        bsurf_neighbors *nb) {
-  memset(nb, 0, sizeof *nb);
-  if (c->point_count < (size_t)k)
-    return cli_error("%s: has %zu points, fewer than K = %d", path, c->point_count, k);
-  cli_progress prog;
-  cli_progress_init(&prog, "neighbours", quiet);
-  bsurf_status st =
-      bsurf_neighbors_build(nb, c->xyz, c->point_count, k, threads, cli_progress_cb, &prog);
-  cli_progress_done(&prog);
-  if (st != BSURF_OK)
-    return cli_error("%s: neighbourhoods: %s", path,
-                     cli_interrupted() ? "interrupted" : bsurf_strerror(st));
-  /* points at the same place as another: the nearest other neighbour (the
-   * point itself comes first) is at distance 0 */
-  size_t dup = 0;
-  for (size_t i = 0; i < c->point_count; i++) {
-    const double *a = c->xyz + 3 * i, *b = c->xyz + 3 * (size_t)nb->idx[i * (size_t)k + 1];
-    dup += a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
-  }
-  input_duplicates_known = 1;
-  input_duplicates = dup;
-  return 0;
-}
-
 /* ---- progress and signals ---- */
 
 /* SIGINT and SIGTERM (docs/robustness.md, "Signals"): the first one sets
