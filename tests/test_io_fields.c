@@ -1,8 +1,10 @@
 /* Field names of the PCD, LAS and CSV readers (one mechanism: a name set
  * and bsurf_cloud_add_fields, src/io/binary.c): many extra fields come back
  * with their names and values; names written twice become name, name_1,
- * name_2 in file order (a name taken by then gets the next suffix); and a PCD ascii header whose
- * POINTS the data cannot hold fails with the size message before the cloud is allocated. */
+ * name_2 in file order (a name taken by then gets the next suffix); a PCD
+ * ascii header whose POINTS the data cannot hold fails with the size
+ * message before the cloud is allocated; CSV's types are as
+ * docs/formats.md states them. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -184,11 +186,61 @@ static void test_pcd_ascii_count_before_allocation(void **state) {
 #endif
 }
 
+/* docs/formats.md: CSV keeps the values, and a field's type only where it
+ * is the smallest one holding them. */
+static void test_csv_types(void **state) {
+  (void)state;
+  static const struct {
+    const char *name;
+    bsurf_type type, back;
+    double scale, offset; /* value i: offset + scale i */
+  } cases[] = {
+      {"u16_wide", BSURF_UINT16, BSURF_UINT16, 100, 0}, /* up to 400: uint16 */
+      {"u16_small", BSURF_UINT16, BSURF_UINT8, 50, 0},  /* below 256: uint8 */
+      {"i16", BSURF_INT16, BSURF_INT16, 100, -300},
+      {"i32", BSURF_INT32, BSURF_INT32, 1e6, -1e6},
+      {"f32", BSURF_FLOAT32, BSURF_FLOAT32, 0.25, 0.5},
+      {"f32_whole", BSURF_FLOAT32, BSURF_INT8, 1, -2},      /* whole numbers: an integer */
+      {"f64_single", BSURF_FLOAT64, BSURF_FLOAT32, 0.5, 0}, /* floats hold them: float32 */
+      {"f64", BSURF_FLOAT64, BSURF_FLOAT64, 0.1, 0},
+  };
+  const size_t nc = sizeof cases / sizeof cases[0];
+  bsurf_cloud a, b;
+  bsurf_cloud_init(&a);
+  assert_int_equal(bsurf_cloud_alloc(&a, 5, 0), BSURF_OK);
+  for (size_t i = 0; i < 15; i++)
+    a.xyz[i] = (double)i;
+  for (size_t k = 0; k < nc; k++) {
+    bsurf_field *f = bsurf_cloud_add_field(&a, cases[k].name, cases[k].type);
+    assert_non_null(f);
+    for (size_t i = 0; i < 5; i++)
+      f->values[i] = cases[k].offset + cases[k].scale * (double)i;
+  }
+  char path[4096];
+  bsurf_failure err;
+  tmp_path(path, sizeof path, "types.csv");
+  if (bsurf_write(path, &a, NULL, &err) != BSURF_OK) fail_msg("write: %s", err.message);
+  if (bsurf_read(path, &b, &err) != BSURF_OK) fail_msg("read: %s", err.message);
+  for (size_t k = 0; k < nc; k++) {
+    const bsurf_field *fa = bsurf_cloud_field(&a, cases[k].name);
+    const bsurf_field *fb = bsurf_cloud_field(&b, cases[k].name);
+    assert_non_null(fb);
+    for (size_t i = 0; i < 5; i++)
+      if (fa->values[i] != fb->values[i])
+        fail_msg("%s point %zu: %.17g, not %.17g", cases[k].name, i, fb->values[i], fa->values[i]);
+    if (fb->type != cases[k].back)
+      fail_msg("%s: type %d, not %d", cases[k].name, (int)fb->type, (int)cases[k].back);
+  }
+  bsurf_cloud_free(&a);
+  bsurf_cloud_free(&b);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_many_fields_round_trip),
       cmocka_unit_test(test_repeated_names),
       cmocka_unit_test(test_pcd_ascii_count_before_allocation),
+      cmocka_unit_test(test_csv_types),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
