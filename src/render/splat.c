@@ -476,13 +476,8 @@ bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals
     if (!isfinite(job.lo)) job.lo = lo;
     if (!isfinite(job.hi)) job.hi = hi;
   }
-  double lo3[3] = {INFINITY, INFINITY, INFINITY}, hi3[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t i = 0; i < point_count; i++)
-    for (int t = 0; t < 3; t++) {
-      double v = xyz[3 * i + t];
-      if (v < lo3[t]) lo3[t] = v;
-      if (v > hi3[t]) hi3[t] = v;
-    }
+  double lo3[3], hi3[3];
+  bsurf_bounding_box(xyz, point_count, lo3, hi3);
   double extent = 0;
   if (point_count) {
     for (int t = 0; t < 3; t++) {
