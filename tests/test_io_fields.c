@@ -11,25 +11,16 @@
 #include <stdint.h>
 #include <cmocka.h>
 
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/resource.h>
-#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include "bootsurf.h"
-
-static void tmp_path(char *out, size_t cap, const char *name) {
-  const char *base = getenv("BSURF_TMP");
-  char dir[2048];
-  snprintf(dir, sizeof dir, "%.1000s/io_fields.tmp", base && *base ? base : ".");
-  if (mkdir(dir, 0777) != 0 && errno != EEXIST) fail_msg("cannot create %s", dir);
-  snprintf(out, cap, "%.2000s/%.1000s", dir, name);
-}
+#include "test_util.h"
 
 static void write_file(const char *path, const void *data, size_t n) {
   FILE *f = fopen(path, "wb");
@@ -84,7 +75,8 @@ static void test_many_fields_round_trip(void **state) {
   }
   /* the CSV reader takes at most 1024 columns, LAS at most 341 extra-bytes
    * fields: their files get the first 1000 and 340 */
-  static const char *const files[] = {"many.pcd", "many_ascii.pcd", "many.csv", "many.las"};
+  static const char *const files[] = {"io_fields_many.pcd", "io_fields_many_ascii.pcd",
+                                      "io_fields_many.csv", "io_fields_many.las"};
   static const size_t keep[] = {NFIELDS, NFIELDS, 1000, 340};
   for (size_t k = 0; k < sizeof files / sizeof files[0]; k++) {
     while (a.field_count > keep[k])
@@ -92,7 +84,7 @@ static void test_many_fields_round_trip(void **state) {
     char path[4096];
     bsurf_failure err;
     bsurf_write_options o = {.ascii = k == 1};
-    tmp_path(path, sizeof path, files[k]);
+    snprintf(path, sizeof path, "%s", tmp_path(files[k]));
     if (bsurf_write(path, &a, &o, &err) != BSURF_OK) fail_msg("write %s: %s", path, err.message);
     bsurf_cloud b;
     if (bsurf_read(path, &b, &err) != BSURF_OK) fail_msg("read %s: %s", path, err.message);
@@ -115,7 +107,7 @@ static void test_repeated_names(void **state) {
   const char *pcd = "VERSION .7\nFIELDS x y z q q q_1 q\nSIZE 4 4 4 4 4 4 4\nTYPE F F F F F F F\n"
                     "COUNT 1 1 1 1 1 1 1\nWIDTH 1\nHEIGHT 1\nPOINTS 1\nDATA ascii\n"
                     "1 2 3 10 11 12 13\n";
-  tmp_path(path, sizeof path, "repeated.pcd");
+  snprintf(path, sizeof path, "%s", tmp_path("io_fields_repeated.pcd"));
   write_file(path, pcd, strlen(pcd));
   if (bsurf_read(path, &c, &err) != BSURF_OK) fail_msg("%s: %s", path, err.message);
   static const char *const want[4] = {"q", "q_1", "q_1_1", "q_2"};
@@ -127,7 +119,7 @@ static void test_repeated_names(void **state) {
   bsurf_cloud_free(&c);
 
   const char *csv = "x,y,z,q,q,q_1,q\n1,2,3,10,11,12,13\n";
-  tmp_path(path, sizeof path, "repeated.csv");
+  snprintf(path, sizeof path, "%s", tmp_path("io_fields_repeated.csv"));
   write_file(path, csv, strlen(csv));
   if (bsurf_read(path, &c, &err) != BSURF_OK) fail_msg("%s: %s", path, err.message);
   assert_int_equal(c.field_count, 4);
@@ -155,7 +147,7 @@ static void test_pcd_ascii_count_before_allocation(void **state) {
   memcpy(file, head, hl);
   for (size_t i = 0; i < body; i++)
     file[hl + i] = (i % 2) ? '\n' : '0';
-  tmp_path(path, sizeof path, "huge_count.pcd");
+  snprintf(path, sizeof path, "%s", tmp_path("io_fields_huge_count.pcd"));
   write_file(path, file, hl + body);
   free(file);
 
@@ -218,7 +210,7 @@ static void test_csv_types(void **state) {
   }
   char path[4096];
   bsurf_failure err;
-  tmp_path(path, sizeof path, "types.csv");
+  snprintf(path, sizeof path, "%s", tmp_path("io_fields_types.csv"));
   if (bsurf_write(path, &a, NULL, &err) != BSURF_OK) fail_msg("write: %s", err.message);
   if (bsurf_read(path, &b, &err) != BSURF_OK) fail_msg("read: %s", err.message);
   for (size_t k = 0; k < nc; k++) {
@@ -236,6 +228,7 @@ static void test_csv_types(void **state) {
 }
 
 int main(void) {
+  tmp_dir_init();
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_many_fields_round_trip),
       cmocka_unit_test(test_repeated_names),
