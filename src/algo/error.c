@@ -28,15 +28,12 @@
 #include <string.h>
 
 bsurf_error_options bsurf_error_options_default(void) {
-  bsurf_error_options o;
-  memset(&o, 0, sizeof o);
-  o.k = 50;
-  o.degree = 3;
-  o.bootstrap = 50;
-  o.seed = 1;
-  o.gamma = BSURF_GAMMA_FIT;
-  o.pca_center = BSURF_PCA_CENTROID;
-  o.threads = 0;
+  bsurf_error_options o = {.k = 50,
+                           .degree = 3,
+                           .bootstrap = 50,
+                           .seed = 1,
+                           .gamma = BSURF_GAMMA_FIT,
+                           .pca_center = BSURF_PCA_CENTROID};
   return o;
 }
 

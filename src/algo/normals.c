@@ -34,14 +34,12 @@
 #define PCA_COLS BSURF_NESTED_COLS /* q q^T (6 entries), q (3), 1, with q = p - d_i */
 
 bsurf_normal_options bsurf_normal_options_default(void) {
-  bsurf_normal_options o;
-  memset(&o, 0, sizeof o);
-  o.fit = BSURF_NORMAL_PCA;
-  o.pca_center = BSURF_PCA_CENTROID;
-  o.k = 30;
-  o.degree = 2;
-  o.bootstrap = 50;
-  o.seed = 1;
+  bsurf_normal_options o = {.fit = BSURF_NORMAL_PCA,
+                            .pca_center = BSURF_PCA_CENTROID,
+                            .k = 30,
+                            .degree = 2,
+                            .bootstrap = 50,
+                            .seed = 1};
   return o;
 }
 

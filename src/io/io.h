@@ -223,20 +223,12 @@ void io_obuf_uint(io_obuf *b, unsigned long long v);
 /* ---- readers: fill an initialised cloud; on failure may leave it partly
  * filled (the caller frees it) and fill err -------------------------------- */
 
-bsurf_status bsurf_io_read_ply(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-bsurf_status bsurf_io_read_obj(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-/* .xyz/.txt/.pts and .csv/.asc: one reader (a header line naming the
- * columns is used when present). */
-bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-bsurf_status bsurf_io_read_pcd(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
+typedef bsurf_status bsurf_io_reader(const char *data, size_t size, bsurf_cloud *cloud,
+                                     bsurf_failure *err);
+/* .xyz/.txt/.pts and .csv/.asc: one reader, bsurf_io_read_xyz (a header
+ * line naming the columns is used when present). */
+bsurf_io_reader bsurf_io_read_ply, bsurf_io_read_off, bsurf_io_read_obj, bsurf_io_read_xyz,
+    bsurf_io_read_pcd, bsurf_io_read_las;
 
 /* ---- shared by the binary readers ----------------------------------------- */
 

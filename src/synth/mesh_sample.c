@@ -43,12 +43,7 @@
 #define PI 3.14159265358979323846
 
 bsurf_sample_options bsurf_sample_options_default(void) {
-  bsurf_sample_options o;
-  o.points = 0;
-  o.seed = 1;
-  o.sharp_angle_deg = 30.0;
-  o.feature_width = 2.0;
-  o.threads = 0;
+  bsurf_sample_options o = {.seed = 1, .sharp_angle_deg = 30.0, .feature_width = 2.0};
   return o;
 }
 

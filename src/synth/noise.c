@@ -40,12 +40,7 @@ bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_t point_co
 }
 
 bsurf_noise_options bsurf_noise_options_default(void) {
-  bsurf_noise_options o;
-  memset(&o, 0, sizeof o);
-  o.model = BSURF_NOISE_GAUSSIAN;
-  o.level = 0.5;
-  o.sigma_diag = 0;
-  o.seed = 1;
+  bsurf_noise_options o = {.model = BSURF_NOISE_GAUSSIAN, .level = 0.5, .seed = 1};
   return o;
 }
 
