@@ -182,6 +182,11 @@ BSURF_API void bsurf_cloud_remove_field(bsurf_cloud *cloud, const char *name);
 /* BSURF_OK if every coordinate (and normal) is finite; otherwise
  * BSURF_ERR_INVALID_VALUE and *bad_index (if not NULL) is the first bad point. */
 BSURF_API bsurf_status bsurf_cloud_check_finite(const bsurf_cloud *cloud, size_t *bad_index);
+/* The axis-aligned bounding box of point_count points (xyz: point_count x 3)
+ * into lo and hi (either may be NULL; +inf and -inf when there are none);
+ * returns the length of its diagonal (0 when there are none). */
+BSURF_API double bsurf_bounding_box(const double *xyz, size_t point_count, double lo[3],
+                                    double hi[3]);
 
 /* ------------------------------------------------------------------------ */
 /* Files                                                                     */
@@ -238,11 +243,6 @@ typedef enum bsurf_ply_names {
  * resources from the declared counts. *points: the declared vertex count (0
  * for formats without a header count, which are not checked here). */
 BSURF_API bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_failure *err);
-/* The same on the first `size` bytes (the header among them) of a file of
- * `file_size` bytes (used by the fuzzers). */
-BSURF_API bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
-                                                bsurf_format format, uint64_t *points,
-                                                bsurf_failure *err);
 
 /* The output-path policy of every writer (docs/robustness.md): BSURF_OK for
  * a new file, a writable regular file, a FIFO or a device (written directly,

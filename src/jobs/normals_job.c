@@ -302,10 +302,8 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
                        job->test_error ? tile->values : NULL, &b, &total);
   if (st == BSURF_OK) st = normals_store(job, core, &b);
   if (st == BSURF_OK) {
-    sums[0] += (double)total.replicates_total;
-    sums[1] += (double)total.replicates_skipped;
-    sums[2] += (double)total.degree_reduced;
-    sums[3] += (double)total.degenerate;
+    bsurf_jobs_add_counts(sums, total.replicates_total, total.replicates_skipped,
+                          total.degree_reduced, total.degenerate);
     const char *names[4];
     bsurf_type types[4];
     int which[4];
@@ -371,12 +369,10 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
   s->tile_points = io->tile_points;
   bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   if (st != BSURF_OK) return st;
-  s->report.replicates_total = (size_t)sums[0];
-  s->report.replicates_skipped = (size_t)sums[1];
-  s->report.degree_reduced = (size_t)sums[2];
-  s->report.degenerate = (size_t)sums[3];
-  for (int t = 0; t < s->field_count; t++)
-    s->means[t] = sums[4 + t] / (double)s->points;
+  bsurf_normal_report *r = &s->report;
+  bsurf_jobs_counts(sums, &r->replicates_total, &r->replicates_skipped, &r->degree_reduced,
+                    &r->degenerate);
+  bsurf_jobs_means(s->means, sums + 4, s->field_count, s->points);
   return BSURF_OK;
 }
 
@@ -558,10 +554,8 @@ static void normals_setup(normals_job *job, const bsurf_normals_job_options *o) 
 
 bsurf_status bsurf_normals_job(const bsurf_job_io *io, const bsurf_normals_job_options *opts,
                                bsurf_normals_job_summary *summary, bsurf_failure *err) {
-  BSURF_REQUIRE(summary, "summary is NULL");
-  memset(summary, 0, sizeof *summary);
+  bsurf_status st = bsurf_jobs_begin(NJ, io, summary, sizeof *summary);
   bsurf_normals_job_options o = opts ? *opts : bsurf_normals_job_options_default();
-  bsurf_status st = bsurf_jobs_check_io(NJ, io);
   if (st == BSURF_OK) st = normals_check(&o, io->cloud == NULL);
   if (st != BSURF_OK) return st;
   normals_job *job = calloc(1, sizeof *job);
