@@ -21,9 +21,9 @@ the true surface in units of the truth's spacing h, overall / feature /
 non-feature. --reuse-from takes the rows of the --reuse methods (default: the
 peers, whose outputs do not depend on bootsurf's code) and of the noisy input
 from an earlier run's table (e.g. docs/smoothing.md) instead of running them
-again; a case or method missing there is run. Prints one markdown table (a row per case and method) and a summary:
-per method, the cases where it ends farther from the surface than the noisy input,
-and the cases where it beats CGAL jet.
+again; a case or method missing there is run. Prints one markdown table (a row
+per case and method) and a summary: per method, the cases where it ends farther
+from the surface than the noisy input, and the cases where it beats CGAL jet.
 """
 import argparse
 import os

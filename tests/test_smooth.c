@@ -254,6 +254,33 @@ static void test_two_sheets(void **state) {
   bsurf_cloud_free(&c);
 }
 
+/* Two sheets gap_h spacings apart with uniform noise noise_h (sheets_make,
+ * seed): every method at its defaults ends no farther from the nearest sheet
+ * than the noisy input. */
+static void thin_sheets_check(double gap_h, double noise_h, unsigned seed) {
+  bsurf_cloud c;
+  bsurf_neighbors nb;
+  double h, gap;
+  sheets_make(&c, &nb, gap_h, noise_h, seed, &h, &gap);
+  const size_t n = c.point_count;
+  double *out = malloc(n * 3 * sizeof(double));
+  const double e0 = sheets_err(&c, c.xyz, gap, 1);
+  for (int m = 0; m < 3; m++) {
+    bsurf_smooth_options o = bsurf_smooth_options_default();
+    o.method = methods[m];
+    o.error.bootstrap = 20;
+    o.error.threads = 2;
+    assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
+    const double e = sheets_err(&c, out, gap, 1);
+    print_message("thin sheets, noise %.2f, method %d: %.3f h -> %.3f h\n", noise_h, m, e0 / h,
+                  e / h);
+    assert_true(e <= e0);
+  }
+  free(out);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
 /* Two sheets closer than their own spacing (the development set's thin
  * plate: faces 0.6 of a face's spacing apart, so about half of every
  * neighbourhood is the other face), uniform noise of 0.12 of that spacing:
@@ -265,26 +292,7 @@ static void test_two_sheets(void **state) {
  * docs/smoothing.md). */
 static void test_thin_sheets(void **state) {
   (void)state;
-  bsurf_cloud c;
-  bsurf_neighbors nb;
-  double h, gap;
-  sheets_make(&c, &nb, 0.6, 0.12, 17, &h, &gap);
-  const size_t n = c.point_count;
-  double *out = malloc(n * 3 * sizeof(double));
-  const double e0 = sheets_err(&c, c.xyz, gap, 1);
-  for (int m = 0; m < 3; m++) {
-    bsurf_smooth_options o = bsurf_smooth_options_default();
-    o.method = methods[m];
-    o.error.bootstrap = 20;
-    o.error.threads = 2;
-    assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
-    const double e = sheets_err(&c, out, gap, 1);
-    print_message("thin sheets, method %d: %.3f h -> %.3f h\n", m, e0 / h, e / h);
-    assert_true(e <= e0);
-  }
-  free(out);
-  bsurf_neighbors_free(&nb);
-  bsurf_cloud_free(&c);
+  thin_sheets_check(0.6, 0.12, 17);
 }
 
 /* The thin plate again, with noise that overlaps the faces' residuals more
@@ -300,26 +308,7 @@ static void test_thin_sheets(void **state) {
  * test), as on the development set's plate at uniform 0.5 (docs/smoothing.md). */
 static void test_thin_sheets_overlap(void **state) {
   (void)state;
-  bsurf_cloud c;
-  bsurf_neighbors nb;
-  double h, gap;
-  sheets_make(&c, &nb, 0.6, 0.17, 19, &h, &gap);
-  const size_t n = c.point_count;
-  double *out = malloc(n * 3 * sizeof(double));
-  const double e0 = sheets_err(&c, c.xyz, gap, 1);
-  for (int m = 0; m < 3; m++) {
-    bsurf_smooth_options o = bsurf_smooth_options_default();
-    o.method = methods[m];
-    o.error.bootstrap = 20;
-    o.error.threads = 2;
-    assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
-    const double e = sheets_err(&c, out, gap, 1);
-    print_message("thin sheets, noise 0.17, method %d: %.3f h -> %.3f h\n", m, e0 / h, e / h);
-    assert_true(e <= e0);
-  }
-  free(out);
-  bsurf_neighbors_free(&nb);
-  bsurf_cloud_free(&c);
+  thin_sheets_check(0.6, 0.17, 19);
 }
 
 /* The noisy cube of issue 22 (gaussian noise 0.5 h along the normals,
