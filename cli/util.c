@@ -488,8 +488,8 @@ double cli_field_mean(const bsurf_field *field, size_t n) {
 /* Fields that are not lengths (rates, angles, labels, counts) have no
  * meaning in units of h and are left out of "mean_h". */
 static int is_length_field(const char *name) {
-  static const char *const not_lengths[] = {"overfit_rate", "normal_var", "normal_err", "feature",
-                                            "k_selected"};
+  static const char *const not_lengths[] = {"overfit_rate", "normal_var", "normal_err",
+                                            "feature",      "k_selected", "two_sheet"};
   for (size_t i = 0; i < sizeof not_lengths / sizeof not_lengths[0]; i++)
     if (strcmp(name, not_lengths[i]) == 0) return 0;
   return 1;

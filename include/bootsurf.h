@@ -500,8 +500,9 @@ typedef struct bsurf_kselect_options {
   bsurf_kselect_rule rule; /* MSE (bsurf_select_k accepts only MSE) */
   const int *ks;           /* candidate K, strictly ascending, each >= 7 */
   int nk;                  /* number of candidates */
-  int noise_k;             /* neighbourhood of the quadric noise fits, of
-                              their pooling and of the bias pooling (12; >= 12) */
+  int noise_k;             /* the quadric noise fits' smallest neighbourhood
+                              and that of the bias pooling (12; >= 12); the
+                              noise is pooled over the largest candidate's */
   int threads;             /* 0 = all cores */
   bsurf_progress_fn progress;
   void *progress_user;
@@ -519,6 +520,11 @@ typedef struct bsurf_kselect_fields {
                       pi / 2 where no candidate could be assessed */
   double *noise;   /* the estimated noise standard deviation along the
                       normal (length) */
+  int *two_sheet;  /* 1 where the chosen neighbourhood mixes two sheets
+                      (a thin part's faces, or two surfaces): its heights
+                      about a quadric split into two groups beyond what one
+                      sheet with any unimodal noise gives at level 0.001
+                      (docs/normals.md, "Two sheets"); else 0 */
 } bsurf_kselect_fields;
 
 typedef struct bsurf_kselect_report {
@@ -1408,7 +1414,7 @@ typedef struct bsurf_normals_job_options {
   bsurf_kselect_rule select_rule; /* TEST_ERROR (the thesis's), or MSE
                                      (bsurf_select_k: PCA, select_k only,
                                      candidates >= 7, in memory only) */
-  int noise_k;                    /* MSE: the noise fits' neighbourhood (20; >= 12) */
+  int noise_k;                    /* MSE: the noise fits' neighbourhood (12; >= 12) */
   /* Bilateral normal smoothing after the estimate (bsurf_smooth_normals,
    * Eq. 5.6; in memory only): passes (0), strength alpha (0.1, in [0, 1]),
    * spatial sigma (<= 0: h), variance sigma (NAN: auto, the 85th percentile
