@@ -86,7 +86,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "of |W| (e.g. 2W) or auto (3W; the thesis's is 1W)",
        1, 0},
       {0, "guard", ARG_STRING, &guard, "G",
-       "every method: on (two sheets split at a gap between their residuals are fitted apart; a "
+       "every method: on (two sheets split at a gap between their residuals, or where the "
+       "residuals fall in two groups tighter than any unimodal noise leaves them, are fitted "
+       "apart; a "
        "fit biased at its centre by a second sheet or an edge, by a t test on its nearest "
        "points' residuals, is made again from fewer points, or moves nothing) or off (the "
        "thesis's methods as written)",
