@@ -45,15 +45,6 @@ bsurf_normal_options bsurf_normal_options_default(void) {
   return o;
 }
 
-/* Angle between two unit vectors, accurate near 0 (atan2 of |a x b| and
- * a . b); unoriented: the smaller of the angles with b and -b. */
-static double angle_between(const double a[3], const double b[3], int unoriented) {
-  double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-  double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-  if (unoriented) d = fabs(d);
-  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d);
-}
-
 typedef struct normal_scratch {
   bsurf_localfit lf;
   double *terms;        /* k x PCA_COLS */
@@ -65,6 +56,7 @@ typedef struct normal_scratch {
   unsigned char *valid; /* B */
   double *bn;           /* B x 3 bootstrap normals */
   double *lanes;        /* (COLS + 6 + 3) x B: PCA sums, covariances, normals in lanes */
+  double *ang;          /* B: Eq. 5.5's angles */
   int *ok, *st;         /* B, B */
   size_t skipped, reduced, degenerate;
 } normal_scratch;
@@ -80,6 +72,7 @@ static void scratch_free(normal_scratch *s) {
   free(s->valid);
   free(s->bn);
   free(s->lanes);
+  free(s->ang);
   free(s->ok);
   free(s->st);
   memset(s, 0, sizeof *s);
@@ -102,8 +95,9 @@ static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
   s->lanes = bsurf_alloc_aligned(nb, (PCA_COLS + 9) * sizeof(double));
   s->ok = bsurf_alloc_array(nb, sizeof(int));
   s->st = bsurf_alloc_array(nb, sizeof(int));
-  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws || !s->valid ||
-      !s->bn || !s->lanes || !s->ok || !s->st) {
+  s->ang = bsurf_alloc_array(nb, sizeof(double));
+  if (!s->ang || !s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws ||
+      !s->valid || !s->bn || !s->lanes || !s->ok || !s->st) {
     scratch_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -209,46 +203,13 @@ static void normals_point(void *vctx, int thread, size_t i) {
   }
 
   /* orient the bootstrap normals to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
-  double sum[3] = {0, 0, 0};
-  int nvalid = 0, first = -1;
-  for (int b = 0; b < B; b++) {
-    if (!s->valid[b]) {
-      s->skipped++;
-      continue;
-    }
-    double *n = &s->bn[3 * b];
-    if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
-      for (int t = 0; t < 3; t++)
-        n[t] = -n[t];
-    for (int t = 0; t < 3; t++)
-      sum[t] += n[t];
-    if (first < 0) first = b;
-    nvalid++;
-  }
-  double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
-  double nrm[3];
-  for (int t = 0; t < 3; t++)
-    nrm[t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
+  double nrm[3], var;
+  const int nvalid = bsurf_nested_summary(B, nP, s->bn, s->valid, nrm, &var, s->ang);
+  s->skipped += (size_t)(B - nvalid);
   if (c->out->normals)
     for (int t = 0; t < 3; t++)
       c->out->normals[3 * i + t] = nrm[t];
-
-  if (c->out->normal_var) {
-    double var = 0;
-    if (nvalid >= 2) {
-      double mean = 0;
-      for (int b = 0; b < B; b++)
-        if (s->valid[b]) mean += angle_between(&s->bn[3 * first], &s->bn[3 * b], 0);
-      mean /= nvalid;
-      for (int b = 0; b < B; b++)
-        if (s->valid[b]) {
-          double a = angle_between(&s->bn[3 * first], &s->bn[3 * b], 0) - mean;
-          var += a * a;
-        }
-      var /= nvalid - 1;
-    }
-    c->out->normal_var[i] = var;
-  }
+  if (c->out->normal_var) c->out->normal_var[i] = var;
 
   if (c->out->normal_err && c->ref) {
     double total = 0;
@@ -267,7 +228,7 @@ static void normals_point(void *vctx, int thread, size_t i) {
           const double *cb = b >= 0 ? &s->coefs[(size_t)(b + 1) * m] : s->coefs;
           bsurf_localfit_normal(&s->lf, &frame, degree, cb, s->lf.u[j], s->lf.v[j], g);
         }
-        total += angle_between(g, &c->ref[3 * (size_t)idx[j]], 1);
+        total += bsurf_angle_between(g, &c->ref[3 * (size_t)idx[j]], 1);
         terms++;
       }
     }
@@ -477,41 +438,9 @@ static void select_point(void *vctx, int thread, size_t i) {
     const double *nP = &s->nP[3 * a];
     double *bn = &s->bn[(size_t)a * B * 3];
     const unsigned char *valid = &s->valid[(size_t)a * B];
-    /* orient to n_P (5.2.1), Eq. 5.4 */
-    double sum[3] = {0, 0, 0};
-    int nvalid = 0, first = -1;
-    for (int b = 0; b < B; b++) {
-      if (!valid[b]) {
-        s->skipped++;
-        continue;
-      }
-      double *n = &bn[3 * b];
-      if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
-        for (int t = 0; t < 3; t++)
-          n[t] = -n[t];
-      for (int t = 0; t < 3; t++)
-        sum[t] += n[t];
-      if (first < 0) first = b;
-      nvalid++;
-    }
-    const double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
-    for (int t = 0; t < 3; t++)
-      s->nrm[3 * a + t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
-    /* Eq. 5.5 */
-    double var = 0;
-    if (nvalid >= 2) {
-      double mean = 0;
-      for (int b = 0; b < B; b++)
-        if (valid[b]) mean += s->ang2[b] = angle_between(&bn[3 * first], &bn[3 * b], 0);
-      mean /= nvalid;
-      for (int b = 0; b < B; b++)
-        if (valid[b]) {
-          const double d = s->ang2[b] - mean;
-          var += d * d;
-        }
-      var /= nvalid - 1;
-    }
-    s->var[a] = var;
+    /* orient to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
+    const int nvalid = bsurf_nested_summary(B, nP, bn, valid, &s->nrm[3 * a], &s->var[a], s->ang2);
+    s->skipped += (size_t)(B - nvalid);
     /* Eq. 5.10: (1 / (B K)) sum_b sum_j theta(g^b, n_j); with no valid
      * replicate the single fit's training error */
     double total = 0;
