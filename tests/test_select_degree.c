@@ -66,9 +66,8 @@ static void test_field_angle_accuracy(void **state) {
       const double want = atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
                                 fabs(g[0] * rx[j] + g[1] * ry[j] + g[2] * rz[j]));
       /* one point: the stride is still KP, so shift the basis by j */
-      const double got =
-          bsurf_nested_field_angle_sum(degree, coef, inv, phit + j, KP, rx + j, ry + j, rz + j, 1,
-                                       sc);
+      const double got = bsurf_nested_field_angle_sum(degree, coef, inv, phit + j, KP, rx + j,
+                                                      ry + j, rz + j, 1, sc);
       assert_true(isfinite(got));
       const double rel = fabs(got - want) / (want > 1e-300 ? want : 1e-300);
       if (rel > worst) worst = rel;

@@ -94,8 +94,8 @@ static bsurf_status kd_alloc(kd_scratch *s, int kmax, int dmax, int B, int ncand
   s->err = bsurf_alloc_array((size_t)ncand, sizeof(double));
   s->var = bsurf_alloc_array((size_t)ncand, sizeof(double));
   s->nrm = bsurf_alloc_array((size_t)ncand, 3 * sizeof(double));
-  if (!s->u || !s->x || !s->Wt || !s->W || !s->lanes || !s->nz || !s->ref ||
-      !s->ang || !s->coefs || !s->valid || !s->bn || !s->ang2 || !s->err || !s->var || !s->nrm) {
+  if (!s->u || !s->x || !s->Wt || !s->W || !s->lanes || !s->nz || !s->ref || !s->ang || !s->coefs ||
+      !s->valid || !s->bn || !s->ang2 || !s->err || !s->var || !s->nrm) {
     kd_free(s);
     return BSURF_ERR_NOMEM;
   }
@@ -188,7 +188,8 @@ static void kd_point(void *vctx, int thread, size_t i) {
     k0 = K;
     bsurf_frame frame;
     bsurf_local_frame(c->xyz, idx, K, o->pca_center, &frame);
-    const int flat = frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2];
+    const int flat =
+        frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2];
     if (!flat) s->degenerate += (size_t)nd;
     bsurf_localfit *lf = &s->lf;
     bsurf_localfit_setup(lf, c->xyz, idx, K, &frame, c->dmax);
