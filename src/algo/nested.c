@@ -99,61 +99,67 @@ int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center,
   return 0;
 }
 
+/* Cephes' atan: P (degree 4) and Q (monic, degree 5) of x + x z P(z) / Q(z),
+ * z = x^2, for |x| <= 0.66; pi / 4 split in two for the reduction. */
+static const double P0 = -8.750608600031904122785e-1, P1 = -1.615753718733365076637e1,
+                    P2 = -7.500855792314704667340e1, P3 = -1.228866684490136173410e2,
+                    P4 = -6.485021904942025371773e1;
+static const double Q0 = 2.485846490142306297962e1, Q1 = 1.650270098316988542046e2,
+                    Q2 = 4.328810604912902668951e2, Q3 = 4.853903996359136964868e2,
+                    Q4 = 1.945506571482613964425e2;
+static const double PIO4 = 7.85398163397448309616e-1, MOREBITS = 6.123233995736765886130e-17,
+                    PIO2 = 1.57079632679489661923;
+
 /* atan(t) for 0 <= t <= 1 (Cephes' atan: below 0.66 a rational function of
  * t^2, above it pi/4 + atan((t - 1) / (t + 1))), written branch-free so that
- * a loop of them runs in vector lanes; zn / zd is the reduced argument. */
-#if defined(__GNUC__) && !defined(__clang__)
-__attribute__((optimize("no-trapping-math")))
-#endif
-static inline double
-atan_reduced(double num, double den) {
-  static const double P0 = -8.750608600031904122785e-1, P1 = -1.615753718733365076637e1,
-                      P2 = -7.500855792314704667340e1, P3 = -1.228866684490136173410e2,
-                      P4 = -6.485021904942025371773e1;
-  static const double Q0 = 2.485846490142306297962e1, Q1 = 1.650270098316988542046e2,
-                      Q2 = 4.328810604912902668951e2, Q3 = 4.853903996359136964868e2,
-                      Q4 = 1.945506571482613964425e2;
-  static const double PIO4 = 7.85398163397448309616e-1, MOREBITS = 6.123233995736765886130e-17;
-  /* t = num / den <= 1; above 0.66 (num > 0.66 den) reduce */
-  const double dif = num - den, tot = num + den; /* both computed: no branches */
-  const int big = num > 0.66 * den;
-  const double zn = big ? dif : num, zd = big ? tot : den;
-  const double x = zn / zd; /* zd >= den > 0 for unit vectors */
-  const double z = x * x;
-  const double p = (((P0 * z + P1) * z + P2) * z + P3) * z + P4;
-  const double q = ((((z + Q0) * z + Q1) * z + Q2) * z + Q3) * z + Q4;
-  const double r = x * (z * p / q) + x;
-  const double rb = PIO4 + (r + 0.5 * MOREBITS);
-  return big ? rb : r;
-}
-
-/* atan_reduced with one division instead of two: x = zn / zd and z = x^2
- * substituted into Cephes' x + x z P(z) / Q(z) (P of degree 4, Q monic of
- * degree 5) and both polynomials made homogeneous in Z = zn^2, D = zd^2:
- * z P(z) / Q(z) = Z P~(Z, D) / Q~(Z, D), so the result is
- * zn (Q~ + Z P~) / (zd Q~), the same rational function. Needs zd^10 finite
- * (the caller bounds den). */
+ * a loop of them runs in vector lanes; zn / zd is the reduced argument;
+ * one_div (a constant where inlined) picks the form with one division. */
 #if defined(__GNUC__) && !defined(__clang__)
 __attribute__((optimize("no-trapping-math")))
 #endif
 static inline __attribute__((always_inline)) double
-atan_reduced1(double num, double den) {
-  static const double P0 = -8.750608600031904122785e-1, P1 = -1.615753718733365076637e1,
-                      P2 = -7.500855792314704667340e1, P3 = -1.228866684490136173410e2,
-                      P4 = -6.485021904942025371773e1;
-  static const double Q0 = 2.485846490142306297962e1, Q1 = 1.650270098316988542046e2,
-                      Q2 = 4.328810604912902668951e2, Q3 = 4.853903996359136964868e2,
-                      Q4 = 1.945506571482613964425e2;
-  static const double PIO4 = 7.85398163397448309616e-1, MOREBITS = 6.123233995736765886130e-17;
-  const double dif = num - den, tot = num + den;
+atan_reduced(double num, double den, int one_div) {
+  /* t = num / den <= 1; above 0.66 (num > 0.66 den) reduce */
+  const double dif = num - den, tot = num + den; /* both computed: no branches */
   const int big = num > 0.66 * den;
   const double zn = big ? dif : num, zd = big ? tot : den;
-  const double Z = zn * zn, D = zd * zd, D2 = D * D, D3 = D2 * D, D4 = D2 * D2, D5 = D4 * D;
-  const double pt = (((P0 * Z + P1 * D) * Z + P2 * D2) * Z + P3 * D3) * Z + P4 * D4;
-  const double qt = ((((Z + Q0 * D) * Z + Q1 * D2) * Z + Q2 * D3) * Z + Q3 * D4) * Z + Q4 * D5;
-  const double r = (zn * (qt + Z * pt)) / (zd * qt);
+  double r;
+  if (!one_div) {
+    const double x = zn / zd; /* zd >= den > 0 for unit vectors */
+    const double z = x * x;
+    const double p = (((P0 * z + P1) * z + P2) * z + P3) * z + P4;
+    const double q = ((((z + Q0) * z + Q1) * z + Q2) * z + Q3) * z + Q4;
+    r = x * (z * p / q) + x;
+  } else {
+    /* one division instead of two: x = zn / zd and z = x^2 substituted into
+     * x + x z P(z) / Q(z) (P of degree 4, Q monic of degree 5) and both
+     * polynomials made homogeneous in Z = zn^2, D = zd^2: z P(z) / Q(z) =
+     * Z P~(Z, D) / Q~(Z, D), so r = zn (Q~ + Z P~) / (zd Q~), the same
+     * rational function. Needs zd^10 finite (the caller bounds den). */
+    const double Z = zn * zn, D = zd * zd, D2 = D * D, D3 = D2 * D, D4 = D2 * D2, D5 = D4 * D;
+    const double pt = (((P0 * Z + P1 * D) * Z + P2 * D2) * Z + P3 * D3) * Z + P4 * D4;
+    const double qt = ((((Z + Q0 * D) * Z + Q1 * D2) * Z + Q2 * D3) * Z + Q3 * D4) * Z + Q4 * D5;
+    r = (zn * (qt + Z * pt)) / (zd * qt);
+  }
   const double rb = PIO4 + (r + 0.5 * MOREBITS);
   return big ? rb : r;
+}
+
+/* atan2(|c|, |dot|) (c = g x r, dot = g . r: the unoriented angle between g
+ * and r) with atan2 of the first quadrant reduced to atan of a ratio <= 1
+ * (pi/2 - atan(x / y) above the diagonal); one_div (a constant where
+ * inlined) picks atan_reduced's one-division form. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+static inline __attribute__((always_inline)) double
+q1_angle(double c0, double c1, double c2, double dot, int one_div) {
+  const double y = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
+  const double x = fabs(dot);
+  const double lo = y > x ? x : y, hi = y > x ? y : x;
+  const double a = atan_reduced(lo, hi, one_div);
+  const double as = (PIO2 - a) + MOREBITS;
+  return y > x ? as : a;
 }
 
 /* The unoriented angle between unit g and each (rx, ry, rz)[j]: atan2(|g x
@@ -167,17 +173,11 @@ __attribute__((optimize("no-trapping-math")))
 BSURF_CLONES static void
 angles(const double g[3], const double *restrict rx, const double *restrict ry,
        const double *restrict rz, int k, double *restrict out) {
-  static const double PIO2 = 1.57079632679489661923, MOREBITS = 6.123233995736765886130e-17;
   const double g0 = g[0], g1 = g[1], g2 = g[2];
   for (int j = 0; j < k; j++) {
     const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
                  c2 = g0 * ry[j] - g1 * rx[j];
-    const double y = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
-    const double x = fabs(g0 * rx[j] + g1 * ry[j] + g2 * rz[j]);
-    const double lo = y > x ? x : y, hi = y > x ? y : x;
-    const double a = atan_reduced(lo, hi);
-    const double as = (PIO2 - a) + MOREBITS;
-    out[j] = y > x ? as : a;
+    out[j] = q1_angle(c0, c1, c2, g0 * rx[j] + g1 * ry[j] + g2 * rz[j], 0);
   }
 }
 
@@ -254,6 +254,21 @@ void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center,
     cov_one(block, R, r, about_centroid, cov, ok);
 }
 
+bsurf_status bsurf_nested_check_ks(const int *ks, int nk, int kmin, const bsurf_neighbors *nb) {
+  BSURF_REQUIRE(ks && nk >= 1, "ks = %p, nk = %d: at least one candidate K", (const void *)ks, nk);
+  BSURF_REQUIRE(ks[0] >= kmin, "ks[0] = %d must be at least %d", ks[0], kmin);
+  for (int a = 1; a < nk; a++)
+    BSURF_REQUIRE(ks[a] > ks[a - 1], "ks[%d] = %d must be above ks[%d] = %d (increasing)", a, ks[a],
+                  a - 1, ks[a - 1]);
+  BSURF_REQUIRE(ks[nk - 1] <= 65535 && ks[nk - 1] <= nb->k,
+                "ks[%d] = %d must be at most the neighbourhoods' k = %d (and 65535)", nk - 1,
+                ks[nk - 1], nb->k);
+  if ((size_t)ks[nk - 1] > nb->point_count)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "ks[%d] = %d exceeds the %zu points", nk - 1,
+                             ks[nk - 1], nb->point_count);
+  return BSURF_OK;
+}
+
 double bsurf_angle_between(const double a[3], const double b[3], int unoriented) {
   double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
   double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
@@ -322,26 +337,20 @@ static inline __attribute__((always_inline)) void
 field_angles(int mg, const double *restrict eu, const double *restrict ev,
              const double *restrict phi, size_t kp, const double *restrict rx,
              const double *restrict ry, const double *restrict rz, int k, double *restrict out) {
-  static const double PIO2 = 1.57079632679489661923, MOREBITS = 6.123233995736765886130e-17;
   for (int j = 0; j < k; j++) {
     double g0 = 0, g1 = 0;
     for (int b = 0; b < mg; b++) {
       g0 += eu[b] * phi[(size_t)b * kp + j];
       g1 += ev[b] * phi[(size_t)b * kp + j];
     }
-    /* atan_reduced1 needs zd^10 finite, zd <= 2 |g|: g scaled by 1e-20 (its
+    /* the one-division atan needs zd^10 finite, zd <= 2 |g|: g scaled by 1e-20 (its
      * direction kept) where a slope exceeds 1e20 */
     const double sc = fabs(g0) + fabs(g1) > 1e20 ? 1e-20 : 1.0;
     g0 *= sc;
     g1 *= sc;
     const double c0 = g1 * rz[j] - sc * ry[j], c1 = sc * rx[j] - g0 * rz[j],
                  c2 = g0 * ry[j] - g1 * rx[j];
-    const double y = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
-    const double x = fabs(g0 * rx[j] + g1 * ry[j] + sc * rz[j]);
-    const double lo = y > x ? x : y, hi = y > x ? y : x;
-    const double a = atan_reduced1(lo, hi);
-    const double as = (PIO2 - a) + MOREBITS;
-    out[j] = y > x ? as : a;
+    out[j] = q1_angle(c0, c1, c2, g0 * rx[j] + g1 * ry[j] + sc * rz[j], 1);
   }
 }
 

@@ -480,20 +480,13 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
                 (int)o.fit);
   BSURF_REQUIRE(o.bootstrap >= 0 && o.bootstrap <= 100000,
                 "opts->bootstrap = %d must be in [0, 100000]", o.bootstrap);
-  BSURF_REQUIRE(ks[0] >= 3, "ks[0] = %d must be at least 3", ks[0]);
-  for (int a = 1; a < nk; a++)
-    BSURF_REQUIRE(ks[a] > ks[a - 1], "ks[%d] = %d must be above ks[%d] = %d (increasing)", a, ks[a],
-                  a - 1, ks[a - 1]);
-  BSURF_REQUIRE(ks[nk - 1] <= 65535 && ks[nk - 1] <= nb->k,
-                "ks[%d] = %d must be at most the neighbourhoods' k = %d (and 65535)", nk - 1,
-                ks[nk - 1], nb->k);
-  if ((size_t)ks[nk - 1] > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
+  bsurf_status st = bsurf_nested_check_ks(ks, nk, 3, nb);
+  if (st != BSURF_OK) return st;
 
   const size_t n = nb->point_count;
   const int T = bsurf_threads_resolve(o.threads);
   select_scratch *scr = calloc((size_t)T, sizeof *scr);
   if (!scr) return BSURF_ERR_NOMEM;
-  bsurf_status st = BSURF_OK;
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = select_scratch_alloc(&scr[t], ks[nk - 1], nk, o.bootstrap);
   uint32_t *owned = NULL;

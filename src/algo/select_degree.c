@@ -259,22 +259,15 @@ bsurf_status bsurf_select_normals_kd(const double *xyz, const bsurf_neighbors *n
                   ds[d], BSURF_DEGREE_MAX);
     if (ds[d] > dmax) dmax = ds[d];
   }
-  BSURF_REQUIRE(ks[0] >= bsurf_poly_terms(dmax) && ks[0] >= 3,
-                "ks[0] = %d: a fit of degree %d needs at least %d points", ks[0], dmax,
-                bsurf_poly_terms(dmax));
-  for (int a = 1; a < nk; a++)
-    BSURF_REQUIRE(ks[a] > ks[a - 1], "ks[%d] = %d must be above ks[%d] = %d (increasing)", a, ks[a],
-                  a - 1, ks[a - 1]);
-  BSURF_REQUIRE(ks[nk - 1] <= 65535 && ks[nk - 1] <= nb->k,
-                "ks[%d] = %d must be at most the neighbourhoods' k = %d (and 65535)", nk - 1,
-                ks[nk - 1], nb->k);
-  if ((size_t)ks[nk - 1] > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
+  /* every candidate K holds a fit of every degree */
+  const int kmin = bsurf_poly_terms(dmax) > 3 ? bsurf_poly_terms(dmax) : 3;
+  bsurf_status st = bsurf_nested_check_ks(ks, nk, kmin, nb);
+  if (st != BSURF_OK) return st;
 
   const size_t n = nb->point_count;
   const int T = bsurf_threads_resolve(o.threads);
   kd_scratch *scr = calloc((size_t)T, sizeof *scr);
   if (!scr) return BSURF_ERR_NOMEM;
-  bsurf_status st = BSURF_OK;
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = kd_alloc(&scr[t], ks[nk - 1], dmax, o.bootstrap, nk * nd);
   uint32_t *owned = NULL;
