@@ -118,8 +118,10 @@ double bsurf_nested_angle_sum(const double g[3], const double *rx, const double 
                               const double *rz, int k, double *scratch);
 
 /* The candidate list of a nested selection: ks[0..nk) strictly increasing,
- * ks[0] >= kmin, ks[nk - 1] <= nb->k, 65535 and the point count. */
-bsurf_status bsurf_nested_check_ks(const int *ks, int nk, int kmin, const bsurf_neighbors *nb);
+ * ks[0] >= kmin, ks[nk - 1] <= nb->k, 65535 and the point count; messages
+ * name `who` (the public function). */
+bsurf_status bsurf_nested_check_ks(const char *who, const int *ks, int nk, int kmin,
+                                   const bsurf_neighbors *nb);
 /* The angle between unit a and b, accurate near 0 (atan2 of |a x b| and
  * a . b); unoriented: the smaller of the angles with b and -b. */
 double bsurf_angle_between(const double a[3], const double b[3], int unoriented);

@@ -254,18 +254,20 @@ void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center,
     cov_one(block, R, r, about_centroid, cov, ok);
 }
 
-bsurf_status bsurf_nested_check_ks(const int *ks, int nk, int kmin, const bsurf_neighbors *nb) {
-  BSURF_REQUIRE(ks && nk >= 1, "ks = %p, nk = %d: at least one candidate K", (const void *)ks, nk);
-  BSURF_REQUIRE(ks[0] >= kmin, "ks[0] = %d must be at least %d", ks[0], kmin);
+bsurf_status bsurf_nested_check_ks(const char *who, const int *ks, int nk, int kmin,
+                                   const bsurf_neighbors *nb) {
+  BSURF_REQUIRE_IN(who, ks && nk >= 1, "ks = %p, nk = %d: at least one candidate K",
+                   (const void *)ks, nk);
+  BSURF_REQUIRE_IN(who, ks[0] >= kmin, "ks[0] = %d must be at least %d", ks[0], kmin);
   for (int a = 1; a < nk; a++)
-    BSURF_REQUIRE(ks[a] > ks[a - 1], "ks[%d] = %d must be above ks[%d] = %d (increasing)", a, ks[a],
-                  a - 1, ks[a - 1]);
-  BSURF_REQUIRE(ks[nk - 1] <= 65535 && ks[nk - 1] <= nb->k,
-                "ks[%d] = %d must be at most the neighbourhoods' k = %d (and 65535)", nk - 1,
-                ks[nk - 1], nb->k);
+    BSURF_REQUIRE_IN(who, ks[a] > ks[a - 1], "ks[%d] = %d must be above ks[%d] = %d (increasing)",
+                     a, ks[a], a - 1, ks[a - 1]);
+  BSURF_REQUIRE_IN(who, ks[nk - 1] <= 65535 && ks[nk - 1] <= nb->k,
+                   "ks[%d] = %d must be at most the neighbourhoods' k = %d (and 65535)", nk - 1,
+                   ks[nk - 1], nb->k);
   if ((size_t)ks[nk - 1] > nb->point_count)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "ks[%d] = %d exceeds the %zu points", nk - 1,
-                             ks[nk - 1], nb->point_count);
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "%s: ks[%d] = %d exceeds the %zu points",
+                             who, nk - 1, ks[nk - 1], nb->point_count);
   return BSURF_OK;
 }
 

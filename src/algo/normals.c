@@ -480,7 +480,7 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
                 (int)o.fit);
   BSURF_REQUIRE(o.bootstrap >= 0 && o.bootstrap <= 100000,
                 "opts->bootstrap = %d must be in [0, 100000]", o.bootstrap);
-  bsurf_status st = bsurf_nested_check_ks(ks, nk, 3, nb);
+  bsurf_status st = bsurf_nested_check_ks("bsurf_select_normals_k", ks, nk, 3, nb);
   if (st != BSURF_OK) return st;
 
   const size_t n = nb->point_count;

@@ -261,7 +261,7 @@ bsurf_status bsurf_select_normals_kd(const double *xyz, const bsurf_neighbors *n
   }
   /* every candidate K holds a fit of every degree */
   const int kmin = bsurf_poly_terms(dmax) > 3 ? bsurf_poly_terms(dmax) : 3;
-  bsurf_status st = bsurf_nested_check_ks(ks, nk, kmin, nb);
+  bsurf_status st = bsurf_nested_check_ks("bsurf_select_normals_kd", ks, nk, kmin, nb);
   if (st != BSURF_OK) return st;
 
   const size_t n = nb->point_count;
