@@ -244,25 +244,20 @@ static void features_text_row(FILE *f, const eval_ctx *e, int group) {
 
 /* ---- position: distance of each result point to the true surface ---- */
 
-/* Picks the true surface (e->surf and its source) in order of preference:
- * --surface, the truth's faces, the truth's generated shape, the truth's
- * normals (tangent planes). */
+/* The true surface (bsurf_eval_position_surface, the library's order of
+ * preference: --surface, the truth's faces, its generated shape, its
+ * normals) and where it comes from. */
 static void position_pick_surface(eval_ctx *e, const bsurf_cloud *surface) {
+  bsurf_surface_kind kind;
   e->surf = SURF_NONE;
-  if (surface) {
-    e->surf = SURF_MESH;
-    e->mesh = surface;
-    e->surf_source = e->surface_path;
-  } else if (e->truth->face_count) {
-    e->surf = SURF_MESH;
-    e->mesh = e->truth;
-    e->surf_source = e->truth_path;
-  } else if (e->truth->shape[0] && bsurf_shape_from_name(e->truth->shape, &e->shape) == 0) {
-    e->surf = SURF_SHAPE;
-    e->surf_source = bsurf_shape_name(e->shape);
-  } else if (e->truth->normals) {
-    e->surf = SURF_TANGENT_PLANE;
-    e->surf_source = e->truth_path;
+  if (bsurf_eval_position_surface(e->truth, surface, &kind, &e->shape)) {
+    e->surf = kind == BSURF_SURFACE_MESH    ? SURF_MESH
+              : kind == BSURF_SURFACE_SHAPE ? SURF_SHAPE
+                                            : SURF_TANGENT_PLANE;
+    e->mesh = surface ? surface : e->truth;
+    e->surf_source = kind == BSURF_SURFACE_SHAPE             ? bsurf_shape_name(e->shape)
+                     : kind == BSURF_SURFACE_MESH && surface ? e->surface_path
+                                                             : e->truth_path;
   }
   if (e->truth->shape[0] && e->surf != SURF_SHAPE && !surface && !e->truth->face_count)
     cli_warn("%s: unknown shape '%s' in the header, not used", e->truth_path, e->truth->shape);
@@ -277,78 +272,44 @@ static const char *position_missing(const eval_ctx *e, char *buf, size_t n) {
   return buf;
 }
 
+/* bsurf_eval_position with the correspondence and split of the command. */
 static int position_compute(eval_ctx *e) {
-  const size_t n = e->result->point_count, nt = e->truth->point_count;
-  bsurf_status st;
-  e->h = NAN;
-  if (nt >= 2 && (st = bsurf_mean_spacing(e->truth->xyz, nt, e->threads, &e->h)) != BSURF_OK)
-    return cli_error("position: spacing h of %s: %s", e->truth_path, bsurf_strerror(st));
-  if (nt < 2) cli_warn("%s (the truth) has fewer than 2 points: no spacing h", e->truth_path);
-
-  bsurf_true_surface s;
-  memset(&s, 0, sizeof s);
-  bsurf_mesh_index *index = NULL;
-  if (e->surf == SURF_MESH) {
-    if ((st = bsurf_mesh_index_build(&index, e->mesh)) != BSURF_OK)
-      return cli_error("%s: %s", e->surf_source,
-                       st == BSURF_ERR_INVALID_ARG ? "a face has a vertex index out of range"
-                                                   : bsurf_strerror(st));
-    s.kind = BSURF_SURFACE_MESH;
-    s.mesh = index;
-  } else if (e->surf == SURF_SHAPE) {
-    s.kind = BSURF_SURFACE_SHAPE;
-    s.shape = e->shape;
-  } else {
-    s.kind = BSURF_SURFACE_TANGENT_PLANE;
-    s.truth_xyz = e->truth->xyz;
-    s.truth_normals = e->truth->normals;
-    s.truth_count = nt;
-    s.match = e->match;
-  }
-  double *dist = malloc(sizeof(double) * (n ? n : 1));
-  uint8_t *sel = malloc(n ? n : 1), *feat = NULL;
-  const bsurf_field *tf = bsurf_cloud_field(e->truth, "feature");
-  e->has_feature = tf != NULL;
-  if (tf) feat = malloc(n ? n : 1);
-  if (!dist || !sel || (tf && !feat)) {
-    bsurf_mesh_index_free(index);
-    free(dist);
-    free(sel);
-    free(feat);
-    return cli_error("out of memory");
-  }
+  if (e->truth->point_count < 2)
+    cli_warn("%s (the truth) has fewer than 2 points: no spacing h", e->truth_path);
+  bsurf_position_eval_options o;
+  memset(&o, 0, sizeof o);
+  o.surface = e->surf == SURF_MESH && e->mesh != e->truth ? e->mesh : NULL;
+  o.match = e->match;
+  o.high = e->high;
+  o.threads = e->threads;
   cli_progress prog;
   cli_progress_init(&prog, "position", e->quiet);
-  st = bsurf_position_errors(e->result->xyz, n, &s, e->threads, dist, cli_progress_cb, &prog);
+  o.progress = cli_progress_cb;
+  o.progress_user = &prog;
+  bsurf_position_eval r;
+  bsurf_status st =
+      bsurf_eval_position(e->result->xyz, e->result->point_count, e->truth, &o, &r, NULL);
   cli_progress_done(&prog);
-  bsurf_mesh_index_free(index);
-  int rc = 0;
-  if (st == BSURF_ERR_INVALID_VALUE) {
-    size_t bad = 0;
-    while (bad < n && !isnan(dist[bad]))
-      bad++;
-    rc = cli_error("%s: truth point %zu (0-based, for result point %zu) has a zero-length normal",
-                   e->truth_path, bad < n ? truth_index(e, bad) : 0, bad);
-  } else if (st != BSURF_OK) {
-    rc = cli_error("position: %s", bsurf_strerror(st));
+  e->h = r.h;
+  e->has_feature = r.has_feature;
+  memcpy(e->position, r.stats, sizeof e->position);
+  if (st == BSURF_OK) return 0;
+  switch (r.stage) {
+  case BSURF_POSITION_STAGE_SPACING:
+    return cli_error("position: spacing h of %s: %s", e->truth_path, bsurf_strerror(st));
+  case BSURF_POSITION_STAGE_MESH:
+    return cli_error("%s: %s", e->surf_source,
+                     st == BSURF_ERR_INVALID_ARG ? "a face has a vertex index out of range"
+                                                 : bsurf_strerror(st));
+  case BSURF_POSITION_STAGE_DISTANCE:
+    if (st == BSURF_ERR_INVALID_VALUE)
+      return cli_error(
+          "%s: truth point %zu (0-based, for result point %zu) has a zero-length normal",
+          e->truth_path, r.bad_point < e->result->point_count ? r.bad_truth_point : 0, r.bad_point);
+    break;
+  default: break;
   }
-  for (size_t i = 0; tf && i < n; i++)
-    feat[i] = tf->values[truth_index(e, i)] != 0;
-  for (int g = 0; g < GROUP_COUNT && rc == 0; g++) {
-    uint8_t keep;
-    const uint8_t *mask = group_mask(e, g, &keep);
-    if (g != GROUP_ALL && !mask) break;
-    for (int part = 0; part < (tf ? PART_COUNT : 1); part++) {
-      for (size_t i = 0; i < n; i++)
-        sel[i] =
-            (!mask || mask[i] == keep) && (part == PART_ALL || feat[i] == (part == PART_FEATURE));
-      bsurf_distance_stats_compute(dist, sel, 1, n, &e->position[g][part]);
-    }
-  }
-  free(dist);
-  free(sel);
-  free(feat);
-  return rc;
+  return cli_error("position: %s", bsurf_strerror(st));
 }
 
 static void position_json_stats(cli_json *j, const bsurf_distance_stats *s, double h,

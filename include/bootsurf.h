@@ -1217,6 +1217,84 @@ BSURF_API bsurf_status bsurf_distance_stats_compute(const double *dist, const ui
                                                     uint8_t keep, size_t count,
                                                     bsurf_distance_stats *stats);
 
+/* The position section of `bootsurf eval` in one call: the distance of each
+ * result point to the true surface and its summaries.
+ *
+ * The true surface, in order of preference (bsurf_eval_position_surface):
+ * `surface` (a triangle mesh, e.g. the one the truth was sampled from), the
+ * truth's own faces, the generated shape the truth samples (truth->shape),
+ * the tangent plane of the corresponding truth point (truth->normals).
+ * Result point i corresponds to truth point i when the counts agree, else to
+ * its nearest truth point (bsurf_match_nearest; computed only when the
+ * tangent planes or the truth's `feature` labels need it). h is the truth's
+ * mean spacing (bsurf_mean_spacing; NAN under 2 truth points). */
+typedef enum bsurf_position_group {
+  BSURF_POSITION_ALL = 0, /* every result point */
+  BSURF_POSITION_HIGH,    /* the split's high points (opts->high[i] = 1) */
+  BSURF_POSITION_LOW,     /* the others */
+  BSURF_POSITION_GROUPS
+} bsurf_position_group;
+
+typedef enum bsurf_position_part {
+  BSURF_POSITION_PART_ALL = 0,     /* the group's points */
+  BSURF_POSITION_PART_FEATURE,     /* those whose truth point has feature != 0 */
+  BSURF_POSITION_PART_NON_FEATURE, /* the others */
+  BSURF_POSITION_PARTS
+} bsurf_position_part;
+
+typedef struct bsurf_position_eval_options {
+  const bsurf_cloud *surface; /* a triangle mesh (with faces), or NULL */
+  const uint32_t *match;      /* result point i <-> truth point match[i], or
+                                 NULL: by index when the counts agree, else
+                                 the nearest (computed when needed) */
+  const uint8_t *high;        /* a split of the result points (1 high, 0 low),
+                                 or NULL: only the group ALL */
+  int threads;
+  bsurf_progress_fn progress; /* the distances, may cancel; or NULL */
+  void *progress_user;
+} bsurf_position_eval_options;
+
+/* Where bsurf_eval_position failed. */
+typedef enum bsurf_position_stage {
+  BSURF_POSITION_STAGE_NONE = 0,
+  BSURF_POSITION_STAGE_SPACING,  /* h of the truth */
+  BSURF_POSITION_STAGE_MATCH,    /* the nearest truth points */
+  BSURF_POSITION_STAGE_MESH,     /* the mesh index (a face index out of range) */
+  BSURF_POSITION_STAGE_DISTANCE, /* a distance is NaN: bad_point, bad_truth_point */
+} bsurf_position_stage;
+
+typedef struct bsurf_position_eval {
+  bsurf_surface_kind surface; /* the surface used */
+  int surface_is_truth;       /* MESH: the truth's faces (not opts->surface) */
+  int nearest;                /* correspondence by nearest point (else index,
+                                 or not needed) */
+  double h;                   /* the truth's mean spacing, NAN under 2 points */
+  int has_feature;            /* the truth has `feature`: the parts exist */
+  int groups;                 /* 1, or 3 with opts->high */
+  bsurf_distance_stats stats[BSURF_POSITION_GROUPS][BSURF_POSITION_PARTS];
+  bsurf_position_stage stage;        /* on failure: where */
+  size_t bad_point, bad_truth_point; /* STAGE_DISTANCE: the first NaN distance */
+} bsurf_position_eval;
+
+/* The true surface bsurf_eval_position would use: 1 and *kind (and *shape
+ * for SHAPE), or 0 when there is none (no surface, faces, known shape or
+ * normals). surface may be NULL. */
+BSURF_API int bsurf_eval_position_surface(const bsurf_cloud *truth, const bsurf_cloud *surface,
+                                          bsurf_surface_kind *kind, bsurf_shape *shape);
+
+/* Position errors of result points (xyz, count x 3) against the truth
+ * cloud (its points, and as available faces, shape, normals and a `feature`
+ * field). opts: NULL = defaults. dist out: count per-point distances (may be
+ * NULL). BSURF_ERR_INVALID_ARG (bsurf_last_message) without a true surface
+ * or for bad arguments; otherwise the status of the failed stage (out->stage):
+ * BSURF_ERR_INVALID_VALUE at STAGE_DISTANCE for a zero-length truth normal
+ * or a non-finite point. Sums run in point order: the same bits for any
+ * thread count. */
+BSURF_API bsurf_status bsurf_eval_position(const double *xyz, size_t count,
+                                           const bsurf_cloud *truth,
+                                           const bsurf_position_eval_options *opts,
+                                           bsurf_position_eval *out, double *dist);
+
 /* ------------------------------------------------------------------------ */
 /* Distributed runs                                                          */
 /* ------------------------------------------------------------------------ */

@@ -86,6 +86,36 @@ def _points(x):
     return x, None
 
 
+def _job_input(points, output, tile_points):
+    """(points, tiled) of a job: in memory (points, None), or a tiled run from
+    a binary PLY file to another (None, (input, output, tile_points))."""
+    import os
+    if tile_points is None:
+        if output is not None:
+            raise ValueError("output: only tiled runs (tile_points=) write their results; write() "
+                             "saves results held in memory")
+        return _points(points)[0], None
+    if not (isinstance(points, str) or hasattr(points, "__fspath__")):
+        raise TypeError("points: a tiled run reads a binary PLY file: give its path, not %s"
+                        % type(points).__name__)
+    if output is None or not os.fspath(output).lower().endswith(".ply"):
+        raise ValueError("output: a tiled run writes binary PLY: give output='FILE.ply', not %r"
+                         % (output,))
+    if not os.fspath(points).lower().endswith(".ply"):
+        raise ValueError("%s: tiled runs read binary PLY files (write one with write())"
+                         % os.fspath(points))
+    return None, (os.fspath(points), os.fspath(output), int(tile_points))
+
+
+_TILED_DOC = """
+    Tiled (out-of-core) run, as the command's --tile-points N -o OUT.ply:
+    with tile_points=N, points is the path of a binary PLY file and output
+    the .ply file to write; the cloud is processed N points at a time with
+    exact halos (the same bytes as the command line writes, the same results
+    as in memory) and the returned fields (and points) are None: the
+    results are in output. summary then also has tile_points and tiles."""
+
+
 # ---------------------------------------------------------------- files
 
 
@@ -173,10 +203,10 @@ def spacing(points, *, threads=0, progress=None):
 
 
 def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_center="centroid",
-          seed=1, threads=0, test_sample=None, progress=None):
+          seed=1, threads=0, test_sample=None, output=None, tile_points=None, progress=None):
     """error(points, *, neighbors=50, degree=3, bootstrap=50, gamma='fit',
     pca_center='centroid', seed=1, threads=0, test_sample=None,
-    progress=None) -> (fields, summary)
+    output=None, tile_points=None, progress=None) -> (fields, summary)
 
     Bootstrap test-error estimates of local polynomial fits (thesis ch. 4);
     ``bootsurf error``.
@@ -212,10 +242,13 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
     if int(bootstrap) < 1:
         raise ValueError("bootstrap = %d: the bootstrap estimators need at least one replicate"
                          % int(bootstrap))
+    pts, tiled = _job_input(points, output, tile_points)
     test = _maybe_read(test_sample)
     if isinstance(test, dict):
         test = test["points"]
-    return _core.error(_points(points)[0], test, int(neighbors), int(degree), int(bootstrap),
+    if tiled and test is not None:
+        raise ValueError("test_sample: err_test needs the cloud in memory, not a tiled run")
+    return _core.error(pts, tiled, test, int(neighbors), int(degree), int(bootstrap),
                        int(seed), _choice(gamma, _GAMMAS, "gamma"),
                        _choice(pca_center, _CENTERS, "pca_center"), int(threads), progress)
 
@@ -249,12 +282,14 @@ _builtin_range = range
 def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid", bootstrap=50,
             seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="test-error",
             noise_k=20, select_degree=None, curve=False, truth=None, smooth_iterations=0,
-            alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", progress=None):
+            alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", output=None,
+            tile_points=None, progress=None):
     """normals(points, *, neighbors=30, fit='pca', degree=2,
     pca_center='centroid', bootstrap=50, seed=1, threads=0, test_error=False,
     k_ref=0, select_k=None, select_rule='test-error', noise_k=20,
     select_degree=None, curve=False, truth=None, smooth_iterations=0,
-    alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', progress=None)
+    alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', output=None,
+    tile_points=None, progress=None)
     -> (fields, summary)
 
     Normals with bootstrap confidence and test error (thesis ch. 5);
@@ -311,12 +346,12 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
     if curve and not ks:
         raise ValueError("curve needs select_k")
     ds = None if select_degree is None else [int(d) for d in select_degree]
-    pts, cloud = _points(points)
+    pts, tiled = _job_input(points, output, tile_points)
     if truth is not None:
         truth = _maybe_read(truth)
         if isinstance(truth, dict):
             truth = truth["normals"]
-    return _core.normals(pts, int(neighbors), _choice(fit, _FITS, "fit"), int(degree),
+    return _core.normals(pts, tiled, int(neighbors), _choice(fit, _FITS, "fit"), int(degree),
                          _choice(pca_center, _CENTERS, "pca_center"), int(bootstrap), int(seed),
                          int(threads), bool(test_error), int(k_ref), ks,
                          _choice(select_rule, _RULES, "select_rule"), int(noise_k), ds,
@@ -358,12 +393,13 @@ def _length(value, option, allow_w=False):
 def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, gamma="fit",
            pca_center="centroid", estimator="auto", threshold="auto", h1="h", h2="auto",
            order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on", seed=1,
-           threads=0, progress=None):
+           threads=0, output=None, tile_points=None, progress=None):
     """smooth(points, *, method='bilateral', neighbors=50, degree=3,
     bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
     threshold='auto', h1='h', h2='auto', order='parallel', a=0.1,
     iterations=300, k_min=10, k_error='auto', guard='on', seed=1, threads=0,
-    progress=None) -> (points, fields, summary)
+    output=None, tile_points=None, progress=None)
+    -> (points, fields, summary)
 
     Denoise: move points towards the bootstrap fits (thesis ch. 6);
     ``bootsurf smooth`` (bsurf_smooth_job).
@@ -409,8 +445,8 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
     v2, h2_h, f2 = (_math.nan, False, _math.nan) if h2 == "auto" else _length(h2, "h2", True)
     ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error == "auto"
                     else _length(k_error, "k_error", True))
-    pts, _ = _points(points)
-    return _core.smooth(pts, _choice(method, _METHODS, "method"), int(neighbors), int(degree),
+    pts, tiled = _job_input(points, output, tile_points)
+    return _core.smooth(pts, tiled, _choice(method, _METHODS, "method"), int(neighbors), int(degree),
                         int(bootstrap), int(seed), _choice(gamma, _GAMMAS, "gamma"),
                         _choice(pca_center, _CENTERS, "pca_center"),
                         _choice(estimator, _ESTIMATORS, "estimator"), thr, thr_h, v1, h1_h, v2,
@@ -428,12 +464,14 @@ _TAIL_RULES = ("otsu", "mad", "null")  # BSURF_TAIL_OTSU, _MAD, _NULL
 def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15, k_max=60,
              k_step=2, ratio_threshold=0.1, noise_factor=1.75, derivative=0.0, alpha=0.5,
              iterations=5, filter_k=0, sigma_range=0.05, threshold="auto", tail_rule="null",
-             false_positive_rate=0.01, variance_filter_k=0, seed=1, threads=0, progress=None):
+             false_positive_rate=0.01, variance_filter_k=0, seed=1, threads=0, output=None,
+             tile_points=None, progress=None):
     """features(points, *, method='distance', neighbors=30, bootstrap=50,
     k_min=15, k_max=60, k_step=2, ratio_threshold=0.1, noise_factor=1.75,
     derivative=0.0, alpha=0.5, iterations=5, filter_k=0, sigma_range=0.05,
     threshold='auto', tail_rule='null', false_positive_rate=0.01,
-    variance_filter_k=0, seed=1, threads=0, progress=None)
+    variance_filter_k=0, seed=1, threads=0, output=None,
+    tile_points=None, progress=None)
     -> (fields, summary)
 
     Feature detection (thesis ch. 7); ``bootsurf features``
@@ -481,14 +519,19 @@ def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15,
     immediate, ratio_threshold_kmin, noise_level).
     """
     thr = _math.nan if threshold == "auto" else float(threshold)
-    pts, _ = _points(points)
-    return _core.features(pts, _choice(method, _FEATURE_METHODS, "method"), int(neighbors),
+    pts, tiled = _job_input(points, output, tile_points)
+    return _core.features(pts, tiled, _choice(method, _FEATURE_METHODS, "method"), int(neighbors),
                           int(bootstrap), int(k_min), int(k_max), int(k_step),
                           float(ratio_threshold), float(noise_factor), float(derivative),
                           float(alpha), int(iterations), int(filter_k), float(sigma_range), thr,
                           _choice(tail_rule, _TAIL_RULES, "tail_rule"),
                           float(false_positive_rate), int(variance_filter_k), int(seed),
                           int(threads), progress)
+
+
+for _f in (error, normals, smooth, features):
+    if _f.__doc__:  # None under python -OO
+        _f.__doc__ += _TILED_DOC
 
 
 # ---------------------------------------------------------------- data
@@ -536,9 +579,8 @@ def noise(points, normals=None, *, level=0.5, sigma_diag=None, model="gaussian",
     pts, cloud = _points(points)
     if normals is None and cloud is not None:
         normals = cloud.get("normals")
-        if normals is None and "true_nx" in cloud:  # an earlier noise output's exact normals
-            import numpy as np
-            normals = np.stack([cloud["true_nx"], cloud["true_ny"], cloud["true_nz"]], axis=1)
+        if normals is None:  # an earlier noise output's exact normals (true_nx ...)
+            normals = _truth(cloud).get("normals")
     if normals is None:
         raise ValueError("noise moves points along their normals: give normals")
     if sigma_diag is not None and level != 0.5:
@@ -590,33 +632,83 @@ sample.last_report = None
 # ---------------------------------------------------------------- evaluation
 
 
-def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None, split=None,
-             split_q=0.85):
-    """evaluate(normals=None, true_normals=None, *, feature=None,
-    true_feature=None, split=None, split_q=0.85) -> dict
+def _truth(cloud):
+    """A truth cloud as ``bootsurf eval --truth`` reads it: the true_nx true_ny
+    true_nz, true_feature and true_feature_dist fields that ``noise`` keeps
+    are its normals, feature and feature_dist."""
+    if not any(k.startswith("true_") for k in cloud):
+        return cloud
+    import numpy as np
+    t = Cloud(cloud, shape_name=getattr(cloud, "shape_name", ""))
+    if all(k in t for k in ("true_nx", "true_ny", "true_nz")):
+        t["normals"] = np.stack([t["true_nx"], t["true_ny"], t["true_nz"]], axis=1)
+    for named in ("true_feature", "true_feature_dist"):
+        if named in t:
+            t[named[5:]] = t.pop(named)
+    return t
 
-    Compare results with ground truth of the same points (``bootsurf eval``'s
-    normals and features sections).
+
+def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None, split=None,
+             split_q=0.85, points=None, truth=None, surface=None, threads=0, progress=None):
+    """evaluate(normals=None, true_normals=None, *, feature=None,
+    true_feature=None, split=None, split_q=0.85, points=None, truth=None,
+    surface=None, threads=0, progress=None) -> dict
+
+    Compare results with ground truth; ``bootsurf eval`` (the same numbers as
+    its --json, from the same library calls).
 
     normals: unoriented angle errors atan2(|a x b|, |a . b|) against
-    true_normals (thesis 5.2.2, Tables 5.1, 5.3-5.9): 'angles' (N,) in
-    radians and 'normals': {'all': stats} with count, mean_rad, median_rad,
-    rms_rad, mean_deg, under5deg, under10deg (PCPNet's PGP5/PGP10). With
-    split (a per-point value such as normal_var), also 'high' and 'low': the
-    points above the split_q quantile and the others (5.2.3, Table 5.2:
-    split_q = 0.85 is "the highest 15%").
+    true_normals of the same points (thesis 5.2.2, Tables 5.1, 5.3-5.9):
+    'angles' (N,) in radians and 'normals': {'all': stats} with count,
+    mean_rad, median_rad, rms_rad, mean_deg, under5deg, under10deg (PCPNet's
+    PGP5/PGP10). With split (a per-point value such as normal_var), also
+    'high' and 'low': the points above the split_q quantile and the others
+    (5.2.3, Table 5.2: split_q = 0.85 is "the highest 15%").
 
     feature / true_feature (0/1 per point): precision, recall and F1 (thesis
     ch. 7) under 'features'.
+
+    points with truth: the position error (smoothing, ch. 6): 'distances'
+    (N,), each point's distance to the true surface, and 'position' with
+    surface (mesh, shape or tangent_plane), correspondence (index, nearest
+    or none), h (the truth's mean spacing) and per group ('all', and with
+    split 'high' and 'low') points, mean, rms, max and the same over h, also
+    for the 'feature' and 'non_feature' points when the truth has 'feature'.
+    The true surface, in order: surface (a mesh Cloud or path, --surface),
+    the truth's faces, its generated shape (shape_name), its normals
+    (tangent planes). A point corresponds to truth point i when the counts
+    agree, else to the nearest truth point.
+
+    truth: a Cloud or path (``--truth``); its normals and feature stand in for
+    true_normals and true_feature (a noise output's true_nx ... too). A
+    points Cloud or path gives its normals and feature as the results, as
+    ``eval RESULT`` does.
     """
     out = {}
+    res = None
+    pts = None
+    if points is not None:
+        pts, res = _points(points)
+    if truth is not None:
+        truth = _truth(_maybe_read(truth))
+        if res is not None:  # a result cloud: its normals and labels, as eval RESULT
+            if normals is None and "normals" in res and "normals" in truth:
+                normals = res["normals"]
+            if feature is None and "feature" in res and "feature" in truth:
+                feature = res["feature"]
+        if normals is not None and true_normals is None:
+            true_normals = truth.get("normals")
+        if feature is not None and true_feature is None:
+            true_feature = truth.get("feature")
+    elif pts is not None:
+        raise ValueError("points: the position error needs truth= (a Cloud or path)")
+    mask = None
+    if split is not None:
+        mask, threshold, count = _core.quantile_split(split, float(split_q))
+        out["split"] = {"q": float(split_q), "threshold": threshold, "high_points": count}
     if normals is not None or true_normals is not None:
         if normals is None or true_normals is None:
             raise ValueError("normals and true_normals go together")
-        mask = None
-        if split is not None:
-            mask, threshold, count = _core.quantile_split(split, float(split_q))
-            out["split"] = {"q": float(split_q), "threshold": threshold, "high_points": count}
         angles, stats = _core.eval_normals(normals, true_normals, mask)
         out["angles"] = angles
         out["normals"] = stats
@@ -624,9 +716,14 @@ def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None
         if feature is None or true_feature is None:
             raise ValueError("feature and true_feature go together")
         out["features"] = _core.eval_features(feature, true_feature)
-    if not out:
-        raise ValueError("nothing to evaluate: give normals and true_normals, or feature and "
-                         "true_feature")
+    if pts is not None:
+        if surface is not None:
+            surface = _maybe_read(surface)
+        out["distances"], out["position"] = _core.eval_position(
+            pts, truth, getattr(truth, "shape_name", ""), surface, mask, int(threads), progress)
+    if not out or list(out) == ["split"]:
+        raise ValueError("nothing to evaluate: give normals and true_normals, feature and "
+                         "true_feature, or points and truth")
     return out
 
 

@@ -42,8 +42,10 @@ def error(
     seed: int = ...,
     threads: int = ...,
     test_sample: Optional[Points] = ...,
+    output: Optional[PathLike] = ...,
+    tile_points: Optional[int] = ...,
     progress: Progress = ...,
-) -> Tuple[Dict[str, npt.NDArray[np.float64]], Dict[str, Any]]: ...
+) -> Tuple[Optional[Dict[str, npt.NDArray[np.float64]]], Dict[str, Any]]: ...
 def normals(
     points: Points,
     *,
@@ -67,8 +69,10 @@ def normals(
     sigma_d: float = ...,
     sigma_nu: Union[float, Literal["auto", "inf"]] = ...,
     orient: Literal["none", "mst"] = ...,
+    output: Optional[PathLike] = ...,
+    tile_points: Optional[int] = ...,
     progress: Progress = ...,
-) -> Tuple[Dict[str, np.ndarray], Dict[str, Any]]: ...
+) -> Tuple[Optional[Dict[str, np.ndarray]], Dict[str, Any]]: ...
 def generate(
     shape: Literal["sphere", "cube", "torus", "plane"],
     *,
@@ -105,6 +109,11 @@ def evaluate(
     true_feature: Optional[ArrayLike] = ...,
     split: Optional[ArrayLike] = ...,
     split_q: float = ...,
+    points: Optional[Points] = ...,
+    truth: Optional[Union[Mapping[str, Any], PathLike]] = ...,
+    surface: Optional[Union[Mapping[str, Any], PathLike]] = ...,
+    threads: int = ...,
+    progress: Progress = ...,
 ) -> Dict[str, Any]: ...
 def render(
     points: Points,
@@ -150,8 +159,12 @@ def smooth(
     guard: Literal["on", "off"] = ...,
     seed: int = ...,
     threads: int = ...,
+    output: Optional[PathLike] = ...,
+    tile_points: Optional[int] = ...,
     progress: Progress = ...,
-) -> Tuple[npt.NDArray[np.float64], Dict[str, np.ndarray], Dict[str, Any]]: ...
+) -> Tuple[
+    Optional[npt.NDArray[np.float64]], Optional[Dict[str, np.ndarray]], Dict[str, Any]
+]: ...
 def features(
     points: Points,
     *,
@@ -174,5 +187,7 @@ def features(
     variance_filter_k: int = ...,
     seed: int = ...,
     threads: int = ...,
+    output: Optional[PathLike] = ...,
+    tile_points: Optional[int] = ...,
     progress: Progress = ...,
-) -> Tuple[Dict[str, np.ndarray], Dict[str, Any]]: ...
+) -> Tuple[Optional[Dict[str, np.ndarray]], Dict[str, Any]]: ...

@@ -27,6 +27,7 @@
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "bootsurf.h"
 
@@ -61,6 +62,14 @@ static int progress_cb(void *user, size_t done, size_t total) {
   }
   c->ts = PyEval_SaveThread();
   return c->stop;
+}
+
+/* ctx_init (progress != NULL) and the library's progress members of an
+ * options struct set to the binding's callback. */
+static void ctx_hook(call_ctx *c, PyObject *progress, bsurf_progress_fn *fn, void **user) {
+  if (progress) ctx_init(c, progress);
+  *fn = progress_cb;
+  *user = c;
 }
 
 #define RELEASE(c) ((c)->ts = PyEval_SaveThread())
@@ -98,12 +107,19 @@ static PyObject *fail(bsurf_status st, const call_ctx *c, const char *path,
     PyErr_SetString(PyExc_OSError, msg);
     return NULL;
   default:
+    if (err && err->message[0]) msg = err->message;
     if (path)
       PyErr_Format(PyExc_ValueError, "%s: %s", path, msg);
     else
       PyErr_SetString(PyExc_ValueError, msg);
     return NULL;
   }
+}
+
+/* In memory, the subject of the data's faults (too few points, a NaN
+ * coordinate), where the command line names the input file: "points". */
+static const char *about_points(bsurf_status st) {
+  return st == BSURF_ERR_TOO_FEW_POINTS || st == BSURF_ERR_INVALID_VALUE ? "points" : NULL;
 }
 
 /* ---- arrays ---- */
@@ -151,6 +167,19 @@ static int opt_f64(PyObject *obj, const char *what, int cols, size_t n, PyArrayO
     return -1;
   }
   return 0;
+}
+
+/* A (n,) array of 0/1 labels as C-contiguous uint8; NULL with ValueError
+ * naming `what` when its length is not n. */
+static PyArrayObject *mask_u8(PyObject *obj, const char *what, size_t n) {
+  PyArrayObject *m = (PyArrayObject *)PyArray_FROMANY(obj, NPY_UINT8, 1, 1,
+                                                      NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
+  if (m && (size_t)PyArray_DIM(m, 0) != n) {
+    PyErr_Format(PyExc_ValueError, "%s: has %zd values, the points %zu", what, PyArray_DIM(m, 0),
+                 n);
+    Py_CLEAR(m);
+  }
+  return m;
 }
 
 static double *f64(PyArrayObject *a) {
@@ -249,6 +278,15 @@ bad:
   Py_DECREF(d);
   bsurf_cloud_free(c);
   return NULL;
+}
+
+/* (dict, shape name) of a cloud the library made (read, generate), whose
+ * arrays the dict takes. */
+static PyObject *cloud_result(bsurf_cloud *c) {
+  char shape[BSURF_FIELD_NAME_MAX];
+  memcpy(shape, c->shape, sizeof shape);
+  PyObject *d = dict_from_cloud(c);
+  return d ? Py_BuildValue("(Ns)", d, shape) : NULL;
 }
 
 /* A cloud that borrows the buffers of a dict's arrays (never freed by the
@@ -364,11 +402,7 @@ static PyObject *py_read(PyObject *self, PyObject *args) {
   bsurf_status st;
   Py_BEGIN_ALLOW_THREADS st = bsurf_read(path, &c, &err);
   Py_END_ALLOW_THREADS if (st != BSURF_OK) return fail(st, NULL, path, &err);
-  char shape[BSURF_FIELD_NAME_MAX];
-  memcpy(shape, c.shape, sizeof shape);
-  PyObject *d = dict_from_cloud(&c);
-  if (!d) return NULL;
-  return Py_BuildValue("(Ns)", d, shape);
+  return cloud_result(&c);
 }
 
 static PyObject *py_write(PyObject *self, PyObject *args) {
@@ -417,6 +451,15 @@ static PyObject *py_knn(PyObject *self, PyObject *args) {
     return PyErr_Format(PyExc_ValueError, "k = %d: must be in [1, %zu] (the number of points)", k,
                         n);
   }
+  /* bsurf_knn_build takes any doubles (a NaN point lands somewhere in the
+   * tree): refuse them as bsurf_neighbors_build does for the jobs */
+  const double *xyz = f64(a);
+  for (size_t i = 0; i < 3 * n; i++)
+    if (!isfinite(xyz[i])) {
+      Py_DECREF(a);
+      return PyErr_Format(PyExc_ValueError, "points: point %zu has a NaN or infinite coordinate",
+                          i / 3);
+    }
   npy_intp dims[2] = {(npy_intp)n, k};
   PyObject *idx = PyArray_SimpleNew(2, dims, NPY_UINT32),
            *d2 = PyArray_SimpleNew(2, dims, NPY_DOUBLE);
@@ -435,7 +478,7 @@ static PyObject *py_knn(PyObject *self, PyObject *args) {
   if (st != BSURF_OK) {
     Py_DECREF(idx);
     Py_DECREF(d2);
-    return fail(st, &c, NULL, NULL);
+    return fail(st, &c, about_points(st), NULL);
   }
   return Py_BuildValue("(NN)", idx, d2);
 bad:
@@ -452,6 +495,12 @@ static PyObject *py_spacing(PyObject *self, PyObject *args) {
   if (!PyArg_ParseTuple(args, "OiO", &pts, &threads, &progress)) return NULL;
   PyArrayObject *a = as_f64(pts, "points", 3);
   if (!a) return NULL;
+  if (PyArray_DIM(a, 0) < 2) {
+    Py_DECREF(a);
+    return PyErr_Format(PyExc_ValueError,
+                        "points: has %zd point(s); the spacing h needs at least 2",
+                        PyArray_DIM(a, 0));
+  }
   call_ctx c;
   ctx_init(&c, progress);
   double h = 0;
@@ -460,11 +509,11 @@ static PyObject *py_spacing(PyObject *self, PyObject *args) {
       bsurf_mean_spacing_progress(f64(a), (size_t)PyArray_DIM(a, 0), threads, &h, progress_cb, &c);
   ACQUIRE(&c);
   Py_DECREF(a);
-  if (st != BSURF_OK) return fail(st, &c, NULL, NULL);
+  if (st != BSURF_OK) return fail(st, &c, about_points(st), NULL);
   return PyFloat_FromDouble(h);
 }
 
-/* ---- jobs on a cloud that borrows the caller's points ---- */
+/* ---- jobs: in memory on the caller's points, or tiled file to file ---- */
 
 /* Moves the named fields of a job's cloud into a dict (and frees the cloud;
  * its xyz is borrowed and left alone). */
@@ -493,6 +542,110 @@ static PyObject *take_fields(bsurf_cloud *c) {
   return d;
 }
 
+/* One job call: its bsurf_job_io, the cloud over the caller's points (in
+ * memory) or the files and tile size (tiled), the progress context and
+ * where a tiled input is wrong. */
+typedef struct job_call {
+  PyArrayObject *a; /* in memory: the caller's points as float64 */
+  int own_xyz;      /* cloud.xyz is a copy (jobs that move the points) */
+  bsurf_cloud cloud;
+  bsurf_job_io io;
+  call_ctx c;
+  bsurf_failure err;
+} job_call;
+
+/* tiled: None (in memory: the points, copied when `copy`) or (input,
+ * output, tile_points), a binary PLY file processed tile by tile into
+ * another (bsurf_job_io). -1 with an exception. */
+static int job_begin(job_call *j, PyObject *pts, PyObject *tiled, int copy, PyObject *progress) {
+  memset(j, 0, sizeof *j);
+  bsurf_cloud_init(&j->cloud);
+  j->err.byte = -1;
+  ctx_init(&j->c, progress);
+  if (tiled != Py_None) {
+    Py_ssize_t tile_points;
+    if (!PyArg_ParseTuple(tiled, "ssn", &j->io.input, &j->io.output, &tile_points)) return -1;
+    if (tile_points < 1) {
+      PyErr_Format(PyExc_ValueError, "tile_points = %zd: must be at least 1", tile_points);
+      return -1;
+    }
+    j->io.tile_points = (size_t)tile_points;
+    return 0;
+  }
+  if (!(j->a = as_f64(pts, "points", 3))) return -1;
+  size_t n = (size_t)PyArray_DIM(j->a, 0);
+  j->cloud.point_count = n;
+  j->cloud.xyz = f64(j->a);
+  if (copy) {
+    j->cloud.xyz = malloc(n * 3 * sizeof(double) + 1);
+    if (!j->cloud.xyz) {
+      Py_CLEAR(j->a);
+      PyErr_NoMemory();
+      return -1;
+    }
+    memcpy(j->cloud.xyz, f64(j->a), n * 3 * sizeof(double));
+    j->own_xyz = 1;
+  }
+  j->io.cloud = &j->cloud;
+  return 0;
+}
+
+/* Frees what job_begin took (after an exception raised before the job). */
+static void job_free(job_call *j) {
+  if (j->own_xyz) free(j->cloud.xyz);
+  j->cloud.xyz = NULL;
+  bsurf_cloud_free(&j->cloud);
+  Py_CLEAR(j->a);
+}
+
+/* After the job: its fields as a dict (None for a tiled run, whose results
+ * are in the output file), or NULL with the exception: OSError naming the
+ * input (and the line or byte) or, when the input is readable and nothing
+ * places the failure in it, the output; ValueError "points: ..." for the
+ * points' faults in memory. `points` (may be NULL): the moved
+ * points of a job that moves them (None when tiled). Frees what job_begin
+ * took. */
+static PyObject *job_end(job_call *j, bsurf_status st, PyObject **points) {
+  PyObject *fields = NULL;
+  if (points) *points = NULL;
+  if (st != BSURF_OK) {
+    const char *path = about_points(st);
+    if (j->io.input) {
+      int located = j->err.line > 0 || j->err.byte >= 0;
+      path = st == BSURF_ERR_IO && !located && access(j->io.input, R_OK) == 0 ? j->io.output
+                                                                              : j->io.input;
+    }
+    fail(st, &j->c, path, j->io.input ? &j->err : NULL);
+  } else if (!j->io.cloud) {
+    Py_INCREF(Py_None);
+    fields = Py_None;
+    if (points) {
+      Py_INCREF(Py_None);
+      *points = Py_None;
+    }
+  } else if (points) {
+    npy_intp n3[2] = {(npy_intp)j->cloud.point_count, 3};
+    if ((*points = adopt(j->cloud.xyz, 2, n3, NPY_DOUBLE))) j->own_xyz = 0; /* numpy owns it */
+    if (*points && !(fields = take_fields(&j->cloud))) Py_CLEAR(*points);
+  } else {
+    fields = take_fields(&j->cloud);
+  }
+  job_free(j);
+  return fields;
+}
+
+/* (fields, summary) or (points, fields, summary), stealing the references;
+ * NULL when any is NULL. */
+static PyObject *job_result(PyObject *points, PyObject *fields, PyObject *sum) {
+  if (!fields || !sum) {
+    Py_XDECREF(points);
+    Py_XDECREF(fields);
+    Py_XDECREF(sum);
+    return NULL;
+  }
+  return points ? Py_BuildValue("(NNN)", points, fields, sum) : Py_BuildValue("(NN)", fields, sum);
+}
+
 static PyObject *report_error(const bsurf_error_report *r) {
   return Py_BuildValue("{s:n,s:n,s:n,s:n}", "replicates_total", (Py_ssize_t)r->replicates_total,
                        "replicates_skipped", (Py_ssize_t)r->replicates_skipped, "degree_reduced",
@@ -500,64 +653,67 @@ static PyObject *report_error(const bsurf_error_report *r) {
                        (Py_ssize_t)r->center_unestimated);
 }
 
+/* The means of a job's fields as a dict. */
+static PyObject *means_dict(const char *const *names, const double *means, int count) {
+  PyObject *m = PyDict_New();
+  for (int f = 0; m && f < count; f++)
+    if (set_item(m, names[f], PyFloat_FromDouble(means[f]))) Py_CLEAR(m);
+  return m;
+}
+
+/* `rest` (a dict, stolen) with the summary members every job has: points,
+ * h, duplicates, and tile_points and tiles for a tiled run. */
+static PyObject *job_summary(size_t points, double h, size_t duplicates, size_t tile_points,
+                             size_t tiles, PyObject *rest) {
+  if (!rest) return NULL;
+  if (set_item(rest, "points", PyLong_FromSize_t(points)) ||
+      set_item(rest, "h", PyFloat_FromDouble(h)) ||
+      set_item(rest, "duplicates", PyLong_FromSize_t(duplicates)) ||
+      (tiles && (set_item(rest, "tile_points", PyLong_FromSize_t(tile_points)) ||
+                 set_item(rest, "tiles", PyLong_FromSize_t(tiles))))) {
+    Py_DECREF(rest);
+    return NULL;
+  }
+  return rest;
+}
+
 static PyObject *py_error(PyObject *self, PyObject *args) {
   (void)self;
-  PyObject *pts, *test_obj, *progress;
+  PyObject *pts, *tiled, *test_obj, *progress;
   bsurf_error_options eo = bsurf_error_options_default();
   int gamma, center;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OOiiiKiiiO", &pts, &test_obj, &eo.k, &eo.degree, &eo.bootstrap,
-                        &seed, &gamma, &center, &eo.threads, &progress))
+  if (!PyArg_ParseTuple(args, "OOOiiiKiiiO", &pts, &tiled, &test_obj, &eo.k, &eo.degree,
+                        &eo.bootstrap, &seed, &gamma, &center, &eo.threads, &progress))
     return NULL;
   eo.seed = seed;
   eo.gamma = (bsurf_gamma_mode)gamma;
   eo.pca_center = (bsurf_pca_center)center;
-  PyArrayObject *a = as_f64(pts, "points", 3), *t = NULL;
-  if (!a) return NULL;
-  size_t n = (size_t)PyArray_DIM(a, 0);
-  if (opt_f64(test_obj, "test", 3, n, &t)) {
-    Py_DECREF(a);
-    return NULL;
-  }
-  bsurf_cloud cloud, test;
-  bsurf_cloud_init(&cloud);
+  job_call j;
+  if (job_begin(&j, pts, tiled, 0, progress)) return NULL;
+  PyArrayObject *t = NULL;
+  bsurf_cloud test;
   bsurf_cloud_init(&test);
-  cloud.point_count = n;
-  cloud.xyz = f64(a);
-  test.point_count = n;
-  test.xyz = f64(t);
-  bsurf_job_io io;
-  memset(&io, 0, sizeof io);
-  io.cloud = &cloud;
-  io.test = t ? &test : NULL;
-  call_ctx c;
-  ctx_init(&c, progress);
-  eo.progress = progress_cb;
-  eo.progress_user = &c;
-  bsurf_error_job_summary s;
-  RELEASE(&c);
-  bsurf_status st = bsurf_error_job(&io, &eo, &s, NULL);
-  ACQUIRE(&c);
-  PyObject *fields = st == BSURF_OK ? take_fields(&cloud) : NULL;
-  if (st != BSURF_OK) {
-    cloud.xyz = NULL;
-    bsurf_cloud_free(&cloud);
-  }
-  Py_DECREF(a);
-  Py_XDECREF(t);
-  if (st != BSURF_OK) return fail(st, &c, NULL, NULL);
-  if (!fields) return NULL;
-  PyObject *means = PyDict_New();
-  for (int f = 0; means && f < s.field_count; f++)
-    if (set_item(means, s.field_names[f], PyFloat_FromDouble(s.means[f]))) Py_CLEAR(means);
-  PyObject *sum =
-      Py_BuildValue("{s:n,s:d,s:n,s:N,s:N}", "points", (Py_ssize_t)s.points, "h", s.h, "duplicates",
-                    (Py_ssize_t)s.duplicates, "report", report_error(&s.report), "means", means);
-  if (!sum) {
-    Py_DECREF(fields);
+  if (opt_f64(test_obj, "test", 3, j.cloud.point_count, &t)) {
+    job_free(&j);
     return NULL;
   }
-  return Py_BuildValue("(NN)", fields, sum);
+  test.point_count = j.cloud.point_count;
+  test.xyz = f64(t);
+  j.io.test = t ? &test : NULL;
+  ctx_hook(&j.c, NULL, &eo.progress, &eo.progress_user);
+  bsurf_error_job_summary s;
+  RELEASE(&j.c);
+  bsurf_status st = bsurf_error_job(&j.io, &eo, &s, &j.err);
+  ACQUIRE(&j.c);
+  Py_XDECREF(t);
+  PyObject *fields = job_end(&j, st, NULL);
+  if (!fields) return NULL;
+  return job_result(
+      NULL, fields,
+      job_summary(s.points, s.h, s.duplicates, s.tile_points, s.tiles,
+                  Py_BuildValue("{s:N,s:N}", "report", report_error(&s.report), "means",
+                                means_dict(s.field_names, s.means, s.field_count))));
 }
 
 /* An optional sequence of ints into buf (at most max); -1 with an error. */
@@ -589,27 +745,32 @@ static PyObject *normal_report(const bsurf_normal_report *r) {
                        (Py_ssize_t)r->degree_reduced, "degenerate", (Py_ssize_t)r->degenerate);
 }
 
-/* The means of a job's fields as a dict. */
-static PyObject *means_dict(const char *const *names, const double *means, int count) {
-  PyObject *m = PyDict_New();
-  for (int f = 0; m && f < count; f++)
-    if (set_item(m, names[f], PyFloat_FromDouble(means[f]))) Py_CLEAR(m);
-  return m;
+static PyObject *curve_rows(const bsurf_normals_curve_row *curve, size_t count) {
+  PyObject *rows = PyList_New(0);
+  for (size_t r = 0; rows && r < count; r++) {
+    PyObject *row =
+        Py_BuildValue("{s:i,s:i,s:d,s:d,s:d}", "k", curve[r].k, "degree", curve[r].degree,
+                      "mean_normal_err", curve[r].mean_normal_err, "mean_normal_var",
+                      curve[r].mean_normal_var, "mean_angle_err", curve[r].mean_angle_err);
+    if (!row || PyList_Append(rows, row)) Py_CLEAR(rows);
+    Py_XDECREF(row);
+  }
+  return rows;
 }
 
 #define MAX_KS 1024
 
 static PyObject *py_normals(PyObject *self, PyObject *args) {
   (void)self;
-  PyObject *pts, *ks_obj, *ds_obj, *truth_obj, *progress;
+  PyObject *pts, *tiled, *ks_obj, *ds_obj, *truth_obj, *progress;
   bsurf_normals_job_options o = bsurf_normals_job_options_default();
   int fit, center, rule, orient, want_curve;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OiiiiiKipiOiiOidddipOO", &pts, &o.normals.k, &fit, &o.normals.degree,
-                        &center, &o.normals.bootstrap, &seed, &o.normals.threads, &o.test_error,
-                        &o.k_ref, &ks_obj, &rule, &o.noise_k, &ds_obj, &o.smooth_iterations,
-                        &o.alpha, &o.sigma_d, &o.sigma_nu, &orient, &want_curve, &truth_obj,
-                        &progress))
+  if (!PyArg_ParseTuple(args, "OOiiiiiKipiOiiOidddipOO", &pts, &tiled, &o.normals.k, &fit,
+                        &o.normals.degree, &center, &o.normals.bootstrap, &seed, &o.normals.threads,
+                        &o.test_error, &o.k_ref, &ks_obj, &rule, &o.noise_k, &ds_obj,
+                        &o.smooth_iterations, &o.alpha, &o.sigma_d, &o.sigma_nu, &orient,
+                        &want_curve, &truth_obj, &progress))
     return NULL;
   o.normals.fit = (bsurf_normal_fit)fit;
   o.normals.pca_center = (bsurf_pca_center)center;
@@ -624,70 +785,38 @@ static PyObject *py_normals(PyObject *self, PyObject *args) {
   o.select_k_count = nk;
   o.select_degree = nd ? dbuf : NULL;
   o.select_degree_count = nd;
-  PyArrayObject *a = as_f64(pts, "points", 3), *tr = NULL;
-  if (!a) return NULL;
-  size_t n = (size_t)PyArray_DIM(a, 0);
-  if (opt_f64(truth_obj, "truth", 3, n, &tr)) {
-    Py_DECREF(a);
+  job_call j;
+  if (job_begin(&j, pts, tiled, 0, progress)) return NULL;
+  PyArrayObject *tr = NULL;
+  bsurf_normals_curve_row *curve = NULL;
+  if (opt_f64(truth_obj, "truth", 3, j.cloud.point_count, &tr)) {
+    job_free(&j);
     return NULL;
   }
-  bsurf_normals_curve_row *curve = NULL;
-  if (want_curve && nk) {
-    curve = PyMem_Calloc((size_t)nk * (size_t)(nd ? nd : 1), sizeof *curve);
-    if (!curve) {
-      Py_DECREF(a);
-      Py_XDECREF(tr);
-      return PyErr_NoMemory();
-    }
+  if (want_curve && nk &&
+      !(curve = PyMem_Calloc((size_t)nk * (size_t)(nd ? nd : 1), sizeof *curve))) {
+    Py_XDECREF(tr);
+    job_free(&j);
+    return PyErr_NoMemory();
   }
   o.curve = curve;
   o.curve_truth = f64(tr);
-  bsurf_cloud cloud;
-  bsurf_cloud_init(&cloud);
-  cloud.point_count = n;
-  cloud.xyz = f64(a);
-  bsurf_job_io io;
-  memset(&io, 0, sizeof io);
-  io.cloud = &cloud;
-  call_ctx c;
-  ctx_init(&c, progress);
-  o.normals.progress = progress_cb;
-  o.normals.progress_user = &c;
+  ctx_hook(&j.c, NULL, &o.normals.progress, &o.normals.progress_user);
   bsurf_normals_job_summary s;
-  RELEASE(&c);
-  bsurf_status st = bsurf_normals_job(&io, &o, &s, NULL);
-  ACQUIRE(&c);
-  PyObject *fields = NULL, *ret = NULL;
-  if (st == BSURF_OK) {
-    fields = take_fields(&cloud);
-  } else {
-    cloud.xyz = NULL;
-    bsurf_cloud_free(&cloud);
-    fail(st, &c, NULL, NULL);
-  }
-  if (fields) {
-    PyObject *rows = PyList_New(0);
-    for (size_t r = 0; rows && r < s.curve_rows; r++) {
-      PyObject *row =
-          Py_BuildValue("{s:i,s:i,s:d,s:d,s:d}", "k", curve[r].k, "degree", curve[r].degree,
-                        "mean_normal_err", curve[r].mean_normal_err, "mean_normal_var",
-                        curve[r].mean_normal_var, "mean_angle_err", curve[r].mean_angle_err);
-      if (!row || PyList_Append(rows, row)) Py_CLEAR(rows);
-      Py_XDECREF(row);
-    }
-    PyObject *sum =
-        rows ? Py_BuildValue("{s:n,s:d,s:n,s:N,s:N,s:d,s:d,s:N}", "points", (Py_ssize_t)s.points,
-                             "h", s.h, "duplicates", (Py_ssize_t)s.duplicates, "report",
-                             normal_report(&s.report), "means",
-                             means_dict(s.field_names, s.means, s.field_count), "sigma_d",
-                             s.sigma_d, "sigma_nu", s.sigma_nu, "curve", rows)
-             : NULL;
-    ret = sum ? Py_BuildValue("(ON)", fields, sum) : NULL;
-  }
-  Py_XDECREF(fields);
-  PyMem_Free(curve);
-  Py_DECREF(a);
+  RELEASE(&j.c);
+  bsurf_status st = bsurf_normals_job(&j.io, &o, &s, &j.err);
+  ACQUIRE(&j.c);
   Py_XDECREF(tr);
+  PyObject *fields = job_end(&j, st, NULL), *ret = NULL;
+  if (fields)
+    ret = job_result(
+        NULL, fields,
+        job_summary(s.points, s.h, s.duplicates, s.tile_points, s.tiles,
+                    Py_BuildValue("{s:N,s:N,s:d,s:d,s:N}", "report", normal_report(&s.report),
+                                  "means", means_dict(s.field_names, s.means, s.field_count),
+                                  "sigma_d", s.sigma_d, "sigma_nu", s.sigma_nu, "curve",
+                                  curve_rows(curve, s.curve_rows))));
+  PyMem_Free(curve);
   return ret;
 }
 
@@ -695,12 +824,12 @@ static PyObject *py_normals(PyObject *self, PyObject *args) {
 
 static PyObject *py_smooth(PyObject *self, PyObject *args) {
   (void)self;
-  PyObject *pts, *progress;
+  PyObject *pts, *tiled, *progress;
   bsurf_smooth_job_options o = bsurf_smooth_job_options_default();
   bsurf_smooth_options *so = &o.smooth;
   int method, gamma, center, estimator, order;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OiiiiKiiidpdpdpdidiidpdpiO", &pts, &method, &so->error.k,
+  if (!PyArg_ParseTuple(args, "OOiiiiKiiidpdpdpdidiidpdpiO", &pts, &tiled, &method, &so->error.k,
                         &so->error.degree, &so->error.bootstrap, &seed, &gamma, &center, &estimator,
                         &so->threshold, &o.threshold_in_h, &so->h1, &o.h1_in_h, &so->h2, &o.h2_in_h,
                         &so->h2_fraction, &order, &so->a, &so->iterations, &so->k_min, &so->k_error,
@@ -719,73 +848,39 @@ static PyObject *py_smooth(PyObject *self, PyObject *args) {
   so->error.pca_center = (bsurf_pca_center)center;
   so->estimator = (bsurf_smooth_estimator)estimator;
   so->order = (bsurf_smooth_order)order;
-  PyArrayObject *a = as_f64(pts, "points", 3);
-  if (!a) return NULL;
-  size_t n = (size_t)PyArray_DIM(a, 0);
   /* the job moves the cloud's points: a copy the result array then owns */
-  bsurf_cloud cloud;
-  bsurf_cloud_init(&cloud);
-  cloud.point_count = n;
-  cloud.xyz = n ? malloc(n * 3 * sizeof(double)) : NULL;
-  if (n && !cloud.xyz) {
-    Py_DECREF(a);
-    return PyErr_NoMemory();
-  }
-  if (n) memcpy(cloud.xyz, f64(a), n * 3 * sizeof(double));
-  Py_DECREF(a);
-  bsurf_job_io io;
-  memset(&io, 0, sizeof io);
-  io.cloud = &cloud;
-  call_ctx c;
-  ctx_init(&c, progress);
-  so->error.progress = progress_cb;
-  so->error.progress_user = &c;
+  job_call j;
+  if (job_begin(&j, pts, tiled, 1, progress)) return NULL;
+  ctx_hook(&j.c, NULL, &so->error.progress, &so->error.progress_user);
   bsurf_smooth_job_summary s;
-  RELEASE(&c);
-  bsurf_status st = bsurf_smooth_job(&io, &o, &s, NULL);
-  ACQUIRE(&c);
-  if (st != BSURF_OK) {
-    bsurf_cloud_free(&cloud);
-    return fail(st, &c, NULL, NULL);
-  }
-  npy_intp n3[2] = {(npy_intp)n, 3};
-  double *moved = cloud.xyz;
-  PyObject *points = adopt(moved, 2, n3, NPY_DOUBLE);
-  if (!points) {
-    bsurf_cloud_free(&cloud);
-    return NULL;
-  }
-  PyObject *fields = take_fields(&cloud); /* frees the cloud, not xyz (adopted) */
-  if (!fields) {
-    Py_DECREF(points);
-    return NULL;
-  }
+  RELEASE(&j.c);
+  bsurf_status st = bsurf_smooth_job(&j.io, &o, &s, &j.err);
+  ACQUIRE(&j.c);
+  PyObject *points, *fields = job_end(&j, st, &points);
+  if (!fields) return NULL;
   const bsurf_smooth_report *r = &s.report;
-  PyObject *sum = Py_BuildValue(
-      "{s:n,s:d,s:n,s:s,s:N,s:N}", "points", (Py_ssize_t)s.points, "h", s.h, "duplicates",
-      (Py_ssize_t)s.duplicates, "estimator", s.estimator ? s.estimator : "", "means",
-      means_dict(s.field_names, s.means, s.field_count), "report",
-      Py_BuildValue("{s:N,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:d,s:d,s:i}", "error",
-                    report_error(&r->error), "mean_error", r->mean_error, "threshold", r->threshold,
-                    "h1", r->h1, "h2", r->h2, "k_error", r->k_error, "projected",
-                    (Py_ssize_t)r->projected, "moved_points", (Py_ssize_t)r->moved_points,
-                    "moved_mean", r->moved_mean, "moved_max", r->moved_max, "iterations",
-                    r->iterations));
-  if (!sum) {
-    Py_DECREF(points);
-    Py_DECREF(fields);
-    return NULL;
-  }
-  return Py_BuildValue("(NNN)", points, fields, sum);
+  return job_result(
+      points, fields,
+      job_summary(
+          s.points, s.h, s.duplicates, s.tile_points, s.tiles,
+          Py_BuildValue("{s:s,s:N,s:N}", "estimator", s.estimator ? s.estimator : "", "means",
+                        means_dict(s.field_names, s.means, s.field_count), "report",
+                        Py_BuildValue("{s:N,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:d,s:d,s:i}", "error",
+                                      report_error(&r->error), "mean_error", r->mean_error,
+                                      "threshold", r->threshold, "h1", r->h1, "h2", r->h2,
+                                      "k_error", r->k_error, "projected", (Py_ssize_t)r->projected,
+                                      "moved_points", (Py_ssize_t)r->moved_points, "moved_mean",
+                                      r->moved_mean, "moved_max", r->moved_max, "iterations",
+                                      r->iterations))));
 }
 
 static PyObject *py_features(PyObject *self, PyObject *args) {
   (void)self;
-  PyObject *pts, *progress;
+  PyObject *pts, *tiled, *progress;
   bsurf_feature_options o = bsurf_feature_options_default();
   int method, rule;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OiiiiiiddddiiddidiKiO", &pts, &method, &o.normals.k,
+  if (!PyArg_ParseTuple(args, "OOiiiiiiddddiiddidiKiO", &pts, &tiled, &method, &o.normals.k,
                         &o.normals.bootstrap, &o.k_min, &o.k_max, &o.k_step, &o.ratio_threshold,
                         &o.noise_factor, &o.derivative, &o.alpha, &o.iterations, &o.filter_k,
                         &o.sigma_range, &o.threshold, &rule, &o.false_positive_rate,
@@ -794,45 +889,24 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   o.method = (bsurf_feature_method)method;
   o.tail_rule = (bsurf_tail_rule)rule;
   o.normals.seed = seed;
-  PyArrayObject *a = as_f64(pts, "points", 3);
-  if (!a) return NULL;
-  bsurf_cloud cloud;
-  bsurf_cloud_init(&cloud);
-  cloud.point_count = (size_t)PyArray_DIM(a, 0);
-  cloud.xyz = f64(a);
-  bsurf_job_io io;
-  memset(&io, 0, sizeof io);
-  io.cloud = &cloud;
-  call_ctx c;
-  ctx_init(&c, progress);
-  o.progress = progress_cb;
-  o.progress_user = &c;
+  job_call j;
+  if (job_begin(&j, pts, tiled, 0, progress)) return NULL;
+  ctx_hook(&j.c, NULL, &o.progress, &o.progress_user);
   bsurf_features_job_summary s;
-  RELEASE(&c);
-  bsurf_status st = bsurf_features_job(&io, &o, &s, NULL);
-  ACQUIRE(&c);
-  PyObject *fields = NULL;
-  if (st == BSURF_OK) {
-    fields = take_fields(&cloud);
-  } else {
-    cloud.xyz = NULL;
-    bsurf_cloud_free(&cloud);
-  }
-  Py_DECREF(a);
-  if (st != BSURF_OK) return fail(st, &c, NULL, NULL);
+  RELEASE(&j.c);
+  bsurf_status st = bsurf_features_job(&j.io, &o, &s, &j.err);
+  ACQUIRE(&j.c);
+  PyObject *fields = job_end(&j, st, NULL);
   if (!fields) return NULL;
   const bsurf_feature_report *r = &s.report;
-  PyObject *sum =
-      Py_BuildValue("{s:n,s:d,s:n,s:{s:d,s:n,s:d,s:n,s:d,s:d}}", "points", (Py_ssize_t)s.points,
-                    "h", s.h, "duplicates", (Py_ssize_t)s.duplicates, "report", "threshold",
-                    r->threshold, "feature_points", (Py_ssize_t)r->feature_points, "max_radius",
-                    r->max_radius, "immediate", (Py_ssize_t)r->immediate, "ratio_threshold_kmin",
-                    r->ratio_threshold_kmin, "noise_level", r->noise_level);
-  if (!sum) {
-    Py_DECREF(fields);
-    return NULL;
-  }
-  return Py_BuildValue("(NN)", fields, sum);
+  return job_result(
+      NULL, fields,
+      job_summary(s.points, s.h, s.duplicates, s.tile_points, s.tiles,
+                  Py_BuildValue("{s:{s:d,s:n,s:d,s:n,s:d,s:d}}", "report", "threshold",
+                                r->threshold, "feature_points", (Py_ssize_t)r->feature_points,
+                                "max_radius", r->max_radius, "immediate", (Py_ssize_t)r->immediate,
+                                "ratio_threshold_kmin", r->ratio_threshold_kmin, "noise_level",
+                                r->noise_level)));
 }
 
 /* ---- synthetic data ---- */
@@ -855,11 +929,7 @@ static PyObject *py_generate(PyObject *self, PyObject *args) {
   Py_BEGIN_ALLOW_THREADS st =
       bsurf_generate(&c, shape, (size_t)n, (bsurf_sampling)sampling, seed, width);
   Py_END_ALLOW_THREADS if (st != BSURF_OK) return fail(st, NULL, NULL, NULL);
-  char sh[BSURF_FIELD_NAME_MAX];
-  memcpy(sh, c.shape, sizeof sh);
-  PyObject *d = dict_from_cloud(&c);
-  if (!d) return NULL;
-  return Py_BuildValue("(Ns)", d, sh);
+  return cloud_result(&c);
 }
 
 static PyObject *py_noise(PyObject *self, PyObject *args) {
@@ -885,9 +955,7 @@ static PyObject *py_noise(PyObject *self, PyObject *args) {
     return NULL;
   }
   call_ctx c;
-  ctx_init(&c, progress);
-  no.progress = progress_cb;
-  no.progress_user = &c;
+  ctx_hook(&c, progress, &no.progress, &no.progress_user);
   bsurf_noise_report r;
   RELEASE(&c);
   bsurf_status st = bsurf_noise_points(f64(out), f64(nr), n, &no, &r);
@@ -1040,15 +1108,7 @@ static PyObject *py_eval_normals(PyObject *self, PyObject *args) {
     PyErr_SetString(PyExc_ValueError, "true_normals: required");
     goto done;
   }
-  if (mask_obj != Py_None) {
-    m = (PyArrayObject *)PyArray_FROMANY(mask_obj, NPY_UINT8, 1, 1,
-                                         NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
-    if (!m) goto done;
-    if ((size_t)PyArray_DIM(m, 0) != n) {
-      PyErr_SetString(PyExc_ValueError, "split: one value per point is needed");
-      goto done;
-    }
-  }
+  if (mask_obj != Py_None && !(m = mask_u8(mask_obj, "split", n))) goto done;
   npy_intp dims[1] = {(npy_intp)n};
   angles = PyArray_SimpleNew(1, dims, NPY_DOUBLE);
   if (!angles) goto done;
@@ -1112,6 +1172,89 @@ done:
   return ret;
 }
 
+static PyObject *distance_stats(const bsurf_distance_stats *s, double h) {
+  return Py_BuildValue("{s:n,s:d,s:d,s:d,s:d,s:d,s:d}", "points", (Py_ssize_t)s->count, "mean",
+                       s->mean, "rms", s->rms, "max", s->max, "mean_h", s->mean / h, "rms_h",
+                       s->rms / h, "max_h", s->max / h);
+}
+
+/* A group's statistics: {"points", "mean", ..., "feature": {...}, "non_feature": {...}} */
+static PyObject *position_group(const bsurf_position_eval *r, int g) {
+  static const char *const parts[BSURF_POSITION_PARTS] = {NULL, "feature", "non_feature"};
+  PyObject *d = distance_stats(&r->stats[g][BSURF_POSITION_PART_ALL], r->h);
+  for (int p = 1; d && r->has_feature && p < BSURF_POSITION_PARTS; p++)
+    if (set_item(d, parts[p], distance_stats(&r->stats[g][p], r->h))) Py_CLEAR(d);
+  return d;
+}
+
+static PyObject *py_eval_position(PyObject *self, PyObject *args) {
+  (void)self;
+  PyObject *pts, *truth_obj, *surface_obj, *mask_obj, *progress;
+  const char *shape;
+  int threads;
+  if (!PyArg_ParseTuple(args, "OOsOOiO", &pts, &truth_obj, &shape, &surface_obj, &mask_obj,
+                        &threads, &progress))
+    return NULL;
+  PyArrayObject *a = as_f64(pts, "points", 3), *m = NULL;
+  if (!a) return NULL;
+  size_t n = (size_t)PyArray_DIM(a, 0);
+  PyObject *dist = NULL, *ret = NULL;
+  borrowed truth, surface;
+  memset(&truth, 0, sizeof truth);
+  memset(&surface, 0, sizeof surface);
+  if (borrow_cloud(truth_obj, &truth) ||
+      (surface_obj != Py_None && borrow_cloud(surface_obj, &surface)))
+    goto done;
+  snprintf(truth.cloud.shape, sizeof truth.cloud.shape, "%s", shape);
+  if (surface_obj != Py_None && !surface.cloud.face_count) {
+    PyErr_SetString(PyExc_ValueError, "surface: has no 'faces': a triangle mesh is needed");
+    goto done;
+  }
+  if (mask_obj != Py_None && !(m = mask_u8(mask_obj, "split", n))) goto done;
+  npy_intp dims[1] = {(npy_intp)n};
+  if (!(dist = PyArray_SimpleNew(1, dims, NPY_DOUBLE))) goto done;
+  bsurf_position_eval_options o;
+  memset(&o, 0, sizeof o);
+  o.surface = surface_obj != Py_None ? &surface.cloud : NULL;
+  o.high = m ? PyArray_DATA(m) : NULL;
+  o.threads = threads;
+  call_ctx c;
+  ctx_hook(&c, progress, &o.progress, &o.progress_user);
+  bsurf_position_eval r;
+  RELEASE(&c);
+  bsurf_status st =
+      bsurf_eval_position(f64(a), n, &truth.cloud, &o, &r, PyArray_DATA((PyArrayObject *)dist));
+  ACQUIRE(&c);
+  if (st == BSURF_ERR_INVALID_VALUE && r.stage == BSURF_POSITION_STAGE_DISTANCE) {
+    PyErr_Format(PyExc_ValueError,
+                 "truth: point %zu (for points[%zu]) has a zero-length normal, or points[%zu] is "
+                 "not finite",
+                 r.bad_truth_point, r.bad_point, r.bad_point);
+    goto done;
+  }
+  if (st != BSURF_OK) {
+    fail(st, &c, NULL, NULL);
+    goto done;
+  }
+  static const char *const kinds[] = {"mesh", "shape", "tangent_plane"};
+  static const char *const groups[BSURF_POSITION_GROUPS] = {"all", "high", "low"};
+  PyObject *d = Py_BuildValue("{s:s,s:s,s:d}", "surface", kinds[r.surface], "correspondence",
+                              n == truth.cloud.point_count ? "index"
+                              : r.nearest                  ? "nearest"
+                                                           : "none",
+                              "h", r.h);
+  for (int g = 0; d && g < r.groups; g++)
+    if (set_item(d, groups[g], position_group(&r, g))) Py_CLEAR(d);
+  if (d) ret = Py_BuildValue("(ON)", dist, d);
+done:
+  borrowed_free(&truth);
+  borrowed_free(&surface);
+  Py_XDECREF(dist);
+  Py_XDECREF(m);
+  Py_DECREF(a);
+  return ret;
+}
+
 static PyObject *py_quantile_split(PyObject *self, PyObject *args) {
   (void)self;
   PyObject *vals;
@@ -1161,6 +1304,8 @@ static PyMethodDef methods[] = {
     {"eval_normals", py_eval_normals, METH_VARARGS, "eval_normals(normals, truth, mask)"},
     {"eval_features", py_eval_features, METH_VARARGS, "eval_features(feature, truth)"},
     {"quantile_split", py_quantile_split, METH_VARARGS, "quantile_split(values, q)"},
+    {"eval_position", py_eval_position, METH_VARARGS,
+     "eval_position(points, truth, shape, surface, mask, threads, progress)"},
     {"version", py_version, METH_NOARGS, "the library's version string"},
     {NULL, NULL, 0, NULL}};
 

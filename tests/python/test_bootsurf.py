@@ -156,6 +156,39 @@ def test_sample_equals_cli():
     assert bootsurf.sample.last_report["sharp_edges"] == 6
 
 
+def test_tiled_runs_equal_cli_bytes(cube):
+    """error, normals, smooth and features with tile_points= write the same
+    bytes as the command's --tile-points, and the same values as in memory."""
+    src = tmp("noisy.ply")
+    runs = [("error", bootsurf.error, ["-k", 20, "-B", 5], dict(neighbors=20, bootstrap=5)),
+            ("normals", bootsurf.normals, ["-k", 20, "-B", 5, "--test-error"],
+             dict(neighbors=20, bootstrap=5, test_error=True)),
+            ("smooth", bootsurf.smooth, ["-k", 20, "-B", 5], dict(neighbors=20, bootstrap=5)),
+            ("features", bootsurf.features, ["--method", "variance", "-B", 5],
+             dict(method="variance", bootstrap=5))]
+    for name, fn, args, kw in runs:
+        cli(name, src, *args, "--tile-points", 700, "-o", tmp("t_cli.ply"), "-q")
+        r = fn(src, output=tmp("t_py.ply"), tile_points=700, **kw)
+        summary = r[-1]
+        assert all(x is None for x in r[:-1])
+        assert summary["tiles"] > 1 and summary["points"] == len(cube["points"]), summary
+        with open(tmp("t_cli.ply"), "rb") as a, open(tmp("t_py.ply"), "rb") as b:
+            assert a.read() == b.read(), name
+        if name == "normals":  # the tiles' values are those of the run in memory
+            mem, _ = fn(src, **kw)
+            got = bootsurf.read(tmp("t_py.ply"))
+            same_bits(got["normal_var"], mem["normal_var"].astype(np.float32))
+    with pytest.raises(TypeError, match="path"):
+        bootsurf.normals(cube["points"], output=tmp("x.ply"), tile_points=500)
+    with pytest.raises(ValueError, match="output"):
+        bootsurf.normals(src, tile_points=500)
+    with pytest.raises(ValueError, match="output"):
+        bootsurf.normals(src, output=tmp("x.ply"))
+    with pytest.raises(OSError, match="missing.ply"):
+        bootsurf.normals(tmp("missing.ply"), output=tmp("x.ply"), tile_points=500)
+    assert not os.path.exists(tmp("x.ply"))
+
+
 def test_read_write_round_trip(cube):
     for ext in ("ply", "pcd", "csv", "las"):
         d = bootsurf.Cloud(cube)
@@ -187,6 +220,75 @@ def test_evaluate_uses_eval_numbers(cube):
     assert e["normals"]["high"]["count"] == high["points"]
     assert float("%.10g" % e["normals"]["high"]["mean_rad"]) == high["normals"]["mean_rad"]
     assert e["features"]["f1"] == 1.0
+
+
+def _same_json(py, js, path="position"):
+    """Every number of the CLI's JSON object js equals py's, as the CLI prints
+    it (%.10g: all the digits the JSON has)."""
+    for key, want in js.items():
+        if key == "source":
+            continue
+        assert key in py, (path, key)
+        got = py[key]
+        if isinstance(want, dict):
+            _same_json(got, want, path + "." + key)
+        elif isinstance(want, str) or isinstance(got, int):
+            assert got == want, (path, key, got, want)
+        else:
+            assert float("%.10g" % got) == want, (path, key, got, want)
+
+
+def test_evaluate_position_equals_cli(cube):
+    """The position section: the generated cube as the surface (index
+    correspondence, feature parts, split), a mesh given as surface=, and the
+    tangent planes of a truth with fewer points (nearest correspondence)."""
+    moved, fields, _ = bootsurf.smooth(cube, neighbors=20, bootstrap=8)
+    res = {"points": moved, "err_632": fields["err_632"]}
+    bootsurf.write(tmp("pos.ply"), res)
+    summ = cli("eval", tmp("pos.ply"), "--truth", tmp("noisy.ply"), "--split", "err_632:0.8",
+               "--json")
+    e = bootsurf.evaluate(points=moved, truth=tmp("noisy.ply"), split=fields["err_632"],
+                          split_q=0.8)
+    assert e["position"]["surface"] == "shape" and e["position"]["correspondence"] == "index"
+    assert "feature" in e["position"]["all"]
+    _same_json(e["position"], {k: v for k, v in summ["position"].items()
+                               if k in ("surface", "correspondence", "h")})
+    _same_json(e["position"]["all"], {k: v for k, v in summ["position"].items()
+                                      if k not in ("surface", "correspondence", "h", "source")})
+    for g in ("high", "low"):
+        _same_json(e["position"][g], summ["split"][g]["position"])
+    assert e["distances"].shape == (len(moved),)
+    assert e["position"]["all"]["max"] == e["distances"].max()
+    # a triangle mesh as the true surface (--surface)
+    mesh = {"points": np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
+                                [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], float),
+            "faces": np.array([[0, 2, 1], [0, 3, 2], [4, 5, 6], [4, 6, 7], [0, 1, 5], [0, 5, 4],
+                               [2, 3, 7], [2, 7, 6], [1, 2, 6], [1, 6, 5], [0, 4, 7], [0, 7, 3]],
+                              np.uint32)}
+    bootsurf.write(tmp("box.off"), mesh)
+    summ = cli("eval", tmp("pos.ply"), "--truth", tmp("noisy.ply"), "--surface", tmp("box.off"),
+               "--json")
+    e = bootsurf.evaluate(points=tmp("pos.ply"), truth=tmp("noisy.ply"), surface=mesh)
+    assert e["position"]["surface"] == "mesh"
+    _same_json(e["position"], {k: v for k, v in summ["position"].items() if k == "surface"})
+    _same_json(e["position"]["all"], {k: v for k, v in summ["position"].items()
+                                      if k not in ("surface", "correspondence", "h", "source")})
+    # tangent planes of a truth of other points: the nearest truth point
+    truth = bootsurf.read(tmp("cube.ply"))
+    sub = {"points": truth["points"][::2], "normals": truth["normals"][::2]}
+    bootsurf.write(tmp("half.ply"), sub)
+    summ = cli("eval", tmp("pos.ply"), "--truth", tmp("half.ply"), "--json")
+    e = bootsurf.evaluate(points=moved, truth=sub, threads=1)
+    assert e["position"]["surface"] == "tangent_plane"
+    assert e["position"]["correspondence"] == "nearest"
+    _same_json(e["position"], {k: v for k, v in summ["position"].items()
+                               if k in ("surface", "correspondence", "h")})
+    _same_json(e["position"]["all"], {k: v for k, v in summ["position"].items()
+                                      if k not in ("surface", "correspondence", "h", "source")})
+    with pytest.raises(ValueError, match="truth"):
+        bootsurf.evaluate(points=moved)
+    with pytest.raises(ValueError, match="no true surface"):
+        bootsurf.evaluate(points=moved, truth={"points": truth["points"]})
 
 
 def _find(obj, key):
@@ -327,10 +429,17 @@ def test_bad_input(cube):
         bootsurf.error(np.zeros((10, 3), dtype=complex))
     q = p.copy()
     q[7, 1] = np.nan
-    with pytest.raises(ValueError, match="point 7"):
+    # the library's message, with its subject (the CLI names the file there)
+    with pytest.raises(ValueError, match=r"^points: point 7 has a NaN"):
         bootsurf.error(q)
-    with pytest.raises(ValueError, match="fewer than K|exceeds"):
+    with pytest.raises(ValueError, match=r"^points: point 7 has a NaN"):
+        bootsurf.knn(q, 4)
+    with pytest.raises(ValueError, match=r"^points: has 20 points, fewer than K = 50"):
         bootsurf.error(p[:20])
+    with pytest.raises(ValueError, match=r"^points: has 5 points, fewer than K = 30"):
+        bootsurf.normals(p[:5])
+    with pytest.raises(ValueError, match=r"^points: has 1 point"):
+        bootsurf.spacing(p[:1])
     with pytest.raises(ValueError, match=r"k = 9"):
         bootsurf.knn(p[:8], 9)
     with pytest.raises(ValueError, match="gamma"):
@@ -356,7 +465,7 @@ def test_bad_input(cube):
                 "property float z\nend_header\n1 2 3\n1 2\n")
     with pytest.raises(OSError, match=r"bad.ply:9:"):
         bootsurf.read(tmp("bad.ply"))
-    with pytest.raises(OSError):
+    with pytest.raises(OSError, match="no-such-dir"):
         bootsurf.write(os.path.join(TMP, "no-such-dir", "x.ply"), p)
     # the input is never modified
     before = p.copy()
