@@ -185,7 +185,7 @@ def main():
             best = max(res[m]["f1"] for m in METHODS if not math.isnan(res[m]["f1"]))
             for m in METHODS:
                 wins[m] += res[m]["f1"] == best
-            if any(nm.startswith(c) for c in CAD + ["cube"]):
+            if any(nm.startswith(c) for c in CAD + ["cube", "plate", "shell"]):
                 for m in METHODS:
                     margin[m].append((res[m]["f1"] - res["all"]["f1"], nm))
         lines.append("| %s | %s | %s |" % (nm, "-" if frac is None else "%.1f%%" % (100 * frac),
@@ -197,7 +197,8 @@ def main():
     cad = [m for m in METHODS if m != "all" and margin[m]]
     if cad:
         lines.append("")
-        lines.append("F1 minus the trivial baseline on the %d CAD and cube rows: " %
+        lines.append("F1 minus the trivial baseline on the %d rows of CAD and generated "
+                     "shapes with edges (CAD meshes, cube, plate, shell): " %
                      len(margin["default"]) + "; ".join(
                          "%s: min %+.2f (%s), %d of %d rows >= +0.2" % (
                              m, min(margin[m])[0], min(margin[m])[1],
