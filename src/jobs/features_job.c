@@ -89,32 +89,47 @@ static bsurf_status features_map(void *user, size_t first, bsurf_cloud *c, const
   return BSURF_OK;
 }
 
+/* A first tiled stage of one value per point (run, neighbourhoods of k):
+ * the values read back in index order into *v (the caller frees it and
+ * closes vals, which a later stage may read). */
+static bsurf_status
+stage_values(const bsurf_job_io *io, const bsurf_feature_options *fo, features_tiles *ft, int k,
+             int progress, bsurf_status (*run)(void *, const bsurf_tile *, bsurf_cloud *, double *),
+             bsurf_tile_ops *ops, bsurf_tile_values *vals, double **v, bsurf_failure *err) {
+  bsurf_features_job_summary *s = ft->s;
+  ft->no = fo->normals;
+  ft->no.threads = fo->threads;
+  ft->no.progress = NULL;
+  bsurf_jobs_tile_ops(ops, io, k, fo->threads, progress ? fo->progress : NULL,
+                      progress ? fo->progress_user : NULL, ft);
+  ops->run = run;
+  ops->nvalues = 1;
+  ops->values_out = vals;
+  bsurf_tile_report tr;
+  memset(&tr, 0, sizeof tr);
+  bsurf_status st = bsurf_tiles_run(io->input, io->output, ops, &tr, err);
+  bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
+  *v = NULL;
+  if (st == BSURF_OK) {
+    *v = bsurf_alloc_array(s->points ? s->points : 1, sizeof(double));
+    if (!*v)
+      st = BSURF_ERR_NOMEM;
+    else if (bsurf_tile_values_read(vals, 0, s->points, *v) != BSURF_OK)
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot read the scratch file of the first stage");
+  }
+  return st;
+}
+
 /* variance: normal_var tile by tile, the threshold (given or automatic) over
  * every value in index order, then the output by a pointwise stage. */
 static bsurf_status variance_tiled(const bsurf_job_io *io, const bsurf_feature_options *fo,
                                    features_tiles *ft, bsurf_failure *err) {
   bsurf_features_job_summary *s = ft->s;
   bsurf_tile_values vals = {-1, 0, 0};
-  ft->no = fo->normals;
-  ft->no.threads = fo->threads;
-  ft->no.progress = NULL;
   bsurf_tile_ops ops;
-  bsurf_jobs_tile_ops(&ops, io, fo->normals.k, fo->threads, fo->progress, fo->progress_user, ft);
-  ops.run = features_stage1_run;
-  ops.nvalues = 1;
-  ops.values_out = &vals;
-  bsurf_tile_report tr;
-  memset(&tr, 0, sizeof tr);
-  bsurf_status st = bsurf_tiles_run(io->input, io->output, &ops, &tr, err);
-  bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   double *v = NULL;
-  if (st == BSURF_OK) {
-    v = bsurf_alloc_array(s->points ? s->points : 1, sizeof(double));
-    if (!v)
-      st = BSURF_ERR_NOMEM;
-    else if (bsurf_tile_values_read(&vals, 0, s->points, v) != BSURF_OK)
-      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot read the scratch file of the first stage");
-  }
+  bsurf_status st =
+      stage_values(io, fo, ft, fo->normals.k, 1, features_stage1_run, &ops, &vals, &v, err);
   if (st == BSURF_OK && isnan(fo->threshold))
     st = bsurf_tail_threshold(v, s->points, fo->tail_rule, &ft->threshold);
   else
@@ -155,28 +170,11 @@ static bsurf_status eta_stage_run(void *user, const bsurf_tile *tile, bsurf_clou
 
 static bsurf_status eta_tiled(const bsurf_job_io *io, const bsurf_feature_options *fo,
                               features_tiles *ft, double *eta, bsurf_failure *err) {
-  bsurf_features_job_summary *s = ft->s;
   bsurf_tile_values vals = {-1, 0, 0};
-  ft->no = fo->normals;
-  ft->no.threads = fo->threads;
   bsurf_tile_ops ops;
-  bsurf_jobs_tile_ops(&ops, io, fo->normals.k, fo->threads, NULL, NULL, ft);
-  ops.run = eta_stage_run;
-  ops.nvalues = 1;
-  ops.values_out = &vals;
-  bsurf_tile_report tr;
-  memset(&tr, 0, sizeof tr);
-  bsurf_status st = bsurf_tiles_run(io->input, io->output, &ops, &tr, err);
-  bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   double *v = NULL;
-  if (st == BSURF_OK) {
-    v = bsurf_alloc_array(s->points ? s->points : 1, sizeof(double));
-    if (!v)
-      st = BSURF_ERR_NOMEM;
-    else if (bsurf_tile_values_read(&vals, 0, s->points, v) != BSURF_OK)
-      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot read the scratch file of the first stage");
-  }
-  if (st == BSURF_OK) *eta = bsurf_fvar_median(v, s->points);
+  bsurf_status st = stage_values(io, fo, ft, fo->normals.k, 0, eta_stage_run, &ops, &vals, &v, err);
+  if (st == BSURF_OK) *eta = bsurf_fvar_median(v, ft->s->points);
   free(v);
   bsurf_tile_values_close(&vals);
   return st;

@@ -63,7 +63,7 @@ for f in c n; do
       -o "$T/ft.ply" --tile-points 70 --json
     cmp -s "$T/fm.ply" "$T/ft.ply" && ok || fail "features $f $args --tile-points 70: output differs"
     cmp -s "$T/fm.err" "$T/err" && ok || fail "features $f $args: tiled warnings differ"
-    for key in threshold feature_points h kept_input_fields; do
+    for key in threshold feature_points h k kept_input_fields; do
       grep -o "\"$key\":[^,]*" "$T/out" | cmp -s - <(grep -o "\"$key\":[^,]*" "$T/fm.json") && ok ||
         fail "features $f --tile-points 70: $key differs"
     done
