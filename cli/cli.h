@@ -108,6 +108,11 @@ extern int cli_drop_invalid;
     'q', "quiet", ARG_FLAG, &(quiet), "", "no progress bar, summary or warning", 1, 0              \
   }
 
+/* The options a command that reads one cloud and writes one file (image,
+ * sample) ends with. */
+#define CLI_OPTS_END(force, json, quiet)                                                           \
+  CLI_OPT_FORCE_SAME(force), CLI_OPT_DROP_INVALID, CLI_OPTS_REPORT(json, quiet)
+
 /* Tiled runs (cli/tiles.c, docs/scaling.md). */
 #define CLI_OPTS_TILES(tile_points, memory_limit)                                                  \
   {0,                                                                                              \
@@ -202,9 +207,13 @@ int cli_truth_to_fields(bsurf_cloud *c);
  * its normals, feature and feature_dist. 0 or 1 (printed). */
 int cli_truth_from_fields(bsurf_cloud *c);
 /* Text summaries: the points dropped by --drop-invalid and the duplicate
- * points cli_build_neighbors() found, when there are any. (JSON summaries get
+ * points the job counted (cli_set_duplicates: the library's count, in
+ * memory bsurf_jobs_neighbors, tiled the engine's), when there are any. (JSON summaries get
  * "dropped_invalid" and "duplicate_points" from json_end().) */
 void cli_print_input_report(FILE *f);
+/* The end of a text summary on stdout: cli_print_input_report, then
+ * "  -> OUTPUT" unless output is NULL. */
+void cli_print_footer(const char *output);
 /* Checks before any work that OUTPUT can be written and is not the input
  * (unless force). Returns 0 or prints and returns 1 (or 2 for usage). */
 int cli_check_output(const char *output, const char *input, int force);
@@ -213,12 +222,6 @@ int cli_check_writable(const char *output, const char *input, int force);
 /* Writes atomically; warns about fields the format cannot carry; writes
  * nothing once SIGINT/SIGTERM arrived. 0 or 1. */
 int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
-
-/* Builds the K-neighbourhoods of a cloud read from `path`, with a progress
- * bar, and counts the duplicate points; on failure (fewer points than K,
- * interrupted, no memory) prints the reason and returns 1. */
-int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
-                        bsurf_neighbors *nb);
 
 /* --range-points (bsurf_job_io.range_points; 0: the library's choice) */
 extern size_t cli_range_points;
@@ -237,7 +240,8 @@ int cli_tiles_failed(const char *input, const char *output, bsurf_status st,
                      const bsurf_failure *err);
 /* A job's io (bsurf_job_io): with a plan, the tiled input and output (an
  * empty input refused by name) and a "tiles" progress bar (rank 0); without,
- * the input read into c and a progress bar named label. 0, or 1 (printed). */
+ * the input read into c (initialised here in any case: free it after) and a
+ * progress bar named label. 0, or 1 (printed). */
 struct cli_progress;
 int cli_job_io(bsurf_job_io *io, const char *input, const char *output, size_t plan, bsurf_cloud *c,
                struct cli_progress *prog, const char *label, int quiet);
@@ -245,7 +249,11 @@ int cli_job_io(bsurf_job_io *io, const char *input, const char *output, size_t p
  * the library's message). Returns 1. */
 int cli_job_failed(const char *input, const char *output, size_t plan, bsurf_status st,
                    const bsurf_failure *err);
-/* The duplicate count of a tiled run, for the summaries. */
+/* After a job: the progress bar ended; a failure's message (cli_job_failed,
+ * returns 1), or the run's duplicate count kept for the summary (returns 0). */
+int cli_job_done(struct cli_progress *prog, const char *input, const char *output, size_t plan,
+                 bsurf_status st, const bsurf_failure *err, size_t duplicates);
+/* The duplicate count a job reported, for the summaries. */
 void cli_set_duplicates(size_t count);
 /* MPI (a build with BSURF_MPI, started by mpirun); otherwise one rank. */
 void cli_mpi_init(int *argc, char ***argv);
@@ -277,6 +285,11 @@ typedef struct cli_json {
   int count[16];
 } cli_json;
 void json_begin(cli_json *j, FILE *f);
+/* A command's summary on stdout: json_begin, then "command", and "input"
+ * and "output" unless NULL. */
+cli_json json_start(const char *command, const char *input, const char *output);
+/* "points" and "h" */
+void json_points_h(cli_json *j, size_t points, double h);
 void json_end(cli_json *j);
 void json_obj(cli_json *j, const char *key);
 void json_arr(cli_json *j, const char *key);
@@ -317,9 +330,37 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv);
 int render_parse_size(const cli_command *cmd, const char *text, int *w, int *h);
 int render_parse_range(const cli_command *cmd, const char *text, double *lo, double *hi);
 const bsurf_field *render_find_field(const bsurf_cloud *c, const char *path, const char *name);
-int render_view_option(const cli_command *cmd, const char *view, double az, double el,
-                       double *out_az, double *out_el);
-int render_up_option(const cli_command *cmd, const char *up, int *axis); /* auto: -1 */
+/* What render and compare share: their view options' values (set the
+ * defaults cmap "viridis", up "auto", az and el NAN first), the option rows
+ * (RENDER_OPTS_VIEW) and render_args_apply after parsing: -o required,
+ * then --colormap, --size, --range, --view/--azimuth/--elevation, --up and
+ * --flat into ro; 0, or CLI_USAGE after the message. */
+typedef struct render_args {
+  const char *output, *field, *cmap, *range, *view, *size, *up;
+  double az, el;
+  int flat;
+} render_args;
+#define RENDER_OPTS_VIEW(a, ro)                                                                    \
+  CLI_OPT_IMAGE((a).output),                                                                       \
+      {0,          "field", ARG_STRING,                                                            \
+       &(a).field, "NAME",  "colour by this field (default: shade by normals)",                    \
+       1,          0},                                                                             \
+      CLI_OPT_COLORMAP((a).cmap),                                                                  \
+      {0,         "view", ARG_STRING,                                                              \
+       &(a).view, "VIEW", "front, back, left, right, top, bottom or iso (default: iso)",           \
+       1,         0},                                                                              \
+      {0,       "azimuth", ARG_DOUBLE,                                                             \
+       &(a).az, "DEG",     "view azimuth about z (0 = front; default: that of --view)",            \
+       -360,    360},                                                                              \
+      {0,       "elevation", ARG_DOUBLE,                                                           \
+       &(a).el, "DEG",       "view elevation (90 = top; default: that of --view)",                 \
+       -90,     90},                                                                               \
+      {0, "point-size", ARG_DOUBLE, &(ro).point_size, "S", "splat diameter in units of h", 0.05,   \
+       50},                                                                                        \
+  {                                                                                                \
+    0, "flat", ARG_FLAG, &(a).flat, "", "field colours without shading", 1, 0                      \
+  }
+int render_args_apply(const cli_command *cmd, const render_args *a, bsurf_render_options *ro);
 /* --up auto: 2 (z) for a generated shape, else 1 (y). */
 int render_auto_up(const bsurf_cloud *c);
 /* Writes an RGB image as PNG (atomically); prints the reason and returns 1

@@ -10,33 +10,21 @@
 
 int cmd_compare(const cli_command *cmd, int argc, char **argv) {
   bsurf_render_options ro = bsurf_render_options_default();
-  const char *output = NULL, *field = NULL, *cmap = "viridis", *range = NULL, *view = NULL,
-             *size = NULL, *titles = NULL, *up = "auto";
-  double az = NAN, el = NAN;
-  int json = 0, quiet = 0, force = 0, flat = 0;
+  render_args a = {NULL, NULL, "viridis", NULL, NULL, NULL, "auto", NAN, NAN, 0};
+  const char *titles = NULL;
+  int json = 0, quiet = 0, force = 0;
   ro.width = 512;
   ro.height = 512;
   cli_option opts[] = {
-      CLI_OPT_IMAGE(output),
-      {0, "field", ARG_STRING, &field, "NAME", "colour by this field (default: shade by normals)",
-       1, 0},
-      CLI_OPT_COLORMAP(cmap),
-      {0, "range", ARG_STRING, &range, "LO:HI",
+      RENDER_OPTS_VIEW(a, ro),
+      {0, "range", ARG_STRING, &a.range, "LO:HI",
        "values at the colormap's ends (default: 1st-99th percentile of all inputs)", 1, 0},
       {0, "titles", ARG_STRING, &titles, "A,B,...", "panel titles (default: the file names)", 1, 0},
-      {0, "view", ARG_STRING, &view, "VIEW",
-       "front, back, left, right, top, bottom or iso (default: iso)", 1, 0},
-      {0, "azimuth", ARG_DOUBLE, &az, "DEG",
-       "view azimuth about z (0 = front; default: that of --view)", -360, 360},
-      {0, "elevation", ARG_DOUBLE, &el, "DEG", "view elevation (90 = top; default: that of --view)",
-       -90, 90},
-      {0, "up", ARG_STRING, &up, "AXIS",
+      {0, "up", ARG_STRING, &a.up, "AXIS",
        "the axis that points up in the views: x, y, z or auto (from the first input, as render)", 1,
        0},
-      {0, "size", ARG_STRING, &size, "WxH", "size of each panel in pixels (default: 512x512)", 1,
+      {0, "size", ARG_STRING, &a.size, "WxH", "size of each panel in pixels (default: 512x512)", 1,
        0},
-      {0, "point-size", ARG_DOUBLE, &ro.point_size, "S", "splat diameter in units of h", 0.05, 50},
-      {0, "flat", ARG_FLAG, &flat, "", "field colours without shading", 1, 0},
       CLI_OPT_THREADS(ro.threads),
       {0, "force", ARG_FLAG, &force, "", "allow the output to be an input file", 1, 0},
       CLI_OPT_DROP_INVALID,
@@ -48,15 +36,8 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
                      &npos);
   if (rc != CLI_PARSED) return rc;
   if (npos < 1) return cli_usage_error(cmd, "expected one or more INPUT files");
-  if (!output) return cli_usage_error(cmd, "-o IMAGE.png is required");
-  if (bsurf_colormap_from_name(cmap, &ro.colormap) != 0)
-    return cli_usage_error(cmd, "--colormap must be viridis, magma, gray or coolwarm, not '%s'",
-                           cmap);
-  if (size && render_parse_size(cmd, size, &ro.width, &ro.height)) return CLI_USAGE;
-  if (range && render_parse_range(cmd, range, &ro.range_lo, &ro.range_hi)) return CLI_USAGE;
-  if (render_view_option(cmd, view, az, el, &ro.azimuth, &ro.elevation)) return CLI_USAGE;
-  if (render_up_option(cmd, up, &ro.up_axis)) return CLI_USAGE;
-  ro.shade = !flat;
+  if (render_args_apply(cmd, &a, &ro)) return CLI_USAGE;
+  const char *output = a.output, *field = a.field;
   ro.colorbar = 0;
   /* titles: split a copy at commas */
   char *tcopy = NULL;
@@ -172,9 +153,7 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
   }
   double secs = cli_now() - t0;
   if (rc == 0 && json) {
-    cli_json j;
-    json_begin(&j, stdout);
-    json_str(&j, "command", "compare");
+    cli_json j = json_start("compare", NULL, NULL);
     json_arr(&j, "inputs");
     for (int i = 0; i < npos; i++)
       json_str(&j, NULL, pos[i]);
@@ -195,8 +174,7 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv) {
     printf("compare: %d clouds, %dx%d", npos, W, H);
     if (field) printf(", %s in [%.6g, %.6g]", field, ro.range_lo, ro.range_hi);
     printf("\n");
-    cli_print_input_report(stdout);
-    printf("  -> %s\n", output);
+    cli_print_footer(output);
   }
   free(img);
   free(panel);

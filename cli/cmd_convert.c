@@ -39,11 +39,7 @@ int cmd_convert(const cli_command *cmd, int argc, char **argv) {
   if (rc == 0 && (json || !quiet)) {
     if (json) {
       /* a conversion searches no neighbours: no "h" (as sample) */
-      cli_json j;
-      json_begin(&j, stdout);
-      json_str(&j, "command", "convert");
-      json_str(&j, "input", input);
-      json_str(&j, "output", output);
+      cli_json j = json_start("convert", input, output);
       json_str(&j, "format", bsurf_format_name(out_fmt));
       json_int(&j, "points", (long long)c.point_count);
       json_int(&j, "fields", (long long)c.field_count);

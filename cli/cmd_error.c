@@ -68,13 +68,8 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
     io.test = &test;
   }
   bsurf_status st = bsurf_error_job(&io, &eo, &sum, &where);
-  cli_progress_done(&prog);
   if (plan) plan = sum.tile_points;
-  if (st != BSURF_OK) {
-    rc = cli_job_failed(pos[0], output, plan, st, &where);
-    goto done;
-  }
-  cli_set_duplicates(sum.duplicates);
+  if ((rc = cli_job_done(&prog, pos[0], output, plan, st, &where, sum.duplicates))) goto done;
   if (!plan && output && cli_write_cloud(output, &c, ascii)) {
     rc = 1;
     goto done;
@@ -82,13 +77,8 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
 
   double secs = cli_now() - t0;
   if (json) {
-    cli_json j;
-    json_begin(&j, stdout);
-    json_str(&j, "command", "error");
-    json_str(&j, "input", pos[0]);
-    if (output) json_str(&j, "output", output);
-    json_int(&j, "points", (long long)sum.points);
-    json_num(&j, "h", sum.h);
+    cli_json j = json_start("error", pos[0], output);
+    json_points_h(&j, sum.points, sum.h);
     json_int(&j, "k", eo.k);
     json_int(&j, "degree", eo.degree);
     json_int(&j, "bootstrap", eo.bootstrap);
@@ -114,8 +104,7 @@ int cmd_error(const cli_command *cmd, int argc, char **argv) {
     if (sum.report.degree_reduced)
       printf("  %zu points had degenerate neighbourhoods and used a lower degree\n",
              sum.report.degree_reduced);
-    cli_print_input_report(stdout);
-    if (output) printf("  -> %s\n", output);
+    cli_print_footer(output);
   }
 done:
   bsurf_cloud_free(&c);

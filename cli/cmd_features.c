@@ -102,7 +102,6 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   if (rc) return rc;
   double t0 = cli_now();
   bsurf_cloud c;
-  bsurf_cloud_init(&c);
   bsurf_job_io io;
   cli_progress prog;
   if (cli_job_io(&io, pos[0], output, plan, &c, &prog, "features", quiet)) return 1;
@@ -111,13 +110,8 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   bsurf_features_job_summary sum;
   bsurf_failure where = {0, -1, ""};
   bsurf_status st = bsurf_features_job(&io, &fo, &sum, &where);
-  cli_progress_done(&prog);
   rc = 1;
-  if (st != BSURF_OK) {
-    cli_job_failed(pos[0], output, plan, st, &where);
-    goto done;
-  }
-  cli_set_duplicates(sum.duplicates);
+  if (cli_job_done(&prog, pos[0], output, plan, st, &where, sum.duplicates)) goto done;
   const char *const *out_names = sum.field_names;
   const int null_rule = fo.method == BSURF_FEATURES_VARIANCE && isnan(fo.threshold) &&
                         fo.tail_rule == BSURF_TAIL_NULL;
@@ -130,13 +124,8 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   if (!plan && cli_write_cloud(output, &c, ascii)) goto done;
   double secs = cli_now() - t0;
   if (json) {
-    cli_json j;
-    json_begin(&j, stdout);
-    json_str(&j, "command", "features");
-    json_str(&j, "input", pos[0]);
-    json_str(&j, "output", output);
-    json_int(&j, "points", (long long)n);
-    json_num(&j, "h", h);
+    cli_json j = json_start("features", pos[0], output);
+    json_points_h(&j, n, h);
     json_str(&j, "method", method);
     json_obj(&j, "parameters");
     if (fo.method == BSURF_FEATURES_DISTANCE) {
@@ -204,8 +193,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       printf("  T_{a/c} %.4g at k_min, max radius %.6g, %zu points stopped at k_min (set to -max "
              "radius)\n",
              rep.ratio_threshold_kmin, rep.max_radius, rep.immediate);
-    cli_print_input_report(stdout);
-    printf("  -> %s\n", output);
+    cli_print_footer(output);
   }
   rc = 0;
 done:

@@ -58,14 +58,11 @@ int cmd_generate(const cli_command *cmd, int argc, char **argv) {
   if (rc == 0 && !quiet) {
     double secs = cli_now() - t0;
     if (json) {
-      cli_json j;
-      json_begin(&j, stdout);
-      json_str(&j, "command", "generate");
+      cli_json j = json_start("generate", NULL, NULL);
       json_str(&j, "shape", pos[0]);
       json_str(&j, "sampling", sampling);
       json_str(&j, "output", output);
-      json_int(&j, "points", (long long)c.point_count);
-      json_num(&j, "h", h);
+      json_points_h(&j, c.point_count, h);
       json_int(&j, "seed", (long long)seed);
       json_num(&j, "seconds", secs);
       json_end(&j);

@@ -19,9 +19,7 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
       {0, "range", ARG_STRING, &range, "LO:HI", "the x range (default: min to max)", 1, 0},
       {0, "size", ARG_STRING, &size, "WxH", "image size in pixels (default: 800x500)", 1, 0},
       {0, "title", ARG_STRING, &title, "TEXT", "a title at the top", 1, 0},
-      CLI_OPT_FORCE_SAME(force),
-      CLI_OPT_DROP_INVALID,
-      CLI_OPTS_REPORT(json, quiet),
+      CLI_OPTS_END(force, json, quiet),
   };
   char *pos[1];
   int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
@@ -57,11 +55,7 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
   free(rgb);
   double secs = cli_now() - t0;
   if (rc == 0 && json) {
-    cli_json j;
-    json_begin(&j, stdout);
-    json_str(&j, "command", "histogram");
-    json_str(&j, "input", pos[0]);
-    json_str(&j, "output", output);
+    cli_json j = json_start("histogram", pos[0], output);
     json_str(&j, "field", field);
     json_int(&j, "points", (long long)c.point_count);
     json_int(&j, "bins", ho.bins);
@@ -78,8 +72,7 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
            info.max_count);
     if (isfinite(ho.threshold)) printf(", %zu above %g", info.above_threshold, ho.threshold);
     printf("\n");
-    cli_print_input_report(stdout);
-    printf("  -> %s\n", output);
+    cli_print_footer(output);
   }
   bsurf_cloud_free(&c);
   return rc;

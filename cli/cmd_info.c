@@ -23,17 +23,8 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
   bsurf_cloud c;
   bsurf_cloud_init(&c);
   if (cli_read_cloud(pos[0], &c)) return 1;
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t i = 0; i < c.point_count; i++)
-    for (int t = 0; t < 3; t++) {
-      double v = c.xyz[3 * i + t];
-      if (v < lo[t]) lo[t] = v;
-      if (v > hi[t]) hi[t] = v;
-    }
-  double diag = c.point_count
-                    ? sqrt((hi[0] - lo[0]) * (hi[0] - lo[0]) + (hi[1] - lo[1]) * (hi[1] - lo[1]) +
-                           (hi[2] - lo[2]) * (hi[2] - lo[2]))
-                    : 0;
+  double lo[3], hi[3];
+  const double diag = bsurf_bounding_box(c.xyz, c.point_count, lo, hi);
   double h = NAN;
   cli_progress prog;
   cli_progress_init(&prog, "spacing", quiet || json);
@@ -52,10 +43,7 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
   }
   double secs = cli_now() - t0;
   if (json) {
-    cli_json j;
-    json_begin(&j, stdout);
-    json_str(&j, "command", "info");
-    json_str(&j, "input", pos[0]);
+    cli_json j = json_start("info", pos[0], NULL);
     json_int(&j, "points", (long long)c.point_count);
     json_int(&j, "faces", (long long)c.face_count);
     json_bool(&j, "normals", c.normals != NULL);

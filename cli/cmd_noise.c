@@ -103,13 +103,8 @@ int cmd_noise(const cli_command *cmd, int argc, char **argv) {
   if (rc == 0 && !quiet) {
     double secs = cli_now() - t0;
     if (json) {
-      cli_json j;
-      json_begin(&j, stdout);
-      json_str(&j, "command", "noise");
-      json_str(&j, "input", pos[0]);
-      json_str(&j, "output", output);
-      json_int(&j, "points", (long long)c.point_count);
-      json_num(&j, "h", h);
+      cli_json j = json_start("noise", pos[0], output);
+      json_points_h(&j, c.point_count, h);
       if (by_diag) {
         json_num(&j, "sigma_diag", sigma_diag);
         json_num(&j, "diagonal", diag);

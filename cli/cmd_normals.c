@@ -231,23 +231,13 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   bsurf_normals_job_summary sum;
   bsurf_failure where = {0, -1, ""};
   bsurf_status st = bsurf_normals_job(&io, &jo, &sum, &where);
-  cli_progress_done(&prog);
-  if (st != BSURF_OK) {
-    cli_job_failed(pos[0], output, plan, st, &where);
-    goto done;
-  }
-  cli_set_duplicates(sum.duplicates);
+  if (cli_job_done(&prog, pos[0], output, plan, st, &where, sum.duplicates)) goto done;
   if (!plan && cli_write_cloud(output, &c, ascii)) goto done;
   if (curve && write_curve(curve, rows, sum.curve_rows, truth_path != NULL)) goto done;
   double secs = cli_now() - t0;
   if (json) {
-    cli_json j;
-    json_begin(&j, stdout);
-    json_str(&j, "command", "normals");
-    json_str(&j, "input", pos[0]);
-    json_str(&j, "output", output);
-    json_int(&j, "points", (long long)sum.points);
-    json_num(&j, "h", sum.h);
+    cli_json j = json_start("normals", pos[0], output);
+    json_points_h(&j, sum.points, sum.h);
     json_int(&j, "k", no.k);
     json_str(&j, "fit", fit);
     if (no.fit == BSURF_NORMAL_POLY) json_int(&j, "degree", no.degree);
@@ -281,8 +271,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     print_means(stdout, sum.field_names, sum.means, sum.field_count, sum.h);
     if (sum.report.degenerate)
       printf("  %zu points have degenerate neighbourhoods\n", sum.report.degenerate);
-    cli_print_input_report(stdout);
-    printf("  -> %s\n", output);
+    cli_print_footer(output);
   }
   rc = 0;
 done:

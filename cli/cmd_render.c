@@ -47,8 +47,8 @@ const bsurf_field *render_find_field(const bsurf_cloud *c, const char *path, con
   return NULL;
 }
 
-int render_view_option(const cli_command *cmd, const char *view, double az, double el,
-                       double *out_az, double *out_el) {
+static int render_view_option(const cli_command *cmd, const char *view, double az, double el,
+                              double *out_az, double *out_el) {
   if (view && (!isnan(az) || !isnan(el)))
     return cli_usage_error(cmd, "give --view or --azimuth/--elevation, not both");
   if (view) {
@@ -76,11 +76,25 @@ double *render_spacing(const bsurf_cloud *c, int threads, bsurf_progress_fn prog
   return out;
 }
 
-int render_up_option(const cli_command *cmd, const char *up, int *axis) {
+static int render_up_option(const cli_command *cmd, const char *up, int *axis) {
   static const char *const axes[] = {"x", "y", "z", "auto"};
   int a = cli_choice(up, axes, 4);
   if (a < 0) return cli_usage_error(cmd, "--up must be x, y, z or auto, not '%s'", up);
   *axis = a == 3 ? -1 : a;
+  return 0;
+}
+
+int render_args_apply(const cli_command *cmd, const render_args *a, bsurf_render_options *ro) {
+  if (!a->output) return cli_usage_error(cmd, "-o IMAGE.png is required");
+  if (bsurf_colormap_from_name(a->cmap, &ro->colormap) != 0)
+    return cli_usage_error(cmd, "--colormap must be viridis, magma, gray or coolwarm, not '%s'",
+                           a->cmap);
+  if (a->size && render_parse_size(cmd, a->size, &ro->width, &ro->height)) return CLI_USAGE;
+  if (a->range && render_parse_range(cmd, a->range, &ro->range_lo, &ro->range_hi)) return CLI_USAGE;
+  if (render_view_option(cmd, a->view, a->az, a->el, &ro->azimuth, &ro->elevation))
+    return CLI_USAGE;
+  if (render_up_option(cmd, a->up, &ro->up_axis)) return CLI_USAGE;
+  ro->shade = !a->flat;
   return 0;
 }
 
@@ -99,55 +113,34 @@ int cli_write_png(const char *path, const uint8_t *rgb, int w, int h) {
 
 int cmd_render(const cli_command *cmd, int argc, char **argv) {
   bsurf_render_options ro = bsurf_render_options_default();
-  const char *output = NULL, *field = NULL, *cmap = "viridis", *range = NULL, *view = NULL,
-             *size = NULL, *title = NULL, *up = "auto";
-  double az = NAN, el = NAN;
-  int views = 1, json = 0, quiet = 0, force = 0, flat = 0, square = 0;
+  render_args a = {NULL, NULL, "viridis", NULL, NULL, NULL, "auto", NAN, NAN, 0};
+  const char *title = NULL;
+  int views = 1, json = 0, quiet = 0, force = 0, square = 0;
   cli_option opts[] = {
-      CLI_OPT_IMAGE(output),
-      {0, "field", ARG_STRING, &field, "NAME", "colour by this field (default: shade by normals)",
-       1, 0},
-      CLI_OPT_COLORMAP(cmap),
-      {0, "range", ARG_STRING, &range, "LO:HI",
+      RENDER_OPTS_VIEW(a, ro),
+      {0, "range", ARG_STRING, &a.range, "LO:HI",
        "values at the colormap's ends (default: 1st-99th percentile)", 1, 0},
-      {0, "view", ARG_STRING, &view, "VIEW",
-       "front, back, left, right, top, bottom or iso (default: iso)", 1, 0},
-      {0, "azimuth", ARG_DOUBLE, &az, "DEG",
-       "view azimuth about z (0 = front; default: that of --view)", -360, 360},
-      {0, "elevation", ARG_DOUBLE, &el, "DEG", "view elevation (90 = top; default: that of --view)",
-       -90, 90},
-      {0, "up", ARG_STRING, &up, "AXIS",
+      {0, "up", ARG_STRING, &a.up, "AXIS",
        "the axis that points up in the views: x, y, z or auto (z for bootsurf's generated shapes, "
        "else y: "
        "the convention of scans and meshes)",
        1, 0},
       {0, "views", ARG_INT, &views, "N", "1, or 4 for front, right, top and iso in a 2x2 grid", 1,
        4},
-      {0, "size", ARG_STRING, &size, "WxH", "image size in pixels (default: 1024x768)", 1, 0},
-      {0, "point-size", ARG_DOUBLE, &ro.point_size, "S", "splat diameter in units of h", 0.05, 50},
+      {0, "size", ARG_STRING, &a.size, "WxH", "image size in pixels (default: 1024x768)", 1, 0},
       {0, "title", ARG_STRING, &title, "TEXT", "a title at the top", 1, 0},
-      {0, "flat", ARG_FLAG, &flat, "", "field colours without shading", 1, 0},
       {0, "square", ARG_FLAG, &square, "", "square splats instead of discs", 1, 0},
       CLI_OPT_THREADS(ro.threads),
-      CLI_OPT_FORCE_SAME(force),
-      CLI_OPT_DROP_INVALID,
-      CLI_OPTS_REPORT(json, quiet),
+      CLI_OPTS_END(force, json, quiet),
   };
   char *pos[1];
   int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
-  if (!output) return cli_usage_error(cmd, "-o IMAGE.png is required");
-  if (bsurf_colormap_from_name(cmap, &ro.colormap) != 0)
-    return cli_usage_error(cmd, "--colormap must be viridis, magma, gray or coolwarm, not '%s'",
-                           cmap);
-  if (size && render_parse_size(cmd, size, &ro.width, &ro.height)) return CLI_USAGE;
-  if (range && render_parse_range(cmd, range, &ro.range_lo, &ro.range_hi)) return CLI_USAGE;
+  if (render_args_apply(cmd, &a, &ro)) return CLI_USAGE;
   if (views != 1 && views != 4)
     return cli_usage_error(cmd, "--views must be 1 or 4, not %d", views);
-  if (render_view_option(cmd, view, az, el, &ro.azimuth, &ro.elevation)) return CLI_USAGE;
-  if (render_up_option(cmd, up, &ro.up_axis)) return CLI_USAGE;
+  const char *output = a.output, *field = a.field;
   ro.views = views;
-  ro.shade = !flat;
   ro.round_splats = !square;
   ro.title = title;
   if (cli_check_writable(output, pos[0], force)) return 1;
@@ -194,13 +187,8 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
   free(local);
   double secs = cli_now() - t0;
   if (rc == 0 && json) {
-    cli_json j;
-    json_begin(&j, stdout);
-    json_str(&j, "command", "render");
-    json_str(&j, "input", pos[0]);
-    json_str(&j, "output", output);
-    json_int(&j, "points", (long long)c.point_count);
-    json_num(&j, "h", h);
+    cli_json j = json_start("render", pos[0], output);
+    json_points_h(&j, c.point_count, h);
     json_int(&j, "width", ro.width);
     json_int(&j, "height", ro.height);
     json_int(&j, "views", ro.views);
@@ -209,7 +197,7 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
     json_num(&j, "point_size", ro.point_size);
     if (f) {
       json_str(&j, "field", field);
-      json_str(&j, "colormap", cmap);
+      json_str(&j, "colormap", a.cmap);
       json_arr(&j, "range");
       json_num(&j, NULL, info.range_lo);
       json_num(&j, NULL, info.range_hi);
@@ -221,10 +209,9 @@ int cmd_render(const cli_command *cmd, int argc, char **argv) {
     json_end(&j);
   } else if (rc == 0 && !quiet) {
     printf("render: %zu points, h = %.6g, %dx%d", c.point_count, h, ro.width, ro.height);
-    if (f) printf(", %s in [%.6g, %.6g] (%s)", field, info.range_lo, info.range_hi, cmap);
+    if (f) printf(", %s in [%.6g, %.6g] (%s)", field, info.range_lo, info.range_hi, a.cmap);
     printf(", %.2f s\n", secs);
-    cli_print_input_report(stdout);
-    printf("  -> %s\n", output);
+    cli_print_footer(output);
   }
   bsurf_cloud_free(&c);
   return rc;

@@ -21,9 +21,7 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
       {'o', "output", ARG_STRING, &output, "FILE",
        "output file (.ply keeps feature_dist and feature)", 1, 0},
       {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
-      CLI_OPT_FORCE_SAME(force),
-      CLI_OPT_DROP_INVALID,
-      CLI_OPTS_REPORT(json, quiet),
+      CLI_OPTS_END(force, json, quiet),
   };
   char *pos[1];
   int rc =
@@ -64,11 +62,7 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
     double secs = cli_now() - t0;
     const char *mode = so.points ? "area" : "vertices";
     if (json) {
-      cli_json j;
-      json_begin(&j, stdout);
-      json_str(&j, "command", "sample");
-      json_str(&j, "input", pos[0]);
-      json_str(&j, "output", output);
+      cli_json j = json_start("sample", pos[0], output);
       json_str(&j, "mode", mode);
       json_int(&j, "points", (long long)c.point_count);
       json_int(&j, "mesh_points", (long long)mesh_points);

@@ -62,22 +62,19 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "otherwise)",
        1, 0},
       {0, "threshold", ARG_STRING, &threshold, "T",
-       "naive: project only where W_i < T; a length (model units, or 0.5h = 0.5 x h), auto (the "
-       "mean "
-       "W_i) or none (every point)",
+       "naive: project only where W_i < T; a length (model units, or 0.5h = 0.5 x h), "
+       "auto (the mean W_i) or none (every point)",
        1, 0},
       {0, "h1", ARG_STRING, &h1_text, "X",
        "bilateral: distance sigma of Eq. 6.2 (a length; h = the mean spacing)", 1, 0},
       {0, "h2", ARG_STRING, &h2_text, "X",
-       "bilateral, multipass: error sigma of Eq. 6.2: a length, a multiple of |W| (e.g. 1W) or "
-       "auto "
-       "(2W; the thesis's multipass setting is 0.3W)",
+       "bilateral, multipass: error sigma of Eq. 6.2: a length, a multiple of |W| (e.g. 1W) "
+       "or auto (2W; the thesis's multipass setting is 0.3W)",
        1, 0},
       {0, "order", ARG_STRING, &order, "O",
        "bilateral, multipass: parallel (order-independent; tiled with a halo of reverse "
-       "neighbours) or "
-       "sequential (the thesis's in-place sweep, one thread; not tiled: a chain over the whole "
-       "cloud)",
+       "neighbours) or sequential (the thesis's in-place sweep, one thread; not tiled: a "
+       "chain over the whole cloud)",
        1, 0},
       {0, "a", ARG_DOUBLE, &so.a, "A",
        "multipass: h1 = A x d_L, the mean distance to the K_i neighbours (Eq. 6.5)", 0, 1e6},
@@ -85,12 +82,13 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       {0, "k-min", ARG_INT, &so.k_min, "K", "multipass: the smallest neighbourhood (Eq. 6.3)", 1,
        65535},
       {0, "k-error", ARG_STRING, &kerr_text, "X",
-       "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length, a multiple of |W| "
-       "(e.g. "
-       "2W) or auto (3W; the thesis's is 1W)",
+       "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length, a multiple "
+       "of |W| (e.g. 2W) or auto (3W; the thesis's is 1W)",
        1, 0},
       {0, "guard", ARG_STRING, &guard, "G",
-       "every method: on (two sheets split at a gap between their residuals are fitted apart; a "
+       "every method: on (two sheets split at a gap between their residuals, or where the "
+       "residuals fall in two groups tighter than any unimodal noise leaves them, are fitted "
+       "apart; a "
        "fit biased at its centre by a second sheet or an edge, by a t test on its nearest "
        "points' residuals, is made again from fewer points, or moves nothing) or off (the "
        "thesis's methods as written)",
@@ -175,7 +173,6 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
 
   double t0 = cli_now();
   bsurf_cloud c;
-  bsurf_cloud_init(&c);
   bsurf_job_io io;
   cli_progress prog;
   if (cli_job_io(&io, pos[0], output, plan, &c, &prog, "smooth", quiet)) return 1;
@@ -186,13 +183,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   double tc = cli_now();
   bsurf_status st = bsurf_smooth_job(&io, &jo, &sum, &where);
   double compute = cli_now() - tc;
-  cli_progress_done(&prog);
   rc = 1;
-  if (st != BSURF_OK) {
-    cli_job_failed(pos[0], output, plan, st, &where);
-    goto done;
-  }
-  cli_set_duplicates(sum.duplicates);
+  if (cli_job_done(&prog, pos[0], output, plan, st, &where, sum.duplicates)) goto done;
   if (!plan && cli_write_cloud(output, &c, ascii)) goto done;
   const bsurf_smooth_report rep = sum.report;
   const size_t npoints = sum.points;
@@ -202,14 +194,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   double secs = cli_now() - t0;
   double hh = h > 0 ? h : 1;
   if (json) {
-    cli_json j;
-    json_begin(&j, stdout);
-    json_str(&j, "command", "smooth");
-    json_str(&j, "input", pos[0]);
-    json_str(&j, "output", output);
+    cli_json j = json_start("smooth", pos[0], output);
     json_str(&j, "method", method);
-    json_int(&j, "points", (long long)npoints);
-    json_num(&j, "h", h);
+    json_points_h(&j, npoints, h);
     json_int(&j, "k", so.error.k);
     json_int(&j, "degree", so.error.degree);
     json_int(&j, "bootstrap", so.error.bootstrap);
@@ -268,8 +255,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
              rep.iterations, so.a, rep.h2, rep.h2 / hh, so.k_min, so.error.k);
     printf("  moved %zu points: mean %.4g h, max %.4g h\n", rep.moved_points, rep.moved_mean / hh,
            rep.moved_max / hh);
-    cli_print_input_report(stdout);
-    printf("  -> %s\n", output);
+    cli_print_footer(output);
   }
   rc = 0;
 done:

@@ -142,6 +142,7 @@ int cli_tiles_failed(const char *input, const char *output, bsurf_status st,
 int cli_job_io(bsurf_job_io *io, const char *input, const char *output, size_t plan, bsurf_cloud *c,
                cli_progress *prog, const char *label, int quiet) {
   memset(io, 0, sizeof *io);
+  bsurf_cloud_init(c);
   if (plan) {
     if (cli_check_tiled_input(input)) return 1;
     io->input = input;
@@ -166,6 +167,14 @@ int cli_job_failed(const char *input, const char *output, size_t plan, bsurf_sta
                         ? bsurf_last_message()
                         : bsurf_strerror(st);
   return cli_error("%s: %s", input, msg);
+}
+
+int cli_job_done(cli_progress *prog, const char *input, const char *output, size_t plan,
+                 bsurf_status st, const bsurf_failure *err, size_t duplicates) {
+  cli_progress_done(prog);
+  if (st != BSURF_OK) return cli_job_failed(input, output, plan, st, err);
+  cli_set_duplicates(duplicates);
+  return 0;
 }
 
 /* ---- MPI ---------------------------------------------------------------------- */

@@ -186,6 +186,11 @@ void cli_print_input_report(FILE *f) {
     fprintf(f, "  %zu points coincide with another point (duplicates)\n", input_duplicates);
 }
 
+void cli_print_footer(const char *output) {
+  cli_print_input_report(stdout);
+  if (output) printf("  -> %s\n", output);
+}
+
 int cli_check_output(const char *output, const char *input, int force) {
   if (!strcmp(output, "-"))
     return cli_out_format ? 0 : cli_error("-: standard output needs --format");
@@ -251,31 +256,6 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii) {
   bsurf_status st = cli_write_to(path, cloud, &wo, &err);
   if (st != BSURF_OK)
     return cli_error("%s: %s", path, err.message[0] ? err.message : bsurf_strerror(st));
-  return 0;
-}
-
-int cli_build_neighbors(const char *path, const bsurf_cloud *c, int k, int threads, int quiet,
-                        bsurf_neighbors *nb) {
-  memset(nb, 0, sizeof *nb);
-  if (c->point_count < (size_t)k)
-    return cli_error("%s: has %zu points, fewer than K = %d", path, c->point_count, k);
-  cli_progress prog;
-  cli_progress_init(&prog, "neighbours", quiet);
-  bsurf_status st =
-      bsurf_neighbors_build(nb, c->xyz, c->point_count, k, threads, cli_progress_cb, &prog);
-  cli_progress_done(&prog);
-  if (st != BSURF_OK)
-    return cli_error("%s: neighbourhoods: %s", path,
-                     cli_interrupted() ? "interrupted" : bsurf_strerror(st));
-  /* points at the same place as another: the nearest other neighbour (the
-   * point itself comes first) is at distance 0 */
-  size_t dup = 0;
-  for (size_t i = 0; i < c->point_count; i++) {
-    const double *a = c->xyz + 3 * i, *b = c->xyz + 3 * (size_t)nb->idx[i * (size_t)k + 1];
-    dup += a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
-  }
-  input_duplicates_known = 1;
-  input_duplicates = dup;
   return 0;
 }
 
@@ -414,6 +394,20 @@ void json_begin(cli_json *j, FILE *f) {
   fputc('{', f);
 }
 
+cli_json json_start(const char *command, const char *input, const char *output) {
+  cli_json j;
+  json_begin(&j, stdout);
+  json_str(&j, "command", command);
+  if (input) json_str(&j, "input", input);
+  if (output) json_str(&j, "output", output);
+  return j;
+}
+
+void json_points_h(cli_json *j, size_t points, double h) {
+  json_int(j, "points", (long long)points);
+  json_num(j, "h", h);
+}
+
 void json_end(cli_json *j) {
   json_str(j, "version", BSURF_VERSION_STRING);
   if (cli_drop_invalid) json_int(j, "dropped_invalid", (long long)input_dropped);
@@ -488,8 +482,8 @@ double cli_field_mean(const bsurf_field *field, size_t n) {
 /* Fields that are not lengths (rates, angles, labels, counts) have no
  * meaning in units of h and are left out of "mean_h". */
 static int is_length_field(const char *name) {
-  static const char *const not_lengths[] = {"overfit_rate", "normal_var", "normal_err", "feature",
-                                            "k_selected"};
+  static const char *const not_lengths[] = {"overfit_rate", "normal_var", "normal_err",
+                                            "feature",      "k_selected", "two_sheet"};
   for (size_t i = 0; i < sizeof not_lengths / sizeof not_lengths[0]; i++)
     if (strcmp(name, not_lengths[i]) == 0) return 0;
   return 1;

@@ -182,6 +182,11 @@ BSURF_API void bsurf_cloud_remove_field(bsurf_cloud *cloud, const char *name);
 /* BSURF_OK if every coordinate (and normal) is finite; otherwise
  * BSURF_ERR_INVALID_VALUE and *bad_index (if not NULL) is the first bad point. */
 BSURF_API bsurf_status bsurf_cloud_check_finite(const bsurf_cloud *cloud, size_t *bad_index);
+/* The axis-aligned bounding box of point_count points (xyz: point_count x 3)
+ * into lo and hi (either may be NULL; +inf and -inf when there are none);
+ * returns the length of its diagonal (0 when there are none). */
+BSURF_API double bsurf_bounding_box(const double *xyz, size_t point_count, double lo[3],
+                                    double hi[3]);
 
 /* ------------------------------------------------------------------------ */
 /* Files                                                                     */
@@ -238,11 +243,6 @@ typedef enum bsurf_ply_names {
  * resources from the declared counts. *points: the declared vertex count (0
  * for formats without a header count, which are not checked here). */
 BSURF_API bsurf_status bsurf_read_header(const char *path, uint64_t *points, bsurf_failure *err);
-/* The same on the first `size` bytes (the header among them) of a file of
- * `file_size` bytes (used by the fuzzers). */
-BSURF_API bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
-                                                bsurf_format format, uint64_t *points,
-                                                bsurf_failure *err);
 
 /* The output-path policy of every writer (docs/robustness.md): BSURF_OK for
  * a new file, a writable regular file, a FIFO or a device (written directly,
@@ -500,8 +500,9 @@ typedef struct bsurf_kselect_options {
   bsurf_kselect_rule rule; /* MSE (bsurf_select_k accepts only MSE) */
   const int *ks;           /* candidate K, strictly ascending, each >= 7 */
   int nk;                  /* number of candidates */
-  int noise_k;             /* neighbourhood of the quadric noise fits, of
-                              their pooling and of the bias pooling (12; >= 12) */
+  int noise_k;             /* the quadric noise fits' smallest neighbourhood
+                              and that of the bias pooling (12; >= 12); the
+                              noise is pooled over the largest candidate's */
   int threads;             /* 0 = all cores */
   bsurf_progress_fn progress;
   void *progress_user;
@@ -519,6 +520,11 @@ typedef struct bsurf_kselect_fields {
                       pi / 2 where no candidate could be assessed */
   double *noise;   /* the estimated noise standard deviation along the
                       normal (length) */
+  int *two_sheet;  /* 1 where the chosen neighbourhood mixes two sheets
+                      (a thin part's faces, or two surfaces): its heights
+                      about a quadric split into two groups beyond what one
+                      sheet with any unimodal noise gives at level 0.001
+                      (docs/normals.md, "Two sheets"); else 0 */
 } bsurf_kselect_fields;
 
 typedef struct bsurf_kselect_report {
@@ -1422,7 +1428,7 @@ typedef struct bsurf_normals_job_options {
   bsurf_kselect_rule select_rule; /* TEST_ERROR (the thesis's), or MSE
                                      (bsurf_select_k: PCA, select_k only,
                                      candidates >= 7, in memory only) */
-  int noise_k;                    /* MSE: the noise fits' neighbourhood (20; >= 12) */
+  int noise_k;                    /* MSE: the noise fits' neighbourhood (12; >= 12) */
   /* Bilateral normal smoothing after the estimate (bsurf_smooth_normals,
    * Eq. 5.6; in memory only): passes (0), strength alpha (0.1, in [0, 1]),
    * spatial sigma (<= 0: h), variance sigma (NAN: auto, the 85th percentile

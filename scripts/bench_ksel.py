@@ -21,7 +21,9 @@ smallest mean error of that case, chosen in hindsight.
 
 Prints markdown: the summary over cases (each row's metrics averaged over the
 cases, its mean error relative to the case's best fixed K and to Open3D), the
-rules against the issue's targets, and the per-case mean errors. Results of fixed
+rules against the issue's targets, the per-case mean errors and, for the mse rule,
+its two_sheet field (flagged share; on the thin cases precision and recall against
+the neighbourhoods that hold >= 10% points of the far face). Results of fixed
 K and peers are cached in WORK_DIR/cache.json (rules are always rerun unless
 --rules is empty); --fresh ignores the cache.
 """
@@ -55,6 +57,30 @@ def angles(result, truth_normals):
     cross = np.linalg.norm(np.cross(n, t), axis=1)
     dot = np.abs(np.sum(n * t, axis=1))
     return np.arctan2(cross, dot)
+
+
+def sheet_stats(result, truth_fields, mixed_share=0.1):
+    """The two_sheet field against the truth: the flagged share and, with the
+    truth's oriented normals, the share of points whose chosen neighbourhood
+    (k_selected nearest noisy points) holds at least `mixed_share` points whose
+    true normal faces the other way (dot < 0: the far face of a thin part),
+    with the precision and recall of the flag for those points."""
+    f, _ = devset.read_ply(result)
+    if "two_sheet" not in f or "k_selected" not in f:
+        return None
+    from scipy.spatial import cKDTree
+    flag = f["two_sheet"] > 0.5
+    p = np.stack([f["x"], f["y"], f["z"]], axis=1).astype(np.float64)
+    t = np.stack([truth_fields["nx"], truth_fields["ny"], truth_fields["nz"]], axis=1).astype(np.float64)
+    ks = f["k_selected"].astype(int)
+    _, idx = cKDTree(p).query(p, int(ks.max()))
+    opposite = (np.einsum("ijk,ik->ij", t[idx], t) < 0)
+    first = np.arange(idx.shape[1])[None, :] < ks[:, None]
+    mixed = (opposite & first).sum(1) >= mixed_share * ks
+    tp = int((flag & mixed).sum())
+    return {"flagged": float(flag.mean()), "mixed": float(mixed.mean()),
+            "precision": tp / flag.sum() if flag.sum() else float("nan"),
+            "recall": tp / mixed.sum() if mixed.sum() else float("nan")}
 
 
 def metrics(a, secs):
@@ -135,6 +161,9 @@ def main():
         for r in rules:
             secs, _ = timed([bs, "normals", c.noisy, "-o", res, "-q", "-j", j] + RULES[r])
             row[r] = metrics(angles(res, tn), secs)
+            sh = sheet_stats(res, f)
+            if sh:
+                row[r]["sheet"] = sh
         table[c.name] = row
         with open(cache_path, "w") as fh:
             json.dump(cache, fh)
@@ -195,6 +224,22 @@ def main():
             cells.append("%.4f" % row["CGAL jet K=30"]["mean"])
         cells += ["%.4f" % row[r]["mean"] for r in rules]
         emit("| " + " | ".join(cells) + " |")
+    sheet_rules = [r for r in rules if all("sheet" in table[n][r] for n in names)]
+    for r in sheet_rules:
+        emit("")
+        emit("The `two_sheet` field of %s on the thin cases: the share of points flagged, the share whose "
+             "chosen neighbourhood holds >= 10%% points of the far face (true normals facing the other way), "
+             "and the flag's precision and recall for those:\n" % r)
+        emit("| case | flagged | mixed (truth) | precision | recall |")
+        emit("|---|---|---|---|---|")
+        for n in thin:
+            sh = table[n][r]["sheet"]
+            emit("| %s | %.4f | %.4f | %.3f | %.3f |" % (n, sh["flagged"], sh["mixed"], sh["precision"], sh["recall"]))
+        if ordinary:
+            fl = np.array([table[n][r]["sheet"]["flagged"] for n in ordinary])
+            emit("\nOn the %d other cases (one sheet; at their largest K some neighbourhoods wrap around "
+                 "a thin limb, which the far-face count above cannot tell from a thin part): flagged share "
+                 "mean %.4f, max %.4f (%s).\n" % (len(ordinary), fl.mean(), fl.max(), ordinary[int(fl.argmax())]))
     text = "\n".join(out) + "\n"
     sys.stdout.write(text)
     if a.markdown:

@@ -5,6 +5,7 @@ usage:
   /usr/bin/python3 scripts/validate_defaults.py BUILD_DIR DEVSET_DIR OUT_DIR
       [--only SUBSTR[,SUBSTR...] | --set issue22] [--noise u0.25,u0.5,g0.6] [--peers DIR]
       [--methods naive,bilateral,multipass,default,jet,cgal_bilateral,mls] [--threads N]
+      [--reuse-from TABLE.md [--reuse jet,cgal_bilateral,mls]]
 
 DEVSET_DIR is built by `scripts/devset.py build` (its cases are read, never
 written). For every case whose name contains one of --only (--set issue22: the
@@ -17,9 +18,12 @@ jet_smooth_point_set and bilateral_smooth_point_set; PEERS/smooth_pcl: PCL
 MovingLeastSquares; K = 30, their drivers' default), each scored by
 `bootsurf eval --truth --surface --json` (devset.evaluate): the mean distance to
 the true surface in units of the truth's spacing h, overall / feature /
-non-feature. Prints one markdown table (a row per case and method) and a summary:
-per method, the cases where it ends farther from the surface than the noisy input,
-and the cases where it beats CGAL jet.
+non-feature. --reuse-from takes the rows of the --reuse methods (default: the
+peers, whose outputs do not depend on bootsurf's code) and of the noisy input
+from an earlier run's table (e.g. docs/smoothing.md) instead of running them
+again; a case or method missing there is run. Prints one markdown table (a row
+per case and method) and a summary: per method, the cases where it ends farther
+from the surface than the noisy input, and the cases where it beats CGAL jet.
 """
 import argparse
 import os
@@ -49,6 +53,8 @@ def main():
     ap.add_argument("--peers", default="/work/peers")
     ap.add_argument("--methods", default=",".join(OURS + PEERS))
     ap.add_argument("--threads", default="2")
+    ap.add_argument("--reuse-from", default=None)
+    ap.add_argument("--reuse", default=",".join(PEERS))
     a = ap.parse_args()
     bs = os.path.join(a.build, "bootsurf")
     os.makedirs(a.out, exist_ok=True)
@@ -81,16 +87,27 @@ def main():
         sub = lambda k: f(p.get(k, {}).get("mean_h"))  # noqa: E731
         return f(p["mean_h"]), sub("feature"), sub("non_feature")
 
+    old = {}
+    if a.reuse_from:
+        keep = set(a.reuse.split(",")) | {"noisy"}
+        for line in open(a.reuse_from):
+            w = [x.strip() for x in line.strip().strip("|").split("|")]
+            if len(w) == 5 and w[1] in keep:
+                try:
+                    old[(w[0], w[1])] = tuple(float(x) for x in w[2:])
+                except ValueError:
+                    pass
+
     worse = {m: [] for m in methods}
     beats_jet = {m: [] for m in methods}
     header("case", "method", "all", "feature", "non-feature")
     for case in cases:
-        base = position(case.noisy, case)
+        base = old.get((case.name, "noisy")) or position(case.noisy, case)
         row(case.name, "noisy", *("%.4f" % v for v in base))
         res = {}
         for m in methods:
             try:
-                res[m] = position(smooth(case, m), case)
+                res[m] = old.get((case.name, m)) or position(smooth(case, m), case)
             except SystemExit:
                 sys.stderr.write("%s: %s failed, left out\n" % (case.name, m))
                 continue

@@ -274,7 +274,7 @@ static void test_select_bad_input(void **state) {
   bsurf_kselect_options ko = bsurf_kselect_options_default();
   ko.ks = ks;
   ko.nk = 3;
-  bsurf_kselect_fields kf = {f->b, NULL, NULL, NULL};
+  bsurf_kselect_fields kf = {f->b, NULL, NULL, NULL, NULL};
   assert_invalid(bsurf_select_k(f->c.xyz, &f->nb, NULL, &kf, NULL), "bsurf_select_k",
                  "must not be NULL");
   bsurf_kselect_options bad = ko;
@@ -481,9 +481,27 @@ static void test_render_bad_input(void **state) {
   free(rgb);
 }
 
+/* bsurf_bounding_box: exact corners and diagonal; none: +-inf and 0 */
+static void test_bounding_box(void **state) {
+  (void)state;
+  const double xyz[9] = {1, -2, 3, -4, 5, 0.5, 2, 0, -1};
+  double lo[3], hi[3];
+  const double d = bsurf_bounding_box(xyz, 3, lo, hi);
+  const double want_lo[3] = {-4, -2, -1}, want_hi[3] = {2, 5, 3};
+  for (int t = 0; t < 3; t++) {
+    assert_true(lo[t] == want_lo[t]);
+    assert_true(hi[t] == want_hi[t]);
+  }
+  assert_true(d == sqrt(36.0 + 49.0 + 16.0));
+  assert_true(bsurf_bounding_box(xyz, 3, NULL, NULL) == d);
+  assert_true(bsurf_bounding_box(NULL, 0, lo, hi) == 0.0);
+  assert_true(isinf(lo[0]) && lo[0] > 0 && isinf(hi[2]) && hi[2] < 0);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_version),
+      cmocka_unit_test(test_bounding_box),
       cmocka_unit_test(test_frees_are_idempotent),
       cmocka_unit_test(test_field_values_stay_put),
       cmocka_unit_test(test_read_into_used_cloud),

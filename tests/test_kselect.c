@@ -71,7 +71,7 @@ static void select_run(const noisy_shape *s, int threads, sel_out *r) {
   o.ks = KS;
   o.nk = NKS;
   o.threads = threads;
-  bsurf_kselect_fields f = {r->normals, r->k, r->rmse, r->noise};
+  bsurf_kselect_fields f = {r->normals, r->k, r->rmse, r->noise, NULL};
   assert_int_equal(bsurf_select_k(s->c.xyz, &s->nb, &o, &f, NULL), BSURF_OK);
 }
 
@@ -133,7 +133,10 @@ static void test_nested_moments(void **state) {
  * larger K). */
 static void test_noise_estimate(void **state) {
   (void)state;
-  const double levels[] = {0.3, 2.0}, tol[] = {0.1, 0.2};
+  /* at 2 h the K_max-th neighbour lies within 5 sigma, the residuals are
+   * truncated and the lower-quartile pooling reads them about 20% low
+   * (docs/normals.md: the noise is resolved while R >= 5 sigma) */
+  const double levels[] = {0.3, 2.0}, tol[] = {0.1, 0.25};
   for (int l = 0; l < 2; l++) {
     noisy_shape s;
     shape_make(&s, BSURF_SHAPE_PLANE, 20000, BSURF_NOISE_GAUSSIAN, levels[l]);
@@ -277,7 +280,7 @@ static void test_bad_options(void **state) {
   shape_make(&s, BSURF_SHAPE_SPHERE, 500, BSURF_NOISE_GAUSSIAN, 0.1);
   double nrm[3 * 500];
   int k[500];
-  bsurf_kselect_fields f = {nrm, k, NULL, NULL};
+  bsurf_kselect_fields f = {nrm, k, NULL, NULL, NULL};
   bsurf_kselect_options o = bsurf_kselect_options_default();
   o.ks = KS;
   o.nk = NKS;
@@ -303,12 +306,68 @@ static void test_bad_options(void **state) {
   shape_free(&s);
 }
 
+/* The two_sheet flag of the chosen neighbourhood, as a share of the points. */
+static double sheet_share(const double *xyz, const bsurf_neighbors *nb) {
+  const size_t n = nb->point_count;
+  int *k = malloc(n * sizeof(int)), *two = malloc(n * sizeof(int));
+  bsurf_kselect_options o = bsurf_kselect_options_default();
+  o.ks = KS;
+  o.nk = NKS;
+  o.threads = 2;
+  bsurf_kselect_fields f = {NULL, k, NULL, NULL, two};
+  assert_int_equal(bsurf_select_k(xyz, nb, &o, &f, NULL), BSURF_OK);
+  size_t m = 0;
+  for (size_t i = 0; i < n; i++) {
+    assert_true(two[i] == 0 || two[i] == 1);
+    m += (size_t)two[i];
+  }
+  free(k);
+  free(two);
+  return (double)m / (double)n;
+}
+
+/* A thin plate: two parallel sheets of the unit square 0.6 point spacings
+ * apart (the development set's thin parts), Gaussian noise of 0.1 spacing
+ * along z: most points are flagged (a neighbourhood split unevenly
+ * between the sheets, or a small K, can stay below the test's power). One sheet with uniform noise
+ * (the test's least favourable null) and a sphere with Gaussian noise: about the test's level,
+ * 0.001, of the points. Fixed seeds. */
+static void test_two_sheets(void **state) {
+  (void)state;
+  const size_t n = 20000;
+  const double spacing = sqrt(2.0 / (double)n), gap = 0.6 * spacing;
+  double *xyz = malloc(3 * n * sizeof(double));
+  bsurf_rng rng;
+  bsurf_rng_init(&rng, 11, 0, 0);
+  for (size_t i = 0; i < n; i++) {
+    xyz[3 * i] = bsurf_rng_uniform(&rng);
+    xyz[3 * i + 1] = bsurf_rng_uniform(&rng);
+    xyz[3 * i + 2] = (i % 2 ? 0.5 : -0.5) * gap + 0.1 * spacing * bsurf_rng_normal(&rng);
+  }
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 80, 2, NULL, NULL), BSURF_OK);
+  const double plate = sheet_share(xyz, &nb);
+  bsurf_neighbors_free(&nb);
+  free(xyz);
+  noisy_shape one, sphere;
+  shape_make(&one, BSURF_SHAPE_PLANE, n, BSURF_NOISE_UNIFORM, 0.5);
+  shape_make(&sphere, BSURF_SHAPE_SPHERE, n, BSURF_NOISE_GAUSSIAN, 0.3);
+  const double plane = sheet_share(one.c.xyz, &one.nb), sph = sheet_share(sphere.c.xyz, &sphere.nb);
+  print_message("two_sheet: plate %.4f, plane (uniform noise) %.4f, sphere %.4f\n", plate, plane,
+                sph);
+  assert_true(plate > 0.5); /* most (0.70 at this seed) */
+  assert_true(plane < 0.005);
+  assert_true(sph < 0.005);
+  shape_free(&one);
+  shape_free(&sphere);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_nested_moments),     cmocka_unit_test(test_noise_estimate),
       cmocka_unit_test(test_k_grows_with_noise), cmocka_unit_test(test_cube_edges),
       cmocka_unit_test(test_sphere_smooth),      cmocka_unit_test(test_determinism),
-      cmocka_unit_test(test_bad_options),
+      cmocka_unit_test(test_bad_options),        cmocka_unit_test(test_two_sheets),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

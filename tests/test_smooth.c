@@ -254,6 +254,33 @@ static void test_two_sheets(void **state) {
   bsurf_cloud_free(&c);
 }
 
+/* Two sheets gap_h spacings apart with uniform noise noise_h (sheets_make,
+ * seed): every method at its defaults ends no farther from the nearest sheet
+ * than the noisy input. */
+static void thin_sheets_check(double gap_h, double noise_h, unsigned seed) {
+  bsurf_cloud c;
+  bsurf_neighbors nb;
+  double h, gap;
+  sheets_make(&c, &nb, gap_h, noise_h, seed, &h, &gap);
+  const size_t n = c.point_count;
+  double *out = malloc(n * 3 * sizeof(double));
+  const double e0 = sheets_err(&c, c.xyz, gap, 1);
+  for (int m = 0; m < 3; m++) {
+    bsurf_smooth_options o = bsurf_smooth_options_default();
+    o.method = methods[m];
+    o.error.bootstrap = 20;
+    o.error.threads = 2;
+    assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
+    const double e = sheets_err(&c, out, gap, 1);
+    print_message("thin sheets, noise %.2f, method %d: %.3f h -> %.3f h\n", noise_h, m, e0 / h,
+                  e / h);
+    assert_true(e <= e0);
+  }
+  free(out);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
 /* Two sheets closer than their own spacing (the development set's thin
  * plate: faces 0.6 of a face's spacing apart, so about half of every
  * neighbourhood is the other face), uniform noise of 0.12 of that spacing:
@@ -265,22 +292,58 @@ static void test_two_sheets(void **state) {
  * docs/smoothing.md). */
 static void test_thin_sheets(void **state) {
   (void)state;
+  thin_sheets_check(0.6, 0.12, 17);
+}
+
+/* The thin plate again, with noise that overlaps the faces' residuals more
+ * (0.17 of the spacing): the gap between the faces' residuals about a plane
+ * through both is then too narrow for guard_gap in many neighbourhoods, and
+ * the second test (guard_bimodal: the best two-group split leaves less than
+ * the quarter of the variance that any unimodal noise leaves) splits them.
+ * At the defaults no method ends farther from the nearest sheet than the
+ * noisy input (issue 22). Measured: 0.086 h noisy; naive 0.084 h, bilateral
+ * (the default) 0.071 h, multipass 0.070 h; without the two-group test naive
+ * 0.097 h and bilateral 0.096 h (the test failed). At noise 0.2 the default
+ * still ends farther (0.101 h -> 0.108 h; 0.132 h without the two-group
+ * test), as on the development set's plate at uniform 0.5 (docs/smoothing.md). */
+static void test_thin_sheets_overlap(void **state) {
+  (void)state;
+  thin_sheets_check(0.6, 0.17, 19);
+}
+
+/* The noisy cube of issue 22 (gaussian noise 0.5 h along the normals,
+ * 20,000 evenly spaced points, K = 50, B = 50): the mean distance to the
+ * exact cube after the default smoothing (bilateral with the guard) and
+ * after multipass at its defaults. The issue asks for 0.12 h; the
+ * defaults measure 0.14-0.16 h here (docs/smoothing.md), so the test bounds
+ * what they reach now -- a regression bound, 0.155 h and 0.175 h -- and
+ * that both keep at most 0.45 of the noisy input's distance. */
+static void test_cube_distance(void **state) {
+  (void)state;
   bsurf_cloud c;
-  bsurf_neighbors nb;
-  double h, gap;
-  sheets_make(&c, &nb, 0.6, 0.12, 17, &h, &gap);
+  const double h = noisy_sample(&c, BSURF_SHAPE_CUBE, 20000, BSURF_SAMPLING_REGULAR, 1, 2, 0.5, 1);
   const size_t n = c.point_count;
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 50, 2, NULL, NULL), BSURF_OK);
   double *out = malloc(n * 3 * sizeof(double));
-  const double e0 = sheets_err(&c, c.xyz, gap, 1);
-  for (int m = 0; m < 3; m++) {
+  double e0 = 0;
+  for (size_t i = 0; i < n; i++)
+    e0 += bsurf_shape_distance(BSURF_SHAPE_CUBE, &c.xyz[3 * i]);
+  e0 /= (double)n * h;
+  const bsurf_smooth_method ms[2] = {BSURF_SMOOTH_BILATERAL, BSURF_SMOOTH_MULTIPASS};
+  const double bound[2] = {0.155, 0.175};
+  for (int m = 0; m < 2; m++) {
     bsurf_smooth_options o = bsurf_smooth_options_default();
-    o.method = methods[m];
-    o.error.bootstrap = 20;
+    o.method = ms[m];
     o.error.threads = 2;
     assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
-    const double e = sheets_err(&c, out, gap, 1);
-    print_message("thin sheets, method %d: %.3f h -> %.3f h\n", m, e0 / h, e / h);
-    assert_true(e <= e0);
+    double e = 0;
+    for (size_t i = 0; i < n; i++)
+      e += bsurf_shape_distance(BSURF_SHAPE_CUBE, &out[3 * i]);
+    e /= (double)n * h;
+    print_message("cube, gaussian 0.5 h, method %d: %.4f h -> %.4f h\n", (int)ms[m], e0, e);
+    assert_true(e <= bound[m]);
+    assert_true(e <= 0.45 * e0);
   }
   free(out);
   bsurf_neighbors_free(&nb);
@@ -566,6 +629,8 @@ int main(void) {
       cmocka_unit_test(test_noisy_plane_gets_flatter),
       cmocka_unit_test(test_two_sheets),
       cmocka_unit_test(test_thin_sheets),
+      cmocka_unit_test(test_thin_sheets_overlap),
+      cmocka_unit_test(test_cube_distance),
       cmocka_unit_test(test_naive_threshold),
       cmocka_unit_test(test_multipass_neighbourhoods),
       cmocka_unit_test(test_thread_determinism),

@@ -281,12 +281,12 @@ _builtin_range = range
 
 def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid", bootstrap=50,
             seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="test-error",
-            noise_k=20, select_degree=None, curve=False, truth=None, smooth_iterations=0,
+            noise_k=12, select_degree=None, curve=False, truth=None, smooth_iterations=0,
             alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", output=None,
             tile_points=None, progress=None):
     """normals(points, *, neighbors=30, fit='pca', degree=2,
     pca_center='centroid', bootstrap=50, seed=1, threads=0, test_error=False,
-    k_ref=0, select_k=None, select_rule='test-error', noise_k=20,
+    k_ref=0, select_k=None, select_rule='test-error', noise_k=12,
     select_degree=None, curve=False, truth=None, smooth_iterations=0,
     alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', output=None,
     tile_points=None, progress=None)
@@ -314,8 +314,9 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
       select_k           per point, the K chosen by select_rule: 'A:B:STEP'
                          or a list of K (5.5, Algorithm 3)
       select_rule        test-error (Eq. 5.10) or mse (estimated variance +
-                         bias^2 of the PCA normal)
-      noise_k            with select_rule='mse': the noise fits' K (20)
+                         bias^2 of the PCA normal; also writes two_sheet,
+                         1 where the neighbourhood mixes two sheets)
+      noise_k            with select_rule='mse': the noise fits' K (12)
       select_degree      with fit='poly': also choose the degree, e.g. [1, 2, 3]
       curve              with select_k: return each candidate's mean errors
                          (figs. 5.6-5.11) in summary['curve']

@@ -6,7 +6,26 @@
 #define BSURF_ALGO_H
 
 #include "bootstrap/bootstrap.h"
+#include "common/common.h"
 #include "local/local.h"
+
+/* A parallel loop over the points of a neighbourhood graph, each thread with
+ * its own scratch (point_loop.c): bsurf_point_loop_run makes one scratch of
+ * scratch_size bytes per thread by alloc(scratch, arg) (zero-filled before;
+ * release is called on every one, also after a failed alloc), calls point(ctx, that thread's
+ * scratch, i) for every point in k-d tree order (bsurf_visit_order: cache locality, no result
+ * depends on it), then, if all went well, tally(ctx, scratch) for every thread (NULL: none), and
+ * release(scratch) for every thread. */
+typedef struct bsurf_point_loop {
+  size_t scratch_size;
+  bsurf_status (*alloc)(void *scratch, const void *arg);
+  void (*release)(void *scratch);
+  void (*point)(void *ctx, void *scratch, size_t i);
+  void (*tally)(void *ctx, const void *scratch);
+} bsurf_point_loop;
+bsurf_status bsurf_point_loop_run(const bsurf_point_loop *loop, const void *arg, void *ctx,
+                                  const bsurf_neighbors *nb, const double *xyz, int threads,
+                                  bsurf_progress_fn progress, void *progress_user);
 
 /* One thread's scratch for bsurf_error_point. */
 typedef struct bsurf_error_scratch {
@@ -21,6 +40,7 @@ typedef struct bsurf_error_scratch {
   double *coefs;        /* B x terms */
   unsigned char *valid; /* B */
   double *est_scratch;  /* 6k + 1 */
+  bsurf_blocks mem;     /* the arrays above */
   size_t skipped, reduced, center_unestimated;
 } bsurf_error_scratch;
 

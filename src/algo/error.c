@@ -28,29 +28,18 @@
 #include <string.h>
 
 bsurf_error_options bsurf_error_options_default(void) {
-  bsurf_error_options o;
-  memset(&o, 0, sizeof o);
-  o.k = 50;
-  o.degree = 3;
-  o.bootstrap = 50;
-  o.seed = 1;
-  o.gamma = BSURF_GAMMA_FIT;
-  o.pca_center = BSURF_PCA_CENTROID;
-  o.threads = 0;
+  bsurf_error_options o = {.k = 50,
+                           .degree = 3,
+                           .bootstrap = 50,
+                           .seed = 1,
+                           .gamma = BSURF_GAMMA_FIT,
+                           .pca_center = BSURF_PCA_CENTROID};
   return o;
 }
 
 void bsurf_error_scratch_free(bsurf_error_scratch *s) {
   bsurf_localfit_free(&s->lf);
-  free(s->pred_full);
-  free(s->pred_boot);
-  free(s->counts);
-  free(s->missing);
-  free(s->draws);
-  free(s->rows);
-  free(s->coefs);
-  free(s->valid);
-  free(s->est_scratch);
+  bsurf_blocks_free(&s->mem);
   memset(s, 0, sizeof *s);
 }
 
@@ -61,21 +50,19 @@ bsurf_status bsurf_error_scratch_alloc(bsurf_error_scratch *s, int k, int B, int
   size_t nb = B > 0 ? (size_t)B : 1;
   /* B replicates and the full fit, padded to whole groups of four */
   size_t nr = (size_t)bsurf_boot_rows(B);
-  s->pred_full = bsurf_alloc_array((size_t)k, sizeof(double));
-  s->pred_boot = bsurf_alloc_array(nb * k, sizeof(double));
-  s->counts = bsurf_alloc_array(nb * k, sizeof(uint16_t));
-  s->missing = bsurf_alloc_array(nb * k, sizeof(double));
-  s->draws = bsurf_alloc_array(nb * k, sizeof(uint16_t));
-  s->rows = bsurf_alloc_aligned(nr * BSURF_NCOLS_MAX, sizeof(double));
-  s->coefs = bsurf_alloc_aligned(nb * BSURF_TERMS_MAX, sizeof(double));
-  s->valid = bsurf_alloc_array(nb, 1);
-  s->est_scratch = bsurf_alloc_array(6 * (size_t)k + 1, sizeof(double));
-  if (!s->pred_full || !s->pred_boot || !s->counts || !s->missing || !s->draws || !s->rows ||
-      !s->coefs || !s->valid || !s->est_scratch) {
-    bsurf_error_scratch_free(s);
-    return BSURF_ERR_NOMEM;
-  }
-  return BSURF_OK;
+  bsurf_blocks *m = &s->mem;
+  s->pred_full = bsurf_blocks_array(m, (size_t)k, sizeof(double));
+  s->pred_boot = bsurf_blocks_array(m, nb * k, sizeof(double));
+  s->counts = bsurf_blocks_array(m, nb * k, sizeof(uint16_t));
+  s->missing = bsurf_blocks_array(m, nb * k, sizeof(double));
+  s->draws = bsurf_blocks_array(m, nb * k, sizeof(uint16_t));
+  s->rows = bsurf_blocks_aligned(m, nr * BSURF_NCOLS_MAX, sizeof(double));
+  s->coefs = bsurf_blocks_aligned(m, nb * BSURF_TERMS_MAX, sizeof(double));
+  s->valid = bsurf_blocks_array(m, nb, 1);
+  s->est_scratch = bsurf_blocks_array(m, 6 * (size_t)k + 1, sizeof(double));
+  st = bsurf_blocks_status(m);
+  if (st != BSURF_OK) bsurf_error_scratch_free(s);
+  return st;
 }
 
 static void put(double *field, size_t i, double v) {
@@ -220,18 +207,32 @@ typedef struct error_ctx {
   const bsurf_neighbors *nb;
   const double *test_xyz;
   const bsurf_error_options *o;
-  bsurf_error_scratch *scr;
   bsurf_error_fields *out;
+  bsurf_error_report *report;
 } error_ctx;
 
-static void error_point_at(error_ctx *c, int thread, size_t i) {
-  bsurf_error_point(c->xyz, &c->nb->idx[i * (size_t)c->nb->k], c->test_xyz, c->o, i,
-                    &c->scr[thread], c->out, NULL);
+static void error_point_task(void *vctx, void *scratch, size_t i) {
+  error_ctx *c = vctx;
+  bsurf_error_point(c->xyz, &c->nb->idx[i * (size_t)c->nb->k], c->test_xyz, c->o, i, scratch,
+                    c->out, NULL);
 }
 
-static void error_point_task(void *vctx, int thread, size_t i) {
-  error_ctx *c = vctx;
-  error_point_at(c, thread, i);
+static bsurf_status error_scratch_alloc(void *scratch, const void *opts) {
+  const bsurf_error_options *o = opts;
+  return bsurf_error_scratch_alloc(scratch, o->k, o->bootstrap, o->degree);
+}
+
+static void error_scratch_free(void *scratch) {
+  bsurf_error_scratch_free(scratch);
+}
+
+static void error_tally(void *vctx, const void *scratch) {
+  const error_ctx *c = vctx;
+  const bsurf_error_scratch *s = scratch;
+  if (!c->report) return;
+  c->report->replicates_skipped += s->skipped;
+  c->report->degree_reduced += s->reduced;
+  c->report->center_unestimated += s->center_unestimated;
 }
 
 bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
@@ -244,35 +245,10 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
   bsurf_status st = bsurf_error_check(&o, nb);
   if (st != BSURF_OK) return st;
 
-  const size_t n = nb->point_count;
-  const int T = bsurf_threads_resolve(o.threads);
-  bsurf_error_scratch *scr = calloc((size_t)T, sizeof *scr);
-  if (!scr) return BSURF_ERR_NOMEM;
-  for (int t = 0; t < T && st == BSURF_OK; t++)
-    st = bsurf_error_scratch_alloc(&scr[t], o.k, o.bootstrap, o.degree);
-
-  /* points are independent: visiting them in k-d tree order keeps the
-   * neighbourhoods' coordinates in cache and changes no result */
-  uint32_t *owned = NULL;
-  const uint32_t *order = NULL;
-  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) {
-    error_ctx ctx = {xyz, nb, test_xyz, &o, scr, out};
-    st = bsurf_parallel_points_ordered(n, order, T, error_point_task, &ctx, o.progress,
-                                       o.progress_user);
-  }
-  free(owned);
-
-  if (report && st == BSURF_OK) {
-    report->replicates_total = n * (size_t)o.bootstrap;
-    for (int t = 0; t < T; t++) {
-      report->replicates_skipped += scr[t].skipped;
-      report->degree_reduced += scr[t].reduced;
-      report->center_unestimated += scr[t].center_unestimated;
-    }
-  }
-  for (int t = 0; t < T; t++)
-    bsurf_error_scratch_free(&scr[t]);
-  free(scr);
+  static const bsurf_point_loop loop = {sizeof(bsurf_error_scratch), error_scratch_alloc,
+                                        error_scratch_free, error_point_task, error_tally};
+  error_ctx ctx = {xyz, nb, test_xyz, &o, out, report};
+  st = bsurf_point_loop_run(&loop, &o, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o.bootstrap;
   return st;
 }

@@ -34,14 +34,12 @@
 #define PCA_COLS BSURF_NESTED_COLS /* q q^T (6 entries), q (3), 1, with q = p - d_i */
 
 bsurf_normal_options bsurf_normal_options_default(void) {
-  bsurf_normal_options o;
-  memset(&o, 0, sizeof o);
-  o.fit = BSURF_NORMAL_PCA;
-  o.pca_center = BSURF_PCA_CENTROID;
-  o.k = 30;
-  o.degree = 2;
-  o.bootstrap = 50;
-  o.seed = 1;
+  bsurf_normal_options o = {.fit = BSURF_NORMAL_PCA,
+                            .pca_center = BSURF_PCA_CENTROID,
+                            .k = 30,
+                            .degree = 2,
+                            .bootstrap = 50,
+                            .seed = 1};
   return o;
 }
 
@@ -52,6 +50,45 @@ static double angle_between(const double a[3], const double b[3], int unoriented
   double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
   if (unoriented) d = fabs(d);
   return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d);
+}
+
+/* The B bootstrap normals bn (B x 3; those with valid[b]) oriented to n_P
+ * (5.2.1), their mean direction (Eq. 5.4; n_P when none is valid) in nrm
+ * and, when var is not NULL, the variance of their angles with the first
+ * valid one (Eq. 5.5; ang: B doubles of scratch). Returns how many are valid. */
+static int boot_normals_summary(double *bn, const unsigned char *valid, int B, const double nP[3],
+                                double nrm[3], double *var, double *ang) {
+  double sum[3] = {0, 0, 0};
+  int nvalid = 0, first = -1;
+  for (int b = 0; b < B; b++) {
+    if (!valid[b]) continue;
+    double *n = &bn[3 * b];
+    if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
+      for (int t = 0; t < 3; t++)
+        n[t] = -n[t];
+    for (int t = 0; t < 3; t++)
+      sum[t] += n[t];
+    if (first < 0) first = b;
+    nvalid++;
+  }
+  const double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
+  for (int t = 0; t < 3; t++)
+    nrm[t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
+  if (!var) return nvalid;
+  *var = 0;
+  if (nvalid >= 2) {
+    double mean = 0;
+    for (int b = 0; b < B; b++)
+      if (valid[b]) mean += ang[b] = angle_between(&bn[3 * first], &bn[3 * b], 0);
+    mean /= nvalid;
+    for (int b = 0; b < B; b++)
+      if (valid[b]) {
+        const double d = ang[b] - mean;
+        *var += d * d;
+      }
+    *var /= nvalid - 1;
+  }
+  return nvalid;
 }
 
 typedef struct normal_scratch {
@@ -65,49 +102,46 @@ typedef struct normal_scratch {
   unsigned char *valid; /* B */
   double *bn;           /* B x 3 bootstrap normals */
   double *lanes;        /* (COLS + 6 + 3) x B: PCA sums, covariances, normals in lanes */
+  double *ang;          /* B: angles (Eq. 5.5) */
   int *ok, *st;         /* B, B */
+  bsurf_blocks mem;     /* the arrays above */
   size_t skipped, reduced, degenerate;
 } normal_scratch;
 
-static void scratch_free(normal_scratch *s) {
+static void scratch_free(void *vs) {
+  normal_scratch *s = vs;
   bsurf_localfit_free(&s->lf);
-  free(s->terms);
-  free(s->weights);
-  free(s->rows);
-  free(s->coefs);
-  free(s->counts);
-  free(s->draws);
-  free(s->valid);
-  free(s->bn);
-  free(s->lanes);
-  free(s->ok);
-  free(s->st);
+  bsurf_blocks_free(&s->mem);
   memset(s, 0, sizeof *s);
 }
 
-static bsurf_status scratch_alloc(normal_scratch *s, int k, int B, int degree) {
+typedef struct scratch_sizes {
+  int k, B, degree, nk; /* K (the select scratch: the largest), B, M, candidates */
+} scratch_sizes;
+
+static bsurf_status scratch_alloc(void *vs, const void *vsz) {
+  normal_scratch *s = vs;
+  const scratch_sizes *z = vsz;
+  const int k = z->k, B = z->B;
   memset(s, 0, sizeof *s);
-  bsurf_status st = bsurf_localfit_alloc(&s->lf, k, degree);
+  bsurf_status st = bsurf_localfit_alloc(&s->lf, k, z->degree);
   if (st != BSURF_OK) return st;
   size_t nb = (size_t)bsurf_boot_rows(B);
-  s->terms = bsurf_alloc_array((size_t)k, PCA_COLS * sizeof(double));
-  s->weights = bsurf_alloc_array(nb * k, sizeof(double));
-  s->rows = bsurf_alloc_aligned(nb, BSURF_NCOLS_MAX * sizeof(double));
-  s->coefs = bsurf_alloc_aligned(nb, BSURF_TERMS_MAX * sizeof(double));
+  bsurf_blocks *m = &s->mem;
+  s->terms = bsurf_blocks_array(m, (size_t)k, PCA_COLS * sizeof(double));
+  s->weights = bsurf_blocks_array(m, nb * k, sizeof(double));
+  s->rows = bsurf_blocks_aligned(m, nb, BSURF_NCOLS_MAX * sizeof(double));
+  s->coefs = bsurf_blocks_aligned(m, nb, BSURF_TERMS_MAX * sizeof(double));
   /* four replicates' multiplicities (PCA), or all B (a polynomial's draws) */
-  s->counts = bsurf_alloc_array((size_t)(B > 4 ? B : 4) * k, sizeof(uint16_t));
-  s->draws = bsurf_alloc_array(nb * k, sizeof(uint16_t));
-  s->valid = bsurf_alloc_array(nb, 1);
-  s->bn = bsurf_alloc_array(nb, 3 * sizeof(double));
-  s->lanes = bsurf_alloc_aligned(nb, (PCA_COLS + 9) * sizeof(double));
-  s->ok = bsurf_alloc_array(nb, sizeof(int));
-  s->st = bsurf_alloc_array(nb, sizeof(int));
-  if (!s->terms || !s->weights || !s->rows || !s->coefs || !s->counts || !s->draws || !s->valid ||
-      !s->bn || !s->lanes || !s->ok || !s->st) {
-    scratch_free(s);
-    return BSURF_ERR_NOMEM;
-  }
-  return BSURF_OK;
+  s->counts = bsurf_blocks_array(m, (size_t)(B > 4 ? B : 4) * k, sizeof(uint16_t));
+  s->draws = bsurf_blocks_array(m, nb * k, sizeof(uint16_t));
+  s->valid = bsurf_blocks_array(m, nb, 1);
+  s->bn = bsurf_blocks_array(m, nb, 3 * sizeof(double));
+  s->lanes = bsurf_blocks_aligned(m, nb, (PCA_COLS + 9) * sizeof(double));
+  s->ok = bsurf_blocks_array(m, nb, sizeof(int));
+  s->st = bsurf_blocks_array(m, nb, sizeof(int));
+  s->ang = bsurf_blocks_array(m, nb, sizeof(double));
+  return bsurf_blocks_status(m); /* the loop frees what was made */
 }
 
 /* PCA normal from the weighted sums of one row (q q^T, q, weight). Returns 0,
@@ -118,27 +152,27 @@ static int pca_normal_from_row(const double *row, bsurf_pca_center center, doubl
     n[0] = n[1] = 0, n[2] = 1;
     return -1;
   }
-  double C[3][3] = {{c[0], c[1], c[2]}, {c[1], c[3], c[4]}, {c[2], c[4], c[5]}};
-  double ev[3], V[3][3];
-  bsurf_eigen_sym3(C, ev, V);
-  for (int t = 0; t < 3; t++)
-    n[t] = V[0][t];
-  return (ev[2] > 0 && ev[1] > 1e-12 * ev[2]) ? 0 : -1;
+  return bsurf_eigen_sym3_normal(c, n);
 }
 
+/* the context of both loops, bsurf_estimate_normals's and
+ * bsurf_select_normals_k's (ks, nk and sel) */
 typedef struct normals_ctx {
   const double *xyz;
   const bsurf_neighbors *nb;
   const double *ref;
   const bsurf_normal_options *o;
-  normal_scratch *scr;
   bsurf_normal_fields *out;
+  bsurf_normal_report *report;
+  const int *ks;
+  int nk;
+  bsurf_normal_select_fields *sel;
 } normals_ctx;
 
-static void normals_point(void *vctx, int thread, size_t i) {
+static void normals_point(void *vctx, void *scratch, size_t i) {
   normals_ctx *c = vctx;
   const bsurf_normal_options *o = c->o;
-  normal_scratch *s = &c->scr[thread];
+  normal_scratch *s = scratch;
   const int k = o->k, B = o->bootstrap;
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const double *xyz = c->xyz;
@@ -209,46 +243,14 @@ static void normals_point(void *vctx, int thread, size_t i) {
   }
 
   /* orient the bootstrap normals to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
-  double sum[3] = {0, 0, 0};
-  int nvalid = 0, first = -1;
-  for (int b = 0; b < B; b++) {
-    if (!s->valid[b]) {
-      s->skipped++;
-      continue;
-    }
-    double *n = &s->bn[3 * b];
-    if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
-      for (int t = 0; t < 3; t++)
-        n[t] = -n[t];
-    for (int t = 0; t < 3; t++)
-      sum[t] += n[t];
-    if (first < 0) first = b;
-    nvalid++;
-  }
-  double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
-  double nrm[3];
-  for (int t = 0; t < 3; t++)
-    nrm[t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
+  double nrm[3], var;
+  const int nvalid =
+      boot_normals_summary(s->bn, s->valid, B, nP, nrm, c->out->normal_var ? &var : NULL, s->ang);
+  s->skipped += (size_t)(B - nvalid);
   if (c->out->normals)
     for (int t = 0; t < 3; t++)
       c->out->normals[3 * i + t] = nrm[t];
-
-  if (c->out->normal_var) {
-    double var = 0;
-    if (nvalid >= 2) {
-      double mean = 0;
-      for (int b = 0; b < B; b++)
-        if (s->valid[b]) mean += angle_between(&s->bn[3 * first], &s->bn[3 * b], 0);
-      mean /= nvalid;
-      for (int b = 0; b < B; b++)
-        if (s->valid[b]) {
-          double a = angle_between(&s->bn[3 * first], &s->bn[3 * b], 0) - mean;
-          var += a * a;
-        }
-      var /= nvalid - 1;
-    }
-    c->out->normal_var[i] = var;
-  }
+  if (c->out->normal_var) c->out->normal_var[i] = var;
 
   if (c->out->normal_err && c->ref) {
     double total = 0;
@@ -273,6 +275,15 @@ static void normals_point(void *vctx, int thread, size_t i) {
     }
     c->out->normal_err[i] = terms ? total / terms : 0.0;
   }
+}
+
+static void normals_tally(void *vctx, const void *scratch) {
+  const normals_ctx *c = vctx;
+  const normal_scratch *s = scratch;
+  if (!c->report) return;
+  c->report->replicates_skipped += s->skipped;
+  c->report->degree_reduced += s->reduced;
+  c->report->degenerate += s->degenerate;
 }
 
 bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb,
@@ -303,34 +314,13 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
                              "k = %d is too small for degree %d: a fit needs %d points", o.k,
                              o.degree, bsurf_poly_terms(o.degree));
 
-  const size_t n = nb->point_count;
-  const int T = bsurf_threads_resolve(o.threads);
-  normal_scratch *scr = calloc((size_t)T, sizeof *scr);
-  if (!scr) return BSURF_ERR_NOMEM;
-  bsurf_status st = BSURF_OK;
-  for (int t = 0; t < T && st == BSURF_OK; t++)
-    st = scratch_alloc(&scr[t], o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1);
-  /* points visited in k-d tree order (cache locality; no result changes) */
-  uint32_t *owned = NULL;
-  const uint32_t *order = NULL;
-  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) {
-    normals_ctx ctx = {xyz, nb, ref_normals, &o, scr, out};
-    st = bsurf_parallel_points_ordered(n, order, T, normals_point, &ctx, o.progress,
-                                       o.progress_user);
-  }
-  free(owned);
-  if (report && st == BSURF_OK) {
-    report->replicates_total = n * (size_t)o.bootstrap;
-    for (int t = 0; t < T; t++) {
-      report->replicates_skipped += scr[t].skipped;
-      report->degree_reduced += scr[t].reduced;
-      report->degenerate += scr[t].degenerate;
-    }
-  }
-  for (int t = 0; t < T; t++)
-    scratch_free(&scr[t]);
-  free(scr);
+  static const bsurf_point_loop loop = {sizeof(normal_scratch), scratch_alloc, scratch_free,
+                                        normals_point, normals_tally};
+  const scratch_sizes sizes = {o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1, 1};
+  normals_ctx ctx = {xyz, nb, ref_normals, &o, out, report, NULL, 0, NULL};
+  bsurf_status st =
+      bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o.bootstrap;
   return st;
 }
 
@@ -363,80 +353,49 @@ typedef struct select_scratch {
   double *err, *var, *nrm; /* nk, nk, nk x 3 */
   double *cov, *nl, *ang2; /* 6 x B, 3 x B, B: one candidate's replicates in lanes */
   int *wok, *st;           /* B, B */
+  bsurf_blocks mem;        /* the arrays above */
   size_t skipped, degenerate;
 } select_scratch;
 
-static void select_scratch_free(select_scratch *s) {
-  free(s->terms);
-  free(s->u);
-  free(s->x);
-  free(s->Wt);
-  free(s->sums);
-  free(s->fsums);
-  free(s->nz);
-  free(s->ref);
-  free(s->bn);
-  free(s->valid);
-  free(s->nP);
-  free(s->err);
-  free(s->var);
-  free(s->nrm);
-  free(s->cov);
-  free(s->nl);
-  free(s->ang2);
-  free(s->wok);
-  free(s->st);
+static void select_scratch_free(void *vs) {
+  select_scratch *s = vs;
+  bsurf_blocks_free(&s->mem);
   memset(s, 0, sizeof *s);
 }
 
-static bsurf_status select_scratch_alloc(select_scratch *s, int kmax, int nk, int B) {
+static bsurf_status select_scratch_alloc(void *vs, const void *vsz) {
+  select_scratch *s = vs;
+  const scratch_sizes *z = vsz;
   memset(s, 0, sizeof *s);
-  const size_t b1 = (size_t)(B > 0 ? B : 1), kk = (size_t)kmax, cands = (size_t)nk;
-  s->terms = bsurf_alloc_array(kk, BSURF_NESTED_COLS * sizeof(double));
-  s->u = bsurf_alloc_array(kk, sizeof(uint32_t));
-  s->x = bsurf_alloc_array(kk, 1);
-  s->Wt = bsurf_alloc_aligned(kk * b1, sizeof(double));
-  s->sums = bsurf_alloc_aligned(cands * b1, BSURF_NESTED_COLS * sizeof(double));
-  s->fsums = bsurf_alloc_array(cands, BSURF_NESTED_COLS * sizeof(double));
-  s->nz = bsurf_alloc_array(cands * b1, sizeof(int));
-  s->ref = bsurf_alloc_aligned(kk, 4 * sizeof(double));
-  s->bn = bsurf_alloc_array(cands * b1, 3 * sizeof(double));
-  s->valid = bsurf_alloc_array(cands * b1, 1);
-  s->nP = bsurf_alloc_array(cands, 3 * sizeof(double));
-  s->err = bsurf_alloc_array(cands, sizeof(double));
-  s->var = bsurf_alloc_array(cands, sizeof(double));
-  s->nrm = bsurf_alloc_array(cands, 3 * sizeof(double));
-  s->cov = bsurf_alloc_aligned(b1, 6 * sizeof(double));
-  s->nl = bsurf_alloc_aligned(b1, 3 * sizeof(double));
-  s->ang2 = bsurf_alloc_array(b1, sizeof(double));
-  s->wok = bsurf_alloc_array(b1, sizeof(int));
-  s->st = bsurf_alloc_array(b1, sizeof(int));
-  if (!s->terms || !s->u || !s->x || !s->Wt || !s->sums || !s->fsums || !s->nz || !s->ref ||
-      !s->bn || !s->valid || !s->nP || !s->err || !s->var || !s->nrm || !s->cov || !s->nl ||
-      !s->ang2 || !s->wok || !s->st) {
-    select_scratch_free(s);
-    return BSURF_ERR_NOMEM;
-  }
-  return BSURF_OK;
+  const size_t b1 = (size_t)(z->B > 0 ? z->B : 1), kk = (size_t)z->k, cands = (size_t)z->nk;
+  bsurf_blocks *m = &s->mem;
+  s->terms = bsurf_blocks_array(m, kk, BSURF_NESTED_COLS * sizeof(double));
+  s->u = bsurf_blocks_array(m, kk, sizeof(uint32_t));
+  s->x = bsurf_blocks_array(m, kk, 1);
+  s->Wt = bsurf_blocks_aligned(m, kk * b1, sizeof(double));
+  s->sums = bsurf_blocks_aligned(m, cands * b1, BSURF_NESTED_COLS * sizeof(double));
+  s->fsums = bsurf_blocks_array(m, cands, BSURF_NESTED_COLS * sizeof(double));
+  s->nz = bsurf_blocks_array(m, cands * b1, sizeof(int));
+  s->ref = bsurf_blocks_aligned(m, kk, 4 * sizeof(double));
+  s->bn = bsurf_blocks_array(m, cands * b1, 3 * sizeof(double));
+  s->valid = bsurf_blocks_array(m, cands * b1, 1);
+  s->nP = bsurf_blocks_array(m, cands, 3 * sizeof(double));
+  s->err = bsurf_blocks_array(m, cands, sizeof(double));
+  s->var = bsurf_blocks_array(m, cands, sizeof(double));
+  s->nrm = bsurf_blocks_array(m, cands, 3 * sizeof(double));
+  s->cov = bsurf_blocks_aligned(m, b1, 6 * sizeof(double));
+  s->nl = bsurf_blocks_aligned(m, b1, 3 * sizeof(double));
+  s->ang2 = bsurf_blocks_array(m, b1, sizeof(double));
+  s->wok = bsurf_blocks_array(m, b1, sizeof(int));
+  s->st = bsurf_blocks_array(m, b1, sizeof(int));
+  return bsurf_blocks_status(m); /* the loop frees what was made */
 }
 
-typedef struct select_ctx {
-  const double *xyz;
-  const bsurf_neighbors *nb;
-  const double *ref;
-  const bsurf_normal_options *o;
-  const int *ks;
-  int nk;
-  select_scratch *scr;
-  bsurf_normal_select_fields *out;
-} select_ctx;
-
-static void select_point(void *vctx, int thread, size_t i) {
-  select_ctx *c = vctx;
+static void select_point(void *vctx, void *scratch, size_t i) {
+  const normals_ctx *c = vctx;
+  select_scratch *s = scratch;
+  const int nk = c->nk, *ks = c->ks, kmax = ks[nk - 1], B = c->o->bootstrap;
   const bsurf_normal_options *o = c->o;
-  select_scratch *s = &c->scr[thread];
-  const int nk = c->nk, kmax = c->ks[nk - 1], B = o->bootstrap;
-  const int *ks = c->ks;
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const size_t COLS = BSURF_NESTED_COLS;
 
@@ -477,41 +436,9 @@ static void select_point(void *vctx, int thread, size_t i) {
     const double *nP = &s->nP[3 * a];
     double *bn = &s->bn[(size_t)a * B * 3];
     const unsigned char *valid = &s->valid[(size_t)a * B];
-    /* orient to n_P (5.2.1), Eq. 5.4 */
-    double sum[3] = {0, 0, 0};
-    int nvalid = 0, first = -1;
-    for (int b = 0; b < B; b++) {
-      if (!valid[b]) {
-        s->skipped++;
-        continue;
-      }
-      double *n = &bn[3 * b];
-      if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
-        for (int t = 0; t < 3; t++)
-          n[t] = -n[t];
-      for (int t = 0; t < 3; t++)
-        sum[t] += n[t];
-      if (first < 0) first = b;
-      nvalid++;
-    }
-    const double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
-    for (int t = 0; t < 3; t++)
-      s->nrm[3 * a + t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
-    /* Eq. 5.5 */
-    double var = 0;
-    if (nvalid >= 2) {
-      double mean = 0;
-      for (int b = 0; b < B; b++)
-        if (valid[b]) mean += s->ang2[b] = angle_between(&bn[3 * first], &bn[3 * b], 0);
-      mean /= nvalid;
-      for (int b = 0; b < B; b++)
-        if (valid[b]) {
-          const double d = s->ang2[b] - mean;
-          var += d * d;
-        }
-      var /= nvalid - 1;
-    }
-    s->var[a] = var;
+    /* orient to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
+    const int nvalid = boot_normals_summary(bn, valid, B, nP, &s->nrm[3 * a], &s->var[a], s->ang2);
+    s->skipped += (size_t)(B - nvalid);
     /* Eq. 5.10: (1 / (B K)) sum_b sum_j theta(g^b, n_j); with no valid
      * replicate the single fit's training error */
     double total = 0;
@@ -525,7 +452,7 @@ static void select_point(void *vctx, int thread, size_t i) {
     if (s->err[a] < s->err[best]) best = a; /* ties keep the smaller K */
   }
 
-  bsurf_normal_select_fields *out = c->out;
+  bsurf_normal_select_fields *out = c->sel;
   if (out->normals)
     for (int t = 0; t < 3; t++)
       out->normals[3 * i + t] = s->nrm[3 * best + t];
@@ -536,6 +463,14 @@ static void select_point(void *vctx, int thread, size_t i) {
   if (out->cand_var) memcpy(&out->cand_var[i * (size_t)nk], s->var, (size_t)nk * sizeof(double));
   if (out->cand_normals)
     memcpy(&out->cand_normals[i * (size_t)nk * 3], s->nrm, (size_t)nk * 3 * sizeof(double));
+}
+
+static void select_tally(void *vctx, const void *scratch) {
+  const normals_ctx *c = vctx;
+  const select_scratch *s = scratch;
+  if (!c->report) return;
+  c->report->replicates_skipped += s->skipped;
+  c->report->degenerate += s->degenerate;
 }
 
 bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb,
@@ -560,31 +495,13 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
                 ks[nk - 1], nb->k);
   if ((size_t)ks[nk - 1] > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
 
-  const size_t n = nb->point_count;
-  const int T = bsurf_threads_resolve(o.threads);
-  select_scratch *scr = calloc((size_t)T, sizeof *scr);
-  if (!scr) return BSURF_ERR_NOMEM;
-  bsurf_status st = BSURF_OK;
-  for (int t = 0; t < T && st == BSURF_OK; t++)
-    st = select_scratch_alloc(&scr[t], ks[nk - 1], nk, o.bootstrap);
-  uint32_t *owned = NULL;
-  const uint32_t *order = NULL;
-  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) {
-    select_ctx ctx = {xyz, nb, ref_normals, &o, ks, nk, scr, out};
-    st =
-        bsurf_parallel_points_ordered(n, order, T, select_point, &ctx, o.progress, o.progress_user);
-  }
-  free(owned);
-  if (report && st == BSURF_OK) {
-    report->replicates_total = n * (size_t)o.bootstrap * (size_t)nk;
-    for (int t = 0; t < T; t++) {
-      report->replicates_skipped += scr[t].skipped;
-      report->degenerate += scr[t].degenerate;
-    }
-  }
-  for (int t = 0; t < T; t++)
-    select_scratch_free(&scr[t]);
-  free(scr);
+  static const bsurf_point_loop loop = {sizeof(select_scratch), select_scratch_alloc,
+                                        select_scratch_free, select_point, select_tally};
+  const scratch_sizes sizes = {ks[nk - 1], o.bootstrap, 1, nk};
+  normals_ctx ctx = {xyz, nb, ref_normals, &o, NULL, report, ks, nk, out};
+  bsurf_status st =
+      bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  if (report && st == BSURF_OK)
+    report->replicates_total = nb->point_count * (size_t)o.bootstrap * (size_t)nk;
   return st;
 }

@@ -183,3 +183,19 @@ bsurf_status bsurf_cloud_check_finite(const bsurf_cloud *cloud, size_t *bad_inde
   }
   return BSURF_OK;
 }
+
+double bsurf_bounding_box(const double *xyz, size_t point_count, double lo[3], double hi[3]) {
+  double l[3] = {INFINITY, INFINITY, INFINITY}, h[3] = {-INFINITY, -INFINITY, -INFINITY};
+  for (size_t i = 0; i < point_count; i++)
+    for (int t = 0; t < 3; t++) {
+      const double v = xyz[3 * i + t];
+      if (v < l[t]) l[t] = v;
+      if (v > h[t]) h[t] = v;
+    }
+  if (lo) memcpy(lo, l, sizeof l);
+  if (hi) memcpy(hi, h, sizeof h);
+  double s = 0;
+  for (int t = 0; t < 3; t++)
+    s += (h[t] - l[t]) * (h[t] - l[t]);
+  return point_count ? sqrt(s) : 0.0;
+}

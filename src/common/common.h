@@ -38,6 +38,21 @@ void *bsurf_calloc_array(size_t n, size_t size);
  * them then straddles two lines (a split load costs two). free() frees it. */
 void *bsurf_alloc_aligned(size_t n, size_t size);
 
+/* Arrays allocated one by one and freed together (blocks.c): a thread's
+ * scratch. Zero-initialise; each call returns the array, or NULL and sets
+ * `failed` (as bsurf_alloc_array: also when n == 0); bsurf_blocks_free
+ * frees all and zeroes the record. */
+#define BSURF_BLOCKS_MAX 24
+typedef struct bsurf_blocks {
+  void *p[BSURF_BLOCKS_MAX];
+  int n, failed;
+} bsurf_blocks;
+void *bsurf_blocks_array(bsurf_blocks *b, size_t n, size_t size);
+void *bsurf_blocks_aligned(bsurf_blocks *b, size_t n, size_t size);
+void bsurf_blocks_free(bsurf_blocks *b);
+/* BSURF_ERR_NOMEM if an allocation failed, else BSURF_OK. */
+bsurf_status bsurf_blocks_status(const bsurf_blocks *b);
+
 /* BSURF_ERR_INVALID_ARG with a message for bsurf_last_message(): "FUNC:
  * what is wrong" naming the parameter, its value and the allowed range.
  * BSURF_REQUIRE(cond, fmt, ...) returns it from the calling function when

@@ -1,7 +1,9 @@
-/* Little-endian values in unaligned bytes, for the binary readers and
- * writers of PCD and LAS (PLY keeps its own, which also reads big-endian). */
+/* Little-endian values in unaligned bytes, for the binary readers of PCD
+ * and LAS and the writers of PLY, PCD and LAS (PLY's reader keeps its own,
+ * which also reads big-endian). */
 #include "io/io.h"
 
+#include <stdlib.h>
 #include <string.h>
 
 uint16_t io_le16(const unsigned char *p) {
@@ -57,6 +59,10 @@ unsigned char *io_put_le(unsigned char *p, double v, bsurf_type type) {
   } else {
     u = (uint64_t)(long long)io_type_convert(v, type); /* two's complement */
   }
+  return io_put_le_bytes(p, u, n);
+}
+
+unsigned char *io_put_le_bytes(unsigned char *p, uint64_t u, size_t n) {
   for (size_t i = 0; i < n; i++)
     p[i] = (unsigned char)(u >> (8 * i));
   return p + n;
@@ -81,9 +87,40 @@ double io_u64_exact(uint64_t v, int *ok) {
   return (double)v;
 }
 
-void io_unique_name(const bsurf_cloud *cloud, const char *name, char out[BSURF_FIELD_NAME_MAX]) {
+bsurf_status io_names_init(io_names *b, const bsurf_cloud *cloud, size_t cap) {
+  memset(b, 0, sizeof *b);
+  b->base = cloud->field_count;
+  b->cap = cap;
+  if (cap) {
+    b->buf = bsurf_alloc_array(cap, BSURF_FIELD_NAME_MAX);
+    b->names = bsurf_alloc_array(cap, sizeof *b->names);
+    b->types = bsurf_alloc_array(cap, sizeof *b->types);
+  }
+  bsurf_status st = (!cap || (b->buf && b->names && b->types)) ? BSURF_OK : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) st = bsurf_nameset_init(&b->set, b->base + cap);
+  for (size_t f = 0; f < b->base && st == BSURF_OK; f++)
+    bsurf_nameset_insert(&b->set, cloud->fields[f].name, strlen(cloud->fields[f].name), f);
+  if (st != BSURF_OK) io_names_free(b);
+  return st;
+}
+
+void io_names_free(io_names *b) {
+  bsurf_nameset_free(&b->set);
+  free(b->buf);
+  free(b->names);
+  free(b->types);
+  memset(b, 0, sizeof *b);
+}
+
+size_t io_names_find(const io_names *b, const char *name) {
+  return bsurf_nameset_find(&b->set, name, strlen(name));
+}
+
+size_t io_names_add(io_names *b, const char *name, bsurf_type type) {
+  if (b->n == b->cap) return BSURF_NAMESET_FULL;
+  char *out = b->buf + b->n * BSURF_FIELD_NAME_MAX;
   snprintf(out, BSURF_FIELD_NAME_MAX, "%s", name);
-  for (unsigned k = 1; bsurf_cloud_field(cloud, out); k++) {
+  for (unsigned k = 1; io_names_find(b, out) != BSURF_NAMESET_NONE; k++) {
     char suffix[16];
     int n = snprintf(suffix, sizeof suffix, "_%u", k);
     size_t keep = strlen(name);
@@ -91,4 +128,15 @@ void io_unique_name(const bsurf_cloud *cloud, const char *name, char out[BSURF_F
     memcpy(out, name, keep);
     memcpy(out + keep, suffix, (size_t)n + 1);
   }
+  const size_t at = b->base + b->n;
+  bsurf_nameset_insert(&b->set, out, strlen(out), at);
+  b->names[b->n] = out;
+  b->types[b->n++] = type;
+  return at;
+}
+
+bsurf_status io_names_commit(io_names *b, bsurf_cloud *cloud) {
+  bsurf_status st = bsurf_cloud_add_fields(cloud, b->n, b->names, b->types);
+  io_names_free(b);
+  return st;
 }

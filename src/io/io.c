@@ -376,7 +376,7 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err
   return st;
 }
 
-/* The header check of bsurf_read_header(_buffer); *ascii_short: ascii data
+/* The header check of bsurf_read_header; *ascii_short: ascii data
  * too short for the header's counts (the whole file, read, names the line). */
 static bsurf_status header_check(const void *data, size_t size, uint64_t file_size,
                                  bsurf_format format, uint64_t *points, int *ascii_short,
@@ -392,21 +392,6 @@ static bsurf_status header_check(const void *data, size_t size, uint64_t file_si
   if (st != BSURF_OK && err && !err->message[0])
     bsurf_fail(err, st, err->line, err->byte, "%s", bsurf_strerror(st));
   *points = n;
-  return st;
-}
-
-bsurf_status bsurf_read_header_buffer(const void *data, size_t size, uint64_t file_size,
-                                      bsurf_format format, uint64_t *points, bsurf_failure *err) {
-  int ascii_short = 0;
-  bsurf_status st = header_check(data, size, file_size, format, points, &ascii_short, err);
-  if (st != BSURF_OK && ascii_short && file_size == size) {
-    /* the whole file is here: the reader names the line where the data ends
-     * (it stores no vertex when the data cannot hold the header's counts) */
-    bsurf_cloud unused;
-    st = bsurf_read_buffer(data, size, format, &unused, err);
-    bsurf_cloud_free(&unused);
-    if (st == BSURF_OK) st = BSURF_ERR_PARSE; /* not reached: the check is the reader's own */
-  }
   return st;
 }
 

@@ -37,8 +37,13 @@
 #define io_ply_too_short bsurf_i_io_ply_too_short
 #define io_ply_probe bsurf_i_io_ply_probe
 #define io_put_le bsurf_i_io_put_le
+#define io_put_le_bytes bsurf_i_io_put_le_bytes
 #define io_u64_exact bsurf_i_io_u64_exact
-#define io_unique_name bsurf_i_io_unique_name
+#define io_names_init bsurf_i_io_names_init
+#define io_names_add bsurf_i_io_names_add
+#define io_names_find bsurf_i_io_names_find
+#define io_names_commit bsurf_i_io_names_commit
+#define io_names_free bsurf_i_io_names_free
 #define io_cursor_init bsurf_i_io_cursor_init
 #define io_dvec_push bsurf_i_io_dvec_push
 #define io_dvec_take bsurf_i_io_dvec_take
@@ -218,20 +223,12 @@ void io_obuf_uint(io_obuf *b, unsigned long long v);
 /* ---- readers: fill an initialised cloud; on failure may leave it partly
  * filled (the caller frees it) and fill err -------------------------------- */
 
-bsurf_status bsurf_io_read_ply(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-bsurf_status bsurf_io_read_off(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-bsurf_status bsurf_io_read_obj(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-/* .xyz/.txt/.pts and .csv/.asc: one reader (a header line naming the
- * columns is used when present). */
-bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-bsurf_status bsurf_io_read_pcd(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
-bsurf_status bsurf_io_read_las(const char *data, size_t size, bsurf_cloud *cloud,
-                               bsurf_failure *err);
+typedef bsurf_status bsurf_io_reader(const char *data, size_t size, bsurf_cloud *cloud,
+                                     bsurf_failure *err);
+/* .xyz/.txt/.pts and .csv/.asc: one reader, bsurf_io_read_xyz (a header
+ * line naming the columns is used when present). */
+bsurf_io_reader bsurf_io_read_ply, bsurf_io_read_off, bsurf_io_read_obj, bsurf_io_read_xyz,
+    bsurf_io_read_pcd, bsurf_io_read_las;
 
 /* ---- shared by the binary readers ----------------------------------------- */
 
@@ -246,13 +243,32 @@ double io_le_value(const unsigned char *p, bsurf_type type);
 /* Stores v as `type` little-endian (rounded and clamped as io_type_convert);
  * returns p + the type's size. */
 unsigned char *io_put_le(unsigned char *p, double v, bsurf_type type);
+/* The n low bytes of u, least significant first; returns p + n. */
+unsigned char *io_put_le_bytes(unsigned char *p, uint64_t u, size_t n);
 /* A 64-bit integer as a double, or 0 when a double cannot hold it exactly
  * (beyond 2^53): *ok is cleared then. */
 double io_i64_exact(int64_t v, int *ok);
 double io_u64_exact(uint64_t v, int *ok);
-/* The field called `name` made unique among the cloud's ("name_1", ...)
- * into out. */
-void io_unique_name(const bsurf_cloud *cloud, const char *name, char out[BSURF_FIELD_NAME_MAX]);
+/* The fields a reader adds, named and added in time linear in their number
+ * (binary.c): a name set of the cloud's names and the new ones, and one
+ * bsurf_cloud_add_fields at the end. io_names_init: room for cap names;
+ * io_names_add: `name` made unique ("name_1", "name_2", ..., shortened to
+ * fit), returns the index its field will have in the cloud
+ * (BSURF_NAMESET_FULL: more than cap); io_names_find: the index of a name
+ * (the cloud's or added) or BSURF_NAMESET_NONE; io_names_commit adds the
+ * fields (zero-filled) and frees the set, as io_names_free does. */
+typedef struct io_names {
+  bsurf_nameset set;
+  char *buf; /* cap names of BSURF_FIELD_NAME_MAX bytes */
+  const char **names;
+  bsurf_type *types;
+  size_t n, cap, base; /* base: the cloud's field count at init */
+} io_names;
+bsurf_status io_names_init(io_names *b, const bsurf_cloud *cloud, size_t cap);
+size_t io_names_add(io_names *b, const char *name, bsurf_type type);
+size_t io_names_find(const io_names *b, const char *name);
+bsurf_status io_names_commit(io_names *b, bsurf_cloud *cloud);
+void io_names_free(io_names *b);
 
 /* ---- binary PLY by offset (the tiled runs of src/tile) ------------------ */
 

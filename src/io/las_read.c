@@ -372,36 +372,38 @@ static bsurf_status make_fields(las_reader *r, bsurf_cloud *cloud) {
       return io_nomem(r->err);
     r->attr_field[a] = cloud->field_count - 1;
   }
+  size_t cap = 0;
+  for (size_t i = 0; i < r->nextra; i++)
+    cap += (size_t)r->extra[i].dim;
+  io_names fields;
+  if (io_names_init(&fields, cloud, cap) != BSURF_OK) return io_nomem(r->err);
   for (size_t i = 0; i < r->nextra; i++) {
     las_extra *x = &r->extra[i];
     if (x->base == 0) continue; /* undocumented bytes: no name, no type */
     for (int k = 0; k < x->dim; k++) {
-      char want[LAS_NAME_MAX + 16], name[BSURF_FIELD_NAME_MAX];
+      char want[LAS_NAME_MAX + 16];
       if (x->dim > 1)
         snprintf(want, sizeof want, "%s_%d", x->name, k);
       else
         snprintf(want, sizeof want, "%s", x->name);
       bsurf_type type = x->scaled ? BSURF_FLOAT64 : k_eb_type[x->base];
-      bsurf_field *same = bsurf_cloud_field(cloud, want);
-      if (same) {
-        size_t idx = (size_t)(same - cloud->fields);
+      const size_t idx = io_names_find(&fields, want);
+      if (idx < fields.base) { /* a standard attribute's name */
         int standard = 0;
         for (int a = 0; a < A_COUNT; a++)
           standard |= r->attr_field[a] == idx;
         if (standard) {
-          same->type = type; /* take over the standard attribute's field */
+          cloud->fields[idx].type = type; /* take over the standard attribute's field */
           for (int a = 0; a < A_COUNT; a++)
             if (r->attr_field[a] == idx) r->attr_field[a] = (size_t)-2; /* not decoded or dropped */
           x->field[k] = idx;
           continue;
         }
       }
-      io_unique_name(cloud, want, name);
-      if (!bsurf_cloud_add_field(cloud, name, type)) return io_nomem(r->err);
-      x->field[k] = cloud->field_count - 1;
+      x->field[k] = io_names_add(&fields, want, type);
     }
   }
-  return BSURF_OK;
+  return io_names_commit(&fields, cloud) == BSURF_OK ? BSURF_OK : io_nomem(r->err);
 }
 
 /* Point i's extra bytes (record p) into its fields. */

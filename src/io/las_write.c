@@ -136,26 +136,11 @@ static void choose_scale(const bsurf_cloud *cloud, double *scale, double offset[
   *scale = pow(10, e);
 }
 
-static unsigned char *put_u16(unsigned char *p, unsigned v) {
-  p[0] = (unsigned char)v;
-  p[1] = (unsigned char)(v >> 8);
-  return p + 2;
-}
-static unsigned char *put_u32(unsigned char *p, uint32_t v) {
-  for (int i = 0; i < 4; i++)
-    p[i] = (unsigned char)(v >> (8 * i));
-  return p + 4;
-}
-static unsigned char *put_u64(unsigned char *p, uint64_t v) {
-  for (int i = 0; i < 8; i++)
-    p[i] = (unsigned char)(v >> (8 * i));
-  return p + 8;
-}
-static unsigned char *put_f64(unsigned char *p, double v) {
-  uint64_t u;
-  memcpy(&u, &v, sizeof u);
-  return put_u64(p, u);
-}
+/* the header's numbers (io_put_le_bytes, io_put_le: binary.c) */
+#define put_u16(p, v) io_put_le_bytes((p), (uint16_t)(v), 2)
+#define put_u32(p, v) io_put_le_bytes((p), (uint32_t)(v), 4)
+#define put_u64(p, v) io_put_le_bytes((p), (uint64_t)(v), 8)
+#define put_f64(p, v) io_put_le((p), (v), BSURF_FLOAT64)
 
 typedef struct las_col {
   const double *src;

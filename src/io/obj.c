@@ -90,6 +90,15 @@ static bsurf_status add_vertex(obj_reader *r, const double *vals, size_t n, long
   return BSURF_OK;
 }
 
+/* A face corner's vertex or normal index beyond those defined so far. */
+static bsurf_status out_of_range(obj_reader *r, long line, io_token corner, const char *what,
+                                 long long index, size_t defined) {
+  char a[48];
+  return bsurf_fail(r->err, BSURF_ERR_PARSE, line, -1,
+                    "face corner '%s': %s index %lld is out of range (%zu defined so far)",
+                    io_token_repr(corner, a), what, index, defined);
+}
+
 static bsurf_status add_face(obj_reader *r, io_cursor *c, long line) {
   io_token tok;
   char a[48];
@@ -119,18 +128,10 @@ static bsurf_status add_face(obj_reader *r, io_cursor *c, long line) {
                         "face corner '%s' is not of the form i, i/t, i//n or i/t/n",
                         io_token_repr(tok, a));
     long long v = resolve(vi, nv);
-    if (v < 0)
-      return bsurf_fail(r->err, BSURF_ERR_PARSE, line, -1,
-                        "face corner '%s': vertex index %lld is out of range (%zu defined so "
-                        "far)",
-                        io_token_repr(tok, a), vi, nv);
+    if (v < 0) return out_of_range(r, line, tok, "vertex", vi, nv);
     if (np > 2 && part[2].len) {
       long long n = resolve(ni, nvn);
-      if (n < 0)
-        return bsurf_fail(r->err, BSURF_ERR_PARSE, line, -1,
-                          "face corner '%s': normal index %lld is out of range (%zu defined "
-                          "so far)",
-                          io_token_repr(tok, a), ni, nvn);
+      if (n < 0) return out_of_range(r, line, tok, "normal", ni, nvn);
       if (n != v) r->contradict = 1;
       if (r->first_n[v] == NO_NORMAL) r->first_n[v] = (uint32_t)n;
     }

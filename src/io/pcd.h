@@ -21,7 +21,7 @@ typedef struct pcd_header {
   pcd_field *fields;
   size_t nfields;
   unsigned long long width, height, points;
-  int have_width, have_height, have_points, have_size, have_type, have_count;
+  int have_width, have_height, have_points, have_size, have_type;
   int data;       /* 0 ascii, 1 binary, 2 binary_compressed */
   size_t body;    /* offset of the first byte after the DATA line */
   long body_line; /* its line number */

@@ -112,7 +112,8 @@ static bsurf_status per_field_line(io_cursor *c, pcd_header *h, long ln, const c
     if (which == 1) f->kind = tok.s[0];
     if (which == 2) f->count = (size_t)v;
   }
-  *(which == 0 ? &h->have_size : which == 1 ? &h->have_type : &h->have_count) = 1;
+  if (which == 0) h->have_size = 1; /* COUNT may be left out: 1 each */
+  if (which == 1) h->have_type = 1;
   return BSURF_OK;
 }
 

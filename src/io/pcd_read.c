@@ -110,13 +110,15 @@ static bsurf_status setup(const pcd_header *h, bsurf_cloud *cloud, pcd_column **
   int with_normals = nrm[0] == 1 && nrm[1] == 1 && nrm[2] == 1;
   if (h->points > (size_t)-1 / 24) return io_nomem(err);
   if (bsurf_cloud_alloc(cloud, (size_t)h->points, with_normals) != BSURF_OK) return io_nomem(err);
+  io_names fields; /* a field per column, 3 more for an rgb, rgba column */
+  if (io_names_init(&fields, cloud, n + 3 * h->nfields) != BSURF_OK) return io_nomem(err);
   size_t c = 0;
   for (size_t i = 0; i < h->nfields; i++) {
     const pcd_field *f = &h->fields[i];
     int wide;
     bsurf_type type = field_type(f, &wide);
     /* the name as written (a name bsurf writes has at most 63 characters;
-     * io_unique_name shortens a COUNT > 1 element's name to fit its suffix) */
+     * io_names_add shortens a COUNT > 1 element's name to fit its suffix) */
     char base[BSURF_FIELD_NAME_MAX];
     size_t blen = f->name.len < sizeof base - 1 ? f->name.len : sizeof base - 1;
     memcpy(base, f->name.s, blen);
@@ -154,28 +156,24 @@ static bsurf_status setup(const pcd_header *h, bsurf_cloud *cloud, pcd_column **
       if ((name_is(f, "rgb") || rgba) && f->size == 4) {
         static const char *const comp[4] = {"red", "green", "blue", "alpha"};
         col->dst = rgba ? DST_RGBA : DST_RGB;
-        col->at = cloud->field_count;
         for (int q = 0; q < (rgba ? 4 : 3); q++) {
-          char name[BSURF_FIELD_NAME_MAX];
-          io_unique_name(cloud, comp[q], name);
-          if (!bsurf_cloud_add_field(cloud, name, BSURF_UINT8)) return io_nomem(err);
+          size_t at = io_names_add(&fields, comp[q], BSURF_UINT8);
+          if (q == 0) col->at = at;
         }
         continue;
       }
-      char name[BSURF_FIELD_NAME_MAX], want[BSURF_FIELD_NAME_MAX + 24];
+      char want[BSURF_FIELD_NAME_MAX + 24];
       if (f->count > 1)
         snprintf(want, sizeof want, "%s_%zu", base, e);
       else
         snprintf(want, sizeof want, "%s", base);
       for (char *p = want; *p; p++)
         if ((unsigned char)*p < 0x21 || *p == 0x7f) *p = '_';
-      io_unique_name(cloud, want, name);
       col->dst = DST_FIELD;
-      col->at = cloud->field_count;
-      if (!bsurf_cloud_add_field(cloud, name, type)) return io_nomem(err);
+      col->at = io_names_add(&fields, want, type);
     }
   }
-  return BSURF_OK;
+  return io_names_commit(&fields, cloud) == BSURF_OK ? BSURF_OK : io_nomem(err);
 }
 
 /* Stores one element of point i. */
@@ -356,13 +354,6 @@ static bsurf_status read_ascii(const pcd_header *h, const char *data, size_t siz
   io_text_init(&t, data + h->body, size - h->body);
   t.line = h->body_line - 1;
   size_t n = cloud->point_count, i = 0;
-  /* every point needs at least two bytes ("0\n"): a count the file cannot
-   * hold fails before the work */
-  if (n && ncols && n > (size - h->body) / (2 * ncols) + 1)
-    return bsurf_fail(
-        err, BSURF_ERR_PARSE, h->body_line, -1,
-        "POINTS %zu with %zu values each cannot fit in the %zu bytes after the header", n, ncols,
-        size - h->body);
   const char *line;
   size_t len;
   while (io_text_next_line(&t, &line, &len)) {
@@ -404,8 +395,10 @@ bsurf_status bsurf_io_read_pcd(const char *data, size_t size, bsurf_cloud *cloud
   bsurf_status st = io_pcd_parse_header(data, size, &h, err);
   /* before anything is allocated: can the bytes after the header hold the
    * points? (binary: exactly; compressed: LZF expands at most 88-fold;
-   * ascii: at least a byte a point) */
-  size_t have = st == BSURF_OK ? size - h.body : 0;
+   * ascii: every value at least two bytes, "0\n") */
+  size_t have = st == BSURF_OK ? size - h.body : 0, values = 0;
+  for (size_t i = 0; st == BSURF_OK && i < h.nfields; i++)
+    values += h.fields[i].count; /* at most PCD_MAX_COLUMNS each */
   if (st == BSURF_OK && h.data == 1 && h.points > have / h.record)
     st = bsurf_fail(err, BSURF_ERR_PARSE, 0, (long long)h.body,
                     "POINTS %llu needs %llu bytes of binary data (%zu per point) but the file has "
@@ -416,10 +409,10 @@ bsurf_status bsurf_io_read_pcd(const char *data, size_t size, bsurf_cloud *cloud
         err, BSURF_ERR_PARSE, 0, (long long)h.body,
         "POINTS %llu (%zu bytes each) cannot be in the %zu compressed bytes after the header",
         h.points, h.record, have);
-  if (st == BSURF_OK && h.data == 0 && h.points > have)
+  if (st == BSURF_OK && h.data == 0 && h.points && values && h.points > have / (2 * values) + 1)
     st = bsurf_fail(err, BSURF_ERR_PARSE, h.body_line, -1,
-                    "POINTS %llu is more than the %zu bytes after the header can hold", h.points,
-                    have);
+                    "POINTS %llu with %zu values each cannot fit in the %zu bytes after the header",
+                    h.points, values, have);
   if (st == BSURF_OK) st = setup(&h, cloud, &cols, &ncols, err);
   if (st == BSURF_OK) {
     if (h.data == 0)

@@ -38,34 +38,6 @@ typedef struct out_prop {
   bsurf_type type;
 } out_prop;
 
-static unsigned char *put_value(unsigned char *o, double v, bsurf_type type) {
-  switch (type) {
-  case BSURF_FLOAT64: {
-    uint64_t u;
-    memcpy(&u, &v, sizeof u);
-    for (int i = 0; i < 8; i++)
-      o[i] = (unsigned char)(u >> (8 * i));
-    return o + 8;
-  }
-  case BSURF_FLOAT32: {
-    float f = (float)io_type_convert(v, BSURF_FLOAT32);
-    uint32_t u;
-    memcpy(&u, &f, sizeof u);
-    for (int i = 0; i < 4; i++)
-      o[i] = (unsigned char)(u >> (8 * i));
-    return o + 4;
-  }
-  default: {
-    /* two's complement of the rounded, clamped value */
-    uint64_t u = (uint64_t)(long long)io_type_convert(v, type);
-    size_t n = io_type_size(type);
-    for (size_t i = 0; i < n; i++)
-      o[i] = (unsigned char)(u >> (8 * i));
-    return o + n;
-  }
-  }
-}
-
 static size_t vertex_layout(const bsurf_cloud *cloud, out_prop *props) {
   size_t n = 0;
   /* an empty cloud may have NULL arrays: no offsets from NULL */
@@ -126,7 +98,7 @@ bsurf_status io_ply_encode(const bsurf_cloud *cloud, unsigned char *out) {
   vertex_layout(cloud, props);
   for (size_t i = 0; i < cloud->point_count; i++)
     for (size_t j = 0; j < np; j++)
-      out = put_value(out, props[j].src[i * props[j].stride], props[j].type);
+      out = io_put_le(out, props[j].src[i * props[j].stride], props[j].type);
   free(props);
   return BSURF_OK;
 }
@@ -184,7 +156,7 @@ bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int asci
     unsigned char *o = buf;
     for (size_t i = i0; i < i1; i++)
       for (size_t j = 0; j < np; j++)
-        o = put_value(o, props[j].src[i * props[j].stride], props[j].type);
+        o = io_put_le(o, props[j].src[i * props[j].stride], props[j].type);
     io_write_bytes(w, buf, (size_t)(o - buf));
   }
   per_chunk = cap / 13;

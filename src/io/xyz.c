@@ -20,7 +20,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define XYZ_MAX_COLUMNS 1024
+#define XYZ_MAX_COLUMNS 65536 /* the writer writes every field: a file it wrote must read back */
 
 /* Starts a comment or is blank. */
 static int skip_line(const char *s, size_t len) {
@@ -145,12 +145,20 @@ static bsurf_status named_columns(bsurf_cloud *cloud, const double *rows, size_t
   if (with_normals)
     cloud->normal_type =
         infer_type(cloud->normals, 1, 3 * n, 0) == BSURF_FLOAT32 ? BSURF_FLOAT32 : BSURF_FLOAT64;
+  /* the other columns' fields: named first, added at once, then filled */
+  io_names fields;
+  size_t *col = bsurf_alloc_array(ncols, sizeof *col);
+  if (!col || io_names_init(&fields, cloud, ncols) != BSURF_OK) {
+    free(col);
+    return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
+  }
   for (size_t j = 0; j < ncols; j++) {
     int used = 0;
     for (int k = 0; k < 3; k++)
       used |= j == xyz[k] || (with_normals && j == nrm[k]);
+    col[j] = (size_t)-1;
     if (used) continue;
-    char want[BSURF_FIELD_NAME_MAX], name[BSURF_FIELD_NAME_MAX];
+    char want[BSURF_FIELD_NAME_MAX];
     size_t len = names[j].len < BSURF_FIELD_NAME_MAX - 1 ? names[j].len : BSURF_FIELD_NAME_MAX - 1;
     static const char *const cc[4][2] = {
         {"r", "red"}, {"g", "green"}, {"b", "blue"}, {"a", "alpha"}};
@@ -168,13 +176,20 @@ static bsurf_status named_columns(bsurf_cloud *cloud, const double *rows, size_t
       }
       want[len] = 0;
     }
-    io_unique_name(cloud, want, name);
-    bsurf_field *f = bsurf_cloud_add_field(cloud, name, BSURF_FLOAT64);
-    if (!f) return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
+    col[j] = io_names_add(&fields, want, BSURF_FLOAT64);
+  }
+  if (io_names_commit(&fields, cloud) != BSURF_OK) {
+    free(col);
+    return bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
+  }
+  for (size_t j = 0; j < ncols; j++) {
+    if (col[j] == (size_t)-1) continue;
+    bsurf_field *f = &cloud->fields[col[j]];
     for (size_t i = 0; i < n; i++)
       f->values[i] = rows[i * ncols + j];
     f->type = infer_type(f->values, 1, n, 1);
   }
+  free(col);
   return BSURF_OK;
 }
 
@@ -304,16 +319,21 @@ bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud
         memcpy(cloud->xyz + 3 * i, r, 3 * sizeof(double));
         if (ncols == 6) memcpy(cloud->normals + 3 * i, r + 3, 3 * sizeof(double));
       }
-      for (size_t j = 3; ncols != 6 && j < ncols && st == BSURF_OK; j++) {
+      /* the other columns: scalar_3, scalar_4, ... */
+      const size_t nf = ncols == 6 || ncols < 3 ? 0 : ncols - 3;
+      io_names fields;
+      st = io_names_init(&fields, cloud, nf);
+      for (size_t j = 3; j < 3 + nf && st == BSURF_OK; j++) {
         char name[BSURF_FIELD_NAME_MAX];
         snprintf(name, sizeof name, "scalar_%zu", j);
-        bsurf_field *f = bsurf_cloud_add_field(cloud, name, BSURF_FLOAT64);
-        if (!f) {
-          st = bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
-          break;
-        }
+        io_names_add(&fields, name, BSURF_FLOAT64);
+      }
+      if (st == BSURF_OK) st = io_names_commit(&fields, cloud);
+      if (st != BSURF_OK) st = bsurf_fail(err, BSURF_ERR_NOMEM, 0, -1, "out of memory");
+      for (size_t j = 3; j < 3 + nf && st == BSURF_OK; j++) {
+        double *v = cloud->fields[j - 3].values;
         for (size_t i = 0; i < n; i++)
-          f->values[i] = rows.v[i * ncols + j];
+          v[i] = rows.v[i * ncols + j];
       }
     }
   }

@@ -64,10 +64,8 @@ static bsurf_status error_run(void *user, const bsurf_tile *tile, bsurf_cloud *c
   bsurf_error_report rep;
   bsurf_status st = bsurf_estimate_error(tile->xyz, tile->nb, NULL, &eo, &out, &rep);
   if (st != BSURF_OK) return st;
-  sums[0] += (double)rep.replicates_total;
-  sums[1] += (double)rep.replicates_skipped;
-  sums[2] += (double)rep.degree_reduced;
-  sums[3] += (double)rep.center_unestimated;
+  bsurf_jobs_add_counts(sums, rep.replicates_total, rep.replicates_skipped, rep.degree_reduced,
+                        rep.center_unestimated);
   for (int f = 0; f < et->nfields; f++)
     sums[4 + f] += bsurf_jobs_mean(*slots[f], core->point_count) * (double)core->point_count;
   return BSURF_OK;
@@ -89,12 +87,10 @@ static bsurf_status error_tiled(const bsurf_job_io *io, const bsurf_error_option
   s->tile_points = ops.tile_points;
   bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   if (st != BSURF_OK) return st;
-  s->report.replicates_total = (size_t)sums[0];
-  s->report.replicates_skipped = (size_t)sums[1];
-  s->report.degree_reduced = (size_t)sums[2];
-  s->report.center_unestimated = (size_t)sums[3];
-  for (int f = 0; f < s->field_count; f++)
-    s->means[f] = sums[4 + f] / (double)s->points;
+  bsurf_error_report *r = &s->report;
+  bsurf_jobs_counts(sums, &r->replicates_total, &r->replicates_skipped, &r->degree_reduced,
+                    &r->center_unestimated);
+  bsurf_jobs_means(s->means, sums + 4, s->field_count, s->points);
   return BSURF_OK;
 }
 
@@ -128,14 +124,11 @@ static bsurf_status error_in_memory(const bsurf_job_io *io, const bsurf_error_op
 bsurf_status bsurf_error_job(const bsurf_job_io *io, const bsurf_error_options *opts,
                              bsurf_error_job_summary *summary, bsurf_failure *err) {
   bsurf_error_options o = opts ? *opts : bsurf_error_options_default();
-  BSURF_REQUIRE(io, "io is NULL");
-  BSURF_REQUIRE(summary, "summary is NULL");
-  memset(summary, 0, sizeof *summary);
+  bsurf_status st = bsurf_jobs_begin(__func__, io, summary, sizeof *summary);
+  if (st != BSURF_OK) return st;
   summary->field_count = io->test ? BSURF_ERROR_JOB_FIELDS : BSURF_ERROR_JOB_FIELDS - 2;
   for (int f = 0; f < BSURF_ERROR_JOB_FIELDS; f++)
     summary->field_names[f] = error_field_names[f];
-  bsurf_status st = bsurf_jobs_check_io(__func__, io);
-  if (st != BSURF_OK) return st;
   if (io->cloud) return error_in_memory(io, &o, summary);
   BSURF_REQUIRE(!io->test, "io->test: a test sample is only available in memory");
   return error_tiled(io, &o, summary, err);

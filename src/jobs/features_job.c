@@ -302,10 +302,8 @@ static bsurf_status features_check(const bsurf_feature_options *fo) {
 
 bsurf_status bsurf_features_job(const bsurf_job_io *io, const bsurf_feature_options *opts,
                                 bsurf_features_job_summary *summary, bsurf_failure *err) {
-  BSURF_REQUIRE(summary, "summary is NULL");
-  memset(summary, 0, sizeof *summary);
+  bsurf_status st = bsurf_jobs_begin(FJ, io, summary, sizeof *summary);
   bsurf_feature_options fo = opts ? *opts : bsurf_feature_options_default();
-  bsurf_status st = bsurf_jobs_check_io(FJ, io);
   if (st == BSURF_OK) st = features_check(&fo);
   if (st != BSURF_OK) return st;
   summary->field_names[0] = "feature";

@@ -3,7 +3,7 @@
 
 #include <string.h>
 
-bsurf_status bsurf_jobs_check_io(const char *func, const bsurf_job_io *io) {
+static bsurf_status jobs_check_io(const char *func, const bsurf_job_io *io) {
   BSURF_REQUIRE_IN(func, io, "io is NULL");
   BSURF_REQUIRE_IN(func, !io->cloud != !io->input,
                    "give either io->cloud (in memory) or io->input (tiled), not %s",
@@ -16,6 +16,13 @@ bsurf_status bsurf_jobs_check_io(const char *func, const bsurf_job_io *io) {
   BSURF_REQUIRE_IN(func, io->tile_points > 0,
                    "io->tile_points = 0: a tiled run needs the tile size");
   return BSURF_OK;
+}
+
+bsurf_status bsurf_jobs_begin(const char *func, const bsurf_job_io *io, void *summary,
+                              size_t summary_size) {
+  BSURF_REQUIRE_IN(func, summary, "summary is NULL");
+  memset(summary, 0, summary_size);
+  return jobs_check_io(func, io);
 }
 
 bsurf_status bsurf_jobs_neighbors(const bsurf_cloud *c, int k, int threads,
@@ -65,6 +72,25 @@ double bsurf_jobs_mean(const double *v, size_t n) {
   for (size_t i = 0; i < n; i++)
     s += v[i];
   return n ? s / (double)n : 0.0;
+}
+
+void bsurf_jobs_means(double *means, const double *sums, int count, size_t points) {
+  for (int f = 0; f < count; f++)
+    means[f] = sums[f] / (double)points;
+}
+
+void bsurf_jobs_add_counts(double *sums, size_t c0, size_t c1, size_t c2, size_t c3) {
+  sums[0] += (double)c0;
+  sums[1] += (double)c1;
+  sums[2] += (double)c2;
+  sums[3] += (double)c3;
+}
+
+void bsurf_jobs_counts(const double *sums, size_t *c0, size_t *c1, size_t *c2, size_t *c3) {
+  *c0 = (size_t)sums[0];
+  *c1 = (size_t)sums[1];
+  *c2 = (size_t)sums[2];
+  *c3 = (size_t)sums[3];
 }
 
 bsurf_status bsurf_jobs_add_fields(bsurf_cloud *c, const char *const *names,

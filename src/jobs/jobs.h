@@ -7,9 +7,11 @@
 #include "common/common.h"
 #include "tile/tile_engine.h"
 
-/* io: either a cloud (in memory, with coordinates) or an input file with a
- * tile size; `func` names the job in the message. */
-bsurf_status bsurf_jobs_check_io(const char *func, const bsurf_job_io *io);
+/* The start of every job: summary (summary_size bytes) not NULL, zeroed;
+ * io either a cloud (in memory, with coordinates) or an input file with a
+ * tile size. `func` names the job in the message. */
+bsurf_status bsurf_jobs_begin(const char *func, const bsurf_job_io *io, void *summary,
+                              size_t summary_size);
 
 /* The neighbourhoods of an in-memory cloud (BSURF_ERR_TOO_FEW_POINTS with a
  * message when it has fewer than k points), h and the points at the same
@@ -31,6 +33,12 @@ void bsurf_jobs_tiled_numbers(const bsurf_tile_report *tr, size_t *points, doubl
 
 /* The mean of n values summed in point order (what the summaries report). */
 double bsurf_jobs_mean(const double *v, size_t n);
+/* means[f] = sums[f] / points for the `count` fields of a tiled run. */
+void bsurf_jobs_means(double *means, const double *sums, int count, size_t points);
+/* A report's four counters in a tiled run's sums (sums[0..3]): added by
+ * each tile, read back as counts at the end. */
+void bsurf_jobs_add_counts(double *sums, size_t c0, size_t c1, size_t c2, size_t c3);
+void bsurf_jobs_counts(const double *sums, size_t *c0, size_t *c1, size_t *c2, size_t *c3);
 
 /* Adds the value of a field to the cloud's storage type in memory (names
  * and types: count of each); BSURF_ERR_NOMEM with a message. */

@@ -38,7 +38,7 @@ typedef struct normals_job {
 
 /* Per-point results (n long, x 3 for vectors). */
 typedef struct normals_bufs {
-  double *normals, *var, *err, *ref, *cand_n, *cand_v, *cand_e, *best_e, *ksel, *dsel;
+  double *normals, *var, *err, *ref, *cand_n, *cand_v, *cand_e, *best_e, *ksel, *dsel, *sheet;
 } normals_bufs;
 
 static void normals_bufs_free(normals_bufs *b) {
@@ -52,6 +52,7 @@ static void normals_bufs_free(normals_bufs *b) {
   free(b->best_e);
   free(b->ksel);
   free(b->dsel);
+  free(b->sheet);
   memset(b, 0, sizeof *b);
 }
 
@@ -72,6 +73,7 @@ static bsurf_status normals_bufs_alloc(normals_bufs *b, const normals_job *job, 
     b->ksel = calloc(m, sizeof(double));
     b->dsel = calloc(m, sizeof(double));
     ok = ok && b->cand_n && b->cand_v && b->cand_e && b->best_e && b->ksel && b->dsel;
+    if (job->ksel.rule == BSURF_KSELECT_MSE) ok = ok && (b->sheet = calloc(m, sizeof(double)));
     for (size_t i = 0; ok && i < n; i++)
       b->best_e[i] = INFINITY;
   }
@@ -196,11 +198,17 @@ static bsurf_status normals_compute(normals_job *job, const double *xyz, const b
     ko.progress = no.progress;
     ko.progress_user = no.progress_user;
     int bootstrap = no.bootstrap >= 2;
-    if (!(kmse = malloc((n ? n : 1) * sizeof(int)))) return BSURF_ERR_NOMEM;
-    bsurf_kselect_fields kf = {bootstrap ? NULL : b->normals, kmse, b->err, NULL};
+    int *sheet = NULL;
+    if (!(kmse = malloc((n ? n : 1) * sizeof(int))) ||
+        !(sheet = malloc((n ? n : 1) * sizeof(int)))) {
+      free(kmse);
+      return BSURF_ERR_NOMEM;
+    }
+    bsurf_kselect_fields kf = {bootstrap ? NULL : b->normals, kmse, b->err, NULL, sheet};
     st = bsurf_select_k(xyz, nb, &ko, &kf, NULL);
     for (size_t i = 0; i < n; i++)
-      b->ksel[i] = kmse[i];
+      b->ksel[i] = kmse[i], b->sheet[i] = sheet[i];
+    free(sheet);
     if (st != BSURF_OK || !bootstrap) {
       free(kmse);
       return st;
@@ -234,7 +242,9 @@ static bsurf_status normals_compute(normals_job *job, const double *xyz, const b
 }
 
 /* The output fields of a run, in the order they are added to the cloud;
- * which[t]: the buffer of field t (0 var, 1 err, 2 ksel, 3 dsel). */
+ * which[t]: the buffer of field t (0 var, 1 err, 2 ksel, 3 dsel, 4 sheet).
+ * At most BSURF_NORMALS_JOB_FIELDS = 4: two_sheet comes with the MSE rule,
+ * which selects no degree. */
 static int normals_field_names(const normals_job *job, const char **names, bsurf_type *types,
                                int *which) {
   int nf = 0;
@@ -242,6 +252,8 @@ static int normals_field_names(const normals_job *job, const char **names, bsurf
   if (job->test_error) names[nf] = "normal_err", which[nf] = 1, types[nf++] = BSURF_FLOAT32;
   if (job->select_k) names[nf] = "k_selected", which[nf] = 2, types[nf++] = BSURF_UINT16;
   if (job->select_degree) names[nf] = "degree_selected", which[nf] = 3, types[nf++] = BSURF_UINT8;
+  if (job->select_k && job->ksel.rule == BSURF_KSELECT_MSE && nf < BSURF_NORMALS_JOB_FIELDS)
+    names[nf] = "two_sheet", which[nf] = 4, types[nf++] = BSURF_UINT8;
   return nf;
 }
 
@@ -258,8 +270,8 @@ static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, const 
   const char *names[4];
   bsurf_type types[4];
   int which[4];
-  const double *vals[4] = {b ? b->var : NULL, b ? b->err : NULL, b ? b->ksel : NULL,
-                           b ? b->dsel : NULL};
+  const double *vals[5] = {b ? b->var : NULL, b ? b->err : NULL, b ? b->ksel : NULL,
+                           b ? b->dsel : NULL, b ? b->sheet : NULL};
   int nf = normals_field_names(job, names, types, which);
   for (int t = 0; t < nf; t++) {
     bsurf_field *fl = bsurf_cloud_add_field(c, names[t], types[t]);
@@ -290,10 +302,8 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
                        job->test_error ? tile->values : NULL, &b, &total);
   if (st == BSURF_OK) st = normals_store(job, core, &b);
   if (st == BSURF_OK) {
-    sums[0] += (double)total.replicates_total;
-    sums[1] += (double)total.replicates_skipped;
-    sums[2] += (double)total.degree_reduced;
-    sums[3] += (double)total.degenerate;
+    bsurf_jobs_add_counts(sums, total.replicates_total, total.replicates_skipped,
+                          total.degree_reduced, total.degenerate);
     const char *names[4];
     bsurf_type types[4];
     int which[4];
@@ -359,12 +369,10 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
   s->tile_points = io->tile_points;
   bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   if (st != BSURF_OK) return st;
-  s->report.replicates_total = (size_t)sums[0];
-  s->report.replicates_skipped = (size_t)sums[1];
-  s->report.degree_reduced = (size_t)sums[2];
-  s->report.degenerate = (size_t)sums[3];
-  for (int t = 0; t < s->field_count; t++)
-    s->means[t] = sums[4 + t] / (double)s->points;
+  bsurf_normal_report *r = &s->report;
+  bsurf_jobs_counts(sums, &r->replicates_total, &r->replicates_skipped, &r->degree_reduced,
+                    &r->degenerate);
+  bsurf_jobs_means(s->means, sums + 4, s->field_count, s->points);
   return BSURF_OK;
 }
 
@@ -546,10 +554,8 @@ static void normals_setup(normals_job *job, const bsurf_normals_job_options *o) 
 
 bsurf_status bsurf_normals_job(const bsurf_job_io *io, const bsurf_normals_job_options *opts,
                                bsurf_normals_job_summary *summary, bsurf_failure *err) {
-  BSURF_REQUIRE(summary, "summary is NULL");
-  memset(summary, 0, sizeof *summary);
+  bsurf_status st = bsurf_jobs_begin(NJ, io, summary, sizeof *summary);
   bsurf_normals_job_options o = opts ? *opts : bsurf_normals_job_options_default();
-  bsurf_status st = bsurf_jobs_check_io(NJ, io);
   if (st == BSURF_OK) st = normals_check(&o, io->cloud == NULL);
   if (st != BSURF_OK) return st;
   normals_job *job = calloc(1, sizeof *job);

@@ -327,10 +327,8 @@ static bsurf_status smooth_check(const bsurf_smooth_job_options *o, int tiled) {
 
 bsurf_status bsurf_smooth_job(const bsurf_job_io *io, const bsurf_smooth_job_options *opts,
                               bsurf_smooth_job_summary *summary, bsurf_failure *err) {
-  BSURF_REQUIRE(summary, "summary is NULL");
-  memset(summary, 0, sizeof *summary);
+  bsurf_status st = bsurf_jobs_begin(SJ, io, summary, sizeof *summary);
   bsurf_smooth_job_options o = opts ? *opts : bsurf_smooth_job_options_default();
-  bsurf_status st = bsurf_jobs_check_io(SJ, io);
   if (st == BSURF_OK) st = smooth_check(&o, io->cloud == NULL);
   if (st != BSURF_OK) return st;
   const bsurf_smooth_options *so = &o.smooth;

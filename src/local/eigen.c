@@ -58,6 +58,15 @@ void bsurf_eigen_sym3(double a_in[3][3], double evals[3], double evecs[3][3]) {
   }
 }
 
+int bsurf_eigen_sym3_normal(const double c[6], double n[3]) {
+  double C[3][3] = {{c[0], c[1], c[2]}, {c[1], c[3], c[4]}, {c[2], c[4], c[5]}};
+  double ev[3], V[3][3];
+  bsurf_eigen_sym3(C, ev, V);
+  for (int t = 0; t < 3; t++)
+    n[t] = V[0][t];
+  return (ev[2] > 0 && ev[1] > 1e-12 * ev[2]) ? 0 : -1;
+}
+
 /* The eigenvector of the smallest eigenvalue of a symmetric 3x3 matrix
  * (the PCA normal), without the other two vectors.
  *
@@ -124,14 +133,7 @@ int bsurf_eigen_sym3_smallest(const double c[6], double n[3]) {
         n[t] = x[bi][t] * inv;
     }
   }
-  if (jacobi) {
-    double C[3][3] = {{c[0], c[1], c[2]}, {c[1], c[3], c[4]}, {c[2], c[4], c[5]}};
-    double ev[3], V[3][3];
-    bsurf_eigen_sym3(C, ev, V);
-    for (int t = 0; t < 3; t++)
-      n[t] = V[0][t];
-    return (ev[2] > 0 && ev[1] > 1e-12 * ev[2]) ? 0 : -1;
-  }
+  if (jacobi) return bsurf_eigen_sym3_normal(c, n);
   return (l2 > 0 && l1 > 1e-12 * l2) ? 0 : -1;
 }
 

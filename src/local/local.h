@@ -14,6 +14,10 @@
 /* Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations (a is not modified).
  * evals ascending; evecs[i] is the unit eigenvector of evals[i]. */
 void bsurf_eigen_sym3(double a[3][3], double evals[3], double evecs[3][3]);
+/* The PCA normal of the packed symmetric matrix c = (xx, xy, xz, yy, yz, zz)
+ * by the Jacobi sweeps: the unit eigenvector of the smallest eigenvalue;
+ * returns 0, or -1 when lambda2 <= 0 or lambda1 <= 1e-12 lambda2. */
+int bsurf_eigen_sym3_normal(const double c[6], double n[3]);
 /* The unit eigenvector of the smallest eigenvalue (the PCA normal) of the
  * symmetric matrix c = (xx, xy, xz, yy, yz, zz): Newton on the characteristic
  * polynomial and a cross product (eigen.c), several times faster than the

@@ -121,30 +121,36 @@ static const uint8_t *glyph_of(char ch) {
   return glyphs[(u >= 32 && u < 127) ? u - 32 : '?' - 32];
 }
 
-void bsurf_draw_text(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3]) {
-  for (; *text; text++, x += (FONT_W + 1) * scale) {
+/* Left to right from (x, y) (the top left corner), or, up, bottom to top:
+ * glyph pixel (col, r) at (x + r, y - col). */
+static void draw_text(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3],
+                      int up) {
+  for (; *text; text++) {
     const uint8_t *g = glyph_of(*text);
     for (int r = 0; r < FONT_H; r++)
       for (int col = 0; col < FONT_W; col++)
         if (g[r] & (0x10 >> col))
           for (int dy = 0; dy < scale; dy++)
-            for (int dx = 0; dx < scale; dx++)
-              put(c, x + col * scale + dx, y + r * scale + dy, color);
+            for (int dx = 0; dx < scale; dx++) {
+              if (up)
+                put(c, x + r * scale + dx, y - col * scale - dy, color);
+              else
+                put(c, x + col * scale + dx, y + r * scale + dy, color);
+            }
+    if (up)
+      y -= (FONT_W + 1) * scale;
+    else
+      x += (FONT_W + 1) * scale;
   }
+}
+
+void bsurf_draw_text(canvas *c, int x, int y, const char *text, int scale, const uint8_t color[3]) {
+  draw_text(c, x, y, text, scale, color, 0);
 }
 
 void bsurf_draw_text_up(canvas *c, int x, int y, const char *text, int scale,
                         const uint8_t color[3]) {
-  /* glyph pixel (col, r) goes to (x + r, y - col) */
-  for (; *text; text++, y -= (FONT_W + 1) * scale) {
-    const uint8_t *g = glyph_of(*text);
-    for (int r = 0; r < FONT_H; r++)
-      for (int col = 0; col < FONT_W; col++)
-        if (g[r] & (0x10 >> col))
-          for (int dy = 0; dy < scale; dy++)
-            for (int dx = 0; dx < scale; dx++)
-              put(c, x + r * scale + dx, y - col * scale - dy, color);
-  }
+  draw_text(c, x, y, text, scale, color, 1);
 }
 
 void bsurf_draw_rect(canvas *c, int x0, int y0, int x1, int y1, const uint8_t color[3]) {

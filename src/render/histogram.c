@@ -9,14 +9,8 @@
 #include <string.h>
 
 bsurf_histogram_options bsurf_histogram_options_default(void) {
-  bsurf_histogram_options o;
-  memset(&o, 0, sizeof o);
-  o.width = 800;
-  o.height = 500;
-  o.bins = 50;
-  o.range_lo = NAN;
-  o.range_hi = NAN;
-  o.threshold = NAN;
+  bsurf_histogram_options o = {
+      .width = 800, .height = 500, .bins = 50, .range_lo = NAN, .range_hi = NAN, .threshold = NAN};
   return o;
 }
 

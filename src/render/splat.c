@@ -15,26 +15,23 @@
 #define PI 3.14159265358979323846
 
 bsurf_render_options bsurf_render_options_default(void) {
-  bsurf_render_options o;
-  memset(&o, 0, sizeof o);
-  o.width = 1024;
-  o.height = 768;
-  o.azimuth = 45.0;
-  o.elevation = 35.26;
-  o.views = 1;
-  o.point_size = 2.0;
-  o.spacing = 0.0;
-  o.round_splats = 1;
-  o.supersample = 2;
-  o.up_axis = 2;
-  o.colormap = BSURF_COLORMAP_VIRIDIS;
-  o.range_lo = NAN;
-  o.range_hi = NAN;
-  o.percentile_lo = 1.0;
-  o.percentile_hi = 99.0;
-  o.shade = 1;
-  o.colorbar = 1;
-  o.background[0] = o.background[1] = o.background[2] = 255;
+  bsurf_render_options o = {.width = 1024,
+                            .height = 768,
+                            .azimuth = 45.0,
+                            .elevation = 35.26,
+                            .views = 1,
+                            .point_size = 2.0,
+                            .round_splats = 1,
+                            .supersample = 2,
+                            .up_axis = 2,
+                            .colormap = BSURF_COLORMAP_VIRIDIS,
+                            .range_lo = NAN,
+                            .range_hi = NAN,
+                            .percentile_lo = 1.0,
+                            .percentile_hi = 99.0,
+                            .shade = 1,
+                            .colorbar = 1,
+                            .background = {255, 255, 255}};
   return o;
 }
 
@@ -476,13 +473,8 @@ bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals
     if (!isfinite(job.lo)) job.lo = lo;
     if (!isfinite(job.hi)) job.hi = hi;
   }
-  double lo3[3] = {INFINITY, INFINITY, INFINITY}, hi3[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t i = 0; i < point_count; i++)
-    for (int t = 0; t < 3; t++) {
-      double v = xyz[3 * i + t];
-      if (v < lo3[t]) lo3[t] = v;
-      if (v > hi3[t]) hi3[t] = v;
-    }
+  double lo3[3], hi3[3];
+  bsurf_bounding_box(xyz, point_count, lo3, hi3);
   double extent = 0;
   if (point_count) {
     for (int t = 0; t < 3; t++) {

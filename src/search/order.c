@@ -44,12 +44,8 @@ bsurf_status bsurf_spatial_order(const double *xyz, size_t n, uint32_t **perm_ou
     free(rank);
     return BSURF_ERR_NOMEM;
   }
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t i = 0; i < n; i++)
-    for (int t = 0; t < 3; t++) {
-      if (xyz[3 * i + t] < lo[t]) lo[t] = xyz[3 * i + t];
-      if (xyz[3 * i + t] > hi[t]) hi[t] = xyz[3 * i + t];
-    }
+  double lo[3], hi[3];
+  bsurf_bounding_box(xyz, n, lo, hi);
   double ext = 0;
   for (int t = 0; t < 3; t++)
     if (hi[t] - lo[t] > ext) ext = hi[t] - lo[t];

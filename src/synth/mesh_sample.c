@@ -43,12 +43,7 @@
 #define PI 3.14159265358979323846
 
 bsurf_sample_options bsurf_sample_options_default(void) {
-  bsurf_sample_options o;
-  o.points = 0;
-  o.seed = 1;
-  o.sharp_angle_deg = 30.0;
-  o.feature_width = 2.0;
-  o.threads = 0;
+  bsurf_sample_options o = {.seed = 1, .sharp_angle_deg = 30.0, .feature_width = 2.0};
   return o;
 }
 
@@ -333,18 +328,6 @@ static void compact(bsurf_cloud *c, const uint8_t *keep) {
   c->point_count = j;
 }
 
-static double bbox_diagonal(const bsurf_cloud *mesh) {
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t i = 0; i < mesh->point_count; i++)
-    for (int k = 0; k < 3; k++) {
-      double v = mesh->xyz[3 * i + k];
-      if (v < lo[k]) lo[k] = v;
-      if (v > hi[k]) hi[k] = v;
-    }
-  double d[3] = {hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]};
-  return mesh->point_count ? norm3(d) : 0.0;
-}
-
 /* First face with cum[f] > u (faces of zero area are never chosen); the last
  * face of non-zero area if rounding put u at the total. */
 static size_t pick_face(const double *cum, size_t F, double u, size_t last_positive) {
@@ -421,7 +404,7 @@ bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
   rep.nonmanifold_edges = edges.nonmanifold;
   rep.inconsistent_edges = edges.inconsistent;
   rep.mean_edge_length = edges.edges ? edges.length_sum / (double)edges.edges : 0.0;
-  rep.no_feature_dist = bbox_diagonal(mesh);
+  rep.no_feature_dist = bsurf_bounding_box(mesh->xyz, mesh->point_count, NULL, NULL);
 
   if (o.points == 0) {
     st = bsurf_cloud_copy(out, mesh);
@@ -518,21 +501,15 @@ bsurf_status bsurf_sample_mesh(bsurf_cloud *out, const bsurf_cloud *mesh,
   for (long long i = 0; i < count; i++)
     rep.feature_points += flag[i] != 0;
 
-  seg_tree_free(&tree);
-  free(edges.sharp);
-  free(unit);
-  free(cum);
-  free(degenerate);
-  free(keep);
   if (report) *report = rep;
-  return BSURF_OK;
-fail:
+  st = BSURF_OK;
+fail: /* and the end of a success: the scratch freed, the output kept */
   seg_tree_free(&tree);
   free(edges.sharp);
   free(unit);
   free(cum);
   free(degenerate);
   free(keep);
-  bsurf_cloud_free(out);
+  if (st != BSURF_OK) bsurf_cloud_free(out);
   return st;
 }

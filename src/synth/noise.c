@@ -40,28 +40,8 @@ bsurf_status bsurf_add_noise(double *xyz, const double *normals, size_t point_co
 }
 
 bsurf_noise_options bsurf_noise_options_default(void) {
-  bsurf_noise_options o;
-  memset(&o, 0, sizeof o);
-  o.model = BSURF_NOISE_GAUSSIAN;
-  o.level = 0.5;
-  o.sigma_diag = 0;
-  o.seed = 1;
+  bsurf_noise_options o = {.model = BSURF_NOISE_GAUSSIAN, .level = 0.5, .seed = 1};
   return o;
-}
-
-/* The length of the diagonal of the axis-aligned bounding box (0 when empty). */
-static double bbox_diagonal(const double *xyz, size_t n) {
-  double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-  for (size_t i = 0; i < n; i++)
-    for (int k = 0; k < 3; k++) {
-      double v = xyz[3 * i + k];
-      if (v < lo[k]) lo[k] = v;
-      if (v > hi[k]) hi[k] = v;
-    }
-  double s = 0;
-  for (int k = 0; k < 3; k++)
-    s += (hi[k] - lo[k]) * (hi[k] - lo[k]);
-  return n ? sqrt(s) : 0.0;
 }
 
 bsurf_status bsurf_noise_points(double *xyz, const double *normals, size_t point_count,
@@ -78,7 +58,7 @@ bsurf_status bsurf_noise_points(double *xyz, const double *normals, size_t point
                 o.sigma_diag);
   bsurf_noise_report r;
   memset(&r, 0, sizeof r);
-  r.diagonal = bbox_diagonal(xyz, point_count);
+  r.diagonal = bsurf_bounding_box(xyz, point_count, NULL, NULL);
   bsurf_status st =
       bsurf_mean_spacing_progress(xyz, point_count, o.threads, &r.h, o.progress, o.progress_user);
   if (st != BSURF_OK) return st;

@@ -4,7 +4,8 @@
 # and has its SONAME; neither library defines an unprefixed global symbol;
 # `cmake --install` into a temporary prefix gives a package that examples/
 # build against through pkg-config (shared and --static) and find_package,
-# and the programs so built run and agree with each other.
+# and the programs so built run, agree with each other and with the command
+# line (the files they write and the numbers they print).
 . "$(dirname "$0")/common.inc"
 SRC=$(cd "$(dirname "$0")/../.." && pwd)
 B=$(cd "$(dirname "$BSURF")" && pwd) # the build tree
@@ -81,7 +82,9 @@ for d in pc pcs fp; do
   cp "$T/out" "$T/$d.error_array.txt"
   expect 0 "$d/normals_confidence" -- "$T/$d/normals_confidence" "$T/n.xyz" "$T/$d.normals.ply"
   expect 0 "$d/denoise" -- "$T/$d/denoise" "$T/n.ply" "$T/$d.denoised.ply"
+  cp "$T/out" "$T/$d.denoise.txt"
   expect 0 "$d/estimate_error" -- "$T/$d/estimate_error" "$T/n.ply" "$T/$d.error.ply"
+  cp "$T/out" "$T/$d.estimate_error.txt"
 done
 grep -q "3000 points, sigma = 0.01: mean err_train" "$T/pc.error_array.txt" && ok || fail "error_array output: $(cat "$T/pc.error_array.txt")"
 for f in error_array.txt normals.ply denoised.ply error.ply; do
@@ -100,4 +103,30 @@ for f in pc.denoised cli_smooth; do
 done
 [ -s "$T/pc.denoised.position" ] && cmp -s "$T/pc.denoised.position" "$T/cli_smooth.position" && ok ||
   fail "denoise and bootsurf smooth moved the points differently: $(cat "$T/pc.denoised.position" "$T/cli_smooth.position")"
+
+# the numbers the examples print are the command line's (JSON values, printed
+# as the examples print them: %g)
+json_num() { grep -o "\"$1\":[-0-9.e+]*" "$2" | head -1 | cut -d: -f2; }
+expect 0 "CLI smooth --json" -- "$P/bin/bootsurf" smooth "$T/n.ply" -o "$T/cli_smooth2.ply" --json
+cp "$T/out" "$T/cli_smooth.json"
+want=$(printf '%s points, h = %g: %s moved, by %g h on average' "$(json_num points "$T/cli_smooth.json")" \
+  "$(json_num h "$T/cli_smooth.json")" "$(json_num moved_points "$T/cli_smooth.json")" \
+  "$(json_num moved_mean_h "$T/cli_smooth.json")")
+grep -qF "$want" "$T/pc.denoise.txt" && ok || fail "denoise printed '$(cat "$T/pc.denoise.txt")', bootsurf smooth: '$want'"
+expect 0 "CLI error --json" -- "$P/bin/bootsurf" error "$T/n.ply" -o "$T/cli_error.ply" --json
+cp "$T/out" "$T/cli_error.json"
+want=$(printf '%s points, h = %g, %s replicate fits skipped' "$(json_num points "$T/cli_error.json")" \
+  "$(json_num h "$T/cli_error.json")" "$(json_num replicates_skipped "$T/cli_error.json")")
+grep -qF "$want" "$T/pc.estimate_error.txt" && ok ||
+  fail "estimate_error printed '$(cat "$T/pc.estimate_error.txt")', bootsurf error: '$want'"
+# and the values it writes are bootsurf error's err_632plus, bit for bit (CSV: 17 digits)
+column() { # column FILE.csv NAME: that column's values
+  awk -F, -v name="$2" 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == name) c = i; next } c { print $c }' "$1"
+}
+expect 0 "example error as csv" -- "$P/bin/bootsurf" convert "$T/pc.error.ply" "$T/pc.error.csv" -q
+expect 0 "CLI error as csv" -- "$P/bin/bootsurf" convert "$T/cli_error.ply" "$T/cli_error.csv" -q
+column "$T/pc.error.csv" err_632plus >"$T/pc.err_632plus"
+column "$T/cli_error.csv" err_632plus >"$T/cli.err_632plus"
+[ "$(wc -l <"$T/pc.err_632plus")" -eq 2000 ] && cmp -s "$T/pc.err_632plus" "$T/cli.err_632plus" && ok ||
+  fail "estimate_error's err_632plus differs from bootsurf error's ($(wc -l <"$T/pc.err_632plus") values)"
 finish

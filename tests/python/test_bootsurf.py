@@ -98,6 +98,17 @@ def test_normals_equal_cli(cube):
     same_bits(fields["normal_err"].astype(np.float32), ref["normal_err"])
 
 
+def test_select_mse_equals_cli(cube):
+    """K selection by the mse rule at its defaults (noise_k as the CLI's), with two_sheet."""
+    cli("normals", tmp("noisy.ply"), "--select-k", "15:40:5", "--select-rule", "mse", "-B", 0,
+        "-o", tmp("mse.ply"), "-q")
+    ref = bootsurf.read(tmp("mse.ply"))
+    fields, s = bootsurf.normals(cube, select_k="15:40:5", select_rule="mse", bootstrap=0)
+    same_bits(fields["normals"].astype(np.float32), ref["normals"].astype(np.float32))
+    for name in ("normal_err", "k_selected", "two_sheet"):
+        same_bits(fields[name].astype(ref[name].dtype), ref[name])
+
+
 def test_smooth_equals_cli(cube):
     for method, extra in (("bilateral", []), ("naive", ["--threshold", "0.5h"]),
                           ("multipass", ["--iterations", 3, "--h2", "1W"])):
