@@ -3,8 +3,9 @@
 #
 # usage: bench/select_compare.sh BUILD_DIR [N=200000]
 #   env: REPS=3 THREADS=2
-#        SD_N=3000    points for the --select-degree ratio (it is slow: one polynomial
-#                     normals pass per (K, degree), 45 for 10:80:5 x 1,2,3)
+#        SD_N=20000   points for the --select-degree ratio (both sides of that pair run
+#                     on this smaller cloud: 45 candidates (10:80:5 x 1,2,3) with three
+#                     times select-k's angles of Eq. 5.10 take minutes at 200k points)
 #        WORK=DIR     scratch directory (default: a fresh mktemp -d, removed at exit)
 #        OPEN3D=0     skip the Open3D whole-command ratio
 #
@@ -31,7 +32,7 @@ BUILD=$(cd "$1" && pwd)
 N=${2:-200000}
 REPS=${REPS:-3}
 THREADS=${THREADS:-2}
-SD_N=${SD_N:-3000}
+SD_N=${SD_N:-20000}
 OPEN3D=${OPEN3D:-1}
 BS="$BUILD/bootsurf"
 [ -x "$BS" ] || { echo "select_compare: $BS not found (build bootsurf first)" >&2; exit 1; }

@@ -137,6 +137,52 @@ void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center,
 double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
                               const double *rz, int k, double *scratch);
 
+/* The candidate list of a nested selection: ks[0..nk) strictly increasing,
+ * ks[0] >= kmin, ks[nk - 1] <= nb->k, 65535 and the point count; messages
+ * name `who` (the public function). */
+bsurf_status bsurf_nested_check_ks(const char *who, const int *ks, int nk, int kmin,
+                                   const bsurf_neighbors *nb);
+/* The angle between unit a and b, accurate near 0 (atan2 of |a x b| and
+ * a . b); unoriented: the smaller of the angles with b and -b. */
+double bsurf_angle_between(const double a[3], const double b[3], int unoriented);
+/* One candidate's B replicate normals bn (B x 3, unit; valid[b] = 0 skips
+ * one) oriented to its whole-neighbourhood normal nP (5.2.1, in place), the
+ * estimate nrm = sum / |sum| (Eq. 5.4; nP when no replicate is valid) and
+ * the variance *var of the angles between the first valid replicate and
+ * each (Eq. 5.5, 0 below two). ang: B doubles of scratch. Returns the
+ * number of valid replicates. */
+int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned char *valid,
+                         double nrm[3], double *var, double *ang);
+/* sum_j theta(g_j, r_j), j < k, for the normals of a height polynomial in
+ * its local frame (Eq. 5.9, unnormalised): g_j = (-f_u / s, -f_v / s, 1) at
+ * neighbour j for f = sum_t coef[t] phi_t of degree `degree` (0: g =
+ * (0, 0, 1)), inv_scale = 1 / s, phit the graded basis at the neighbours
+ * (term-major, row stride kp >= k, at least terms(degree - 1) rows: the
+ * gradient is a polynomial of one degree less); r_j the reference normals
+ * in the same frame. Unoriented angles as bsurf_nested_angle_sum, in vector
+ * lanes, summed in a fixed order. scratch: k doubles. The inner sum of
+ * Eq. 5.10 for a polynomial fit. */
+double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_scale,
+                                    const double *phit, size_t kp, const double *rx,
+                                    const double *ry, const double *rz, int k, double *scratch);
+
+/* Per-point K and degree selection of polynomial normals (5.5, Algorithm 3;
+ * select_degree.c): every candidate (ks[a], ds[d]) as bsurf_select_normals_k
+ * does for PCA (Poisson(1) counts over the kmax = ks[nk - 1] neighbours,
+ * drawn once per point and shared by every K and degree), each K's fits in
+ * the PCA frame of its own K points (Eq. 3.4) with one product of the
+ * weights and the monomials at the largest degree serving every degree.
+ * opts->fit must be BSURF_NORMAL_POLY (opts->k and opts->degree ignored);
+ * ds: nd degrees in [1, BSURF_DEGREE_MAX], each needing ks[0] >= its
+ * terms. Candidate c = a nd + d; out->cand_*: point_count x nk nd;
+ * degree_selected (may be NULL): the chosen degree. Ties: the smaller K,
+ * then the earlier degree. */
+bsurf_status bsurf_select_normals_kd(const double *xyz, const bsurf_neighbors *nb,
+                                     const double *ref_normals, const bsurf_normal_options *opts,
+                                     const int *ks, int nk, const int *ds, int nd,
+                                     bsurf_normal_select_fields *out, int *degree_selected,
+                                     bsurf_normal_report *report);
+
 /* ---- features --method distance (7.1) in stages (features.c), run on the
  * whole cloud by bsurf_detect_features and tile by tile by
  * bsurf_features_distance_tiled (src/tile/features_tiled.c): the same functions on

@@ -99,32 +99,67 @@ int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center,
   return 0;
 }
 
+/* Cephes' atan: P (degree 4) and Q (monic, degree 5) of x + x z P(z) / Q(z),
+ * z = x^2, for |x| <= 0.66; pi / 4 split in two for the reduction. */
+static const double P0 = -8.750608600031904122785e-1, P1 = -1.615753718733365076637e1,
+                    P2 = -7.500855792314704667340e1, P3 = -1.228866684490136173410e2,
+                    P4 = -6.485021904942025371773e1;
+static const double Q0 = 2.485846490142306297962e1, Q1 = 1.650270098316988542046e2,
+                    Q2 = 4.328810604912902668951e2, Q3 = 4.853903996359136964868e2,
+                    Q4 = 1.945506571482613964425e2;
+static const double PIO4 = 7.85398163397448309616e-1, MOREBITS = 6.123233995736765886130e-17,
+                    PIO2 = 1.57079632679489661923;
+
 /* atan(t) for 0 <= t <= 1 (Cephes' atan: below 0.66 a rational function of
  * t^2, above it pi/4 + atan((t - 1) / (t + 1))), written branch-free so that
- * a loop of them runs in vector lanes; zn / zd is the reduced argument. */
+ * a loop of them runs in vector lanes; zn / zd is the reduced argument;
+ * one_div (a constant where inlined) picks the form with one division. */
 #if defined(__GNUC__) && !defined(__clang__)
 __attribute__((optimize("no-trapping-math")))
 #endif
-static inline double
-atan_reduced(double num, double den) {
-  static const double P0 = -8.750608600031904122785e-1, P1 = -1.615753718733365076637e1,
-                      P2 = -7.500855792314704667340e1, P3 = -1.228866684490136173410e2,
-                      P4 = -6.485021904942025371773e1;
-  static const double Q0 = 2.485846490142306297962e1, Q1 = 1.650270098316988542046e2,
-                      Q2 = 4.328810604912902668951e2, Q3 = 4.853903996359136964868e2,
-                      Q4 = 1.945506571482613964425e2;
-  static const double PIO4 = 7.85398163397448309616e-1, MOREBITS = 6.123233995736765886130e-17;
+static inline __attribute__((always_inline)) double
+atan_reduced(double num, double den, int one_div) {
   /* t = num / den <= 1; above 0.66 (num > 0.66 den) reduce */
   const double dif = num - den, tot = num + den; /* both computed: no branches */
   const int big = num > 0.66 * den;
   const double zn = big ? dif : num, zd = big ? tot : den;
-  const double x = zn / zd; /* zd >= den > 0 for unit vectors */
-  const double z = x * x;
-  const double p = (((P0 * z + P1) * z + P2) * z + P3) * z + P4;
-  const double q = ((((z + Q0) * z + Q1) * z + Q2) * z + Q3) * z + Q4;
-  const double r = x * (z * p / q) + x;
+  double r;
+  if (!one_div) {
+    const double x = zn / zd; /* zd >= den > 0 for unit vectors */
+    const double z = x * x;
+    const double p = (((P0 * z + P1) * z + P2) * z + P3) * z + P4;
+    const double q = ((((z + Q0) * z + Q1) * z + Q2) * z + Q3) * z + Q4;
+    r = x * (z * p / q) + x;
+  } else {
+    /* one division instead of two: x = zn / zd and z = x^2 substituted into
+     * x + x z P(z) / Q(z) (P of degree 4, Q monic of degree 5) and both
+     * polynomials made homogeneous in Z = zn^2, D = zd^2: z P(z) / Q(z) =
+     * Z P~(Z, D) / Q~(Z, D), so r = zn (Q~ + Z P~) / (zd Q~), the same
+     * rational function. Needs zd^10 finite (the caller bounds den). */
+    const double Z = zn * zn, D = zd * zd, D2 = D * D, D3 = D2 * D, D4 = D2 * D2, D5 = D4 * D;
+    const double pt = (((P0 * Z + P1 * D) * Z + P2 * D2) * Z + P3 * D3) * Z + P4 * D4;
+    const double qt = ((((Z + Q0 * D) * Z + Q1 * D2) * Z + Q2 * D3) * Z + Q3 * D4) * Z + Q4 * D5;
+    r = (zn * (qt + Z * pt)) / (zd * qt);
+  }
   const double rb = PIO4 + (r + 0.5 * MOREBITS);
   return big ? rb : r;
+}
+
+/* atan2(|c|, |dot|) (c = g x r, dot = g . r: the unoriented angle between g
+ * and r) with atan2 of the first quadrant reduced to atan of a ratio <= 1
+ * (pi/2 - atan(x / y) above the diagonal); one_div (a constant where
+ * inlined) picks atan_reduced's one-division form. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+static inline __attribute__((always_inline)) double
+q1_angle(double c0, double c1, double c2, double dot, int one_div) {
+  const double y = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
+  const double x = fabs(dot);
+  const double lo = y > x ? x : y, hi = y > x ? y : x;
+  const double a = atan_reduced(lo, hi, one_div);
+  const double as = (PIO2 - a) + MOREBITS;
+  return y > x ? as : a;
 }
 
 /* The unoriented angle between unit g and each (rx, ry, rz)[j]: atan2(|g x
@@ -138,32 +173,31 @@ __attribute__((optimize("no-trapping-math")))
 BSURF_CLONES static void
 angles(const double g[3], const double *restrict rx, const double *restrict ry,
        const double *restrict rz, int k, double *restrict out) {
-  static const double PIO2 = 1.57079632679489661923, MOREBITS = 6.123233995736765886130e-17;
   const double g0 = g[0], g1 = g[1], g2 = g[2];
   for (int j = 0; j < k; j++) {
     const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
                  c2 = g0 * ry[j] - g1 * rx[j];
-    const double y = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
-    const double x = fabs(g0 * rx[j] + g1 * ry[j] + g2 * rz[j]);
-    const double lo = y > x ? x : y, hi = y > x ? y : x;
-    const double a = atan_reduced(lo, hi);
-    const double as = (PIO2 - a) + MOREBITS;
-    out[j] = y > x ? as : a;
+    out[j] = q1_angle(c0, c1, c2, g0 * rx[j] + g1 * ry[j] + g2 * rz[j], 0);
   }
+}
+
+/* sum_j a[j], j < k, as four running sums (j mod 4) then combined: a fixed
+ * order. */
+static double fixed_sum(const double *a, int k) {
+  double s[4] = {0, 0, 0, 0};
+  int j = 0;
+  for (; j + 4 <= k; j += 4)
+    for (int l = 0; l < 4; l++)
+      s[l] += a[j + l];
+  for (int l = 0; j < k; j++, l++)
+    s[l] += a[j];
+  return (s[0] + s[1]) + (s[2] + s[3]);
 }
 
 double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
                               const double *rz, int k, double *scratch) {
   angles(g, rx, ry, rz, k, scratch);
-  /* four running sums, j mod 4, then combined: a fixed order */
-  double s[4] = {0, 0, 0, 0};
-  int j = 0;
-  for (; j + 4 <= k; j += 4)
-    for (int l = 0; l < 4; l++)
-      s[l] += scratch[j + l];
-  for (int l = 0; j < k; j++, l++)
-    s[l] += scratch[j];
-  return (s[0] + s[1]) + (s[2] + s[3]);
+  return fixed_sum(scratch, k);
 }
 
 /* One lane r of bsurf_nested_cov_lanes. */
@@ -218,4 +252,135 @@ void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center,
 #endif
   for (; r < R; r++)
     cov_one(block, R, r, about_centroid, cov, ok);
+}
+
+bsurf_status bsurf_nested_check_ks(const char *who, const int *ks, int nk, int kmin,
+                                   const bsurf_neighbors *nb) {
+  BSURF_REQUIRE_IN(who, ks && nk >= 1, "ks = %p, nk = %d: at least one candidate K",
+                   (const void *)ks, nk);
+  BSURF_REQUIRE_IN(who, ks[0] >= kmin, "ks[0] = %d must be at least %d", ks[0], kmin);
+  for (int a = 1; a < nk; a++)
+    BSURF_REQUIRE_IN(who, ks[a] > ks[a - 1], "ks[%d] = %d must be above ks[%d] = %d (increasing)",
+                     a, ks[a], a - 1, ks[a - 1]);
+  BSURF_REQUIRE_IN(who, ks[nk - 1] <= 65535 && ks[nk - 1] <= nb->k,
+                   "ks[%d] = %d must be at most the neighbourhoods' k = %d (and 65535)", nk - 1,
+                   ks[nk - 1], nb->k);
+  if ((size_t)ks[nk - 1] > nb->point_count)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "%s: ks[%d] = %d exceeds the %zu points",
+                             who, nk - 1, ks[nk - 1], nb->point_count);
+  return BSURF_OK;
+}
+
+double bsurf_angle_between(const double a[3], const double b[3], int unoriented) {
+  double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
+  double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+  if (unoriented) d = fabs(d);
+  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d);
+}
+
+int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned char *valid,
+                         double nrm[3], double *var, double *ang) {
+  /* orient to n_P (5.2.1), Eq. 5.4 */
+  double sum[3] = {0, 0, 0};
+  int nvalid = 0, first = -1;
+  for (int b = 0; b < B; b++) {
+    if (!valid[b]) continue;
+    double *n = &bn[3 * b];
+    if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
+      for (int t = 0; t < 3; t++)
+        n[t] = -n[t];
+    for (int t = 0; t < 3; t++)
+      sum[t] += n[t];
+    if (first < 0) first = b;
+    nvalid++;
+  }
+  const double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
+  for (int t = 0; t < 3; t++)
+    nrm[t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
+  /* Eq. 5.5 */
+  double v = 0;
+  if (nvalid >= 2) {
+    double mean = 0;
+    for (int b = 0; b < B; b++)
+      if (valid[b]) mean += ang[b] = bsurf_angle_between(&bn[3 * first], &bn[3 * b], 0);
+    mean /= nvalid;
+    for (int b = 0; b < B; b++)
+      if (valid[b]) {
+        const double d = ang[b] - mean;
+        v += d * d;
+      }
+    v /= nvalid - 1;
+  }
+  *var = v;
+  return nvalid;
+}
+
+/* The gradient of f = sum_t coef[t] phi_t (degree M, graded basis) as two
+ * polynomials of degree M - 1 in the same basis, times `factor`: f_u = sum_b
+ * eu[b] phi_b, f_v = sum_b ev[b] phi_b (terms(M - 1) coefficients each). */
+static void grad_coefs(int degree, const double *coef, double factor, double *eu, double *ev) {
+  for (int d = 1; d <= degree; d++)
+    for (int e = 0; e <= d; e++) { /* u^i v^e, i = d - e */
+      const int i = d - e, t = d * (d + 1) / 2 + e, lo = (d - 1) * d / 2;
+      if (i > 0) eu[lo + e] = factor * (i * coef[t]);
+      if (e > 0) ev[lo + e - 1] = factor * (e * coef[t]);
+    }
+}
+
+/* The unoriented angles between g_j = (gx_j, gy_j, 1) (unnormalised: the
+ * angle does not depend on the length), gx_j = sum_b eu[b] phi[b kp + j]
+ * (gy_j with ev), and (rx, ry, rz)[j], as angles() with g varying per j;
+ * mg (the slopes' terms) constant in each instance so that the loop over j
+ * runs in vector lanes with the small sums unrolled. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+static inline __attribute__((always_inline)) void
+field_angles(int mg, const double *restrict eu, const double *restrict ev,
+             const double *restrict phi, size_t kp, const double *restrict rx,
+             const double *restrict ry, const double *restrict rz, int k, double *restrict out) {
+  for (int j = 0; j < k; j++) {
+    double g0 = 0, g1 = 0;
+    for (int b = 0; b < mg; b++) {
+      g0 += eu[b] * phi[(size_t)b * kp + j];
+      g1 += ev[b] * phi[(size_t)b * kp + j];
+    }
+    /* the one-division atan needs zd^10 finite, zd <= 2 |g|: g scaled by 1e-20 (its
+     * direction kept) where a slope exceeds 1e20 */
+    const double sc = fabs(g0) + fabs(g1) > 1e20 ? 1e-20 : 1.0;
+    g0 *= sc;
+    g1 *= sc;
+    const double c0 = g1 * rz[j] - sc * ry[j], c1 = sc * rx[j] - g0 * rz[j],
+                 c2 = g0 * ry[j] - g1 * rx[j];
+    out[j] = q1_angle(c0, c1, c2, g0 * rx[j] + g1 * ry[j] + sc * rz[j], 1);
+  }
+}
+
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+BSURF_CLONES static void
+field_angles_m(int mg, const double *eu, const double *ev, const double *phi, size_t kp,
+               const double *rx, const double *ry, const double *rz, int k, double *out) {
+  switch (mg) { /* the degrees 1..4 */
+  case 1: field_angles(1, eu, ev, phi, kp, rx, ry, rz, k, out); break;
+  case 3: field_angles(3, eu, ev, phi, kp, rx, ry, rz, k, out); break;
+  case 6: field_angles(6, eu, ev, phi, kp, rx, ry, rz, k, out); break;
+  default: field_angles(mg, eu, ev, phi, kp, rx, ry, rz, k, out); break;
+  }
+}
+
+double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_scale,
+                                    const double *phit, size_t kp, const double *rx,
+                                    const double *ry, const double *rz, int k, double *scratch) {
+  double eu[BSURF_TERMS_MAX], ev[BSURF_TERMS_MAX];
+  int mg = bsurf_poly_terms(degree - 1);
+  if (degree >= 1) {
+    grad_coefs(degree, coef, -inv_scale, eu, ev);
+  } else { /* a constant height: g = (0, 0, 1) */
+    mg = 1;
+    eu[0] = ev[0] = 0.0;
+  }
+  field_angles_m(mg, eu, ev, phit, kp, rx, ry, rz, k, scratch);
+  return fixed_sum(scratch, k);
 }

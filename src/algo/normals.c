@@ -43,54 +43,6 @@ bsurf_normal_options bsurf_normal_options_default(void) {
   return o;
 }
 
-/* Angle between two unit vectors, accurate near 0 (atan2 of |a x b| and
- * a . b); unoriented: the smaller of the angles with b and -b. */
-static double angle_between(const double a[3], const double b[3], int unoriented) {
-  double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]};
-  double d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-  if (unoriented) d = fabs(d);
-  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d);
-}
-
-/* The B bootstrap normals bn (B x 3; those with valid[b]) oriented to n_P
- * (5.2.1), their mean direction (Eq. 5.4; n_P when none is valid) in nrm
- * and, when var is not NULL, the variance of their angles with the first
- * valid one (Eq. 5.5; ang: B doubles of scratch). Returns how many are valid. */
-static int boot_normals_summary(double *bn, const unsigned char *valid, int B, const double nP[3],
-                                double nrm[3], double *var, double *ang) {
-  double sum[3] = {0, 0, 0};
-  int nvalid = 0, first = -1;
-  for (int b = 0; b < B; b++) {
-    if (!valid[b]) continue;
-    double *n = &bn[3 * b];
-    if (n[0] * nP[0] + n[1] * nP[1] + n[2] * nP[2] < 0)
-      for (int t = 0; t < 3; t++)
-        n[t] = -n[t];
-    for (int t = 0; t < 3; t++)
-      sum[t] += n[t];
-    if (first < 0) first = b;
-    nvalid++;
-  }
-  const double len = sqrt(sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2]);
-  for (int t = 0; t < 3; t++)
-    nrm[t] = (nvalid > 0 && len > 0) ? sum[t] / len : nP[t];
-  if (!var) return nvalid;
-  *var = 0;
-  if (nvalid >= 2) {
-    double mean = 0;
-    for (int b = 0; b < B; b++)
-      if (valid[b]) mean += ang[b] = angle_between(&bn[3 * first], &bn[3 * b], 0);
-    mean /= nvalid;
-    for (int b = 0; b < B; b++)
-      if (valid[b]) {
-        const double d = ang[b] - mean;
-        *var += d * d;
-      }
-    *var /= nvalid - 1;
-  }
-  return nvalid;
-}
-
 typedef struct normal_scratch {
   bsurf_localfit lf;
   double *terms;        /* k x PCA_COLS */
@@ -244,8 +196,7 @@ static void normals_point(void *vctx, void *scratch, size_t i) {
 
   /* orient the bootstrap normals to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
   double nrm[3], var;
-  const int nvalid =
-      boot_normals_summary(s->bn, s->valid, B, nP, nrm, c->out->normal_var ? &var : NULL, s->ang);
+  const int nvalid = bsurf_nested_summary(B, nP, s->bn, s->valid, nrm, &var, s->ang);
   s->skipped += (size_t)(B - nvalid);
   if (c->out->normals)
     for (int t = 0; t < 3; t++)
@@ -269,7 +220,7 @@ static void normals_point(void *vctx, void *scratch, size_t i) {
           const double *cb = b >= 0 ? &s->coefs[(size_t)(b + 1) * m] : s->coefs;
           bsurf_localfit_normal(&s->lf, &frame, degree, cb, s->lf.u[j], s->lf.v[j], g);
         }
-        total += angle_between(g, &c->ref[3 * (size_t)idx[j]], 1);
+        total += bsurf_angle_between(g, &c->ref[3 * (size_t)idx[j]], 1);
         terms++;
       }
     }
@@ -437,7 +388,7 @@ static void select_point(void *vctx, void *scratch, size_t i) {
     double *bn = &s->bn[(size_t)a * B * 3];
     const unsigned char *valid = &s->valid[(size_t)a * B];
     /* orient to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
-    const int nvalid = boot_normals_summary(bn, valid, B, nP, &s->nrm[3 * a], &s->var[a], s->ang2);
+    const int nvalid = bsurf_nested_summary(B, nP, bn, valid, &s->nrm[3 * a], &s->var[a], s->ang2);
     s->skipped += (size_t)(B - nvalid);
     /* Eq. 5.10: (1 / (B K)) sum_b sum_j theta(g^b, n_j); with no valid
      * replicate the single fit's training error */
@@ -486,21 +437,14 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
                 (int)o.fit);
   BSURF_REQUIRE(o.bootstrap >= 0 && o.bootstrap <= 100000,
                 "opts->bootstrap = %d must be in [0, 100000]", o.bootstrap);
-  BSURF_REQUIRE(ks[0] >= 3, "ks[0] = %d must be at least 3", ks[0]);
-  for (int a = 1; a < nk; a++)
-    BSURF_REQUIRE(ks[a] > ks[a - 1], "ks[%d] = %d must be above ks[%d] = %d (increasing)", a, ks[a],
-                  a - 1, ks[a - 1]);
-  BSURF_REQUIRE(ks[nk - 1] <= 65535 && ks[nk - 1] <= nb->k,
-                "ks[%d] = %d must be at most the neighbourhoods' k = %d (and 65535)", nk - 1,
-                ks[nk - 1], nb->k);
-  if ((size_t)ks[nk - 1] > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
+  bsurf_status st = bsurf_nested_check_ks("bsurf_select_normals_k", ks, nk, 3, nb);
+  if (st != BSURF_OK) return st;
 
   static const bsurf_point_loop loop = {sizeof(select_scratch), select_scratch_alloc,
                                         select_scratch_free, select_point, select_tally};
   const scratch_sizes sizes = {ks[nk - 1], o.bootstrap, 1, nk};
   normals_ctx ctx = {xyz, nb, ref_normals, &o, NULL, report, ks, nk, out};
-  bsurf_status st =
-      bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
   if (report && st == BSURF_OK)
     report->replicates_total = nb->point_count * (size_t)o.bootstrap * (size_t)nk;
   return st;

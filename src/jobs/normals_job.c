@@ -4,6 +4,7 @@
  * line parses its options and prints the summary; everything between is
  * here. */
 #include "jobs/jobs.h"
+#include "algo/algo.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -94,44 +95,50 @@ static void curve_row(normals_job *job, int k, int degree, double se, double sv,
   r->mean_angle_err = job->truth ? sa / (double)n : NAN;
 }
 
-/* select_k with PCA: every candidate in one pass (bsurf_select_normals_k);
- * with a curve each candidate's means. */
-static bsurf_status normals_select_pca(normals_job *job, const double *xyz,
-                                       const bsurf_neighbors *nb, const bsurf_normal_options *no,
-                                       const double *ref, normals_bufs *b,
-                                       bsurf_normal_report *total) {
+/* Selection by the test error: every candidate in one visit of each point
+ * (bsurf_select_normals_k for PCA, bsurf_select_normals_kd for the
+ * polynomial's K and degree); with a curve each candidate's means. */
+static bsurf_status normals_select_nested(normals_job *job, const double *xyz,
+                                          const bsurf_neighbors *nb, const bsurf_normal_options *no,
+                                          const double *ref, normals_bufs *b,
+                                          bsurf_normal_report *total) {
   const size_t n = nb->point_count;
-  const int nk = job->nk;
+  const int poly = no->fit == BSURF_NORMAL_POLY;
+  const int nk = job->nk, nd = poly ? job->nd : 1, nc = nk * nd;
   const int curve = job->curve != NULL;
   int *ksel = malloc((n ? n : 1) * sizeof *ksel);
+  int *dsel = poly ? malloc((n ? n : 1) * sizeof *dsel) : NULL;
   double *ce = NULL, *cv = NULL, *cn = NULL;
   if (curve) {
-    ce = bsurf_alloc_array(n * (size_t)nk, sizeof *ce);
-    cv = bsurf_alloc_array(n * (size_t)nk, sizeof *cv);
-    cn = job->truth ? bsurf_alloc_array(n * (size_t)nk * 3, sizeof *cn) : NULL;
+    ce = bsurf_alloc_array(n * (size_t)nc, sizeof *ce);
+    cv = bsurf_alloc_array(n * (size_t)nc, sizeof *cv);
+    cn = job->truth ? bsurf_alloc_array(n * (size_t)nc * 3, sizeof *cn) : NULL;
   }
   bsurf_status st = BSURF_ERR_NOMEM;
-  if (ksel && (!curve || (ce && cv && (!job->truth || cn)))) {
+  if (ksel && (!poly || dsel) && (!curve || (ce && cv && (!job->truth || cn)))) {
     bsurf_normal_select_fields out = {b->normals, b->var, b->err, ksel, ce, cv, cn};
-    st = bsurf_select_normals_k(xyz, nb, ref, no, job->ks, nk, &out, total);
+    st = poly ? bsurf_select_normals_kd(xyz, nb, ref, no, job->ks, nk, job->ds, nd, &out, dsel,
+                                        total)
+              : bsurf_select_normals_k(xyz, nb, ref, no, job->ks, nk, &out, total);
   }
   if (st == BSURF_OK) {
     for (size_t i = 0; i < n; i++) {
       b->ksel[i] = ksel[i];
-      b->dsel[i] = no->degree;
+      b->dsel[i] = poly ? dsel[i] : no->degree;
       b->best_e[i] = b->err[i];
     }
-    for (int a = 0; curve && a < nk; a++) {
+    for (int a = 0; curve && a < nc; a++) {
       double se = 0, sv = 0, sa = 0;
       for (size_t i = 0; i < n; i++) {
-        se += ce[i * nk + a];
-        sv += cv[i * nk + a];
-        if (job->truth) sa += bsurf_normal_angle(&cn[(i * nk + a) * 3], &job->truth[3 * i]);
+        se += ce[i * nc + a];
+        sv += cv[i * nc + a];
+        if (job->truth) sa += bsurf_normal_angle(&cn[(i * nc + a) * 3], &job->truth[3 * i]);
       }
-      curve_row(job, job->ks[a], 1, se, sv, sa, n);
+      curve_row(job, job->ks[a / nd], poly ? job->ds[a % nd] : 1, se, sv, sa, n);
     }
   }
   free(ksel);
+  free(dsel);
   free(ce);
   free(cv);
   free(cn);
@@ -189,9 +196,8 @@ static bsurf_status normals_compute(normals_job *job, const double *xyz, const b
     if (st != BSURF_OK) return st;
   }
   const int selecting = job->selecting;
-  if (selecting && no.fit == BSURF_NORMAL_PCA &&
-      job->ksel.rule != BSURF_KSELECT_MSE) /* nested candidates, one pass */
-    return normals_select_pca(job, xyz, nb, &no, ref, b, total);
+  if (selecting && job->ksel.rule != BSURF_KSELECT_MSE) /* nested candidates, one pass */
+    return normals_select_nested(job, xyz, nb, &no, ref, b, total);
   int *kmse = NULL; /* rule MSE: the chosen K; the candidates' loop below then keeps it */
   if (job->ksel.rule == BSURF_KSELECT_MSE) {
     bsurf_kselect_options ko = job->ksel;

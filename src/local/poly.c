@@ -590,12 +590,19 @@ void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, c
 
 void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, int degree,
                            const double *coef, double u, double v, double n[3]) {
-  double du[BSURF_TERMS_MAX], dv[BSURF_TERMS_MAX];
-  bsurf_poly_basis_grad(degree, u, v, du, dv);
   double fu = 0, fv = 0;
-  for (int a = 0; a < bsurf_poly_terms(degree); a++) {
-    fu += coef[a] * du[a];
-    fv += coef[a] * dv[a];
+  if (u == 0 && v == 0 && degree >= 1) {
+    /* at the frame's origin (the point d_i itself): the gradient is the
+     * linear terms (the general sum adds only zeros to them) */
+    fu = 0 + coef[1];
+    fv = 0 + coef[2];
+  } else {
+    double du[BSURF_TERMS_MAX], dv[BSURF_TERMS_MAX];
+    bsurf_poly_basis_grad(degree, u, v, du, dv);
+    for (int a = 0; a < bsurf_poly_terms(degree); a++) {
+      fu += coef[a] * du[a];
+      fv += coef[a] * dv[a];
+    }
   }
   /* r = (x, y, f(x, y)): r_x x r_y = (-f_x, -f_y, 1) (Eq. 5.9) */
   double l[3] = {-fu / lf->scale, -fv / lf->scale, 1.0};

@@ -1,0 +1,293 @@
+/* Per-point K and degree selection of polynomial normals (thesis 5.5,
+ * Algorithm 3; docs/normals.md "How --select-k and --select-degree
+ * compute"): every candidate (K, M) of a point in one visit, instead of one
+ * whole normals pass per candidate.
+ *
+ * For a point with its sorted kmax = ks[nk - 1] neighbours:
+ *  - B replicates of Poisson(1) counts per neighbour, drawn once and shared
+ *    by every K (each K's replicate b is the Poisson bootstrap of its first
+ *    K points, as in bsurf_select_normals_k) and every degree: all
+ *    candidates are compared on the same resamples;
+ *  - per K, the PCA frame of its K points (Eq. 3.4; the single fit's frame,
+ *    as bsurf_estimate_normals) and the per-neighbour monomials u^i v^j of
+ *    degree <= 2 M_max and phi z (src/local), then one product of the
+ *    B + 1 weight rows with them (bsurf_localfit_normal_eq_lanes): the
+ *    normal equations (Eq. 3.9) of every replicate and of the whole
+ *    neighbourhood at the largest degree, whose leading blocks are those of
+ *    every lower degree (the graded basis is a prefix);
+ *  - per degree, the whole neighbourhood's fit (with the degree reduced
+ *    while its system is rank-deficient, as bsurf_estimate_normals), the
+ *    replicates' LDL^T solves in vector lanes, their normals at d_i
+ *    (Eq. 5.9), the estimate (Eq. 5.4), the variance (Eq. 5.5) and the test
+ *    error (Eq. 5.10): the angles between each replicate's normal at every
+ *    neighbour p_j and n_j, evaluated in the frame (the reference normals
+ *    rotated into it once) in vector lanes.
+ * The candidate with the smallest test error wins (ties: the smaller K,
+ * then the earlier degree). The frames are per K because the height
+ * function of Eq. 3.5 lives in the neighbourhood's own PCA frame; only the
+ * draws and the sums' kernels are shared across K. */
+#include "algo/algo.h"
+#include "bootstrap/bootstrap.h"
+#include "common/common.h"
+#include "local/local.h"
+#include "search/search.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct kd_scratch {
+  bsurf_localfit lf;
+  uint32_t *u;             /* kmax */
+  uint8_t *x;              /* kmax */
+  double *Wt;              /* kmax x B: the Poisson counts */
+  double *W;               /* rows x K: one candidate's weight rows */
+  double *lanes;           /* rows x ncols: its normal equations */
+  int *nz;                 /* B: distinct points among the first K */
+  double *ref;             /* 3 x kmax: the reference normals in the frame */
+  double *ang;             /* kp: the angles */
+  double *coefs;           /* (B + 1) x terms: the whole fit, then the replicates */
+  unsigned char *valid;    /* B */
+  double *bn, *ang2;       /* B x 3, B */
+  double *err, *var, *nrm; /* candidates, candidates, candidates x 3 */
+  size_t skipped, reduced, degenerate;
+} kd_scratch;
+
+static void kd_free(kd_scratch *s) {
+  bsurf_localfit_free(&s->lf);
+  free(s->u);
+  free(s->x);
+  free(s->Wt);
+  free(s->W);
+  free(s->lanes);
+  free(s->nz);
+  free(s->ref);
+  free(s->ang);
+  free(s->coefs);
+  free(s->valid);
+  free(s->bn);
+  free(s->ang2);
+  free(s->err);
+  free(s->var);
+  free(s->nrm);
+  memset(s, 0, sizeof *s);
+}
+
+static bsurf_status kd_alloc(kd_scratch *s, int kmax, int dmax, int B, int ncand) {
+  memset(s, 0, sizeof *s);
+  bsurf_status st = bsurf_localfit_alloc(&s->lf, kmax, dmax);
+  if (st != BSURF_OK) return st;
+  const size_t kk = (size_t)kmax, b1 = (size_t)(B > 0 ? B : 1), rows = (size_t)bsurf_boot_rows(B);
+  const size_t kp = (kk + 7) / 8 * 8;
+  s->u = bsurf_alloc_array(kk, sizeof(uint32_t));
+  s->x = bsurf_alloc_array(kk, 1);
+  s->Wt = bsurf_alloc_aligned(kk * b1, sizeof(double));
+  s->W = bsurf_alloc_aligned(rows * kk, sizeof(double));
+  s->lanes = bsurf_alloc_aligned(rows, BSURF_NCOLS_MAX * sizeof(double));
+  s->nz = bsurf_alloc_array(b1, sizeof(int));
+  s->ref = bsurf_alloc_aligned(3 * kp, sizeof(double));
+  s->ang = bsurf_alloc_aligned(kp, sizeof(double));
+  s->coefs = bsurf_alloc_aligned(b1 + 1, BSURF_TERMS_MAX * sizeof(double));
+  s->valid = bsurf_alloc_array(b1, 1);
+  s->bn = bsurf_alloc_array(b1, 3 * sizeof(double));
+  s->ang2 = bsurf_alloc_array(b1, sizeof(double));
+  s->err = bsurf_alloc_array((size_t)ncand, sizeof(double));
+  s->var = bsurf_alloc_array((size_t)ncand, sizeof(double));
+  s->nrm = bsurf_alloc_array((size_t)ncand, 3 * sizeof(double));
+  if (!s->u || !s->x || !s->Wt || !s->W || !s->lanes || !s->nz || !s->ref || !s->ang || !s->coefs ||
+      !s->valid || !s->bn || !s->ang2 || !s->err || !s->var || !s->nrm) {
+    kd_free(s);
+    return BSURF_ERR_NOMEM;
+  }
+  return BSURF_OK;
+}
+
+typedef struct kd_ctx {
+  const double *xyz;
+  const bsurf_neighbors *nb;
+  const double *ref;
+  const bsurf_normal_options *o;
+  const int *ks, *ds;
+  int nk, nd, dmax;
+  kd_scratch *scr;
+  bsurf_normal_select_fields *out;
+  int *dsel;
+} kd_ctx;
+
+/* Candidate (K, degree) of one point, the K's frame, fits and weights set
+ * up: writes s->nrm, s->var and s->err of candidate c. */
+static void kd_candidate(const kd_ctx *c, kd_scratch *s, const bsurf_frame *frame, int K,
+                         int degree0, int cand) {
+  const int B = c->o->bootstrap;
+  const bsurf_localfit *lf = &s->lf;
+  const size_t kp = (size_t)lf->kp;
+  double *const fit = s->coefs, *const reps = s->coefs + BSURF_TERMS_MAX;
+  /* the whole neighbourhood (row B), the degree reduced while rank-deficient */
+  double row[BSURF_NCOLS_MAX];
+  bsurf_lanes_row(lf->ncols, s->lanes, B, row);
+  int degree = degree0;
+  while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, fit) != 0)
+    degree--;
+  if (degree != degree0) s->reduced++;
+  double nP[3];
+  if (degree == 0) /* a constant height: the tangent plane itself */
+    for (int t = 0; t < 3; t++)
+      nP[t] = frame->rot[2][t];
+  else
+    bsurf_localfit_normal(lf, frame, degree, fit, lf->u[0], lf->v[0], nP);
+  const int m = bsurf_poly_terms(degree);
+  /* the replicates (Eq. 4.2 as Poisson counts): enough distinct points for
+   * the candidate's degree, or, reduced, let the solve decide */
+  for (int b = 0; b < B; b++)
+    s->valid[b] = (s->nz[b] >= bsurf_poly_terms(degree0) || degree < degree0) && degree > 0;
+  if (degree > 0) bsurf_localfit_solve_lanes(lf, degree, B, s->lanes, s->valid, reps);
+  for (int b = 0; b < B; b++)
+    if (s->valid[b])
+      bsurf_localfit_normal(lf, frame, degree, &reps[(size_t)b * m], lf->u[0], lf->v[0],
+                            &s->bn[3 * b]);
+  const int nvalid =
+      bsurf_nested_summary(B, nP, s->bn, s->valid, &s->nrm[3 * cand], &s->var[cand], s->ang2);
+  s->skipped += (size_t)(B - nvalid);
+  /* Eq. 5.10: (1 / (B K)) sum_b sum_j theta(g^b(p_j), n_j); with no valid
+   * replicate the single fit's training error */
+  const double *rx = s->ref, *ry = rx + kp, *rz = ry + kp;
+  const double inv = 1.0 / lf->scale;
+  double total = 0;
+  if (nvalid > 0) {
+    for (int b = 0; b < B; b++)
+      if (s->valid[b])
+        total += bsurf_nested_field_angle_sum(degree, &reps[(size_t)b * m], inv, lf->phit, kp, rx,
+                                              ry, rz, K, s->ang);
+    s->err[cand] = total / ((double)nvalid * K);
+  } else {
+    s->err[cand] =
+        bsurf_nested_field_angle_sum(degree, fit, inv, lf->phit, kp, rx, ry, rz, K, s->ang) / K;
+  }
+}
+
+static void kd_point(void *vctx, int thread, size_t i) {
+  const kd_ctx *c = vctx;
+  const bsurf_normal_options *o = c->o;
+  kd_scratch *s = &c->scr[thread];
+  const int nk = c->nk, nd = c->nd, kmax = c->ks[nk - 1], B = o->bootstrap;
+  const int R = bsurf_boot_rows(B);
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+
+  /* the replicates: one draw per point, shared by every candidate */
+  const uint64_t key = o->point_index ? o->point_index[i] : i;
+  if (B > 0) bsurf_boot_poisson_rows(o->seed, key, B, kmax, s->u, s->x, s->Wt);
+  memset(s->nz, 0, (size_t)(B > 0 ? B : 1) * sizeof *s->nz);
+
+  int best = 0, k0 = 0;
+  for (int a = 0; a < nk; a++) {
+    const int K = c->ks[a];
+    /* the distinct points of each replicate among the first K */
+    for (int j = k0; j < K; j++)
+      for (int b = 0; b < B; b++)
+        s->nz[b] += s->Wt[(size_t)j * B + b] != 0;
+    k0 = K;
+    bsurf_frame frame;
+    bsurf_local_frame(c->xyz, idx, K, o->pca_center, &frame);
+    const int flat =
+        frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2];
+    if (!flat) s->degenerate += (size_t)nd;
+    bsurf_localfit *lf = &s->lf;
+    bsurf_localfit_setup(lf, c->xyz, idx, K, &frame, c->dmax);
+    /* the weight rows (replicates, then the whole P), row-major R x K */
+    double *W = s->W;
+    for (int b = 0; b < B; b++)
+      for (int j = 0; j < K; j++)
+        W[(size_t)b * K + j] = s->Wt[(size_t)j * B + b];
+    for (int j = 0; j < K; j++)
+      W[(size_t)B * K + j] = 1.0;
+    memset(&W[(size_t)(B + 1) * K], 0, (size_t)(R - B - 1) * K * sizeof *W);
+    bsurf_localfit_normal_eq_lanes(lf, R, W, s->lanes);
+    /* the reference normals in the frame */
+    const size_t kp = (size_t)lf->kp;
+    double *rx = s->ref, *ry = rx + kp, *rz = ry + kp;
+    for (int j = 0; j < K; j++) {
+      const double *r = &c->ref[3 * (size_t)idx[j]];
+      rx[j] = frame.rot[0][0] * r[0] + frame.rot[0][1] * r[1] + frame.rot[0][2] * r[2];
+      ry[j] = frame.rot[1][0] * r[0] + frame.rot[1][1] * r[1] + frame.rot[1][2] * r[2];
+      rz[j] = frame.rot[2][0] * r[0] + frame.rot[2][1] * r[1] + frame.rot[2][2] * r[2];
+    }
+    for (int d = 0; d < nd; d++) {
+      const int cand = a * nd + d;
+      kd_candidate(c, s, &frame, K, c->ds[d], cand);
+      if (s->err[cand] < s->err[best]) best = cand; /* ties: the smaller K, then degree */
+    }
+  }
+
+  bsurf_normal_select_fields *out = c->out;
+  const int ncand = nk * nd;
+  if (out->normals)
+    for (int t = 0; t < 3; t++)
+      out->normals[3 * i + t] = s->nrm[3 * best + t];
+  if (out->normal_var) out->normal_var[i] = s->var[best];
+  if (out->normal_err) out->normal_err[i] = s->err[best];
+  if (out->k_selected) out->k_selected[i] = c->ks[best / nd];
+  if (c->dsel) c->dsel[i] = c->ds[best % nd];
+  if (out->cand_err)
+    memcpy(&out->cand_err[i * (size_t)ncand], s->err, (size_t)ncand * sizeof(double));
+  if (out->cand_var)
+    memcpy(&out->cand_var[i * (size_t)ncand], s->var, (size_t)ncand * sizeof(double));
+  if (out->cand_normals)
+    memcpy(&out->cand_normals[i * (size_t)ncand * 3], s->nrm, (size_t)ncand * 3 * sizeof(double));
+}
+
+bsurf_status bsurf_select_normals_kd(const double *xyz, const bsurf_neighbors *nb,
+                                     const double *ref_normals, const bsurf_normal_options *opts,
+                                     const int *ks, int nk, const int *ds, int nd,
+                                     bsurf_normal_select_fields *out, int *degree_selected,
+                                     bsurf_normal_report *report) {
+  bsurf_normal_options o = opts ? *opts : bsurf_normal_options_default();
+  if (report) memset(report, 0, sizeof *report);
+  BSURF_REQUIRE(xyz && nb && nb->idx && ref_normals && ks && ds && out,
+                "xyz, nb, nb->idx, ref_normals, ks, ds and out must not be NULL");
+  BSURF_REQUIRE(nk >= 1 && nd >= 1, "nk = %d, nd = %d: at least one candidate K and degree", nk,
+                nd);
+  BSURF_REQUIRE(o.fit == BSURF_NORMAL_POLY, "opts->fit = %d: selection of the degree takes POLY",
+                (int)o.fit);
+  BSURF_REQUIRE(o.bootstrap >= 0 && o.bootstrap <= 100000,
+                "opts->bootstrap = %d must be in [0, 100000]", o.bootstrap);
+  BSURF_REQUIRE((unsigned)o.pca_center <= BSURF_PCA_POINT,
+                "pca_center = %d: must be BSURF_PCA_CENTROID or BSURF_PCA_POINT",
+                (int)o.pca_center);
+  int dmax = 0;
+  for (int d = 0; d < nd; d++) {
+    BSURF_REQUIRE(ds[d] >= 1 && ds[d] <= BSURF_DEGREE_MAX, "ds[%d] = %d must be in [1, %d]", d,
+                  ds[d], BSURF_DEGREE_MAX);
+    if (ds[d] > dmax) dmax = ds[d];
+  }
+  /* every candidate K holds a fit of every degree */
+  const int kmin = bsurf_poly_terms(dmax) > 3 ? bsurf_poly_terms(dmax) : 3;
+  bsurf_status st = bsurf_nested_check_ks("bsurf_select_normals_kd", ks, nk, kmin, nb);
+  if (st != BSURF_OK) return st;
+
+  const size_t n = nb->point_count;
+  const int T = bsurf_threads_resolve(o.threads);
+  kd_scratch *scr = calloc((size_t)T, sizeof *scr);
+  if (!scr) return BSURF_ERR_NOMEM;
+  for (int t = 0; t < T && st == BSURF_OK; t++)
+    st = kd_alloc(&scr[t], ks[nk - 1], dmax, o.bootstrap, nk * nd);
+  uint32_t *owned = NULL;
+  const uint32_t *order = NULL;
+  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) {
+    kd_ctx ctx = {xyz, nb, ref_normals, &o, ks, ds, nk, nd, dmax, scr, out, degree_selected};
+    st = bsurf_parallel_points_ordered(n, order, T, kd_point, &ctx, o.progress, o.progress_user);
+  }
+  free(owned);
+  if (report && st == BSURF_OK) {
+    report->replicates_total = n * (size_t)o.bootstrap * (size_t)nk * (size_t)nd;
+    for (int t = 0; t < T; t++) {
+      report->replicates_skipped += scr[t].skipped;
+      report->degree_reduced += scr[t].reduced;
+      report->degenerate += scr[t].degenerate;
+    }
+  }
+  for (int t = 0; t < T; t++)
+    kd_free(&scr[t]);
+  free(scr);
+  return st;
+}
