@@ -53,6 +53,7 @@ int main(int argc, char **argv) {
     truth[i] = tf->values[i] != 0;
 
   bsurf_feature_options o = bsurf_feature_options_default();
+  o.method = BSURF_FEATURES_DISTANCE; /* first; variance below */
   o.threads = threads;
   o.normals.bootstrap = B;
   printf("bench_features: cube N=%zu, uniform noise 0.5 h, threads=%d\n", n,

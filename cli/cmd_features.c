@@ -20,7 +20,7 @@ static void features_warn(const char *input, const char *const names[2], const i
 
 int cmd_features(const cli_command *cmd, int argc, char **argv) {
   bsurf_feature_options fo = bsurf_feature_options_default();
-  const char *method = "distance", *output = NULL, *threshold_s = "auto", *tail = "null";
+  const char *method = "variance", *output = NULL, *threshold_s = "auto", *tail = "null";
   const char *memory_limit = "auto";
   size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
@@ -59,6 +59,14 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
        "variance, rule null: share of a flat area flagged", 1e-9, 0.999999},
       {0, "variance-filter-k", ARG_INT, &fo.variance_filter_k, "K",
        "variance, rule null: neighbours of the median filter (0 = K/2, 1 = none)", 0, 65535},
+      {0, "feature-angle", ARG_DOUBLE, &fo.feature_angle, "DEG",
+       "variance, rule null: grow -k (x2, up to --variance-k-max) until a simulated edge whose "
+       "normals differ by DEG degrees, at the measured noise, passes the test at half its points "
+       "(0 = -k always)",
+       0, 179.999},
+      {0, "variance-k-max", ARG_INT, &fo.variance_k_max, "K",
+       "variance, rule null: largest neighbourhood --feature-angle may choose (0 = 8 x -k)", 0,
+       65535},
       CLI_OPT_SEED(fo.normals.seed),
       CLI_OPT_THREADS(fo.threads),
       CLI_OPTS_JOB(output, ascii, force, tile_points, memory_limit, json, quiet),
@@ -83,7 +91,12 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   if (fo.filter_k > fo.k_max) return cli_usage_error(cmd, "--filter-k must not exceed --k-max");
   if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   if (cli_check_output(output, pos[0], force)) return 1;
-  const int kmax = fo.method == BSURF_FEATURES_DISTANCE ? fo.k_max : fo.normals.k;
+  /* the largest neighbourhood the run may need: variance with --feature-angle
+   * may grow -k up to --variance-k-max */
+  int kmax = fo.method == BSURF_FEATURES_DISTANCE ? fo.k_max : fo.normals.k;
+  if (fo.method == BSURF_FEATURES_VARIANCE && isnan(fo.threshold) &&
+      fo.tail_rule == BSURF_TAIL_NULL && fo.feature_angle > 0)
+    kmax = fo.variance_k_max ? fo.variance_k_max : (8 * kmax < 65535 ? 8 * kmax : 65535);
   size_t plan = 0;
   rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 2, &plan);
   if (rc) return rc;
@@ -130,16 +143,21 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       json_num(&j, "max_radius", rep.max_radius);
       json_int(&j, "immediate", (long long)rep.immediate);
     } else {
-      json_int(&j, "k", fo.normals.k);
+      json_int(&j, "k", rep.k);
       json_int(&j, "bootstrap", fo.normals.bootstrap);
       json_int(&j, "seed", (long long)fo.normals.seed);
       json_str(&j, "tail_rule", tail);
       if (null_rule) {
         json_num(&j, "false_positive_rate", fo.false_positive_rate);
         json_int(&j, "variance_filter_k",
-                 fo.variance_filter_k ? fo.variance_filter_k
-                                      : (fo.normals.k / 2 > 1 ? fo.normals.k / 2 : 1));
+                 fo.variance_filter_k ? fo.variance_filter_k : (rep.k / 2 > 1 ? rep.k / 2 : 1));
         json_num(&j, "noise_level", rep.noise_level);
+        json_num(&j, "feature_angle", fo.feature_angle);
+        if (fo.feature_angle > 0) {
+          json_int(&j, "k_base", fo.normals.k);
+          json_int(&j, "variance_k_max", fo.variance_k_max);
+          json_num(&j, "edge_power", rep.edge_power);
+        }
       }
     }
     json_str(&j, "threshold_mode", isnan(fo.threshold) ? "auto" : "value");
@@ -167,6 +185,10 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     printf("  threshold %.6g on %s (%s): %zu feature points (%.2f%%)\n", rep.threshold, score_name,
            isnan(fo.threshold) ? "auto" : "given", rep.feature_points,
            n ? 100.0 * (double)rep.feature_points / (double)n : 0.0);
+    if (null_rule && fo.feature_angle > 0)
+      printf("  K %d (from %d: a %g degree edge at this noise passes the test at %.0f%% of its "
+             "points)\n",
+             rep.k, fo.normals.k, fo.feature_angle, 100 * rep.edge_power);
     if (fo.method == BSURF_FEATURES_DISTANCE)
       printf("  T_{a/c} %.4g at k_min, max radius %.6g, %zu points stopped at k_min (set to -max "
              "radius)\n",

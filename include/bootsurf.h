@@ -709,7 +709,7 @@ BSURF_API bsurf_status bsurf_tail_threshold(const double *values, size_t count,
                                             bsurf_tail_rule rule, double *threshold);
 
 typedef struct bsurf_feature_options {
-  bsurf_feature_method method; /* DISTANCE */
+  bsurf_feature_method method; /* VARIANCE (issue 22: the null test; DISTANCE is 7.1) */
   /* distance (7.1) */
   int k_min, k_max, k_step; /* neighbourhood sizes k_min, k_min + k_step,
                                ... <= k_max, the point included (15, 60, 2;
@@ -747,8 +747,18 @@ typedef struct bsurf_feature_options {
    * variance_filter_k neighbours; a point is a feature when it exceeds the
    * (1 - false_positive_rate) quantile of the same score on a simulated flat
    * patch with the cloud's noise level (docs/features.md). */
-  double false_positive_rate;   /* in (0, 1) (0.01) */
-  int variance_filter_k;        /* 1 = no filter; 0 = normals.k / 2 (0) */
+  double false_positive_rate; /* in (0, 1) (0.01) */
+  int variance_filter_k;      /* 1 = no filter; 0 = normals.k / 2 (0) */
+  /* variance, tail_rule NULL: the neighbourhood grows from normals.k (x 2
+   * each step, at most variance_k_max) until the test detects a simulated
+   * edge whose faces' normals differ by feature_angle degrees, at the
+   * cloud's measured noise, at half its points or more (power >= 1/2):
+   * noise comparable to the neighbourhood's radius hides edges from the test
+   * at small K (docs/features.md). 0 = normals.k always (the thesis). 90:
+   * a right-angle edge, the commonest in machined parts; lower angles grow K
+   * sooner (a wider detected band), higher ones later. */
+  double feature_angle;         /* degrees, in [0, 180) (90) */
+  int variance_k_max;           /* the largest K tried; 0 = 8 normals.k (0) */
   bsurf_normal_options normals; /* variance: the bootstrap normals (defaults) */
   int threads;                  /* 0 = all cores (also used for normals) */
   bsurf_progress_fn progress;
@@ -766,6 +776,10 @@ typedef struct bsurf_feature_report {
   double ratio_threshold_kmin; /* distance: the T_{a/c} applied at k_min
                                   (above ratio_threshold when noise_factor
                                   raised it); NAN for VARIANCE */
+  int k;                       /* variance: the normals' neighbourhood used
+                                  (feature_angle: the chosen one) */
+  double edge_power;           /* variance, feature_angle > 0: the simulated
+                                  edge's detected share at k; else NAN */
   double noise_level;          /* variance, rule NULL: sqrt of the median
                                   smallest PCA eigenvalue (the noise sigma
                                   the null patch is given); else NAN */

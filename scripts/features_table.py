@@ -3,15 +3,21 @@
 
 usage:
   nice -n 10 /usr/bin/python3 scripts/features_table.py --bootsurf BUILD --devset DIR \\
-      --peers DIR [--models LIST] [--noise LIST] [--write docs/features.md] [--work DIR]
+      --peers DIR [--models LIST] [--noise LIST] [--extra LIST] [--write docs/features.md]
+      [--work DIR] [--jobs N]
 
-For every case MODEL_SAMPLING_NOISE of the development set (scripts/devset.py; default
-models: the CAD ones, whose labels are sharp edges: fandisk_large, couplingdown and joint
-as `vertices` and `area50k`, the generated cube as `regular` and `aniso`; noise u0.25,
-u0.5, g0.6) it runs, on noisy.ply, at their documented defaults:
+For every case MODEL_NOISE of the development set (scripts/devset.py; default models:
+the CAD meshes fandisk_large, couplingdown and joint, then the organic meshes bunny00,
+elephant, dino, femur and camel, each sampled as `area50k` and `vertices`, and the
+generated cube, torus (`regular`, `aniso`), thin plate and thin shell; noise u0.25, u0.5,
+g0.6; plus --extra cases, by default cube_regular_gh0.5, the README's cube) it runs, on
+noisy.ply:
 
+  default    bootsurf features (no method option: the variance test with its
+             neighbourhood chosen from the noise, docs/features.md)
   distance   bootsurf features --method distance (7.1; automatic T_h)
-  variance   bootsurf features --method variance (7.2; the automatic null-test threshold)
+  var K30    bootsurf features --method variance --feature-angle 0 (the test at the
+             fixed K = 30, the previous default rule)
   PCL sv     surface variation lambda0 / (lambda0 + lambda1 + lambda2), K 30
              (bench/peers/features_pcl.cpp, PCL's NormalEstimationOMP); PCL has no
              threshold of its own: Otsu on log(score), the rule of scripts/validate_features.py
@@ -20,16 +26,22 @@ u0.5, g0.6) it runs, on noisy.ply, at their documented defaults:
              r = 5.93 h, threshold 0.16
   all        the trivial "everything is a feature" baseline (recall 1)
 
-and scores precision / recall / F1 against truth.ply's `feature` labels (within 2 point
-spacings of a sharp edge). --write replaces the part of the file between the markers
+and scores F1 (precision / recall) against truth.ply's `feature` labels (within 2 point
+spacings of a sharp edge: faces whose normals differ by more than 30 degrees; the
+generated shapes' edges). Cases without labels (the torus: no edge) show the share of
+points flagged instead, in brackets. The peers' scores are kept in --work per case and
+reused (they do not depend on bootsurf); bootsurf's are recomputed when its binary
+changes. --write replaces the part of the file between the markers
 <!-- features-table:begin --> and <!-- features-table:end --> with the table.
 """
 import argparse
+import hashlib
 import json
 import math
 import os
 import subprocess
 import sys
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -37,10 +49,17 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import devset  # noqa: E402
 from validate_features import CGAL_EXAMPLE, CGAL_THRESHOLD, otsu_log  # noqa: E402
 
-MODELS = ["fandisk_large_area50k", "fandisk_large_vertices", "couplingdown_area50k",
-          "couplingdown_vertices", "joint_area50k", "joint_vertices", "cube_regular", "cube_aniso"]
+CAD = ["fandisk_large", "couplingdown", "joint"]
+ORGANIC = ["bunny00", "elephant", "dino", "femur", "camel"]
+MODELS = ([m + s for m in CAD for s in ("_area50k", "_vertices")] +
+          ["cube_regular", "cube_aniso", "plate_thin", "shell_thin", "torus_regular",
+           "torus_aniso"] +
+          [m + s for m in ORGANIC for s in ("_area50k", "_vertices")])
 NOISES = ["u0.25", "u0.5", "g0.6"]
-METHODS = ["distance", "variance", "PCL sv", "CGAL VCM", "all"]
+EXTRA = ["cube_regular_gh0.5"]
+BOOTSURF = {"default": [], "distance": ["--method", "distance"],
+            "var K30": ["--method", "variance", "--feature-angle", "0"]}
+METHODS = ["default", "distance", "var K30", "PCL sv", "CGAL VCM", "all"]
 BEGIN, END = "<!-- features-table:begin -->", "<!-- features-table:end -->"
 
 
@@ -52,6 +71,8 @@ def run(args):
 
 
 def prf(pred, truth):
+    if truth is None:
+        return {"flagged": float(np.mean(pred))}
     tp = int(np.sum(pred & truth))
     fp = int(np.sum(pred & ~truth))
     fn = int(np.sum(~pred & truth))
@@ -60,29 +81,64 @@ def prf(pred, truth):
     return {"p": p, "r": r, "f1": 2 * tp / (2 * tp + fp + fn) if tp + fp + fn else float("nan")}
 
 
-def case_rows(bs, peers, case, work):
-    truth = devset.read_ply(case.truth)[0]["feature"] != 0
-    out = os.path.join(work, "f.ply")
-    res, h = {}, None
-    for m in ("distance", "variance"):
-        j = json.loads(run([bs, "features", case.noisy, "--method", m, "-o", out, "--force", "-q",
-                            "--json"]))
-        h = j["h"]
-        res[m] = prf(devset.read_ply(out)[0]["feature"] != 0, truth)
-    txt = os.path.join(work, "s.txt")
-    run([os.path.join(peers, "features_pcl"), case.noisy, "-o", txt, "-k", "30"])
-    s = np.nan_to_num(np.loadtxt(txt), nan=0.0)
-    res["PCL sv"] = prf(s > otsu_log(list(s)), truth)
-    run([os.path.join(peers, "features_cgal"), case.noisy, "-o", txt, "--R",
-         "%.9g" % (CGAL_EXAMPLE[0] * h), "--r", "%.9g" % (CGAL_EXAMPLE[1] * h), "--threshold",
-         str(CGAL_THRESHOLD)])
-    s = np.loadtxt(txt)
-    res["CGAL VCM"] = prf(np.nan_to_num(s, nan=-np.inf) >= CGAL_THRESHOLD, truth)
-    res["all"] = prf(np.ones_like(truth), truth)
-    return res, float(truth.mean())
+def cached(path, compute):
+    if os.path.exists(path):
+        with open(path) as f:
+            return json.load(f)
+    v = compute()
+    with open(path + ".part", "w") as f:
+        json.dump(v, f)
+    os.replace(path + ".part", path)
+    return v
+
+
+def case_rows(bs, stamp, peers, case, work):
+    d = os.path.join(work, case.name)
+    os.makedirs(d, exist_ok=True)
+    fields = devset.read_ply(case.truth)[0]
+    truth = fields["feature"] != 0 if "feature" in fields else None
+    res = {}
+
+    def bootsurf(m):
+        def go():
+            out = os.path.join(d, "f.ply")
+            j = json.loads(run([bs, "features", case.noisy] + BOOTSURF[m] +
+                               ["-o", out, "--force", "-q", "--json"]))
+            r = prf(devset.read_ply(out)[0]["feature"] != 0, truth)
+            r["h"] = j["h"]
+            r["k"] = j["parameters"].get("k")
+            os.remove(out)
+            return r
+        return cached(os.path.join(d, "%s.%s.json" % (m.replace(" ", "_"), stamp)), go)
+
+    for m in BOOTSURF:
+        res[m] = bootsurf(m)
+    h = res["distance"]["h"]
+
+    def pcl():
+        txt = os.path.join(d, "s.txt")
+        run([os.path.join(peers, "features_pcl"), case.noisy, "-o", txt, "-k", "30"])
+        s = np.nan_to_num(np.loadtxt(txt), nan=0.0)
+        return prf(s > otsu_log(list(s)), truth)
+
+    def vcm():
+        txt = os.path.join(d, "v.txt")
+        run([os.path.join(peers, "features_cgal"), case.noisy, "-o", txt, "--R",
+             "%.9g" % (CGAL_EXAMPLE[0] * h), "--r", "%.9g" % (CGAL_EXAMPLE[1] * h),
+             "--threshold", str(CGAL_THRESHOLD)])
+        s = np.loadtxt(txt)
+        return prf(np.nan_to_num(s, nan=-np.inf) >= CGAL_THRESHOLD, truth)
+
+    res["PCL sv"] = cached(os.path.join(d, "pcl.json"), pcl)
+    res["CGAL VCM"] = cached(os.path.join(d, "vcm.json"), vcm)
+    n = len(fields["x"])
+    res["all"] = prf(np.ones(n, dtype=bool), truth)
+    return res, (float(truth.mean()) if truth is not None else None)
 
 
 def fmt(e):
+    if "flagged" in e:
+        return "(%.1f%%)" % (100 * e["flagged"])
     f = lambda v: "-" if math.isnan(v) else "%.2f" % v
     return "**%s** (%s / %s)" % (f(e["f1"]), f(e["p"]), f(e["r"]))
 
@@ -95,32 +151,59 @@ def main():
     ap.add_argument("--peers", required=True)
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--noise", default=",".join(NOISES))
+    ap.add_argument("--extra", default=",".join(EXTRA), help="more cases by full name")
     ap.add_argument("--write")
     ap.add_argument("--work", default="/tmp/bootsurf_features_table")
+    ap.add_argument("--jobs", type=int, default=1)
     a = ap.parse_args()
     bs = os.path.abspath(a.bootsurf)
     if os.path.isdir(bs):
         bs = os.path.join(bs, "bootsurf")
+    with open(bs, "rb") as f:
+        stamp = hashlib.sha256(f.read()).hexdigest()[:12]
     os.makedirs(a.work, exist_ok=True)
+    names = ["%s_%s" % (m, z) for m in a.models.split(",") if m for z in a.noise.split(",") if z]
+    names += [e for e in a.extra.split(",") if e]
+    all_cases = {c.name: c for c in devset.load(a.devset)}
+    for nm in names:
+        if nm not in all_cases:
+            sys.exit("features_table: no case %s in %s" % (nm, a.devset))
+
+    def one(nm):
+        return case_rows(bs, stamp, a.peers, all_cases[nm], a.work)
+
+    with ThreadPoolExecutor(max_workers=max(1, a.jobs)) as ex:
+        results = list(ex.map(one, names))
     lines = ["| case | features | " + " | ".join(METHODS) + " |",
              "|---|---|" + "---|" * len(METHODS)]
     wins = {m: 0 for m in METHODS}
-    for model in a.models.split(","):
-        for noise in a.noise.split(","):
-            cases = devset.load(a.devset, only="%s_%s" % (model, noise))
-            cases = [c for c in cases if c.name == "%s_%s" % (model, noise)]
-            if not cases:
-                sys.exit("features_table: no case %s_%s in %s" % (model, noise, a.devset))
-            res, frac = case_rows(bs, a.peers, cases[0], a.work)
-            best = max(res[m]["f1"] for m in METHODS)
+    margin = {m: [] for m in METHODS}  # CAD rows: F1 - all
+    scored = 0
+    for nm, (res, frac) in zip(names, results):
+        if frac is not None:
+            scored += 1
+            best = max(res[m]["f1"] for m in METHODS if not math.isnan(res[m]["f1"]))
             for m in METHODS:
                 wins[m] += res[m]["f1"] == best
-            lines.append("| %s | %.1f%% | %s |" % (cases[0].name, 100 * frac,
-                                                   " | ".join(fmt(res[m]) for m in METHODS)))
-            print(lines[-1], flush=True)
+            if any(nm.startswith(c) for c in CAD + ["cube", "plate", "shell"]):
+                for m in METHODS:
+                    margin[m].append((res[m]["f1"] - res["all"]["f1"], nm))
+        lines.append("| %s | %s | %s |" % (nm, "-" if frac is None else "%.1f%%" % (100 * frac),
+                                          " | ".join(fmt(res[m]) for m in METHODS)))
+        print(lines[-1], flush=True)
     lines.append("")
-    lines.append("Best F1 (ties counted for each): " +
+    lines.append("Best F1 over the %d labelled rows (ties counted for each): " % scored +
                  ", ".join("%s %d" % (m, wins[m]) for m in METHODS) + ".")
+    cad = [m for m in METHODS if m != "all" and margin[m]]
+    if cad:
+        lines.append("")
+        lines.append("F1 minus the trivial baseline on the %d rows of CAD and generated "
+                     "shapes with edges (CAD meshes, cube, plate, shell): " %
+                     len(margin["default"]) + "; ".join(
+                         "%s: min %+.2f (%s), %d of %d rows >= +0.2" % (
+                             m, min(margin[m])[0], min(margin[m])[1],
+                             sum(v >= 0.2 for v, _ in margin[m]), len(margin[m]))
+                         for m in cad) + ".")
     table = "\n".join(lines)
     if a.write:
         text = open(a.write).read()

@@ -239,7 +239,7 @@ def main():
                 run([bs, "noise", truth_path, "--model", "uniform", "--level", str(xi), "--seed", "1", "-o", src,
                      "-q"])
             h = json.loads(run([bs, "features", src, "-o", p("f.ply"), "--json", "-q", "-j", "2",
-                                "--iterations", "0"]))["h"]
+                                "--method", "distance", "--iterations", "0"]))["h"]
             # variance (7.2)
             jv, ev, fv = features(src, truth_path, "normal_var", "--method", "variance", "--tail-rule", "otsu")
             own = prf([x != 0 for x in fv["feature"]], truth)

@@ -363,6 +363,7 @@ static void test_features_bad_input(void **state) {
   fixture *f = *state;
   uint8_t *feat = calloc(f->c.point_count, 1);
   bsurf_feature_options o = bsurf_feature_options_default();
+  o.method = BSURF_FEATURES_DISTANCE; /* its k_max is checked below */
   o.k_max = 30;
   assert_invalid(bsurf_detect_features(NULL, &f->nb, &o, feat, NULL, NULL), "bsurf_detect_features",
                  "xyz is NULL");

@@ -53,6 +53,7 @@ static void test_plane_no_features(void **state) {
   uint8_t *feat = malloc(c.point_count);
   double *score = malloc(c.point_count * sizeof(double));
   bsurf_feature_options o = bsurf_feature_options_default();
+  o.method = BSURF_FEATURES_DISTANCE;
   detect(&c, &o, o.k_max, feat, score);
   size_t count = 0;
   for (size_t i = 0; i < c.point_count; i++)
@@ -86,6 +87,7 @@ static void test_cube_edges_distance(void **state) {
   uint8_t *feat = malloc(c.point_count);
   double *score = malloc(c.point_count * sizeof(double));
   bsurf_feature_options o = bsurf_feature_options_default();
+  o.method = BSURF_FEATURES_DISTANCE;
   o.threshold = 0;
   bsurf_feature_stats s = detect(&c, &o, o.k_max, feat, score);
   assert_true(s.recall > 0.9);
@@ -119,6 +121,7 @@ static void test_distance_auto_rule(void **state) {
   const size_t n = c.point_count;
   bsurf_neighbors nb;
   bsurf_feature_options o = bsurf_feature_options_default();
+  o.method = BSURF_FEATURES_DISTANCE;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, o.k_max, 0, NULL, NULL), BSURF_OK);
   uint8_t *feat = malloc(n), *feat2 = malloc(n);
   double *score = malloc(n * sizeof(double)), *score2 = malloc(n * sizeof(double));
@@ -135,6 +138,7 @@ static void test_distance_auto_rule(void **state) {
   o.threshold = 0;
   thesis = detect(&c, &o, o.k_max, feat, score);
   o = bsurf_feature_options_default();
+  o.method = BSURF_FEATURES_DISTANCE;
   o.threads = 1;
   adapted = detect(&c, &o, o.k_max, feat, score);
   assert_true(thesis.f1 < 0.4);
@@ -209,6 +213,71 @@ static void test_cube_null_gaussian(void **state) {
   free(feat);
   free(score);
   bsurf_cloud_free(&c);
+}
+
+/* The defaults of `bootsurf features` (the job: method variance, null rule,
+ * the neighbourhood chosen by the test's power on a simulated 90 degree edge)
+ * on the regular cube at gaussian noise sigma = level x h (fixed seeds); F1
+ * against the width-2 labels. k out: the neighbourhood chosen. */
+static bsurf_feature_stats cube_defaults(double level, int *k) {
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 50000, BSURF_SAMPLING_REGULAR, 1, 2.0),
+                   BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 0, &h), BSURF_OK);
+  assert_int_equal(
+      bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, level, h, 1),
+      BSURF_OK);
+  const size_t n = c.point_count;
+  bsurf_field *tf = bsurf_cloud_field(&c, "feature");
+  uint8_t *truth = malloc(n), *feat = malloc(n);
+  for (size_t i = 0; i < n; i++)
+    truth[i] = tf->values[i] != 0;
+  /* the truth's fields would be kept as *_in: drop them from the input */
+  bsurf_cloud in;
+  bsurf_cloud_init(&in);
+  in.point_count = n;
+  in.xyz = c.xyz;
+  bsurf_job_io io;
+  memset(&io, 0, sizeof io);
+  io.cloud = &in;
+  bsurf_features_job_summary s;
+  assert_int_equal(bsurf_features_job(&io, NULL, &s, NULL), BSURF_OK);
+  assert_string_equal(s.field_names[1], "variance_z");
+  bsurf_field *ff = bsurf_cloud_field(&in, "feature");
+  assert_non_null(ff);
+  for (size_t i = 0; i < n; i++)
+    feat[i] = ff->values[i] != 0;
+  bsurf_feature_stats st;
+  assert_int_equal(bsurf_eval_features(feat, truth, n, &st), BSURF_OK);
+  *k = s.report.k;
+  printf("cube gaussian %.2f h, defaults: K %d (edge power %.2f) precision %.3f recall %.3f F1 "
+         "%.3f\n",
+         level, s.report.k, s.report.edge_power, st.precision, st.recall, st.f1);
+  in.xyz = NULL; /* c's */
+  bsurf_cloud_free(&in);
+  free(truth);
+  free(feat);
+  bsurf_cloud_free(&c);
+  return st;
+}
+
+/* The cube of 50,000 points (the development set's) at gaussian 0.5 h (the
+ * README's cube; issue 22: F1 >= 0.8): measured F1 0.842 at K 30 (noise
+ * seeds 2 and 3: 0.831, 0.848; on 20,000 points seeds 1-3 give 0.773, 0.855,
+ * 0.857: 0.8 is a bound for this draw, not for every draw). At 1.0 h the
+ * test at K 30 lets almost nothing through (F1 0.01 on the development
+ * set's cube at g0.6) and the chosen K 60 restores it: measured F1 0.651
+ * (seed 2: 0.622; the distance method 0.290). */
+static void test_cube_defaults(void **state) {
+  (void)state;
+  int k;
+  bsurf_feature_stats s = cube_defaults(0.5, &k);
+  assert_true(s.f1 >= 0.8);
+  assert_int_equal(k, 30);
+  s = cube_defaults(1.0, &k);
+  assert_int_equal(k, 60);
+  assert_true(s.f1 >= 0.55);
 }
 
 /* Featureless shapes: the null test flags about the stated false-positive
@@ -365,6 +434,7 @@ static void test_bad_args(void **state) {
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 20, 1, NULL, NULL), BSURF_OK);
   uint8_t f[500];
   bsurf_feature_options o = bsurf_feature_options_default();
+  o.method = BSURF_FEATURES_DISTANCE;
   assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL),
                    BSURF_ERR_INVALID_ARG); /* k_max > nb.k */
   o.k_max = 20;
@@ -376,6 +446,16 @@ static void test_bad_args(void **state) {
   o.normals.k = 20;
   o.normals.bootstrap = 1;
   assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  o.normals.bootstrap = 10;
+  o.feature_angle = 180;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  assert_non_null(strstr(bsurf_last_message(), "feature_angle = 180"));
+  o.feature_angle = -1;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  o.feature_angle = 90;
+  o.variance_k_max = -3;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  assert_non_null(strstr(bsurf_last_message(), "variance_k_max = -3"));
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
 }
@@ -393,6 +473,7 @@ int main(void) {
       cmocka_unit_test(test_distance_auto_rule),
       cmocka_unit_test(test_cube_null_gaussian),
       cmocka_unit_test(test_null_featureless),
+      cmocka_unit_test(test_cube_defaults),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

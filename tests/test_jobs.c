@@ -276,8 +276,17 @@ static void test_bad_options(void **state) {
   assert_invalid(bsurf_features_job(&mem, &fo, &fs, NULL), "bsurf_features_job",
                  "opts->method = 5");
   fo = bsurf_feature_options_default();
+  fo.method = BSURF_FEATURES_DISTANCE;
   fo.k_max = fo.k_min - 1;
   assert_invalid(bsurf_features_job(&mem, &fo, &fs, NULL), "bsurf_features_job", "opts->k_max");
+  fo = bsurf_feature_options_default();
+  fo.feature_angle = 200;
+  assert_invalid(bsurf_features_job(&mem, &fo, &fs, NULL), "bsurf_features_job",
+                 "opts->feature_angle = 200 must be in [0, 180)");
+  fo = bsurf_feature_options_default();
+  fo.variance_k_max = -1;
+  assert_invalid(bsurf_features_job(&mem, &fo, &fs, NULL), "bsurf_features_job",
+                 "opts->variance_k_max = -1 must be in [0, 65535]");
   fo = bsurf_feature_options_default();
   fo.method = BSURF_FEATURES_VARIANCE;
   fo.normals.bootstrap = 1;

@@ -679,6 +679,7 @@ static void test_features_distance(void **state) {
   write_uniform(tmp_path("uniform.ply"), 3000);
   write_nonuniform(tmp_path("nonuniform.ply"));
   bsurf_feature_options fo = bsurf_feature_options_default();
+  fo.method = BSURF_FEATURES_DISTANCE;
   fo.k_min = 6;
   fo.k_max = 24;
   fo.k_step = 3;
@@ -708,6 +709,7 @@ static void test_features_distance(void **state) {
   check_distance(tmp_path("nonuniform.ply"), &fo, sizes, 1);
   /* refused: bad options, a cancelled chain; nothing written */
   fo = bsurf_feature_options_default();
+  fo.method = BSURF_FEATURES_DISTANCE;
   bsurf_tile_ops ops = stage_ops(NULL, 0, 400);
   ops.prepare = fd_prepare;
   bsurf_tile_report tr;

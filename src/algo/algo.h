@@ -263,6 +263,20 @@ double bsurf_fvar_median(double *v, size_t n);
  * whose median lambda0 / tr is eta; sigma0 out may be NULL. */
 bsurf_status bsurf_fvar_null_threshold(const bsurf_feature_options *o, double eta, double *t,
                                        double *sigma0);
+/* The neighbourhood size of the variance test (feature_angle > 0): the
+ * first of normals.k, 2 normals.k, 4 normals.k ... <= k_cap at which a
+ * simulated edge of feature_angle at the cloud's noise (eta = median
+ * lambda0 / tr at normals.k) is detected at >= half its points; else the
+ * most powerful. normals.k when feature_angle is 0. power out may be NULL
+ * (NAN when not simulated). */
+bsurf_status bsurf_fvar_choose_k(const bsurf_feature_options *o, double eta, int k_cap, int *k,
+                                 double *power);
+/* The largest K of the choice: variance_k_max (0 = 8 normals.k), at most
+ * 65535 and n, at least normals.k. */
+int bsurf_fvar_k_cap(const bsurf_feature_options *o, size_t n);
+/* eta = the median over the rows of lambda0 / tr of the first k neighbours. */
+bsurf_status bsurf_fvar_eta(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
+                            double *eta);
 /* The threshold from s2 = median lambda0 and eta = median lambda0 / tr of
  * the cloud (z: the filtered scores, for the noise-free case). */
 bsurf_status bsurf_fvar_threshold(const bsurf_feature_options *o, const double *z, size_t n,

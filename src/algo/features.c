@@ -96,7 +96,7 @@
 bsurf_feature_options bsurf_feature_options_default(void) {
   bsurf_feature_options o;
   memset(&o, 0, sizeof o);
-  o.method = BSURF_FEATURES_DISTANCE;
+  o.method = BSURF_FEATURES_VARIANCE;
   o.k_min = 15;
   o.k_max = 60;
   o.k_step = 2;
@@ -111,6 +111,8 @@ bsurf_feature_options bsurf_feature_options_default(void) {
   o.tail_rule = BSURF_TAIL_NULL;
   o.false_positive_rate = 0.01;
   o.variance_filter_k = 0;
+  o.feature_angle = 90;
+  o.variance_k_max = 0;
   o.normals = bsurf_normal_options_default();
   return o;
 }
@@ -619,6 +621,7 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
   if (report) {
     memset(report, 0, sizeof *report);
     report->noise_level = NAN;
+    report->edge_power = NAN;
   }
   BSURF_REQUIRE(xyz, "xyz is NULL");
   BSURF_REQUIRE(feature, "feature is NULL");
@@ -631,6 +634,9 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
                 "tail_rule = %d: must be BSURF_TAIL_OTSU, _MAD or _NULL", (int)o.tail_rule);
   BSURF_REQUIRE(o.method != BSURF_FEATURES_VARIANCE || o.normals.bootstrap >= 2,
                 "normals.bootstrap = %d: the variance method needs B >= 2", o.normals.bootstrap);
+  BSURF_REQUIRE(o.feature_angle >= 0 && o.feature_angle < 180,
+                "feature_angle = %g: must be in [0, 180)", o.feature_angle);
+  BSURF_REQUIRE(o.variance_k_max >= 0, "variance_k_max = %d: must be >= 0", o.variance_k_max);
   const size_t n = nb->point_count;
   double *sc = score ? score : bsurf_alloc_array(n, sizeof(double));
   double *tmp = NULL;
@@ -639,7 +645,20 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
   bsurf_status st = BSURF_OK;
   double thr = 0, R = 0, t_kmin = NAN;
   size_t imm = 0;
-  if (o.method == BSURF_FEATURES_VARIANCE) {
+  const int null_rule = isnan(o.threshold) && o.tail_rule == BSURF_TAIL_NULL;
+  if (o.method == BSURF_FEATURES_VARIANCE && null_rule && o.feature_angle > 0) {
+    /* the neighbourhood from the test's power (features_variance.c), at
+     * most nb->k */
+    double eta = 0, pw = NAN;
+    int k = o.normals.k, cap = bsurf_fvar_k_cap(&o, n);
+    if (cap > nb->k) cap = nb->k;
+    st = bsurf_fvar_eta(xyz, nb, o.normals.k, o.threads, &eta);
+    if (st == BSURF_OK) st = bsurf_fvar_choose_k(&o, eta, cap, &k, &pw);
+    o.normals.k = k;
+    if (report) report->edge_power = pw;
+  }
+  if (report) report->k = o.normals.k;
+  if (st == BSURF_OK && o.method == BSURF_FEATURES_VARIANCE) {
     bsurf_normal_options no = o.normals;
     no.threads = o.threads;
     no.progress = o.progress;
@@ -647,7 +666,7 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
     if (no.bootstrap < 2) st = BSURF_ERR_INVALID_ARG;
     bsurf_normal_fields nf = {NULL, sc, NULL};
     if (st == BSURF_OK) st = bsurf_estimate_normals(xyz, nb, NULL, &no, &nf, NULL);
-    if (st == BSURF_OK && isnan(o.threshold) && o.tail_rule == BSURF_TAIL_NULL) {
+    if (st == BSURF_OK && null_rule) {
       /* the null test (features_variance.c): sc becomes the filtered z */
       bsurf_fvar_result vr;
       st = bsurf_fvar_detect(xyz, nb, &o, sc, feature, &vr);
@@ -662,7 +681,7 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
         for (size_t i = 0; i < n; i++)
           feature[i] = sc[i] > thr;
     }
-  } else {
+  } else if (st == BSURF_OK) {
     /* the stages of the tiled run (src/tile/features_tiled.c), on the whole cloud */
     state = bsurf_alloc_array(n, 1);
     st = state ? distance_raw(xyz, nb, &o, sc, NULL, &R, &imm, &t_kmin, state) : BSURF_ERR_NOMEM;

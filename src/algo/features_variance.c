@@ -42,14 +42,22 @@
  *        t = max(t_alpha, t_Otsu).
  * 5. Features: F = {i | z_i > t} (Eq. 7.2 with z for nu): a flat area of
  *    the cloud's noise is flagged at rate alpha at most.
+ * 6. Neighbourhood (feature_angle > 0, bsurf_fvar_choose_k): when the noise
+ *    is comparable to the K-neighbourhood's radius the flat patch's own nu
+ *    covers what an edge's reaches and the test has no power. sigma_0 (the
+ *    noise in spacings) is found once from eta at normals.k; K doubles from
+ *    normals.k until a folded patch (faces' normals feature_angle apart,
+ *    noise sigma_0) is detected at >= half its points within a spacing of
+ *    the fold, at t_alpha of its own flat parts.
  * Without noise (s^2 = 0: most neighbourhoods exactly flat) the null is
  * the point mass nu = 0: Z = nu tr, and t = 1e-12 max z (rounding).
  *
  * What it does not do: near an edge every point whose neighbourhood
  * reaches across it is "not flat", so the detected band is about the
  * neighbourhood's radius wide whatever the threshold; and when the noise is
- * comparable to the neighbourhood's radius (eta above ~0.1) the features'
- * nu is inside the null's spread and few points pass (docs/features.md). */
+ * comparable to the neighbourhood's radius (eta above ~0.1) at a fixed K
+ * the features' nu is inside the null's spread and few points pass: step 6
+ * grows K then (docs/features.md). */
 #include "algo/algo.h"
 #include "common/common.h"
 
@@ -61,12 +69,22 @@
 
 enum {
   NULL_INTERIOR = 20000,   /* points of the patch whose statistics count */
+  FOLD_INTERIOR = 8000,    /* the same for the folded patch of the K choice:
+                              about 200 points within a spacing of its edge,
+                              the power to +-0.035 */
   NULL_STREAM = 0x6e756c6c /* "null": the patch's random streams */
 };
 
 int bsurf_fvar_filter_k(const bsurf_feature_options *o) {
   if (o->variance_filter_k > 0) return o->variance_filter_k;
   return o->normals.k / 2 > 1 ? o->normals.k / 2 : 1;
+}
+
+int bsurf_fvar_k_cap(const bsurf_feature_options *o, size_t n) {
+  long cap = o->variance_k_max > 0 ? o->variance_k_max : 8L * o->normals.k;
+  if (cap > 65535) cap = 65535;
+  if ((size_t)cap > n) cap = (long)n;
+  return cap < o->normals.k ? o->normals.k : (int)cap;
 }
 
 /* ---- per row: u = nu tr, lambda0, lambda0 / tr ---- */
@@ -143,18 +161,24 @@ double bsurf_fvar_median(double *v, size_t n) {
   return median_sorted(v, n);
 }
 
-/* ---- the null patch ---- */
+/* ---- the simulated patches ----
+ * A square of side L in plane coordinates (u, v), unit density, uniform
+ * random positions; folded (fold > 0) along u = L / 2 so that the normals of
+ * its two halves differ by the angle fold: the half u > L / 2 is turned
+ * about that line. Every point gets sigma g along its half's normal, g a
+ * unit gaussian draw. */
 
 typedef struct null_patch {
   size_t n;
-  double side, margin;
-  double *xyz, *g; /* g: the unit gaussian draw of each point */
+  double side, margin, fold;
+  double *uv, *xyz, *g;
   bsurf_neighbors nb;
   double *nu, *u, *l0, *ratio, *z;
 } null_patch;
 
 static void patch_free(null_patch *p) {
   bsurf_neighbors_free(&p->nb);
+  free(p->uv);
   free(p->xyz);
   free(p->g);
   free(p->nu);
@@ -164,95 +188,209 @@ static void patch_free(null_patch *p) {
   free(p->z);
 }
 
+static void patch_place(null_patch *p, double sigma) {
+  const double c = cos(p->fold), s = sin(p->fold), h = p->side / 2;
+  for (size_t i = 0; i < p->n; i++) {
+    const double u = p->uv[2 * i], e = sigma * p->g[i];
+    double *q = &p->xyz[3 * i];
+    q[1] = p->uv[2 * i + 1];
+    if (p->fold > 0 && u > h) {
+      q[0] = h + (u - h) * c - e * s; /* (u - h) (c, s) + e (-s, c) */
+      q[2] = (u - h) * s + e * c;
+    } else {
+      q[0] = u;
+      q[2] = e;
+    }
+  }
+}
+
+/* 1: point i's neighbourhood and its filter's neighbours' lie inside the
+ * patch; with a fold, where = 1 asks for the flat parts (farther than the
+ * margin from the fold line), where = 2 for the edge (within one spacing) */
+static int patch_in(const null_patch *p, size_t i, int where) {
+  const double u = p->uv[2 * i], v = p->uv[2 * i + 1], m = p->margin, d = fabs(u - p->side / 2);
+  if (!(u > m && u < p->side - m && v > m && v < p->side - m)) return 0;
+  if (p->fold > 0 && where == 1) return d > m;
+  if (where == 2) return d <= 1;
+  return 1;
+}
+
+/* the patch for neighbourhoods of k and a filter of kf: every array, the
+ * positions without noise and the neighbourhoods, built once on the clean
+ * surface so that they stay the same while sigma changes */
+static bsurf_status patch_init(null_patch *p, const bsurf_feature_options *o, int k, int kf,
+                               double fold) {
+  memset(p, 0, sizeof *p);
+  /* unit density: a K-neighbourhood has radius sqrt(K / pi) */
+  p->margin = sqrt(k / PI) + sqrt(kf / PI) + 1;
+  p->side = fold > 0 ? ceil(sqrt((double)FOLD_INTERIOR) + 4 * p->margin)
+                     : ceil(sqrt((double)NULL_INTERIOR) + 2 * p->margin);
+  p->fold = fold;
+  p->n = (size_t)(p->side * p->side);
+  p->uv = bsurf_alloc_array(2 * p->n, sizeof(double));
+  p->xyz = bsurf_alloc_array(3 * p->n, sizeof(double));
+  p->g = bsurf_alloc_array(p->n, sizeof(double));
+  p->nu = bsurf_calloc_array(p->n, sizeof(double));
+  p->u = bsurf_alloc_array(p->n, sizeof(double));
+  p->l0 = bsurf_alloc_array(p->n, sizeof(double));
+  p->ratio = bsurf_alloc_array(p->n, sizeof(double));
+  p->z = bsurf_alloc_array(p->n, sizeof(double));
+  if (!p->uv || !p->xyz || !p->g || !p->nu || !p->u || !p->l0 || !p->ratio || !p->z)
+    return BSURF_ERR_NOMEM;
+  for (size_t i = 0; i < p->n; i++) {
+    bsurf_rng rng;
+    bsurf_rng_init(&rng, o->normals.seed, i, NULL_STREAM);
+    p->uv[2 * i] = p->side * bsurf_rng_uniform(&rng);
+    p->uv[2 * i + 1] = p->side * bsurf_rng_uniform(&rng);
+    p->g[i] = bsurf_rng_normal(&rng);
+  }
+  patch_place(p, 0);
+  return bsurf_neighbors_build(&p->nb, p->xyz, p->n, k > kf ? k : kf, o->threads, NULL, NULL);
+}
+
 /* the median of lambda0 / tr over the patch's interior at noise sigma */
 static bsurf_status patch_eta(null_patch *p, int k, int threads, double sigma, double *eta) {
-  for (size_t i = 0; i < p->n; i++)
-    p->xyz[3 * i + 2] = sigma * p->g[i];
+  patch_place(p, sigma);
   bsurf_status st = bsurf_fvar_local(p->xyz, &p->nb, k, threads, p->nu, p->u, p->l0, p->ratio);
   if (st != BSURF_OK) return st;
   size_t m = 0;
-  for (size_t i = 0; i < p->n; i++) {
-    const double *q = &p->xyz[3 * i];
-    if (q[0] > p->margin && q[0] < p->side - p->margin && q[1] > p->margin &&
-        q[1] < p->side - p->margin)
-      p->u[m++] = p->ratio[i];
-  }
+  for (size_t i = 0; i < p->n; i++)
+    if (patch_in(p, i, 1)) p->u[m++] = p->ratio[i];
   *eta = bsurf_fvar_median(p->u, m);
   return BSURF_OK;
+}
+
+/* z of every point at noise sigma: the bootstrap normals with the options'
+ * B, fit and seed at k, Z = nu tr / s^2 with s^2 the median lambda0 of the
+ * flat part, filtered over kf */
+static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, int k, int kf,
+                                 double sigma) {
+  patch_place(p, sigma);
+  bsurf_normal_options no = o->normals;
+  no.k = k;
+  no.threads = o->threads;
+  no.progress = NULL;
+  no.progress_user = NULL;
+  no.point_index = NULL;
+  bsurf_normal_fields nf = {NULL, p->nu, NULL};
+  bsurf_status st = bsurf_estimate_normals(p->xyz, &p->nb, NULL, &no, &nf, NULL);
+  if (st == BSURF_OK)
+    st = bsurf_fvar_local(p->xyz, &p->nb, k, o->threads, p->nu, p->u, p->l0, p->ratio);
+  if (st != BSURF_OK) return st;
+  size_t m = 0;
+  for (size_t i = 0; i < p->n; i++)
+    if (!p->fold || patch_in(p, i, 1)) p->z[m++] = p->l0[i];
+  const double s2 = bsurf_fvar_median(p->z, m);
+  return bsurf_fvar_filter(&p->nb, kf, o->threads, s2, p->u, p->z);
+}
+
+/* the (1 - alpha) quantile of z over the points where patch_in(where): the
+ * smallest value that at most alpha m of the m values exceed */
+static double patch_quantile(null_patch *p, int where, double alpha) {
+  size_t m = 0;
+  for (size_t i = 0; i < p->n; i++)
+    if (patch_in(p, i, where)) p->l0[m++] = p->z[i];
+  if (!m) return 0;
+  qsort(p->l0, m, sizeof(double), cmp_double);
+  size_t r = (size_t)ceil((1 - alpha) * (double)m);
+  return p->l0[r > 0 ? (r <= m ? r - 1 : m - 1) : 0];
+}
+
+/* sigma_0 of the flat patch p (built for k) whose median lambda0 / tr is
+ * eta: lambda0 ~ sigma^2 and tr ~ K / (2 pi) on a unit-density disc, then
+ * secant steps on eta(sigma) ~ sigma^2 */
+static bsurf_status patch_sigma(null_patch *p, int k, int threads, double eta, double *sigma) {
+  double s = sqrt(eta * k / (2 * PI));
+  bsurf_status st = BSURF_OK;
+  for (int it = 0; st == BSURF_OK && it < 4 && s > 0; it++) {
+    double e;
+    st = patch_eta(p, k, threads, s, &e);
+    if (st == BSURF_OK && e > 0) s *= sqrt(eta / e);
+  }
+  *sigma = s;
+  return st;
 }
 
 bsurf_status bsurf_fvar_null_threshold(const bsurf_feature_options *o, double eta, double *t,
                                        double *sigma0) {
   const int k = o->normals.k, kf = bsurf_fvar_filter_k(o);
-  const int kk = k > kf ? k : kf;
   null_patch p;
-  memset(&p, 0, sizeof p);
-  /* unit density: a K-neighbourhood has radius sqrt(K / pi); a point counts
-   * when its neighbourhood and its filter's neighbours' are inside */
-  p.margin = sqrt(k / PI) + sqrt(kf / PI) + 1;
-  p.side = ceil(sqrt((double)NULL_INTERIOR) + 2 * p.margin);
-  p.n = (size_t)(p.side * p.side);
-  p.xyz = bsurf_alloc_array(3 * p.n, sizeof(double));
-  p.g = bsurf_alloc_array(p.n, sizeof(double));
-  p.nu = bsurf_calloc_array(p.n, sizeof(double));
-  p.u = bsurf_alloc_array(p.n, sizeof(double));
-  p.l0 = bsurf_alloc_array(p.n, sizeof(double));
-  p.ratio = bsurf_alloc_array(p.n, sizeof(double));
-  p.z = bsurf_alloc_array(p.n, sizeof(double));
-  bsurf_status st = BSURF_OK;
-  if (!p.xyz || !p.g || !p.nu || !p.u || !p.l0 || !p.ratio || !p.z) st = BSURF_ERR_NOMEM;
-  for (size_t i = 0; st == BSURF_OK && i < p.n; i++) {
-    bsurf_rng rng;
-    bsurf_rng_init(&rng, o->normals.seed, i, NULL_STREAM);
-    p.xyz[3 * i] = p.side * bsurf_rng_uniform(&rng);
-    p.xyz[3 * i + 1] = p.side * bsurf_rng_uniform(&rng);
-    p.xyz[3 * i + 2] = 0;
-    p.g[i] = bsurf_rng_normal(&rng);
-  }
-  /* the neighbourhoods do not depend on the (small) noise: built on the
-   * plane z = 0 so that they stay the same while sigma_0 is tuned */
-  if (st == BSURF_OK) st = bsurf_neighbors_build(&p.nb, p.xyz, p.n, kk, o->threads, NULL, NULL);
-  /* sigma_0: lambda0 ~ sigma^2 and tr ~ K / (2 pi) on a unit-density disc,
-   * then three secant steps on eta(sigma) ~ sigma^2 */
-  double sigma = sqrt(eta * k / (2 * PI));
-  for (int it = 0; st == BSURF_OK && it < 4 && sigma > 0; it++) {
-    double e;
-    st = patch_eta(&p, k, o->threads, sigma, &e);
-    if (st == BSURF_OK && e > 0) sigma *= sqrt(eta / e);
-  }
+  double sigma = 0;
+  bsurf_status st = patch_init(&p, o, k, kf, 0);
+  if (st == BSURF_OK) st = patch_sigma(&p, k, o->threads, eta, &sigma);
+  if (st == BSURF_OK) st = patch_scores(&p, o, k, kf, sigma);
   if (st == BSURF_OK) {
-    for (size_t i = 0; i < p.n; i++)
-      p.xyz[3 * i + 2] = sigma * p.g[i];
-    bsurf_normal_options no = o->normals;
-    no.threads = o->threads;
-    no.progress = NULL;
-    no.progress_user = NULL;
-    no.point_index = NULL;
-    bsurf_normal_fields nf = {NULL, p.nu, NULL};
-    st = bsurf_estimate_normals(p.xyz, &p.nb, NULL, &no, &nf, NULL);
-  }
-  if (st == BSURF_OK) st = bsurf_fvar_local(p.xyz, &p.nb, k, o->threads, p.nu, p.u, p.l0, p.ratio);
-  double s2 = 0;
-  if (st == BSURF_OK) {
-    memcpy(p.z, p.l0, p.n * sizeof(double));
-    s2 = bsurf_fvar_median(p.z, p.n);
-    st = bsurf_fvar_filter(&p.nb, kf, o->threads, s2, p.u, p.z);
-  }
-  if (st == BSURF_OK) {
-    size_t m = 0;
-    for (size_t i = 0; i < p.n; i++) {
-      const double *q = &p.xyz[3 * i];
-      if (q[0] > p.margin && q[0] < p.side - p.margin && q[1] > p.margin &&
-          q[1] < p.side - p.margin)
-        p.l0[m++] = p.z[i];
-    }
-    qsort(p.l0, m, sizeof(double), cmp_double);
-    /* the smallest value that at most alpha m of the m values exceed */
-    size_t r = (size_t)ceil((1 - o->false_positive_rate) * (double)m);
-    *t = m ? p.l0[r > 0 ? (r <= m ? r - 1 : m - 1) : 0] : 0;
+    *t = patch_quantile(&p, 0, o->false_positive_rate);
     if (sigma0) *sigma0 = sigma;
   }
   patch_free(&p);
+  return st;
+}
+
+/* ---- the neighbourhood: the test's power on a simulated edge ----
+ * The test needs the flat area's normal to be steadier than an edge's: when
+ * the noise is comparable to the neighbourhood's radius (eta large) the
+ * flat patch's own nu fills the range an edge's reaches, and nothing passes.
+ * The noise relative to the spacing, sigma_0 (unit density), is a property
+ * of the cloud: it is found once, from eta at normals.k; then K = normals.k,
+ * 2 normals.k, 4 normals.k ... <= k_cap, the first at which a simulated edge
+ * whose faces' normals differ by feature_angle, at noise sigma_0, is
+ * detected at more than half of its points within one spacing of the edge
+ * (the test's power >= 1/2 at level alpha, t_alpha from the same patch's
+ * flat parts). If none reaches it, the K of the largest power. */
+bsurf_status bsurf_fvar_choose_k(const bsurf_feature_options *o, double eta, int k_cap, int *k,
+                                 double *power) {
+  const int k0 = o->normals.k;
+  *k = k0;
+  if (power) *power = NAN;
+  if (!(o->feature_angle > 0) || !(eta > 0) || k_cap <= k0) return BSURF_OK;
+  null_patch p;
+  double sigma = 0, best = -1;
+  bsurf_status st = BSURF_OK;
+  int done = 0;
+  for (int kk = k0; st == BSURF_OK && !done && kk <= k_cap; kk *= 2) {
+    bsurf_feature_options ok = *o;
+    ok.normals.k = kk;
+    const int kf = bsurf_fvar_filter_k(&ok);
+    st = patch_init(&p, o, kk, kf, o->feature_angle * PI / 180);
+    /* sigma_0 from the first patch's flat parts at normals.k */
+    if (st == BSURF_OK && kk == k0) st = patch_sigma(&p, k0, o->threads, eta, &sigma);
+    if (st == BSURF_OK) st = patch_scores(&p, o, kk, kf, sigma);
+    if (st == BSURF_OK) {
+      const double t = patch_quantile(&p, 1, o->false_positive_rate);
+      size_t m = 0, hit = 0;
+      for (size_t i = 0; i < p.n; i++)
+        if (patch_in(&p, i, 2)) {
+          m++;
+          hit += p.z[i] > t;
+        }
+      const double pw = m ? (double)hit / (double)m : 0;
+      if (pw > best) {
+        best = pw;
+        *k = kk;
+        if (power) *power = pw;
+      }
+      done = pw >= 0.5;
+    }
+    patch_free(&p);
+  }
+  return st;
+}
+
+bsurf_status bsurf_fvar_eta(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
+                            double *eta) {
+  const size_t n = nb->point_count;
+  double *nu = bsurf_calloc_array(n ? n : 1, sizeof(double)),
+         *u = bsurf_alloc_array(n ? n : 1, sizeof(double)),
+         *l0 = bsurf_alloc_array(n ? n : 1, sizeof(double)),
+         *ratio = bsurf_alloc_array(n ? n : 1, sizeof(double));
+  bsurf_status st = nu && u && l0 && ratio ? BSURF_OK : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio);
+  if (st == BSURF_OK) *eta = bsurf_fvar_median(ratio, n);
+  free(nu);
+  free(u);
+  free(l0);
+  free(ratio);
   return st;
 }
 

@@ -14,6 +14,7 @@
  * common generate | noise | features pipeline. Both cases are reported in
  * the summary (kept, replaced). */
 #include "jobs/jobs.h"
+#include "algo/algo.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -88,32 +89,47 @@ static bsurf_status features_map(void *user, size_t first, bsurf_cloud *c, const
   return BSURF_OK;
 }
 
+/* A first tiled stage of one value per point (run, neighbourhoods of k):
+ * the values read back in index order into *v (the caller frees it and
+ * closes vals, which a later stage may read). */
+static bsurf_status
+stage_values(const bsurf_job_io *io, const bsurf_feature_options *fo, features_tiles *ft, int k,
+             int progress, bsurf_status (*run)(void *, const bsurf_tile *, bsurf_cloud *, double *),
+             bsurf_tile_ops *ops, bsurf_tile_values *vals, double **v, bsurf_failure *err) {
+  bsurf_features_job_summary *s = ft->s;
+  ft->no = fo->normals;
+  ft->no.threads = fo->threads;
+  ft->no.progress = NULL;
+  bsurf_jobs_tile_ops(ops, io, k, fo->threads, progress ? fo->progress : NULL,
+                      progress ? fo->progress_user : NULL, ft);
+  ops->run = run;
+  ops->nvalues = 1;
+  ops->values_out = vals;
+  bsurf_tile_report tr;
+  memset(&tr, 0, sizeof tr);
+  bsurf_status st = bsurf_tiles_run(io->input, io->output, ops, &tr, err);
+  bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
+  *v = NULL;
+  if (st == BSURF_OK) {
+    *v = bsurf_alloc_array(s->points ? s->points : 1, sizeof(double));
+    if (!*v)
+      st = BSURF_ERR_NOMEM;
+    else if (bsurf_tile_values_read(vals, 0, s->points, *v) != BSURF_OK)
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot read the scratch file of the first stage");
+  }
+  return st;
+}
+
 /* variance: normal_var tile by tile, the threshold (given or automatic) over
  * every value in index order, then the output by a pointwise stage. */
 static bsurf_status variance_tiled(const bsurf_job_io *io, const bsurf_feature_options *fo,
                                    features_tiles *ft, bsurf_failure *err) {
   bsurf_features_job_summary *s = ft->s;
   bsurf_tile_values vals = {-1, 0, 0};
-  ft->no = fo->normals;
-  ft->no.threads = fo->threads;
-  ft->no.progress = NULL;
   bsurf_tile_ops ops;
-  bsurf_jobs_tile_ops(&ops, io, fo->normals.k, fo->threads, fo->progress, fo->progress_user, ft);
-  ops.run = features_stage1_run;
-  ops.nvalues = 1;
-  ops.values_out = &vals;
-  bsurf_tile_report tr;
-  memset(&tr, 0, sizeof tr);
-  bsurf_status st = bsurf_tiles_run(io->input, io->output, &ops, &tr, err);
-  bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   double *v = NULL;
-  if (st == BSURF_OK) {
-    v = bsurf_alloc_array(s->points ? s->points : 1, sizeof(double));
-    if (!v)
-      st = BSURF_ERR_NOMEM;
-    else if (bsurf_tile_values_read(&vals, 0, s->points, v) != BSURF_OK)
-      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot read the scratch file of the first stage");
-  }
+  bsurf_status st =
+      stage_values(io, fo, ft, fo->normals.k, 1, features_stage1_run, &ops, &vals, &v, err);
   if (st == BSURF_OK && isnan(fo->threshold))
     st = bsurf_tail_threshold(v, s->points, fo->tail_rule, &ft->threshold);
   else
@@ -127,6 +143,39 @@ static bsurf_status variance_tiled(const bsurf_job_io *io, const bsurf_feature_o
     ops.prepare = features_prepare;
     st = bsurf_tiles_map(io->input, io->output, &ops, &vals, features_map, err);
   }
+  bsurf_tile_values_close(&vals);
+  return st;
+}
+
+/* variance, null rule, feature_angle > 0: a first tiled stage gives
+ * lambda0 / tr of every point at normals.k, whose median eta (over every
+ * value, as in memory) chooses the neighbourhood (bsurf_fvar_choose_k) */
+static bsurf_status eta_stage_run(void *user, const bsurf_tile *tile, bsurf_cloud *core,
+                                  double *sums) {
+  (void)core;
+  (void)sums;
+  const features_tiles *ft = user;
+  const size_t nc = tile->core_count ? tile->core_count : 1;
+  double *nu = bsurf_calloc_array(nc, sizeof(double)), *u = bsurf_alloc_array(nc, sizeof(double)),
+         *l0 = bsurf_alloc_array(nc, sizeof(double));
+  bsurf_status st = nu && u && l0 ? BSURF_OK : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK)
+    st = bsurf_fvar_local(tile->xyz, tile->nb, ft->no.k, ft->no.threads, nu, u, l0,
+                          tile->values_out);
+  free(nu);
+  free(u);
+  free(l0);
+  return st;
+}
+
+static bsurf_status eta_tiled(const bsurf_job_io *io, const bsurf_feature_options *fo,
+                              features_tiles *ft, double *eta, bsurf_failure *err) {
+  bsurf_tile_values vals = {-1, 0, 0};
+  bsurf_tile_ops ops;
+  double *v = NULL;
+  bsurf_status st = stage_values(io, fo, ft, fo->normals.k, 0, eta_stage_run, &ops, &vals, &v, err);
+  if (st == BSURF_OK) *eta = bsurf_fvar_median(v, ft->s->points);
+  free(v);
   bsurf_tile_values_close(&vals);
   return st;
 }
@@ -153,6 +202,12 @@ static bsurf_status chain_tiled(const bsurf_job_io *io, const bsurf_feature_opti
 
 /* ---- in memory ---- */
 
+/* the variance test chooses its neighbourhood */
+static int choose_k(const bsurf_feature_options *fo) {
+  return fo->method == BSURF_FEATURES_VARIANCE && isnan(fo->threshold) &&
+         fo->tail_rule == BSURF_TAIL_NULL && fo->feature_angle > 0;
+}
+
 static bsurf_status features_in_memory(const bsurf_job_io *io, const bsurf_feature_options *fo,
                                        bsurf_features_job_summary *s) {
   bsurf_cloud *c = io->cloud;
@@ -164,10 +219,32 @@ static bsurf_status features_in_memory(const bsurf_job_io *io, const bsurf_featu
   const size_t n = c->point_count;
   s->points = n;
   s->h = nb.h;
+  /* the variance test's neighbourhood (bsurf_fvar_choose_k): from eta at
+   * normals.k; the neighbourhoods are built again when it grows */
+  bsurf_feature_options fk = *fo;
+  double power = NAN;
+  if (choose_k(fo)) {
+    double eta = 0;
+    int k = fo->normals.k;
+    st = bsurf_fvar_eta(c->xyz, &nb, fo->normals.k, fo->threads, &eta);
+    if (st == BSURF_OK) st = bsurf_fvar_choose_k(fo, eta, bsurf_fvar_k_cap(fo, n), &k, &power);
+    if (st == BSURF_OK && k > nb.k) {
+      bsurf_neighbors_free(&nb);
+      size_t dup = 0;
+      st = bsurf_jobs_neighbors(c, k, fo->threads, NULL, NULL, &nb, &dup);
+    }
+    fk.normals.k = k;
+    fk.feature_angle = 0;
+    if (st != BSURF_OK) {
+      bsurf_neighbors_free(&nb);
+      return st;
+    }
+  }
   uint8_t *feat = malloc(n ? n : 1);
   double *score = malloc((n ? n : 1) * sizeof(double));
-  st = feat && score ? bsurf_detect_features(c->xyz, &nb, fo, feat, score, &s->report)
+  st = feat && score ? bsurf_detect_features(c->xyz, &nb, &fk, feat, score, &s->report)
                      : BSURF_ERR_NOMEM;
+  s->report.edge_power = power;
   bsurf_neighbors_free(&nb);
   if (st == BSURF_OK) st = features_fields(c, s->field_names, s->kept, s->replaced);
   if (st == BSURF_OK) {
@@ -212,6 +289,10 @@ static bsurf_status features_check(const bsurf_feature_options *fo) {
                        "opts->false_positive_rate = %g must be in (0, 1)", fo->false_positive_rate);
       BSURF_REQUIRE_IN(FJ, fo->variance_filter_k >= 0 && fo->variance_filter_k <= 65535,
                        "opts->variance_filter_k = %d must be in [0, 65535]", fo->variance_filter_k);
+      BSURF_REQUIRE_IN(FJ, fo->feature_angle >= 0 && fo->feature_angle < 180,
+                       "opts->feature_angle = %g must be in [0, 180)", fo->feature_angle);
+      BSURF_REQUIRE_IN(FJ, fo->variance_k_max >= 0 && fo->variance_k_max <= 65535,
+                       "opts->variance_k_max = %d must be in [0, 65535]", fo->variance_k_max);
     }
   }
   BSURF_REQUIRE_IN(FJ, isnan(fo->threshold) || isfinite(fo->threshold),
@@ -238,6 +319,20 @@ bsurf_status bsurf_features_job(const bsurf_job_io *io, const bsurf_feature_opti
   features_tiles ft;
   memset(&ft, 0, sizeof ft);
   ft.s = summary;
-  return fo.method == BSURF_FEATURES_DISTANCE || null_rule ? chain_tiled(io, &fo, &ft, err)
-                                                           : variance_tiled(io, &fo, &ft, err);
+  double power = NAN;
+  if (choose_k(&fo)) {
+    double eta = 0;
+    int k = fo.normals.k;
+    st = eta_tiled(io, &fo, &ft, &eta, err);
+    if (st == BSURF_OK)
+      st = bsurf_fvar_choose_k(&fo, eta, bsurf_fvar_k_cap(&fo, summary->points), &k, &power);
+    if (st != BSURF_OK) return st;
+    fo.normals.k = k;
+    fo.feature_angle = 0;
+  }
+  st = fo.method == BSURF_FEATURES_DISTANCE || null_rule ? chain_tiled(io, &fo, &ft, err)
+                                                         : variance_tiled(io, &fo, &ft, err);
+  summary->report.edge_power = power;
+  summary->report.k = fo.normals.k;
+  return st;
 }

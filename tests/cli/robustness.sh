@@ -134,7 +134,7 @@ awk 'BEGIN { for (i = 0; i < 120; i++) print i * 0.01, i * 0.02, i * 0.03 }' >"$
 awk 'BEGIN { for (i = 0; i < 144; i++) print (i % 12) * 0.1, int(i / 12) * 0.1, 0.5 }' >"$IN/plane.xyz"
 awk '/^end_header/ {h = 1; next} h && NF {print $1, $2, $3; print $1, $2, $3}' "$T/p.ply" >"$IN/dup.xyz"
 runs=("error -k 12 -d 2 -B 4" "normals -k 12 -B 4" "smooth -k 12 -d 2 -B 4" "smooth --method multipass -k 12 -d 1 --k-min 6 -B 4"
-  "smooth --method naive -k 12 -d 2 -B 4" "features -k 12 --k-min 6 --k-max 12" "features --method variance -k 12 -B 4")
+  "smooth --method naive -k 12 -d 2 -B 4" "features --method distance -k 12 --k-min 6 --k-max 12" "features --method variance -k 12 -B 4")
 for f in same line plane dup; do
   for r in "${runs[@]}"; do
     # shellcheck disable=SC2086
@@ -160,7 +160,7 @@ grep -qF '"degree_reduced":0' "$T/out" && grep -qF '"duplicate_points":0' "$T/ou
 printf '0 0 0\n1 0 0\n0 1 0\n1 1 0\n2 0 0\n' >"$IN/tiny.xyz"
 bad 1 "fewer points than K" "$IN/tiny.xyz: has 5 points, fewer than K = 20" -- "$BSURF" "${ERR[@]}" "$IN/tiny.xyz" -o "$OUT"
 bad 1 "fewer points than K (normals)" "$IN/tiny.xyz: has 5 points, fewer than K = 30" -- "$BSURF" normals "$IN/tiny.xyz" -k 30 -o "$OUT"
-bad 1 "fewer points than k-max (features)" "$IN/tiny.xyz: has 5 points" -- "$BSURF" features "$IN/tiny.xyz" -o "$OUT"
+bad 1 "fewer points than k-max (features)" "$IN/tiny.xyz: has 5 points" -- "$BSURF" features "$IN/tiny.xyz" --method distance -o "$OUT"
 bad 2 "K too small for the degree" "K = 9 is too small for degree 3" -- "$BSURF" error -k 9 -d 3 "$IN/n.ply" -o "$OUT"
 bad 2 "K too small for the degree (smooth)" "too small for degree 4" -- "$BSURF" smooth -k 14 -d 4 "$IN/n.ply" -o "$OUT"
 bad 2 "K too small for the degree (normals)" "K = 5 is too small for degree 2" -- "$BSURF" normals --fit poly -k 5 -d 2 "$IN/n.ply" -o "$OUT"

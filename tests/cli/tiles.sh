@@ -63,7 +63,7 @@ for f in c n; do
       -o "$T/ft.ply" --tile-points 70 --json
     cmp -s "$T/fm.ply" "$T/ft.ply" && ok || fail "features $f $args --tile-points 70: output differs"
     cmp -s "$T/fm.err" "$T/err" && ok || fail "features $f $args: tiled warnings differ"
-    for key in threshold feature_points h kept_input_fields; do
+    for key in threshold feature_points h k kept_input_fields; do
       grep -o "\"$key\":[^,]*" "$T/out" | cmp -s - <(grep -o "\"$key\":[^,]*" "$T/fm.json") && ok ||
         fail "features $f --tile-points 70: $key differs"
     done
@@ -77,10 +77,10 @@ done
 for f in c n; do
   for args in "" "--iterations 3 --filter-k 9" "--threshold 0.2 --iterations 0" \
     "--noise-factor 0 --derivative 0.5 --k-max 30 --alpha 0.8 --iterations 2"; do
-    expect 0 "features distance $f $args" -- "$BSURF" features "$T/$f.ply" $args -o "$T/fm.ply" --json
+    expect 0 "features distance $f $args" -- "$BSURF" features "$T/$f.ply" --method distance $args -o "$T/fm.ply" --json
     cp "$T/out" "$T/fm.json"
     cp "$T/err" "$T/fm.err"
-    expect 0 "features distance $f $args tiles" -- "$BSURF" features "$T/$f.ply" $args -o "$T/ft.ply" \
+    expect 0 "features distance $f $args tiles" -- "$BSURF" features "$T/$f.ply" --method distance $args -o "$T/ft.ply" \
       --tile-points 120 --json
     cmp -s "$T/fm.ply" "$T/ft.ply" && ok || fail "features distance $f $args --tile-points 120: output differs"
     cmp -s "$T/fm.err" "$T/err" && ok || fail "features distance $f $args: tiled warnings differ"
@@ -91,14 +91,14 @@ for f in c n; do
   done
 done
 # a features output as input (its feature_dist is replaced), tiled automatically
-expect 0 "features distance again" -- "$BSURF" features "$T/fm.ply" -o "$T/fm2.ply" -q
-expect 0 "features distance again tiles" -- "$BSURF" features "$T/fm.ply" -o "$T/ft2.ply" --memory-limit 1M
+expect 0 "features distance again" -- "$BSURF" features "$T/fm.ply" --method distance -o "$T/fm2.ply" -q
+expect 0 "features distance again tiles" -- "$BSURF" features "$T/fm.ply" --method distance -o "$T/ft2.ply" --memory-limit 1M
 stderr_has "tiles of" "features distance: automatic tiling warns"
 cmp -s "$T/fm2.ply" "$T/ft2.ply" && ok || fail "features distance on a features output, --memory-limit 1M: output differs"
 # the medians from every second point: 338 sizes leave room for 11,834 of the 12,000
 args="--k-min 3 --k-max 340 --k-step 1 --iterations 1"
-expect 0 "features distance sampled" -- "$BSURF" features "$T/n.ply" $args -o "$T/fm.ply" -q
-expect 0 "features distance sampled tiles" -- "$BSURF" features "$T/n.ply" $args -o "$T/ft.ply" --tile-points 3000 -q
+expect 0 "features distance sampled" -- "$BSURF" features "$T/n.ply" --method distance $args -o "$T/fm.ply" -q
+expect 0 "features distance sampled tiles" -- "$BSURF" features "$T/n.ply" --method distance $args -o "$T/ft.ply" --tile-points 3000 -q
 cmp -s "$T/fm.ply" "$T/ft.ply" && ok || fail "features distance, a sample of every second point: tiled output differs"
 expect 0 "normals without input normals" -- "$BSURF" error "$T/n.ply" -k 10 -B 2 -o "$T/nn.ply" -q
 
@@ -135,7 +135,7 @@ printf 'ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x
 printf 'abcd' >>"$T/short.ply"
 expect 1 "truncated input" -- "$BSURF" error "$T/short.ply" -k 3 -d 1 -B 2 -o "$T/x.ply" --tile-points 100
 stderr_has "short.ply: byte" "truncated input names the byte"
-expect 1 "features distance bad input" -- "$BSURF" features "$T/short.ply" -o "$T/x.ply" --tile-points 130
+expect 1 "features distance bad input" -- "$BSURF" features "$T/short.ply" --method distance -o "$T/x.ply" --tile-points 130
 stderr_has "short.ply: byte" "features distance: a truncated input names the byte"
 expect 2 "bad memory limit" -- "$BSURF" error "$T/n.ply" -o "$T/x.ply" --memory-limit lots
 [ -e "$T/x.ply" ] && fail "output left after refusals" || ok
@@ -224,9 +224,9 @@ else
     cmp -s "$T/fser.ply" "$T/fmpi.ply" && ok || fail "mpirun features: output differs"
     # features distance: the sample's medians summed over the ranks, the filter passes' values shared
     args="--iterations 2 --filter-k 9 --k-max 40"
-    expect 0 "features distance serial" -- "$BSURF" features "$T/c.ply" $args -o "$T/fser.ply" -q
+    expect 0 "features distance serial" -- "$BSURF" features "$T/c.ply" --method distance $args -o "$T/fser.ply" -q
     for P in 2 3; do
-      expect 0 "mpirun features distance $P" -- mpirun "${root[@]}" --oversubscribe -n $P "$BSURF" features "$T/c.ply" \
+      expect 0 "mpirun features distance $P" -- mpirun "${root[@]}" --oversubscribe -n $P "$BSURF" features "$T/c.ply" --method distance \
         $args -j 1 -o "$T/fmpi.ply" --tile-points 500 -q
       cmp -s "$T/fser.ply" "$T/fmpi.ply" && ok || fail "mpirun -n $P features distance: output differs"
     done

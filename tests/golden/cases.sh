@@ -48,10 +48,10 @@ run smooth_multipass -- smooth box_noisy.ply --method multipass -o box_sm_mp.ply
 run smooth_tiled -- smooth cube_noisy.ply --tile-points 1000 -o cube_sm_tiled.ply
 
 # features (chapter 7): distance map and variance threshold, tiled
-run features_distance -- features cube_noisy.ply -o cube_fd.ply
+run features_distance -- features cube_noisy.ply --method distance -o cube_fd.ply
 run features_variance -- features cube_noisy.ply --method variance -o cube_fv.ply
-run features_box -- features box_noisy.ply -o box_fd.ply
-run features_tiled -- features cube_noisy.ply --tile-points 1000 -o cube_fd_tiled.ply
+run features_box -- features box_noisy.ply --method distance -o box_fd.ply
+run features_tiled -- features cube_noisy.ply --method distance --tile-points 1000 -o cube_fd_tiled.ply
 
 # eval against the truth: normals with a split, features, positions on a mesh
 run eval_normals -- eval cube_n.ply --truth cube.ply --split normal_var:0.85
