@@ -462,16 +462,17 @@ _FEATURE_METHODS = ("distance", "variance")
 _TAIL_RULES = ("otsu", "mad", "null")  # BSURF_TAIL_OTSU, _MAD, _NULL
 
 
-def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15, k_max=60,
+def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15, k_max=60,
              k_step=2, ratio_threshold=0.1, noise_factor=1.75, derivative=0.0, alpha=0.5,
              iterations=5, filter_k=0, sigma_range=0.05, threshold="auto", tail_rule="null",
-             false_positive_rate=0.01, variance_filter_k=0, seed=1, threads=0, output=None,
-             tile_points=None, progress=None):
-    """features(points, *, method='distance', neighbors=30, bootstrap=50,
+             false_positive_rate=0.01, variance_filter_k=0, feature_angle=90.0, variance_k_max=0,
+             seed=1, threads=0, output=None, tile_points=None, progress=None):
+    """features(points, *, method='variance', neighbors=30, bootstrap=50,
     k_min=15, k_max=60, k_step=2, ratio_threshold=0.1, noise_factor=1.75,
     derivative=0.0, alpha=0.5, iterations=5, filter_k=0, sigma_range=0.05,
     threshold='auto', tail_rule='null', false_positive_rate=0.01,
-    variance_filter_k=0, seed=1, threads=0, output=None,
+    variance_filter_k=0, feature_angle=90.0, variance_k_max=0, seed=1,
+    threads=0, output=None,
     tile_points=None, progress=None)
     -> (fields, summary)
 
@@ -512,12 +513,18 @@ def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15,
                        flagged (0.01)
       variance_filter_k    variance, rule null: neighbours of the median
                        filter (0 = K/2, 1 = none) (0)
+      feature_angle    variance, rule null: K doubles from neighbors until a
+                       simulated edge of this angle (degrees) at the measured
+                       noise is detected at half its points; 0 = neighbors
+                       always, the thesis (90)
+      variance_k_max   variance: the largest K tried (0 = 8 x neighbors)
       seed, threads, progress
 
     Returns (fields, summary): fields 'feature' (uint8 0/1) and the score
     ('feature_dist', 'variance_z' or 'normal_var', float64); summary with
     points, h, duplicates and report (threshold, feature_points, max_radius,
-    immediate, ratio_threshold_kmin, noise_level).
+    immediate, ratio_threshold_kmin, noise_level, k: the variance test's
+    neighbourhood, edge_power: the simulated edge's detected share at k).
     """
     thr = _math.nan if threshold == "auto" else float(threshold)
     pts, tiled = _job_input(points, output, tile_points)
@@ -526,8 +533,9 @@ def features(points, *, method="distance", neighbors=30, bootstrap=50, k_min=15,
                           float(ratio_threshold), float(noise_factor), float(derivative),
                           float(alpha), int(iterations), int(filter_k), float(sigma_range), thr,
                           _choice(tail_rule, _TAIL_RULES, "tail_rule"),
-                          float(false_positive_rate), int(variance_filter_k), int(seed),
-                          int(threads), progress)
+                          float(false_positive_rate), int(variance_filter_k),
+                          float(feature_angle), int(variance_k_max), int(seed), int(threads),
+                          progress)
 
 
 for _f in (error, normals, smooth, features):

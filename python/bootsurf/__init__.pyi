@@ -185,6 +185,8 @@ def features(
     tail_rule: Literal["null", "otsu", "mad"] = ...,
     false_positive_rate: float = ...,
     variance_filter_k: int = ...,
+    feature_angle: float = ...,
+    variance_k_max: int = ...,
     seed: int = ...,
     threads: int = ...,
     output: Optional[PathLike] = ...,

@@ -880,11 +880,12 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   bsurf_feature_options o = bsurf_feature_options_default();
   int method, rule;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OOiiiiiiddddiiddidiKiO", &pts, &tiled, &method, &o.normals.k,
+  if (!PyArg_ParseTuple(args, "OOiiiiiiddddiiddididiKiO", &pts, &tiled, &method, &o.normals.k,
                         &o.normals.bootstrap, &o.k_min, &o.k_max, &o.k_step, &o.ratio_threshold,
                         &o.noise_factor, &o.derivative, &o.alpha, &o.iterations, &o.filter_k,
                         &o.sigma_range, &o.threshold, &rule, &o.false_positive_rate,
-                        &o.variance_filter_k, &seed, &o.threads, &progress))
+                        &o.variance_filter_k, &o.feature_angle, &o.variance_k_max, &seed,
+                        &o.threads, &progress))
     return NULL;
   o.method = (bsurf_feature_method)method;
   o.tail_rule = (bsurf_tail_rule)rule;
@@ -902,11 +903,11 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   return job_result(
       NULL, fields,
       job_summary(s.points, s.h, s.duplicates, s.tile_points, s.tiles,
-                  Py_BuildValue("{s:{s:d,s:n,s:d,s:n,s:d,s:d}}", "report", "threshold",
+                  Py_BuildValue("{s:{s:d,s:n,s:d,s:n,s:d,s:d,s:i,s:d}}", "report", "threshold",
                                 r->threshold, "feature_points", (Py_ssize_t)r->feature_points,
                                 "max_radius", r->max_radius, "immediate", (Py_ssize_t)r->immediate,
                                 "ratio_threshold_kmin", r->ratio_threshold_kmin, "noise_level",
-                                r->noise_level)));
+                                r->noise_level, "k", r->k, "edge_power", r->edge_power)));
 }
 
 /* ---- synthetic data ---- */

@@ -137,6 +137,19 @@ def test_features_equal_cli(cube):
         assert s["report"]["feature_points"] == int(ref["feature"].sum())
 
 
+def test_features_defaults_equal_cli(cube):
+    """At defaults both front ends run the variance test with its chosen K."""
+    summ = cli("features", tmp("noisy.ply"), "-B", 8, "-o", tmp("ftd.ply"), "--json")
+    ref = bootsurf.read(tmp("ftd.ply"))
+    fields, s = bootsurf.features(cube, bootstrap=8)
+    same_bits(fields["feature"], ref["feature"])
+    same_bits(fields["variance_z"].astype(np.float32), ref["variance_z"])
+    assert s["report"]["k"] == summ["parameters"]["k"]
+    assert float("%.10g" % s["report"]["edge_power"]) == summ["parameters"]["edge_power"]
+    fields, s = bootsurf.features(cube, bootstrap=8, feature_angle=0)
+    assert s["report"]["k"] == 30
+
+
 def test_render_equals_cli(cube):
     cli("render", tmp("noisy.ply"), "--size", "160x120", "-o", tmp("cli.png"), "-q")
     bootsurf.render(tmp("noisy.ply"), size=(160, 120), output=tmp("py.png"))
