@@ -94,26 +94,23 @@
 #include <string.h>
 
 bsurf_feature_options bsurf_feature_options_default(void) {
-  bsurf_feature_options o;
-  memset(&o, 0, sizeof o);
-  o.method = BSURF_FEATURES_VARIANCE;
-  o.k_min = 15;
-  o.k_max = 60;
-  o.k_step = 2;
-  o.ratio_threshold = 0.1;
-  o.noise_factor = 1.75;
-  o.derivative = 0;
-  o.alpha = 0.5;
-  o.iterations = 5;
-  o.filter_k = 0;
-  o.sigma_range = 0.05;
-  o.threshold = NAN;
-  o.tail_rule = BSURF_TAIL_NULL;
-  o.false_positive_rate = 0.01;
-  o.variance_filter_k = 0;
-  o.feature_angle = 90;
-  o.variance_k_max = 0;
-  o.normals = bsurf_normal_options_default();
+  /* every member not named is zero */
+  bsurf_feature_options o = {
+      .method = BSURF_FEATURES_VARIANCE,
+      .k_min = 15,
+      .k_max = 60,
+      .k_step = 2,
+      .ratio_threshold = 0.1,
+      .noise_factor = 1.75,
+      .alpha = 0.5,
+      .iterations = 5,
+      .sigma_range = 0.05,
+      .threshold = NAN,
+      .tail_rule = BSURF_TAIL_NULL,
+      .false_positive_rate = 0.01,
+      .feature_angle = 90,
+      .normals = bsurf_normal_options_default(),
+  };
   return o;
 }
 

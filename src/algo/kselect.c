@@ -206,6 +206,7 @@ typedef struct ksel_scratch {
   double *nrm, *var, *qb; /* nk x 3, nk, nk: each candidate's normal, variance, quadric bias^2 */
   double *acc;            /* 2 nk x nk: pooled bias sums and counts */
   double *res;            /* kmax: residuals of the two-sheet test */
+  bsurf_blocks mem;       /* the arrays above */
   size_t unfit, none;
 } ksel_scratch;
 
@@ -573,22 +574,20 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   bsurf_status st = scr && s2 && noise ? BSURF_OK : BSURF_ERR_NOMEM;
   for (int t = 0; t < T && st == BSURF_OK; t++) {
     ksel_scratch *s = &scr[t];
-    s->u = bsurf_alloc_array((size_t)kmax, sizeof(double));
-    s->v = bsurf_alloc_array((size_t)kmax, sizeof(double));
-    s->z = bsurf_alloc_array((size_t)kmax, sizeof(double));
-    s->terms = bsurf_alloc_array((size_t)kmax, BSURF_NESTED_COLS * sizeof(double));
-    s->sums = bsurf_alloc_array((size_t)o->nk, BSURF_NESTED_COLS * sizeof(double));
-    s->mu = bsurf_alloc_array((size_t)o->nk, 3 * sizeof(double));
-    s->cov = bsurf_alloc_array((size_t)o->nk, 6 * sizeof(double));
-    s->pool = bsurf_alloc_array((size_t)kmax, sizeof(double));
-    s->nrm = bsurf_alloc_array((size_t)o->nk, 3 * sizeof(double));
-    s->var = bsurf_alloc_array((size_t)o->nk, sizeof(double));
-    s->qb = bsurf_alloc_array((size_t)o->nk, sizeof(double));
-    s->acc = bsurf_alloc_array(2 * (size_t)o->nk * o->nk, sizeof(double));
-    s->res = bsurf_alloc_array((size_t)kmax, sizeof(double));
-    if (!s->u || !s->v || !s->z || !s->terms || !s->sums || !s->mu || !s->cov || !s->pool ||
-        !s->nrm || !s->var || !s->qb || !s->acc || !s->res)
-      st = BSURF_ERR_NOMEM;
+    s->u = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
+    s->v = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
+    s->z = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
+    s->terms = bsurf_blocks_array(&s->mem, (size_t)kmax, BSURF_NESTED_COLS * sizeof(double));
+    s->sums = bsurf_blocks_array(&s->mem, (size_t)o->nk, BSURF_NESTED_COLS * sizeof(double));
+    s->mu = bsurf_blocks_array(&s->mem, (size_t)o->nk, 3 * sizeof(double));
+    s->cov = bsurf_blocks_array(&s->mem, (size_t)o->nk, 6 * sizeof(double));
+    s->pool = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
+    s->nrm = bsurf_blocks_array(&s->mem, (size_t)o->nk, 3 * sizeof(double));
+    s->var = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
+    s->qb = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
+    s->acc = bsurf_blocks_array(&s->mem, 2 * (size_t)o->nk * o->nk, sizeof(double));
+    s->res = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
+    st = bsurf_blocks_status(&s->mem);
   }
   uint32_t *owned = NULL;
   const uint32_t *order = NULL;
@@ -626,21 +625,8 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
       report->unassessed += scr[t].none;
   free(owned);
   if (scr)
-    for (int t = 0; t < T; t++) {
-      free(scr[t].u);
-      free(scr[t].v);
-      free(scr[t].z);
-      free(scr[t].terms);
-      free(scr[t].sums);
-      free(scr[t].mu);
-      free(scr[t].cov);
-      free(scr[t].pool);
-      free(scr[t].nrm);
-      free(scr[t].var);
-      free(scr[t].qb);
-      free(scr[t].acc);
-      free(scr[t].res);
-    }
+    for (int t = 0; t < T; t++)
+      bsurf_blocks_free(&scr[t].mem);
   free(scr);
   free(s2);
   free(noise);

@@ -59,22 +59,19 @@
 #include <string.h>
 
 bsurf_smooth_options bsurf_smooth_options_default(void) {
-  bsurf_smooth_options o;
-  memset(&o, 0, sizeof o);
-  o.method = BSURF_SMOOTH_BILATERAL;
-  o.error = bsurf_error_options_default();
-  o.estimator = BSURF_SMOOTH_EST_DEFAULT;
-  o.threshold = NAN;
-  o.h1 = 0;
-  o.h2 = 0;
-  o.h2_fraction = 0;
-  o.order = BSURF_ORDER_PARALLEL;
-  o.a = 0.1;
-  o.iterations = 300;
-  o.k_min = 10;
-  o.k_error = 0;
-  o.k_error_fraction = 3.0;
-  o.guard = 1;
+  /* every member not named is zero */
+  bsurf_smooth_options o = {
+      .method = BSURF_SMOOTH_BILATERAL,
+      .error = bsurf_error_options_default(),
+      .estimator = BSURF_SMOOTH_EST_DEFAULT,
+      .threshold = NAN,
+      .order = BSURF_ORDER_PARALLEL,
+      .a = 0.1,
+      .iterations = 300,
+      .k_min = 10,
+      .k_error_fraction = 3.0,
+      .guard = 1,
+  };
   return o;
 }
 
