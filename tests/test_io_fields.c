@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "bootsurf.h"
+#include "common/common.h"
 #include "test_util.h"
 
 static void write_file(const char *path, const void *data, size_t n) {
@@ -99,6 +100,36 @@ static void test_many_fields_round_trip(void **state) {
 
 /* Names written twice (and a name that a suffix would make) in a PCD and a
  * CSV header: the first keeps the name, the next get _1, _2. */
+/* bsurf_cloud_add_fields on a cloud that has fields already (LAS: the
+ * standard attributes, then the extra bytes): the old names stay, a name
+ * given again is the same field (its type replaced), the new ones follow in
+ * order. Under ASan this also checks that no old name is read after the
+ * field array moved. */
+static void test_add_fields_to_existing(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  bsurf_cloud_init(&c);
+  assert_int_equal(bsurf_cloud_alloc(&c, 4, 0), BSURF_OK);
+  static const char *const first[3] = {"intensity", "classification", "gps_time"};
+  for (int k = 0; k < 3; k++) {
+    bsurf_field *f = bsurf_cloud_add_field(&c, first[k], BSURF_UINT16);
+    assert_non_null(f);
+    f->values[0] = 10 + k;
+  }
+  static const char *const more[4] = {"err", "classification", "label", "hits"};
+  static const bsurf_type types[4] = {BSURF_FLOAT32, BSURF_UINT8, BSURF_INT8, BSURF_UINT32};
+  assert_int_equal(bsurf_cloud_add_fields(&c, 4, more, types), BSURF_OK);
+  static const char *const want[6] = {"intensity", "classification", "gps_time",
+                                      "err",       "label",          "hits"};
+  assert_int_equal(c.field_count, 6);
+  for (int k = 0; k < 6; k++)
+    assert_string_equal(c.fields[k].name, want[k]);
+  assert_int_equal(c.fields[1].type, BSURF_UINT8);
+  assert_true(c.fields[1].values[0] == 11);
+  assert_true(c.fields[3].values[3] == 0);
+  bsurf_cloud_free(&c);
+}
+
 static void test_repeated_names(void **state) {
   (void)state;
   char path[4096];
@@ -231,6 +262,7 @@ int main(void) {
   tmp_dir_init();
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_many_fields_round_trip),
+      cmocka_unit_test(test_add_fields_to_existing),
       cmocka_unit_test(test_repeated_names),
       cmocka_unit_test(test_pcd_ascii_count_before_allocation),
       cmocka_unit_test(test_csv_types),

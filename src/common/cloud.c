@@ -126,6 +126,9 @@ bsurf_status bsurf_cloud_add_fields(bsurf_cloud *cloud, size_t count, const char
     if (bsurf_nameset_insert(&set, names[i], strlen(names[i]), old + fresh) == BSURF_NAMESET_NONE)
       fresh++;
   bsurf_status st = BSURF_OK;
+  /* the set's keys of the old fields point into the old array: it is freed
+   * only after the set */
+  bsurf_field *retired = NULL;
   if (fresh) {
     bsurf_field *fields = bsurf_alloc_array(old + fresh, sizeof *fields);
     if (!fields) {
@@ -133,7 +136,7 @@ bsurf_status bsurf_cloud_add_fields(bsurf_cloud *cloud, size_t count, const char
       return BSURF_ERR_NOMEM;
     }
     if (old) memcpy(fields, cloud->fields, old * sizeof *fields);
-    free(cloud->fields);
+    retired = cloud->fields;
     cloud->fields = fields;
   }
   for (size_t i = 0; i < count && st == BSURF_OK; i++) {
@@ -154,6 +157,7 @@ bsurf_status bsurf_cloud_add_fields(bsurf_cloud *cloud, size_t count, const char
     f->values = values;
   }
   bsurf_nameset_free(&set);
+  free(retired);
   return st;
 }
 
