@@ -50,56 +50,46 @@ typedef struct kd_scratch {
   unsigned char *valid;    /* B */
   double *bn, *ang2;       /* B x 3, B */
   double *err, *var, *nrm; /* candidates, candidates, candidates x 3 */
+  bsurf_blocks mem;        /* the arrays above */
   size_t skipped, reduced, degenerate;
 } kd_scratch;
 
-static void kd_free(kd_scratch *s) {
+static void kd_free(void *vs) {
+  kd_scratch *s = vs;
   bsurf_localfit_free(&s->lf);
-  free(s->u);
-  free(s->x);
-  free(s->Wt);
-  free(s->W);
-  free(s->lanes);
-  free(s->nz);
-  free(s->ref);
-  free(s->ang);
-  free(s->coefs);
-  free(s->valid);
-  free(s->bn);
-  free(s->ang2);
-  free(s->err);
-  free(s->var);
-  free(s->nrm);
+  bsurf_blocks_free(&s->mem);
   memset(s, 0, sizeof *s);
 }
 
-static bsurf_status kd_alloc(kd_scratch *s, int kmax, int dmax, int B, int ncand) {
-  memset(s, 0, sizeof *s);
-  bsurf_status st = bsurf_localfit_alloc(&s->lf, kmax, dmax);
+typedef struct kd_sizes {
+  int kmax, dmax, B, ncand; /* the largest K and degree, B, candidates (K, degree) */
+} kd_sizes;
+
+static bsurf_status kd_alloc(void *vs, const void *vz) {
+  kd_scratch *s = vs;
+  const kd_sizes *z = vz;
+  const int kmax = z->kmax, B = z->B, ncand = z->ncand;
+  bsurf_status st = bsurf_localfit_alloc(&s->lf, kmax, z->dmax);
   if (st != BSURF_OK) return st;
   const size_t kk = (size_t)kmax, b1 = (size_t)(B > 0 ? B : 1), rows = (size_t)bsurf_boot_rows(B);
   const size_t kp = (kk + 7) / 8 * 8;
-  s->u = bsurf_alloc_array(kk, sizeof(uint32_t));
-  s->x = bsurf_alloc_array(kk, 1);
-  s->Wt = bsurf_alloc_aligned(kk * b1, sizeof(double));
-  s->W = bsurf_alloc_aligned(rows * kk, sizeof(double));
-  s->lanes = bsurf_alloc_aligned(rows, BSURF_NCOLS_MAX * sizeof(double));
-  s->nz = bsurf_alloc_array(b1, sizeof(int));
-  s->ref = bsurf_alloc_aligned(3 * kp, sizeof(double));
-  s->ang = bsurf_alloc_aligned(kp, sizeof(double));
-  s->coefs = bsurf_alloc_aligned(b1 + 1, BSURF_TERMS_MAX * sizeof(double));
-  s->valid = bsurf_alloc_array(b1, 1);
-  s->bn = bsurf_alloc_array(b1, 3 * sizeof(double));
-  s->ang2 = bsurf_alloc_array(b1, sizeof(double));
-  s->err = bsurf_alloc_array((size_t)ncand, sizeof(double));
-  s->var = bsurf_alloc_array((size_t)ncand, sizeof(double));
-  s->nrm = bsurf_alloc_array((size_t)ncand, 3 * sizeof(double));
-  if (!s->u || !s->x || !s->Wt || !s->W || !s->lanes || !s->nz || !s->ref || !s->ang || !s->coefs ||
-      !s->valid || !s->bn || !s->ang2 || !s->err || !s->var || !s->nrm) {
-    kd_free(s);
-    return BSURF_ERR_NOMEM;
-  }
-  return BSURF_OK;
+  bsurf_blocks *m = &s->mem;
+  s->u = bsurf_blocks_array(m, kk, sizeof(uint32_t));
+  s->x = bsurf_blocks_array(m, kk, 1);
+  s->Wt = bsurf_blocks_aligned(m, kk * b1, sizeof(double));
+  s->W = bsurf_blocks_aligned(m, rows * kk, sizeof(double));
+  s->lanes = bsurf_blocks_aligned(m, rows, BSURF_NCOLS_MAX * sizeof(double));
+  s->nz = bsurf_blocks_array(m, b1, sizeof(int));
+  s->ref = bsurf_blocks_aligned(m, 3 * kp, sizeof(double));
+  s->ang = bsurf_blocks_aligned(m, kp, sizeof(double));
+  s->coefs = bsurf_blocks_aligned(m, b1 + 1, BSURF_TERMS_MAX * sizeof(double));
+  s->valid = bsurf_blocks_array(m, b1, 1);
+  s->bn = bsurf_blocks_array(m, b1, 3 * sizeof(double));
+  s->ang2 = bsurf_blocks_array(m, b1, sizeof(double));
+  s->err = bsurf_blocks_array(m, (size_t)ncand, sizeof(double));
+  s->var = bsurf_blocks_array(m, (size_t)ncand, sizeof(double));
+  s->nrm = bsurf_blocks_array(m, (size_t)ncand, 3 * sizeof(double));
+  return bsurf_blocks_status(m); /* the loop frees what was made */
 }
 
 typedef struct kd_ctx {
@@ -109,9 +99,9 @@ typedef struct kd_ctx {
   const bsurf_normal_options *o;
   const int *ks, *ds;
   int nk, nd, dmax;
-  kd_scratch *scr;
   bsurf_normal_select_fields *out;
   int *dsel;
+  bsurf_normal_report *report;
 } kd_ctx;
 
 /* Candidate (K, degree) of one point, the K's frame, fits and weights set
@@ -165,10 +155,10 @@ static void kd_candidate(const kd_ctx *c, kd_scratch *s, const bsurf_frame *fram
   }
 }
 
-static void kd_point(void *vctx, int thread, size_t i) {
+static void kd_point(void *vctx, void *scratch, size_t i) {
   const kd_ctx *c = vctx;
   const bsurf_normal_options *o = c->o;
-  kd_scratch *s = &c->scr[thread];
+  kd_scratch *s = scratch;
   const int nk = c->nk, nd = c->nd, kmax = c->ks[nk - 1], B = o->bootstrap;
   const int R = bsurf_boot_rows(B);
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
@@ -235,6 +225,15 @@ static void kd_point(void *vctx, int thread, size_t i) {
     memcpy(&out->cand_normals[i * (size_t)ncand * 3], s->nrm, (size_t)ncand * 3 * sizeof(double));
 }
 
+static void kd_tally(void *vctx, const void *scratch) {
+  const kd_ctx *c = vctx;
+  const kd_scratch *s = scratch;
+  if (!c->report) return;
+  c->report->replicates_skipped += s->skipped;
+  c->report->degree_reduced += s->reduced;
+  c->report->degenerate += s->degenerate;
+}
+
 bsurf_status bsurf_select_normals_kd(const double *xyz, const bsurf_neighbors *nb,
                                      const double *ref_normals, const bsurf_normal_options *opts,
                                      const int *ks, int nk, const int *ds, int nd,
@@ -264,30 +263,11 @@ bsurf_status bsurf_select_normals_kd(const double *xyz, const bsurf_neighbors *n
   bsurf_status st = bsurf_nested_check_ks("bsurf_select_normals_kd", ks, nk, kmin, nb);
   if (st != BSURF_OK) return st;
 
-  const size_t n = nb->point_count;
-  const int T = bsurf_threads_resolve(o.threads);
-  kd_scratch *scr = calloc((size_t)T, sizeof *scr);
-  if (!scr) return BSURF_ERR_NOMEM;
-  for (int t = 0; t < T && st == BSURF_OK; t++)
-    st = kd_alloc(&scr[t], ks[nk - 1], dmax, o.bootstrap, nk * nd);
-  uint32_t *owned = NULL;
-  const uint32_t *order = NULL;
-  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) {
-    kd_ctx ctx = {xyz, nb, ref_normals, &o, ks, ds, nk, nd, dmax, scr, out, degree_selected};
-    st = bsurf_parallel_points_ordered(n, order, T, kd_point, &ctx, o.progress, o.progress_user);
-  }
-  free(owned);
-  if (report && st == BSURF_OK) {
-    report->replicates_total = n * (size_t)o.bootstrap * (size_t)nk * (size_t)nd;
-    for (int t = 0; t < T; t++) {
-      report->replicates_skipped += scr[t].skipped;
-      report->degree_reduced += scr[t].reduced;
-      report->degenerate += scr[t].degenerate;
-    }
-  }
-  for (int t = 0; t < T; t++)
-    kd_free(&scr[t]);
-  free(scr);
+  static const bsurf_point_loop loop = {sizeof(kd_scratch), kd_alloc, kd_free, kd_point, kd_tally};
+  const kd_sizes sizes = {ks[nk - 1], dmax, o.bootstrap, nk * nd};
+  kd_ctx ctx = {xyz, nb, ref_normals, &o, ks, ds, nk, nd, dmax, out, degree_selected, report};
+  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  if (report && st == BSURF_OK)
+    report->replicates_total = nb->point_count * (size_t)o.bootstrap * (size_t)nk * (size_t)nd;
   return st;
 }
