@@ -478,20 +478,7 @@ static void pooled_point(void *vctx, int thread, size_t i) {
  * values, over the total sum of squares (1 when the values are equal). */
 static double split_ratio(double *r, int K) {
   qsort(r, (size_t)K, sizeof(double), cmp_double);
-  double s1 = 0, s2 = 0;
-  for (int j = 0; j < K; j++)
-    s1 += r[j], s2 += r[j] * r[j];
-  const double T = s2 - s1 * s1 / K;
-  if (!(T > 0)) return 1.0;
-  double a1 = 0, a2 = 0, W = T;
-  for (int m = 1; m < K; m++) {
-    a1 += r[m - 1];
-    a2 += r[m - 1] * r[m - 1];
-    const double b1 = s1 - a1, b2 = s2 - a2;
-    const double w = (a2 - a1 * a1 / m) + (b2 - b1 * b1 / (K - m));
-    if (w < W) W = w;
-  }
-  return W / T;
+  return bsurf_split_share(r, K, 1, 0, NULL);
 }
 
 /* The residuals of a least-squares quadric through the first K of (u, v,

@@ -114,26 +114,10 @@ static double guard_gap(const double *v, int n, double tiny) {
  * tiny) are not tested. Returns the split's midpoint, NAN when the share is
  * above that quantile. */
 static double guard_bimodal(const double *v, int n, double tiny) {
-  const int q = n / 4 > 3 ? n / 4 : 3;
-  if (n < 2 * q) return NAN;
-  double s1 = 0, s2 = 0;
-  for (int i = 0; i < n; i++)
-    s1 += v[i], s2 += v[i] * v[i];
-  const double tot = s2 - s1 * s1 / n;
-  if (!(tot > (double)n * tiny * tiny)) return NAN; /* rounding, not noise */
-  double l1 = 0, l2 = 0, best = 0.25 - 0.635 / sqrt((double)n), cut = NAN;
-  for (int i = 0; i < n - q; i++) {
-    l1 += v[i], l2 += v[i] * v[i];
-    const int nl = i + 1, nr = n - nl;
-    if (nl < q) continue;
-    const double r1 = s1 - l1, r2 = s2 - l2;
-    const double within = (l2 - l1 * l1 / nl) + (r2 - r1 * r1 / nr);
-    if (within / tot < best) {
-      best = within / tot;
-      cut = 0.5 * (v[i] + v[i + 1]);
-    }
-  }
-  return cut;
+  double cut;
+  const double share =
+      bsurf_split_share(v, n, n / 4 > 3 ? n / 4 : 3, (double)n * tiny * tiny, &cut);
+  return share < 0.25 - 0.635 / sqrt((double)n) ? cut : NAN;
 }
 
 /* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the

@@ -53,6 +53,13 @@ void bsurf_blocks_free(bsurf_blocks *b);
 /* BSURF_ERR_NOMEM if an allocation failed, else BSURF_OK. */
 bsurf_status bsurf_blocks_status(const bsurf_blocks *b);
 
+/* The best split of the sorted values v[0..n-1] into two groups, each of at
+ * least q (>= 1): the smallest within-groups sum of squares over the total
+ * (split.c). 1 when n < 2q or the total is not above min_total (nor above
+ * 0); *cut (may be NULL): the midpoint of the best split, NAN when none is
+ * below 1. */
+double bsurf_split_share(const double *v, int n, int q, double min_total, double *cut);
+
 /* BSURF_ERR_INVALID_ARG with a message for bsurf_last_message(): "FUNC:
  * what is wrong" naming the parameter, its value and the allowed range.
  * BSURF_REQUIRE(cond, fmt, ...) returns it from the calling function when
