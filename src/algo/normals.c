@@ -97,14 +97,18 @@ static bsurf_status scratch_alloc(void *vs, const void *vsz) {
 }
 
 /* PCA normal from the weighted sums of one row (q q^T, q, weight). Returns 0,
- * or -1 when the points are collinear or repeated (normal undetermined). */
+ * or -1 when the points are collinear or repeated (normal undetermined).
+ * The smallest eigenvector in closed form (eigen.c; the Jacobi sweeps only
+ * where the gap to the middle eigenvalue is too small for it), as the
+ * replicates' normals: the single fit's Jacobi sweeps were a tenth of a
+ * `-B 0` run. */
 static int pca_normal_from_row(const double *row, bsurf_pca_center center, double n[3]) {
   double mu[3], c[6];
   if (bsurf_nested_cov(row, 1, center, mu, c) != 0) {
     n[0] = n[1] = 0, n[2] = 1;
     return -1;
   }
-  return bsurf_eigen_sym3_normal(c, n);
+  return bsurf_eigen_sym3_smallest(c, n);
 }
 
 /* the context of both loops, bsurf_estimate_normals's and
