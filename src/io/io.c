@@ -317,7 +317,7 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err
       cap = (size_t)sb.st_size + 1; /* +1: reach EOF without growing */
     }
   }
-  char *buf = malloc(cap);
+  char *buf = bsurf_alloc_array(cap, 1); /* huge pages for a large file */
   size_t n = 0;
   if (!buf) {
     if (!is_stdin) fclose(f);

@@ -60,9 +60,9 @@ static void normals_bufs_free(normals_bufs *b) {
 static bsurf_status normals_bufs_alloc(normals_bufs *b, const normals_job *job, size_t n) {
   memset(b, 0, sizeof *b);
   const size_t m = n ? n : 1;
-  b->normals = malloc(m * 3 * sizeof(double));
-  b->var = calloc(m, sizeof(double));
-  b->err = calloc(m, sizeof(double));
+  b->normals = bsurf_alloc_array(m * 3, sizeof(double)); /* large: huge pages (status.c) */
+  b->var = bsurf_calloc_array(m, sizeof(double));
+  b->err = bsurf_calloc_array(m, sizeof(double));
   int ok = b->normals && b->var && b->err;
   if (job->test_error && job->ksel.rule != BSURF_KSELECT_MSE)
     ok = ok && (b->ref = malloc(m * 3 * sizeof(double)));
@@ -268,7 +268,7 @@ static int normals_field_names(const normals_job *job, const char **names, bsurf
 static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, const normals_bufs *b) {
   const size_t n = c->point_count;
   if (!c->normals) {
-    c->normals = calloc(n ? n * 3 : 3, sizeof(double));
+    c->normals = bsurf_calloc_array(n ? n * 3 : 3, sizeof(double));
     c->normal_type = BSURF_FLOAT32;
     if (!c->normals) return BSURF_ERR_NOMEM;
   }
