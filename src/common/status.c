@@ -109,17 +109,21 @@ void *bsurf_alloc_array(size_t n, size_t size) {
 
 void *bsurf_alloc_aligned(size_t n, size_t size) {
   if (n == 0 || size == 0 || n > ((size_t)-1 - 63) / size) return NULL;
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
   if (n * size >= HUGE_MIN) return bsurf_alloc_array(n, size); /* 2 MiB is a multiple of 64 */
+#endif
   return aligned_alloc(64, (n * size + 63) / 64 * 64); /* C11: a multiple of the alignment */
 }
 
 void *bsurf_calloc_array(size_t n, size_t size) {
   if (n == 0 || size == 0 || n > (size_t)-1 / size) return NULL;
+#if defined(__linux__) && defined(MADV_HUGEPAGE)
   if (n * size >= HUGE_MIN) { /* whole huge pages (a calloc's unaligned ends were 4 KiB pages) */
     void *p = bsurf_alloc_array(n, size);
     if (p) memset(p, 0, n * size);
     return p;
   }
+#endif
   return calloc(n, size);
 }
 
