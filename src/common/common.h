@@ -65,6 +65,9 @@ double bsurf_split_share(const double *v, int n, int q, double min_total, double
  * the two middle ones for even n; 0 for n == 0); and the median of v after
  * sorting it in place. */
 int bsurf_cmp_double(const void *pa, const void *pb);
+/* ascending unsigned keys for qsort */
+int bsurf_cmp_u64(const void *pa, const void *pb);
+int bsurf_cmp_u32(const void *pa, const void *pb);
 double bsurf_median_sorted(const double *v, size_t n);
 double bsurf_median(double *v, size_t n);
 
