@@ -637,6 +637,12 @@ typedef struct bsurf_smooth_options {
    * fitted again from fewer points, or moves nothing (docs/smoothing.md,
    * "The guard"). 1 (on) by default; 0: the thesis's methods as written. */
   int guard;
+  /* with the guard: 1 = each sheet fit takes the degree, from error.degree
+   * down to a plane, of least estimated prediction error (Mallows' C_p);
+   * 0 = the degree of error.degree (with two points per coefficient);
+   * -1 (default, auto) = 1 for bilateral, 0 for naive and multipass
+   * (docs/smoothing.md, "The degree test"). */
+  int degree_test;
 } bsurf_smooth_options;
 
 BSURF_API bsurf_smooth_options bsurf_smooth_options_default(void);
