@@ -40,7 +40,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   bsurf_smooth_options so = bsurf_smooth_options_default();
   const char *method = "bilateral", *order = "parallel", *estimator = "auto", *gamma = "fit",
              *center = "centroid", *threshold = "auto", *h1_text = "h", *h2_text = "auto",
-             *kerr_text = "auto", *guard = "on", *dtest = "auto", *output = NULL, *memory_limit = "auto";
+             *kerr_text = "auto", *guard = "on", *dtest = "auto", *output = NULL,
+             *memory_limit = "auto";
   size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
@@ -117,8 +118,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   so.guard = gi;
   static const char *const offonauto[] = {"off", "on", "auto"};
   int di = cli_choice(dtest, offonauto, 3);
-  if (di < 0)
-    return cli_usage_error(cmd, "--degree-test must be auto, on or off, not '%s'", dtest);
+  if (di < 0) return cli_usage_error(cmd, "--degree-test must be auto, on or off, not '%s'", dtest);
   so.degree_test = di == 2 ? -1 : di;
   if (mi < 0)
     return cli_usage_error(cmd, "--method must be naive, bilateral or multipass, not '%s'", method);
