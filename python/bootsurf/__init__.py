@@ -391,15 +391,18 @@ def _length(value, option, allow_w=False):
     return x, unit == "h", _math.nan
 
 
+_DEGREE_TESTS = ("auto", "off", "on")  # degree_test -1, 0, 1
+
+
 def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, gamma="fit",
            pca_center="centroid", estimator="auto", threshold="auto", h1="h", h2="auto",
-           order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on", seed=1,
-           threads=0, output=None, tile_points=None, progress=None):
+           order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on",
+           degree_test="auto", seed=1, threads=0, output=None, tile_points=None, progress=None):
     """smooth(points, *, method='bilateral', neighbors=50, degree=3,
     bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
     threshold='auto', h1='h', h2='auto', order='parallel', a=0.1,
-    iterations=300, k_min=10, k_error='auto', guard='on', seed=1, threads=0,
-    output=None, tile_points=None, progress=None)
+    iterations=300, k_min=10, k_error='auto', guard='on', degree_test='auto',
+    seed=1, threads=0, output=None, tile_points=None, progress=None)
     -> (points, fields, summary)
 
     Denoise: move points towards the bootstrap fits (thesis ch. 6);
@@ -430,6 +433,9 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
       guard        on (a fit biased at its centre by a second sheet or an
                    edge is made again from fewer points, or moves nothing)
                    or off (the thesis's methods as written)
+      degree_test  the guard's sheet fits choose their degree, -d down to a
+                   plane, by Mallows' C_p: on, off or auto (on for bilateral);
+                   docs/smoothing.md, "The degree test"
 
     Returns (points, fields, summary): the moved points (N, 3) (the input is
     not modified), fields err_632, err_632plus, moved (and k_hat, d_local
@@ -453,7 +459,8 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
                         _choice(estimator, _ESTIMATORS, "estimator"), thr, thr_h, v1, h1_h, v2,
                         h2_h, f2, _choice(order, _ORDERS, "order"), float(a), int(iterations),
                         int(k_min), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
-                        int(threads), progress)
+                        _choice(degree_test, _DEGREE_TESTS, "degree_test") - 1, int(threads),
+                        progress)
 
 
 # ---------------------------------------------------------------- chapter 7

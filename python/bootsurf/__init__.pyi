@@ -157,6 +157,7 @@ def smooth(
     k_min: int = ...,
     k_error: Length = ...,
     guard: Literal["on", "off"] = ...,
+    degree_test: Literal["auto", "on", "off"] = ...,
     seed: int = ...,
     threads: int = ...,
     output: Optional[PathLike] = ...,

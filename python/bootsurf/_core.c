@@ -829,12 +829,12 @@ static PyObject *py_smooth(PyObject *self, PyObject *args) {
   bsurf_smooth_options *so = &o.smooth;
   int method, gamma, center, estimator, order;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OOiiiiKiiidpdpdpdidiidpdpiO", &pts, &tiled, &method, &so->error.k,
+  if (!PyArg_ParseTuple(args, "OOiiiiKiiidpdpdpdidiidpdpiiO", &pts, &tiled, &method, &so->error.k,
                         &so->error.degree, &so->error.bootstrap, &seed, &gamma, &center, &estimator,
                         &so->threshold, &o.threshold_in_h, &so->h1, &o.h1_in_h, &so->h2, &o.h2_in_h,
                         &so->h2_fraction, &order, &so->a, &so->iterations, &so->k_min, &so->k_error,
-                        &o.k_error_in_h, &so->k_error_fraction, &so->guard, &so->error.threads,
-                        &progress))
+                        &o.k_error_in_h, &so->k_error_fraction, &so->guard, &so->degree_test,
+                        &so->error.threads, &progress))
     return NULL;
   /* NAN: the library's default (the command's "auto") */
   const bsurf_smooth_options def = bsurf_smooth_options_default();

@@ -111,13 +111,16 @@ def test_select_mse_equals_cli(cube):
 
 def test_smooth_equals_cli(cube):
     for method, extra in (("bilateral", []), ("naive", ["--threshold", "0.5h"]),
-                          ("multipass", ["--iterations", 3, "--h2", "1W"])):
+                          ("multipass", ["--iterations", 3, "--h2", "1W"]),
+                          ("bilateral", ["--degree-test", "off"])):
         cli("smooth", tmp("noisy.ply"), "--method", method, "-k", 20, "-B", 8, *extra, "-o",
             tmp("sm.ply"), "-q")
         ref = bootsurf.read(tmp("sm.ply"))
         kw = {"threshold": "0.5h"} if method == "naive" else {}
         if method == "multipass":
             kw = {"iterations": 3, "h2": "1W"}
+        if "--degree-test" in extra:
+            kw = {"degree_test": "off"}
         pts, fields, s = bootsurf.smooth(cube, method=method, neighbors=20, bootstrap=8, **kw)
         same_bits(pts, ref["points"])
         for name in fields:
