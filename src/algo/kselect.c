@@ -335,15 +335,13 @@ static void pool_point(void *vctx, int thread, size_t i) {
 }
 
 /* Pass 2b (BSURF_NOISE_POOL_GLOBAL): one noise level for the cloud, the
- * median of the points' pooled estimates (see the top of the file). The
- * median of the sorted copy (the midpoint of the middle two when n is
- * even): the same whatever the threads. */
+ * median of the points' pooled estimates (see the top of the file), of a
+ * sorted copy: the same whatever the threads. */
 static bsurf_status pool_global(double *noise, size_t n) {
   double *tmp = bsurf_alloc_array(n, sizeof(double));
   if (!tmp) return BSURF_ERR_NOMEM;
   memcpy(tmp, noise, n * sizeof(double));
-  qsort(tmp, n, sizeof(double), cmp_double);
-  const double med = n % 2 ? tmp[n / 2] : 0.5 * (tmp[n / 2 - 1] + tmp[n / 2]);
+  const double med = bsurf_median(tmp, n);
   for (size_t i = 0; i < n; i++)
     noise[i] = med;
   free(tmp);
