@@ -257,6 +257,7 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
 
 _FITS = ("pca", "poly")
 _RULES = ("test-error", "mse")
+_NOISE_POOLS = ("global", "local")
 _ORIENTS = ("none", "mst")
 
 
@@ -281,13 +282,14 @@ _builtin_range = range
 
 def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid", bootstrap=50,
             seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="test-error",
-            noise_k=12, select_degree=None, curve=False, truth=None, smooth_iterations=0,
+            noise_k=12, noise_pool="global", select_degree=None, curve=False, truth=None,
+            smooth_iterations=0,
             alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", output=None,
             tile_points=None, progress=None):
     """normals(points, *, neighbors=30, fit='pca', degree=2,
     pca_center='centroid', bootstrap=50, seed=1, threads=0, test_error=False,
     k_ref=0, select_k=None, select_rule='test-error', noise_k=12,
-    select_degree=None, curve=False, truth=None, smooth_iterations=0,
+    noise_pool='global', select_degree=None, curve=False, truth=None, smooth_iterations=0,
     alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', output=None,
     tile_points=None, progress=None)
     -> (fields, summary)
@@ -317,6 +319,8 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
                          bias^2 of the PCA normal; also writes two_sheet,
                          1 where the neighbourhood mixes two sheets)
       noise_k            with select_rule='mse': the noise fits' K (12)
+      noise_pool         with select_rule='mse': one noise level for the cloud
+                         ('global') or each point's own ('local')
       select_degree      with fit='poly': also choose the degree, e.g. [1, 2, 3]
       curve              with select_k: return each candidate's mean errors
                          (figs. 5.6-5.11) in summary['curve']
@@ -355,7 +359,8 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
     return _core.normals(pts, tiled, int(neighbors), _choice(fit, _FITS, "fit"), int(degree),
                          _choice(pca_center, _CENTERS, "pca_center"), int(bootstrap), int(seed),
                          int(threads), bool(test_error), int(k_ref), ks,
-                         _choice(select_rule, _RULES, "select_rule"), int(noise_k), ds,
+                         _choice(select_rule, _RULES, "select_rule"), int(noise_k),
+                         _choice(noise_pool, _NOISE_POOLS, "noise_pool"), ds,
                          int(smooth_iterations), float(alpha), float(sigma_d), snu,
                          _choice(orient, _ORIENTS, "orient"), bool(curve), truth, progress)
 

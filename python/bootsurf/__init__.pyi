@@ -61,6 +61,7 @@ def normals(
     select_k: Optional[Union[str, Sequence[int]]] = ...,
     select_rule: Literal["test-error", "mse"] = ...,
     noise_k: int = ...,
+    noise_pool: Literal["global", "local"] = ...,
     select_degree: Optional[Sequence[int]] = ...,
     curve: bool = ...,
     truth: Optional[Points] = ...,

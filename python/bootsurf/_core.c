@@ -764,11 +764,11 @@ static PyObject *py_normals(PyObject *self, PyObject *args) {
   (void)self;
   PyObject *pts, *tiled, *ks_obj, *ds_obj, *truth_obj, *progress;
   bsurf_normals_job_options o = bsurf_normals_job_options_default();
-  int fit, center, rule, orient, want_curve;
+  int fit, center, rule, noise_pool, orient, want_curve;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OOiiiiiKipiOiiOidddipOO", &pts, &tiled, &o.normals.k, &fit,
+  if (!PyArg_ParseTuple(args, "OOiiiiiKipiOiiiOidddipOO", &pts, &tiled, &o.normals.k, &fit,
                         &o.normals.degree, &center, &o.normals.bootstrap, &seed, &o.normals.threads,
-                        &o.test_error, &o.k_ref, &ks_obj, &rule, &o.noise_k, &ds_obj,
+                        &o.test_error, &o.k_ref, &ks_obj, &rule, &o.noise_k, &noise_pool, &ds_obj,
                         &o.smooth_iterations, &o.alpha, &o.sigma_d, &o.sigma_nu, &orient,
                         &want_curve, &truth_obj, &progress))
     return NULL;
@@ -776,6 +776,7 @@ static PyObject *py_normals(PyObject *self, PyObject *args) {
   o.normals.pca_center = (bsurf_pca_center)center;
   o.normals.seed = seed;
   o.select_rule = (bsurf_kselect_rule)rule;
+  o.noise_pool = (bsurf_noise_pool)noise_pool;
   o.orient = (bsurf_orient_mode)orient;
   int kbuf[MAX_KS], dbuf[4];
   int nk = int_list(ks_obj, "select_k", kbuf, MAX_KS);
