@@ -94,24 +94,31 @@ typedef struct local_ctx {
   const bsurf_neighbors *nb;
   int k;
   const double *nu; /* by row */
-  double *u, *l0, *ratio;
+  double *u, *l0, *ratio, *w;
+  double *scratch; /* threads x 2 k, with w */
 } local_ctx;
 
 static void local_row(void *vctx, int thread, size_t r) {
-  (void)thread;
   const local_ctx *c = vctx;
-  double l0, tr;
-  bsurf_pca_l0_trace(c->xyz, &c->nb->idx[r * (size_t)c->nb->k], c->k, &l0, &tr);
+  double l0, tr, mu0 = 0;
+  const int two =
+      bsurf_pca_l0_trace(c->xyz, &c->nb->idx[r * (size_t)c->nb->k], c->k, &l0, &tr,
+                         c->w ? &c->scratch[2 * (size_t)thread * (size_t)c->k] : NULL, &mu0);
   c->u[r] = c->nu[r] * tr;
   c->l0[r] = l0;
   c->ratio[r] = tr > 0 ? l0 / tr : 0;
+  if (c->w) c->w[r] = two ? mu0 : -1;
 }
 
 bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
-                              const double *nu, double *u, double *l0, double *ratio) {
-  local_ctx c = {xyz, nb, k, nu, u, l0, ratio};
-  return bsurf_parallel_points(nb->point_count, bsurf_threads_resolve(threads), local_row, &c, NULL,
-                               NULL);
+                              const double *nu, double *u, double *l0, double *ratio, double *w) {
+  const int t = bsurf_threads_resolve(threads);
+  local_ctx c = {xyz, nb, k, nu, u, l0, ratio, w, NULL};
+  if (w && !(c.scratch = bsurf_alloc_array(2 * (size_t)t * (size_t)k, sizeof(double))))
+    return BSURF_ERR_NOMEM;
+  bsurf_status st = bsurf_parallel_points(nb->point_count, t, local_row, &c, NULL, NULL);
+  free(c.scratch);
+  return st;
 }
 
 /* ---- the median filter ---- */
@@ -128,26 +135,44 @@ static double median_sorted(const double *v, size_t n) {
 typedef struct filter_ctx {
   const bsurf_neighbors *nb;
   int kf;
-  double inv_s2;
+  double flat, inv_s2;
   const double *u; /* by point */
+  const double *w; /* by point, may be NULL */
   double *z;       /* by row */
   double *scratch; /* threads x kf */
 } filter_ctx;
+
+/* u of point j as the filter takes it: 0 where its neighbourhood is two
+ * parallel flat sheets (bsurf_fvar_filter) */
+static double filter_value(const filter_ctx *c, uint32_t j) {
+  return c->w && c->w[j] >= 0 && c->w[j] <= c->flat ? 0 : c->u[j];
+}
+
+/* Wilson-Hilferty: the 99% quantile of chi^2_nu / nu */
+static double chi2_upper_ratio(int nu) {
+  const double z = 2.3263478740408408; /* the standard normal's 99% quantile */
+  const double w = 1.0 - 2.0 / (9.0 * nu) + z * sqrt(2.0 / (9.0 * nu));
+  return w * w * w;
+}
 
 static void filter_row(void *vctx, int thread, size_t r) {
   const filter_ctx *c = vctx;
   const uint32_t *idx = &c->nb->idx[r * (size_t)c->nb->k];
   double *w = &c->scratch[(size_t)thread * (size_t)c->kf];
   for (int j = 0; j < c->kf; j++)
-    w[j] = c->u[idx[j]];
+    w[j] = filter_value(c, idx[j]);
   qsort(w, (size_t)c->kf, sizeof(double), cmp_double);
   c->z[r] = median_sorted(w, (size_t)c->kf) * c->inv_s2;
 }
 
-bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, double s2,
-                               const double *u, double *z) {
+bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, double s2, int k,
+                               const double *u, const double *w, double *z) {
   const int t = bsurf_threads_resolve(threads);
-  filter_ctx c = {nb, kf, s2 > 0 ? 1 / s2 : 1, u, z, NULL};
+  /* two parallel flat sheets: the pair's residual variance mu0 (k points,
+   * 4 parameters: two offsets and the normal's two angles) within the 99%
+   * quantile of the noise's, s^2 (lambda0 of one sheet: 3 parameters) */
+  const double flat = k > 4 && s2 > 0 ? s2 * chi2_upper_ratio(k - 4) * (k - 4) / (k - 3) : -1;
+  filter_ctx c = {nb, kf, flat, s2 > 0 ? 1 / s2 : 1, u, w, z, NULL};
   c.scratch = bsurf_alloc_array((size_t)t * (size_t)kf, sizeof(double));
   if (!c.scratch) return BSURF_ERR_NOMEM;
   bsurf_status st = bsurf_parallel_points(nb->point_count, t, filter_row, &c, NULL, NULL);
@@ -173,7 +198,7 @@ typedef struct null_patch {
   double side, margin, fold;
   double *uv, *xyz, *g;
   bsurf_neighbors nb;
-  double *nu, *u, *l0, *ratio, *z;
+  double *nu, *u, *l0, *ratio, *w, *z;
 } null_patch;
 
 static void patch_free(null_patch *p) {
@@ -185,6 +210,7 @@ static void patch_free(null_patch *p) {
   free(p->u);
   free(p->l0);
   free(p->ratio);
+  free(p->w);
   free(p->z);
 }
 
@@ -234,8 +260,9 @@ static bsurf_status patch_init(null_patch *p, const bsurf_feature_options *o, in
   p->u = bsurf_alloc_array(p->n, sizeof(double));
   p->l0 = bsurf_alloc_array(p->n, sizeof(double));
   p->ratio = bsurf_alloc_array(p->n, sizeof(double));
+  p->w = bsurf_alloc_array(p->n, sizeof(double));
   p->z = bsurf_alloc_array(p->n, sizeof(double));
-  if (!p->uv || !p->xyz || !p->g || !p->nu || !p->u || !p->l0 || !p->ratio || !p->z)
+  if (!p->uv || !p->xyz || !p->g || !p->nu || !p->u || !p->l0 || !p->ratio || !p->w || !p->z)
     return BSURF_ERR_NOMEM;
   for (size_t i = 0; i < p->n; i++) {
     bsurf_rng rng;
@@ -251,7 +278,8 @@ static bsurf_status patch_init(null_patch *p, const bsurf_feature_options *o, in
 /* the median of lambda0 / tr over the patch's interior at noise sigma */
 static bsurf_status patch_eta(null_patch *p, int k, int threads, double sigma, double *eta) {
   patch_place(p, sigma);
-  bsurf_status st = bsurf_fvar_local(p->xyz, &p->nb, k, threads, p->nu, p->u, p->l0, p->ratio);
+  bsurf_status st =
+      bsurf_fvar_local(p->xyz, &p->nb, k, threads, p->nu, p->u, p->l0, p->ratio, NULL);
   if (st != BSURF_OK) return st;
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
@@ -275,13 +303,13 @@ static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, 
   bsurf_normal_fields nf = {NULL, p->nu, NULL};
   bsurf_status st = bsurf_estimate_normals(p->xyz, &p->nb, NULL, &no, &nf, NULL);
   if (st == BSURF_OK)
-    st = bsurf_fvar_local(p->xyz, &p->nb, k, o->threads, p->nu, p->u, p->l0, p->ratio);
+    st = bsurf_fvar_local(p->xyz, &p->nb, k, o->threads, p->nu, p->u, p->l0, p->ratio, p->w);
   if (st != BSURF_OK) return st;
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
     if (!p->fold || patch_in(p, i, 1)) p->z[m++] = p->l0[i];
   const double s2 = bsurf_fvar_median(p->z, m);
-  return bsurf_fvar_filter(&p->nb, kf, o->threads, s2, p->u, p->z);
+  return bsurf_fvar_filter(&p->nb, kf, o->threads, s2, k, p->u, p->w, p->z);
 }
 
 /* the (1 - alpha) quantile of z over the points where patch_in(where): the
@@ -385,7 +413,7 @@ bsurf_status bsurf_fvar_eta(const double *xyz, const bsurf_neighbors *nb, int k,
          *l0 = bsurf_alloc_array(n ? n : 1, sizeof(double)),
          *ratio = bsurf_alloc_array(n ? n : 1, sizeof(double));
   bsurf_status st = nu && u && l0 && ratio ? BSURF_OK : BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio);
+  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio, NULL);
   if (st == BSURF_OK) *eta = bsurf_fvar_median(ratio, n);
   free(nu);
   free(u);
@@ -407,14 +435,15 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
                    nb->k);
   const size_t n = nb->point_count;
   double *u = bsurf_alloc_array(n, sizeof(double)), *l0 = bsurf_alloc_array(n, sizeof(double)),
-         *ratio = bsurf_alloc_array(n, sizeof(double));
-  bsurf_status st = u && l0 && ratio ? BSURF_OK : BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, o->normals.k, o->threads, score, u, l0, ratio);
+         *ratio = bsurf_alloc_array(n, sizeof(double)), *w = bsurf_alloc_array(n, sizeof(double));
+  bsurf_status st = u && l0 && ratio && w ? BSURF_OK : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK)
+    st = bsurf_fvar_local(xyz, nb, o->normals.k, o->threads, score, u, l0, ratio, w);
   double s2 = 0, eta = 0;
   if (st == BSURF_OK) {
     s2 = bsurf_fvar_median(l0, n);
     eta = bsurf_fvar_median(ratio, n);
-    st = bsurf_fvar_filter(nb, kf, o->threads, s2, u, score);
+    st = bsurf_fvar_filter(nb, kf, o->threads, s2, o->normals.k, u, w, score);
   }
   if (st == BSURF_OK) st = bsurf_fvar_threshold(o, score, n, s2, eta, res);
   if (st == BSURF_OK)
@@ -423,6 +452,7 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
   free(u);
   free(l0);
   free(ratio);
+  free(w);
   return st;
 }
 
