@@ -14,9 +14,10 @@
 
 #include "bootsurf.h"
 
-/* test_cube_null_gaussian measured F1 0.773 (precision 0.949, recall 0.652)
- * at these seeds: the bound leaves 0.07 for legitimate drift (another
- * neighbour tie order) */
+/* test_cube_null_gaussian measured F1 0.788 (precision 0.941, recall 0.678;
+ * 0.773 before the score's tangential spread became the design term
+ * 4 / (1 / lambda1 + 1 / lambda2) instead of the trace) at these seeds: the bound leaves 0.07 for
+ * legitimate drift (another neighbour tie order) */
 #define F1_CUBE_BOUND 0.70
 
 static bsurf_feature_stats detect(const bsurf_cloud *c, const bsurf_feature_options *o, int k,
@@ -263,12 +264,12 @@ static bsurf_feature_stats cube_defaults(double level, int *k) {
 }
 
 /* The cube of 50,000 points (the development set's) at gaussian 0.5 h (the
- * README's cube; issue 22: F1 >= 0.8): measured F1 0.842 at K 30 (noise
- * seeds 2 and 3: 0.831, 0.848; on 20,000 points seeds 1-3 give 0.773, 0.855,
- * 0.857: 0.8 is a bound for this draw, not for every draw). At 1.0 h the
- * test at K 30 lets almost nothing through (F1 0.01 on the development
- * set's cube at g0.6) and the chosen K 60 restores it: measured F1 0.651
- * (seed 2: 0.622; the distance method 0.290). */
+ * README's cube; issue 22: F1 >= 0.8): measured F1 0.847 at K 30 (0.842
+ * with the trace instead of the design term; then noise seeds 2 and 3: 0.831, 0.848; on 20,000
+ * points seeds 1-3 give 0.773, 0.855, 0.857: 0.8 is a bound for this draw, not for every draw).
+ * At 1.0 h the test at K 30 lets almost nothing through (F1 0.01 on the development set's cube at
+ * g0.6) and the chosen K 60 restores it: measured F1 0.631 (0.651 with the trace; seed 2 then
+ * 0.622; the distance method 0.290). */
 static void test_cube_defaults(void **state) {
   (void)state;
   int k;

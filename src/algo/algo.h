@@ -235,14 +235,15 @@ double bsurf_fdist_otsu_positive(double *pos, size_t m);
 int bsurf_fdist_feature(double v, int state, double thr, double threshold);
 
 /* lambda0 (>= 0) and the trace of the covariance (about the centroid) of
- * the first k points xyz[idx[0..k-1]]. With resid (2 k doubles of scratch,
- * may be NULL: returns 0) it returns 1 when they hold two parallel sheets:
- * the heights about the common normal of a pair of parallel planes fitted
- * to them fall in two groups apart (bsurf_split_bimodal); then *mu0 is the
- * pair's residual variance (the smallest eigenvalue of the covariance pooled
- * within the two groups). */
+ * the first k points xyz[idx[0..k-1]]; design (may be NULL): 4 / (1 /
+ * lambda1 + 1 / lambda2), the tangential spread that sets a fitted plane's
+ * tilt variance (the trace less lambda0 when lambda1 = lambda2). With resid (2 k doubles of
+ * scratch, may be NULL: returns 0) it returns 1 when they hold two parallel sheets: the heights
+ * about the common normal of a pair of parallel planes fitted to them fall in two groups apart
+ * (bsurf_split_bimodal); then *mu0 is the pair's residual variance (the smallest eigenvalue of the
+ * covariance pooled within the two groups). */
 int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr,
-                       double *resid, double *mu0);
+                       double *design, double *resid, double *mu0);
 
 /* ---- features --method variance, rule NULL (features_variance.c): the
  * stages of bsurf_detect_features, also run tile by tile. Rows of nb as

@@ -200,7 +200,7 @@ static void heights(const double *xyz, const uint32_t *idx, int k, const double 
 }
 
 int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr,
-                       double *resid, double *mu0) {
+                       double *design, double *resid, double *mu0) {
   pca_sums s;
   memset(&s, 0, sizeof s);
   const double *o = &xyz[3 * (size_t)idx[0]];
@@ -219,6 +219,10 @@ int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0
   eigvals_sym3((const double(*)[3])C, ev);
   *l0 = ev[0] > 0 ? ev[0] : 0;
   *tr = C[0][0] + C[1][1] + C[2][2];
+  if (design) {
+    const double l1 = ev[1] > 0 ? ev[1] : 0, l2 = ev[2] > 0 ? ev[2] : 0;
+    *design = l1 + l2 > 0 ? 4 * l1 * l2 / (l1 + l2) : 0;
+  }
   if (!resid) return 0;
   /* Two parallel sheets: a plane through both tilts towards the imbalance
    * of the two sheets' points, which mixes their heights. So: the best split
