@@ -32,7 +32,7 @@ core = Extension(
     "bootsurf._core",
     sources=sources,
     include_dirs=[rel(os.path.join(ROOT, "include")), rel(os.path.join(ROOT, "src")),
-                  numpy.get_include()],
+                  rel(os.path.join(ROOT, "generated")), numpy.get_include()],
     define_macros=[("_POSIX_C_SOURCE", "200809L"), ("NDEBUG", None)],
     extra_compile_args=["-std=c11", "-O3", "-fopenmp", "-fno-math-errno", "-fvisibility=hidden"],
     extra_link_args=["-fopenmp"],

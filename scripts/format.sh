@@ -2,13 +2,13 @@
 # The C sources in .clang-format's style (clang-format 14, Debian 12's).
 #   scripts/format.sh          check: list the files that differ, exit 1 if any
 #   scripts/format.sh --fix    reformat them in place
-# Generated files (src/local/ldl_unrolled.h: scripts/gen_ldl_unrolled.py) are
+# Generated files (generated/ldl_unrolled.h: scripts/gen_ldl_unrolled.py) are
 # left as their generator writes them.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 CF=${CLANG_FORMAT:-clang-format}
 command -v "$CF" >/dev/null 2>&1 || { echo "format: $CF not found (apt-get install clang-format)" >&2; exit 2; }
-mapfile -t files < <(git ls-files '*.c' '*.h' '*.cpp' '*.hpp' | grep -v '^src/local/ldl_unrolled\.h$')
+mapfile -t files < <(git ls-files '*.c' '*.h' '*.cpp' '*.hpp' | grep -v '^generated/ldl_unrolled\.h$')
 if [ "${1:-}" = "--fix" ]; then
   "$CF" -i "${files[@]}"
   exit 0

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Writes src/local/ldl_unrolled.h: the LDL^T solves of ldl_solve8
+"""Writes generated/ldl_unrolled.h: the LDL^T solves of ldl_solve8
 (src/local/poly.c) for a fixed number of unknowns m, as straight-line code
 with one named variable per entry of L (and of A = L D), so that the
 compiler schedules the two groups' latency chains (divisions, dependent
@@ -10,7 +10,7 @@ Every entry is computed with exactly the operations, in the order, of
 bsurf_ldl_solve_packed (one multiply and one subtract per term, terms in
 increasing t), so the results are the same bits; test_local checks it.
 
-Usage: scripts/gen_ldl_unrolled.py > src/local/ldl_unrolled.h
+Usage: scripts/gen_ldl_unrolled.py > generated/ldl_unrolled.h
 """
 import sys
 

@@ -268,8 +268,6 @@ bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int 
  * quantile: flat, however far apart the sheets (their gap raises nu). */
 bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, double s2, int k,
                                const double *u, const double *w, double *z);
-/* The median of v[0..n) (sorted in place); 0 when n = 0. */
-double bsurf_fvar_median(double *v, size_t n);
 /* t: the (1 - false_positive_rate) quantile of z on the flat null patch
  * whose median lambda0 / tr is eta; sigma0 out may be NULL. */
 bsurf_status bsurf_fvar_null_threshold(const bsurf_feature_options *o, double eta, double *t,

@@ -181,11 +181,6 @@ static double sums_ratio(const pca_sums *s) {
   return r > 0 ? r : 0; /* rounding can make lambda0 a hair negative */
 }
 
-static int cmp_resid(const void *pa, const void *pb) {
-  const double a = *(const double *)pa, b = *(const double *)pb;
-  return (a > b) - (a < b);
-}
-
 /* The heights of xyz[idx[0..k-1]] about the plane through mu (relative to
  * o) of normal n into h, and sorted into srt. */
 static void heights(const double *xyz, const uint32_t *idx, int k, const double *o,
@@ -196,7 +191,7 @@ static void heights(const double *xyz, const uint32_t *idx, int k, const double 
         n[0] * (p[0] - o[0] - mu[0]) + n[1] * (p[1] - o[1] - mu[1]) + n[2] * (p[2] - o[2] - mu[2]);
     srt[m] = h[m];
   }
-  qsort(srt, (size_t)k, sizeof(double), cmp_resid);
+  qsort(srt, (size_t)k, sizeof(double), bsurf_cmp_double);
 }
 
 int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr,
@@ -369,8 +364,6 @@ static void ratio_tile_row(void *vctx, int thread, size_t r) {
   if (g % c->stride == 0) ratio_row(c, r, (size_t)(g / c->stride));
 }
 
-static int cmp_double(const void *pa, const void *pb);
-
 int bsurf_fdist_sizes(const bsurf_feature_options *o) {
   return (o->k_max - o->k_min) / o->k_step + 1;
 }
@@ -399,8 +392,8 @@ void bsurf_fdist_thresholds(const bsurf_feature_options *o, size_t m, double *va
   if (!(o->noise_factor > 0) || !vals || !m) return;
   for (int j = 0; j < sizes; j++) {
     double *v = &vals[(size_t)j * m];
-    qsort(v, m, sizeof(double), cmp_double);
-    double med = m % 2 ? v[m / 2] : 0.5 * (v[m / 2 - 1] + v[m / 2]);
+    qsort(v, m, sizeof(double), bsurf_cmp_double);
+    double med = bsurf_median_sorted(v, m);
     if (o->noise_factor * med > T[j]) T[j] = o->noise_factor * med;
   }
 }
@@ -548,15 +541,6 @@ bsurf_status bsurf_fdist_filter(const double *xyz, const bsurf_neighbors *nb,
 
 /* ---- automatic tail threshold ---- */
 
-static int cmp_double(const void *pa, const void *pb) {
-  double a = *(const double *)pa, b = *(const double *)pb;
-  return (a > b) - (a < b);
-}
-
-static double median_sorted(const double *v, size_t n) {
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 /* Otsu's two-class split of sorted values (count >= 1) on a 256-bin
  * histogram between the 0.1% and 100% quantiles (a few outliers at the
  * bottom would stretch the range): the upper edge of the last bin of the
@@ -598,7 +582,7 @@ static double otsu_sorted(const double *l, size_t count) {
  * are features below it (see bsurf_detect_features). */
 double bsurf_fdist_otsu_positive(double *pos, size_t m) {
   if (m < 2) return 0;
-  qsort(pos, m, sizeof(double), cmp_double);
+  qsort(pos, m, sizeof(double), bsurf_cmp_double);
   return otsu_sorted(pos, m);
 }
 
@@ -644,14 +628,14 @@ bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail
     return BSURF_OK;
   }
   count = m;
-  qsort(l, count, sizeof(double), cmp_double);
+  qsort(l, count, sizeof(double), bsurf_cmp_double);
   double t;
   if (rule == BSURF_TAIL_MAD) {
-    double med = median_sorted(l, count);
+    double med = bsurf_median_sorted(l, count);
     for (size_t i = 0; i < count; i++)
       l[i] = fabs(l[i] - med);
-    qsort(l, count, sizeof(double), cmp_double);
-    double mad = median_sorted(l, count);
+    qsort(l, count, sizeof(double), bsurf_cmp_double);
+    double mad = bsurf_median_sorted(l, count);
     t = med + 3.0 * 1.4826 * mad;
   } else {
     t = otsu_sorted(l, count);

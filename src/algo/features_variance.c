@@ -134,15 +134,6 @@ bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int 
 
 /* ---- the median filter ---- */
 
-static int cmp_double(const void *pa, const void *pb) {
-  double a = *(const double *)pa, b = *(const double *)pb;
-  return (a > b) - (a < b);
-}
-
-static double median_sorted(const double *v, size_t n) {
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 typedef struct filter_ctx {
   const bsurf_neighbors *nb;
   int kf;
@@ -172,8 +163,7 @@ static void filter_row(void *vctx, int thread, size_t r) {
   double *w = &c->scratch[(size_t)thread * (size_t)c->kf];
   for (int j = 0; j < c->kf; j++)
     w[j] = filter_value(c, idx[j]);
-  qsort(w, (size_t)c->kf, sizeof(double), cmp_double);
-  c->z[r] = median_sorted(w, (size_t)c->kf) * c->inv_s2;
+  c->z[r] = bsurf_median(w, (size_t)c->kf) * c->inv_s2;
 }
 
 bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, double s2, int k,
@@ -189,12 +179,6 @@ bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, d
   bsurf_status st = bsurf_parallel_points(nb->point_count, t, filter_row, &c, NULL, NULL);
   free(c.scratch);
   return st;
-}
-
-double bsurf_fvar_median(double *v, size_t n) {
-  if (!n) return 0;
-  qsort(v, n, sizeof(double), cmp_double);
-  return median_sorted(v, n);
 }
 
 /* ---- the simulated patches ----
@@ -295,7 +279,7 @@ static bsurf_status patch_eta(null_patch *p, int k, int threads, double sigma, d
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
     if (patch_in(p, i, 1)) p->u[m++] = p->ratio[i];
-  *eta = bsurf_fvar_median(p->u, m);
+  *eta = bsurf_median(p->u, m);
   return BSURF_OK;
 }
 
@@ -319,7 +303,7 @@ static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, 
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
     if (!p->fold || patch_in(p, i, 1)) p->z[m++] = p->l0[i];
-  const double s2 = bsurf_fvar_median(p->z, m);
+  const double s2 = bsurf_median(p->z, m);
   return bsurf_fvar_filter(&p->nb, kf, o->threads, s2, k, p->u, p->w, p->z);
 }
 
@@ -330,7 +314,7 @@ static double patch_quantile(null_patch *p, int where, double alpha) {
   for (size_t i = 0; i < p->n; i++)
     if (patch_in(p, i, where)) p->l0[m++] = p->z[i];
   if (!m) return 0;
-  qsort(p->l0, m, sizeof(double), cmp_double);
+  qsort(p->l0, m, sizeof(double), bsurf_cmp_double);
   size_t r = (size_t)ceil((1 - alpha) * (double)m);
   return p->l0[r > 0 ? (r <= m ? r - 1 : m - 1) : 0];
 }
@@ -425,7 +409,7 @@ bsurf_status bsurf_fvar_eta(const double *xyz, const bsurf_neighbors *nb, int k,
          *ratio = bsurf_alloc_array(n ? n : 1, sizeof(double));
   bsurf_status st = nu && u && l0 && ratio ? BSURF_OK : BSURF_ERR_NOMEM;
   if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio, NULL);
-  if (st == BSURF_OK) *eta = bsurf_fvar_median(ratio, n);
+  if (st == BSURF_OK) *eta = bsurf_median(ratio, n);
   free(nu);
   free(u);
   free(l0);
@@ -452,8 +436,8 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
     st = bsurf_fvar_local(xyz, nb, o->normals.k, o->threads, score, u, l0, ratio, w);
   double s2 = 0, eta = 0;
   if (st == BSURF_OK) {
-    s2 = bsurf_fvar_median(l0, n);
-    eta = bsurf_fvar_median(ratio, n);
+    s2 = bsurf_median(l0, n);
+    eta = bsurf_median(ratio, n);
     st = bsurf_fvar_filter(nb, kf, o->threads, s2, o->normals.k, u, w, score);
   }
   if (st == BSURF_OK) st = bsurf_fvar_threshold(o, score, n, s2, eta, res);

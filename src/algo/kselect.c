@@ -300,11 +300,6 @@ static void noise_point(void *vctx, int thread, size_t i) {
   c->s2[i] = (e < 0 ? 0 : e < va ? e : va) / chi2_quantile_ratio(ka - QT);
 }
 
-static int cmp_double(const void *a, const void *b) {
-  const double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
 /* Pass 2: the lower quartile of the (quartile-corrected) residual
  * variances over the point's kmax neighbours (the largest candidate's
  * neighbourhood; see the top of the file). */
@@ -319,7 +314,7 @@ static void pool_point(void *vctx, int thread, size_t i) {
     c->noise[i] = 0;
     return;
   }
-  qsort(s->pool, (size_t)m, sizeof(double), cmp_double);
+  qsort(s->pool, (size_t)m, sizeof(double), bsurf_cmp_double);
   /* the order statistic nearest the quartile (interpolated) */
   const double r = POOL_Q * (m - 1);
   const int lo = (int)r;
@@ -477,7 +472,7 @@ static void pooled_point(void *vctx, int thread, size_t i) {
 /* The smallest within-groups sum of squares over the splits of the sorted
  * values, over the total sum of squares (1 when the values are equal). */
 static double split_ratio(double *r, int K) {
-  qsort(r, (size_t)K, sizeof(double), cmp_double);
+  qsort(r, (size_t)K, sizeof(double), bsurf_cmp_double);
   return bsurf_split_share(r, K, 1, 0, NULL);
 }
 
@@ -521,7 +516,7 @@ static void sheet_crit_point(void *vctx, int thread, size_t a) {
     }
     if (quad_residuals(s->u, s->v, s->z, K, s->res) == 0) ratio[m++] = split_ratio(s->res, K);
   }
-  qsort(ratio, (size_t)m, sizeof(double), cmp_double);
+  qsort(ratio, (size_t)m, sizeof(double), bsurf_cmp_double);
   c->sheet_crit[a] = m ? ratio[(int)(SHEET_ALPHA * m)] : 0;
 }
 

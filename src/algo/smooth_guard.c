@@ -49,16 +49,6 @@ static double student_t_quantile(double z, double nu) {
          (3 * z7 + 19 * z5 + 17 * z3 - 15 * z) / (384 * nu * nu * nu);
 }
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
-static double median_of(double *v, int n) {
-  qsort(v, (size_t)n, sizeof *v, cmp_double);
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
-
 /* n_s: a quarter of the neighbourhood, and at least 12 points (two per
  * coefficient of a quadric, the lowest degree that follows curvature: the
  * first fit of an exact surface is then exact) */
@@ -157,7 +147,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
       r[j] = -fit_delta_any(F, dd, c->m, &xyz[3 * (size_t)idx[j]], 0);
       if (!isnan(r[j])) srt[nv++] = r[j];
     }
-    qsort(srt, (size_t)nv, sizeof *srt, cmp_double);
+    qsort(srt, (size_t)nv, sizeof *srt, bsurf_cmp_double);
     double cut = nv >= 8 && !isnan(r[0]) ? guard_gap(srt, nv, tiny) : NAN;
     if (nv >= 8 && !isnan(r[0]) && isnan(cut)) cut = guard_bimodal(srt, nv, tiny);
     if (!isnan(cut)) {
@@ -230,11 +220,11 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
       for (int j = 0; j < kc && nn < ns; j++)
         if (!isnan(r[j]) && (side ? in[j] != 0 : j < ns)) tmp[nn++] = r[j];
       if (nn < 3) break;
-      m = median_of(tmp, nn);
+      m = bsurf_median(tmp, (size_t)nn);
       int t = 0;
       for (int j = 0; j < kc && t < nn; j++)
         if (!isnan(r[j]) && (side ? in[j] != 0 : j < ns)) tmp[t++] = fabs(r[j] - m);
-      const double sc = 1.4826 * median_of(tmp, t);
+      const double sc = 1.4826 * bsurf_median(tmp, (size_t)t);
       bound = fmax(student_t_quantile(BSURF_GUARD_Z, t - 1) * sc * sqrt(1.0 + 1.0 / t), tiny);
       const double bin = fmin(bound, lim_kc);
       /* 2: the points of that sheet (the centre always) */

@@ -212,11 +212,6 @@ static void *mp_grow(void *a, size_t *cap, size_t need, size_t size) {
   return b;
 }
 
-static int cmp_u32(const void *a, const void *b) {
-  const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-  return (x > y) - (x < y);
-}
-
 /* Region r's rows and pairs for blocks of up to tb_S passes, from the
  * compacted active lists: its own ranks, then the centres of their pairs
  * (the rows pass S - 1 must give), then the centres of those rows' pairs,
@@ -249,7 +244,7 @@ static void mp_region_task(void *vc, int thread, size_t r) {
         map[i] = 0; /* seen; its row is set below */
         g->row[nrow++] = i;
       }
-    qsort(&g->row[end], nrow - end, sizeof *g->row, cmp_u32);
+    qsort(&g->row[end], nrow - end, sizeof *g->row, bsurf_cmp_u32);
     for (size_t l = end; l < nrow; l++)
       map[g->row[l]] = (uint32_t)l;
     g->len[j] = nrow;

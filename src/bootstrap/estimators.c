@@ -25,11 +25,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-static int cmp_double(const void *a, const void *b) {
-  double x = *(const double *)a, y = *(const double *)b;
-  return (x > y) - (x < y);
-}
-
 /* Sorts up to 64 values by counting each one's rank: value i goes to the
  * number of values below it plus the equal ones before it (a stable sort,
  * as the insertion sort this replaced, so even -0 and +0 keep their order).
@@ -82,7 +77,7 @@ static void rank_sort(double *a, int n) {
 
 void bsurf_sort_doubles(double *a, int n) {
   if (n > 64) {
-    qsort(a, (size_t)n, sizeof *a, cmp_double);
+    qsort(a, (size_t)n, sizeof *a, bsurf_cmp_double);
     return;
   }
   rank_sort(a, n);

@@ -66,6 +66,17 @@ double bsurf_split_share(const double *v, int n, int q, double min_total, double
  * n tiny^2 (rounding). *cut (may be NULL): the best split's midpoint. */
 int bsurf_split_bimodal(const double *v, int n, double tiny, double *cut);
 
+/* Order statistics (order_stats.c): the qsort comparison of doubles
+ * (ascending, NaN-free input); the median of n sorted values (the mean of
+ * the two middle ones for even n; 0 for n == 0); and the median of v after
+ * sorting it in place. */
+int bsurf_cmp_double(const void *pa, const void *pb);
+/* ascending unsigned keys for qsort */
+int bsurf_cmp_u64(const void *pa, const void *pb);
+int bsurf_cmp_u32(const void *pa, const void *pb);
+double bsurf_median_sorted(const double *v, size_t n);
+double bsurf_median(double *v, size_t n);
+
 /* BSURF_ERR_INVALID_ARG with a message for bsurf_last_message(): "FUNC:
  * what is wrong" naming the parameter, its value and the allowed range.
  * BSURF_REQUIRE(cond, fmt, ...) returns it from the calling function when

@@ -28,11 +28,6 @@ double bsurf_normal_angle(const double a[3], const double b[3]) {
                fabs(u[0] * v[0] + u[1] * v[1] + u[2] * v[2]));
 }
 
-static int cmp_double(const void *pa, const void *pb) {
-  double a = *(const double *)pa, b = *(const double *)pb;
-  return (a > b) - (a < b);
-}
-
 bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask, uint8_t keep,
                                        size_t count, bsurf_angle_stats *stats) {
   BSURF_REQUIRE(stats, "stats is NULL");
@@ -60,10 +55,10 @@ bsurf_status bsurf_angle_stats_compute(const double *angles, const uint8_t *mask
     u10 += a < lim10;
     sorted[j++] = a;
   }
-  qsort(sorted, n, sizeof(double), cmp_double);
+  qsort(sorted, n, sizeof(double), bsurf_cmp_double);
   const double dn = (double)n;
   stats->mean_rad = sum / dn;
-  stats->median_rad = n % 2 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
+  stats->median_rad = bsurf_median_sorted(sorted, n);
   stats->rms_rad = sqrt(sum2 / dn);
   stats->mean_deg = stats->mean_rad * 180.0 / PI;
   stats->under5deg = (double)u5 / dn;
@@ -110,7 +105,7 @@ bsurf_status bsurf_quantile_split(const double *values, size_t count, double q, 
     double *sorted = bsurf_alloc_array(count, sizeof(double));
     if (!sorted) return BSURF_ERR_NOMEM;
     memcpy(sorted, values, sizeof(double) * count);
-    qsort(sorted, count, sizeof(double), cmp_double);
+    qsort(sorted, count, sizeof(double), bsurf_cmp_double);
     t = sorted[m - 1];
     free(sorted);
   }

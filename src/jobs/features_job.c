@@ -174,7 +174,7 @@ static bsurf_status eta_tiled(const bsurf_job_io *io, const bsurf_feature_option
   bsurf_tile_ops ops;
   double *v = NULL;
   bsurf_status st = stage_values(io, fo, ft, fo->normals.k, 0, eta_stage_run, &ops, &vals, &v, err);
-  if (st == BSURF_OK) *eta = bsurf_fvar_median(v, ft->s->points);
+  if (st == BSURF_OK) *eta = bsurf_median(v, ft->s->points);
   free(v);
   bsurf_tile_values_close(&vals);
   return st;

@@ -292,7 +292,7 @@ static inline __attribute__((always_inline)) int ldl_solve8(int m, int p, const 
 /* dst = column `col` of a group of four rows (bsurf_gemm_lanes layout) */
 #define LD4(dst, g, col) memcpy(&(dst), &(g)[4 * (col)], sizeof(v4d))
 /* ldl_solve8 for m = 3, 6, 10 as straight-line code (generated). */
-#include "local/ldl_unrolled.h"
+#include "ldl_unrolled.h" /* generated/ (scripts/gen_ldl_unrolled.py) */
 
 BSURF_CLONES
 static int ldl_solve8_m(int m, int p, const double *const g4[2], double rel_tol, int want,

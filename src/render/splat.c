@@ -179,10 +179,6 @@ static void atomic_max_u64(uint64_t *p, uint64_t v) {
  * with cells coarse enough to hold several points each, h ~ sqrt(area / n).
  * At most 65536 points are looked at (a regular subsample). Used only when
  * the caller does not give h (the CLI passes the exact mean spacing). */
-static int cmp_u64(const void *a, const void *b) {
-  uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-  return (x > y) - (x < y);
-}
 static double estimate_spacing(const double *xyz, size_t n, const double lo[3], double extent) {
   if (n < 2 || !(extent > 0)) return extent > 0 ? extent / 100 : 1.0;
   size_t stride = n > 65536 ? n / 65536 : 1;
@@ -202,7 +198,7 @@ static double estimate_spacing(const double *xyz, size_t n, const double lo[3], 
       }
       keys[j] = k;
     }
-    qsort(keys, m, sizeof *keys, cmp_u64);
+    qsort(keys, m, sizeof *keys, bsurf_cmp_u64);
     size_t occ = 1;
     for (size_t j = 1; j < m; j++)
       occ += keys[j] != keys[j - 1];

@@ -475,10 +475,10 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   if (st == BSURF_OK && !(v.all = bsurf_alloc_array(local.count ? local.count : 1, sizeof(double))))
     st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) st = values_scan_n(&v, &local, 4, scan_col1);
-  if (st == BSURF_OK) v.s2 = bsurf_fvar_median(v.all, v.nall);
+  if (st == BSURF_OK) v.s2 = bsurf_median(v.all, v.nall);
   v.nall = 0;
   if (st == BSURF_OK) st = values_scan_n(&v, &local, 4, scan_col2);
-  if (st == BSURF_OK) eta = bsurf_fvar_median(v.all, v.nall);
+  if (st == BSURF_OK) eta = bsurf_median(v.all, v.nall);
   st = agree_local(cm, st);
   /* (v3) */
   if (st == BSURF_OK)

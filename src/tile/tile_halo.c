@@ -16,11 +16,6 @@
 
 /* ---- one tile ------------------------------------------------------------------- */
 
-static int cmp_u64(const void *a, const void *b) {
-  uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-  return x < y ? -1 : x > y;
-}
-
 size_t find_u64(const uint64_t *v, size_t n, uint64_t x) {
   size_t lo = 0, hi = n;
   while (lo < hi) {
@@ -146,7 +141,7 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
         }
       }
   /* those inside R, read in file order */
-  if (cand.n > 1) qsort(cand.v, cand.n, sizeof *cand.v, cmp_u64);
+  if (cand.n > 1) qsort(cand.v, cand.n, sizeof *cand.v, bsurf_cmp_u64);
   sweep sw = {&c->in, 0};
   for (size_t j = 0; j < cand.n; j++) {
     uint64_t i = cand.v[j];
@@ -160,7 +155,7 @@ static bsurf_status gather(const tiles_ctx *c, const tile_box *b, const double r
   }
   free(cand.v);
   drop_pages(&c->in, 0, c->in.size);
-  if (G->n > 1) qsort(G->v, G->n, sizeof *G->v, cmp_u64);
+  if (G->n > 1) qsort(G->v, G->n, sizeof *G->v, bsurf_cmp_u64);
   return BSURF_OK;
 }
 
@@ -317,7 +312,7 @@ static bsurf_status reverse_candidates(const tiles_ctx *c, const tile_box *b, u6
         for (uint64_t s = c->cell_start[j]; s < c->cell_start[j + 1]; s++)
           if (u64_push(cand, sorted[s])) return BSURF_ERR_NOMEM;
       }
-  if (cand->n > 1) qsort(cand->v, cand->n, sizeof *cand->v, cmp_u64);
+  if (cand->n > 1) qsort(cand->v, cand->n, sizeof *cand->v, bsurf_cmp_u64);
   sweep sw = {&c->in, 0}, sv = {&c->vin, 0};
   size_t kept = 0;
   for (size_t q = 0; q < cand->n; q++) {
@@ -371,7 +366,7 @@ bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failu
     goto out;
   }
   if (w.core.n) memcpy(by_cell, w.core.v, w.core.n * sizeof *by_cell);
-  if (w.core.n > 1) qsort(w.core.v, w.core.n, sizeof *w.core.v, cmp_u64);
+  if (w.core.n > 1) qsort(w.core.v, w.core.n, sizeof *w.core.v, bsurf_cmp_u64);
   const size_t nc = w.core.n, ns = nc + w.cand.n;
   /* the points searched: the core and the candidates (outside the tile's
    * cells: disjoint), in increasing index */
