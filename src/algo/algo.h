@@ -257,7 +257,8 @@ typedef struct bsurf_fvar_result {
 } bsurf_fvar_result;
 /* The filter's neighbours k_f (variance_filter_k, 0 = normals.k / 2). */
 int bsurf_fvar_filter_k(const bsurf_feature_options *o);
-/* Per row of the k-neighbourhoods: u = nu tr, lambda0 and lambda0 / tr;
+/* Per row of the k-neighbourhoods: u = nu d (the design of
+ * bsurf_pca_l0_trace), lambda0 and lambda0 / tr;
  * w (may be NULL): where the neighbourhood holds two parallel sheets
  * (bsurf_pca_l0_trace's test) their pair's residual variance mu0, else -1. */
 bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,

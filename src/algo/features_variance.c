@@ -61,7 +61,7 @@
  *    noise sigma_0) is detected at >= half its points within a spacing of
  *    the fold, at t_alpha of its own flat parts.
  * Without noise (s^2 = 0: most neighbourhoods exactly flat) the null is
- * the point mass nu = 0: Z = nu tr, and t = 1e-12 max z (rounding).
+ * the point mass nu = 0: Z = nu d, and t = 1e-12 max z (rounding).
  *
  * What it does not do: near an edge every point whose neighbourhood
  * reaches across it is "not flat", so the detected band is about the
@@ -98,7 +98,7 @@ int bsurf_fvar_k_cap(const bsurf_feature_options *o, size_t n) {
   return cap < o->normals.k ? o->normals.k : (int)cap;
 }
 
-/* ---- per row: u = nu tr, lambda0, lambda0 / tr ---- */
+/* ---- per row: u = nu d (the design), lambda0, lambda0 / tr, w ---- */
 
 typedef struct local_ctx {
   const double *xyz;
@@ -284,7 +284,7 @@ static bsurf_status patch_eta(null_patch *p, int k, int threads, double sigma, d
 }
 
 /* z of every point at noise sigma: the bootstrap normals with the options'
- * B, fit and seed at k, Z = nu tr / s^2 with s^2 the median lambda0 of the
+ * B, fit and seed at k, Z = nu d / s^2 with s^2 the median lambda0 of the
  * flat part, filtered over kf */
 static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, int k, int kf,
                                  double sigma) {

@@ -344,7 +344,7 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
 /* ---- features --method variance with the NULL rule in stages (the other
  * rules: cli/cmd_features.c) ----
  *  (v1) K = normals.k: nu (bootstrap normals keyed by global index, as in
- *       memory) and, per point, u = nu tr, lambda0, lambda0 / tr and w (lambda0
+ *       memory) and, per point, u = nu d, lambda0, lambda0 / tr and w (mu0
  *       where two sheets, bsurf_fvar_local);
  *  (v2) s^2 = median lambda0 and eta = median lambda0 / tr over the values
  *       read back in index order (8 bytes per point in memory at a time);
