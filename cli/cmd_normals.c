@@ -62,7 +62,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   const char *fit = "pca", *center = "centroid", *output = NULL, *select_k = NULL,
              *select_degree = NULL;
   const char *curve = NULL, *truth_path = NULL, *sigma_nu_s = "auto", *orient = "none";
-  const char *select_rule = "test-error";
+  const char *select_rule = "test-error", *noise_pool = "global";
   bsurf_kselect_options ksel = bsurf_kselect_options_default();
   int k_ref = 0, test_error = 0, iterations = 0, ascii = 0, json = 0, quiet = 0, force = 0;
   double alpha = 0.1, sigma_d = 0;
@@ -90,6 +90,8 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       {0, "noise-k", ARG_INT, &ksel.noise_k, "K",
        "with --select-rule mse: neighbourhood of the noise estimate and of the bias pooling", 12,
        65535},
+      {0, "noise-pool", ARG_STRING, &noise_pool, "P",
+       "with --select-rule mse: one noise level for the cloud (global) or per point (local)", 1, 0},
       {0, "select-degree", ARG_STRING, &select_degree, "LIST",
        "with --fit poly: also choose the degree, e.g. 1,2,3", 1, 0},
       {0, "curve", ARG_STRING, &curve, "FILE.csv",
@@ -143,6 +145,11 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   if (sr < 0)
     return cli_usage_error(cmd, "--select-rule must be test-error or mse, not '%s'", select_rule);
   ksel.rule = (bsurf_kselect_rule)sr;
+  static const char *const pools[] = {"global", "local"};
+  int np = cli_choice(noise_pool, pools, 2);
+  if (np < 0)
+    return cli_usage_error(cmd, "--noise-pool must be global or local, not '%s'", noise_pool);
+  ksel.noise_pool = (bsurf_noise_pool)np;
   if (ksel.rule == BSURF_KSELECT_MSE) {
     if (!select_k) return cli_usage_error(cmd, "--select-rule mse needs --select-k");
     if (no.fit != BSURF_NORMAL_PCA || select_degree)
@@ -180,6 +187,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   if (select_degree) jo.select_degree = ds, jo.select_degree_count = nd;
   jo.select_rule = ksel.rule;
   jo.noise_k = ksel.noise_k;
+  jo.noise_pool = ksel.noise_pool;
   jo.smooth_iterations = iterations;
   jo.alpha = alpha;
   jo.sigma_d = sigma_d;
@@ -249,6 +257,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     if (select_k) json_str(&j, "select_k", select_k);
     if (select_k) json_str(&j, "select_rule", select_rule);
     if (ksel.rule == BSURF_KSELECT_MSE) json_int(&j, "noise_k", ksel.noise_k);
+    if (ksel.rule == BSURF_KSELECT_MSE) json_str(&j, "noise_pool", noise_pool);
     if (select_degree) json_str(&j, "select_degree", select_degree);
     if (iterations > 0) {
       json_int(&j, "smooth_iterations", iterations);

@@ -40,7 +40,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   bsurf_smooth_options so = bsurf_smooth_options_default();
   const char *method = "bilateral", *order = "parallel", *estimator = "auto", *gamma = "fit",
              *center = "centroid", *threshold = "auto", *h1_text = "h", *h2_text = "auto",
-             *kerr_text = "auto", *guard = "on", *output = NULL, *memory_limit = "auto";
+             *kerr_text = "auto", *guard = "on", *dtest = "auto", *output = NULL,
+             *memory_limit = "auto";
   size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
@@ -93,6 +94,11 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "points' residuals, is made again from fewer points, or moves nothing) or off (the "
        "thesis's methods as written)",
        1, 0},
+      {0, "degree-test", ARG_STRING, &dtest, "T",
+       "with the guard: on (each sheet's fit takes the degree, from -d down to a plane, of "
+       "least estimated prediction error, Mallows' Cp), off (the degree of -d) or auto (on for "
+       "bilateral, off for naive and multipass)",
+       1, 0},
       CLI_OPT_SEED(so.error.seed),
       CLI_OPT_THREADS(so.error.threads),
       CLI_OPTS_JOB(output, ascii, force, tile_points, memory_limit, json, quiet),
@@ -110,6 +116,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   int gi = cli_choice(guard, onoff, 2);
   if (gi < 0) return cli_usage_error(cmd, "--guard must be on or off, not '%s'", guard);
   so.guard = gi;
+  static const char *const offonauto[] = {"off", "on", "auto"};
+  int di = cli_choice(dtest, offonauto, 3);
+  if (di < 0) return cli_usage_error(cmd, "--degree-test must be auto, on or off, not '%s'", dtest);
+  so.degree_test = di == 2 ? -1 : di;
   if (mi < 0)
     return cli_usage_error(cmd, "--method must be naive, bilateral or multipass, not '%s'", method);
   if (oi < 0)

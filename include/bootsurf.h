@@ -496,14 +496,25 @@ typedef enum bsurf_kselect_rule {
   BSURF_KSELECT_MSE
 } bsurf_kselect_rule;
 
+/* Where BSURF_KSELECT_MSE pools its noise estimate (docs/normals.md,
+ * "Choosing K"): GLOBAL, the median over the cloud of the points' local
+ * estimates (one noise level, the default: assumes the noise's level does
+ * not vary over the cloud); LOCAL, each point's own (the lower quartile
+ * over its largest candidate's neighbourhood). */
+typedef enum bsurf_noise_pool {
+  BSURF_NOISE_POOL_GLOBAL = 0,
+  BSURF_NOISE_POOL_LOCAL
+} bsurf_noise_pool;
+
 typedef struct bsurf_kselect_options {
-  bsurf_kselect_rule rule; /* MSE (bsurf_select_k accepts only MSE) */
-  const int *ks;           /* candidate K, strictly ascending, each >= 7 */
-  int nk;                  /* number of candidates */
-  int noise_k;             /* the quadric noise fits' smallest neighbourhood
-                              and that of the bias pooling (12; >= 12); the
-                              noise is pooled over the largest candidate's */
-  int threads;             /* 0 = all cores */
+  bsurf_kselect_rule rule;     /* MSE (bsurf_select_k accepts only MSE) */
+  const int *ks;               /* candidate K, strictly ascending, each >= 7 */
+  int nk;                      /* number of candidates */
+  int noise_k;                 /* the quadric noise fits' smallest neighbourhood
+                                  and that of the bias pooling (12; >= 12); the
+                                  noise is pooled over the largest candidate's */
+  bsurf_noise_pool noise_pool; /* GLOBAL (default) or LOCAL */
+  int threads;                 /* 0 = all cores */
   bsurf_progress_fn progress;
   void *progress_user;
 } bsurf_kselect_options;
@@ -637,6 +648,12 @@ typedef struct bsurf_smooth_options {
    * fitted again from fewer points, or moves nothing (docs/smoothing.md,
    * "The guard"). 1 (on) by default; 0: the thesis's methods as written. */
   int guard;
+  /* with the guard: 1 = each sheet fit takes the degree, from error.degree
+   * down to a plane, of least estimated prediction error (Mallows' C_p);
+   * 0 = the degree of error.degree (with two points per coefficient);
+   * -1 (default, auto) = 1 for bilateral, 0 for naive and multipass
+   * (docs/smoothing.md, "The degree test"). */
+  int degree_test;
 } bsurf_smooth_options;
 
 BSURF_API bsurf_smooth_options bsurf_smooth_options_default(void);
@@ -1430,6 +1447,7 @@ typedef struct bsurf_normals_job_options {
                                      (bsurf_select_k: PCA, select_k only,
                                      candidates >= 7, in memory only) */
   int noise_k;                    /* MSE: the noise fits' neighbourhood (12; >= 12) */
+  bsurf_noise_pool noise_pool;    /* MSE: GLOBAL (default) or LOCAL noise level */
   /* Bilateral normal smoothing after the estimate (bsurf_smooth_normals,
    * Eq. 5.6; in memory only): passes (0), strength alpha (0.1, in [0, 1]),
    * spatial sigma (<= 0: h), variance sigma (NAN: auto, the 85th percentile

@@ -47,7 +47,7 @@ static void test_angle_sum_accuracy(void **state) {
       rx[j] = v[0], ry[j] = v[1], rz[j] = v[2];
     }
     for (int j = 0; j < 64; j++) {
-      const double got = bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1, sc);
+      const double got = bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1, 1, sc);
       const double c[3] = {g[1] * rz[j] - g[2] * ry[j], g[2] * rx[j] - g[0] * rz[j],
                            g[0] * ry[j] - g[1] * rx[j]};
       const double want = atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
@@ -59,8 +59,13 @@ static void test_angle_sum_accuracy(void **state) {
     /* the sum equals the sum of its terms (up to the order of additions) */
     double sum = 0;
     for (int j = 0; j < 64; j++)
-      sum += bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1, sc);
-    assert_true(fabs(bsurf_nested_angle_sum(g, rx, ry, rz, 64, sc) - sum) <= 1e-14 * sum);
+      sum += bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1, 1, sc);
+    assert_true(fabs(bsurf_nested_angle_sum(g, rx, ry, rz, 64, 64, sc) - sum) <= 1e-14 * sum);
+    /* angles evaluated past k (kread, the padded vectors) are not summed:
+     * the same bits as without them */
+    const double a37 = bsurf_nested_angle_sum(g, rx, ry, rz, 37, 37, sc);
+    assert_true(bsurf_nested_angle_sum(g, rx, ry, rz, 37, 40, sc) == a37);
+    assert_true(bsurf_nested_angle_sum(g, rx, ry, rz, 37, 64, sc) == a37);
   }
   assert_true(worst <= 2 * 2.3e-16);
 }
@@ -75,7 +80,13 @@ static void test_field_angle_accuracy(void **state) {
   bsurf_rng r;
   bsurf_rng_init(&r, 11, 2, 3);
   enum { K = 37, KP = 40 };
-  double phit[BSURF_TERMS_MAX * KP], rx[K], ry[K], rz[K], sc[K], u[K], v[K];
+  double phit[BSURF_TERMS_MAX * KP], rx[KP], ry[KP], rz[KP], sc[KP], u[K], v[K];
+  /* the padding of the callers: phit's columns past K zero, r = (0, 0, 1) */
+  for (int j = K; j < KP; j++) {
+    for (int t = 0; t < BSURF_TERMS_MAX; t++)
+      phit[t * KP + j] = 0.0;
+    rx[j] = ry[j] = 0.0, rz[j] = 1.0;
+  }
   double worst = 0;
   for (int it = 0; it < 300; it++) {
     const int degree = it % 5;
@@ -108,14 +119,18 @@ static void test_field_angle_accuracy(void **state) {
                                 fabs(g[0] * rx[j] + g[1] * ry[j] + g[2] * rz[j]));
       /* one point: the stride is still KP, so shift the basis by j */
       const double got = bsurf_nested_field_angle_sum(degree, coef, inv, phit + j, KP, rx + j,
-                                                      ry + j, rz + j, 1, sc);
+                                                      ry + j, rz + j, 1, 1, sc);
       assert_true(isfinite(got));
       const double rel = fabs(got - want) / (want > 1e-300 ? want : 1e-300);
       if (rel > worst) worst = rel;
       sum += got;
     }
-    const double all = bsurf_nested_field_angle_sum(degree, coef, inv, phit, KP, rx, ry, rz, K, sc);
+    const double all =
+        bsurf_nested_field_angle_sum(degree, coef, inv, phit, KP, rx, ry, rz, K, K, sc);
     assert_true(fabs(all - sum) <= 1e-14 * sum);
+    /* over the padded vectors (kread = KP): the same bits */
+    assert_true(bsurf_nested_field_angle_sum(degree, coef, inv, phit, KP, rx, ry, rz, K, KP, sc) ==
+                all);
   }
   assert_true(worst <= 1e-13);
 }

@@ -257,6 +257,7 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
 
 _FITS = ("pca", "poly")
 _RULES = ("test-error", "mse")
+_NOISE_POOLS = ("global", "local")
 _ORIENTS = ("none", "mst")
 
 
@@ -281,13 +282,14 @@ _builtin_range = range
 
 def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid", bootstrap=50,
             seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="test-error",
-            noise_k=12, select_degree=None, curve=False, truth=None, smooth_iterations=0,
+            noise_k=12, noise_pool="global", select_degree=None, curve=False, truth=None,
+            smooth_iterations=0,
             alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", output=None,
             tile_points=None, progress=None):
     """normals(points, *, neighbors=30, fit='pca', degree=2,
     pca_center='centroid', bootstrap=50, seed=1, threads=0, test_error=False,
     k_ref=0, select_k=None, select_rule='test-error', noise_k=12,
-    select_degree=None, curve=False, truth=None, smooth_iterations=0,
+    noise_pool='global', select_degree=None, curve=False, truth=None, smooth_iterations=0,
     alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', output=None,
     tile_points=None, progress=None)
     -> (fields, summary)
@@ -317,6 +319,8 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
                          bias^2 of the PCA normal; also writes two_sheet,
                          1 where the neighbourhood mixes two sheets)
       noise_k            with select_rule='mse': the noise fits' K (12)
+      noise_pool         with select_rule='mse': one noise level for the cloud
+                         ('global') or each point's own ('local')
       select_degree      with fit='poly': also choose the degree, e.g. [1, 2, 3]
       curve              with select_k: return each candidate's mean errors
                          (figs. 5.6-5.11) in summary['curve']
@@ -355,7 +359,8 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
     return _core.normals(pts, tiled, int(neighbors), _choice(fit, _FITS, "fit"), int(degree),
                          _choice(pca_center, _CENTERS, "pca_center"), int(bootstrap), int(seed),
                          int(threads), bool(test_error), int(k_ref), ks,
-                         _choice(select_rule, _RULES, "select_rule"), int(noise_k), ds,
+                         _choice(select_rule, _RULES, "select_rule"), int(noise_k),
+                         _choice(noise_pool, _NOISE_POOLS, "noise_pool"), ds,
                          int(smooth_iterations), float(alpha), float(sigma_d), snu,
                          _choice(orient, _ORIENTS, "orient"), bool(curve), truth, progress)
 
@@ -391,15 +396,18 @@ def _length(value, option, allow_w=False):
     return x, unit == "h", _math.nan
 
 
+_DEGREE_TESTS = ("auto", "off", "on")  # degree_test -1, 0, 1
+
+
 def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, gamma="fit",
            pca_center="centroid", estimator="auto", threshold="auto", h1="h", h2="auto",
-           order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on", seed=1,
-           threads=0, output=None, tile_points=None, progress=None):
+           order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on",
+           degree_test="auto", seed=1, threads=0, output=None, tile_points=None, progress=None):
     """smooth(points, *, method='bilateral', neighbors=50, degree=3,
     bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
     threshold='auto', h1='h', h2='auto', order='parallel', a=0.1,
-    iterations=300, k_min=10, k_error='auto', guard='on', seed=1, threads=0,
-    output=None, tile_points=None, progress=None)
+    iterations=300, k_min=10, k_error='auto', guard='on', degree_test='auto',
+    seed=1, threads=0, output=None, tile_points=None, progress=None)
     -> (points, fields, summary)
 
     Denoise: move points towards the bootstrap fits (thesis ch. 6);
@@ -430,6 +438,9 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
       guard        on (a fit biased at its centre by a second sheet or an
                    edge is made again from fewer points, or moves nothing)
                    or off (the thesis's methods as written)
+      degree_test  the guard's sheet fits choose their degree, -d down to a
+                   plane, by Mallows' C_p: on, off or auto (on for bilateral);
+                   docs/smoothing.md, "The degree test"
 
     Returns (points, fields, summary): the moved points (N, 3) (the input is
     not modified), fields err_632, err_632plus, moved (and k_hat, d_local
@@ -453,7 +464,8 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
                         _choice(estimator, _ESTIMATORS, "estimator"), thr, thr_h, v1, h1_h, v2,
                         h2_h, f2, _choice(order, _ORDERS, "order"), float(a), int(iterations),
                         int(k_min), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
-                        int(threads), progress)
+                        _choice(degree_test, _DEGREE_TESTS, "degree_test") - 1, int(threads),
+                        progress)
 
 
 # ---------------------------------------------------------------- chapter 7

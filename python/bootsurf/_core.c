@@ -764,11 +764,11 @@ static PyObject *py_normals(PyObject *self, PyObject *args) {
   (void)self;
   PyObject *pts, *tiled, *ks_obj, *ds_obj, *truth_obj, *progress;
   bsurf_normals_job_options o = bsurf_normals_job_options_default();
-  int fit, center, rule, orient, want_curve;
+  int fit, center, rule, noise_pool, orient, want_curve;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OOiiiiiKipiOiiOidddipOO", &pts, &tiled, &o.normals.k, &fit,
+  if (!PyArg_ParseTuple(args, "OOiiiiiKipiOiiiOidddipOO", &pts, &tiled, &o.normals.k, &fit,
                         &o.normals.degree, &center, &o.normals.bootstrap, &seed, &o.normals.threads,
-                        &o.test_error, &o.k_ref, &ks_obj, &rule, &o.noise_k, &ds_obj,
+                        &o.test_error, &o.k_ref, &ks_obj, &rule, &o.noise_k, &noise_pool, &ds_obj,
                         &o.smooth_iterations, &o.alpha, &o.sigma_d, &o.sigma_nu, &orient,
                         &want_curve, &truth_obj, &progress))
     return NULL;
@@ -776,6 +776,7 @@ static PyObject *py_normals(PyObject *self, PyObject *args) {
   o.normals.pca_center = (bsurf_pca_center)center;
   o.normals.seed = seed;
   o.select_rule = (bsurf_kselect_rule)rule;
+  o.noise_pool = (bsurf_noise_pool)noise_pool;
   o.orient = (bsurf_orient_mode)orient;
   int kbuf[MAX_KS], dbuf[4];
   int nk = int_list(ks_obj, "select_k", kbuf, MAX_KS);
@@ -829,12 +830,12 @@ static PyObject *py_smooth(PyObject *self, PyObject *args) {
   bsurf_smooth_options *so = &o.smooth;
   int method, gamma, center, estimator, order;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OOiiiiKiiidpdpdpdidiidpdpiO", &pts, &tiled, &method, &so->error.k,
+  if (!PyArg_ParseTuple(args, "OOiiiiKiiidpdpdpdidiidpdpiiO", &pts, &tiled, &method, &so->error.k,
                         &so->error.degree, &so->error.bootstrap, &seed, &gamma, &center, &estimator,
                         &so->threshold, &o.threshold_in_h, &so->h1, &o.h1_in_h, &so->h2, &o.h2_in_h,
                         &so->h2_fraction, &order, &so->a, &so->iterations, &so->k_min, &so->k_error,
-                        &o.k_error_in_h, &so->k_error_fraction, &so->guard, &so->error.threads,
-                        &progress))
+                        &o.k_error_in_h, &so->k_error_fraction, &so->guard, &so->degree_test,
+                        &so->error.threads, &progress))
     return NULL;
   /* NAN: the library's default (the command's "auto") */
   const bsurf_smooth_options def = bsurf_smooth_options_default();

@@ -133,9 +133,13 @@ void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center,
 /* sum_j theta(g, r_j), j < k: the unoriented angles (atan2(|g x r|, |g . r|),
  * within 2 ulp of the C library's, tests/test_normals.c) between unit g and
  * the unit vectors (rx, ry, rz)[j] in vector lanes, summed in a fixed order.
- * scratch: k doubles. The inner sum of Eq. 5.10. */
+ * The angles are evaluated for j < max(k, kread) (rx, ry, rz and scratch
+ * hold that many), only the first k summed: a caller whose arrays are padded
+ * passes kread = k rounded up to a multiple of 8, so that the vector loop
+ * has no scalar tail (the sum, and so the result, does not depend on kread).
+ * The inner sum of Eq. 5.10. */
 double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
-                              const double *rz, int k, double *scratch);
+                              const double *rz, int k, int kread, double *scratch);
 
 /* The candidate list of a nested selection: ks[0..nk) strictly increasing,
  * ks[0] >= kmin, ks[nk - 1] <= nb->k, 65535 and the point count; messages
@@ -160,11 +164,13 @@ int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned c
  * (term-major, row stride kp >= k, at least terms(degree - 1) rows: the
  * gradient is a polynomial of one degree less); r_j the reference normals
  * in the same frame. Unoriented angles as bsurf_nested_angle_sum, in vector
- * lanes, summed in a fixed order. scratch: k doubles. The inner sum of
- * Eq. 5.10 for a polynomial fit. */
+ * lanes, summed in a fixed order; kread (<= kp) as bsurf_nested_angle_sum's
+ * (phit is zero-padded to kp). The inner sum of Eq. 5.10 for a polynomial
+ * fit. */
 double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_scale,
                                     const double *phit, size_t kp, const double *rx,
-                                    const double *ry, const double *rz, int k, double *scratch);
+                                    const double *ry, const double *rz, int k, int kread,
+                                    double *scratch);
 
 /* Per-point K and degree selection of polynomial normals (5.5, Algorithm 3;
  * select_degree.c): every candidate (ks[a], ds[d]) as bsurf_select_normals_k

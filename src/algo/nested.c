@@ -195,8 +195,8 @@ static double fixed_sum(const double *a, int k) {
 }
 
 double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
-                              const double *rz, int k, double *scratch) {
-  angles(g, rx, ry, rz, k, scratch);
+                              const double *rz, int k, int kread, double *scratch) {
+  angles(g, rx, ry, rz, kread > k ? kread : k, scratch);
   return fixed_sum(scratch, k);
 }
 
@@ -372,7 +372,8 @@ field_angles_m(int mg, const double *eu, const double *ev, const double *phi, si
 
 double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_scale,
                                     const double *phit, size_t kp, const double *rx,
-                                    const double *ry, const double *rz, int k, double *scratch) {
+                                    const double *ry, const double *rz, int k, int kread,
+                                    double *scratch) {
   double eu[BSURF_TERMS_MAX], ev[BSURF_TERMS_MAX];
   int mg = bsurf_poly_terms(degree - 1);
   if (degree >= 1) {
@@ -381,6 +382,6 @@ double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_s
     mg = 1;
     eu[0] = ev[0] = 0.0;
   }
-  field_angles_m(mg, eu, ev, phit, kp, rx, ry, rz, k, scratch);
+  field_angles_m(mg, eu, ev, phit, kp, rx, ry, rz, kread > k ? kread : k, scratch);
   return fixed_sum(scratch, k);
 }

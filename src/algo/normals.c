@@ -297,7 +297,7 @@ typedef struct select_scratch {
   double *sums;            /* nk x COLS x max(B, 1) */
   double *fsums;           /* nk x COLS */
   int *nz;                 /* nk x B */
-  double *ref;             /* 4 x kmax: rx, ry, rz, angle scratch */
+  double *ref;             /* 4 x kp: rx, ry, rz, angle scratch (kp: kmax rounded up to 8) */
   double *bn;              /* nk x B x 3 */
   unsigned char *valid;    /* nk x B */
   double *nP;              /* nk x 3 */
@@ -327,7 +327,7 @@ static bsurf_status select_scratch_alloc(void *vs, const void *vsz) {
   s->sums = bsurf_blocks_aligned(m, cands * b1, BSURF_NESTED_COLS * sizeof(double));
   s->fsums = bsurf_blocks_array(m, cands, BSURF_NESTED_COLS * sizeof(double));
   s->nz = bsurf_blocks_array(m, cands * b1, sizeof(int));
-  s->ref = bsurf_blocks_aligned(m, kk, 4 * sizeof(double));
+  s->ref = bsurf_blocks_aligned(m, (kk + 7) / 8 * 8, 4 * sizeof(double));
   s->bn = bsurf_blocks_array(m, cands * b1, 3 * sizeof(double));
   s->valid = bsurf_blocks_array(m, cands * b1, 1);
   s->nP = bsurf_blocks_array(m, cands, 3 * sizeof(double));
@@ -351,10 +351,13 @@ static void select_point(void *vctx, void *scratch, size_t i) {
   const size_t COLS = BSURF_NESTED_COLS;
 
   bsurf_nested_terms(c->xyz, idx, kmax, s->terms);
-  double *rx = s->ref, *ry = rx + kmax, *rz = ry + kmax, *ang = rz + kmax;
-  for (int j = 0; j < kmax; j++) {
-    const double *r = &c->ref[3 * (size_t)idx[j]];
-    rx[j] = r[0], ry[j] = r[1], rz[j] = r[2];
+  /* the reference normals, padded with (0, 0, 1) to kp: every candidate's
+   * angles run over whole vectors of 8 (bsurf_nested_angle_sum's kread) */
+  const int kp = (kmax + 7) / 8 * 8;
+  double *rx = s->ref, *ry = rx + kp, *rz = ry + kp, *ang = rz + kp;
+  for (int j = 0; j < kp; j++) {
+    const double *r = &c->ref[3 * (size_t)idx[j < kmax ? j : 0]];
+    rx[j] = j < kmax ? r[0] : 0.0, ry[j] = j < kmax ? r[1] : 0.0, rz[j] = j < kmax ? r[2] : 1.0;
   }
 
   /* the whole neighbourhoods: the single fits (as bsurf_estimate_normals) */
@@ -383,7 +386,7 @@ static void select_point(void *vctx, void *scratch, size_t i) {
 
   int best = 0;
   for (int a = 0; a < nk; a++) {
-    const int K = ks[a];
+    const int K = ks[a], kread = (K + 7) / 8 * 8;
     const double *nP = &s->nP[3 * a];
     double *bn = &s->bn[(size_t)a * B * 3];
     const unsigned char *valid = &s->valid[(size_t)a * B];
@@ -395,10 +398,10 @@ static void select_point(void *vctx, void *scratch, size_t i) {
     double total = 0;
     if (nvalid > 0) {
       for (int b = 0; b < B; b++)
-        if (valid[b]) total += bsurf_nested_angle_sum(&bn[3 * b], rx, ry, rz, K, ang);
+        if (valid[b]) total += bsurf_nested_angle_sum(&bn[3 * b], rx, ry, rz, K, kread, ang);
       s->err[a] = total / ((double)nvalid * K);
     } else {
-      s->err[a] = bsurf_nested_angle_sum(nP, rx, ry, rz, K, ang) / K;
+      s->err[a] = bsurf_nested_angle_sum(nP, rx, ry, rz, K, kread, ang) / K;
     }
     if (s->err[a] < s->err[best]) best = a; /* ties keep the smaller K */
   }

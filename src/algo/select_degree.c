@@ -147,11 +147,12 @@ static void kd_candidate(const kd_ctx *c, kd_scratch *s, const bsurf_frame *fram
     for (int b = 0; b < B; b++)
       if (s->valid[b])
         total += bsurf_nested_field_angle_sum(degree, &reps[(size_t)b * m], inv, lf->phit, kp, rx,
-                                              ry, rz, K, s->ang);
+                                              ry, rz, K, (int)kp, s->ang);
     s->err[cand] = total / ((double)nvalid * K);
   } else {
-    s->err[cand] =
-        bsurf_nested_field_angle_sum(degree, fit, inv, lf->phit, kp, rx, ry, rz, K, s->ang) / K;
+    s->err[cand] = bsurf_nested_field_angle_sum(degree, fit, inv, lf->phit, kp, rx, ry, rz, K,
+                                                (int)kp, s->ang) /
+                   K;
   }
 }
 
@@ -192,7 +193,8 @@ static void kd_point(void *vctx, void *scratch, size_t i) {
       W[(size_t)B * K + j] = 1.0;
     memset(&W[(size_t)(B + 1) * K], 0, (size_t)(R - B - 1) * K * sizeof *W);
     bsurf_localfit_normal_eq_lanes(lf, R, W, s->lanes);
-    /* the reference normals in the frame */
+    /* the reference normals in the frame, padded with (0, 0, 1) to kp (a
+     * multiple of 8, as phit): the angle loops run over whole vectors */
     const size_t kp = (size_t)lf->kp;
     double *rx = s->ref, *ry = rx + kp, *rz = ry + kp;
     for (int j = 0; j < K; j++) {
@@ -201,6 +203,8 @@ static void kd_point(void *vctx, void *scratch, size_t i) {
       ry[j] = frame.rot[1][0] * r[0] + frame.rot[1][1] * r[1] + frame.rot[1][2] * r[2];
       rz[j] = frame.rot[2][0] * r[0] + frame.rot[2][1] * r[1] + frame.rot[2][2] * r[2];
     }
+    for (size_t j = (size_t)K; j < kp; j++)
+      rx[j] = ry[j] = 0.0, rz[j] = 1.0;
     for (int d = 0; d < nd; d++) {
       const int cand = a * nd + d;
       kd_candidate(c, s, &frame, K, c->ds[d], cand);

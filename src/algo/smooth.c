@@ -71,6 +71,7 @@ bsurf_smooth_options bsurf_smooth_options_default(void) {
       .k_min = 10,
       .k_error_fraction = 3.0,
       .guard = 1,
+      .degree_test = -1,
   };
   return o;
 }
@@ -383,6 +384,10 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
     BSURF_REQUIRE_IN("bsurf_smooth", o.k_min >= 1 && o.k_min <= o.error.k,
                      "k_min = %d: must be in [1, error.k = %d]", o.k_min, o.error.k);
   }
+
+  BSURF_REQUIRE_IN("bsurf_smooth", o.degree_test >= -1 && o.degree_test <= 1,
+                   "degree_test = %d: must be -1 (auto), 0 (off) or 1 (on)", o.degree_test);
+  o.degree_test = bsurf_smooth_degree_test(&o);
 
   smooth_ctx c;
   ctx_init(&c, xyz, nb, &o);

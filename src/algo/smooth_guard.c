@@ -49,6 +49,43 @@ static double student_t_quantile(double z, double nu) {
          (3 * z7 + 19 * z5 + 17 * z3 - 15 * z) / (384 * nu * nu * nu);
 }
 
+/* The degree of a sheet's fit by Mallows' C_p: among the degrees deg, deg -
+ * 1, ..., 1 (a plane) of the same points, the one whose estimated mean
+ * squared prediction error RSS_d + 2 p_d s^2 is least (p_d coefficients;
+ * s^2 = RSS_deg / (n - p_deg), the noise variance from the highest degree:
+ * unbiased for it when that fit is). A cubic's extra terms follow the noise
+ * where the surface is a quadric or flatter, at a cost in variance of about
+ * 2 s^2 per term summed over the points, which C_p weighs against the bias
+ * they remove (docs/smoothing.md, "The degree test"). lf: set up at degree
+ * >= deg; coef: the fit at deg in, the chosen fit out (zero-padded to m);
+ * pred: lf->k doubles. Returns the degree. */
+static int degree_by_cp(const bsurf_localfit *lf, int deg, int m, double *coef, double *pred) {
+  const int n = lf->k, top = deg;
+  if (n - bsurf_poly_terms(top) < 1) return deg;
+  double rss = 0;
+  bsurf_localfit_predict(lf, top, 1, coef, NULL, pred);
+  for (int j = 0; j < n; j++)
+    rss += (lf->z[j] - pred[j]) * (lf->z[j] - pred[j]);
+  const double s2 = rss / (n - bsurf_poly_terms(top));
+  double best = rss + 2.0 * bsurf_poly_terms(top) * s2;
+  for (int d = top - 1; d >= 1; d--) {
+    double c[BSURF_TERMS_MAX];
+    if (bsurf_localfit_solve(lf, d, NULL, c) != 0) break;
+    bsurf_localfit_predict(lf, d, 1, c, NULL, pred);
+    double r = 0;
+    for (int j = 0; j < n; j++)
+      r += (lf->z[j] - pred[j]) * (lf->z[j] - pred[j]);
+    const double cp = r + 2.0 * bsurf_poly_terms(d) * s2;
+    if (cp < best) {
+      best = cp;
+      deg = d;
+      for (int a = 0; a < m; a++)
+        coef[a] = a < bsurf_poly_terms(d) ? c[a] : 0.0;
+    }
+  }
+  return deg;
+}
+
 /* n_s: a quarter of the neighbourhood, and at least 12 points (two per
  * coefficient of a quadric, the lowest degree that follows curvature: the
  * first fit of an exact surface is then exact) */
@@ -203,6 +240,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
       bsurf_localfit_setup(lf, xyz, act, na, &fr, d);
       double coef[BSURF_TERMS_MAX];
       deg = solve_with_fallback(lf, d, c->m, coef);
+      if (c->o.degree_test) deg = degree_by_cp(lf, deg, c->m, coef, s->pred_full);
       fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
       /* residuals of every point of the neighbourhood (beyond the fit's
        * disc too: the sheet grows from its nearest points) */

@@ -26,6 +26,16 @@ size_t bsurf_smooth_stage_values(const bsurf_smooth_options *o) {
   return 2 + FIT_HEAD + (size_t)bsurf_poly_terms(o->error.degree);
 }
 
+int bsurf_smooth_degree_test(const bsurf_smooth_options *o) {
+  /* auto: bilateral only. Its moves average the fits of many neighbourhoods,
+   * where the variance a lower degree saves adds up and its bias is small;
+   * naive (the bootstrap mean of the full-degree fit, the guard's fit only
+   * at two sheets) and multipass (each point onto its own fit of K_i points,
+   * down to k_min) ended farther from the surface with it on coarse meshes
+   * of the development set (docs/smoothing.md, "The degree test") */
+  return o->degree_test < 0 ? o->method == BSURF_SMOOTH_BILATERAL : o->degree_test;
+}
+
 int bsurf_smooth_w_column(const bsurf_smooth_options *o) {
   bsurf_smooth_estimator est = o->estimator;
   if (est == BSURF_SMOOTH_EST_DEFAULT)
@@ -57,6 +67,7 @@ bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb,
   BSURF_REQUIRE(nv, "method %d in order %d is not tiled (stage values 0)",
                 opts ? (int)opts->method : -1, opts ? (int)opts->order : -1);
   bsurf_smooth_options o = *opts;
+  o.degree_test = bsurf_smooth_degree_test(&o);
   bsurf_status st = bsurf_error_check(&o.error, nb);
   if (st != BSURF_OK) return st;
   smooth_ctx c;

@@ -12,6 +12,8 @@
  * scale and coefficients). The doubles per point; 0: the method and order
  * are not local enough to tile (sequential order, multipass). */
 size_t bsurf_smooth_stage_values(const bsurf_smooth_options *opts);
+/* The degree test applied (opts->degree_test with auto resolved: 0 or 1). */
+int bsurf_smooth_degree_test(const bsurf_smooth_options *opts);
 /* Which of the first two values is W_i (0: err_632, 1: err_632plus). */
 int bsurf_smooth_w_column(const bsurf_smooth_options *opts);
 /* Stage 1 for the nb->point_count rows of nb (row r is the point nb->idx[r k];

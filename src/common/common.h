@@ -19,13 +19,17 @@
 #define BSURF_PRINTF(a, b)
 #endif
 
-/* Hot kernels are compiled twice (GCC): for x86-64-v3 (AVX2) and a portable
- * default, chosen at load time (clang 14 rejects target_clones beside
- * noinline, so clang builds use the default path only). Kernels avoid floating-point contraction
- * (-std=c11 keeps it off) so both clones give the same bits. */
+/* Hot kernels are compiled three times (GCC): for x86-64-v4 (AVX-512), x86-64-v3
+ * (AVX2) and a portable default, chosen at load time (clang 14 rejects
+ * target_clones beside noinline, so clang builds use the default path only).
+ * Kernels avoid floating-point contraction (-std=c11 keeps it off) so every
+ * clone gives the same bits (the goldens, made with the AVX2 clones, pass on
+ * an AVX-512 machine). The AVX-512 clone halves the time of Eq. 5.10's angle
+ * loops on a Zen 5 (twice the lanes and registers, docs/performance.md,
+ * "Fourth round"); machines without AVX-512 run the AVX2 clone as before. */
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) &&                             \
     !defined(__SANITIZE_ADDRESS__)
-#define BSURF_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#define BSURF_CLONES __attribute__((target_clones("arch=x86-64-v4", "arch=x86-64-v3", "default")))
 #else
 #define BSURF_CLONES
 #endif

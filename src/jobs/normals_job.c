@@ -502,6 +502,9 @@ static bsurf_status normals_check(const bsurf_normals_job_options *o, int tiled)
         o->select_k[0]);
     BSURF_REQUIRE_IN(NJ, o->noise_k >= 12 && o->noise_k <= 65535,
                      "opts->noise_k = %d must be in [12, 65535]", o->noise_k);
+    BSURF_REQUIRE_IN(
+        NJ, o->noise_pool == BSURF_NOISE_POOL_GLOBAL || o->noise_pool == BSURF_NOISE_POOL_LOCAL,
+        "opts->noise_pool = %d must be BSURF_NOISE_POOL_GLOBAL or LOCAL", (int)o->noise_pool);
   }
   BSURF_REQUIRE_IN(NJ, !o->curve || o->select_k, "opts->curve needs opts->select_k");
   BSURF_REQUIRE_IN(NJ, !o->curve_truth || o->curve, "opts->curve_truth is used by opts->curve");
@@ -546,6 +549,7 @@ static void normals_setup(normals_job *job, const bsurf_normals_job_options *o) 
   job->ksel = bsurf_kselect_options_default();
   job->ksel.rule = o->select_rule;
   job->ksel.noise_k = o->noise_k;
+  job->ksel.noise_pool = o->noise_pool;
   job->ksel.ks = job->ks;
   job->ksel.nk = job->nk;
   job->ksel.threads = o->normals.threads;

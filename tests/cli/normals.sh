@@ -23,8 +23,12 @@ grep -a -q "property uchar degree_selected$" "$T/sd.ply" && ok || fail "degree_s
 expect 0 "select-rule mse -j1" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 --select-rule mse -j 1 -o "$T/m1.ply" -q
 expect 0 "select-rule mse -j2" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 --select-rule mse -j 2 -o "$T/m2.ply" --json
 cmp -s "$T/m1.ply" "$T/m2.ply" && ok || fail "select-rule mse -j 1 and -j 2 differ"
-grep -qF '"select_rule":"mse"' "$T/out" && grep -qF '"noise_k":12' "$T/out" && ok || fail "mse json"
+grep -qF '"select_rule":"mse"' "$T/out" && grep -qF '"noise_k":12' "$T/out" && grep -qF '"noise_pool":"global"' "$T/out" && ok || fail "mse json"
 grep -a -q "property ushort k_selected$" "$T/m1.ply" && grep -a -q "property float normal_err$" "$T/m1.ply" && ok || fail "mse fields"
+expect 0 "noise-pool local -j1" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 --select-rule mse --noise-pool local -j 1 -o "$T/l1.ply" -q
+expect 0 "noise-pool local -j2" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 --select-rule mse --noise-pool local -j 2 -o "$T/l2.ply" -q
+cmp -s "$T/l1.ply" "$T/l2.ply" && ok || fail "noise-pool local -j 1 and -j 2 differ"
+cmp -s "$T/m1.ply" "$T/l1.ply" && fail "noise-pool local gives the global pool's output" || ok
 expect 0 "select-rule mse with B" -- "$BSURF" normals "$T/n.ply" -B 5 --select-k 15:25:5 --select-rule mse -o "$T/mb.ply" -q
 grep -a -q "property float normal_var$" "$T/mb.ply" && ok || fail "mse with -B writes normal_var"
 expect 0 "smooth + orient" -- "$BSURF" normals "$T/n.ply" -k 20 -B 10 --smooth-iterations 3 --orient mst -o "$T/o.ply" --json
@@ -44,6 +48,7 @@ expect 2 "mse without select-k" -- "$BSURF" normals "$T/n.ply" --select-rule mse
 expect 2 "mse with poly" -- "$BSURF" normals "$T/n.ply" --fit poly --select-k 15:30:5 --select-rule mse -o "$T/x.ply"
 expect 2 "mse with curve" -- "$BSURF" normals "$T/n.ply" --select-k 15:30:5 --select-rule mse --curve "$T/x.csv" -o "$T/x.ply"
 expect 2 "mse candidates too small" -- "$BSURF" normals "$T/n.ply" --select-k 5:30:5 --select-rule mse -o "$T/x.ply"
+expect 2 "noise-pool unknown" -- "$BSURF" normals "$T/n.ply" --select-k 15:30:5 --select-rule mse --noise-pool median -o "$T/x.ply"
 expect 2 "noise-k too small" -- "$BSURF" normals "$T/n.ply" --select-k 15:30:5 --select-rule mse --noise-k 8 -o "$T/x.ply"
 expect 2 "bad sigma-nu" -- "$BSURF" normals "$T/n.ply" --sigma-nu -1 -o "$T/x.ply"
 expect 1 "fewer points than K" -- "$BSURF" normals "$T/tiny.xyz" -k 30 -o "$T/x.ply"

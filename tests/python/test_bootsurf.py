@@ -107,17 +107,27 @@ def test_select_mse_equals_cli(cube):
     same_bits(fields["normals"].astype(np.float32), ref["normals"].astype(np.float32))
     for name in ("normal_err", "k_selected", "two_sheet"):
         same_bits(fields[name].astype(ref[name].dtype), ref[name])
+    cli("normals", tmp("noisy.ply"), "--select-k", "15:40:5", "--select-rule", "mse", "-B", 0,
+        "--noise-pool", "local", "-o", tmp("mse_local.ply"), "-q")
+    ref = bootsurf.read(tmp("mse_local.ply"))
+    fields, s = bootsurf.normals(cube, select_k="15:40:5", select_rule="mse", bootstrap=0,
+                                 noise_pool="local")
+    same_bits(fields["normals"].astype(np.float32), ref["normals"].astype(np.float32))
+    same_bits(fields["k_selected"].astype(ref["k_selected"].dtype), ref["k_selected"])
 
 
 def test_smooth_equals_cli(cube):
     for method, extra in (("bilateral", []), ("naive", ["--threshold", "0.5h"]),
-                          ("multipass", ["--iterations", 3, "--h2", "1W"])):
+                          ("multipass", ["--iterations", 3, "--h2", "1W"]),
+                          ("bilateral", ["--degree-test", "off"])):
         cli("smooth", tmp("noisy.ply"), "--method", method, "-k", 20, "-B", 8, *extra, "-o",
             tmp("sm.ply"), "-q")
         ref = bootsurf.read(tmp("sm.ply"))
         kw = {"threshold": "0.5h"} if method == "naive" else {}
         if method == "multipass":
             kw = {"iterations": 3, "h2": "1W"}
+        if "--degree-test" in extra:
+            kw = {"degree_test": "off"}
         pts, fields, s = bootsurf.smooth(cube, method=method, neighbors=20, bootstrap=8, **kw)
         same_bits(pts, ref["points"])
         for name in fields:
