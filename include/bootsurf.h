@@ -758,9 +758,10 @@ typedef struct bsurf_feature_options {
    * variance: normal_var > threshold; NAN = auto (tail_rule). */
   double threshold;          /* NAN */
   bsurf_tail_rule tail_rule; /* NULL (variance) */
-  /* variance, tail_rule NULL: the score is z = nu tr / s^2 (tr the trace of
-   * the covariance of the normals.k-neighbourhood, s^2 the median of its
-   * smallest eigenvalue over the cloud), median-filtered over the first
+  /* variance, tail_rule NULL: the score is z = nu d / s^2 (d = 4 / (1 /
+   * lambda1 + 1 / lambda2) of the covariance of the normals.k-neighbourhood,
+   * s^2 the median of its smallest eigenvalue over the cloud; 0 where the
+   * neighbourhood is two parallel flat sheets), median-filtered over the first
    * variance_filter_k neighbours; a point is a feature when it exceeds the
    * (1 - false_positive_rate) quantile of the same score on a simulated flat
    * patch with the cloud's noise level (docs/features.md). */

@@ -496,7 +496,7 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
     filter (Eq. 7.1): feature_dist; feature = 1 near the features. variance
     (7.2, Eq. 7.2): the bootstrap normal variance (Eq. 5.5) above a
     threshold. The default automatic rule (tail_rule='null') tests the
-    normalised, median-filtered variance z = median(nu tr / s^2) against the
+    normalised, median-filtered variance z = median(nu d / s^2) against the
     same score on a simulated flat patch at the cloud's measured noise, at
     false_positive_rate, and splits by Otsu on log z above that
     (docs/features.md); the score field is then 'variance_z'. 'otsu' and

@@ -1143,23 +1143,40 @@ done:
   return ret;
 }
 
+/* The labels as eval reads them (cli/cmd_eval.c): a point is a feature where
+ * its value is not 0. Read as doubles: a cast to uint8 truncated 0.5 to 0
+ * (and 256 to 0), so a fractional or large label counted as "no feature". */
+static uint8_t *feature_labels(PyArrayObject *a) {
+  const npy_intp n = PyArray_DIM(a, 0);
+  const double *v = PyArray_DATA(a);
+  uint8_t *r = malloc(n ? (size_t)n : 1);
+  if (!r) {
+    PyErr_NoMemory();
+    return NULL;
+  }
+  for (npy_intp i = 0; i < n; i++)
+    r[i] = v[i] != 0;
+  return r;
+}
+
 static PyObject *py_eval_features(PyObject *self, PyObject *args) {
   (void)self;
   PyObject *res, *tru;
   if (!PyArg_ParseTuple(args, "OO", &res, &tru)) return NULL;
-  PyArrayObject *a = (PyArrayObject *)PyArray_FROMANY(res, NPY_UINT8, 1, 1,
+  PyArrayObject *a = (PyArrayObject *)PyArray_FROMANY(res, NPY_DOUBLE, 1, 1,
                                                       NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
-  PyArrayObject *b = (PyArrayObject *)PyArray_FROMANY(tru, NPY_UINT8, 1, 1,
+  PyArrayObject *b = (PyArrayObject *)PyArray_FROMANY(tru, NPY_DOUBLE, 1, 1,
                                                       NPY_ARRAY_IN_ARRAY | NPY_ARRAY_FORCECAST);
   PyObject *ret = NULL;
+  uint8_t *ra = NULL, *rb = NULL;
   if (!a || !b) goto done;
   if (PyArray_DIM(a, 0) != PyArray_DIM(b, 0)) {
     PyErr_SetString(PyExc_ValueError, "feature and true_feature: different lengths");
     goto done;
   }
+  if (!(ra = feature_labels(a)) || !(rb = feature_labels(b))) goto done;
   bsurf_feature_stats s;
-  bsurf_status st =
-      bsurf_eval_features(PyArray_DATA(a), PyArray_DATA(b), (size_t)PyArray_DIM(a, 0), &s);
+  bsurf_status st = bsurf_eval_features(ra, rb, (size_t)PyArray_DIM(a, 0), &s);
   if (st != BSURF_OK) {
     fail(st, NULL, NULL, NULL);
     goto done;
@@ -1169,6 +1186,8 @@ static PyObject *py_eval_features(PyObject *self, PyObject *args) {
                       "true_neg", (Py_ssize_t)s.true_neg, "precision", s.precision, "recall",
                       s.recall, "f1", s.f1);
 done:
+  free(ra);
+  free(rb);
   Py_XDECREF(a);
   Py_XDECREF(b);
   return ret;

@@ -241,8 +241,15 @@ double bsurf_fdist_otsu_positive(double *pos, size_t m);
 int bsurf_fdist_feature(double v, int state, double thr, double threshold);
 
 /* lambda0 (>= 0) and the trace of the covariance (about the centroid) of
- * the first k points xyz[idx[0..k-1]]. */
-void bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr);
+ * the first k points xyz[idx[0..k-1]]; design (may be NULL): 4 / (1 /
+ * lambda1 + 1 / lambda2), the tangential spread that sets a fitted plane's
+ * tilt variance (the trace less lambda0 when lambda1 = lambda2). With resid (2 k doubles of
+ * scratch, may be NULL: returns 0) it returns 1 when they hold two parallel sheets: the heights
+ * about the common normal of a pair of parallel planes fitted to them fall in two groups apart
+ * (bsurf_split_bimodal); then *mu0 is the pair's residual variance (the smallest eigenvalue of the
+ * covariance pooled within the two groups). */
+int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr,
+                       double *design, double *resid, double *mu0);
 
 /* ---- features --method variance, rule NULL (features_variance.c): the
  * stages of bsurf_detect_features, also run tile by tile. Rows of nb as
@@ -256,13 +263,18 @@ typedef struct bsurf_fvar_result {
 } bsurf_fvar_result;
 /* The filter's neighbours k_f (variance_filter_k, 0 = normals.k / 2). */
 int bsurf_fvar_filter_k(const bsurf_feature_options *o);
-/* Per row of the k-neighbourhoods: u = nu tr, lambda0 and lambda0 / tr. */
+/* Per row of the k-neighbourhoods: u = nu d (the design of
+ * bsurf_pca_l0_trace), lambda0 and lambda0 / tr;
+ * w (may be NULL): where the neighbourhood holds two parallel sheets
+ * (bsurf_pca_l0_trace's test) their pair's residual variance mu0, else -1. */
 bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
-                              const double *nu, double *u, double *l0, double *ratio);
-/* z[r] = median of u over the first kf neighbours of row r, / s2 (s2 <= 0:
- * not divided). */
-bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, double s2,
-                               const double *u, double *z);
+                              const double *nu, double *u, double *l0, double *ratio, double *w);
+/* z[r] = median of Z over the first kf neighbours of row r, Z_j = u_j / s2
+ * (s2 <= 0: u_j), or 0 where w_j (w may be NULL; k-neighbourhoods) says two
+ * parallel sheets whose residual variance is within the noise s2's 99%
+ * quantile: flat, however far apart the sheets (their gap raises nu). */
+bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, double s2, int k,
+                               const double *u, const double *w, double *z);
 /* t: the (1 - false_positive_rate) quantile of z on the flat null patch
  * whose median lambda0 / tr is eta; sigma0 out may be NULL. */
 bsurf_status bsurf_fvar_null_threshold(const bsurf_feature_options *o, double eta, double *t,

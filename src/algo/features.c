@@ -88,6 +88,7 @@
  * (0.17 / 0.84 / 0.73 and 0.05 / 0.45 / 0.47 on log values). */
 #include "algo/algo.h"
 #include "common/common.h"
+#include "local/local.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -180,7 +181,21 @@ static double sums_ratio(const pca_sums *s) {
   return r > 0 ? r : 0; /* rounding can make lambda0 a hair negative */
 }
 
-void bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr) {
+/* The heights of xyz[idx[0..k-1]] about the plane through mu (relative to
+ * o) of normal n into h, and sorted into srt. */
+static void heights(const double *xyz, const uint32_t *idx, int k, const double *o,
+                    const double *mu, const double *n, double *h, double *srt) {
+  for (int m = 0; m < k; m++) {
+    const double *p = &xyz[3 * (size_t)idx[m]];
+    h[m] =
+        n[0] * (p[0] - o[0] - mu[0]) + n[1] * (p[1] - o[1] - mu[1]) + n[2] * (p[2] - o[2] - mu[2]);
+    srt[m] = h[m];
+  }
+  qsort(srt, (size_t)k, sizeof(double), bsurf_cmp_double);
+}
+
+int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr,
+                       double *design, double *resid, double *mu0) {
   pca_sums s;
   memset(&s, 0, sizeof s);
   const double *o = &xyz[3 * (size_t)idx[0]];
@@ -199,6 +214,46 @@ void bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l
   eigvals_sym3((const double(*)[3])C, ev);
   *l0 = ev[0] > 0 ? ev[0] : 0;
   *tr = C[0][0] + C[1][1] + C[2][2];
+  if (design) {
+    const double l1 = ev[1] > 0 ? ev[1] : 0, l2 = ev[2] > 0 ? ev[2] : 0;
+    *design = l1 + l2 > 0 ? 4 * l1 * l2 / (l1 + l2) : 0;
+  }
+  if (!resid) return 0;
+  /* Two parallel sheets: a plane through both tilts towards the imbalance
+   * of the two sheets' points, which mixes their heights. So: the best split
+   * of the heights about the PCA plane (groups of at least k / 4) gives two
+   * groups; the pair of parallel planes fitted to them (the smallest
+   * eigenvalue mu0 of the covariance pooled within the groups, each about
+   * its own centroid) gives the common normal; the heights about it are
+   * tested for two groups apart (bsurf_split_bimodal, rounding level 1e-9
+   * of the radius sqrt(tr)). */
+  double *h = resid, *srt = resid + k, n[3], cut;
+  const double c6[6] = {C[0][0], C[0][1], C[0][2], C[1][1], C[1][2], C[2][2]};
+  if (bsurf_eigen_sym3_smallest(c6, n) != 0) return 0;
+  heights(xyz, idx, k, o, mu, n, h, srt);
+  if (!(bsurf_split_share(srt, k, k / 4 > 3 ? k / 4 : 3, 0, &cut) < 1)) return 0;
+  pca_sums g[2];
+  memset(g, 0, sizeof g);
+  for (int m = 0; m < k; m++)
+    sums_add(&g[h[m] > cut], &xyz[3 * (size_t)idx[m]], o);
+  double p6[6] = {0, 0, 0, 0, 0, 0};
+  for (int a = 0; a < 2; a++) {
+    const double gm = g[a].m, *s1 = g[a].s1;
+    p6[0] += g[a].s2[0] - s1[0] * s1[0] / gm;
+    p6[1] += g[a].s2[1] - s1[0] * s1[1] / gm;
+    p6[2] += g[a].s2[2] - s1[0] * s1[2] / gm;
+    p6[3] += g[a].s2[3] - s1[1] * s1[1] / gm;
+    p6[4] += g[a].s2[4] - s1[1] * s1[2] / gm;
+    p6[5] += g[a].s2[5] - s1[2] * s1[2] / gm;
+  }
+  if (bsurf_eigen_sym3_smallest(p6, n) != 0) return 0;
+  const double q = n[0] * (n[0] * p6[0] + n[1] * p6[1] + n[2] * p6[2]) +
+                   n[1] * (n[0] * p6[1] + n[1] * p6[3] + n[2] * p6[4]) +
+                   n[2] * (n[0] * p6[2] + n[1] * p6[4] + n[2] * p6[5]);
+  heights(xyz, idx, k, o, mu, n, h, srt);
+  if (!bsurf_split_bimodal(srt, k, 1e-9 * sqrt(*tr > 0 ? *tr : 0), NULL)) return 0;
+  if (mu0) *mu0 = q > 0 ? q / w : 0;
+  return 1;
 }
 
 void bsurf_incremental_pca_ratios(const double *xyz, const uint32_t *idx, int k, double *ratio) {

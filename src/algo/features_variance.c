@@ -9,16 +9,27 @@
  * noise would give?
  *
  * 1. Scale. For a plane fitted by PCA to K points with noise sigma along
- *    the normal, the tilt of the normal has variance about sigma^2 /
- *    (sum_j |t_j|^2), t_j the tangential offsets (the slope of a least-
- *    squares line), and sum_j |t_j|^2 = K tr_i with tr_i the trace of the
- *    neighbourhood's covariance. So nu_i tr_i K / sigma^2 does not depend
- *    on the density (anisotropic sampling) or the units. The noise is
+ *    the normal, the tilt about each tangential axis a has variance about
+ *    sigma^2 / (K lambda_a) (the slope of a least-squares line; lambda1,
+ *    lambda2 the tangential eigenvalues of the neighbourhood's covariance),
+ *    so nu_i = sigma^2 (1 / lambda1 + 1 / lambda2) / K = 4 sigma^2 /
+ *    (K d_i) with the design d_i = 4 / (1 / lambda1 + 1 / lambda2) (the
+ *    trace less lambda0 when the neighbourhood is a disc; much smaller when
+ *    its points lie nearly on a line, e.g. a coarse mesh's vertices on a
+ *    ring, whose normal turns freely about that line without a feature).
+ *    So nu_i d_i K / sigma^2 does not depend on the density (anisotropic
+ *    sampling), on the shape of the sampled patch or on the units. The noise is
  *    measured on the cloud itself: s^2 = median_i lambda0_i, the median of
  *    the smallest covariance eigenvalue (features are a minority; on a
  *    flat area lambda0 is the variance of the noise along the normal). The
  *    score is
- *        Z_i = nu_i tr_i / s^2.
+ *        Z_i = nu_i d_i / s^2.
+ *    Two parallel sheets (a thin part: the heights about a pair of
+ *    parallel planes split in two groups apart, bsurf_pca_l0_trace, with
+ *    the pair's residual variance within the noise's 99% quantile) are
+ *    flat, however far apart: Z_i = 0. Their gap, not a feature, raised
+ *    nu_i (an edge's two planes are at an angle, and its heights do not
+ *    split so: simulated, <= 2% of 90 degree edge neighbourhoods).
  * 2. Filter. nu_i comes from B resamples and one noise draw, so it scatters
  *    even on a plane; features are spatially coherent bands. The score is
  *    the median of Z over the first k_f neighbours (k_f = K / 2: a median
@@ -50,7 +61,7 @@
  *    noise sigma_0) is detected at >= half its points within a spacing of
  *    the fold, at t_alpha of its own flat parts.
  * Without noise (s^2 = 0: most neighbourhoods exactly flat) the null is
- * the point mass nu = 0: Z = nu tr, and t = 1e-12 max z (rounding).
+ * the point mass nu = 0: Z = nu d, and t = 1e-12 max z (rounding).
  *
  * What it does not do: near an edge every point whose neighbourhood
  * reaches across it is "not flat", so the detected band is about the
@@ -87,31 +98,38 @@ int bsurf_fvar_k_cap(const bsurf_feature_options *o, size_t n) {
   return cap < o->normals.k ? o->normals.k : (int)cap;
 }
 
-/* ---- per row: u = nu tr, lambda0, lambda0 / tr ---- */
+/* ---- per row: u = nu d (the design), lambda0, lambda0 / tr, w ---- */
 
 typedef struct local_ctx {
   const double *xyz;
   const bsurf_neighbors *nb;
   int k;
   const double *nu; /* by row */
-  double *u, *l0, *ratio;
+  double *u, *l0, *ratio, *w;
+  double *scratch; /* threads x 2 k, with w */
 } local_ctx;
 
 static void local_row(void *vctx, int thread, size_t r) {
-  (void)thread;
   const local_ctx *c = vctx;
-  double l0, tr;
-  bsurf_pca_l0_trace(c->xyz, &c->nb->idx[r * (size_t)c->nb->k], c->k, &l0, &tr);
-  c->u[r] = c->nu[r] * tr;
+  double l0, tr, design, mu0 = 0;
+  const int two =
+      bsurf_pca_l0_trace(c->xyz, &c->nb->idx[r * (size_t)c->nb->k], c->k, &l0, &tr, &design,
+                         c->w ? &c->scratch[2 * (size_t)thread * (size_t)c->k] : NULL, &mu0);
+  c->u[r] = c->nu[r] * design;
   c->l0[r] = l0;
   c->ratio[r] = tr > 0 ? l0 / tr : 0;
+  if (c->w) c->w[r] = two ? mu0 : -1;
 }
 
 bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
-                              const double *nu, double *u, double *l0, double *ratio) {
-  local_ctx c = {xyz, nb, k, nu, u, l0, ratio};
-  return bsurf_parallel_points(nb->point_count, bsurf_threads_resolve(threads), local_row, &c, NULL,
-                               NULL);
+                              const double *nu, double *u, double *l0, double *ratio, double *w) {
+  const int t = bsurf_threads_resolve(threads);
+  local_ctx c = {xyz, nb, k, nu, u, l0, ratio, w, NULL};
+  if (w && !(c.scratch = bsurf_alloc_array(2 * (size_t)t * (size_t)k, sizeof(double))))
+    return BSURF_ERR_NOMEM;
+  bsurf_status st = bsurf_parallel_points(nb->point_count, t, local_row, &c, NULL, NULL);
+  free(c.scratch);
+  return st;
 }
 
 /* ---- the median filter ---- */
@@ -119,25 +137,43 @@ bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int 
 typedef struct filter_ctx {
   const bsurf_neighbors *nb;
   int kf;
-  double inv_s2;
+  double flat, inv_s2;
   const double *u; /* by point */
+  const double *w; /* by point, may be NULL */
   double *z;       /* by row */
   double *scratch; /* threads x kf */
 } filter_ctx;
+
+/* u of point j as the filter takes it: 0 where its neighbourhood is two
+ * parallel flat sheets (bsurf_fvar_filter) */
+static double filter_value(const filter_ctx *c, uint32_t j) {
+  return c->w && c->w[j] >= 0 && c->w[j] <= c->flat ? 0 : c->u[j];
+}
+
+/* Wilson-Hilferty: the 99% quantile of chi^2_nu / nu */
+static double chi2_upper_ratio(int nu) {
+  const double z = 2.3263478740408408; /* the standard normal's 99% quantile */
+  const double w = 1.0 - 2.0 / (9.0 * nu) + z * sqrt(2.0 / (9.0 * nu));
+  return w * w * w;
+}
 
 static void filter_row(void *vctx, int thread, size_t r) {
   const filter_ctx *c = vctx;
   const uint32_t *idx = &c->nb->idx[r * (size_t)c->nb->k];
   double *w = &c->scratch[(size_t)thread * (size_t)c->kf];
   for (int j = 0; j < c->kf; j++)
-    w[j] = c->u[idx[j]];
+    w[j] = filter_value(c, idx[j]);
   c->z[r] = bsurf_median(w, (size_t)c->kf) * c->inv_s2;
 }
 
-bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, double s2,
-                               const double *u, double *z) {
+bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, double s2, int k,
+                               const double *u, const double *w, double *z) {
   const int t = bsurf_threads_resolve(threads);
-  filter_ctx c = {nb, kf, s2 > 0 ? 1 / s2 : 1, u, z, NULL};
+  /* two parallel flat sheets: the pair's residual variance mu0 (k points,
+   * 4 parameters: two offsets and the normal's two angles) within the 99%
+   * quantile of the noise's, s^2 (lambda0 of one sheet: 3 parameters) */
+  const double flat = k > 4 && s2 > 0 ? s2 * chi2_upper_ratio(k - 4) * (k - 4) / (k - 3) : -1;
+  filter_ctx c = {nb, kf, flat, s2 > 0 ? 1 / s2 : 1, u, w, z, NULL};
   c.scratch = bsurf_alloc_array((size_t)t * (size_t)kf, sizeof(double));
   if (!c.scratch) return BSURF_ERR_NOMEM;
   bsurf_status st = bsurf_parallel_points(nb->point_count, t, filter_row, &c, NULL, NULL);
@@ -157,7 +193,7 @@ typedef struct null_patch {
   double side, margin, fold;
   double *uv, *xyz, *g;
   bsurf_neighbors nb;
-  double *nu, *u, *l0, *ratio, *z;
+  double *nu, *u, *l0, *ratio, *w, *z;
 } null_patch;
 
 static void patch_free(null_patch *p) {
@@ -169,6 +205,7 @@ static void patch_free(null_patch *p) {
   free(p->u);
   free(p->l0);
   free(p->ratio);
+  free(p->w);
   free(p->z);
 }
 
@@ -218,8 +255,9 @@ static bsurf_status patch_init(null_patch *p, const bsurf_feature_options *o, in
   p->u = bsurf_alloc_array(p->n, sizeof(double));
   p->l0 = bsurf_alloc_array(p->n, sizeof(double));
   p->ratio = bsurf_alloc_array(p->n, sizeof(double));
+  p->w = bsurf_alloc_array(p->n, sizeof(double));
   p->z = bsurf_alloc_array(p->n, sizeof(double));
-  if (!p->uv || !p->xyz || !p->g || !p->nu || !p->u || !p->l0 || !p->ratio || !p->z)
+  if (!p->uv || !p->xyz || !p->g || !p->nu || !p->u || !p->l0 || !p->ratio || !p->w || !p->z)
     return BSURF_ERR_NOMEM;
   for (size_t i = 0; i < p->n; i++) {
     bsurf_rng rng;
@@ -235,7 +273,8 @@ static bsurf_status patch_init(null_patch *p, const bsurf_feature_options *o, in
 /* the median of lambda0 / tr over the patch's interior at noise sigma */
 static bsurf_status patch_eta(null_patch *p, int k, int threads, double sigma, double *eta) {
   patch_place(p, sigma);
-  bsurf_status st = bsurf_fvar_local(p->xyz, &p->nb, k, threads, p->nu, p->u, p->l0, p->ratio);
+  bsurf_status st =
+      bsurf_fvar_local(p->xyz, &p->nb, k, threads, p->nu, p->u, p->l0, p->ratio, NULL);
   if (st != BSURF_OK) return st;
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
@@ -245,7 +284,7 @@ static bsurf_status patch_eta(null_patch *p, int k, int threads, double sigma, d
 }
 
 /* z of every point at noise sigma: the bootstrap normals with the options'
- * B, fit and seed at k, Z = nu tr / s^2 with s^2 the median lambda0 of the
+ * B, fit and seed at k, Z = nu d / s^2 with s^2 the median lambda0 of the
  * flat part, filtered over kf */
 static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, int k, int kf,
                                  double sigma) {
@@ -259,13 +298,13 @@ static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, 
   bsurf_normal_fields nf = {NULL, p->nu, NULL};
   bsurf_status st = bsurf_estimate_normals(p->xyz, &p->nb, NULL, &no, &nf, NULL);
   if (st == BSURF_OK)
-    st = bsurf_fvar_local(p->xyz, &p->nb, k, o->threads, p->nu, p->u, p->l0, p->ratio);
+    st = bsurf_fvar_local(p->xyz, &p->nb, k, o->threads, p->nu, p->u, p->l0, p->ratio, p->w);
   if (st != BSURF_OK) return st;
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
     if (!p->fold || patch_in(p, i, 1)) p->z[m++] = p->l0[i];
   const double s2 = bsurf_median(p->z, m);
-  return bsurf_fvar_filter(&p->nb, kf, o->threads, s2, p->u, p->z);
+  return bsurf_fvar_filter(&p->nb, kf, o->threads, s2, k, p->u, p->w, p->z);
 }
 
 /* the (1 - alpha) quantile of z over the points where patch_in(where): the
@@ -369,7 +408,7 @@ bsurf_status bsurf_fvar_eta(const double *xyz, const bsurf_neighbors *nb, int k,
          *l0 = bsurf_alloc_array(n ? n : 1, sizeof(double)),
          *ratio = bsurf_alloc_array(n ? n : 1, sizeof(double));
   bsurf_status st = nu && u && l0 && ratio ? BSURF_OK : BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio);
+  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio, NULL);
   if (st == BSURF_OK) *eta = bsurf_median(ratio, n);
   free(nu);
   free(u);
@@ -391,14 +430,15 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
                    nb->k);
   const size_t n = nb->point_count;
   double *u = bsurf_alloc_array(n, sizeof(double)), *l0 = bsurf_alloc_array(n, sizeof(double)),
-         *ratio = bsurf_alloc_array(n, sizeof(double));
-  bsurf_status st = u && l0 && ratio ? BSURF_OK : BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, o->normals.k, o->threads, score, u, l0, ratio);
+         *ratio = bsurf_alloc_array(n, sizeof(double)), *w = bsurf_alloc_array(n, sizeof(double));
+  bsurf_status st = u && l0 && ratio && w ? BSURF_OK : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK)
+    st = bsurf_fvar_local(xyz, nb, o->normals.k, o->threads, score, u, l0, ratio, w);
   double s2 = 0, eta = 0;
   if (st == BSURF_OK) {
     s2 = bsurf_median(l0, n);
     eta = bsurf_median(ratio, n);
-    st = bsurf_fvar_filter(nb, kf, o->threads, s2, u, score);
+    st = bsurf_fvar_filter(nb, kf, o->threads, s2, o->normals.k, u, w, score);
   }
   if (st == BSURF_OK) st = bsurf_fvar_threshold(o, score, n, s2, eta, res);
   if (st == BSURF_OK)
@@ -407,6 +447,7 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
   free(u);
   free(l0);
   free(ratio);
+  free(w);
   return st;
 }
 

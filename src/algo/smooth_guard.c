@@ -122,29 +122,16 @@ static double guard_gap(const double *v, int n, double tiny) {
   return cut;
 }
 
-/* Two sheets mixed: the best split of the sorted residuals v[0..n-1] into
- * two groups (k-means with two means in one dimension), as a test. For any
- * symmetric unimodal noise the split at the centre leaves at least a quarter
- * of the variance within the groups (such a distribution is a mixture of
- * uniforms U[-a, a] (Khintchine), whose within-group share is 1 - 3/4
- * (E a)^2 / E a^2 >= 1/4 by Jensen; 1/4 for a single uniform, 1 - 2/pi for
- * a Gaussian), while two sheets farther apart than their noise leave less
- * (two uniform sheets 1.27 noise half-widths apart: 0.17). The sample share,
- * minimised over the splits with at least q = max(n/4, 3) points a side, is
- * below 1/4 - 0.635 / sqrt(n) with probability 1% for uniform noise (the
- * least favourable unimodal case: simulated, n = 12 to 200, 4,000 draws
- * each; the constant varies by 1% over that range). It finds sheets whose
- * residuals overlap too closely for guard_gap: on the development set's thin
- * plate at uniform noise 0.5 h, where a gap of 0.27 h is left between the
- * faces, it fires on about 40% of the 50-point neighbourhoods that
- * guard_gap missed (simulated). Residuals whose spread is rounding (below
- * tiny) are not tested. Returns the split's midpoint, NAN when the share is
- * above that quantile. */
+/* Two sheets mixed (bsurf_split_bimodal, split.c, has the test's
+ * derivation). It finds sheets whose residuals overlap too closely for
+ * guard_gap: on the development set's thin plate at uniform noise 0.5 h,
+ * where a gap of 0.27 h is left between the faces, it fires on about 40% of
+ * the 50-point neighbourhoods that guard_gap missed (simulated). Residuals
+ * whose spread is rounding (below tiny) are not tested. Returns the split's
+ * midpoint, NAN when the share is above the test's quantile. */
 static double guard_bimodal(const double *v, int n, double tiny) {
   double cut;
-  const double share =
-      bsurf_split_share(v, n, n / 4 > 3 ? n / 4 : 3, (double)n * tiny * tiny, &cut);
-  return share < 0.25 - 0.635 / sqrt((double)n) ? cut : NAN;
+  return bsurf_split_bimodal(v, n, tiny, &cut) ? cut : NAN;
 }
 
 /* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the

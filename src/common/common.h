@@ -63,6 +63,12 @@ bsurf_status bsurf_blocks_status(const bsurf_blocks *b);
  * 0); *cut (may be NULL): the midpoint of the best split, NAN when none is
  * below 1. */
 double bsurf_split_share(const double *v, int n, int q, double min_total, double *cut);
+/* 1 when the sorted residuals v[0..n-1] fall in two groups apart (two
+ * sheets): the best split with at least max(n/4, 3) a side leaves a share
+ * below the 1% quantile of unimodal noise's, 1/4 - 0.635 / sqrt(n)
+ * (split.c). Not tested (0) when their sum of squares is not above
+ * n tiny^2 (rounding). *cut (may be NULL): the best split's midpoint. */
+int bsurf_split_bimodal(const double *v, int n, double tiny, double *cut);
 
 /* Order statistics (order_stats.c): the qsort comparison of doubles
  * (ascending, NaN-free input); the median of n sorted values (the mean of

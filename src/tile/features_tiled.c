@@ -344,7 +344,8 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
 /* ---- features --method variance with the NULL rule in stages (the other
  * rules: cli/cmd_features.c) ----
  *  (v1) K = normals.k: nu (bootstrap normals keyed by global index, as in
- *       memory) and, per point, u = nu tr, lambda0, lambda0 / tr;
+ *       memory) and, per point, u = nu d, lambda0, lambda0 / tr and w (mu0
+ *       where two sheets, bsurf_fvar_local);
  *  (v2) s^2 = median lambda0 and eta = median lambda0 / tr over the values
  *       read back in index order (8 bytes per point in memory at a time);
  *  (v3) K = k_f, reading (v1)'s values of the tile's points: z = the median
@@ -368,20 +369,22 @@ static bsurf_status run_var_local(void *user, const bsurf_tile *t, bsurf_cloud *
   (void)sums;
   const fv_run *v = user;
   const size_t nc = t->core_count;
-  double *nu = bsurf_alloc_array(4 * (nc ? nc : 1), sizeof(double));
+  double *nu = bsurf_alloc_array(5 * (nc ? nc : 1), sizeof(double));
   if (!nu) return BSURF_ERR_NOMEM;
-  double *u = nu + nc, *l0 = u + nc, *ratio = l0 + nc;
+  double *u = nu + nc, *l0 = u + nc, *ratio = l0 + nc, *w = ratio + nc;
   bsurf_normal_options no = v->fd.o.normals;
   no.threads = v->fd.o.threads;
   no.progress = NULL;
   no.point_index = t->point_index;
   bsurf_normal_fields nf = {NULL, nu, NULL};
   bsurf_status st = bsurf_estimate_normals(t->xyz, t->nb, NULL, &no, &nf, NULL);
-  if (st == BSURF_OK) st = bsurf_fvar_local(t->xyz, t->nb, no.k, v->fd.o.threads, nu, u, l0, ratio);
+  if (st == BSURF_OK)
+    st = bsurf_fvar_local(t->xyz, t->nb, no.k, v->fd.o.threads, nu, u, l0, ratio, w);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
-    t->values_out[3 * r] = u[r];
-    t->values_out[3 * r + 1] = l0[r];
-    t->values_out[3 * r + 2] = ratio[r];
+    t->values_out[4 * r] = u[r];
+    t->values_out[4 * r + 1] = l0[r];
+    t->values_out[4 * r + 2] = ratio[r];
+    t->values_out[4 * r + 3] = w[r];
   }
   free(nu);
   return st;
@@ -394,27 +397,30 @@ static bsurf_status run_var_filter(void *user, const bsurf_tile *t, bsurf_cloud 
   (void)sums;
   const fv_run *v = user;
   const size_t nl = t->local_count;
-  double *u = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
+  double *u = bsurf_alloc_array(2 * (nl ? nl : 1), sizeof(double));
   if (!u) return BSURF_ERR_NOMEM;
-  for (size_t l = 0; l < nl; l++)
-    u[l] = t->values[3 * l];
+  double *w = u + (nl ? nl : 1);
+  for (size_t l = 0; l < nl; l++) {
+    u[l] = t->values[4 * l];
+    w[l] = t->values[4 * l + 3];
+  }
   bsurf_status st = bsurf_fvar_filter(t->nb, bsurf_fvar_filter_k(&v->fd.o), v->fd.o.threads, v->s2,
-                                      u, t->values_out);
+                                      v->fd.o.normals.k, u, w, t->values_out);
   free(u);
   return st;
 }
 
-/* (v2): the second or third of the 3 values into v->all */
+/* (v2): the second or third of the 4 values into v->all */
 static void scan_col1(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[3 * i + 1];
+    v->all[v->nall++] = x[4 * i + 1];
 }
 
 static void scan_col2(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[3 * i + 2];
+    v->all[v->nall++] = x[4 * i + 2];
 }
 
 /* (v4) */
@@ -463,15 +469,15 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   memset(&rep, 0, sizeof rep);
   /* (v1) */
   bsurf_status st =
-      stage(input, output, &v.fd, o->normals.k, 3, run_var_local, NULL, &local, tiles, err);
+      stage(input, output, &v.fd, o->normals.k, 4, run_var_local, NULL, &local, tiles, err);
   /* (v2) */
   double eta = 0;
   if (st == BSURF_OK && !(v.all = bsurf_alloc_array(local.count ? local.count : 1, sizeof(double))))
     st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = values_scan_n(&v, &local, 3, scan_col1);
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, 4, scan_col1);
   if (st == BSURF_OK) v.s2 = bsurf_median(v.all, v.nall);
   v.nall = 0;
-  if (st == BSURF_OK) st = values_scan_n(&v, &local, 3, scan_col2);
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, 4, scan_col2);
   if (st == BSURF_OK) eta = bsurf_median(v.all, v.nall);
   st = agree_local(cm, st);
   /* (v3) */

@@ -256,6 +256,19 @@ def test_evaluate_uses_eval_numbers(cube):
     assert e["features"]["f1"] == 1.0
 
 
+
+def test_evaluate_features_nonzero_is_a_feature():
+    """A label counts as a feature where it is not 0, as `eval` reads it
+    (cli/cmd_eval.c): 0.5, 256 and -1 are features, not only 1 (a cast to
+    uint8 made 0.5 and 256 into 0)."""
+    res = np.array([0.5, 256.0, -1.0, 1.0, 0.0, 0.0, 0.25])
+    tru = np.array([1.0, 1.0, 1.0, 0.0, 1.0, 0.0, 0.0])
+    e = bootsurf.evaluate(feature=res, true_feature=tru)["features"]
+    assert (e["true_pos"], e["false_pos"], e["false_neg"], e["true_neg"]) == (3, 2, 1, 1)
+    assert e["f1"] == 2 * 3 / (2 * 3 + 2 + 1)
+    assert bootsurf.evaluate(feature=res.astype(bool), true_feature=tru)["features"] == \
+        bootsurf.evaluate(feature=res != 0, true_feature=tru != 0)["features"]
+
 def _same_json(py, js, path="position"):
     """Every number of the CLI's JSON object js equals py's, as the CLI prints
     it (%.10g: all the digits the JSON has)."""
