@@ -131,15 +131,20 @@ int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center,
 void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center, double *cov,
                             int *ok);
 /* sum_j theta(g, r_j), j < k: the unoriented angles (atan2(|g x r|, |g . r|),
- * within 2 ulp of the C library's, tests/test_normals.c) between unit g and
- * the unit vectors (rx, ry, rz)[j] in vector lanes, summed in a fixed order.
- * The angles are evaluated for j < max(k, kread) (rx, ry, rz and scratch
- * hold that many), only the first k summed: a caller whose arrays are padded
- * passes kread = k rounded up to a multiple of 8, so that the vector loop
- * has no scalar tail (the sum, and so the result, does not depend on kread).
- * The inner sum of Eq. 5.10. */
+ * within 2 ulp of the C library's, tests/test_nested.c) between unit g and
+ * the unit vectors (rx, ry, rz)[j], summed in a fixed order (four running
+ * sums by j mod 4 from +0, combined as (s0 + s1) + (s2 + s3)). The inner
+ * sum of Eq. 5.10. */
 double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
-                              const double *rz, int k, int kread, double *scratch);
+                              const double *rz, int k);
+/* bsurf_nested_angle_sum for P pairs at once, in vector lanes: pair p's
+ * unit vector g[3 p ..] and count kl[p] (non-decreasing in p, as a nested
+ * selection's candidates with their replicates), sums[p] with the bits of
+ * bsurf_nested_angle_sum(&g[3 p], rx, ry, rz, kl[p]) whatever the other
+ * pairs; pairs with valid[p] == 0 (valid may be NULL: all) are not read and
+ * their sums are meaningless. */
+void bsurf_nested_angle_sums(size_t P, const double *g, const unsigned char *valid, const int *kl,
+                             const double *rx, const double *ry, const double *rz, double *sums);
 
 /* The candidate list of a nested selection: ks[0..nk) strictly increasing,
  * ks[0] >= kmin, ks[nk - 1] <= nb->k, 65535 and the point count; messages
@@ -164,9 +169,11 @@ int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned c
  * (term-major, row stride kp >= k, at least terms(degree - 1) rows: the
  * gradient is a polynomial of one degree less); r_j the reference normals
  * in the same frame. Unoriented angles as bsurf_nested_angle_sum, in vector
- * lanes, summed in a fixed order; kread (<= kp) as bsurf_nested_angle_sum's
- * (phit is zero-padded to kp). The inner sum of Eq. 5.10 for a polynomial
- * fit. */
+ * lanes over j, summed in its fixed order. The angles are evaluated for j <
+ * max(k, kread) (kread <= kp; rx, ry, rz, phit and scratch hold that many;
+ * phit zero-padded), only the first k summed: a caller whose arrays are
+ * padded (r = (0, 0, 1)) passes kread = kp, so that the vector loop has no
+ * scalar tail. The inner sum of Eq. 5.10 for a polynomial fit. */
 double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_scale,
                                     const double *phit, size_t kp, const double *rx,
                                     const double *ry, const double *rz, int k, int kread,

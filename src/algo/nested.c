@@ -162,23 +162,79 @@ q1_angle(double c0, double c1, double c2, double dot, int one_div) {
   return y > x ? as : a;
 }
 
-/* The unoriented angle between unit g and each (rx, ry, rz)[j]: atan2(|g x
- * r|, |g . r|) as angle_between, with atan2 of the first quadrant reduced
- * to atan of a ratio <= 1 (pi/2 - atan(x / y) above the diagonal). */
+/* Eq. 5.10's inner sums of many (candidate, replicate) pairs at once, the
+ * pairs in vector lanes: each neighbour j's reference normal is broadcast
+ * and the angles of every pair still using it (kl[p] > j) evaluated in
+ * lanes, each added to one of four running sums by j mod 4 (from +0),
+ * combined as (s0 + s1) + (s2 + s3): a fixed order, so a pair's sum has the
+ * same bits whatever the other lanes (a lane past its own count adds +0,
+ * which leaves a sum of non-negative angles unchanged). Pairs come in
+ * non-decreasing kl, so the lanes in use at j are a suffix: the loops over
+ * them are long and nearly full, where loops over one pair's K neighbours
+ * were short (K / 8 vectors with a padded tail and a second pass to sum). */
+enum { PAIR_CHUNK = 256 };
+
 #if defined(__GNUC__) && !defined(__clang__)
 /* selects between computed values, not branches: the values are the same,
  * but GCC vectorises the loop only when it may ignore FP exception flags */
 __attribute__((optimize("no-trapping-math")))
 #endif
 BSURF_CLONES static void
-angles(const double g[3], const double *restrict rx, const double *restrict ry,
-       const double *restrict rz, int k, double *restrict out) {
-  const double g0 = g[0], g1 = g[1], g2 = g[2];
-  for (int j = 0; j < k; j++) {
-    const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
-                 c2 = g0 * ry[j] - g1 * rx[j];
-    out[j] = q1_angle(c0, c1, c2, g0 * rx[j] + g1 * ry[j] + g2 * rz[j], 0);
+pair_chunk(int nv, const double *restrict vk, const double *restrict kl, const double *restrict gx,
+           const double *restrict gy, const double *restrict gz, const double *restrict rx,
+           const double *restrict ry, const double *restrict rz, double *restrict acc) {
+  const int np = 8 * nv;
+  int v0 = 0; /* the first vector of 8 lanes with a lane still in use */
+  for (int j = 0; v0 < nv; j++) {
+    const double jd = j;
+    while (v0 < nv && !(vk[v0] > jd))
+      v0++;
+    double *restrict a = acc + (size_t)(j & 3) * PAIR_CHUNK;
+    const double r0 = rx[j], r1 = ry[j], r2 = rz[j];
+    for (int l = 8 * v0; l < np; l++) {
+      const double g0 = gx[l], g1 = gy[l], g2 = gz[l];
+      const double c0 = g1 * r2 - g2 * r1, c1 = g2 * r0 - g0 * r2, c2 = g0 * r1 - g1 * r0;
+      const double t = q1_angle(c0, c1, c2, g0 * r0 + g1 * r1 + g2 * r2, 0);
+      a[l] += kl[l] > jd ? t : 0.0;
+    }
   }
+}
+
+void bsurf_nested_angle_sums(size_t P, const double *g, const unsigned char *valid, const int *kl,
+                             const double *rx, const double *ry, const double *rz, double *sums) {
+  _Alignas(64) double gx[PAIR_CHUNK], gy[PAIR_CHUNK], gz[PAIR_CHUNK], klf[PAIR_CHUNK];
+  _Alignas(64) double acc[4 * PAIR_CHUNK];
+  double vk[PAIR_CHUNK / 8];
+  for (size_t p0 = 0; p0 < P; p0 += PAIR_CHUNK) {
+    const int n = P - p0 < PAIR_CHUNK ? (int)(P - p0) : PAIR_CHUNK, nv = (n + 7) / 8;
+    for (int l = 0; l < 8 * nv; l++) {
+      /* lanes past P and invalid pairs: g = (0, 0, 1), their sums not used */
+      const size_t p = p0 + (size_t)l;
+      const int use = l < n && (!valid || valid[p]);
+      gx[l] = use ? g[3 * p] : 0.0;
+      gy[l] = use ? g[3 * p + 1] : 0.0;
+      gz[l] = use ? g[3 * p + 2] : 1.0;
+      klf[l] = l < n ? kl[p] : 0.0;
+    }
+    for (int v = 0; v < nv; v++) { /* the largest count of each vector */
+      double m = 0;
+      for (int l = 8 * v; l < 8 * v + 8; l++)
+        m = klf[l] > m ? klf[l] : m;
+      vk[v] = m;
+    }
+    memset(acc, 0, sizeof acc);
+    pair_chunk(nv, vk, klf, gx, gy, gz, rx, ry, rz, acc);
+    const double *s0 = acc, *s1 = s0 + PAIR_CHUNK, *s2 = s1 + PAIR_CHUNK, *s3 = s2 + PAIR_CHUNK;
+    for (int l = 0; l < n; l++)
+      sums[p0 + l] = (s0[l] + s1[l]) + (s2[l] + s3[l]);
+  }
+}
+
+double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
+                              const double *rz, int k) {
+  double s;
+  bsurf_nested_angle_sums(1, g, NULL, &k, rx, ry, rz, &s);
+  return s;
 }
 
 /* sum_j a[j], j < k, as four running sums (j mod 4) then combined: a fixed
@@ -192,12 +248,6 @@ static double fixed_sum(const double *a, int k) {
   for (int l = 0; j < k; j++, l++)
     s[l] += a[j];
   return (s[0] + s[1]) + (s[2] + s[3]);
-}
-
-double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
-                              const double *rz, int k, int kread, double *scratch) {
-  angles(g, rx, ry, rz, kread > k ? kread : k, scratch);
-  return fixed_sum(scratch, k);
 }
 
 /* One lane r of bsurf_nested_cov_lanes. */
