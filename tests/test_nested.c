@@ -257,9 +257,8 @@ static void test_nested_sums(void **state) {
   double terms[KMAX * BSURF_NESTED_COLS], Wt[KMAX * R], sums[NK * BSURF_NESTED_COLS * R];
   int distinct[NK * R];
   uint32_t u[KMAX];
-  uint8_t x[KMAX];
   bsurf_nested_terms(xyz, idx, KMAX, terms);
-  bsurf_boot_poisson_rows(5, 17, R, KMAX, u, x, Wt);
+  bsurf_boot_poisson_rows(5, 17, R, KMAX, u, Wt);
   bsurf_nested_sums(terms, KMAX, R, Wt, ks, NK, sums, distinct);
   for (int c = 0; c < NK; c++)
     for (int b = 0; b < R; b++) {
@@ -294,14 +293,13 @@ static void test_poisson_weights(void **state) {
   enum { K = 100, B = 40 };
   static double Wt[K * B], Wt2[K * 7];
   uint32_t u[K];
-  uint8_t x[K];
   double s = 0, s2 = 0, zeros = 0;
   const int points = 50;
   for (int p = 0; p < points; p++) {
-    bsurf_boot_poisson_rows(9, (uint64_t)p, B, K, u, x, Wt);
+    bsurf_boot_poisson_rows(9, (uint64_t)p, B, K, u, Wt);
     for (int t = 0; t < K * B; t++)
       s += Wt[t], s2 += Wt[t] * Wt[t], zeros += Wt[t] == 0;
-    bsurf_boot_poisson_rows(9, (uint64_t)p, 7, K, u, x, Wt2);
+    bsurf_boot_poisson_rows(9, (uint64_t)p, 7, K, u, Wt2);
     for (int j = 0; j < K; j++)
       for (int b = 0; b < 7; b++)
         assert_true(Wt2[j * 7 + b] == Wt[j * B + b]);

@@ -296,7 +296,6 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
 typedef struct select_scratch {
   double *terms;           /* kmax x COLS */
   uint32_t *u;             /* kmax */
-  uint8_t *x;              /* kmax */
   double *Wt;              /* kmax x B */
   double *sums;            /* nk x COLS x max(B, 1) */
   double *fsums;           /* nk x COLS */
@@ -328,7 +327,6 @@ static bsurf_status select_scratch_alloc(void *vs, const void *vsz) {
   bsurf_blocks *m = &s->mem;
   s->terms = bsurf_blocks_array(m, kk, BSURF_NESTED_COLS * sizeof(double));
   s->u = bsurf_blocks_array(m, kk, sizeof(uint32_t));
-  s->x = bsurf_blocks_array(m, kk, 1);
   s->Wt = bsurf_blocks_aligned(m, kk * b1, sizeof(double));
   s->sums = bsurf_blocks_aligned(m, cands * b1, BSURF_NESTED_COLS * sizeof(double));
   s->fsums = bsurf_blocks_array(m, cands, BSURF_NESTED_COLS * sizeof(double));
@@ -375,7 +373,7 @@ static void select_point(void *vctx, void *scratch, size_t i) {
   /* the replicates: one draw per point, shared by the candidates */
   if (B > 0) {
     const uint64_t key = o->point_index ? o->point_index[i] : i;
-    bsurf_boot_poisson_rows(o->seed, key, B, kmax, s->u, s->x, s->Wt);
+    bsurf_boot_poisson_rows(o->seed, key, B, kmax, s->u, s->Wt);
     bsurf_nested_sums(s->terms, kmax, B, s->Wt, ks, nk, s->sums, s->nz);
     for (int a = 0; a < nk; a++) {
       const double *blk = &s->sums[(size_t)a * COLS * B];
