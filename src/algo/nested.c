@@ -185,10 +185,11 @@ pair_chunk(int nv, const double *restrict vk, const double *restrict kl, const d
            const double *restrict ry, const double *restrict rz, double *restrict acc) {
   const int np = 8 * nv;
   int v0 = 0; /* the first vector of 8 lanes with a lane still in use */
-  for (int j = 0; v0 < nv; j++) {
+  for (int j = 0;; j++) {
     const double jd = j;
     while (v0 < nv && !(vk[v0] > jd))
       v0++;
+    if (v0 == nv) break; /* every pair's K reached: rx[j] may be past the arrays */
     double *restrict a = acc + (size_t)(j & 3) * PAIR_CHUNK;
     const double r0 = rx[j], r1 = ry[j], r2 = rz[j];
     for (int l = 8 * v0; l < np; l++) {
