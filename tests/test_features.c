@@ -298,6 +298,20 @@ static double sheet_uniform(uint64_t *s) {
   return (double)(sheet_rng(s) >> 11) * (1.0 / 9007199254740992.0);
 }
 
+/* The default options' features of n points xyz (malloc'ed flags). */
+static uint8_t *detect_defaults(double *xyz, size_t n) {
+  bsurf_cloud c;
+  bsurf_cloud_init(&c);
+  c.point_count = n;
+  c.xyz = xyz;
+  uint8_t *feat = malloc(n);
+  double *score = malloc(n * sizeof(double));
+  bsurf_feature_options o = bsurf_feature_options_default();
+  detect(&c, &o, o.normals.k, feat, score);
+  free(score);
+  return feat;
+}
+
 static void test_parallel_sheets(void **state) {
   (void)state;
   const size_t na = 10000, nb = 2500, n = na + nb;
@@ -309,14 +323,7 @@ static void test_parallel_sheets(void **state) {
     xyz[3 * i + 1] = side * sheet_uniform(&r);
     xyz[3 * i + 2] = (i < na ? 0 : -1.0) + 0.25 * (2 * sheet_uniform(&r) - 1);
   }
-  bsurf_cloud c;
-  bsurf_cloud_init(&c);
-  c.point_count = n;
-  c.xyz = xyz;
-  uint8_t *feat = malloc(n);
-  double *score = malloc(n * sizeof(double));
-  bsurf_feature_options o = bsurf_feature_options_default();
-  detect(&c, &o, o.normals.k, feat, score);
+  uint8_t *feat = detect_defaults(xyz, n);
   size_t dbl = 0, dbl_flag = 0, sgl = 0, sgl_flag = 0;
   for (size_t i = 0; i < n; i++) {
     const double x = xyz[3 * i], y = xyz[3 * i + 1];
@@ -328,10 +335,8 @@ static void test_parallel_sheets(void **state) {
          fd, fs);
   assert_true(fd < 0.15);
   assert_true(fs < 0.02);
-  c.xyz = NULL;
   free(xyz);
   free(feat);
-  free(score);
 }
 
 /* Featureless shapes: the null test flags about twice the stated
@@ -403,14 +408,7 @@ static void test_border_thin_plate(void **state) {
     xyz[3 * i + 1] = 60 * sheet_uniform(&r);
     xyz[3 * i + 2] = (i < per ? 0 : 0.6) + 0.25 * (2 * sheet_uniform(&r) - 1);
   }
-  bsurf_cloud c;
-  bsurf_cloud_init(&c);
-  c.point_count = n;
-  c.xyz = xyz;
-  uint8_t *feat = malloc(n);
-  double *score = malloc(n * sizeof(double));
-  bsurf_feature_options o = bsurf_feature_options_default();
-  detect(&c, &o, o.normals.k, feat, score);
+  uint8_t *feat = detect_defaults(xyz, n);
   size_t rim = 0, rim_flag = 0, in = 0, in_flag = 0;
   for (size_t i = 0; i < n; i++) {
     const double x = xyz[3 * i], y = xyz[3 * i + 1];
@@ -422,10 +420,8 @@ static void test_border_thin_plate(void **state) {
   printf("thin plate: %.3f of the rim band flagged, %.4f of the interior\n", fr, fi);
   assert_true(fr > 0.5);
   assert_true(fi < 0.025);
-  c.xyz = NULL;
   free(xyz);
   free(feat);
-  free(score);
 }
 
 /* Differential: the running sums give the same a/c as a PCA from scratch of
