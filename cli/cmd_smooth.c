@@ -91,8 +91,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "residuals fall in two groups tighter than any unimodal noise leaves them, are fitted "
        "apart; a "
        "fit biased at its centre by a second sheet or an edge, by a t test on its nearest "
-       "points' residuals, is made again from fewer points, or moves nothing) or off (the "
-       "thesis's methods as written)",
+       "points' residuals, is made again from fewer points, or moves nothing; a fit whose "
+       "residual variance shows more misfit than noise -- above twice the cloud's noise "
+       "variance, the lower quartile over the fits, at the 5% level -- moves nothing) or off "
+       "(the thesis's methods as written)",
        1, 0},
       {0, "degree-test", ARG_STRING, &dtest, "T",
        "with the guard: on (each sheet's fit takes the degree, from -d down to a plane, of "
@@ -234,6 +236,11 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       json_int(&j, "k_min", so.k_min);
       json_num(&j, "k_error", rep.k_error);
     }
+    if (so.guard) {
+      json_num(&j, "noise", rep.noise);
+      json_num(&j, "noise_h", rep.noise / hh);
+      json_int(&j, "misfit_fits", (long long)rep.misfit_fits);
+    }
     json_int(&j, "replicates_skipped", (long long)rep.error.replicates_skipped);
     json_int(&j, "degree_reduced", (long long)rep.error.degree_reduced);
     json_int(&j, "moved_points", (long long)rep.moved_points);
@@ -263,6 +270,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     else
       printf("  order %s, %d passes, h1 = %g d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order,
              rep.iterations, so.a, rep.h2, rep.h2 / hh, so.k_min, so.error.k);
+    if (so.guard)
+      printf("  guard: noise %.6g (%.4g h), %zu fits with more misfit than noise moved nothing\n",
+             rep.noise, rep.noise / hh, rep.misfit_fits);
     printf("  moved %zu points: mean %.4g h, max %.4g h\n", rep.moved_points, rep.moved_mean / hh,
            rep.moved_max / hh);
     cli_print_footer(output);

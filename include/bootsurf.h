@@ -679,6 +679,9 @@ typedef struct bsurf_smooth_report {
   size_t moved_points;          /* points whose position changed */
   double moved_mean, moved_max; /* displacement over all points */
   int iterations;               /* multipass: passes run */
+  double noise;                 /* the guard's noise estimate sigma (NAN: guard off) */
+  size_t misfit_fits;           /* the guard's misfit test: fits of the first stage
+                                   with more misfit than noise (they move nothing) */
 } bsurf_smooth_report;
 
 /* Moves the points of a cloud towards the bootstrap fits (chapter 6).

@@ -257,7 +257,7 @@ static void test_two_sheets(void **state) {
 /* Two sheets gap_h spacings apart with uniform noise noise_h (sheets_make,
  * seed): every method at its defaults ends no farther from the nearest sheet
  * than the noisy input. */
-static void thin_sheets_check(double gap_h, double noise_h, unsigned seed) {
+static void thin_sheets_from(double gap_h, double noise_h, unsigned seed, int first) {
   bsurf_cloud c;
   bsurf_neighbors nb;
   double h, gap;
@@ -265,7 +265,7 @@ static void thin_sheets_check(double gap_h, double noise_h, unsigned seed) {
   const size_t n = c.point_count;
   double *out = malloc(n * 3 * sizeof(double));
   const double e0 = sheets_err(&c, c.xyz, gap, 1);
-  for (int m = 0; m < 3; m++) {
+  for (int m = first; m < 3; m++) {
     bsurf_smooth_options o = bsurf_smooth_options_default();
     o.method = methods[m];
     o.error.bootstrap = 20;
@@ -279,6 +279,10 @@ static void thin_sheets_check(double gap_h, double noise_h, unsigned seed) {
   free(out);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
+}
+
+static void thin_sheets_check(double gap_h, double noise_h, unsigned seed) {
+  thin_sheets_from(gap_h, noise_h, seed, 0);
 }
 
 /* Two sheets closer than their own spacing (the development set's thin
@@ -304,11 +308,96 @@ static void test_thin_sheets(void **state) {
  * noisy input (issue 22). Measured: 0.086 h noisy; naive 0.084 h, bilateral
  * (the default) 0.071 h, multipass 0.070 h; without the two-group test naive
  * 0.097 h and bilateral 0.096 h (the test failed). At noise 0.2 the default
- * still ends farther (0.101 h -> 0.108 h; 0.132 h without the two-group
- * test), as on the development set's plate at uniform 0.5 (docs/smoothing.md). */
+ * ended farther (0.101 h -> 0.108 h; 0.132 h without the two-group test)
+ * until the misfit test (test_thin_sheets_mixed). */
 static void test_thin_sheets_overlap(void **state) {
   (void)state;
   thin_sheets_check(0.6, 0.17, 19);
+}
+
+/* The thin plate with still more noise, where the faces' residuals overlap
+ * (noise 0.2 and 0.3 of the spacing; the development set's plate at
+ * uniform 0.5 h is of this kind): in many neighbourhoods neither of the
+ * guard's two-sheet tests fires, and before the misfit test the default
+ * ended farther from the nearest sheet than the noisy input (noise 0.2:
+ * 0.101 h -> 0.108 h). The misfit test (smooth_guard.c: a fit through both
+ * faces leaves a residual variance far above the cloud's noise estimate)
+ * keeps those fits from moving points: no method ends farther at 0.2. Not
+ * yet at 0.25 (naive 0.124 h -> 0.151 h, bilateral 0.196 h: the sheets'
+ * residuals then overlap so far that most fits are of both, and the lower
+ * quartile of the fits' variances is a mixture's too; docs/smoothing.md). */
+static void test_thin_sheets_mixed(void **state) {
+  (void)state;
+  thin_sheets_check(0.6, 0.2, 23);
+}
+
+/* The guard's noise estimate (bsurf_smooth_report.noise, guard_noise): on a
+ * plane with gaussian noise sigma it is sigma to within a tenth, and it stays
+ * so when a third of the plane is replaced by a surface the fits cannot
+ * follow (a ridge every 3 spacings, 6 sigma high: a fit flattens it, leaving a
+ * misfit of variance A^2 / 12 = 3 sigma^2): the lower quartile of the
+ * fits' variances comes from the rest. There the misfit test rejects most
+ * fits (report.misfit_fits: 3155 of 12000), and the ridged part ends within
+ * 3% of its noisy points' distance (measured 0.247 h -> 0.250 h: the few
+ * fits that pass by chance), where flattening the ridge would leave A / 4 =
+ * 0.45 h. */
+static double ridge_z(double x, double h) {
+  const double t = x / (3 * h) - floor(x / (3 * h)); /* a triangle wave of period 3h */
+  return (t < 0.5 ? t : 1 - t) * 2.0;
+}
+static void test_noise_estimate(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 12000, BSURF_SAMPLING_RANDOM, 7, 0),
+                   BSURF_OK);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, c.point_count, 2, &h), BSURF_OK);
+  const size_t n = c.point_count;
+  const double sigma = 0.3 * h, A = 6 * sigma;
+  double *z0 = malloc(n * sizeof(double)), *out = malloc(n * 3 * sizeof(double)), sig0 = 0;
+  for (int ridged = 0; ridged < 2; ridged++) {
+    for (size_t i = 0; i < n; i++) {
+      const double x = c.xyz[3 * i];
+      z0[i] = ridged && x > 1.0 / 3 ? A * ridge_z(x, h) : 0.0;
+      c.xyz[3 * i + 2] = z0[i];
+    }
+    assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_GAUSSIAN, 0.3, h, 31),
+                     BSURF_OK);
+    bsurf_neighbors nb;
+    assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 50, 2, NULL, NULL), BSURF_OK);
+    bsurf_smooth_options o = bsurf_smooth_options_default();
+    o.error.bootstrap = 20;
+    o.error.threads = 2;
+    bsurf_smooth_report rep;
+    assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, &rep), BSURF_OK);
+    double e0 = 0, e = 0;
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+      const double x = c.xyz[3 * i], y = c.xyz[3 * i + 1];
+      if (x < 0.5 || x > 0.8 || fabs(y) > 0.8) continue; /* inside the ridged part */
+      /* vertical distance: the ridge's slope is 4 A / (3 h) = 0.8 */
+      e0 += fabs(c.xyz[3 * i + 2] - z0[i]);
+      e += fabs(out[3 * i + 2] - A * (ridged ? ridge_z(out[3 * i], h) : 0.0));
+      m++;
+    }
+    print_message("noise estimate, ridged %d: sigma %.3f h (true %.3f h), %zu misfit fits; "
+                  "ridged part %.3f h -> %.3f h\n",
+                  ridged, rep.noise / h, sigma / h, rep.misfit_fits, e0 / (double)m / h,
+                  e / (double)m / h);
+    if (!ridged) sig0 = rep.noise;
+    assert_true(fabs(rep.noise - sigma) < 0.2 * sigma);
+    assert_true(fabs(rep.noise - sig0) < 0.1 * sig0);
+    if (ridged) {
+      assert_true(rep.misfit_fits > n / 5);
+      assert_true(e <= 1.03 * e0);
+    } else {
+      assert_true(e < 0.6 * e0);
+    }
+    bsurf_neighbors_free(&nb);
+  }
+  free(z0);
+  free(out);
+  bsurf_cloud_free(&c);
 }
 
 /* The noisy cube of issue 22 (gaussian noise 0.5 h along the normals,
@@ -316,13 +405,13 @@ static void test_thin_sheets_overlap(void **state) {
  * exact cube after the default smoothing (bilateral with the guard and
  * the degree test), after multipass at its defaults, and after bilateral
  * without the degree test. The issue asks for 0.12 h: the default measures
- * 0.118 h here, multipass 0.166 h (not met), bilateral without the degree
- * test 0.149 h (docs/smoothing.md). The bounds are the issue's 0.12 h for
- * the default and what the others reach now (regression bounds); all keep
- * at most 0.45 of the noisy input's distance, and the degree test must
- * lower the default's distance by at least a tenth. */
+ * 0.119 h here, multipass 0.171 h (not met; 0.166 h before the guard's
+ * misfit test), bilateral without the degree test 0.151 h (docs/smoothing.md). The bounds are the
+ * issue's 0.12 h for the default and what the others reach now (regression bounds); all keep at
+ * most 0.45 of the noisy input's distance, and the degree test must lower the default's distance by
+ * at least a tenth. */
 #define BOUND_DEFAULT 0.120
-#define BOUND_MULTIPASS 0.170
+#define BOUND_MULTIPASS 0.175
 #define BOUND_NO_TEST 0.155
 static void test_cube_distance(void **state) {
   (void)state;
@@ -649,6 +738,8 @@ int main(void) {
       cmocka_unit_test(test_two_sheets),
       cmocka_unit_test(test_thin_sheets),
       cmocka_unit_test(test_thin_sheets_overlap),
+      cmocka_unit_test(test_thin_sheets_mixed),
+      cmocka_unit_test(test_noise_estimate),
       cmocka_unit_test(test_cube_distance),
       cmocka_unit_test(test_naive_threshold),
       cmocka_unit_test(test_multipass_neighbourhoods),

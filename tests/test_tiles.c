@@ -328,6 +328,7 @@ typedef struct smooth_job {
   bsurf_smooth_options so; /* resolved before the second stage */
   size_t nv;
   double threshold; /* features: t_h */
+  double noise;     /* smoothing: the guard's noise variance (bsurf_smooth_noise) */
 } smooth_job;
 
 static bsurf_status smooth_prepare(void *user, bsurf_cloud *c) {
@@ -372,7 +373,7 @@ static bsurf_status smooth_run2(void *user, const bsurf_tile *t, bsurf_cloud *co
     assert_true(self);
   }
   bsurf_status st = bsurf_smooth_stage2(t->xyz, t->local_count, t->values, n, point, t->rev_off,
-                                        t->rev, &j->so, out, t->values_out);
+                                        t->rev, &j->so, j->noise, out, t->values_out);
   if (st == BSURF_OK) smooth_fill(j, core, t->values, point, out, t->values_out);
   free(point);
   free(out);
@@ -384,7 +385,8 @@ static bsurf_status smooth_map(void *user, size_t first, bsurf_cloud *c, const d
   (void)first;
   size_t n = c->point_count;
   double *out = malloc(3 * n * sizeof(double)), *moved = malloc(n * sizeof(double));
-  bsurf_status st = bsurf_smooth_stage2(c->xyz, n, values, n, NULL, NULL, NULL, &j->so, out, moved);
+  bsurf_status st =
+      bsurf_smooth_stage2(c->xyz, n, values, n, NULL, NULL, NULL, &j->so, j->noise, out, moved);
   if (st == BSURF_OK) smooth_fill(j, c, values, NULL, out, moved);
   free(out);
   free(moved);
@@ -428,7 +430,7 @@ static void check_smooth(const char *path, bsurf_smooth_options so, const size_t
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
   for (int s = 0; s < nsizes; s++) {
-    smooth_job j = {so, bsurf_smooth_stage_values(&so), 0};
+    smooth_job j = {so, bsurf_smooth_stage_values(&so), 0, NAN};
     bsurf_tile_values vals = {-1, 0, 0}, moved = {-1, 0, 0};
     bsurf_tile_ops ops = stage_ops(&j, so.error.k, sizes[s]);
     ops.run = smooth_run1;
@@ -445,6 +447,11 @@ static void check_smooth(const char *path, bsurf_smooth_options so, const size_t
     assert_int_equal(bsurf_tile_values_read(&vals, 0, n, v), BSURF_OK);
     for (size_t i = 0; i < n; i++)
       sw += v[i * j.nv + (size_t)bsurf_smooth_w_column(&so)];
+    /* the guard's noise from the stage values, as bsurf_smooth makes it */
+    double *scratch = malloc(n * sizeof(double));
+    j.noise = so.guard ? bsurf_smooth_noise(&v[j.nv - 2], n, j.nv, scratch) : NAN;
+    if (so.guard) assert_true(sqrt(j.noise) == ref.noise);
+    free(scratch);
     free(v);
     assert_true(sw / (double)n == ref.mean_error);
     bsurf_smooth_resolve(&j.so, rep.h, sw / (double)n);

@@ -436,8 +436,12 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
       k_error      multipass: the error at which K_i reaches k_min (Eq. 6.4;
                    'auto' = 3W)
       guard        on (a fit biased at its centre by a second sheet or an
-                   edge is made again from fewer points, or moves nothing)
-                   or off (the thesis's methods as written)
+                   edge is made again from fewer points, or moves nothing;
+                   a fit with more misfit than noise -- residual variance
+                   above twice the cloud's noise variance, the lower quartile
+                   over the fits, at the 5% level -- moves nothing; the
+                   report's noise and misfit_fits) or off (the thesis's
+                   methods as written)
       degree_test  the guard's sheet fits choose their degree, -d down to a
                    plane, by Mallows' C_p: on, off or auto (on for bilateral);
                    docs/smoothing.md, "The degree test"

@@ -117,7 +117,8 @@ void boot_task(void *vc, int thread, size_t i) {
        * (no bootstrap mean there), or no move */
       int deg = fit.degree;
       fit_store(F, &fit.frame, fit.inv_scale, fit.coef, c->m);
-      int kg = guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg);
+      int kg = guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg,
+                         c->svar ? &c->svar[2 * i] : NULL);
       if (kg == 0)
         height = 0;
       else if (kg != c->k) {
@@ -134,9 +135,17 @@ void boot_task(void *vc, int thread, size_t i) {
     int deg = c->degree;
     if (c->o.guard) {
       deg = fit.degree;
-      guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg);
+      guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg,
+                c->svar ? &c->svar[2 * i] : NULL);
     }
     if (c->fit_degree) c->fit_degree[i] = deg;
+  } else if (c->svar) {
+    /* the sequential sweep makes its fits as it goes: the guard's fit of the
+     * input positions here only gives the noise estimate (guard_noise) */
+    double F[FIT_HEAD + BSURF_TERMS_MAX];
+    fit_store(F, &fit.frame, fit.inv_scale, fit.coef, c->m);
+    int deg = fit.degree;
+    guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg, &c->svar[2 * i]);
   }
 }
 
@@ -273,8 +282,10 @@ static void bilateral_sequential(smooth_ctx *c) {
     bsurf_localfit_predict(lf, d, 1, coef, NULL, pred);
     double F[FIT_HEAD + BSURF_TERMS_MAX];
     if (c->o.guard) {
+      double sv[2];
       fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
-      guard_fit(c, &c->scr[0], GCOUNT(c, 0), c->out, idx, k, F, &d);
+      guard_fit(c, &c->scr[0], GCOUNT(c, 0), c->out, idx, k, F, &d, sv);
+      if (guard_misfit(sv, c->noise)) continue; /* moves nothing */
     }
     const double *z0 = &c->out[3 * (size_t)idx[0]];
     for (int j = 0; j < k; j++) {
@@ -311,6 +322,7 @@ void ctx_init(smooth_ctx *c, const double *xyz, const bsurf_neighbors *nb,
   c->m = bsurf_poly_terms(c->degree);
   c->stride = FIT_HEAD + c->m;
   c->tune = bsurf_smooth_tuning_defaults();
+  c->noise = NAN;
 }
 
 void ctx_free(smooth_ctx *c, int T) {
@@ -345,6 +357,7 @@ void ctx_free(smooth_ctx *c, int T) {
   free(c->tb_pos);
   free(c->tb_step);
   free(c->gcount);
+  free(c->svar);
 }
 
 /* (its messages name bsurf_smooth, the public function) */
@@ -425,6 +438,10 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
     st = BSURF_ERR_NOMEM;
     goto done;
   }
+  if (o.guard && !(c.svar = bsurf_alloc_array(n ? n : 1, 2 * sizeof(double)))) {
+    st = BSURF_ERR_NOMEM;
+    goto done;
+  }
   if ((o.method == BSURF_SMOOTH_BILATERAL && !seq) || o.method == BSURF_SMOOTH_MULTIPASS) {
     /* multipass: each fit also carries its point's e2, 1 / h1^2 and w2 (one
      * record per neighbourhood for the passes to read) */
@@ -457,6 +474,26 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
       report->error.center_unestimated += c.scr[t].center_unestimated;
     }
   }
+  size_t misfit = 0;
+  if (c.svar) {
+    /* the guard's misfit test (smooth_guard.c): the cloud's noise from the
+     * sheet fits of stage 1; a fit with more misfit than noise moves nothing
+     * (naive: the point stays; bilateral: theta_2 = 0 below; multipass: its
+     * K_i fit, smooth_multipass.c; sequential: each fit of the sweep) */
+    double *scratch = bsurf_alloc_array(n ? n : 1, sizeof(double));
+    if (!scratch) {
+      st = BSURF_ERR_NOMEM;
+      goto done;
+    }
+    c.noise = guard_noise(c.svar, n, 2, scratch);
+    free(scratch);
+    for (size_t i = 0; i < n; i++)
+      if (guard_misfit(&c.svar[2 * i], c.noise)) {
+        misfit++;
+        if (o.method == BSURF_SMOOTH_NAIVE)
+          memcpy(&out_xyz[3 * i], &xyz[3 * i], 3 * sizeof(double));
+      }
+  }
   c.W = bsurf_smooth_w_column(&o) ? c.err_632plus : c.err_632;
   double sumW = 0;
   for (size_t i = 0; i < n; i++)
@@ -469,6 +506,8 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
   if (report) {
     report->h = nb->h;
     report->mean_error = meanW;
+    report->noise = c.svar ? sqrt(c.noise) : NAN;
+    report->misfit_fits = misfit;
   }
 
   if (o.method == BSURF_SMOOTH_NAIVE) {
@@ -488,8 +527,10 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
       st = BSURF_ERR_NOMEM;
       goto done;
     }
-    for (size_t i = 0; i < n; i++)
+    for (size_t i = 0; i < n; i++) {
       set_theta2(&c, i, c.W[i]);
+      if (!seq && c.svar && guard_misfit(&c.svar[2 * i], c.noise)) c.e2[i] = INFINITY, c.w2[i] = 0;
+    }
     c.inv_h1sq_global = 1.0 / (c.h1 * c.h1);
     sp.stage = 1;
     if (seq) {

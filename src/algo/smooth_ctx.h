@@ -166,6 +166,7 @@ typedef struct smooth_ctx {
   double *w2;       /* n: theta_2(W_i) itself (the weight at distance 0) */
   double *inv_h1sq; /* n: 1 / h1_i^2 (0 when h1_i = 0) */
   double h1, h2, k_error;
+  double noise; /* the guard's noise variance of the cloud (guard_noise; NAN: not tested) */
   double inv_h1sq_global; /* bilateral: 1 / h1^2 */
   /* reverse neighbourhoods: the i whose neighbourhood contains p */
   const size_t *rev_off; /* n + 1 */
@@ -195,6 +196,7 @@ typedef struct smooth_ctx {
   double *tb_pos;   /* threads x 2 tb_cap x 3: a block's local positions, two passes */
   double *tb_step;  /* threads x MP_TSTRIDE: the largest squared move of each pass of a block */
   uint32_t *gcount; /* threads x k: the guard's sheet (guard_fit) */
+  double *svar; /* n x 2: the guard's sheet fit's residual variance and its degrees of freedom */
   bsurf_smooth_tuning tune; /* how the multipass passes run (same bits either way) */
 } smooth_ctx;
 #define GCOUNT(c, thread) (&(c)->gcount[(size_t)(thread) * (size_t)(c)->k])
@@ -248,6 +250,8 @@ static inline double update_finish(const double *x, double P, double S, const do
 #define ctx_init bsurf_i_smooth_ctx_init
 #define ctx_free bsurf_i_smooth_ctx_free
 #define guard_fit bsurf_i_smooth_guard_fit
+#define guard_noise bsurf_i_smooth_guard_noise
+#define guard_misfit bsurf_i_smooth_guard_misfit
 #define gather_multipass_block bsurf_i_smooth_gather_multipass_block
 #define mp_tblock_task bsurf_i_smooth_mp_tblock_task
 #define mp_regions_build bsurf_i_smooth_mp_regions_build
@@ -269,8 +273,10 @@ void ctx_init(smooth_ctx *c, const double *xyz, const bsurf_neighbors *nb,
               const bsurf_smooth_options *o);
 void ctx_free(smooth_ctx *c, int T);
 /* smooth_guard.c */
+double guard_noise(const double *sv, size_t n, size_t stride, double *scratch);
+int guard_misfit(const double *sv, double noise);
 int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
-              const uint32_t *idx, int k, double *F, int *degree);
+              const uint32_t *idx, int k, double *F, int *degree, double *svar);
 /* smooth_lanes.c */
 void gather_multipass_block(void *vc, int thread, size_t blk);
 void mp_tblock_task(void *vc, int thread, size_t r);

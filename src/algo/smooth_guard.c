@@ -134,6 +134,48 @@ static double guard_bimodal(const double *v, int n, double tiny) {
   return bsurf_split_bimodal(v, n, tiny, &cut) ? cut : NAN;
 }
 
+/* chi^2_nu / nu at the standard normal quantile z (Wilson-Hilferty: within
+ * 1% for nu >= 5 at |z| <= 2.33) */
+static double chi2_frac(double nu, double z) {
+  const double a = 2.0 / (9.0 * nu), b = 1.0 - a + z * sqrt(a);
+  return b > 0 ? b * b * b : 0.0;
+}
+#define GUARD_Q1_Z -0.6744897501960817    /* the normal lower quartile */
+#define GUARD_MISFIT_Z 1.6448536269514722 /* the normal quantile of 1 - 0.05 */
+
+/* The cloud's noise variance for the misfit test (docs/smoothing.md, "The
+ * misfit test"): the lower quartile over the sheet fits of s_i^2 / q(nu_i),
+ * s_i^2 = RSS / nu_i a fit's residual variance, q(nu) the lower quartile of
+ * chi^2_nu / nu. Where every fit sees only noise of variance sigma^2, s_i^2 /
+ * q(nu_i) falls below sigma^2 for a quarter of the fits, whatever their
+ * degrees of freedom; fits with misfit (a coarse mesh's creases, two sheets
+ * the guard did not part) only raise the upper part, so up to three
+ * quarters of the fits may be biased. sv: rows of (s^2, nu) with `stride`
+ * doubles; scratch: n doubles. NAN when no fit has a variance. */
+double guard_noise(const double *sv, size_t n, size_t stride, double *scratch) {
+  size_t m = 0;
+  for (size_t i = 0; i < n; i++) {
+    const double s2 = sv[i * stride], nu = sv[i * stride + 1];
+    if (s2 >= 0 && nu >= 1) scratch[m++] = s2 / chi2_frac(nu, GUARD_Q1_Z);
+  }
+  if (!m) return NAN;
+  qsort(scratch, m, sizeof *scratch, bsurf_cmp_double);
+  return scratch[m / 4];
+}
+
+/* 1 when a sheet fit (sv: its s^2 and nu) has more misfit than noise: a
+ * point moved onto it ends farther from the surface, on average, than it
+ * was. Its residual variance estimates sigma^2 + b^2 (b^2 the mean squared
+ * misfit, which is also about the squared bias of its predictions), and a
+ * full move helps when b^2 < sigma^2: the test rejects "s^2 <= 2 sigma^2"
+ * when s^2 exceeds 2 sigma^2 times the upper 5% quantile of chi^2_nu / nu.
+ * noise NAN: no test. */
+int guard_misfit(const double *sv, double noise) {
+  if (!(noise > 0)) return 0;
+  if (!(sv[1] >= 1)) return 0; /* no variance: no fit (moves nothing anyway) */
+  return !(sv[0] <= 2.0 * noise * chi2_frac(sv[1], GUARD_MISFIT_Z));
+}
+
 /* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the
  * positions xyz: F (fit_store's record) and *degree out. Returns the
  * neighbourhood size whose fit passes (negative when the fit is of only part
@@ -142,9 +184,13 @@ static double guard_bimodal(const double *v, int n, double tiny) {
  * thread's scratch (its localfit and est_scratch); act: k entries.
  * Where the first fit's residuals fall in two groups apart (guard_gap), the
  * centre's group is its sheet: the offset and scale come from that sheet's
- * nearest points, and no point beyond the gap belongs to it or is moved. */
+ * nearest points, and no point beyond the gap belongs to it or is moved.
+ * svar (NULL: not wanted): the passing fit's residual variance over its
+ * sheet's points, RSS / nu, and nu = points - coefficients (NAN, 0 when
+ * none passes), for the misfit test (guard_noise, guard_misfit). */
 int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
-              const uint32_t *idx, int k, double *F, int *degree) {
+              const uint32_t *idx, int k, double *F, int *degree, double *svar) {
+  if (svar) svar[0] = NAN, svar[1] = 0;
   /* tiny: the rounding level of residuals, 1e-9 of the neighbourhood's
    * radius in its frame (lf->scale of the plane fit below). Of the
    * neighbourhood's own points only: a tile's neighbour graph has no global
@@ -286,6 +332,18 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
     for (int j = 0; j < ns; j++)
       if (fabs(r[j] - m) <= bin) ss += (r[j] - mean) * (r[j] - mean);
     const double sd = n > 1 ? sqrt(ss / (n - 1)) : 0;
+    if (svar) {
+      /* the sheet's residual variance RSS / (n - p), over the points of its
+       * interval (docs/smoothing.md, "The misfit test", for why not those
+       * of the wider move bound) */
+      double rss = 0;
+      int nin = 0;
+      for (int j = 0; j < kc; j++)
+        if (fabs(r[j] - m) <= bin) rss += r[j] * r[j], nin++;
+      const int p = bsurf_poly_terms(deg);
+      svar[0] = nin > p ? rss / (nin - p) : NAN;
+      svar[1] = nin - p;
+    }
     if (n >= 3 && !(fabs(mean) > tiny &&
                     fabs(mean) * sqrt((double)n) > student_t_quantile(BSURF_GUARD_Z, n - 1) * sd)) {
       /* moves: delta = f - z = -r, so |delta| <= |m| + bound holds the sheet
@@ -295,6 +353,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
       return na < kc ? -kc : kc;
     }
   }
+  if (svar) svar[0] = NAN, svar[1] = 0;
   F[12] = NAN;
   return 0;
 }

@@ -21,9 +21,19 @@
 
 size_t bsurf_smooth_stage_values(const bsurf_smooth_options *o) {
   if (!o || o->method == BSURF_SMOOTH_MULTIPASS) return 0;
-  if (o->method == BSURF_SMOOTH_NAIVE) return 2 + 3;
+  /* W (2), the naive position (3) or the fit record, the guard's sheet
+   * variance and its degrees of freedom (2) */
+  if (o->method == BSURF_SMOOTH_NAIVE) return 2 + 3 + 2;
   if (o->order != BSURF_ORDER_PARALLEL) return 0;
-  return 2 + FIT_HEAD + (size_t)bsurf_poly_terms(o->error.degree);
+  return 2 + FIT_HEAD + (size_t)bsurf_poly_terms(o->error.degree) + 2;
+}
+
+double bsurf_smooth_noise(const double *sv, size_t n, size_t stride, double *scratch) {
+  return guard_noise(sv, n, stride, scratch);
+}
+
+int bsurf_smooth_misfit(const double *sv, double noise) {
+  return guard_misfit(sv, noise);
 }
 
 int bsurf_smooth_degree_test(const bsurf_smooth_options *o) {
@@ -83,19 +93,25 @@ bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb,
     c.out = bsurf_alloc_array(n, 3 * sizeof(double));
   else
     c.fits = bsurf_alloc_array(n, (size_t)c.stride * sizeof(double));
-  if (o.guard) c.gcount = bsurf_alloc_array((size_t)T * (size_t)c.k, sizeof(uint32_t));
-  if (!c.err_632 || !c.err_632plus || !c.scr || !(c.out || c.fits) || (o.guard && !c.gcount))
+  if (o.guard) {
+    c.gcount = bsurf_alloc_array((size_t)T * (size_t)c.k, sizeof(uint32_t));
+    c.svar = bsurf_alloc_array(n ? n : 1, 2 * sizeof(double));
+  }
+  if (!c.err_632 || !c.err_632plus || !c.scr || !(c.out || c.fits) ||
+      (o.guard && (!c.gcount || !c.svar)))
     st = BSURF_ERR_NOMEM;
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = bsurf_error_scratch_alloc(&c.scr[t], c.k, o.error.bootstrap, c.degree);
   if (st == BSURF_OK) st = bsurf_parallel_sweep(n, T, boot_task, &c);
   if (st == BSURF_OK) {
     const double *rest = c.out ? c.out : c.fits;
-    const size_t w = nv - 2;
+    const size_t w = nv - 4;
     for (size_t i = 0; i < n; i++) {
       values[i * nv] = c.err_632[i];
       values[i * nv + 1] = c.err_632plus[i];
       memcpy(&values[i * nv + 2], &rest[i * w], w * sizeof(double));
+      values[i * nv + nv - 2] = c.svar ? c.svar[2 * i] : NAN;
+      values[i * nv + nv - 1] = c.svar ? c.svar[2 * i + 1] : 0;
     }
     if (report) {
       report->replicates_total = n * (size_t)o.error.bootstrap;
@@ -115,7 +131,7 @@ bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb,
 
 bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const double *values,
                                  size_t count, const uint32_t *point, const size_t *rev_off,
-                                 const uint32_t *rev, const bsurf_smooth_options *o,
+                                 const uint32_t *rev, const bsurf_smooth_options *o, double noise,
                                  double *out_xyz, double *moved) {
   const size_t nv = bsurf_smooth_stage_values(o);
   BSURF_REQUIRE(xyz && values && o && out_xyz && moved,
@@ -131,6 +147,8 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
       const size_t p = point ? point[r] : r;
       const double *v = &values[p * nv];
       memcpy(&out_xyz[3 * r], &v[2], 3 * sizeof(double));
+      if (guard_misfit(&v[nv - 2], noise)) /* the point stays, as in bsurf_smooth */
+        memcpy(&out_xyz[3 * r], &xyz[3 * p], 3 * sizeof(double));
       naive_select(v[wc], o->threshold, &xyz[3 * p], &out_xyz[3 * r]);
     }
   } else {
@@ -150,8 +168,10 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
     c.e2 = bsurf_alloc_array(local_count ? local_count : 1, sizeof(double));
     c.w2 = bsurf_alloc_array(local_count ? local_count : 1, sizeof(double));
     if (!c.e2 || !c.w2) st = BSURF_ERR_NOMEM;
-    for (size_t i = 0; i < local_count && st == BSURF_OK; i++)
+    for (size_t i = 0; i < local_count && st == BSURF_OK; i++) {
       set_theta2(&c, i, values[i * nv + (size_t)wc]);
+      if (guard_misfit(&values[i * nv + nv - 2], noise)) c.e2[i] = INFINITY, c.w2[i] = 0;
+    }
     if (st == BSURF_OK)
       st = bsurf_parallel_sweep(count, bsurf_threads_resolve(o->error.threads),
                                 gather_bilateral_task, &c);

@@ -30,10 +30,18 @@ void bsurf_smooth_resolve(bsurf_smooth_options *opts, double h, double mean_w);
  * point[] (NULL: 0..count-1) of xyz; values: stage 1's of every local point.
  * Bilateral: rev[rev_off[r] .. rev_off[r + 1]) are the local indices
  * (increasing global order) of every neighbourhood containing point r;
- * naive: rev NULL. out_xyz: count x 3; moved: count. */
+ * naive: rev NULL. noise: bsurf_smooth_noise's. out_xyz: count x 3; moved: count. */
 bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const double *values,
                                  size_t count, const uint32_t *point, const size_t *rev_off,
                                  const uint32_t *rev, const bsurf_smooth_options *opts,
-                                 double *out_xyz, double *moved);
+                                 double noise, double *out_xyz, double *moved);
+/* The guard's noise variance of the cloud (its misfit test, smooth_guard.c)
+ * from the (variance, degrees of freedom) pairs at sv, rows of `stride`
+ * doubles, of stage 1's values: pass it to stage 2 (NAN: no test).
+ * scratch: n doubles. */
+double bsurf_smooth_noise(const double *sv, size_t n, size_t stride, double *scratch);
+/* 1 when the fit of (variance, degrees of freedom) sv fails the misfit test
+ * at that noise (it moves nothing). */
+int bsurf_smooth_misfit(const double *sv, double noise);
 
 #endif /* BSURF_SMOOTH_STAGES_H */

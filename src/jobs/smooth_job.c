@@ -57,6 +57,7 @@ static bsurf_status add_fields(bsurf_cloud *c, int count) {
 typedef struct smooth_tiles {
   bsurf_smooth_options so; /* resolved for stage 2 */
   size_t nv;               /* stage 1 values per point */
+  double noise;            /* the guard's noise variance (bsurf_smooth_noise) */
   /* naive's map runs on rank 0 in index order: its counts and sums are
    * those of the in-memory loops */
   size_t projected, moved_points;
@@ -115,7 +116,7 @@ static bsurf_status smooth_stage2_run(void *user, const bsurf_tile *tile, bsurf_
     point[r] = tile->nb->idx[r * (size_t)tile->nb->k]; /* each row's point */
   if (st == BSURF_OK)
     st = bsurf_smooth_stage2(tile->xyz, tile->local_count, tile->values, n, point, tile->rev_off,
-                             tile->rev, &t->so, out, tile->values_out);
+                             tile->rev, &t->so, t->noise, out, tile->values_out);
   if (st == BSURF_OK) smooth_store(t, core, tile->values, point, out, tile->values_out);
   free(point);
   free(out);
@@ -130,7 +131,7 @@ static bsurf_status smooth_map(void *user, size_t first, bsurf_cloud *c, const d
   double *out = calloc(n ? n : 1, 3 * sizeof(double)), *moved = calloc(n ? n : 1, sizeof(double));
   bsurf_status st = out && moved ? BSURF_OK : BSURF_ERR_NOMEM;
   if (st == BSURF_OK)
-    st = bsurf_smooth_stage2(c->xyz, n, values, n, NULL, NULL, NULL, &t->so, out, moved);
+    st = bsurf_smooth_stage2(c->xyz, n, values, n, NULL, NULL, NULL, &t->so, t->noise, out, moved);
   if (st == BSURF_OK) {
     const int wc = bsurf_smooth_w_column(&t->so);
     for (size_t r = 0; r < n; r++) {
@@ -173,6 +174,38 @@ static bsurf_status values_sums(const bsurf_tile_values *v, double *sum, size_t 
   }
   free(buf);
   return BSURF_OK;
+}
+
+/* The guard's noise estimate from stage 1's (variance, degrees of freedom)
+ * columns, the last two of every row, as bsurf_smooth makes it (the same
+ * values in index order), and the count of fits its misfit test rejects.
+ * Holds 3 doubles per point in memory. */
+static bsurf_status values_noise(const bsurf_tile_values *v, double *noise, size_t *misfit,
+                                 bsurf_failure *err) {
+  const size_t per = 1 << 16, nv = v->nvalues, n = v->count;
+  double *buf = malloc(per * nv * sizeof(double));
+  double *sv = bsurf_alloc_array(n ? n : 1, 2 * sizeof(double));
+  double *scratch = bsurf_alloc_array(n ? n : 1, sizeof(double));
+  bsurf_status st = buf && sv && scratch ? BSURF_OK : BSURF_ERR_NOMEM;
+  for (size_t i = 0; i < n && st == BSURF_OK; i += per) {
+    size_t m = n - i < per ? n - i : per;
+    if (bsurf_tile_values_read(v, i, m, buf) != BSURF_OK) {
+      st = bsurf_fail(err, BSURF_ERR_IO, 0, -1, "cannot read the scratch file of the first stage");
+      break;
+    }
+    for (size_t r = 0; r < m; r++)
+      memcpy(&sv[2 * (i + r)], &buf[r * nv + nv - 2], 2 * sizeof(double));
+  }
+  if (st == BSURF_OK) {
+    *noise = bsurf_smooth_noise(sv, n, 2, scratch);
+    *misfit = 0;
+    for (size_t i = 0; i < n; i++)
+      *misfit += bsurf_smooth_misfit(&sv[2 * i], *noise);
+  }
+  free(buf);
+  free(sv);
+  free(scratch);
+  return st;
 }
 
 /* Stage 2 (the output) and how far the points moved, in index order:
@@ -245,13 +278,19 @@ static bsurf_status smooth_tiled(const bsurf_job_io *io, const bsurf_smooth_job_
     s->means[0] = vs[0] / (double)s->points;
     s->means[1] = vs[1] / (double)s->points;
     rep->mean_error = vs[bsurf_smooth_w_column(&so)] / (double)s->points;
+    t.noise = NAN;
+    rep->noise = NAN;
+    if (so.guard) {
+      st = values_noise(&vals, &t.noise, &rep->misfit_fits, err);
+      rep->noise = sqrt(t.noise);
+    }
     smooth_lengths(&t.so, o, s->h);
     bsurf_smooth_resolve(&t.so, s->h, rep->mean_error);
     rep->h = s->h;
     rep->threshold = t.so.threshold;
     rep->h1 = t.so.h1;
     rep->h2 = t.so.h2;
-    st = smooth_stage2(io, &t, &ops, &vals, s, err);
+    if (st == BSURF_OK) st = smooth_stage2(io, &t, &ops, &vals, s, err);
   }
   bsurf_tile_values_close(&vals);
   return st;
