@@ -249,18 +249,21 @@ int bsurf_fdist_feature(double v, int state, double thr, double threshold);
  * (bsurf_split_bimodal); then *mu0 is the pair's residual variance (the smallest eigenvalue of the
  * covariance pooled within the two groups). */
 int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr,
-                       double *design, double *resid, double *mu0);
+                       double *design, double *resid, double *mu0, double *border);
 
 /* ---- features --method variance, rule NULL (features_variance.c): the
  * stages of bsurf_detect_features, also run tile by tile. Rows of nb as
  * above; nu and the outputs by row, u of bsurf_fvar_filter by point. ---- */
 typedef struct bsurf_fvar_result {
-  double threshold;      /* t = max(null_threshold, split) on the filtered z */
-  double null_threshold; /* t_alpha: the null patch's (1 - alpha) quantile */
-  double split;          /* Otsu's split of log z (NAN without noise) */
-  double noise_level;    /* s = sqrt(median lambda0) */
-  double sigma0;         /* the null patch's noise (unit density); 0 if none */
+  double threshold;        /* t = max(null_threshold, split) on the filtered z */
+  double null_threshold;   /* t_alpha: the null patch's (1 - alpha) quantile */
+  double split;            /* Otsu's split of log z (NAN without noise) */
+  double noise_level;      /* s = sqrt(median lambda0) */
+  double sigma0;           /* the null patch's noise (unit density); 0 if none */
+  double border_threshold; /* t_b: the null patch's (1 - alpha) quantile of zb */
 } bsurf_fvar_result;
+/* A point is a feature: z > threshold or zb > border_threshold. */
+int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb);
 /* The filter's neighbours k_f (variance_filter_k, 0 = normals.k / 2). */
 int bsurf_fvar_filter_k(const bsurf_feature_options *o);
 /* Per row of the k-neighbourhoods: u = nu d (the design of
@@ -268,7 +271,8 @@ int bsurf_fvar_filter_k(const bsurf_feature_options *o);
  * w (may be NULL): where the neighbourhood holds two parallel sheets
  * (bsurf_pca_l0_trace's test) their pair's residual variance mu0, else -1. */
 bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
-                              const double *nu, double *u, double *l0, double *ratio, double *w);
+                              const double *nu, double *u, double *l0, double *ratio, double *w,
+                              double *b);
 /* z[r] = median of Z over the first kf neighbours of row r, Z_j = u_j / s2
  * (s2 <= 0: u_j), or 0 where w_j (w may be NULL; k-neighbourhoods) says two
  * parallel sheets whose residual variance is within the noise s2's 99%
@@ -278,7 +282,7 @@ bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, d
 /* t: the (1 - false_positive_rate) quantile of z on the flat null patch
  * whose median lambda0 / tr is eta; sigma0 out may be NULL. */
 bsurf_status bsurf_fvar_null_threshold(const bsurf_feature_options *o, double eta, double *t,
-                                       double *sigma0);
+                                       double *tb, double *sigma0);
 /* The neighbourhood size of the variance test (feature_angle > 0): the
  * first of normals.k, 2 normals.k, 4 normals.k ... <= k_cap at which a
  * simulated edge of feature_angle at the cloud's noise (eta = median
