@@ -511,8 +511,8 @@ typedef struct bsurf_kselect_options {
   const int *ks;               /* candidate K, strictly ascending, each >= 7 */
   int nk;                      /* number of candidates */
   int noise_k;                 /* the quadric noise fits' smallest neighbourhood
-                                  and that of the bias pooling (12; >= 12); the
-                                  noise is pooled over the largest candidate's */
+                                  (12; >= 12); the noise is pooled over the
+                                  largest candidate's */
   bsurf_noise_pool noise_pool; /* GLOBAL (default) or LOCAL */
   int threads;                 /* 0 = all cores */
   bsurf_progress_fn progress;

@@ -180,7 +180,11 @@ static void test_k_grows_with_noise(void **state) {
 
 /* On a noisy cube, points near the edges get smaller neighbourhoods than
  * the faces' interiors, and the selection's mean angle error is no worse
- * than the best single candidate K's (chosen in hindsight). */
+ * than the best single candidate K's (chosen in hindsight), over the whole
+ * cloud and over the points near an edge alone (the generator's feature
+ * flag): there the bias changes within a few spacings, which each point's
+ * own drift estimates must see (averaged over 12 neighbours, the former
+ * rule's, they were diluted by the neighbours farther from the edge). */
 static void test_cube_edges(void **state) {
   (void)state;
   noisy_shape s;
@@ -189,31 +193,41 @@ static void test_cube_edges(void **state) {
   select_run(&s, 2, &r);
   const bsurf_field *fe = bsurf_cloud_field(&s.c, "feature");
   assert_non_null(fe);
-  double kf = 0, kn = 0, nf = 0, nn = 0, err = 0;
+  double kf = 0, kn = 0, nf = 0, nn = 0, err = 0, errf = 0;
   const size_t n = s.c.point_count;
   for (size_t i = 0; i < n; i++) {
+    const double e = angle_u(&r.normals[3 * i], &s.clean_normals[3 * i]);
     if (fe->values[i] > 0.5)
-      kf += r.k[i], nf++;
+      kf += r.k[i], nf++, errf += e;
     else
       kn += r.k[i], nn++;
-    err += angle_u(&r.normals[3 * i], &s.clean_normals[3 * i]);
+    err += e;
   }
   assert_true(nf > 100 && nn > 100);
   assert_true(kf / nf < 0.8 * (kn / nn));
   err /= n;
-  double *fixed = malloc(3 * n * sizeof(double)), best = INFINITY;
+  errf /= nf;
+  double *fixed = malloc(3 * n * sizeof(double)), best = INFINITY, bestf = INFINITY;
   for (int a = 0; a < NKS; a++) {
     bsurf_normal_options o = bsurf_normal_options_default();
     o.k = KS[a];
     o.bootstrap = 0;
     bsurf_normal_fields out = {fixed, NULL, NULL};
     assert_int_equal(bsurf_estimate_normals(s.c.xyz, &s.nb, NULL, &o, &out, NULL), BSURF_OK);
-    double e = 0;
-    for (size_t i = 0; i < n; i++)
-      e += angle_u(&fixed[3 * i], &s.clean_normals[3 * i]);
+    double e = 0, ef = 0;
+    for (size_t i = 0; i < n; i++) {
+      const double d = angle_u(&fixed[3 * i], &s.clean_normals[3 * i]);
+      e += d;
+      if (fe->values[i] > 0.5) ef += d;
+    }
     if (e / n < best) best = e / n;
+    if (ef / nf < bestf) bestf = ef / nf;
   }
+  print_message("cube: selection %.5f (edges %.5f, K %.1f; faces K %.1f), best fixed K %.5f "
+                "(edges %.5f)\n",
+                err, errf, kf / nf, kn / nn, best, bestf);
   assert_true(err <= best);
+  assert_true(errf <= bestf);
   free(fixed);
   sel_free(&r);
   shape_free(&s);
@@ -237,11 +251,12 @@ static double fixed_k_error(const noisy_shape *s, int k) {
 
 /* On a smooth sphere with noise (seed fixed), where larger K is better up to
  * K_max, the selection beats the smallest candidate K by far and comes
- * within 30% of the best candidate (K = 80; measured: 0.0124 against
- * 0.0099, K = 15 0.051, mean K 72.6): the drift term must not mistake the
- * small candidates' noise for bias (hence its pooled, signed estimate; the
- * first version of the rule was 2.6x the best K on the development set's
- * anisotropic sphere, 1.3x with this one). */
+ * within 30% of the best candidate (K = 80; measured: 0.01089 against
+ * 0.00993, K = 15 0.0510, mean K 73.9; with the drifts averaged over 12
+ * neighbours, the former rule: 0.0124, mean K 72.6): the drift term must
+ * not mistake the small candidates' noise for bias (hence its Bonferroni
+ * allowance; the first version of the rule, one draw at c = 2, was 2.6x the
+ * best K on the development set's anisotropic sphere). */
 static void test_sphere_smooth(void **state) {
   (void)state;
   noisy_shape s;
@@ -254,6 +269,8 @@ static void test_sphere_smooth(void **state) {
     err += angle_u(&r.normals[3 * i], &s.clean_normals[3 * i]);
   err /= n;
   const double e15 = fixed_k_error(&s, 15), e80 = fixed_k_error(&s, 80);
+  print_message("sphere: selection %.5f (K %.1f), K = 15 %.5f, K = 80 %.5f\n", err, mean_k(&r, n),
+                e15, e80);
   assert_true(e80 < e15);
   assert_true(err < 0.5 * e15);
   assert_true(err <= 1.3 * e80);
@@ -272,8 +289,12 @@ static double sel_error(const noisy_shape *s, const sel_out *r) {
  * the cloud (the default) every point's estimate is the same number, and
  * on a torus with Gaussian noise (seed fixed), whose best fixed K is the
  * largest, the selection comes closer to it than with each point's own
- * level (measured: 0.0252, mean K 75.0, against 0.0260, mean K 73.9; the
- * best fixed K, 80: 0.0240; the global sigma 0.570 h for 0.6 h). */
+ * level (measured: 0.02751, mean K 71.3, against 0.02877, mean K 70.5; the
+ * best fixed K, 80: 0.02402; the global sigma 0.570 h for 0.6 h). The bound
+ * against the best fixed K is 1.2: each point's own drift estimates at the
+ * Bonferroni level charge about 5% of a smooth surface's points a bias that
+ * is noise (1.145x here; 1.05x when the drifts were averaged over 12
+ * neighbours, which missed sharp edges: test_cube_edges). */
 static void test_noise_pool(void **state) {
   (void)state;
   noisy_shape s;
@@ -296,7 +317,7 @@ static void test_noise_pool(void **state) {
       eg, mean_k(&g, n), el, mean_k(&l, n), best, g.noise[0] / s.h);
   assert_true(fabs(g.noise[0] / (0.6 * s.h) - 1) < 0.1);
   assert_true(eg < el);
-  assert_true(eg <= 1.08 * best);
+  assert_true(eg <= 1.2 * best);
   sel_free(&g);
   sel_free(&l);
   shape_free(&s);
