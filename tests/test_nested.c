@@ -202,10 +202,12 @@ static void test_smallest_eigenvector(void **state) {
 }
 
 /* Every candidate's sums equal a separate weighted sum over its own first K
- * neighbours (same order: same bits); distinct counts the nonzero weights. */
+ * neighbours (same order: same bits); distinct counts the nonzero weights.
+ * Lane counts R of every remainder: the vector groups of 8 and 4, the last
+ * group overlapping the one before, and single lanes. */
 static void test_nested_sums(void **state) {
   (void)state;
-  enum { KMAX = 40, R = 9, NK = 4 };
+  enum { KMAX = 40, RMAX = 50, NK = 4 };
   const int ks[NK] = {5, 12, 13, 40};
   double xyz[3 * KMAX];
   uint32_t idx[KMAX];
@@ -216,36 +218,40 @@ static void test_nested_sums(void **state) {
     for (int t = 0; t < 3; t++)
       xyz[3 * j + t] = 1000 + bsurf_rng_normal(&r);
   }
-  double terms[KMAX * BSURF_NESTED_COLS], Wt[KMAX * R], sums[NK * BSURF_NESTED_COLS * R];
-  int distinct[NK * R];
+  static double terms[KMAX * BSURF_NESTED_COLS], Wt[KMAX * RMAX],
+      sums[NK * BSURF_NESTED_COLS * RMAX], cov[6 * RMAX];
+  static int distinct[NK * RMAX], ok[RMAX];
   uint32_t u[KMAX];
   uint8_t x[KMAX];
   bsurf_nested_terms(xyz, idx, KMAX, terms);
-  bsurf_boot_poisson_rows(5, 17, R, KMAX, u, x, Wt);
-  bsurf_nested_sums(terms, KMAX, R, Wt, ks, NK, sums, distinct);
-  for (int c = 0; c < NK; c++)
-    for (int b = 0; b < R; b++) {
-      double want[BSURF_NESTED_COLS] = {0};
-      int nz = 0;
-      for (int j = 0; j < ks[c]; j++) {
+  const int Rs[] = {1, 2, 3, 4, 5, 7, 8, 9, 12, 13, 17, 50};
+  for (size_t ri = 0; ri < sizeof Rs / sizeof Rs[0]; ri++) {
+    const int R = Rs[ri];
+    bsurf_boot_poisson_rows(5, 17, R, KMAX, u, x, Wt);
+    bsurf_nested_sums(terms, KMAX, R, Wt, ks, NK, sums, distinct);
+    for (int c = 0; c < NK; c++)
+      for (int b = 0; b < R; b++) {
+        double want[BSURF_NESTED_COLS] = {0};
+        int nz = 0;
+        for (int j = 0; j < ks[c]; j++) {
+          for (int col = 0; col < BSURF_NESTED_COLS; col++)
+            want[col] += Wt[j * R + b] * terms[j * BSURF_NESTED_COLS + col];
+          nz += Wt[j * R + b] != 0;
+        }
         for (int col = 0; col < BSURF_NESTED_COLS; col++)
-          want[col] += Wt[j * R + b] * terms[j * BSURF_NESTED_COLS + col];
-        nz += Wt[j * R + b] != 0;
+          assert_memory_equal(&sums[(c * BSURF_NESTED_COLS + col) * R + b], &want[col],
+                              sizeof(double));
+        assert_int_equal(distinct[c * R + b], nz);
+        /* the lanes' covariances are the row-by-row ones */
+        double mu[3], one[6];
+        bsurf_nested_cov_lanes(&sums[c * BSURF_NESTED_COLS * R], R, BSURF_PCA_CENTROID, cov, ok);
+        assert_int_equal(
+            bsurf_nested_cov(&sums[c * BSURF_NESTED_COLS * R + b], R, BSURF_PCA_CENTROID, mu, one),
+            ok[b] ? 0 : -1);
+        for (int t = 0; ok[b] && t < 6; t++)
+          assert_memory_equal(&cov[t * R + b], &one[t], sizeof(double));
       }
-      for (int col = 0; col < BSURF_NESTED_COLS; col++)
-        assert_memory_equal(&sums[(c * BSURF_NESTED_COLS + col) * R + b], &want[col],
-                            sizeof(double));
-      assert_int_equal(distinct[c * R + b], nz);
-      /* the lanes' covariances are the row-by-row ones */
-      double cov[6 * R], mu[3], one[6];
-      int ok[R];
-      bsurf_nested_cov_lanes(&sums[c * BSURF_NESTED_COLS * R], R, BSURF_PCA_CENTROID, cov, ok);
-      assert_int_equal(
-          bsurf_nested_cov(&sums[c * BSURF_NESTED_COLS * R + b], R, BSURF_PCA_CENTROID, mu, one),
-          ok[b] ? 0 : -1);
-      for (int t = 0; ok[b] && t < 6; t++)
-        assert_memory_equal(&cov[t * R + b], &one[t], sizeof(double));
-    }
+  }
 }
 
 /* Poisson(1) weights: mean 1, variance 1, P(0) = 1/e, at a fixed seed over
