@@ -70,6 +70,63 @@ static void test_angle_sum_accuracy(void **state) {
   assert_true(worst <= 2 * 2.3e-16);
 }
 
+/* Eq. 5.5 in bsurf_nested_summary: the angles between the first valid
+ * replicate and each (after the orientation to n_P, in place), oriented
+ * (up to pi), against libm's atan2 of the same cross and dot products
+ * within 2 ulp relative; the variance from them; invalid replicates (any
+ * values) left out. */
+static void test_summary_angles(void **state) {
+  (void)state;
+  enum { B = 45 };
+  bsurf_rng r;
+  bsurf_rng_init(&r, 8, 3, 4);
+  double bn[3 * B], ang[B], worst = 0;
+  unsigned char valid[B];
+  for (int it = 0; it < 200; it++) {
+    double nP[3] = {bsurf_rng_normal(&r), bsurf_rng_normal(&r), bsurf_rng_normal(&r)};
+    unit(nP);
+    const double spread = it % 4 == 0 ? 3.0 : pow(10, -8 * bsurf_rng_uniform(&r));
+    for (int b = 0; b < B; b++) {
+      double *v = &bn[3 * b];
+      for (int t = 0; t < 3; t++)
+        v[t] = (b % 2 ? -nP[t] : nP[t]) + spread * bsurf_rng_normal(&r);
+      unit(v);
+      valid[b] = (b + it) % 7 != 1;
+      if (!valid[b]) v[0] = NAN; /* never read */
+    }
+    double nrm[3], var;
+    const int nv = bsurf_nested_summary(B, nP, bn, valid, nrm, &var, ang);
+    int first = -1, count = 0;
+    double mean = 0;
+    double want[B];
+    for (int b = 0; b < B; b++) {
+      if (!valid[b]) continue;
+      if (first < 0) first = b;
+      const double *g = &bn[3 * first], *v = &bn[3 * b];
+      const double c[3] = {g[1] * v[2] - g[2] * v[1], g[2] * v[0] - g[0] * v[2],
+                           g[0] * v[1] - g[1] * v[0]};
+      want[b] = atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+                      g[0] * v[0] + g[1] * v[1] + g[2] * v[2]);
+      if (b == first)
+        assert_true(ang[b] == 0.0);
+      else {
+        const double rel = fabs(ang[b] - want[b]) / want[b];
+        if (rel > worst) worst = rel;
+      }
+      mean += want[b];
+      count++;
+    }
+    assert_int_equal(nv, count);
+    mean /= count;
+    double v2 = 0;
+    for (int b = 0; b < B; b++)
+      if (valid[b]) v2 += (want[b] - mean) * (want[b] - mean);
+    v2 /= count - 1;
+    assert_true(fabs(var - v2) <= 1e-12 * v2 + 1e-300);
+  }
+  assert_true(worst <= 2 * 2.3e-16);
+}
+
 /* The polynomial's normals at every point against libm's atan2 of the cross
  * and dot products of (-f_u s^-1, -f_v s^-1, 1) from the basis's gradient:
  * within 1e-13 relative (about 1e-14 measured: the slopes' rounding, formed
@@ -504,10 +561,10 @@ static void test_select_kd(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_angle_sum_accuracy), cmocka_unit_test(test_smallest_eigenvector),
-      cmocka_unit_test(test_nested_sums),        cmocka_unit_test(test_poisson_weights),
-      cmocka_unit_test(test_select_k),           cmocka_unit_test(test_field_angle_accuracy),
-      cmocka_unit_test(test_select_kd),
+      cmocka_unit_test(test_angle_sum_accuracy),   cmocka_unit_test(test_summary_angles),
+      cmocka_unit_test(test_smallest_eigenvector), cmocka_unit_test(test_nested_sums),
+      cmocka_unit_test(test_poisson_weights),      cmocka_unit_test(test_select_k),
+      cmocka_unit_test(test_field_angle_accuracy), cmocka_unit_test(test_select_kd),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
