@@ -250,37 +250,22 @@ q1_angle(double c0, double c1, double c2, double dot, int one_div) {
   return y > x ? as : a;
 }
 
-/* The unoriented angle between unit g and each (rx, ry, rz)[j]: atan2(|g x
- * r|, |g . r|) as angle_between, with atan2 of the first quadrant reduced
- * to atan of a ratio <= 1 (pi/2 - atan(x / y) above the diagonal). */
+/* The angle between unit g and each (rx, ry, rz)[j]. Unoriented (Eq.
+ * 5.10): atan2(|g x r|, |g . r|) as angle_between, with atan2 of the first
+ * quadrant reduced to atan of a ratio <= 1 (pi/2 - atan(x / y) above the
+ * diagonal). Oriented (Eq. 5.5, in [0, pi]): atan2(|g x r|, g . r) as
+ * libm's atan2 in bsurf_angle_between, the first quadrant's angle reflected
+ * to pi - a where g . r < 0 (pi split in two as pi / 2 is); in vector lanes,
+ * where Eq. 5.5's variance took libm's atan2 one call at a time (6-9% of
+ * `normals -B 50`). Within 2 ulp of atan2 (tests/test_nested.c). */
 #if defined(__GNUC__) && !defined(__clang__)
 /* selects between computed values, not branches: the values are the same,
  * but GCC vectorises the loop only when it may ignore FP exception flags */
 __attribute__((optimize("no-trapping-math")))
 #endif
-BSURF_CLONES static void
-angles(const double g[3], const double *restrict rx, const double *restrict ry,
-       const double *restrict rz, int k, double *restrict out) {
-  const double g0 = g[0], g1 = g[1], g2 = g[2];
-  for (int j = 0; j < k; j++) {
-    const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
-                 c2 = g0 * ry[j] - g1 * rx[j];
-    out[j] = q1_angle(c0, c1, c2, g0 * rx[j] + g1 * ry[j] + g2 * rz[j], 0);
-  }
-}
-
-/* The angle in [0, pi] between unit g and each (rx, ry, rz)[j]:
- * atan2(|g x r|, g . r), as libm's atan2 in bsurf_angle_between (oriented),
- * by q1_angle of |g . r| (Cephes' atan, within 2 ulp of atan2 over the
- * first quadrant) reflected to pi - a where g . r < 0 (pi split in two as
- * pi / 2 is). In vector lanes: Eq. 5.5's variance took libm's atan2 one
- * call at a time, 6-9% of `normals -B 50`. */
-#if defined(__GNUC__) && !defined(__clang__)
-__attribute__((optimize("no-trapping-math")))
-#endif
-BSURF_CLONES static void
-oriented_angles(const double g[3], const double *restrict rx, const double *restrict ry,
-                const double *restrict rz, int k, double *restrict out) {
+static inline __attribute__((always_inline)) void
+angles_loop(const double g[3], const double *restrict rx, const double *restrict ry,
+            const double *restrict rz, int k, double *restrict out, int oriented) {
   const double g0 = g[0], g1 = g[1], g2 = g[2];
   for (int j = 0; j < k; j++) {
     const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
@@ -288,8 +273,21 @@ oriented_angles(const double g[3], const double *restrict rx, const double *rest
     const double dot = g0 * rx[j] + g1 * ry[j] + g2 * rz[j];
     const double a = q1_angle(c0, c1, c2, dot, 0);
     const double ar = (2 * PIO2 - a) + 2 * MOREBITS;
-    out[j] = dot < 0 ? ar : a;
+    out[j] = oriented && dot < 0 ? ar : a;
   }
+}
+
+/* angles_loop with `oriented` a constant in each copy */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+BSURF_CLONES static void
+angles(const double g[3], const double *rx, const double *ry, const double *rz, int k, double *out,
+       int oriented) {
+  if (oriented)
+    angles_loop(g, rx, ry, rz, k, out, 1);
+  else
+    angles_loop(g, rx, ry, rz, k, out, 0);
 }
 
 /* sum_j a[j], j < k, as four running sums (j mod 4) then combined: a fixed
@@ -307,7 +305,7 @@ static double fixed_sum(const double *a, int k) {
 
 double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
                               const double *rz, int k, int kread, double *scratch) {
-  angles(g, rx, ry, rz, kread > k ? kread : k, scratch);
+  angles(g, rx, ry, rz, kread > k ? kread : k, scratch, 0);
   return fixed_sum(scratch, k);
 }
 
@@ -422,7 +420,7 @@ int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned c
         const int ok = valid[b0 + j];
         rx[j] = ok ? n[0] : 0.0, ry[j] = ok ? n[1] : 0.0, rz[j] = ok ? n[2] : 1.0;
       }
-      oriented_angles(&bn[3 * first], rx, ry, rz, nb, &ang[b0]);
+      angles(&bn[3 * first], rx, ry, rz, nb, &ang[b0], 1);
     }
     double mean = 0;
     for (int b = 0; b < B; b++)
