@@ -168,23 +168,19 @@ size_t bsurf_knn_point_count(const bsurf_knn_index *index) {
   return index ? index->n : 0;
 }
 
-bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz, size_t point_count) {
-  return bsurf_knn_build_threads(index, xyz, point_count, 1);
-}
-
-bsurf_status bsurf_knn_build_threads(bsurf_knn_index **index, const double *xyz, size_t point_count,
-                                     int threads) {
+/* bsurf_knn_build(_threads); messages name `who`. */
+static bsurf_status knn_build(const char *who, bsurf_knn_index **index, const double *xyz,
+                              size_t point_count, int threads) {
   bsurf_knn_index *ix;
   knn_builder b;
   size_t max_nodes;
 
-  BSURF_REQUIRE(index, "index is NULL");
+  BSURF_REQUIRE_IN(who, index, "index is NULL");
   *index = NULL;
-  if (point_count == 0)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "bsurf_knn_build: no points");
-  BSURF_REQUIRE(xyz, "xyz is NULL");
-  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points",
-                point_count);
+  if (point_count == 0) return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "%s: no points", who);
+  BSURF_REQUIRE_IN(who, xyz, "xyz is NULL");
+  BSURF_REQUIRE_IN(who, point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points",
+                   point_count);
 
   ix = calloc(1, sizeof *ix);
   if (!ix) return BSURF_ERR_NOMEM;
@@ -240,6 +236,15 @@ bsurf_status bsurf_knn_build_threads(bsurf_knn_index **index, const double *xyz,
   ix->node_count = max_nodes;
   *index = ix;
   return BSURF_OK;
+}
+
+bsurf_status bsurf_knn_build(bsurf_knn_index **index, const double *xyz, size_t point_count) {
+  return knn_build("bsurf_knn_build", index, xyz, point_count, 1);
+}
+
+bsurf_status bsurf_knn_build_threads(bsurf_knn_index **index, const double *xyz, size_t point_count,
+                                     int threads) {
+  return knn_build("bsurf_knn_build_threads", index, xyz, point_count, threads);
 }
 
 const uint32_t *bsurf_knn_tree_ids(const bsurf_knn_index *index) {
