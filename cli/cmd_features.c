@@ -56,7 +56,9 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
        "or mad (on log normal_var)",
        1, 0},
       {0, "false-positive-rate", ARG_DOUBLE, &fo.false_positive_rate, "A",
-       "variance, rule null: share of a flat area flagged", 1e-9, 0.999999},
+       "variance, rule null: share of a flat area flagged by each of the two tests (the "
+       "variance and the border test)",
+       1e-9, 0.999999},
       {0, "variance-filter-k", ARG_INT, &fo.variance_filter_k, "K",
        "variance, rule null: neighbours of the median filter (0 = K/2, 1 = none)", 0, 65535},
       {0, "feature-angle", ARG_DOUBLE, &fo.feature_angle, "DEG",
@@ -152,6 +154,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
         json_int(&j, "variance_filter_k",
                  fo.variance_filter_k ? fo.variance_filter_k : (rep.k / 2 > 1 ? rep.k / 2 : 1));
         json_num(&j, "noise_level", rep.noise_level);
+        json_num(&j, "border_threshold", rep.border_threshold);
         json_num(&j, "feature_angle", fo.feature_angle);
         if (fo.feature_angle > 0) {
           json_int(&j, "k_base", fo.normals.k);
@@ -185,6 +188,9 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     printf("  threshold %.6g on %s (%s): %zu feature points (%.2f%%)\n", rep.threshold, score_name,
            isnan(fo.threshold) ? "auto" : "given", rep.feature_points,
            n ? 100.0 * (double)rep.feature_points / (double)n : 0.0);
+    if (null_rule)
+      printf("  or border score above %.6g (the border test at the same false-positive rate)\n",
+             rep.border_threshold);
     if (null_rule && fo.feature_angle > 0)
       printf("  K %d (from %d: a %g degree edge at this noise passes the test at %.0f%% of its "
              "points)\n",

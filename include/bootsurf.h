@@ -764,7 +764,11 @@ typedef struct bsurf_feature_options {
    * neighbourhood is two parallel flat sheets), median-filtered over the first
    * variance_filter_k neighbours; a point is a feature when it exceeds the
    * (1 - false_positive_rate) quantile of the same score on a simulated flat
-   * patch with the cloud's noise level (docs/features.md). */
+   * patch with the cloud's noise level, or when its border score zb (k
+   * |tangential offset of the neighbourhood's centroid|^2 / (lambda1 +
+   * lambda2), median-filtered likewise) exceeds that patch's (1 -
+   * false_positive_rate) quantile of zb: a border, e.g. a thin part's rim
+   * (docs/features.md). */
   double false_positive_rate; /* in (0, 1) (0.01) */
   int variance_filter_k;      /* 1 = no filter; 0 = normals.k / 2 (0) */
   /* variance, tail_rule NULL: the neighbourhood grows from normals.k (x 2
@@ -801,6 +805,10 @@ typedef struct bsurf_feature_report {
   double noise_level;          /* variance, rule NULL: sqrt of the median
                                   smallest PCA eigenvalue (the noise sigma
                                   the null patch is given); else NAN */
+  double border_threshold;     /* variance, rule NULL: the border test's
+                                  threshold on the filtered border score zb
+                                  (a point is also a feature when zb exceeds
+                                  it); else NAN */
 } bsurf_feature_report;
 
 /* Feature detection. nb: neighbourhoods with nb->k >= k_max (distance) or

@@ -33,7 +33,7 @@ static void test_angle_sum_accuracy(void **state) {
   (void)state;
   bsurf_rng r;
   bsurf_rng_init(&r, 7, 1, 2);
-  double rx[64], ry[64], rz[64], sc[64];
+  double rx[64], ry[64], rz[64];
   double worst = 0;
   for (int it = 0; it < 400; it++) {
     double g[3] = {bsurf_rng_normal(&r), bsurf_rng_normal(&r), bsurf_rng_normal(&r)};
@@ -47,7 +47,7 @@ static void test_angle_sum_accuracy(void **state) {
       rx[j] = v[0], ry[j] = v[1], rz[j] = v[2];
     }
     for (int j = 0; j < 64; j++) {
-      const double got = bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1, 1, sc);
+      const double got = bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1);
       const double c[3] = {g[1] * rz[j] - g[2] * ry[j], g[2] * rx[j] - g[0] * rz[j],
                            g[0] * ry[j] - g[1] * rx[j]};
       const double want = atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
@@ -59,13 +59,8 @@ static void test_angle_sum_accuracy(void **state) {
     /* the sum equals the sum of its terms (up to the order of additions) */
     double sum = 0;
     for (int j = 0; j < 64; j++)
-      sum += bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1, 1, sc);
-    assert_true(fabs(bsurf_nested_angle_sum(g, rx, ry, rz, 64, 64, sc) - sum) <= 1e-14 * sum);
-    /* angles evaluated past k (kread, the padded vectors) are not summed:
-     * the same bits as without them */
-    const double a37 = bsurf_nested_angle_sum(g, rx, ry, rz, 37, 37, sc);
-    assert_true(bsurf_nested_angle_sum(g, rx, ry, rz, 37, 40, sc) == a37);
-    assert_true(bsurf_nested_angle_sum(g, rx, ry, rz, 37, 64, sc) == a37);
+      sum += bsurf_nested_angle_sum(g, rx + j, ry + j, rz + j, 1);
+    assert_true(fabs(bsurf_nested_angle_sum(g, rx, ry, rz, 64) - sum) <= 1e-14 * sum);
   }
   assert_true(worst <= 2 * 2.3e-16);
 }
@@ -125,6 +120,49 @@ static void test_summary_angles(void **state) {
     assert_true(fabs(var - v2) <= 1e-12 * v2 + 1e-300);
   }
   assert_true(worst <= 2 * 2.3e-16);
+}
+
+/* The angle sums of many (candidate, replicate) pairs in lanes: each pair's
+ * sum has the bits of its own bsurf_nested_angle_sum, in the fixed order
+ * (four running sums by j mod 4), whatever the other pairs: counts from 1
+ * to 64 (non-decreasing, several pairs a count, as the candidates' B
+ * replicates), more pairs than one chunk of lanes, pairs marked invalid. */
+static void test_angle_sums_pairs(void **state) {
+  (void)state;
+  bsurf_rng r;
+  bsurf_rng_init(&r, 9, 4, 5);
+  enum { K = 64, P = 700 };
+  double rx[K], ry[K], rz[K], g[3 * P], sums[P];
+  int kl[P];
+  unsigned char valid[P];
+  for (int j = 0; j < K; j++) {
+    double v[3] = {bsurf_rng_normal(&r), bsurf_rng_normal(&r), bsurf_rng_normal(&r)};
+    unit(v);
+    rx[j] = v[0], ry[j] = v[1], rz[j] = v[2];
+  }
+  for (int p = 0; p < P; p++) {
+    double *v = &g[3 * p];
+    v[0] = bsurf_rng_normal(&r), v[1] = bsurf_rng_normal(&r), v[2] = bsurf_rng_normal(&r);
+    unit(v);
+    kl[p] = 1 + p * K / P; /* 1 .. 64, about 11 pairs each */
+    valid[p] = p % 13 != 5;
+  }
+  bsurf_nested_angle_sums(P, g, valid, kl, rx, ry, rz, sums);
+  for (int p = 0; p < P; p++) {
+    if (!valid[p]) continue;
+    const double *v = &g[3 * p];
+    assert_true(sums[p] == bsurf_nested_angle_sum(v, rx, ry, rz, kl[p]));
+    /* the fixed order, from the angles one at a time */
+    double s4[4] = {0, 0, 0, 0};
+    for (int j = 0; j < kl[p]; j++)
+      s4[j % 4] += bsurf_nested_angle_sum(v, rx + j, ry + j, rz + j, 1);
+    assert_true(sums[p] == (s4[0] + s4[1]) + (s4[2] + s4[3]));
+  }
+  /* a subset of the pairs gives the same bits */
+  double part[P];
+  bsurf_nested_angle_sums(P - 301, g + 3 * 301, valid + 301, kl + 301, rx, ry, rz, part);
+  for (int p = 301; p < P; p++)
+    if (valid[p]) assert_true(part[p - 301] == sums[p]);
 }
 
 /* The polynomial's normals at every point against libm's atan2 of the cross
@@ -279,12 +317,11 @@ static void test_nested_sums(void **state) {
       sums[NK * BSURF_NESTED_COLS * RMAX], cov[6 * RMAX];
   static int distinct[NK * RMAX], ok[RMAX];
   uint32_t u[KMAX];
-  uint8_t x[KMAX];
   bsurf_nested_terms(xyz, idx, KMAX, terms);
   const int Rs[] = {1, 2, 3, 4, 5, 7, 8, 9, 12, 13, 17, 50};
   for (size_t ri = 0; ri < sizeof Rs / sizeof Rs[0]; ri++) {
     const int R = Rs[ri];
-    bsurf_boot_poisson_rows(5, 17, R, KMAX, u, x, Wt);
+    bsurf_boot_poisson_rows(5, 17, R, KMAX, u, Wt);
     bsurf_nested_sums(terms, KMAX, R, Wt, ks, NK, sums, distinct);
     for (int c = 0; c < NK; c++)
       for (int b = 0; b < R; b++) {
@@ -319,14 +356,13 @@ static void test_poisson_weights(void **state) {
   enum { K = 100, B = 40 };
   static double Wt[K * B], Wt2[K * 7];
   uint32_t u[K];
-  uint8_t x[K];
   double s = 0, s2 = 0, zeros = 0;
   const int points = 50;
   for (int p = 0; p < points; p++) {
-    bsurf_boot_poisson_rows(9, (uint64_t)p, B, K, u, x, Wt);
+    bsurf_boot_poisson_rows(9, (uint64_t)p, B, K, u, Wt);
     for (int t = 0; t < K * B; t++)
       s += Wt[t], s2 += Wt[t] * Wt[t], zeros += Wt[t] == 0;
-    bsurf_boot_poisson_rows(9, (uint64_t)p, 7, K, u, x, Wt2);
+    bsurf_boot_poisson_rows(9, (uint64_t)p, 7, K, u, Wt2);
     for (int j = 0; j < K; j++)
       for (int b = 0; b < 7; b++)
         assert_true(Wt2[j * 7 + b] == Wt[j * B + b]);
@@ -561,10 +597,11 @@ static void test_select_kd(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_angle_sum_accuracy),   cmocka_unit_test(test_summary_angles),
-      cmocka_unit_test(test_smallest_eigenvector), cmocka_unit_test(test_nested_sums),
-      cmocka_unit_test(test_poisson_weights),      cmocka_unit_test(test_select_k),
-      cmocka_unit_test(test_field_angle_accuracy), cmocka_unit_test(test_select_kd),
+      cmocka_unit_test(test_angle_sum_accuracy), cmocka_unit_test(test_summary_angles),
+      cmocka_unit_test(test_angle_sums_pairs),   cmocka_unit_test(test_smallest_eigenvector),
+      cmocka_unit_test(test_nested_sums),        cmocka_unit_test(test_poisson_weights),
+      cmocka_unit_test(test_select_k),           cmocka_unit_test(test_field_angle_accuracy),
+      cmocka_unit_test(test_select_kd),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

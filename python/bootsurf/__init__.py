@@ -498,8 +498,11 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
     threshold. The default automatic rule (tail_rule='null') tests the
     normalised, median-filtered variance z = median(nu d / s^2) against the
     same score on a simulated flat patch at the cloud's measured noise, at
-    false_positive_rate, and splits by Otsu on log z above that
-    (docs/features.md); the score field is then 'variance_z'. 'otsu' and
+    false_positive_rate, and splits by Otsu on log z above that; a point is
+    also a feature where the border test (the centroid's offset in the
+    tangent plane, median-filtered, against the same patch at the same rate)
+    says it lies on a border, e.g. a thin part's rim (docs/features.md); the
+    score field is then 'variance_z'. 'otsu' and
     'mad' split log normal_var (the score field 'normal_var').
 
     Options:
@@ -522,7 +525,8 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
                        patch at the measured noise), otsu or mad (on log
                        normal_var) (null)
       false_positive_rate  variance, rule null: share of a flat area
-                       flagged (0.01)
+                       flagged by each of the two tests, variance and
+                       border (0.01)
       variance_filter_k    variance, rule null: neighbours of the median
                        filter (0 = K/2, 1 = none) (0)
       feature_angle    variance, rule null: K doubles from neighbors until a
@@ -536,7 +540,8 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
     ('feature_dist', 'variance_z' or 'normal_var', float64); summary with
     points, h, duplicates and report (threshold, feature_points, max_radius,
     immediate, ratio_threshold_kmin, noise_level, k: the variance test's
-    neighbourhood, edge_power: the simulated edge's detected share at k).
+    neighbourhood, edge_power: the simulated edge's detected share at k,
+    border_threshold: the border test's threshold).
     """
     thr = _math.nan if threshold == "auto" else float(threshold)
     pts, tiled = _job_input(points, output, tile_points)

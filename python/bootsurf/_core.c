@@ -904,11 +904,12 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   return job_result(
       NULL, fields,
       job_summary(s.points, s.h, s.duplicates, s.tile_points, s.tiles,
-                  Py_BuildValue("{s:{s:d,s:n,s:d,s:n,s:d,s:d,s:i,s:d}}", "report", "threshold",
+                  Py_BuildValue("{s:{s:d,s:n,s:d,s:n,s:d,s:d,s:i,s:d,s:d}}", "report", "threshold",
                                 r->threshold, "feature_points", (Py_ssize_t)r->feature_points,
                                 "max_radius", r->max_radius, "immediate", (Py_ssize_t)r->immediate,
                                 "ratio_threshold_kmin", r->ratio_threshold_kmin, "noise_level",
-                                r->noise_level, "k", r->k, "edge_power", r->edge_power)));
+                                r->noise_level, "k", r->k, "edge_power", r->edge_power,
+                                "border_threshold", r->border_threshold)));
 }
 
 /* ---- synthetic data ---- */

@@ -131,15 +131,20 @@ int bsurf_nested_cov(const double *sums, size_t stride, bsurf_pca_center center,
 void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center, double *cov,
                             int *ok);
 /* sum_j theta(g, r_j), j < k: the unoriented angles (atan2(|g x r|, |g . r|),
- * within 2 ulp of the C library's, tests/test_normals.c) between unit g and
- * the unit vectors (rx, ry, rz)[j] in vector lanes, summed in a fixed order.
- * The angles are evaluated for j < max(k, kread) (rx, ry, rz and scratch
- * hold that many), only the first k summed: a caller whose arrays are padded
- * passes kread = k rounded up to a multiple of 8, so that the vector loop
- * has no scalar tail (the sum, and so the result, does not depend on kread).
- * The inner sum of Eq. 5.10. */
+ * within 2 ulp of the C library's, tests/test_nested.c) between unit g and
+ * the unit vectors (rx, ry, rz)[j], summed in a fixed order (four running
+ * sums by j mod 4 from +0, combined as (s0 + s1) + (s2 + s3)). The inner
+ * sum of Eq. 5.10. */
 double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
-                              const double *rz, int k, int kread, double *scratch);
+                              const double *rz, int k);
+/* bsurf_nested_angle_sum for P pairs at once, in vector lanes: pair p's
+ * unit vector g[3 p ..] and count kl[p] (non-decreasing in p, as a nested
+ * selection's candidates with their replicates), sums[p] with the bits of
+ * bsurf_nested_angle_sum(&g[3 p], rx, ry, rz, kl[p]) whatever the other
+ * pairs; pairs with valid[p] == 0 (valid may be NULL: all) are not read and
+ * their sums are meaningless. */
+void bsurf_nested_angle_sums(size_t P, const double *g, const unsigned char *valid, const int *kl,
+                             const double *rx, const double *ry, const double *rz, double *sums);
 
 /* The candidate list of a nested selection: ks[0..nk) strictly increasing,
  * ks[0] >= kmin, ks[nk - 1] <= nb->k, 65535 and the point count; messages
@@ -165,9 +170,11 @@ int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned c
  * (term-major, row stride kp >= k, at least terms(degree - 1) rows: the
  * gradient is a polynomial of one degree less); r_j the reference normals
  * in the same frame. Unoriented angles as bsurf_nested_angle_sum, in vector
- * lanes, summed in a fixed order; kread (<= kp) as bsurf_nested_angle_sum's
- * (phit is zero-padded to kp). The inner sum of Eq. 5.10 for a polynomial
- * fit. */
+ * lanes over j, summed in its fixed order. The angles are evaluated for j <
+ * max(k, kread) (kread <= kp; rx, ry, rz, phit and scratch hold that many;
+ * phit zero-padded), only the first k summed: a caller whose arrays are
+ * padded (r = (0, 0, 1)) passes kread = kp, so that the vector loop has no
+ * scalar tail. The inner sum of Eq. 5.10 for a polynomial fit. */
 double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_scale,
                                     const double *phit, size_t kp, const double *rx,
                                     const double *ry, const double *rz, int k, int kread,
@@ -250,18 +257,21 @@ int bsurf_fdist_feature(double v, int state, double thr, double threshold);
  * (bsurf_split_bimodal); then *mu0 is the pair's residual variance (the smallest eigenvalue of the
  * covariance pooled within the two groups). */
 int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr,
-                       double *design, double *resid, double *mu0);
+                       double *design, double *resid, double *mu0, double *border);
 
 /* ---- features --method variance, rule NULL (features_variance.c): the
  * stages of bsurf_detect_features, also run tile by tile. Rows of nb as
  * above; nu and the outputs by row, u of bsurf_fvar_filter by point. ---- */
 typedef struct bsurf_fvar_result {
-  double threshold;      /* t = max(null_threshold, split) on the filtered z */
-  double null_threshold; /* t_alpha: the null patch's (1 - alpha) quantile */
-  double split;          /* Otsu's split of log z (NAN without noise) */
-  double noise_level;    /* s = sqrt(median lambda0) */
-  double sigma0;         /* the null patch's noise (unit density); 0 if none */
+  double threshold;        /* t = max(null_threshold, split) on the filtered z */
+  double null_threshold;   /* t_alpha: the null patch's (1 - alpha) quantile */
+  double split;            /* Otsu's split of log z (NAN without noise) */
+  double noise_level;      /* s = sqrt(median lambda0) */
+  double sigma0;           /* the null patch's noise (unit density); 0 if none */
+  double border_threshold; /* t_b: the null patch's (1 - alpha) quantile of zb */
 } bsurf_fvar_result;
+/* A point is a feature: z > threshold or zb > border_threshold. */
+int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb);
 /* The filter's neighbours k_f (variance_filter_k, 0 = normals.k / 2). */
 int bsurf_fvar_filter_k(const bsurf_feature_options *o);
 /* Per row of the k-neighbourhoods: u = nu d (the design of
@@ -269,7 +279,8 @@ int bsurf_fvar_filter_k(const bsurf_feature_options *o);
  * w (may be NULL): where the neighbourhood holds two parallel sheets
  * (bsurf_pca_l0_trace's test) their pair's residual variance mu0, else -1. */
 bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
-                              const double *nu, double *u, double *l0, double *ratio, double *w);
+                              const double *nu, double *u, double *l0, double *ratio, double *w,
+                              double *b);
 /* z[r] = median of Z over the first kf neighbours of row r, Z_j = u_j / s2
  * (s2 <= 0: u_j), or 0 where w_j (w may be NULL; k-neighbourhoods) says two
  * parallel sheets whose residual variance is within the noise s2's 99%
@@ -279,7 +290,7 @@ bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, d
 /* t: the (1 - false_positive_rate) quantile of z on the flat null patch
  * whose median lambda0 / tr is eta; sigma0 out may be NULL. */
 bsurf_status bsurf_fvar_null_threshold(const bsurf_feature_options *o, double eta, double *t,
-                                       double *sigma0);
+                                       double *tb, double *sigma0);
 /* The neighbourhood size of the variance test (feature_angle > 0): the
  * first of normals.k, 2 normals.k, 4 normals.k ... <= k_cap at which a
  * simulated edge of feature_angle at the cloud's noise (eta = median

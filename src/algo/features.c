@@ -195,7 +195,7 @@ static void heights(const double *xyz, const uint32_t *idx, int k, const double 
 }
 
 int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0, double *tr,
-                       double *design, double *resid, double *mu0) {
+                       double *design, double *resid, double *mu0, double *border) {
   pca_sums s;
   memset(&s, 0, sizeof s);
   const double *o = &xyz[3 * (size_t)idx[0]];
@@ -218,6 +218,26 @@ int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0
     const double l1 = ev[1] > 0 ? ev[1] : 0, l2 = ev[2] > 0 ? ev[2] : 0;
     *design = l1 + l2 > 0 ? 4 * l1 * l2 / (l1 + l2) : 0;
   }
+  double n[3];
+  const double c6[6] = {C[0][0], C[0][1], C[0][2], C[1][1], C[1][2], C[2][2]};
+  if (border) {
+    /* A border (Gumhold et al. 2001's boundary criterion, cited in the
+     * thesis's 7.0): the centroid's offset from the point in the tangent
+     * plane. mu is relative to the point (o = idx[0]); within a surface the
+     * point is in the middle of its neighbours and the offset is the
+     * scatter of a mean of k positions, variance (lambda1 + lambda2) / k
+     * over the two tangential axes; at a border the neighbours lie on one
+     * side and the offset is a fixed share of the radius (4 / (3 pi) of a
+     * half-disc's). b = k |offset_t|^2 / (lambda1 + lambda2), calibrated
+     * on the null patch like z (features_variance.c). */
+    *border = 0;
+    const double sp = *tr - *l0;
+    if (sp > 0 && bsurf_eigen_sym3_smallest(c6, n) == 0) {
+      const double a = mu[0] * n[0] + mu[1] * n[1] + mu[2] * n[2];
+      const double t0 = mu[0] - a * n[0], t1 = mu[1] - a * n[1], t2 = mu[2] - a * n[2];
+      *border = w * (t0 * t0 + t1 * t1 + t2 * t2) / sp;
+    }
+  }
   if (!resid) return 0;
   /* Two parallel sheets: a plane through both tilts towards the imbalance
    * of the two sheets' points, which mixes their heights. So: the best split
@@ -227,8 +247,7 @@ int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0
    * its own centroid) gives the common normal; the heights about it are
    * tested for two groups apart (bsurf_split_bimodal, rounding level 1e-9
    * of the radius sqrt(tr)). */
-  double *h = resid, *srt = resid + k, n[3], cut;
-  const double c6[6] = {C[0][0], C[0][1], C[0][2], C[1][1], C[1][2], C[2][2]};
+  double *h = resid, *srt = resid + k, cut;
   if (bsurf_eigen_sym3_smallest(c6, n) != 0) return 0;
   heights(xyz, idx, k, o, mu, n, h, srt);
   if (!(bsurf_split_share(srt, k, k / 4 > 3 ? k / 4 : 3, 0, &cut) < 1)) return 0;
@@ -663,6 +682,7 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
     memset(report, 0, sizeof *report);
     report->noise_level = NAN;
     report->edge_power = NAN;
+    report->border_threshold = NAN;
   }
   BSURF_REQUIRE(xyz, "xyz is NULL");
   BSURF_REQUIRE(feature, "feature is NULL");
@@ -712,7 +732,10 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
       bsurf_fvar_result vr;
       st = bsurf_fvar_detect(xyz, nb, &o, sc, feature, &vr);
       thr = vr.threshold;
-      if (report) report->noise_level = vr.noise_level;
+      if (report) {
+        report->noise_level = vr.noise_level;
+        report->border_threshold = vr.border_threshold;
+      }
     } else if (st == BSURF_OK) {
       if (isnan(o.threshold))
         st = bsurf_tail_threshold(sc, n, o.tail_rule, &thr);

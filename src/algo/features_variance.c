@@ -105,26 +105,28 @@ typedef struct local_ctx {
   const bsurf_neighbors *nb;
   int k;
   const double *nu; /* by row */
-  double *u, *l0, *ratio, *w;
+  double *u, *l0, *ratio, *w, *b;
   double *scratch; /* threads x 2 k, with w */
 } local_ctx;
 
 static void local_row(void *vctx, int thread, size_t r) {
   const local_ctx *c = vctx;
-  double l0, tr, design, mu0 = 0;
-  const int two =
-      bsurf_pca_l0_trace(c->xyz, &c->nb->idx[r * (size_t)c->nb->k], c->k, &l0, &tr, &design,
-                         c->w ? &c->scratch[2 * (size_t)thread * (size_t)c->k] : NULL, &mu0);
+  double l0, tr, design, mu0 = 0, border = 0;
+  const int two = bsurf_pca_l0_trace(
+      c->xyz, &c->nb->idx[r * (size_t)c->nb->k], c->k, &l0, &tr, &design,
+      c->w ? &c->scratch[2 * (size_t)thread * (size_t)c->k] : NULL, &mu0, c->b ? &border : NULL);
   c->u[r] = c->nu[r] * design;
+  if (c->b) c->b[r] = border;
   c->l0[r] = l0;
   c->ratio[r] = tr > 0 ? l0 / tr : 0;
   if (c->w) c->w[r] = two ? mu0 : -1;
 }
 
 bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
-                              const double *nu, double *u, double *l0, double *ratio, double *w) {
+                              const double *nu, double *u, double *l0, double *ratio, double *w,
+                              double *b) {
   const int t = bsurf_threads_resolve(threads);
-  local_ctx c = {xyz, nb, k, nu, u, l0, ratio, w, NULL};
+  local_ctx c = {xyz, nb, k, nu, u, l0, ratio, w, b, NULL};
   if (w && !(c.scratch = bsurf_alloc_array(2 * (size_t)t * (size_t)k, sizeof(double))))
     return BSURF_ERR_NOMEM;
   bsurf_status st = bsurf_parallel_points(nb->point_count, t, local_row, &c, NULL, NULL);
@@ -193,7 +195,7 @@ typedef struct null_patch {
   double side, margin, fold;
   double *uv, *xyz, *g;
   bsurf_neighbors nb;
-  double *nu, *u, *l0, *ratio, *w, *z;
+  double *nu, *u, *l0, *ratio, *w, *z, *b, *zb;
 } null_patch;
 
 static void patch_free(null_patch *p) {
@@ -207,6 +209,8 @@ static void patch_free(null_patch *p) {
   free(p->ratio);
   free(p->w);
   free(p->z);
+  free(p->b);
+  free(p->zb);
 }
 
 static void patch_place(null_patch *p, double sigma) {
@@ -257,7 +261,10 @@ static bsurf_status patch_init(null_patch *p, const bsurf_feature_options *o, in
   p->ratio = bsurf_alloc_array(p->n, sizeof(double));
   p->w = bsurf_alloc_array(p->n, sizeof(double));
   p->z = bsurf_alloc_array(p->n, sizeof(double));
-  if (!p->uv || !p->xyz || !p->g || !p->nu || !p->u || !p->l0 || !p->ratio || !p->w || !p->z)
+  p->b = bsurf_alloc_array(p->n, sizeof(double));
+  p->zb = bsurf_alloc_array(p->n, sizeof(double));
+  if (!p->uv || !p->xyz || !p->g || !p->nu || !p->u || !p->l0 || !p->ratio || !p->w || !p->z ||
+      !p->b || !p->zb)
     return BSURF_ERR_NOMEM;
   for (size_t i = 0; i < p->n; i++) {
     bsurf_rng rng;
@@ -274,7 +281,7 @@ static bsurf_status patch_init(null_patch *p, const bsurf_feature_options *o, in
 static bsurf_status patch_eta(null_patch *p, int k, int threads, double sigma, double *eta) {
   patch_place(p, sigma);
   bsurf_status st =
-      bsurf_fvar_local(p->xyz, &p->nb, k, threads, p->nu, p->u, p->l0, p->ratio, NULL);
+      bsurf_fvar_local(p->xyz, &p->nb, k, threads, p->nu, p->u, p->l0, p->ratio, NULL, NULL);
   if (st != BSURF_OK) return st;
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
@@ -285,9 +292,10 @@ static bsurf_status patch_eta(null_patch *p, int k, int threads, double sigma, d
 
 /* z of every point at noise sigma: the bootstrap normals with the options'
  * B, fit and seed at k, Z = nu d / s^2 with s^2 the median lambda0 of the
- * flat part, filtered over kf */
+ * flat part, filtered over kf; the border score zb (b filtered over kf)
+ * when border is set */
 static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, int k, int kf,
-                                 double sigma) {
+                                 double sigma, int border) {
   patch_place(p, sigma);
   bsurf_normal_options no = o->normals;
   no.k = k;
@@ -298,7 +306,10 @@ static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, 
   bsurf_normal_fields nf = {NULL, p->nu, NULL};
   bsurf_status st = bsurf_estimate_normals(p->xyz, &p->nb, NULL, &no, &nf, NULL);
   if (st == BSURF_OK)
-    st = bsurf_fvar_local(p->xyz, &p->nb, k, o->threads, p->nu, p->u, p->l0, p->ratio, p->w);
+    st = bsurf_fvar_local(p->xyz, &p->nb, k, o->threads, p->nu, p->u, p->l0, p->ratio, p->w,
+                          border ? p->b : NULL);
+  if (st == BSURF_OK && border)
+    st = bsurf_fvar_filter(&p->nb, kf, o->threads, 0, k, p->b, NULL, p->zb);
   if (st != BSURF_OK) return st;
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
@@ -307,12 +318,13 @@ static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, 
   return bsurf_fvar_filter(&p->nb, kf, o->threads, s2, k, p->u, p->w, p->z);
 }
 
-/* the (1 - alpha) quantile of z over the points where patch_in(where): the
- * smallest value that at most alpha m of the m values exceed */
-static double patch_quantile(null_patch *p, int where, double alpha) {
+/* the (1 - alpha) quantile of z (of v) over the points where
+ * patch_in(where): the smallest value that at most alpha m of the m values
+ * exceed */
+static double patch_quantile(null_patch *p, const double *v, int where, double alpha) {
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
-    if (patch_in(p, i, where)) p->l0[m++] = p->z[i];
+    if (patch_in(p, i, where)) p->l0[m++] = v[i];
   if (!m) return 0;
   qsort(p->l0, m, sizeof(double), bsurf_cmp_double);
   size_t r = (size_t)ceil((1 - alpha) * (double)m);
@@ -335,15 +347,17 @@ static bsurf_status patch_sigma(null_patch *p, int k, int threads, double eta, d
 }
 
 bsurf_status bsurf_fvar_null_threshold(const bsurf_feature_options *o, double eta, double *t,
-                                       double *sigma0) {
+                                       double *tb, double *sigma0) {
   const int k = o->normals.k, kf = bsurf_fvar_filter_k(o);
   null_patch p;
   double sigma = 0;
   bsurf_status st = patch_init(&p, o, k, kf, 0);
-  if (st == BSURF_OK) st = patch_sigma(&p, k, o->threads, eta, &sigma);
-  if (st == BSURF_OK) st = patch_scores(&p, o, k, kf, sigma);
+  if (st == BSURF_OK && eta > 0) st = patch_sigma(&p, k, o->threads, eta, &sigma);
+  if (st == BSURF_OK) st = patch_scores(&p, o, k, kf, sigma, tb != NULL);
   if (st == BSURF_OK) {
-    *t = patch_quantile(&p, 0, o->false_positive_rate);
+    const double a = o->false_positive_rate;
+    *t = patch_quantile(&p, p.z, 0, a);
+    if (tb) *tb = patch_quantile(&p, p.zb, 0, a);
     if (sigma0) *sigma0 = sigma;
   }
   patch_free(&p);
@@ -378,9 +392,9 @@ bsurf_status bsurf_fvar_choose_k(const bsurf_feature_options *o, double eta, int
     st = patch_init(&p, o, kk, kf, o->feature_angle * PI / 180);
     /* sigma_0 from the first patch's flat parts at normals.k */
     if (st == BSURF_OK && kk == k0) st = patch_sigma(&p, k0, o->threads, eta, &sigma);
-    if (st == BSURF_OK) st = patch_scores(&p, o, kk, kf, sigma);
+    if (st == BSURF_OK) st = patch_scores(&p, o, kk, kf, sigma, 0);
     if (st == BSURF_OK) {
-      const double t = patch_quantile(&p, 1, o->false_positive_rate);
+      const double t = patch_quantile(&p, p.z, 1, o->false_positive_rate);
       size_t m = 0, hit = 0;
       for (size_t i = 0; i < p.n; i++)
         if (patch_in(&p, i, 2)) {
@@ -408,7 +422,7 @@ bsurf_status bsurf_fvar_eta(const double *xyz, const bsurf_neighbors *nb, int k,
          *l0 = bsurf_alloc_array(n ? n : 1, sizeof(double)),
          *ratio = bsurf_alloc_array(n ? n : 1, sizeof(double));
   bsurf_status st = nu && u && l0 && ratio ? BSURF_OK : BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio, NULL);
+  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio, NULL, NULL);
   if (st == BSURF_OK) *eta = bsurf_median(ratio, n);
   free(nu);
   free(u);
@@ -430,24 +444,28 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
                    nb->k);
   const size_t n = nb->point_count;
   double *u = bsurf_alloc_array(n, sizeof(double)), *l0 = bsurf_alloc_array(n, sizeof(double)),
-         *ratio = bsurf_alloc_array(n, sizeof(double)), *w = bsurf_alloc_array(n, sizeof(double));
-  bsurf_status st = u && l0 && ratio && w ? BSURF_OK : BSURF_ERR_NOMEM;
+         *ratio = bsurf_alloc_array(n, sizeof(double)), *w = bsurf_alloc_array(n, sizeof(double)),
+         *b = bsurf_alloc_array(n, sizeof(double));
+  bsurf_status st = u && l0 && ratio && w && b ? BSURF_OK : BSURF_ERR_NOMEM;
   if (st == BSURF_OK)
-    st = bsurf_fvar_local(xyz, nb, o->normals.k, o->threads, score, u, l0, ratio, w);
+    st = bsurf_fvar_local(xyz, nb, o->normals.k, o->threads, score, u, l0, ratio, w, b);
   double s2 = 0, eta = 0;
   if (st == BSURF_OK) {
     s2 = bsurf_median(l0, n);
     eta = bsurf_median(ratio, n);
     st = bsurf_fvar_filter(nb, kf, o->threads, s2, o->normals.k, u, w, score);
   }
+  /* the border score zb into l0 (no longer needed) */
+  if (st == BSURF_OK) st = bsurf_fvar_filter(nb, kf, o->threads, 0, o->normals.k, b, NULL, l0);
   if (st == BSURF_OK) st = bsurf_fvar_threshold(o, score, n, s2, eta, res);
   if (st == BSURF_OK)
     for (size_t i = 0; i < n; i++)
-      feature[i] = score[i] > res->threshold;
+      feature[i] = (uint8_t)bsurf_fvar_feature(res, score[i], l0[i]);
   free(u);
   free(l0);
   free(ratio);
   free(w);
+  free(b);
   return st;
 }
 
@@ -456,20 +474,30 @@ bsurf_status bsurf_fvar_threshold(const bsurf_feature_options *o, const double *
   res->noise_level = sqrt(s2);
   res->sigma0 = 0;
   res->null_threshold = res->split = NAN;
+  /* the border score's null quantile: b does not depend on the noise's
+   * size (a flat patch's centroid scatter), so also without noise */
+  bsurf_status st = bsurf_fvar_null_threshold(o, s2 > 0 ? eta : 0, &res->null_threshold,
+                                              &res->border_threshold, &res->sigma0);
+  if (st != BSURF_OK) return st;
   if (s2 > 0) {
     /* t = max(t_null, Otsu's split of log z): the test bounds the flat
      * area's false positives; among what it lets through, the split keeps
      * the upper mode (the band nearest the edge) when z is bimodal */
-    bsurf_status st = bsurf_fvar_null_threshold(o, eta, &res->null_threshold, &res->sigma0);
-    if (st == BSURF_OK && n >= 2) st = bsurf_tail_threshold(z, n, BSURF_TAIL_OTSU, &res->split);
+    if (n >= 2) st = bsurf_tail_threshold(z, n, BSURF_TAIL_OTSU, &res->split);
     if (st != BSURF_OK) return st;
     res->threshold = res->split > res->null_threshold ? res->split : res->null_threshold;
     return BSURF_OK;
   }
   /* noise-free: the null is nu = 0; rounding-level values are flat */
+  res->null_threshold = NAN;
+  res->sigma0 = 0;
   double mx = 0;
   for (size_t i = 0; i < n; i++)
     if (z[i] > mx) mx = z[i];
   res->threshold = 1e-12 * mx;
   return BSURF_OK;
+}
+
+int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb) {
+  return z > res->threshold || zb > res->border_threshold;
 }

@@ -250,22 +250,94 @@ q1_angle(double c0, double c1, double c2, double dot, int one_div) {
   return y > x ? as : a;
 }
 
-/* The angle between unit g and each (rx, ry, rz)[j]. Unoriented (Eq.
- * 5.10): atan2(|g x r|, |g . r|) as angle_between, with atan2 of the first
- * quadrant reduced to atan of a ratio <= 1 (pi/2 - atan(x / y) above the
- * diagonal). Oriented (Eq. 5.5, in [0, pi]): atan2(|g x r|, g . r) as
- * libm's atan2 in bsurf_angle_between, the first quadrant's angle reflected
- * to pi - a where g . r < 0 (pi split in two as pi / 2 is); in vector lanes,
- * where Eq. 5.5's variance took libm's atan2 one call at a time (6-9% of
- * `normals -B 50`). Within 2 ulp of atan2 (tests/test_nested.c). */
+/* Eq. 5.10's inner sums of many (candidate, replicate) pairs at once, the
+ * pairs in vector lanes: each neighbour j's reference normal is broadcast
+ * and the angles of every pair still using it (kl[p] > j) evaluated in
+ * lanes, each added to one of four running sums by j mod 4 (from +0),
+ * combined as (s0 + s1) + (s2 + s3): a fixed order, so a pair's sum has the
+ * same bits whatever the other lanes (a lane past its own count adds +0,
+ * which leaves a sum of non-negative angles unchanged). Pairs come in
+ * non-decreasing kl, so the lanes in use at j are a suffix: the loops over
+ * them are long and nearly full, where loops over one pair's K neighbours
+ * were short (K / 8 vectors with a padded tail and a second pass to sum). */
+enum { PAIR_CHUNK = 256 };
+
 #if defined(__GNUC__) && !defined(__clang__)
 /* selects between computed values, not branches: the values are the same,
  * but GCC vectorises the loop only when it may ignore FP exception flags */
 __attribute__((optimize("no-trapping-math")))
 #endif
-static inline __attribute__((always_inline)) void
-angles_loop(const double g[3], const double *restrict rx, const double *restrict ry,
-            const double *restrict rz, int k, double *restrict out, int oriented) {
+BSURF_CLONES static void
+pair_chunk(int nv, const double *restrict vk, const double *restrict kl, const double *restrict gx,
+           const double *restrict gy, const double *restrict gz, const double *restrict rx,
+           const double *restrict ry, const double *restrict rz, double *restrict acc) {
+  const int np = 8 * nv;
+  int v0 = 0; /* the first vector of 8 lanes with a lane still in use */
+  for (int j = 0;; j++) {
+    const double jd = j;
+    while (v0 < nv && !(vk[v0] > jd))
+      v0++;
+    if (v0 == nv) break; /* every pair's K reached: rx[j] may be past the arrays */
+    double *restrict a = acc + (size_t)(j & 3) * PAIR_CHUNK;
+    const double r0 = rx[j], r1 = ry[j], r2 = rz[j];
+    for (int l = 8 * v0; l < np; l++) {
+      const double g0 = gx[l], g1 = gy[l], g2 = gz[l];
+      const double c0 = g1 * r2 - g2 * r1, c1 = g2 * r0 - g0 * r2, c2 = g0 * r1 - g1 * r0;
+      const double t = q1_angle(c0, c1, c2, g0 * r0 + g1 * r1 + g2 * r2, 0);
+      a[l] += kl[l] > jd ? t : 0.0;
+    }
+  }
+}
+
+void bsurf_nested_angle_sums(size_t P, const double *g, const unsigned char *valid, const int *kl,
+                             const double *rx, const double *ry, const double *rz, double *sums) {
+  _Alignas(64) double gx[PAIR_CHUNK], gy[PAIR_CHUNK], gz[PAIR_CHUNK], klf[PAIR_CHUNK];
+  _Alignas(64) double acc[4 * PAIR_CHUNK];
+  double vk[PAIR_CHUNK / 8];
+  for (size_t p0 = 0; p0 < P; p0 += PAIR_CHUNK) {
+    const int n = P - p0 < PAIR_CHUNK ? (int)(P - p0) : PAIR_CHUNK, nv = (n + 7) / 8;
+    for (int l = 0; l < 8 * nv; l++) {
+      /* lanes past P and invalid pairs: g = (0, 0, 1), their sums not used */
+      const size_t p = p0 + (size_t)l;
+      const int use = l < n && (!valid || valid[p]);
+      gx[l] = use ? g[3 * p] : 0.0;
+      gy[l] = use ? g[3 * p + 1] : 0.0;
+      gz[l] = use ? g[3 * p + 2] : 1.0;
+      klf[l] = l < n ? kl[p] : 0.0;
+    }
+    for (int v = 0; v < nv; v++) { /* the largest count of each vector */
+      double m = 0;
+      for (int l = 8 * v; l < 8 * v + 8; l++)
+        m = klf[l] > m ? klf[l] : m;
+      vk[v] = m;
+    }
+    memset(acc, 0, sizeof acc);
+    pair_chunk(nv, vk, klf, gx, gy, gz, rx, ry, rz, acc);
+    const double *s0 = acc, *s1 = s0 + PAIR_CHUNK, *s2 = s1 + PAIR_CHUNK, *s3 = s2 + PAIR_CHUNK;
+    for (int l = 0; l < n; l++)
+      sums[p0 + l] = (s0[l] + s1[l]) + (s2[l] + s3[l]);
+  }
+}
+
+double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
+                              const double *rz, int k) {
+  double s;
+  bsurf_nested_angle_sums(1, g, NULL, &k, rx, ry, rz, &s);
+  return s;
+}
+
+/* The angle in [0, pi] between unit g and each (rx, ry, rz)[j]:
+ * atan2(|g x r|, g . r) as libm's atan2 in bsurf_angle_between (oriented),
+ * by q1_angle of |g . r| (Cephes' atan, within 2 ulp of atan2 over the
+ * first quadrant) reflected to pi - a where g . r < 0 (pi split in two as
+ * pi / 2 is). In vector lanes: Eq. 5.5's variance took libm's atan2 one
+ * call at a time, 6-9% of `normals -B 50` (tests/test_nested.c). */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+BSURF_CLONES static void
+oriented_angles(const double g[3], const double *restrict rx, const double *restrict ry,
+                const double *restrict rz, int k, double *restrict out) {
   const double g0 = g[0], g1 = g[1], g2 = g[2];
   for (int j = 0; j < k; j++) {
     const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
@@ -273,21 +345,8 @@ angles_loop(const double g[3], const double *restrict rx, const double *restrict
     const double dot = g0 * rx[j] + g1 * ry[j] + g2 * rz[j];
     const double a = q1_angle(c0, c1, c2, dot, 0);
     const double ar = (2 * PIO2 - a) + 2 * MOREBITS;
-    out[j] = oriented && dot < 0 ? ar : a;
+    out[j] = dot < 0 ? ar : a;
   }
-}
-
-/* angles_loop with `oriented` a constant in each copy */
-#if defined(__GNUC__) && !defined(__clang__)
-__attribute__((optimize("no-trapping-math")))
-#endif
-BSURF_CLONES static void
-angles(const double g[3], const double *rx, const double *ry, const double *rz, int k, double *out,
-       int oriented) {
-  if (oriented)
-    angles_loop(g, rx, ry, rz, k, out, 1);
-  else
-    angles_loop(g, rx, ry, rz, k, out, 0);
 }
 
 /* sum_j a[j], j < k, as four running sums (j mod 4) then combined: a fixed
@@ -301,12 +360,6 @@ static double fixed_sum(const double *a, int k) {
   for (int l = 0; j < k; j++, l++)
     s[l] += a[j];
   return (s[0] + s[1]) + (s[2] + s[3]);
-}
-
-double bsurf_nested_angle_sum(const double g[3], const double *rx, const double *ry,
-                              const double *rz, int k, int kread, double *scratch) {
-  angles(g, rx, ry, rz, kread > k ? kread : k, scratch, 0);
-  return fixed_sum(scratch, k);
 }
 
 /* One lane r of bsurf_nested_cov_lanes. */
@@ -420,7 +473,7 @@ int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned c
         const int ok = valid[b0 + j];
         rx[j] = ok ? n[0] : 0.0, ry[j] = ok ? n[1] : 0.0, rz[j] = ok ? n[2] : 1.0;
       }
-      angles(&bn[3 * first], rx, ry, rz, nb, &ang[b0], 1);
+      oriented_angles(&bn[3 * first], rx, ry, rz, nb, &ang[b0]);
     }
     double mean = 0;
     for (int b = 0; b < B; b++)

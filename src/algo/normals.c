@@ -299,12 +299,13 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
 typedef struct select_scratch {
   double *terms;           /* kmax x COLS */
   uint32_t *u;             /* kmax */
-  uint8_t *x;              /* kmax */
   double *Wt;              /* kmax x B */
   double *sums;            /* nk x COLS x max(B, 1) */
   double *fsums;           /* nk x COLS */
   int *nz;                 /* nk x B */
-  double *ref;             /* 4 x kp: rx, ry, rz, angle scratch (kp: kmax rounded up to 8) */
+  double *ref;             /* 3 x kmax: rx, ry, rz */
+  int *kl;                 /* nk x B: each (candidate, replicate)'s K */
+  double *asum;            /* nk x B: its angle sum (Eq. 5.10) */
   double *bn;              /* nk x B x 3 */
   unsigned char *valid;    /* nk x B */
   double *nP;              /* nk x 3 */
@@ -329,12 +330,13 @@ static bsurf_status select_scratch_alloc(void *vs, const void *vsz) {
   bsurf_blocks *m = &s->mem;
   s->terms = bsurf_blocks_array(m, kk, BSURF_NESTED_COLS * sizeof(double));
   s->u = bsurf_blocks_array(m, kk, sizeof(uint32_t));
-  s->x = bsurf_blocks_array(m, kk, 1);
   s->Wt = bsurf_blocks_aligned(m, kk * b1, sizeof(double));
   s->sums = bsurf_blocks_aligned(m, cands * b1, BSURF_NESTED_COLS * sizeof(double));
   s->fsums = bsurf_blocks_array(m, cands, BSURF_NESTED_COLS * sizeof(double));
   s->nz = bsurf_blocks_array(m, cands * b1, sizeof(int));
-  s->ref = bsurf_blocks_aligned(m, (kk + 7) / 8 * 8, 4 * sizeof(double));
+  s->ref = bsurf_blocks_aligned(m, kk, 3 * sizeof(double));
+  s->kl = bsurf_blocks_array(m, cands * b1, sizeof(int));
+  s->asum = bsurf_blocks_array(m, cands * b1, sizeof(double));
   s->bn = bsurf_blocks_array(m, cands * b1, 3 * sizeof(double));
   s->valid = bsurf_blocks_array(m, cands * b1, 1);
   s->nP = bsurf_blocks_array(m, cands, 3 * sizeof(double));
@@ -358,13 +360,11 @@ static void select_point(void *vctx, void *scratch, size_t i) {
   const size_t COLS = BSURF_NESTED_COLS;
 
   bsurf_nested_terms(c->xyz, idx, kmax, s->terms);
-  /* the reference normals, padded with (0, 0, 1) to kp: every candidate's
-   * angles run over whole vectors of 8 (bsurf_nested_angle_sum's kread) */
-  const int kp = (kmax + 7) / 8 * 8;
-  double *rx = s->ref, *ry = rx + kp, *rz = ry + kp, *ang = rz + kp;
-  for (int j = 0; j < kp; j++) {
-    const double *r = &c->ref[3 * (size_t)idx[j < kmax ? j : 0]];
-    rx[j] = j < kmax ? r[0] : 0.0, ry[j] = j < kmax ? r[1] : 0.0, rz[j] = j < kmax ? r[2] : 1.0;
+  /* the reference normals */
+  double *rx = s->ref, *ry = rx + kmax, *rz = ry + kmax;
+  for (int j = 0; j < kmax; j++) {
+    const double *r = &c->ref[3 * (size_t)idx[j]];
+    rx[j] = r[0], ry[j] = r[1], rz[j] = r[2];
   }
 
   /* the whole neighbourhoods: the single fits (as bsurf_estimate_normals) */
@@ -376,7 +376,7 @@ static void select_point(void *vctx, void *scratch, size_t i) {
   /* the replicates: one draw per point, shared by the candidates */
   if (B > 0) {
     const uint64_t key = o->point_index ? o->point_index[i] : i;
-    bsurf_boot_poisson_rows(o->seed, key, B, kmax, s->u, s->x, s->Wt);
+    bsurf_boot_poisson_rows(o->seed, key, B, kmax, s->u, s->Wt);
     bsurf_nested_sums(s->terms, kmax, B, s->Wt, ks, nk, s->sums, s->nz);
     for (int a = 0; a < nk; a++) {
       const double *blk = &s->sums[(size_t)a * COLS * B];
@@ -391,25 +391,31 @@ static void select_point(void *vctx, void *scratch, size_t i) {
     }
   }
 
+  /* orient to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
+  for (int a = 0; a < nk; a++) {
+    const int nvalid =
+        bsurf_nested_summary(B, &s->nP[3 * a], &s->bn[(size_t)a * B * 3], &s->valid[(size_t)a * B],
+                             &s->nrm[3 * a], &s->var[a], s->ang2);
+    s->skipped += (size_t)(B - nvalid);
+    for (int b = 0; b < B; b++)
+      s->kl[(size_t)a * B + b] = ks[a];
+  }
+  /* Eq. 5.10's inner sums, every candidate's replicates at once */
+  if (B > 0) bsurf_nested_angle_sums((size_t)nk * B, s->bn, s->valid, s->kl, rx, ry, rz, s->asum);
   int best = 0;
   for (int a = 0; a < nk; a++) {
-    const int K = ks[a], kread = (K + 7) / 8 * 8;
-    const double *nP = &s->nP[3 * a];
-    double *bn = &s->bn[(size_t)a * B * 3];
+    const int K = ks[a];
     const unsigned char *valid = &s->valid[(size_t)a * B];
-    /* orient to n_P (5.2.1), Eq. 5.4 and Eq. 5.5 */
-    const int nvalid = bsurf_nested_summary(B, nP, bn, valid, &s->nrm[3 * a], &s->var[a], s->ang2);
-    s->skipped += (size_t)(B - nvalid);
     /* Eq. 5.10: (1 / (B K)) sum_b sum_j theta(g^b, n_j); with no valid
      * replicate the single fit's training error */
     double total = 0;
-    if (nvalid > 0) {
-      for (int b = 0; b < B; b++)
-        if (valid[b]) total += bsurf_nested_angle_sum(&bn[3 * b], rx, ry, rz, K, kread, ang);
+    int nvalid = 0;
+    for (int b = 0; b < B; b++)
+      if (valid[b]) total += s->asum[(size_t)a * B + b], nvalid++;
+    if (nvalid > 0)
       s->err[a] = total / ((double)nvalid * K);
-    } else {
-      s->err[a] = bsurf_nested_angle_sum(nP, rx, ry, rz, K, kread, ang) / K;
-    }
+    else
+      s->err[a] = bsurf_nested_angle_sum(&s->nP[3 * a], rx, ry, rz, K) / K;
     if (s->err[a] < s->err[best]) best = a; /* ties keep the smaller K */
   }
 

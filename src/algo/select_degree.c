@@ -39,7 +39,6 @@
 typedef struct kd_scratch {
   bsurf_localfit lf;
   uint32_t *u;             /* kmax */
-  uint8_t *x;              /* kmax */
   double *Wt;              /* kmax x B: the Poisson counts */
   double *W;               /* rows x K: one candidate's weight rows */
   double *lanes;           /* rows x ncols: its normal equations */
@@ -75,7 +74,6 @@ static bsurf_status kd_alloc(void *vs, const void *vz) {
   const size_t kp = (kk + 7) / 8 * 8;
   bsurf_blocks *m = &s->mem;
   s->u = bsurf_blocks_array(m, kk, sizeof(uint32_t));
-  s->x = bsurf_blocks_array(m, kk, 1);
   s->Wt = bsurf_blocks_aligned(m, kk * b1, sizeof(double));
   s->W = bsurf_blocks_aligned(m, rows * kk, sizeof(double));
   s->lanes = bsurf_blocks_aligned(m, rows, BSURF_NCOLS_MAX * sizeof(double));
@@ -166,7 +164,7 @@ static void kd_point(void *vctx, void *scratch, size_t i) {
 
   /* the replicates: one draw per point, shared by every candidate */
   const uint64_t key = o->point_index ? o->point_index[i] : i;
-  if (B > 0) bsurf_boot_poisson_rows(o->seed, key, B, kmax, s->u, s->x, s->Wt);
+  if (B > 0) bsurf_boot_poisson_rows(o->seed, key, B, kmax, s->u, s->Wt);
   memset(s->nz, 0, (size_t)(B > 0 ? B : 1) * sizeof *s->nz);
 
   int best = 0, k0 = 0;

@@ -43,9 +43,9 @@ void bsurf_boot_draw_rows(uint64_t seed, uint64_t point, int B, int k, int min_d
  * counts are the Poisson bootstrap of that K-point neighbourhood, for every
  * K at once, so nested candidates share (and are compared on) the same
  * resamples. Wt out: kmax x B, transposed (Wt[j B + b], the layout of
- * bsurf_nested_sums); u (kmax) and x (kmax) scratch. */
+ * bsurf_nested_sums); u (kmax) scratch. */
 void bsurf_boot_poisson_rows(uint64_t seed, uint64_t point, int B, int kmax, uint32_t *u,
-                             uint8_t *x, double *Wt);
+                             double *Wt);
 /* The number of distinct points of a resample: its nonzero counts (k). */
 int bsurf_boot_distinct(int k, const uint16_t *counts);
 /* B + 1 rows rounded up to a multiple of 4 (whole groups of vector lanes). */

@@ -219,28 +219,28 @@ static const uint32_t poisson1_cdf[12] = {1580030169u, 3160060337u, 3950075422u,
                                           4279248374u, 4292415292u, 4294609778u, 4294923276u,
                                           4294962463u, 4294966817u, 4294967253u, 4294967292u};
 
+/* In place: u[j] becomes its count. 32-bit counts, not bytes, so that the
+ * vector loop's lanes are 32 bits wide (16 in AVX-512): byte outputs made
+ * GCC take 64 lanes, and a kmax below or between multiples of 64 ran in its
+ * scalar epilogue. */
 BSURF_CLONES
-static void poisson_invert(int k, const uint32_t *restrict u, uint8_t *restrict x) {
+static void poisson_invert(int k, uint32_t *restrict u) {
   for (int j = 0; j < k; j++) {
-    uint8_t c = 0;
+    uint32_t c = 0;
     for (int m = 0; m < 12; m++)
       c += u[j] >= poisson1_cdf[m];
-    x[j] = c;
+    u[j] = c;
   }
 }
 
 void bsurf_boot_poisson_rows(uint64_t seed, uint64_t point, int B, int kmax, uint32_t *u,
-                             uint8_t *x, double *Wt) {
+                             double *Wt) {
   for (int b = 0; b < B; b++) {
     bsurf_rng rng;
     bsurf_rng_init(&rng, seed, point, (uint64_t)b);
-    for (int j = 0; j < kmax; j += 2) {
-      const uint64_t r = bsurf_rng_next(&rng);
-      u[j] = (uint32_t)r;
-      if (j + 1 < kmax) u[j + 1] = (uint32_t)(r >> 32);
-    }
-    poisson_invert(kmax, u, x);
+    bsurf_rng_fill_u32(&rng, kmax, u);
+    poisson_invert(kmax, u);
     for (int j = 0; j < kmax; j++)
-      Wt[(size_t)j * B + b] = x[j];
+      Wt[(size_t)j * B + b] = u[j];
   }
 }

@@ -186,4 +186,8 @@ bsurf_status bsurf_parallel_sweep(size_t n, int threads, bsurf_point_fn fn, void
 bsurf_status bsurf_parallel_sweep_chunk(size_t n, int threads, int chunk, bsurf_point_fn fn,
                                         void *ctx);
 
+/* n 32-bit draws of the stream: the low then the high half of each
+ * bsurf_rng_next output in turn (an odd n drops the last high half). */
+void bsurf_rng_fill_u32(bsurf_rng *rng, int n, uint32_t *u);
+
 #endif

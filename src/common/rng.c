@@ -69,6 +69,14 @@ uint64_t bsurf_rng_next(bsurf_rng *rng) {
   return result;
 }
 
+void bsurf_rng_fill_u32(bsurf_rng *rng, int n, uint32_t *u) {
+  for (int j = 0; j < n; j += 2) { /* bsurf_rng_next inlined here */
+    const uint64_t r = bsurf_rng_next(rng);
+    u[j] = (uint32_t)r;
+    if (j + 1 < n) u[j + 1] = (uint32_t)(r >> 32);
+  }
+}
+
 double bsurf_rng_uniform(bsurf_rng *rng) {
   return (double)(bsurf_rng_next(rng) >> 11) * 0x1.0p-53;
 }

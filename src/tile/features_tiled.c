@@ -344,15 +344,19 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
 /* ---- features --method variance with the NULL rule in stages (the other
  * rules: cli/cmd_features.c) ----
  *  (v1) K = normals.k: nu (bootstrap normals keyed by global index, as in
- *       memory) and, per point, u = nu d, lambda0, lambda0 / tr and w (mu0
- *       where two sheets, bsurf_fvar_local);
+ *       memory) and, per point, u = nu d, lambda0, lambda0 / tr, w (mu0
+ *       where two sheets) and the border statistic b (bsurf_fvar_local);
  *  (v2) s^2 = median lambda0 and eta = median lambda0 / tr over the values
  *       read back in index order (8 bytes per point in memory at a time);
  *  (v3) K = k_f, reading (v1)'s values of the tile's points: z = the median
- *       of u over the first k_f neighbours / s^2;
- *  (v4) t from z (all of it in memory, for Otsu) and the null patch
- *       (bsurf_fvar_threshold, the in-memory function); the feature count;
+ *       of u over the first k_f neighbours / s^2, zb = that of b;
+ *  (v4) t from z (all of it in memory, for Otsu) and the null patch (t and
+ *       the border's t_b: bsurf_fvar_threshold, the in-memory function); the
+ *       feature count (z > t or zb > t_b);
  *       the output by a pointwise stage. */
+
+/* (v1)'s values per point: u, lambda0, lambda0 / tr, w, b */
+#define NV 5
 
 typedef struct fv_run {
   fd_run fd; /* first: the stages get &fd as their user */
@@ -369,9 +373,9 @@ static bsurf_status run_var_local(void *user, const bsurf_tile *t, bsurf_cloud *
   (void)sums;
   const fv_run *v = user;
   const size_t nc = t->core_count;
-  double *nu = bsurf_alloc_array(5 * (nc ? nc : 1), sizeof(double));
+  double *nu = bsurf_alloc_array(6 * (nc ? nc : 1), sizeof(double));
   if (!nu) return BSURF_ERR_NOMEM;
-  double *u = nu + nc, *l0 = u + nc, *ratio = l0 + nc, *w = ratio + nc;
+  double *u = nu + nc, *l0 = u + nc, *ratio = l0 + nc, *w = ratio + nc, *b = w + nc;
   bsurf_normal_options no = v->fd.o.normals;
   no.threads = v->fd.o.threads;
   no.progress = NULL;
@@ -379,12 +383,13 @@ static bsurf_status run_var_local(void *user, const bsurf_tile *t, bsurf_cloud *
   bsurf_normal_fields nf = {NULL, nu, NULL};
   bsurf_status st = bsurf_estimate_normals(t->xyz, t->nb, NULL, &no, &nf, NULL);
   if (st == BSURF_OK)
-    st = bsurf_fvar_local(t->xyz, t->nb, no.k, v->fd.o.threads, nu, u, l0, ratio, w);
+    st = bsurf_fvar_local(t->xyz, t->nb, no.k, v->fd.o.threads, nu, u, l0, ratio, w, b);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
-    t->values_out[4 * r] = u[r];
-    t->values_out[4 * r + 1] = l0[r];
-    t->values_out[4 * r + 2] = ratio[r];
-    t->values_out[4 * r + 3] = w[r];
+    t->values_out[NV * r] = u[r];
+    t->values_out[NV * r + 1] = l0[r];
+    t->values_out[NV * r + 2] = ratio[r];
+    t->values_out[NV * r + 3] = w[r];
+    t->values_out[NV * r + 4] = b[r];
   }
   free(nu);
   return st;
@@ -397,37 +402,50 @@ static bsurf_status run_var_filter(void *user, const bsurf_tile *t, bsurf_cloud 
   (void)sums;
   const fv_run *v = user;
   const size_t nl = t->local_count;
-  double *u = bsurf_alloc_array(2 * (nl ? nl : 1), sizeof(double));
+  const size_t m = nl ? nl : 1, nc = t->core_count;
+  double *u = bsurf_alloc_array(5 * m, sizeof(double));
   if (!u) return BSURF_ERR_NOMEM;
-  double *w = u + (nl ? nl : 1);
+  double *w = u + m, *b = w + m, *z = b + m, *zb = z + m;
   for (size_t l = 0; l < nl; l++) {
-    u[l] = t->values[4 * l];
-    w[l] = t->values[4 * l + 3];
+    u[l] = t->values[NV * l];
+    w[l] = t->values[NV * l + 3];
+    b[l] = t->values[NV * l + 4];
   }
-  bsurf_status st = bsurf_fvar_filter(t->nb, bsurf_fvar_filter_k(&v->fd.o), v->fd.o.threads, v->s2,
-                                      v->fd.o.normals.k, u, w, t->values_out);
+  const int kf = bsurf_fvar_filter_k(&v->fd.o), k = v->fd.o.normals.k;
+  bsurf_status st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, v->s2, k, u, w, z);
+  if (st == BSURF_OK) st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, 0, k, b, NULL, zb);
+  for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
+    t->values_out[2 * r] = z[r];
+    t->values_out[2 * r + 1] = zb[r];
+  }
   free(u);
   return st;
 }
 
-/* (v2): the second or third of the 4 values into v->all */
+/* (v2): the second or third of the NV values into v->all */
 static void scan_col1(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[4 * i + 1];
+    v->all[v->nall++] = x[NV * i + 1];
 }
 
 static void scan_col2(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[4 * i + 2];
+    v->all[v->nall++] = x[NV * i + 2];
 }
 
-/* (v4) */
+/* (v4): z of the pairs (z, zb); then the features */
 static void scan_z(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[i];
+    v->all[v->nall++] = x[2 * i];
+}
+
+static void scan_features(void *vv, size_t count, const double *x) {
+  fv_run *v = vv;
+  for (size_t i = 0; i < count; i++)
+    v->features += (size_t)bsurf_fvar_feature(&v->res, x[2 * i], x[2 * i + 1]);
 }
 
 static bsurf_status map_var(void *user, size_t first, bsurf_cloud *c, const double *values) {
@@ -436,8 +454,8 @@ static bsurf_status map_var(void *user, size_t first, bsurf_cloud *c, const doub
   bsurf_field *score = bsurf_cloud_field(c, "variance_z"), *feat = bsurf_cloud_field(c, "feature");
   if (!score || !feat) return BSURF_ERR_INVALID_ARG;
   for (size_t i = 0; i < c->point_count; i++) {
-    score->values[i] = values[i];
-    feat->values[i] = values[i] > v->res.threshold;
+    score->values[i] = values[2 * i];
+    feat->values[i] = bsurf_fvar_feature(&v->res, values[2 * i], values[2 * i + 1]);
   }
   return BSURF_OK;
 }
@@ -469,28 +487,27 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   memset(&rep, 0, sizeof rep);
   /* (v1) */
   bsurf_status st =
-      stage(input, output, &v.fd, o->normals.k, 4, run_var_local, NULL, &local, tiles, err);
+      stage(input, output, &v.fd, o->normals.k, NV, run_var_local, NULL, &local, tiles, err);
   /* (v2) */
   double eta = 0;
   if (st == BSURF_OK && !(v.all = bsurf_alloc_array(local.count ? local.count : 1, sizeof(double))))
     st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = values_scan_n(&v, &local, 4, scan_col1);
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col1);
   if (st == BSURF_OK) v.s2 = bsurf_median(v.all, v.nall);
   v.nall = 0;
-  if (st == BSURF_OK) st = values_scan_n(&v, &local, 4, scan_col2);
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col2);
   if (st == BSURF_OK) eta = bsurf_median(v.all, v.nall);
   st = agree_local(cm, st);
   /* (v3) */
   if (st == BSURF_OK)
-    st = stage(input, output, &v.fd, kf, 1, run_var_filter, &local, &z, &rep, err);
+    st = stage(input, output, &v.fd, kf, 2, run_var_filter, &local, &z, &rep, err);
   bsurf_tile_values_close(&local);
   /* (v4) */
   const bsurf_status passed = st;
   v.nall = 0;
-  if (st == BSURF_OK) st = values_scan_n(&v, &z, 1, scan_z);
+  if (st == BSURF_OK) st = values_scan_n(&v, &z, 2, scan_z);
   if (st == BSURF_OK) st = bsurf_fvar_threshold(o, v.all, v.nall, v.s2, eta, &v.res);
-  for (size_t i = 0; st == BSURF_OK && i < v.nall; i++)
-    v.features += v.all[i] > v.res.threshold;
+  if (st == BSURF_OK) st = values_scan_n(&v, &z, 2, scan_features);
   free(v.all);
   v.all = NULL;
   if (passed == BSURF_OK) st = agree_local(cm, st);
@@ -505,6 +522,7 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
     report->threshold = v.res.threshold;
     report->feature_points = v.features;
     report->noise_level = v.res.noise_level;
+    report->border_threshold = v.res.border_threshold;
     report->ratio_threshold_kmin = NAN;
   }
   free(v.all);
