@@ -198,6 +198,13 @@ static void test_counts4_equal_scalar(void **state) {
           assert_memory_equal(one, four + (size_t)l * k, (size_t)k * sizeof *one);
         }
         /* with the draws: the same counts, and the draws' histogram is them */
+        /* interleaved (the weights' lanes): the same counts */
+        bsurf_boot_counts4_lanes(5, 77 + b0, b0, nrep, k, draws);
+        for (int l = 0; l < 4; l++) {
+          if (l < nrep) bsurf_boot_counts(5, 77 + b0, b0 + (uint32_t)l, k, one);
+          for (int j = 0; j < k; j++)
+            assert_int_equal(draws[4 * (size_t)j + l], l < nrep ? one[j] : 0);
+        }
         bsurf_boot_counts4(5, 77 + b0, b0, nrep, k, four, draws);
         for (int l = 0; l < nrep; l++) {
           bsurf_boot_counts(5, 77 + b0, b0 + (uint32_t)l, k, one);

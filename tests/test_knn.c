@@ -426,6 +426,37 @@ static void test_knn_all_threads_deterministic(void **state) {
   free(xyz);
 }
 
+/* bsurf_neighbors_build builds its tree with the threads it is given (the
+ * top subtrees as tasks, their node places fixed in advance): 1 and 2
+ * threads give the same rows on a cloud large enough for tasks, with runs of
+ * coincident points (splits that stop early), and sampled rows equal a full
+ * sort's. */
+static void test_neighbors_build_threaded_tree(void **state) {
+  const size_t n = 150000;
+  const int k = 12;
+  double *xyz = gen_sphere(n, 11);
+  (void)state;
+  for (size_t i = 0; i < n; i += 7) /* coincident runs of 40 points */
+    if ((i / 40) % 50 == 3) memcpy(xyz + 3 * i, xyz + 3 * (i - i % 40), 3 * sizeof(double));
+  bsurf_neighbors a, b;
+  assert_int_equal(bsurf_neighbors_build(&a, xyz, n, k, 1, NULL, NULL), BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(&b, xyz, n, k, 2, NULL, NULL), BSURF_OK);
+  assert_memory_equal(a.idx, b.idx, n * (size_t)k * sizeof *a.idx);
+  assert_memory_equal(a.order, b.order, n * sizeof *a.order);
+  assert_true(a.h == b.h);
+  uint32_t ri[16];
+  double rd[16];
+  for (size_t i = 0; i < n; i += 997) {
+    sort_knn(xyz, n, xyz + 3 * i, i, k - 1, ri, rd);
+    assert_int_equal(b.idx[i * (size_t)k], i);
+    for (int t = 0; t < k - 1; t++) /* ties by index: the same indices */
+      assert_int_equal(b.idx[i * (size_t)k + 1 + (size_t)t], ri[t]);
+  }
+  bsurf_neighbors_free(&a);
+  bsurf_neighbors_free(&b);
+  free(xyz);
+}
+
 static double *square_grid(int nx, int ny, double s) {
   double *xyz = alloc_xyz((size_t)nx * ny);
   size_t p = 0;
@@ -714,6 +745,7 @@ static void test_knn_nonfinite_terminates(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_knn_all_uniform_cube),
+      cmocka_unit_test(test_neighbors_build_threaded_tree),
       cmocka_unit_test(test_knn_all_sphere_surface),
       cmocka_unit_test(test_knn_all_clustered),
       cmocka_unit_test(test_knn_all_duplicates),

@@ -65,6 +65,63 @@ static void test_angle_sum_accuracy(void **state) {
   assert_true(worst <= 2 * 2.3e-16);
 }
 
+/* Eq. 5.5 in bsurf_nested_summary: the angles between the first valid
+ * replicate and each (after the orientation to n_P, in place), oriented
+ * (up to pi), against libm's atan2 of the same cross and dot products
+ * within 2 ulp relative; the variance from them; invalid replicates (any
+ * values) left out. */
+static void test_summary_angles(void **state) {
+  (void)state;
+  enum { B = 45 };
+  bsurf_rng r;
+  bsurf_rng_init(&r, 8, 3, 4);
+  double bn[3 * B], ang[B], worst = 0;
+  unsigned char valid[B];
+  for (int it = 0; it < 200; it++) {
+    double nP[3] = {bsurf_rng_normal(&r), bsurf_rng_normal(&r), bsurf_rng_normal(&r)};
+    unit(nP);
+    const double spread = it % 4 == 0 ? 3.0 : pow(10, -8 * bsurf_rng_uniform(&r));
+    for (int b = 0; b < B; b++) {
+      double *v = &bn[3 * b];
+      for (int t = 0; t < 3; t++)
+        v[t] = (b % 2 ? -nP[t] : nP[t]) + spread * bsurf_rng_normal(&r);
+      unit(v);
+      valid[b] = (b + it) % 7 != 1;
+      if (!valid[b]) v[0] = NAN; /* never read */
+    }
+    double nrm[3], var;
+    const int nv = bsurf_nested_summary(B, nP, bn, valid, nrm, &var, ang);
+    int first = -1, count = 0;
+    double mean = 0;
+    double want[B];
+    for (int b = 0; b < B; b++) {
+      if (!valid[b]) continue;
+      if (first < 0) first = b;
+      const double *g = &bn[3 * first], *v = &bn[3 * b];
+      const double c[3] = {g[1] * v[2] - g[2] * v[1], g[2] * v[0] - g[0] * v[2],
+                           g[0] * v[1] - g[1] * v[0]};
+      want[b] = atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]),
+                      g[0] * v[0] + g[1] * v[1] + g[2] * v[2]);
+      if (b == first)
+        assert_true(ang[b] == 0.0);
+      else {
+        const double rel = fabs(ang[b] - want[b]) / want[b];
+        if (rel > worst) worst = rel;
+      }
+      mean += want[b];
+      count++;
+    }
+    assert_int_equal(nv, count);
+    mean /= count;
+    double v2 = 0;
+    for (int b = 0; b < B; b++)
+      if (valid[b]) v2 += (want[b] - mean) * (want[b] - mean);
+    v2 /= count - 1;
+    assert_true(fabs(var - v2) <= 1e-12 * v2 + 1e-300);
+  }
+  assert_true(worst <= 2 * 2.3e-16);
+}
+
 /* The angle sums of many (candidate, replicate) pairs in lanes: each pair's
  * sum has the bits of its own bsurf_nested_angle_sum, in the fixed order
  * (four running sums by j mod 4), whatever the other pairs: counts from 1
@@ -240,10 +297,12 @@ static void test_smallest_eigenvector(void **state) {
 }
 
 /* Every candidate's sums equal a separate weighted sum over its own first K
- * neighbours (same order: same bits); distinct counts the nonzero weights. */
+ * neighbours (same order: same bits); distinct counts the nonzero weights.
+ * Lane counts R of every remainder: the vector groups of 8 and 4, the last
+ * group overlapping the one before, and single lanes. */
 static void test_nested_sums(void **state) {
   (void)state;
-  enum { KMAX = 40, R = 9, NK = 4 };
+  enum { KMAX = 40, RMAX = 50, NK = 4 };
   const int ks[NK] = {5, 12, 13, 40};
   double xyz[3 * KMAX];
   uint32_t idx[KMAX];
@@ -254,35 +313,39 @@ static void test_nested_sums(void **state) {
     for (int t = 0; t < 3; t++)
       xyz[3 * j + t] = 1000 + bsurf_rng_normal(&r);
   }
-  double terms[KMAX * BSURF_NESTED_COLS], Wt[KMAX * R], sums[NK * BSURF_NESTED_COLS * R];
-  int distinct[NK * R];
+  static double terms[KMAX * BSURF_NESTED_COLS], Wt[KMAX * RMAX],
+      sums[NK * BSURF_NESTED_COLS * RMAX], cov[6 * RMAX];
+  static int distinct[NK * RMAX], ok[RMAX];
   uint32_t u[KMAX];
   bsurf_nested_terms(xyz, idx, KMAX, terms);
-  bsurf_boot_poisson_rows(5, 17, R, KMAX, u, Wt);
-  bsurf_nested_sums(terms, KMAX, R, Wt, ks, NK, sums, distinct);
-  for (int c = 0; c < NK; c++)
-    for (int b = 0; b < R; b++) {
-      double want[BSURF_NESTED_COLS] = {0};
-      int nz = 0;
-      for (int j = 0; j < ks[c]; j++) {
+  const int Rs[] = {1, 2, 3, 4, 5, 7, 8, 9, 12, 13, 17, 50};
+  for (size_t ri = 0; ri < sizeof Rs / sizeof Rs[0]; ri++) {
+    const int R = Rs[ri];
+    bsurf_boot_poisson_rows(5, 17, R, KMAX, u, Wt);
+    bsurf_nested_sums(terms, KMAX, R, Wt, ks, NK, sums, distinct);
+    for (int c = 0; c < NK; c++)
+      for (int b = 0; b < R; b++) {
+        double want[BSURF_NESTED_COLS] = {0};
+        int nz = 0;
+        for (int j = 0; j < ks[c]; j++) {
+          for (int col = 0; col < BSURF_NESTED_COLS; col++)
+            want[col] += Wt[j * R + b] * terms[j * BSURF_NESTED_COLS + col];
+          nz += Wt[j * R + b] != 0;
+        }
         for (int col = 0; col < BSURF_NESTED_COLS; col++)
-          want[col] += Wt[j * R + b] * terms[j * BSURF_NESTED_COLS + col];
-        nz += Wt[j * R + b] != 0;
+          assert_memory_equal(&sums[(c * BSURF_NESTED_COLS + col) * R + b], &want[col],
+                              sizeof(double));
+        assert_int_equal(distinct[c * R + b], nz);
+        /* the lanes' covariances are the row-by-row ones */
+        double mu[3], one[6];
+        bsurf_nested_cov_lanes(&sums[c * BSURF_NESTED_COLS * R], R, BSURF_PCA_CENTROID, cov, ok);
+        assert_int_equal(
+            bsurf_nested_cov(&sums[c * BSURF_NESTED_COLS * R + b], R, BSURF_PCA_CENTROID, mu, one),
+            ok[b] ? 0 : -1);
+        for (int t = 0; ok[b] && t < 6; t++)
+          assert_memory_equal(&cov[t * R + b], &one[t], sizeof(double));
       }
-      for (int col = 0; col < BSURF_NESTED_COLS; col++)
-        assert_memory_equal(&sums[(c * BSURF_NESTED_COLS + col) * R + b], &want[col],
-                            sizeof(double));
-      assert_int_equal(distinct[c * R + b], nz);
-      /* the lanes' covariances are the row-by-row ones */
-      double cov[6 * R], mu[3], one[6];
-      int ok[R];
-      bsurf_nested_cov_lanes(&sums[c * BSURF_NESTED_COLS * R], R, BSURF_PCA_CENTROID, cov, ok);
-      assert_int_equal(
-          bsurf_nested_cov(&sums[c * BSURF_NESTED_COLS * R + b], R, BSURF_PCA_CENTROID, mu, one),
-          ok[b] ? 0 : -1);
-      for (int t = 0; ok[b] && t < 6; t++)
-        assert_memory_equal(&cov[t * R + b], &one[t], sizeof(double));
-    }
+  }
 }
 
 /* Poisson(1) weights: mean 1, variance 1, P(0) = 1/e, at a fixed seed over
@@ -534,10 +597,11 @@ static void test_select_kd(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_angle_sum_accuracy),   cmocka_unit_test(test_angle_sums_pairs),
-      cmocka_unit_test(test_smallest_eigenvector), cmocka_unit_test(test_nested_sums),
-      cmocka_unit_test(test_poisson_weights),      cmocka_unit_test(test_select_k),
-      cmocka_unit_test(test_field_angle_accuracy), cmocka_unit_test(test_select_kd),
+      cmocka_unit_test(test_angle_sum_accuracy), cmocka_unit_test(test_summary_angles),
+      cmocka_unit_test(test_angle_sums_pairs),   cmocka_unit_test(test_smallest_eigenvector),
+      cmocka_unit_test(test_nested_sums),        cmocka_unit_test(test_poisson_weights),
+      cmocka_unit_test(test_select_k),           cmocka_unit_test(test_field_angle_accuracy),
+      cmocka_unit_test(test_select_kd),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

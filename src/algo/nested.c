@@ -34,24 +34,116 @@ void bsurf_nested_terms(const double *xyz, const uint32_t *idx, int kmax, double
   }
 }
 
-/* Neighbour j's weighted terms added to the R lanes of acc (column-major,
- * acc[col R + r]) and its nonzero weights to the distinct counts. */
-BSURF_CLONES
-static void sums_add(int R, const double *restrict t, const double *restrict w,
-                     double *restrict acc, int *restrict nz) {
-  for (int col = 0; col < BSURF_NESTED_COLS; col++) {
-    const double tc = t[col];
-    double *restrict a = acc + (size_t)col * R;
-    for (int r = 0; r < R; r++)
-      a[r] += w[r] * tc;
+#if defined(__GNUC__)
+typedef double sums_v8d __attribute__((vector_size(64)));
+typedef long long sums_v8l __attribute__((vector_size(64)));
+typedef double sums_v4d __attribute__((vector_size(32)));
+typedef long long sums_v4l __attribute__((vector_size(32)));
+
+/* Lanes r0 .. r0 + L - 1 (L = 8 or 4, the vector type V) of every
+ * candidate's weighted sums: the ten columns' accumulators kept in
+ * registers over the kmax neighbours (w * t, then the add, in the order
+ * j = 0, 1, ...: the bits of the one-neighbour-at-a-time loop through
+ * memory this replaces, which loaded and stored every accumulator once a
+ * neighbour), stored where a candidate's prefix ends; the nonzero weights
+ * counted alongside. */
+#define SUMS_LANES(V, VL, L)                                                                       \
+  do {                                                                                             \
+    V acc[BSURF_NESTED_COLS];                                                                      \
+    VL cnt;                                                                                        \
+    for (int col = 0; col < BSURF_NESTED_COLS; col++)                                              \
+      acc[col] = (V){0};                                                                           \
+    cnt = (VL){0};                                                                                 \
+    int c = 0;                                                                                     \
+    for (int j = 0; j < kmax && c < nk; j++) {                                                     \
+      const double *t = &terms[(size_t)j * BSURF_NESTED_COLS];                                     \
+      V w;                                                                                         \
+      memcpy(&w, &Wt[(size_t)j * R + r0], sizeof w);                                               \
+      for (int col = 0; col < BSURF_NESTED_COLS; col++)                                            \
+        acc[col] += w * t[col];                                                                    \
+      cnt -= (VL)(w != 0);                                                                         \
+      if (j + 1 == ks[c]) { /* candidate c complete */                                             \
+        double *o = sums + (size_t)c * block + r0;                                                 \
+        for (int col = 0; col < BSURF_NESTED_COLS; col++)                                          \
+          memcpy(o + (size_t)col * R, &acc[col], sizeof acc[col]);                                 \
+        if (nz)                                                                                    \
+          for (int l = 0; l < (L); l++)                                                            \
+            nz[(size_t)c * R + r0 + l] = (int)cnt[l];                                              \
+        c++;                                                                                       \
+      }                                                                                            \
+    }                                                                                              \
+  } while (0)
+
+static inline __attribute__((always_inline)) void
+sums_lanes8(const double *restrict terms, int kmax, int R, int r0, const double *restrict Wt,
+            const int *ks, int nk, size_t block, double *restrict sums, int *restrict nz) {
+  SUMS_LANES(sums_v8d, sums_v8l, 8);
+}
+
+static inline __attribute__((always_inline)) void
+sums_lanes4(const double *restrict terms, int kmax, int R, int r0, const double *restrict Wt,
+            const int *ks, int nk, size_t block, double *restrict sums, int *restrict nz) {
+  SUMS_LANES(sums_v4d, sums_v4l, 4);
+}
+#undef SUMS_LANES
+#endif
+
+/* One lane r of the weighted sums, as the vector blocks. */
+static void sums_lane1(const double *restrict terms, int kmax, int R, int r,
+                       const double *restrict Wt, const int *ks, int nk, size_t block,
+                       double *restrict sums, int *restrict nz) {
+  double acc[BSURF_NESTED_COLS] = {0};
+  int cnt = 0, c = 0;
+  for (int j = 0; j < kmax && c < nk; j++) {
+    const double *t = &terms[(size_t)j * BSURF_NESTED_COLS];
+    const double w = Wt[(size_t)j * R + r];
+    for (int col = 0; col < BSURF_NESTED_COLS; col++)
+      acc[col] += w * t[col];
+    cnt += w != 0;
+    if (j + 1 == ks[c]) {
+      for (int col = 0; col < BSURF_NESTED_COLS; col++)
+        sums[(size_t)c * block + (size_t)col * R + r] = acc[col];
+      if (nz) nz[(size_t)c * R + r] = cnt;
+      c++;
+    }
   }
-  if (nz)
-    for (int r = 0; r < R; r++)
-      nz[r] += w[r] != 0;
+}
+
+/* The weighted sums, R lanes: eight at a time where the clone has 512-bit
+ * vectors (the ten accumulators then fit its 32 registers), else four; a
+ * last partial group is the last full width of lanes again (R - 8 .. R - 1:
+ * the lanes done twice get the same values twice), fewer than four lanes
+ * one by one. Every lane is the same sequence of operations whichever width
+ * runs it, so the bits do not depend on the clone or on R. */
+BSURF_CLONES
+static void sums_weighted(const double *restrict terms, int kmax, int R, const double *restrict Wt,
+                          const int *ks, int nk, double *sums, int *nz) {
+  const size_t block = (size_t)BSURF_NESTED_COLS * R;
+  int r0 = 0;
+#if defined(__GNUC__)
+#if defined(__x86_64__) && !defined(__clang__)
+  if (R >= 8 && __builtin_cpu_supports("avx512f")) {
+    for (; r0 < R; r0 += 8)
+      sums_lanes8(terms, kmax, R, r0 + 8 <= R ? r0 : R - 8, Wt, ks, nk, block, sums, nz);
+    return;
+  }
+#endif
+  if (R >= 4) {
+    for (; r0 < R; r0 += 4)
+      sums_lanes4(terms, kmax, R, r0 + 4 <= R ? r0 : R - 4, Wt, ks, nk, block, sums, nz);
+    return;
+  }
+#endif
+  for (; r0 < R; r0++)
+    sums_lane1(terms, kmax, R, r0, Wt, ks, nk, block, sums, nz);
 }
 
 void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, const int *ks,
                        int nk, double *sums, int *distinct) {
+  if (Wt) {
+    sums_weighted(terms, kmax, R, Wt, ks, nk, sums, distinct);
+    return;
+  }
   const size_t block = (size_t)BSURF_NESTED_COLS * R;
   double *acc = sums;
   int *nz = distinct;
@@ -60,13 +152,9 @@ void bsurf_nested_sums(const double *terms, int kmax, int R, const double *Wt, c
   int c = 0;
   for (int j = 0; j < kmax && c < nk; j++) {
     const double *t = &terms[(size_t)j * BSURF_NESTED_COLS];
-    if (Wt) {
-      sums_add(R, t, &Wt[(size_t)j * R], acc, nz);
-    } else {
-      for (int col = 0; col < BSURF_NESTED_COLS; col++)
-        acc[col] += t[col];
-      if (nz) nz[0]++;
-    }
+    for (int col = 0; col < BSURF_NESTED_COLS; col++)
+      acc[col] += t[col];
+    if (nz) nz[0]++;
     if (j + 1 == ks[c]) { /* candidate c complete: carry its sums on */
       if (c + 1 < nk) {
         memcpy(acc + block, acc, block * sizeof *acc);
@@ -238,6 +326,29 @@ double bsurf_nested_angle_sum(const double g[3], const double *rx, const double 
   return s;
 }
 
+/* The angle in [0, pi] between unit g and each (rx, ry, rz)[j]:
+ * atan2(|g x r|, g . r) as libm's atan2 in bsurf_angle_between (oriented),
+ * by q1_angle of |g . r| (Cephes' atan, within 2 ulp of atan2 over the
+ * first quadrant) reflected to pi - a where g . r < 0 (pi split in two as
+ * pi / 2 is). In vector lanes: Eq. 5.5's variance took libm's atan2 one
+ * call at a time, 6-9% of `normals -B 50` (tests/test_nested.c). */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+BSURF_CLONES static void
+oriented_angles(const double g[3], const double *restrict rx, const double *restrict ry,
+                const double *restrict rz, int k, double *restrict out) {
+  const double g0 = g[0], g1 = g[1], g2 = g[2];
+  for (int j = 0; j < k; j++) {
+    const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
+                 c2 = g0 * ry[j] - g1 * rx[j];
+    const double dot = g0 * rx[j] + g1 * ry[j] + g2 * rz[j];
+    const double a = q1_angle(c0, c1, c2, dot, 0);
+    const double ar = (2 * PIO2 - a) + 2 * MOREBITS;
+    out[j] = dot < 0 ? ar : a;
+  }
+}
+
 /* sum_j a[j], j < k, as four running sums (j mod 4) then combined: a fixed
  * order. */
 static double fixed_sum(const double *a, int k) {
@@ -351,9 +462,22 @@ int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned c
   /* Eq. 5.5 */
   double v = 0;
   if (nvalid >= 2) {
+    /* the angles to n_1 in blocks of replicates as vectors (the invalid ones
+     * replaced by (0, 0, 1) and not used) */
+    enum { BLK = 64 };
+    double rx[BLK], ry[BLK], rz[BLK];
+    for (int b0 = 0; b0 < B; b0 += BLK) {
+      const int nb = B - b0 < BLK ? B - b0 : BLK;
+      for (int j = 0; j < nb; j++) {
+        const double *n = &bn[3 * (size_t)(b0 + j)];
+        const int ok = valid[b0 + j];
+        rx[j] = ok ? n[0] : 0.0, ry[j] = ok ? n[1] : 0.0, rz[j] = ok ? n[2] : 1.0;
+      }
+      oriented_angles(&bn[3 * first], rx, ry, rz, nb, &ang[b0]);
+    }
     double mean = 0;
     for (int b = 0; b < B; b++)
-      if (valid[b]) mean += ang[b] = bsurf_angle_between(&bn[3 * first], &bn[3 * b], 0);
+      if (valid[b]) mean += ang[b];
     mean /= nvalid;
     for (int b = 0; b < B; b++)
       if (valid[b]) {

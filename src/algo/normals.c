@@ -18,9 +18,10 @@
  * With B = 0 the single fit gives the normal, nu = 0, and the test error is
  * the same average with the single fit (a training error).
  *
- * The weighted second moments of all B resamples, like the normal equations
- * of the polynomial fits, are one B x K by K x c matrix product of the
- * multiplicities with per-neighbour terms computed once (src/local). */
+ * The weighted second moments of all B resamples are the nested sums of
+ * nested.c for one candidate K (the multiplicities as weights in vector
+ * lanes, the per-neighbour terms computed once); the normal equations of
+ * the polynomial fits are sums over each replicate's draws (src/local). */
 #include "algo/algo.h"
 #include "bootstrap/bootstrap.h"
 #include "common/common.h"
@@ -46,8 +47,8 @@ bsurf_normal_options bsurf_normal_options_default(void) {
 typedef struct normal_scratch {
   bsurf_localfit lf;
   double *terms;        /* k x PCA_COLS */
-  double *weights;      /* bsurf_boot_rows(B) x k: the replicates, then P (all ones) */
-  double *rows;         /* the same count x max(PCA_COLS, ncols): PCA rows, or the fits' lanes */
+  double *weights;      /* PCA: k x B, the replicates' weights in lanes */
+  double *rows;         /* the same count x ncols: the polynomial fits' lanes */
   double *coefs;        /* (B + 1) x terms */
   uint16_t *counts;     /* max(4, B) x k */
   uint16_t *draws;      /* B x k: each replicate's indices in the order drawn */
@@ -55,7 +56,7 @@ typedef struct normal_scratch {
   double *bn;           /* B x 3 bootstrap normals */
   double *lanes;        /* (COLS + 6 + 3) x B: PCA sums, covariances, normals in lanes */
   double *ang;          /* B: angles (Eq. 5.5) */
-  int *ok, *st;         /* B, B */
+  int *ok, *st, *nz;    /* B, B, B */
   bsurf_blocks mem;     /* the arrays above */
   size_t skipped, reduced, degenerate;
 } normal_scratch;
@@ -93,6 +94,7 @@ static bsurf_status scratch_alloc(void *vs, const void *vsz) {
   s->ok = bsurf_blocks_array(m, nb, sizeof(int));
   s->st = bsurf_blocks_array(m, nb, sizeof(int));
   s->ang = bsurf_blocks_array(m, nb, sizeof(double));
+  s->nz = bsurf_blocks_array(m, nb, sizeof(int));
   return bsurf_blocks_status(m); /* the loop frees what was made */
 }
 
@@ -133,13 +135,12 @@ static void normals_point(void *vctx, void *scratch, size_t i) {
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const double *xyz = c->xyz;
 
-  /* the B resamples: for PCA their multiplicities as weights (row B is the
-   * whole P), for a polynomial their draws */
+  /* the B resamples: for PCA their multiplicities as weights in lanes, for
+   * a polynomial their draws */
   const int pca = o->fit == BSURF_NORMAL_PCA;
-  double *W = s->weights;
   const uint64_t key = o->point_index ? o->point_index[i] : i;
   if (pca)
-    bsurf_boot_weight_rows(o->seed, key, B, k, 3, s->counts, W, NULL, s->valid);
+    bsurf_boot_weight_lanes(o->seed, key, B, k, s->counts, s->weights);
   else
     bsurf_boot_draw_rows(o->seed, key, B, k, bsurf_poly_terms(o->degree), s->counts, s->draws,
                          s->valid);
@@ -148,21 +149,23 @@ static void normals_point(void *vctx, void *scratch, size_t i) {
   bsurf_frame frame;
   int degree = o->degree;
   if (pca) {
+    /* the moment sums of P and of the replicates (nested.c, one candidate
+     * K: the weighted sums in vector lanes, the replicates' distinct points
+     * counted alongside), the covariances (the single fit's formula) and
+     * the closed-form smallest eigenvectors in lanes (eigen.c) */
+    const int ks1[1] = {k};
+    double row[PCA_COLS];
     bsurf_nested_terms(xyz, idx, k, s->terms);
-    bsurf_gemm_rows(B + 1, k, PCA_COLS, W, s->terms, s->rows);
-    if (pca_normal_from_row(&s->rows[(size_t)B * PCA_COLS], o->pca_center, nP) != 0)
-      s->degenerate++;
-    /* the replicates' normals in vector lanes (nested.c, eigen.c): the sums
-     * column by column, the covariances (the single fit's formula), the
-     * closed-form smallest eigenvectors */
+    bsurf_nested_sums(s->terms, k, 1, NULL, ks1, 1, row, NULL);
+    if (pca_normal_from_row(row, o->pca_center, nP) != 0) s->degenerate++;
     double *blk = s->lanes, *cov = blk + (size_t)PCA_COLS * B, *nl = cov + 6 * (size_t)B;
-    for (int b = 0; b < B; b++)
-      for (int t = 0; t < PCA_COLS; t++)
-        blk[(size_t)t * B + b] = s->rows[(size_t)b * PCA_COLS + t];
-    bsurf_nested_cov_lanes(blk, B, o->pca_center, cov, s->ok);
-    bsurf_eigen_sym3_smallest_lanes(B, cov, nl, s->st);
+    if (B > 0) {
+      bsurf_nested_sums(s->terms, k, B, s->weights, ks1, 1, blk, s->nz);
+      bsurf_nested_cov_lanes(blk, B, o->pca_center, cov, s->ok);
+      bsurf_eigen_sym3_smallest_lanes(B, cov, nl, s->st);
+    }
     for (int b = 0; b < B; b++) {
-      s->valid[b] = s->valid[b] && s->ok[b] && s->st[b] == 0;
+      s->valid[b] = s->nz[b] >= 3 && s->ok[b] && s->st[b] == 0;
       for (int t = 0; t < 3; t++)
         s->bn[3 * b + t] = nl[(size_t)t * B + b];
     }

@@ -16,17 +16,19 @@ void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k,
  * of the stream's first k, then the replacements of rejected ones). */
 void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
                         uint16_t *counts, uint16_t *draws);
+/* bsurf_boot_counts4's counts interleaved: replicate l's count of point j
+ * at counts[4 j + l] (4k; lanes l >= nrep zero), the layout of four lanes
+ * of weights. */
+void bsurf_boot_counts4_lanes(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
+                              uint16_t *counts);
 
-/* The weight rows of B resamples and of the whole neighbourhood, laid out
- * for one normal-equation product (bsurf_gemm_rows / bsurf_gemm_lanes):
- * W (bsurf_boot_rows(B) x k): row b < B the multiplicities of replicate b
- * (stream (seed, point, b)), row B all ones, the rest zero; missing (B x k,
- * may be NULL): 1.0 where point j is not in replicate b (b in C_j, Eq. 4.4),
- * else 0.0; valid[b]: replicate b drew at least min_distinct distinct points.
- * counts: 4k scratch. (The polynomial fits use bsurf_boot_draw_rows.) */
-void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
-                            uint16_t *counts, double *W, double *missing, unsigned char *valid);
-/* The B resamples of bsurf_boot_weight_rows as integers only: counts (B x
+/* The multiplicities of B resamples (Eq. 4.2; replicate b the stream (seed,
+ * point, b), as bsurf_boot_counts) as weights in vector lanes: Wt (k x B,
+ * Wt[j B + b]), the layout of bsurf_nested_sums, whose distinct counts then
+ * tell how many points each replicate drew. counts: 4k scratch. */
+void bsurf_boot_weight_lanes(uint64_t seed, uint64_t point, int B, int k, uint16_t *counts,
+                             double *Wt);
+/* The B resamples of bsurf_boot_weight_lanes as integers only: counts (B x
  * k) the multiplicities, draws (B x k) the indices in the order drawn,
  * valid[b] as there. For the fits from draws (bsurf_localfit_normal_eq_draws)
  * and the residual sums, which read counts where the dense product read

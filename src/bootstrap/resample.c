@@ -20,16 +20,17 @@ static uint32_t chunk_threshold(int k) {
 }
 
 /* The replacements of `rejected` draws, continuing the stream rng; the
- * indices drawn are appended at draws[n..] (draws may be NULL). */
-static void boot_replace(bsurf_rng *rng, int k, int rejected, uint16_t *counts, uint16_t *draws,
-                         int n) {
+ * indices drawn are appended at draws[n..] (draws may be NULL). Point j's
+ * count is counts[j sc] (sc: 1, or 4 in the interleaved layout). */
+static void boot_replace(bsurf_rng *rng, int k, int rejected, uint16_t *counts, int sc,
+                         uint16_t *draws, int n) {
   const uint32_t threshold = chunk_threshold(k);
   while (rejected > 0) {
     const uint64_t x = bsurf_rng_next(rng);
     for (int c = 0; c < 4 && rejected > 0; c++) {
       const uint32_t m = (uint32_t)(x >> (16 * c) & 0xffffu) * (uint32_t)k;
       if ((m & 0xffffu) < threshold) continue;
-      counts[m >> 16]++;
+      counts[(m >> 16) * (uint32_t)sc]++;
       if (draws) draws[n++] = (uint16_t)(m >> 16);
       rejected--;
     }
@@ -39,10 +40,11 @@ static void boot_replace(bsurf_rng *rng, int k, int rejected, uint16_t *counts, 
 /* bsurf_boot_counts, and the k indices in the order drawn (draws may be
  * NULL): the accepted chunks among the first k, then the replacements. */
 static void boot_counts_draws(uint64_t seed, uint64_t point, uint32_t replicate, int k,
-                              uint16_t *counts, uint16_t *draws) {
+                              uint16_t *counts, int sc, uint16_t *draws) {
   bsurf_rng rng;
   bsurf_rng_init(&rng, seed, point, replicate);
-  memset(counts, 0, (size_t)k * sizeof *counts);
+  for (int j = 0; j < k; j++)
+    counts[(size_t)j * sc] = 0;
   const uint32_t threshold = chunk_threshold(k);
   int rejected = 0, n = 0;
   for (int t = 0; t < k; t += 4) {
@@ -52,16 +54,16 @@ static void boot_counts_draws(uint64_t seed, uint64_t point, uint32_t replicate,
       if ((m & 0xffffu) < threshold) {
         rejected++;
       } else {
-        counts[m >> 16]++;
+        counts[(m >> 16) * (uint32_t)sc]++;
         if (draws) draws[n++] = (uint16_t)(m >> 16);
       }
     }
   }
-  boot_replace(&rng, k, rejected, counts, draws, n);
+  boot_replace(&rng, k, rejected, counts, sc, draws, n);
 }
 
 void bsurf_boot_counts(uint64_t seed, uint64_t point, uint32_t replicate, int k, uint16_t *counts) {
-  boot_counts_draws(seed, point, replicate, k, counts, NULL);
+  boot_counts_draws(seed, point, replicate, k, counts, 1, NULL);
 }
 
 #if defined(__GNUC__)
@@ -72,9 +74,14 @@ typedef uint32_t v8u __attribute__((vector_size(32)));
 #define ROTL4(x, r) (((x) << (r)) | ((x) >> (64 - (r))))
 #endif
 
-BSURF_CLONES
-void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
-                        uint16_t *counts, uint16_t *draws) {
+/* bsurf_boot_counts4 (il = 0: replicate l's counts at counts[l k + j]) and
+ * bsurf_boot_counts4_lanes (il = 1: at counts[4 j + l]). */
+static inline __attribute__((always_inline)) void counts4(uint64_t seed, uint64_t point,
+                                                          uint32_t replicate, int nrep, int k,
+                                                          uint16_t *counts, uint16_t *draws,
+                                                          int il) {
+  const int sc = il ? 4 : 1;
+  const size_t ls = il ? 1 : (size_t)k;
 #if defined(__GNUC__)
   if (nrep == 4) {
     /* The streams of four replicates side by side in vector lanes; each
@@ -84,14 +91,13 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
      * (below k / 2^16 per draw) is redone by the scalar code at the end, so
      * the counts are always those of bsurf_boot_counts. */
     bsurf_rng r[4];
-    for (int l = 0; l < 4; l++)
-      bsurf_rng_init(&r[l], seed, point, replicate + (uint32_t)l);
+    bsurf_rng_init4(r, seed, point, replicate);
     v4u s0 = {r[0].s[0], r[1].s[0], r[2].s[0], r[3].s[0]};
     v4u s1 = {r[0].s[1], r[1].s[1], r[2].s[1], r[3].s[1]};
     v4u s2 = {r[0].s[2], r[1].s[2], r[2].s[2], r[3].s[2]};
     v4u s3 = {r[0].s[3], r[1].s[3], r[2].s[3], r[3].s[3]};
     memset(counts, 0, 4 * (size_t)k * sizeof *counts);
-    uint16_t *const c[4] = {counts, counts + k, counts + 2 * (size_t)k, counts + 3 * (size_t)k};
+    uint16_t *const c[4] = {counts, counts + ls, counts + 2 * ls, counts + 3 * ls};
     uint16_t *d[4] = {NULL, NULL, NULL, NULL};
     if (draws)
       for (int l = 0; l < 4; l++)
@@ -119,10 +125,10 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
       if (k - t >= 4) {
         for (int l = 0; l < 4; l++) {
           const uint64_t u = idx[l];
-          c[l][u & 0xffffu]++;
-          c[l][u >> 16 & 0xffffu]++;
-          c[l][u >> 32 & 0xffffu]++;
-          c[l][u >> 48]++;
+          c[l][(u & 0xffffu) * sc]++;
+          c[l][(u >> 16 & 0xffffu) * sc]++;
+          c[l][(u >> 32 & 0xffffu) * sc]++;
+          c[l][(u >> 48) * sc]++;
           if (draws) {
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
             memcpy(&d[l][t], &u, sizeof u); /* the four in chunk order */
@@ -136,20 +142,33 @@ void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int n
         for (int l = 0; l < 4; l++)
           for (int ch = 0; ch < k - t; ch++) {
             const uint16_t j = (uint16_t)(idx[l] >> (16 * ch) & 0xffffu);
-            c[l][j]++;
+            c[l][(size_t)j * sc]++;
             if (draws) d[l][t + ch] = j;
           }
       }
     }
     for (int l = 0; l < 4; l++)
       if (reject[2 * l] | reject[2 * l + 1])
-        boot_counts_draws(seed, point, replicate + (uint32_t)l, k, c[l], draws ? d[l] : NULL);
+        boot_counts_draws(seed, point, replicate + (uint32_t)l, k, c[l], sc, draws ? d[l] : NULL);
     return;
   }
 #endif
+  if (il) memset(counts, 0, 4 * (size_t)k * sizeof *counts);
   for (int l = 0; l < nrep; l++)
-    boot_counts_draws(seed, point, replicate + (uint32_t)l, k, counts + l * (size_t)k,
+    boot_counts_draws(seed, point, replicate + (uint32_t)l, k, counts + l * ls, sc,
                       draws ? draws + l * (size_t)k : NULL);
+}
+
+BSURF_CLONES
+void bsurf_boot_counts4(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
+                        uint16_t *counts, uint16_t *draws) {
+  counts4(seed, point, replicate, nrep, k, counts, draws, 0);
+}
+
+BSURF_CLONES
+void bsurf_boot_counts4_lanes(uint64_t seed, uint64_t point, uint32_t replicate, int nrep, int k,
+                              uint16_t *counts) {
+  counts4(seed, point, replicate, nrep, k, counts, NULL, 1);
 }
 
 BSURF_CLONES
@@ -160,36 +179,25 @@ int bsurf_boot_distinct(int k, const uint16_t *counts) {
   return distinct;
 }
 
-/* A replicate's multiplicities as fit weights (w) and, if missing is not
- * NULL, 1.0 where a point was not drawn; the number of distinct points. */
-BSURF_CLONES
-static int boot_weights(int k, const uint16_t *restrict counts, double *restrict w,
-                        double *restrict missing) {
-  for (int j = 0; j < k; j++)
-    w[j] = counts[j];
-  if (missing)
-    for (int j = 0; j < k; j++)
-      missing[j] = counts[j] == 0;
-  return bsurf_boot_distinct(k, counts);
-}
-
 int bsurf_boot_rows(int B) {
   return (B + 1 + 3) / 4 * 4;
 }
 
-void bsurf_boot_weight_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,
-                            uint16_t *counts, double *W, double *missing, unsigned char *valid) {
+void bsurf_boot_weight_lanes(uint64_t seed, uint64_t point, int B, int k, uint16_t *counts,
+                             double *Wt) {
   for (int b0 = 0; b0 < B; b0 += 4) {
     const int nrep = B - b0 < 4 ? B - b0 : 4;
-    bsurf_boot_counts4(seed, point, (uint32_t)b0, nrep, k, counts, NULL);
-    for (int b = b0; b < b0 + nrep; b++)
-      valid[b] = boot_weights(k, &counts[(size_t)(b - b0) * k], &W[(size_t)b * k],
-                              missing ? &missing[(size_t)b * k] : NULL) >= min_distinct;
+    bsurf_boot_counts4_lanes(seed, point, (uint32_t)b0, nrep, k, counts);
+    double *w = Wt + b0;
+    if (nrep == 4) /* four contiguous counts to four contiguous weights */
+      for (int j = 0; j < k; j++)
+        for (int l = 0; l < 4; l++)
+          w[(size_t)j * B + l] = counts[4 * j + l];
+    else
+      for (int j = 0; j < k; j++)
+        for (int l = 0; l < nrep; l++)
+          w[(size_t)j * B + l] = counts[4 * j + l];
   }
-  for (int j = 0; j < k; j++)
-    W[(size_t)B * k + j] = 1.0;
-  for (size_t t = (size_t)(B + 1) * k; t < (size_t)bsurf_boot_rows(B) * k; t++)
-    W[t] = 0.0;
 }
 
 void bsurf_boot_draw_rows(uint64_t seed, uint64_t point, int B, int k, int min_distinct,

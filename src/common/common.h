@@ -34,6 +34,9 @@
 #define BSURF_CLONES
 #endif
 
+/* bsurf_rng_init of the four streams (seed, a, b + l), l < 4 (rng.c). */
+void bsurf_rng_init4(bsurf_rng rng[4], uint64_t seed, uint64_t a, uint64_t b);
+
 /* malloc of n * size bytes with an overflow check; NULL on failure or n == 0. */
 void *bsurf_alloc_array(size_t n, size_t size);
 void *bsurf_calloc_array(size_t n, size_t size);

@@ -2,6 +2,7 @@
  * whole-file reads, atomic writes through a temporary file) and the growable
  * arrays and checked output shared by the per-format readers and writers
  * (text scanning: text.c; value types and their text form: values.c). */
+#define _DEFAULT_SOURCE /* mmap's MAP_POPULATE */
 #include "io/io.h"
 
 #include <errno.h>
@@ -13,6 +14,9 @@
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+#if defined(__linux__)
+#include <sys/mman.h>
+#endif
 
 /* ------------------------------------------------------------------------ */
 /* Growable arrays                                                           */
@@ -291,6 +295,33 @@ bsurf_status bsurf_read_buffer(const void *data, size_t size, bsurf_format forma
   return BSURF_OK;
 }
 
+/* The format of the bytes buf[0..n) read from path, and the cloud from them. */
+static bsurf_status read_content(const char *path, bsurf_format format, const char *buf, size_t n,
+                                 bsurf_cloud *cloud, bsurf_failure *err) {
+  /* the content's own signature wins over the extension; text without one
+   * and without a known extension is sniffed (docs/formats.md) */
+  bsurf_format declared = bsurf_format_detect(buf, n);
+  if (declared != BSURF_FORMAT_UNKNOWN &&
+      !(declared == BSURF_FORMAT_OFF && format == BSURF_FORMAT_OBJ))
+    format = declared;
+  else if (format == BSURF_FORMAT_UNKNOWN) {
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    const char *dot = strrchr(base, '.');
+    if (dot && dot != base) /* an extension bootsurf does not know, and no signature */
+      return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1,
+                        "%s; the content is not PLY, PCD, LAS or OFF either", k_unknown_ext);
+    format = sniff_text(buf, n); /* no extension (or standard input): text */
+  }
+  return bsurf_read_buffer(buf, n, format, cloud, err);
+}
+
+/* Files from this size are mapped (read-only, pages populated at once)
+ * instead of read into a buffer: the kernel then neither zeroes a buffer's
+ * fresh pages nor copies the file into them (3% of the CPU time of
+ * `normals -k 30 -B 0` on a 48 MB PLY, all of it before the threads start). */
+#define READ_MAP_MIN ((size_t)4 << 20)
+
 bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err) {
   clear_error(err);
   if (!cloud) return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "no cloud given");
@@ -315,6 +346,18 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err
                           (long long)sb.st_size);
       }
       cap = (size_t)sb.st_size + 1; /* +1: reach EOF without growing */
+#if defined(__linux__) && defined(MAP_POPULATE)
+      if (!is_stdin && (size_t)sb.st_size >= READ_MAP_MIN) {
+        const size_t size = (size_t)sb.st_size;
+        void *map = mmap(NULL, size, PROT_READ, MAP_PRIVATE | MAP_POPULATE, fileno(f), 0);
+        if (map != MAP_FAILED) {
+          fclose(f);
+          bsurf_status st = read_content(path, format, map, size, cloud, err);
+          munmap(map, size);
+          return st;
+        } /* else read it */
+      }
+#endif
     }
   }
   char *buf = bsurf_alloc_array(cap, 1); /* huge pages for a large file */
@@ -354,24 +397,7 @@ bsurf_status bsurf_read(const char *path, bsurf_cloud *cloud, bsurf_failure *err
     }
   }
   if (!is_stdin) fclose(f);
-  /* the content's own signature wins over the extension; text without one
-   * and without a known extension is sniffed (docs/formats.md) */
-  bsurf_format declared = bsurf_format_detect(buf, n);
-  if (declared != BSURF_FORMAT_UNKNOWN &&
-      !(declared == BSURF_FORMAT_OFF && format == BSURF_FORMAT_OBJ))
-    format = declared;
-  else if (format == BSURF_FORMAT_UNKNOWN) {
-    const char *base = strrchr(path, '/');
-    base = base ? base + 1 : path;
-    const char *dot = strrchr(base, '.');
-    if (dot && dot != base) { /* an extension bootsurf does not know, and no signature */
-      free(buf);
-      return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1,
-                        "%s; the content is not PLY, PCD, LAS or OFF either", k_unknown_ext);
-    }
-    format = sniff_text(buf, n); /* no extension (or standard input): text */
-  }
-  bsurf_status st = bsurf_read_buffer(buf, n, format, cloud, err);
+  bsurf_status st = read_content(path, format, buf, n, cloud, err);
   free(buf);
   return st;
 }

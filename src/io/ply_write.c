@@ -103,6 +103,31 @@ bsurf_status io_ply_encode(const bsurf_cloud *cloud, unsigned char *out) {
   return BSURF_OK;
 }
 
+/* Column j of `count` binary records (rec bytes apart, from o): the values
+ * as io_put_le writes them; doubles and floats on a little-endian host by
+ * one store each (io_put_le assembles every value byte by byte: about 3% of
+ * the CPU time of `normals -k 30 -B 0` at 1M points, on one thread). */
+static void put_column(unsigned char *o, size_t rec, const out_prop *p, size_t i0, size_t count) {
+  const double *src = p->src + i0 * p->stride;
+  const size_t stride = p->stride;
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  if (p->type == BSURF_FLOAT64) {
+    for (size_t i = 0; i < count; i++)
+      memcpy(o + i * rec, &src[i * stride], sizeof(double));
+    return;
+  }
+  if (p->type == BSURF_FLOAT32) {
+    for (size_t i = 0; i < count; i++) {
+      const float f = (float)io_type_convert(src[i * stride], BSURF_FLOAT32);
+      memcpy(o + i * rec, &f, sizeof f);
+    }
+    return;
+  }
+#endif
+  for (size_t i = 0; i < count; i++)
+    io_put_le(o + i * rec, src[i * stride], p->type);
+}
+
 bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int ascii,
                                 bsurf_ply_names names, bsurf_failure *err) {
   size_t np = 3 + (cloud->normals ? 3u : 0u) + cloud->field_count;
@@ -153,11 +178,13 @@ bsurf_status bsurf_io_write_ply(io_writer *w, const bsurf_cloud *cloud, int asci
   size_t per_chunk = cap / rec;
   for (size_t i0 = 0; i0 < cloud->point_count && !w->failed; i0 += per_chunk) {
     size_t i1 = i0 + per_chunk < cloud->point_count ? i0 + per_chunk : cloud->point_count;
-    unsigned char *o = buf;
-    for (size_t i = i0; i < i1; i++)
-      for (size_t j = 0; j < np; j++)
-        o = io_put_le(o, props[j].src[i * props[j].stride], props[j].type);
-    io_write_bytes(w, buf, (size_t)(o - buf));
+    /* column by column into the chunk's records */
+    size_t off = 0;
+    for (size_t j = 0; j < np; j++) {
+      put_column(buf + off, rec, &props[j], i0, i1 - i0);
+      off += io_type_size(props[j].type);
+    }
+    io_write_bytes(w, buf, (i1 - i0) * rec);
   }
   per_chunk = cap / 13;
   for (size_t i0 = 0; i0 < cloud->face_count && !w->failed; i0 += per_chunk) {

@@ -62,7 +62,8 @@ static bsurf_status normals_bufs_alloc(normals_bufs *b, const normals_job *job, 
   const size_t m = n ? n : 1;
   b->normals = bsurf_alloc_array(m * 3, sizeof(double)); /* large: huge pages (status.c) */
   b->var = bsurf_calloc_array(m, sizeof(double));
-  b->err = bsurf_calloc_array(m, sizeof(double));
+  /* calloc: pages that are never written (no test error) are never touched */
+  b->err = calloc(m, sizeof(double));
   int ok = b->normals && b->var && b->err;
   if (job->test_error && job->ksel.rule != BSURF_KSELECT_MSE)
     ok = ok && (b->ref = malloc(m * 3 * sizeof(double)));

@@ -44,7 +44,7 @@ static bsurf_status knn_with_spacing(const double *xyz, size_t point_count, int 
 
   nn = bsurf_alloc_array(point_count, sizeof *nn);
   if (!nn) return BSURF_ERR_NOMEM;
-  st = bsurf_knn_build(&index, xyz, point_count);
+  st = bsurf_knn_build_threads(&index, xyz, point_count, threads);
   if (st == BSURF_OK) {
     st = bsurf_knn_all_ex(index, k, threads, idx, NULL, nn, progress, user);
     if (order) memcpy(order, bsurf_knn_tree_ids(index), point_count * sizeof *order);

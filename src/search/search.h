@@ -11,6 +11,11 @@
 
 /* Number of points in an index. */
 size_t bsurf_knn_point_count(const bsurf_knn_index *index);
+/* bsurf_knn_build with `threads` threads (0: all; bsurf_threads_resolve):
+ * the subtrees of the top levels built at once. The same tree for any
+ * count. */
+bsurf_status bsurf_knn_build_threads(bsurf_knn_index **index, const double *xyz, size_t point_count,
+                                     int threads);
 
 /* bsurf_knn_all with two internal extras:
  *  - idx may be NULL (only distances wanted);
