@@ -276,34 +276,45 @@ static void flat_patch(uint64_t seed, int K, flat_patch_t *p) {
   assert_int_equal(bsurf_localfit_alloc(&p->lf, K, 4), BSURF_OK);
 }
 
-/* bsurf_gemm_rows for any row count and column count (the PCA's 10 columns,
- * odd counts, fewer than 4 rows, a partial last group of 4) gives the bits of
- * the plain product: each entry summed over j = 0..k-1 in order, a multiply
- * then an add (C11 without contraction, as the library is built). */
-static void test_gemm_rows_any_shape(void **state) {
+/* The plain row-major product out (B x nc) = W (B x k) * A (k x nc), each
+ * entry summed over j = 0..k-1 in order, a multiply then an add (C11
+ * without contraction, as the library is built): the reference the lanes
+ * must reproduce bit for bit. */
+static void plain_rows(int B, int k, int nc, const double *W, const double *A, double *out) {
+  for (int b = 0; b < B; b++)
+    for (int col = 0; col < nc; col++) {
+      double want = 0;
+      for (int j = 0; j < k; j++) {
+        const double term = W[b * k + j] * A[j * nc + col];
+        want = want + term;
+      }
+      out[b * nc + col] = want;
+    }
+}
+
+/* bsurf_gemm_lanes for row counts that are multiples of 4 and column
+ * counts that are multiples of 8 (one group, several, a long last one)
+ * gives the bits of the plain product, in the interleaved layout. */
+static void test_gemm_lanes_any_shape(void **state) {
   (void)state;
   enum { K = 23 };
-  const int rows[] = {1, 3, 4, 7, 51}, cols[] = {1, 2, 9, 10, 11, 16, 17};
-  static double W[51 * K], A[K * 17], out[51 * 17];
+  const int rows[] = {4, 8, 52}, cols[] = {8, 16, 24};
+  static double W[52 * K], A[K * 24], out[52 * 24], want[52 * 24];
   bsurf_rng r;
   bsurf_rng_init(&r, 5, 6, 7);
-  for (int t = 0; t < 51 * K; t++)
+  for (int t = 0; t < 52 * K; t++)
     W[t] = (double)(bsurf_rng_next(&r) % 4);
-  for (int t = 0; t < K * 17; t++)
+  for (int t = 0; t < K * 24; t++)
     A[t] = bsurf_rng_normal(&r) * 1e3;
   for (size_t a = 0; a < sizeof rows / sizeof rows[0]; a++)
     for (size_t c = 0; c < sizeof cols / sizeof cols[0]; c++) {
-      const int B = rows[a], nc = cols[c];
-      bsurf_gemm_rows(B, K, nc, W, A, out);
-      for (int b = 0; b < B; b++)
-        for (int col = 0; col < nc; col++) {
-          double want = 0;
-          for (int j = 0; j < K; j++) {
-            const double term = W[b * K + j] * A[j * nc + col];
-            want = want + term;
-          }
-          assert_memory_equal(&out[b * nc + col], &want, sizeof want);
-        }
+      const int R = rows[a], nc = cols[c];
+      bsurf_gemm_lanes(R, K, nc, W, A, out);
+      plain_rows(R, K, nc, W, A, want);
+      for (int b = 0; b < R; b++)
+        for (int col = 0; col < nc; col++)
+          assert_memory_equal(&out[(size_t)(b / 4) * 4 * nc + 4 * col + b % 4], &want[b * nc + col],
+                              sizeof(double));
     }
 }
 
@@ -328,7 +339,7 @@ static void test_lanes_equal_rows(void **state) {
         counts[b][j] = b == 5 ? (uint16_t)(j < 2 ? 5 : 0) : (uint16_t)((j * 7 + b * 3) % 4);
         W[b * K + j] = counts[b][j];
       }
-    bsurf_gemm_rows(R, K, nc, W, pt.lf.op, rows);
+    plain_rows(R, K, nc, W, pt.lf.op, rows);
     bsurf_localfit_normal_eq_lanes(&pt.lf, R, W, lanes);
     unsigned char valid[R];
     double coefs[R * 15];
@@ -498,7 +509,7 @@ int main(void) {
       cmocka_unit_test(test_poly_basis_order),
       cmocka_unit_test(test_poly_exact_recovery),
       cmocka_unit_test(test_rank_deficient_detected),
-      cmocka_unit_test(test_gemm_rows_any_shape),
+      cmocka_unit_test(test_gemm_lanes_any_shape),
       cmocka_unit_test(test_lanes_equal_rows),
       cmocka_unit_test(test_draw_sums),
       cmocka_unit_test(test_residual_sums_equal_plain),

@@ -80,68 +80,6 @@ gemm_block(const double *const w[4], int k, int nc, const double *A, int c, v4d 
 }
 #endif
 
-#ifdef HAVE_V4D
-/* One 4 x 2 block of W A: rows w[0..3] times columns c0 and c1 (c1 = c0 for
- * a last odd column), two rows to a vector: acc[0] = (r0 c0, r0 c1, r1 c0,
- * r1 c1), acc[1] the same for rows 2 and 3. Same order and operations per
- * entry as gemm_block and gemm_plain. */
-static inline __attribute__((always_inline)) void
-gemm_block2(const double *const w[4], int k, int nc, const double *A, int c0, int c1, v4d acc[2]) {
-  v4d a01 = {0, 0, 0, 0}, a23 = a01;
-  const double *w0 = w[0], *w1 = w[1], *w2 = w[2], *w3 = w[3];
-  for (int j = 0; j < k; j++) {
-    const double x0 = A[(size_t)j * nc + c0], x1 = A[(size_t)j * nc + c1];
-    const v4d x = {x0, x1, x0, x1};
-    const v4d s01 = {w0[j], w0[j], w1[j], w1[j]}, s23 = {w2[j], w2[j], w3[j], w3[j]};
-    a01 += s01 * x;
-    a23 += s23 * x;
-  }
-  acc[0] = a01;
-  acc[1] = a23;
-}
-#endif
-
-/* Every block is four rows: the last group, when B is not a multiple of 4,
- * repeats its last row in the missing places and stores only the real rows;
- * columns go 8 at a time, then in pairs (the PCA's 10 columns: 8 + 2), so
- * nothing is left to the plain loop, whose sums go through memory (it took
- * two thirds of this function's time for 10 columns). */
-BSURF_CLONES
-void bsurf_gemm_rows(int B, int k, int nc, const double *restrict W, const double *restrict A,
-                     double *restrict out) {
-#ifdef HAVE_V4D
-  const int nc8 = nc - nc % 8;
-  for (int b = 0; b < B; b += 4) {
-    const int nr = B - b < 4 ? B - b : 4;
-    const double *w[4];
-    for (int r = 0; r < 4; r++)
-      w[r] = &W[(size_t)(b + (r < nr ? r : nr - 1)) * k];
-    for (int c = 0; c < nc8; c += 8) {
-      v4d acc[8];
-      gemm_block(w, k, nc, A, c, acc);
-      for (int r = 0; r < nr; r++) {
-        memcpy(&out[(size_t)(b + r) * nc + c], &acc[2 * r], 32);
-        memcpy(&out[(size_t)(b + r) * nc + c + 4], &acc[2 * r + 1], 32);
-      }
-    }
-    for (int c = nc8; c < nc; c += 2) {
-      const int c1 = c + 1 < nc ? c + 1 : c;
-      v4d acc[2];
-      double v[8];
-      gemm_block2(w, k, nc, A, c, c1, acc);
-      memcpy(v, &acc[0], 32);
-      memcpy(v + 4, &acc[1], 32);
-      for (int r = 0; r < nr; r++) {
-        out[(size_t)(b + r) * nc + c] = v[2 * r];
-        if (c1 != c) out[(size_t)(b + r) * nc + c1] = v[2 * r + 1];
-      }
-    }
-  }
-#else
-  gemm_plain(0, B, 0, nc, k, nc, W, A, out);
-#endif
-}
-
 BSURF_CLONES
 void bsurf_gemm_lanes(int R, int k, int nc, const double *restrict W, const double *restrict A,
                       double *restrict out) {

@@ -61,11 +61,6 @@ int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_t
 /* Default relative pivot tolerance for rank detection. */
 #define BSURF_RANK_TOL 1e-10
 
-/* out (B x nc) = W (B x k) * A (k x nc), all row-major: the sums of
- * weighted per-neighbour terms of B resamples at once. Each entry is summed
- * in the order j = 0..k-1 (same bits on every code path). */
-void bsurf_gemm_rows(int B, int k, int nc, const double *W, const double *A, double *out);
-
 /* A neighbourhood prepared for (weighted) polynomial height fits: local
  * coordinates scaled to the unit disc, the basis at every point and the
  * per-point monomials u^i v^j of degree <= 2M (every entry phi_a phi_b of
@@ -96,7 +91,8 @@ void bsurf_localfit_setup(bsurf_localfit *lf, const double *xyz, const uint32_t 
 /* out = W (R x k) * A (k x nc) with R a multiple of 4 and nc of 8, stored
  * in groups of four rows interleaved by column: entry (r, c) at
  * out[(r / 4) * 4 nc + 4 c + r % 4], the layout of four LDL^T solves
- * in vector lanes. Same sums, in the same order, as bsurf_gemm_rows. */
+ * in vector lanes. Each entry is summed in the order j = 0..k-1, a multiply
+ * then an add (the bits of the plain row-major product on every code path). */
 void bsurf_gemm_lanes(int R, int k, int nc, const double *W, const double *A, double *out);
 /* The same product for integer weights given as draws: row b < B of out
  * (bsurf_boot_rows(B) rows, the lanes layout above) is the sum of the rows
