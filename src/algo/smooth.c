@@ -149,8 +149,15 @@ void boot_task(void *vc, int thread, size_t i) {
   }
 }
 
-/* theta_2(W_i) = G(W_i, h2) of Eq. 6.2: its exponent and its value. */
-void set_theta2(smooth_ctx *c, size_t i, double W) {
+/* theta_2(W_i) = G(W_i, h2) of Eq. 6.2: its exponent and its value. sv
+ * (NULL: no test): the fit's (s^2, nu) for the guard's misfit test against
+ * c->noise; a fit with more misfit than noise gets theta_2 = 0 (moves
+ * nothing). */
+void set_theta2(smooth_ctx *c, size_t i, double W, const double *sv) {
+  if (sv && guard_misfit(sv, c->noise)) {
+    c->e2[i] = INFINITY, c->w2[i] = 0;
+    return;
+  }
   c->e2[i] = gauss_exponent(W, c->h2);
   c->w2[i] = c->e2[i] == 0 ? 1.0 : exp(-c->e2[i]);
 }
@@ -527,10 +534,8 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
       st = BSURF_ERR_NOMEM;
       goto done;
     }
-    for (size_t i = 0; i < n; i++) {
-      set_theta2(&c, i, c.W[i]);
-      if (!seq && c.svar && guard_misfit(&c.svar[2 * i], c.noise)) c.e2[i] = INFINITY, c.w2[i] = 0;
-    }
+    for (size_t i = 0; i < n; i++)
+      set_theta2(&c, i, c.W[i], !seq && c.svar ? &c.svar[2 * i] : NULL);
     c.inv_h1sq_global = 1.0 / (c.h1 * c.h1);
     sp.stage = 1;
     if (seq) {

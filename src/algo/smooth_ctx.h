@@ -261,7 +261,7 @@ static inline double update_finish(const double *x, double P, double S, const do
 int solve_with_fallback(const bsurf_localfit *lf, int degree, int m, double *coef);
 int staged_cb(void *u, size_t done, size_t total);
 void boot_task(void *vc, int thread, size_t i);
-void set_theta2(smooth_ctx *c, size_t i, double W);
+void set_theta2(smooth_ctx *c, size_t i, double W, const double *sv);
 int naive_select(double W, double threshold, const double *x, double *out);
 double moved_of(const double *a, const double *b);
 double gather_update(const smooth_ctx *c, size_t p, int multipass);

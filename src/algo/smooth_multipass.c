@@ -55,7 +55,7 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
 
   double h1 = c->o.a * c->dl[i];
   c->inv_h1sq[i] = h1 > 0 ? 1.0 / (h1 * h1) : 0.0;
-  set_theta2(c, i, c->W[i]);
+  set_theta2(c, i, c->W[i], NULL); /* misfit: the fit is NAN above */
   double *rec = &c->fits[i * (size_t)c->stride + FIT_HEAD + (size_t)c->m];
   rec[0] = c->e2[i];
   rec[1] = c->inv_h1sq[i];

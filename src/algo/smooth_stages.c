@@ -168,10 +168,9 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
     c.e2 = bsurf_alloc_array(local_count ? local_count : 1, sizeof(double));
     c.w2 = bsurf_alloc_array(local_count ? local_count : 1, sizeof(double));
     if (!c.e2 || !c.w2) st = BSURF_ERR_NOMEM;
-    for (size_t i = 0; i < local_count && st == BSURF_OK; i++) {
-      set_theta2(&c, i, values[i * nv + (size_t)wc]);
-      if (guard_misfit(&values[i * nv + nv - 2], noise)) c.e2[i] = INFINITY, c.w2[i] = 0;
-    }
+    c.noise = noise;
+    for (size_t i = 0; i < local_count && st == BSURF_OK; i++)
+      set_theta2(&c, i, values[i * nv + (size_t)wc], &values[i * nv + nv - 2]);
     if (st == BSURF_OK)
       st = bsurf_parallel_sweep(count, bsurf_threads_resolve(o->error.threads),
                                 gather_bilateral_task, &c);
