@@ -36,6 +36,18 @@ expect 0 "select-k default, K < 7" -- "$BSURF" normals "$T/n.ply" -B 4 --select-
 grep -qF '"select_rule":"test-error"' "$T/out" && ! grep -qF '"noise_k"' "$T/out" && ok || fail "K < 7: test-error"
 expect 0 "select-k default, poly" -- "$BSURF" normals "$T/n.ply" --fit poly -B 4 --select-k 10:20:10 -o "$T/d5.ply" --json
 grep -qF '"select_rule":"test-error"' "$T/out" && ok || fail "poly: test-error"
+# statistical check at a fixed seed: on a sphere with gaussian noise of 1 h (its best fixed K
+# is the largest candidate) the default rule's mean angle error is within 5% of K = 80's and
+# below the thesis's rule's (docs/normals.md, "What the benchmark says", *The default*)
+expect 0 "sphere" -- "$BSURF" generate sphere -n 6000 -o "$T/sph.ply" -q
+expect 0 "sphere noise" -- "$BSURF" noise "$T/sph.ply" --level 1 --model gaussian -o "$T/sphn.ply" -q
+mean_err() { "$BSURF" eval "$1" --truth "$T/sph.ply" --json | sed -n 's/.*"normals":{"mean_rad":\([0-9.e+-]*\).*/\1/p'; }
+expect 0 "sphere default" -- "$BSURF" normals "$T/sphn.ply" --select-k 15:80:5 -B 0 -o "$T/sa.ply" -q
+expect 0 "sphere test-error" -- "$BSURF" normals "$T/sphn.ply" --select-k 10:80:5 --select-rule test-error -B 20 --k-ref 30 -o "$T/st.ply" -q
+expect 0 "sphere K 80" -- "$BSURF" normals "$T/sphn.ply" -k 80 -B 0 -o "$T/s80.ply" -q
+ea=$(mean_err "$T/sa.ply") et=$(mean_err "$T/st.ply") e80=$(mean_err "$T/s80.ply")
+awk -v a="$ea" -v t="$et" -v f="$e80" 'BEGIN { exit !(a > 0 && a <= 1.05 * f && a < t) }' && ok ||
+  fail "sphere: default rule $ea, K = 80 $e80, test-error $et"
 expect 0 "select-k default, explicit test-error" -- "$BSURF" normals "$T/n.ply" -B 4 --select-k 10:20:10 --select-rule test-error -o "$T/d6.ply" --json
 grep -qF '"select_rule":"test-error"' "$T/out" && ok || fail "explicit test-error"
 expect 0 "noise-pool local -j1" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 --select-rule mse --noise-pool local -j 1 -o "$T/l1.ply" -q
