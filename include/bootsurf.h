@@ -490,7 +490,9 @@ BSURF_API bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_nei
  * is smallest (bsurf_estimate_normals with ref_normals, once per candidate,
  * compared by the caller). BSURF_KSELECT_MSE minimises an estimate of the
  * PCA normal's mean squared angle error, variance + squared bias, with the
- * noise and the curvature from local quadrics (bsurf_select_k).
+ * noise and the curvature from local quadrics, the candidates within the
+ * estimate's scatter of the minimum told apart by the neighbours' agreement
+ * (bsurf_select_k).
  * BSURF_KSELECT_AUTO (bsurf_normals_job's default): MSE where it applies
  * (select_k, the PCA fit, no select_degree, no curve, candidates >= 7, in
  * memory), TEST_ERROR otherwise; MSE was the nearer to the best fixed K on
