@@ -95,7 +95,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "fit biased at its centre by a second sheet or an edge, by a t test on its nearest "
        "points' residuals, is made again from fewer points, or moves nothing; a fit whose "
        "residual variance shows more misfit than noise -- above twice the cloud's noise "
-       "variance, the lower quartile over the fits, at the 5% level -- moves nothing) or off "
+       "variance, the lower decile over the fits (each scaled by the share of the noise its "
+       "interval keeps), at the 5% level -- moves nothing) or off "
        "(the thesis's methods as written)",
        1, 0},
       {0, "degree-test", ARG_STRING, &dtest, "T",

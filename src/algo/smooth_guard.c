@@ -177,16 +177,18 @@ static double kept_share(int n_out, int n_in) {
 }
 
 /* The cloud's noise variance for the misfit test (docs/smoothing.md, "The
- * misfit test"): the lower quartile over the sheet fits of s_i^2 / (q(nu_i)
+ * misfit test"): the lower decile over the sheet fits of s_i^2 / (q(nu_i)
  * g_i), s_i^2 = RSS / nu_i a fit's residual variance over the points of its
  * interval, g_i the share of the noise variance that interval keeps
- * (kept_share) and q(nu) the lower quartile of chi^2_nu / nu. Where every
- * fit sees only noise of variance sigma^2, s_i^2 / (q(nu_i) g_i) falls below
- * sigma^2 for a quarter of the fits, whatever their degrees of freedom and
+ * (kept_share) and q(nu) the lower decile of chi^2_nu / nu. Where every fit
+ * sees only noise of variance sigma^2, s_i^2 / (q(nu_i) g_i) falls below
+ * sigma^2 for a tenth of the fits, whatever their degrees of freedom and
  * intervals; fits with misfit (a coarse mesh's creases, two sheets the guard
- * did not part) only raise the upper part, so up to three quarters of the
- * fits may be biased. sv: records (s^2, nu, g) every `stride` doubles;
- * scratch: n doubles. NAN when no fit has a variance. */
+ * did not part) only raise the upper part, so up to nine tenths of the fits
+ * may be biased (the lower quartile, used before, was a mixture's on the
+ * thin plate at uniform 0.5 h, where about 60% of the fits hold both faces).
+ * sv: records (s^2, nu, g) every `stride` doubles; scratch: n doubles. NAN
+ * when no fit has a variance. */
 double guard_noise(const double *sv, size_t n, size_t stride, double *scratch) {
   size_t m = 0;
   for (size_t i = 0; i < n; i++) {
