@@ -344,6 +344,18 @@ static void test_thin_sheets_heavy(void **state) {
   thin_sheets_from(0.6, 0.25, 29, 1, 2);
 }
 
+/* The default smoothing (B = 20, two threads) of the n points xyz with K = 50
+ * neighbourhoods: out (n x 3) and its report. */
+static void smooth_default_k50(const double *xyz, size_t n, double *out, bsurf_smooth_report *rep) {
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 50, 2, NULL, NULL), BSURF_OK);
+  bsurf_smooth_options o = bsurf_smooth_options_default();
+  o.error.bootstrap = 20;
+  o.error.threads = 2;
+  assert_int_equal(bsurf_smooth(xyz, &nb, &o, out, NULL, rep), BSURF_OK);
+  bsurf_neighbors_free(&nb);
+}
+
 /* The guard's noise estimate (bsurf_smooth_report.noise, guard_noise): on a
  * plane with gaussian noise sigma it is sigma to within a fifth (measured
  * 0.278 h for 0.3 h), and it stays so when a third of the plane is replaced
@@ -377,13 +389,8 @@ static void test_noise_estimate(void **state) {
     }
     assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_GAUSSIAN, 0.3, h, 31),
                      BSURF_OK);
-    bsurf_neighbors nb;
-    assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 50, 2, NULL, NULL), BSURF_OK);
-    bsurf_smooth_options o = bsurf_smooth_options_default();
-    o.error.bootstrap = 20;
-    o.error.threads = 2;
     bsurf_smooth_report rep;
-    assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, &rep), BSURF_OK);
+    smooth_default_k50(c.xyz, n, out, &rep);
     double e0 = 0, e = 0;
     size_t m = 0;
     for (size_t i = 0; i < n; i++) {
@@ -407,7 +414,6 @@ static void test_noise_estimate(void **state) {
     } else {
       assert_true(e < 0.6 * e0);
     }
-    bsurf_neighbors_free(&nb);
   }
   free(z0);
   free(out);
@@ -445,20 +451,14 @@ static void test_noise_estimate_shapes(void **state) {
           BSURF_OK);
       const double sigma =
           noises[v].level * h / (noises[v].model == BSURF_NOISE_UNIFORM ? sqrt(3.0) : 1.0);
-      bsurf_neighbors nb;
-      assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 50, 2, NULL, NULL), BSURF_OK);
-      bsurf_smooth_options o = bsurf_smooth_options_default();
-      o.error.bootstrap = 20;
-      o.error.threads = 2;
       bsurf_smooth_report rep;
       double *out = malloc(n * 3 * sizeof(double));
-      assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, &rep), BSURF_OK);
+      smooth_default_k50(c.xyz, n, out, &rep);
       print_message("noise estimate, shape %d, noise %s %.1f h: %.3f h (true %.3f h, ratio %.3f)\n",
                     (int)shapes[s], noises[v].model == BSURF_NOISE_UNIFORM ? "uniform" : "gaussian",
                     noises[v].level, rep.noise / h, sigma / h, rep.noise / sigma);
       worst = fmax(worst, fabs(rep.noise - sigma) / sigma);
       free(out);
-      bsurf_neighbors_free(&nb);
       bsurf_cloud_free(&c);
     }
 }
