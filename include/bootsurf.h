@@ -634,7 +634,9 @@ typedef struct bsurf_smooth_options {
    * the cloud, the thesis's reference value of 6.2); INFINITY = every point. */
   double threshold;
   /* bilateral: theta_1 = G(., h1) and theta_2 = G(., h2) of Eq. 6.2, with
-   * G(a, b) = exp(-a^2/b^2) (Eq. 5.7). h1 <= 0: h (mean spacing). h2 <= 0:
+   * G(a, b) = exp(-a^2/b^2) (Eq. 5.7). h1 <= 0: sqrt(h^2 + 2 sigma^2), h
+   * the mean spacing and sigma the guard's noise estimate (h without the
+   * guard; docs/smoothing.md, "The distance sigma"). h2 <= 0:
    * h2_fraction x |W|, the mean of W_i. */
   double h1, h2;
   double h2_fraction;       /* <= 0: the default, 2 (the thesis shows 0.5-1 for
