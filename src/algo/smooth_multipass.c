@@ -162,14 +162,16 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
    * guard's misfit test); G(W, 2 W_n) has its inflection, where it falls
    * fastest, there (theta_2 = e^-1/2). A length or a multiple of |W| (the
    * mean) when asked for (the thesis: 0.3 |W|) */
-  if (n && !(o->h2 > 0) && !(o->h2_fraction > 0)) {
+  double wn = 0;
+  if (n) {
     double *srt = bsurf_alloc_array(n, sizeof(double));
     if (!srt) return BSURF_ERR_NOMEM;
     memcpy(srt, c->W, n * sizeof(double));
     qsort(srt, n, sizeof *srt, bsurf_cmp_double);
-    c->h2 = 2.0 * (n % 2 ? srt[n / 2] : 0.5 * (srt[n / 2 - 1] + srt[n / 2]));
+    wn = n % 2 ? srt[n / 2] : 0.5 * (srt[n / 2 - 1] + srt[n / 2]);
     free(srt);
   }
+  if (!(o->h2 > 0) && !(o->h2_fraction > 0)) c->h2 = 2.0 * wn;
   /* the passes: o->iterations of them, or (iterations < 0, the default)
    * until the stop rule, at most MP_PASSES_MAX */
   const int autostop = o->iterations < 0;
@@ -198,7 +200,6 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
     double sum = 0;
     for (size_t i = 0; i < n; i++)
       sum += (double)bsurf_poly_terms(c->fit_degree[i]) / (double)c->khat[i];
-    const double wn = 0.5 * c->h2; /* W_n, or h2 / 2 when h2 was given */
     const double s2 = c->noise > 0 ? c->noise : wn * wn;
     stop2 = s2 * sum / (double)n;
   }
