@@ -40,8 +40,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   bsurf_smooth_options so = bsurf_smooth_options_default();
   const char *method = "bilateral", *order = "parallel", *estimator = "auto", *gamma = "fit",
              *center = "centroid", *threshold = "auto", *h1_text = "auto", *h2_text = "auto",
-             *kerr_text = "auto", *guard = "on", *dtest = "auto", *output = NULL,
-             *memory_limit = "auto";
+             *kerr_text = "none", *guard = "on", *dtest = "auto", *output = NULL,
+             *memory_limit = "auto", *a_text = "auto", *iter_text = "auto";
   size_t tile_points = 0;
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
@@ -72,21 +72,30 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        1, 0},
       {0, "h2", ARG_STRING, &h2_text, "X",
        "bilateral, multipass: error sigma of Eq. 6.2: a length, a multiple of |W| (e.g. 1W) "
-       "or auto (2W; the thesis's multipass setting is 0.3W)",
+       "or auto (bilateral 2W; multipass 2 W_n, W_n the median W_i, which puts G's "
+       "inflection where a fit's misfit equals the noise; the thesis's multipass setting is "
+       "0.3W)",
        1, 0},
       {0, "order", ARG_STRING, &order, "O",
        "bilateral, multipass: parallel (order-independent; tiled with a halo of reverse "
        "neighbours) or sequential (the thesis's in-place sweep, one thread; not tiled: a "
        "chain over the whole cloud)",
        1, 0},
-      {0, "a", ARG_DOUBLE, &so.a, "A",
-       "multipass: h1 = A x d_L, the mean distance to the K_i neighbours (Eq. 6.5)", 0, 1e6},
-      {0, "iterations", ARG_INT, &so.iterations, "N", "multipass: smoothing passes", 0, 1000000},
+      {0, "a", ARG_STRING, &a_text, "A",
+       "multipass: h1 = A x d_L, the mean distance to the K_i neighbours (Eq. 6.5), or auto "
+       "(A = 1.5 sqrt(pi / K_i): h1 = the local spacing; the thesis's is 0.1)",
+       1, 0},
+      {0, "iterations", ARG_STRING, &iter_text, "N",
+       "multipass: N smoothing passes (the thesis: 300), or auto (stop after the first pass "
+       "whose mean squared move is below the fits' own prediction variance, sigma^2 mean(p_i / "
+       "K_i), sigma the guard's noise; at most 300)",
+       1, 0},
       {0, "k-min", ARG_INT, &so.k_min, "K", "multipass: the smallest neighbourhood (Eq. 6.3)", 1,
        65535},
       {0, "k-error", ARG_STRING, &kerr_text, "X",
        "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length, a multiple "
-       "of |W| (e.g. 2W) or auto (3W; the thesis's is 1W)",
+       "of |W| (e.g. 2W; the thesis's is 1W) or none (K_i = K; the guard halves a neighbourhood "
+       "whose fit is biased at its centre)",
        1, 0},
       {0, "guard", ARG_STRING, &guard, "G",
        "every method: on (two sheets split at a gap between their residuals, or where the "
@@ -102,7 +111,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       {0, "degree-test", ARG_STRING, &dtest, "T",
        "with the guard: on (each sheet's fit takes the degree, from -d down to a plane, of "
        "least estimated prediction error, Mallows' Cp), off (the degree of -d) or auto (on for "
-       "bilateral, off for naive and multipass)",
+       "bilateral and multipass, off for naive)",
        1, 0},
       CLI_OPT_SEED(so.error.seed),
       CLI_OPT_THREADS(so.error.threads),
@@ -160,12 +169,27 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
         h2_text);
   if (frac > 0) so.h2_fraction = frac;
   frac = 0;
-  if (strcmp(kerr_text, "auto") &&
+  if (strcmp(kerr_text, "none") && strcmp(kerr_text, "auto") &&
       (parse_length(kerr_text, 1, &so.k_error, &jo.k_error_in_h, &frac) ||
        (so.k_error <= 0 && frac <= 0)))
     return cli_usage_error(
-        cmd, "--k-error must be a positive length, a multiple of |W| or auto, not '%s'", kerr_text);
+        cmd, "--k-error must be a positive length, a multiple of |W| or none, not '%s'", kerr_text);
   if (frac > 0) so.k_error_fraction = frac;
+  if (strcmp(a_text, "auto")) {
+    char *end = NULL;
+    errno = 0;
+    so.a = strtod(a_text, &end);
+    if (end == a_text || *end || errno || !isfinite(so.a) || so.a < 0)
+      return cli_usage_error(cmd, "--a must be a number >= 0 or auto, not '%s'", a_text);
+  }
+  if (strcmp(iter_text, "auto")) {
+    char *end = NULL;
+    errno = 0;
+    long v = strtol(iter_text, &end, 10);
+    if (end == iter_text || *end || errno || v < 0 || v > 1000000)
+      return cli_usage_error(cmd, "--iterations must be 0..1000000 or auto, not '%s'", iter_text);
+    so.iterations = (int)v;
+  }
   if (cli_check_output(output, pos[0], force)) return 1;
   jo.smooth = so;
   size_t plan = 0;
@@ -235,7 +259,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       json_num(&j, "h1_h", rep.h1 / hh);
     }
     if (so.method == BSURF_SMOOTH_MULTIPASS) {
-      json_num(&j, "a", so.a);
+      if (so.a >= 0)
+        json_num(&j, "a", so.a);
+      else
+        json_str(&j, "a", "auto");
       json_int(&j, "iterations", rep.iterations);
       json_int(&j, "k_min", so.k_min);
       json_num(&j, "k_error", rep.k_error);
@@ -272,8 +299,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       printf("  order %s, h1 = %.6g (%.4g h), h2 = %.6g (%.4g h)\n", order, rep.h1, rep.h1 / hh,
              rep.h2, rep.h2 / hh);
     else
-      printf("  order %s, %d passes, h1 = %g d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order,
-             rep.iterations, so.a, rep.h2, rep.h2 / hh, so.k_min, so.error.k);
+      printf("  order %s, %d passes, h1 = %s d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order,
+             rep.iterations, strcmp(a_text, "auto") ? a_text : "(1.5 sqrt(pi / K_i))", rep.h2,
+             rep.h2 / hh, so.k_min, so.error.k);
     if (so.guard)
       printf("  guard: noise %.6g (%.4g h), %zu fits with more misfit than noise moved nothing\n",
              rep.noise, rep.noise / hh, rep.misfit_fits);

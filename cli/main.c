@@ -110,8 +110,10 @@ static const cli_command commands[] = {
      "its error is below --threshold. bilateral (6.3, Algorithm 4, Eq. 6.2): every\n"
      "neighbourhood's fit pulls the point and its neighbours with weight\n"
      "G(distance, h1) G(W_i, h2), G(a, b) = exp(-a^2/b^2). multipass (6.4, Algorithm 5):\n"
-     "per point a neighbourhood K_i shrinking with the error (Eqs. 6.3-6.4), fits made\n"
-     "once, then --iterations passes of Eq. 6.2 with h1 = a d_L (Eq. 6.5). Every input\n"
+     "per point a neighbourhood K_i (Eqs. 6.3-6.4 with --k-error), fits made once, then\n"
+     "passes of Eq. 6.2 with h1 = a d_L (Eq. 6.5) until a pass moves points by less\n"
+     "than the fits' own error (or --iterations passes). Thesis settings: --guard off\n"
+     "--a 0.1 --h2 0.3W --k-error 1W --iterations 300. Every input\n"
      "field is kept; err_632, err_632plus and moved (and k_hat, d_local) are added.\n"
      "The input's normals (nx ny nz) are dropped: they belong to the points before\n"
      "they moved (run normals on the output for new ones).",

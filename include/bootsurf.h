@@ -637,21 +637,26 @@ typedef struct bsurf_smooth_options {
    * G(a, b) = exp(-a^2/b^2) (Eq. 5.7). h1 <= 0: sqrt(h^2 + 2 sigma^2), h
    * the mean spacing and sigma the guard's noise estimate (h without the
    * guard; docs/smoothing.md, "The distance sigma"). h2 <= 0:
-   * h2_fraction x |W|, the mean of W_i. */
+   * h2_fraction x |W|, the mean of W_i; multipass with both <= 0: 2 W_n, W_n
+   * the median W_i (docs/smoothing.md). */
   double h1, h2;
   double h2_fraction;       /* <= 0: the default, 2 (the thesis shows 0.5-1 for
                                bilateral, Figs. 6.4-6.6, and uses 0.3 for multipass,
                                6.4.1, where its points barely move; see
                                docs/smoothing.md) */
   bsurf_smooth_order order; /* bilateral and multipass (PARALLEL) */
-  /* multipass: h1 = a d_L (Eq. 6.5); K_i = max{k_min, y} with y the linear
-   * map of Eq. 6.4 from (0, K) to (k_error, k_min); k_error <= 0:
-   * k_error_fraction x |W| (3 by default; the thesis's is 1). */
-  double a;                /* 0.1 */
-  int iterations;          /* 300 */
+  /* multipass: h1 = a d_L (Eq. 6.5); a < 0 (default): 1.5 sqrt(pi / K_i),
+   * h1 = the local spacing (the thesis's is 0.1). iterations passes; -1
+   * (default): until the first pass whose mean squared move is below
+   * sigma^2 mean(p_i / K_i), at most 300 (the thesis: 300). K_i = max{k_min,
+   * y} with y the linear map of Eq. 6.4 from (0, K) to (k_error, k_min);
+   * k_error <= 0: k_error_fraction x |W|; both <= 0 (default): K_i = K (the
+   * thesis's is 1 |W|). */
+  double a;                /* -1 (auto) */
+  int iterations;          /* -1 (auto) */
   int k_min;               /* 10 */
   double k_error;          /* 0 */
-  double k_error_fraction; /* 3 */
+  double k_error_fraction; /* 0 (none) */
   /* every method: a neighbourhood whose fit is biased at its centre (two
    * sheets, a sharp edge: a t test on its nearest points' residuals) is
    * fitted again from fewer points, or moves nothing (docs/smoothing.md,
@@ -660,7 +665,7 @@ typedef struct bsurf_smooth_options {
   /* with the guard: 1 = each sheet fit takes the degree, from error.degree
    * down to a plane, of least estimated prediction error (Mallows' C_p);
    * 0 = the degree of error.degree (with two points per coefficient);
-   * -1 (default, auto) = 1 for bilateral, 0 for naive and multipass
+   * -1 (default, auto) = 1 for bilateral and multipass, 0 for naive
    * (docs/smoothing.md, "The degree test"). */
   int degree_test;
 } bsurf_smooth_options;

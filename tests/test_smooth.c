@@ -27,11 +27,13 @@ static bsurf_smooth_options options(bsurf_smooth_method m, int k, int degree, in
   o.error.threads = 2;
   o.iterations = 20;
   if (m == BSURF_SMOOTH_MULTIPASS) {
-    /* the thesis's multipass sigmas (6.4.1), as these tests had them before
-     * the defaults became 2 |W| and 3 |W|: fewer active pairs, shorter
-     * runs; the defaults are exercised by test_two_sheets */
+    /* the thesis's multipass settings (6.4.1), as these tests had them
+     * before the defaults changed: h1 = 0.1 d_L, fewer active pairs,
+     * shorter runs; the defaults are exercised by test_two_sheets,
+     * test_cube_distance and test_multipass_defaults */
     o.h2_fraction = 0.3;
     o.k_error_fraction = 1.0;
+    o.a = 0.1;
   }
   return o;
 }
@@ -215,8 +217,8 @@ static double sheets_err(const bsurf_cloud *c, const double *P, double gap, int 
  * guard, at the defaults, no method and no order ends farther from the
  * nearest sheet than the noisy input, and multipass smooths to within
  * sqrt(2 m / K_min) of the noise (a least-squares fit of m terms predicts its
- * centre from K points with about m / K of the noise variance; K_i >= K / 2
- * for points at up to 1.5 |W| with k_error = 3 |W|). Without the guard the
+ * centre from K points with about m / K of the noise variance; K_i = K at
+ * the defaults, down to K / 2 where the guard halves it). Without the guard the
  * bilateral method averages across the sheets. */
 static void test_two_sheets(void **state) {
   (void)state;
@@ -467,14 +469,17 @@ static void test_noise_estimate_shapes(void **state) {
  * 20,000 evenly spaced points, K = 50, B = 50): the mean distance to the
  * exact cube after the default smoothing (bilateral with the guard and
  * the degree test), after multipass at its defaults, and after bilateral
- * without the degree test. The issue asks for 0.12 h: the default measures
- * 0.119 h here, multipass 0.171 h (not met; 0.166 h before the guard's
- * misfit test), bilateral without the degree test 0.151 h (docs/smoothing.md). The bounds are the
- * issue's 0.12 h for the default and what the others reach now (regression bounds); all keep at
- * most 0.45 of the noisy input's distance, and the degree test must lower the default's distance by
- * at least a tenth. */
+ * without the degree test. The issue asks for 0.12 h for both: the default
+ * measures 0.119 h here, multipass 0.106 h (0.171 h with its former
+ * defaults: h1 = 0.1 d_L, 300 passes, k_error 3 |W|), bilateral without the
+ * degree test 0.151 h (docs/smoothing.md). The bounds are the issue's
+ * 0.12 h for the default and multipass and what the last reaches now (a
+ * regression bound); all keep at most 0.45 of the noisy input's distance,
+ * and the degree test must lower the default's distance by at least a
+ * tenth. Multipass must also end no farther than the default on the
+ * feature points (within 2 spacings of an edge), as the issue asks. */
 #define BOUND_DEFAULT 0.120
-#define BOUND_MULTIPASS 0.175
+#define BOUND_MULTIPASS 0.120
 #define BOUND_NO_TEST 0.155
 static void test_cube_distance(void **state) {
   (void)state;
@@ -495,24 +500,34 @@ static void test_cube_distance(void **state) {
                                      BSURF_SMOOTH_BILATERAL};
   const int dtest[3] = {-1, -1, 0};
   const double bound[3] = {BOUND_DEFAULT, BOUND_MULTIPASS, BOUND_NO_TEST};
-  double e_of[3];
+  const bsurf_field *feat = bsurf_cloud_field(&c, "feature");
+  assert_non_null(feat);
+  double e_of[3], ef_of[3];
   for (int m = 0; m < 3; m++) {
     bsurf_smooth_options o = bsurf_smooth_options_default();
     o.method = ms[m];
     o.degree_test = dtest[m];
     o.error.threads = 2;
     assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
-    double e = 0;
-    for (size_t i = 0; i < n; i++)
-      e += bsurf_shape_distance(BSURF_SHAPE_CUBE, &out[3 * i]);
+    double e = 0, ef = 0;
+    size_t nf = 0;
+    for (size_t i = 0; i < n; i++) {
+      const double d = bsurf_shape_distance(BSURF_SHAPE_CUBE, &out[3 * i]);
+      e += d;
+      if (feat->values[i] > 0) ef += d, nf++;
+    }
     e /= (double)n * h;
-    print_message("cube, gaussian 0.5 h, method %d, degree test %d: %.4f h -> %.4f h\n", (int)ms[m],
-                  dtest[m], e0, e);
+    ef /= (double)(nf ? nf : 1) * h;
+    print_message("cube, gaussian 0.5 h, method %d, degree test %d: %.4f h -> %.4f h "
+                  "(%zu feature points: %.4f h)\n",
+                  (int)ms[m], dtest[m], e0, e, nf, ef);
     assert_true(e <= bound[m]);
     assert_true(e <= 0.45 * e0);
     e_of[m] = e;
+    ef_of[m] = ef;
   }
   assert_true(e_of[0] < 0.9 * e_of[2]);
+  assert_true(ef_of[1] <= ef_of[0]);
   free(out);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
@@ -668,6 +683,46 @@ static void test_thread_determinism(void **state) {
   twins_close(&t);
 }
 
+/* Multipass at its defaults (h1 the local spacing, h2 = 2 W_n, K_i = K,
+ * passes until the stop rule): 1 thread == 2 threads bit for bit, in both
+ * orders; the stop rule ends well before 300 passes; and on a noisy sphere
+ * (6,000 points, gaussian 0.5 h, fixed seeds) the points end nearer than
+ * 0.45 of the noisy input's distance, as test_cube_distance asks (0.35 of it
+ * measured, in 2 passes: a fit of p terms from K points keeps about p / K of
+ * the noise variance, sqrt(3 / 50) = 0.25 of its scale, plus the bias of
+ * fits of the sphere's curvature at this density). */
+static void test_multipass_defaults(void **state) {
+  (void)state;
+  twin_runs t;
+  (void)noisy_shape(&t.c, BSURF_SHAPE_SPHERE, 6000, 3, 0, 0.5, 11);
+  twins_finish(&t, 50);
+  double e0 = 0;
+  for (size_t i = 0; i < t.n; i++)
+    e0 += bsurf_shape_distance(BSURF_SHAPE_SPHERE, &t.c.xyz[3 * i]);
+  for (int order = 0; order < 2; order++) {
+    bsurf_smooth_options o = bsurf_smooth_options_default();
+    o.method = BSURF_SMOOTH_MULTIPASS;
+    o.order = (bsurf_smooth_order)order;
+    bsurf_smooth_report r1, r2;
+    memset(&r1, 0, sizeof r1);
+    memset(&r2, 0, sizeof r2);
+    o.error.threads = 1;
+    assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.a, NULL, &r1), BSURF_OK);
+    o.error.threads = 2;
+    assert_int_equal(bsurf_smooth(t.c.xyz, &t.nb, &o, t.b, NULL, &r2), BSURF_OK);
+    twins_check(&t);
+    assert_int_equal(r1.iterations, r2.iterations);
+    assert_true(r1.iterations >= 1 && r1.iterations < 20);
+    double e = 0;
+    for (size_t i = 0; i < t.n; i++)
+      e += bsurf_shape_distance(BSURF_SHAPE_SPHERE, &t.a[3 * i]);
+    print_message("sphere, gaussian 0.5 h, multipass defaults, order %d: %d passes, %.4g -> %.4g\n",
+                  order, r1.iterations, e0 / (double)t.n, e / (double)t.n);
+    assert_true(e < 0.45 * e0);
+  }
+  twins_close(&t);
+}
+
 /* The multipass passes in blocks, pairs in vector lanes, give the bits of
  * the point-by-point passes: degrees 1-3, a noisy cube (edges, where fits
  * leave their discs) and a wide h1 (--a, more pairs within the cut), on
@@ -809,6 +864,7 @@ int main(void) {
       cmocka_unit_test(test_naive_threshold),
       cmocka_unit_test(test_multipass_neighbourhoods),
       cmocka_unit_test(test_thread_determinism),
+      cmocka_unit_test(test_multipass_defaults),
       cmocka_unit_test(test_multipass_block_passes),
       cmocka_unit_test(test_multipass_time_blocks),
       cmocka_unit_test(test_multipass_time_blocks_long),

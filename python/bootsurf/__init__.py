@@ -403,12 +403,12 @@ _DEGREE_TESTS = ("auto", "off", "on")  # degree_test -1, 0, 1
 
 def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, gamma="fit",
            pca_center="centroid", estimator="auto", threshold="auto", h1="auto", h2="auto",
-           order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on",
+           order="parallel", a="auto", iterations="auto", k_min=10, k_error="none", guard="on",
            degree_test="auto", seed=1, threads=0, output=None, tile_points=None, progress=None):
     """smooth(points, *, method='bilateral', neighbors=50, degree=3,
     bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
-    threshold='auto', h1='auto', h2='auto', order='parallel', a=0.1,
-    iterations=300, k_min=10, k_error='auto', guard='on', degree_test='auto',
+    threshold='auto', h1='auto', h2='auto', order='parallel', a='auto',
+    iterations='auto', k_min=10, k_error='none', guard='on', degree_test='auto',
     seed=1, threads=0, output=None, tile_points=None, progress=None)
     -> (points, fields, summary)
 
@@ -419,7 +419,8 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
     where its error W_i is below threshold. bilateral (6.3, Algorithm 4, Eq.
     6.2): every neighbourhood's fit moves its points, weighted by distance
     (h1) and error (h2). multipass (6.4, Algorithm 5, Eqs. 6.3-6.5): per point
-    a neighbourhood K_i shrinking with the error, fits made again each pass.
+    a neighbourhood K_i (shrinking with the error with k_error), fits made once,
+    then passes until one moves points by less than the fits' own error.
 
     Options (lengths: a number in model units, 'Xh' in units of the mean
     spacing h, and for h2 and k_error 'XW', X times the mean error |W|):
@@ -430,14 +431,18 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
       threshold    naive: a length, 'auto' (the mean W_i) or 'none' (every point)
       h1           bilateral: distance sigma of Eq. 6.2 ('auto' = sqrt(h^2 +
                    2 sigma^2), sigma the guard's noise estimate; h without it)
-      h2           bilateral, multipass: error sigma of Eq. 6.2 ('auto' = 2W)
+      h2           bilateral, multipass: error sigma of Eq. 6.2 ('auto' = 2W;
+                   multipass 2 W_n, W_n the median W_i)
       order        parallel (order-independent) or sequential (the thesis's
                    in-place sweep, one thread)
-      a            multipass: h1 = a x d_L (Eq. 6.5)
-      iterations   multipass: passes (300)
+      a            multipass: h1 = a x d_L (Eq. 6.5); 'auto': 1.5 sqrt(pi / K_i),
+                   h1 = the local spacing (the thesis: 0.1)
+      iterations   multipass: passes; 'auto': until a pass's mean squared move
+                   is below the fits' prediction variance (at most 300; the
+                   thesis: 300)
       k_min        multipass: the smallest neighbourhood (Eq. 6.3)
       k_error      multipass: the error at which K_i reaches k_min (Eq. 6.4;
-                   'auto' = 3W)
+                   the thesis: '1W'); 'none': K_i = K
       guard        on (a fit biased at its centre by a second sheet or an
                    edge is made again from fewer points, or moves nothing;
                    a fit with more misfit than noise -- residual variance
@@ -447,7 +452,8 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
                    report's noise and misfit_fits) or off (the thesis's
                    methods as written)
       degree_test  the guard's sheet fits choose their degree, -d down to a
-                   plane, by Mallows' C_p: on, off or auto (on for bilateral);
+                   plane, by Mallows' C_p: on, off or auto (on for bilateral
+                   and multipass);
                    docs/smoothing.md, "The degree test"
 
     Returns (points, fields, summary): the moved points (N, 3) (the input is
@@ -464,14 +470,15 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
         raise ValueError("h1 must be a positive length (e.g. 0.01 or 1.5h) or 'auto', not %r"
                          % (h1,))
     v2, h2_h, f2 = (_math.nan, False, _math.nan) if h2 == "auto" else _length(h2, "h2", True)
-    ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error == "auto"
+    ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error in ("auto", "none")
                     else _length(k_error, "k_error", True))
     pts, tiled = _job_input(points, output, tile_points)
     return _core.smooth(pts, tiled, _choice(method, _METHODS, "method"), int(neighbors), int(degree),
                         int(bootstrap), int(seed), _choice(gamma, _GAMMAS, "gamma"),
                         _choice(pca_center, _CENTERS, "pca_center"),
                         _choice(estimator, _ESTIMATORS, "estimator"), thr, thr_h, v1, h1_h, v2,
-                        h2_h, f2, _choice(order, _ORDERS, "order"), float(a), int(iterations),
+                        h2_h, f2, _choice(order, _ORDERS, "order"), -1.0 if a == "auto" else float(a),
+                        -1 if iterations == "auto" else int(iterations),
                         int(k_min), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
                         _choice(degree_test, _DEGREE_TESTS, "degree_test") - 1, int(threads),
                         progress)

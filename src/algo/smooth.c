@@ -66,10 +66,9 @@ bsurf_smooth_options bsurf_smooth_options_default(void) {
       .estimator = BSURF_SMOOTH_EST_DEFAULT,
       .threshold = NAN,
       .order = BSURF_ORDER_PARALLEL,
-      .a = 0.1,
-      .iterations = 300,
+      .a = -1,          /* multipass: h1 = the local spacing (smooth_multipass.c) */
+      .iterations = -1, /* multipass: until the stop rule */
       .k_min = 10,
-      .k_error_fraction = 3.0,
       .guard = 1,
       .degree_test = -1,
   };
@@ -398,10 +397,9 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
                    "k_error = %g, k_error_fraction = %g: NaN is not allowed", o.k_error,
                    o.k_error_fraction);
   if (o.method == BSURF_SMOOTH_MULTIPASS) {
-    BSURF_REQUIRE_IN("bsurf_smooth", o.a >= 0 && isfinite(o.a), "a = %g: must be finite and >= 0",
-                     o.a);
-    BSURF_REQUIRE_IN("bsurf_smooth", o.iterations >= 0, "iterations = %d: must be >= 0",
-                     o.iterations);
+    BSURF_REQUIRE_IN("bsurf_smooth", isfinite(o.a), "a = %g: must be finite (< 0: auto)", o.a);
+    BSURF_REQUIRE_IN("bsurf_smooth", o.iterations >= -1,
+                     "iterations = %d: must be >= 0, or -1 (auto)", o.iterations);
     BSURF_REQUIRE_IN("bsurf_smooth", o.k_min >= 1 && o.k_min <= o.error.k,
                      "k_min = %d: must be in [1, error.k = %d]", o.k_min, o.error.k);
   }

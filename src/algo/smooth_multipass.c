@@ -10,6 +10,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* the most passes of the stop rule (the thesis's count, 6.4.1) */
+#define MP_PASSES_MAX 300
+
 /* Multipass stage 2: K_i (Eqs. 6.3-6.4), d_L and the fit of the K_i points. */
 static void multipass_fit_task(void *vc, int thread, size_t i) {
   smooth_ctx *c = vc;
@@ -54,7 +57,13 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
   if (misfit_k || (c->svar && guard_misfit(&c->svar[BSURF_SMOOTH_SV * i], c->noise)))
     c->fits[i * (size_t)c->stride + 12] = NAN;
 
-  double h1 = c->o.a * c->dl[i];
+  /* h1 = a d_L (Eq. 6.5); by default (a < 0) the local spacing, d_L
+   * 1.5 sqrt(pi / K_i): on a uniform sample the K_i nearest points fill a
+   * disc of area K_i h^2, radius R = h sqrt(K_i / pi), whose points lie at
+   * 2R/3 on average. The thesis's a = 0.1 cuts every neighbour's weight
+   * (docs/smoothing.md, "Why the thesis's multipass barely moves points") */
+  const double a = c->o.a >= 0 ? c->o.a : 1.5 * sqrt(3.14159265358979323846 / (double)kh);
+  double h1 = a * c->dl[i];
   c->inv_h1sq[i] = h1 > 0 ? 1.0 / (h1 * h1) : 0.0;
   set_theta2(c, i, c->W[i], NULL); /* misfit: the fit is NAN above */
   double *rec = &c->fits[i * (size_t)c->stride + FIT_HEAD + (size_t)c->m];
@@ -121,6 +130,15 @@ static void multipass_sequential_pass(smooth_ctx *c) {
   }
 }
 
+/* The mean squared move of a pass from a to b (n x 3), summed in point
+ * order (the same bits for any thread count). */
+static double mean_sq_move(const double *a, const double *b, size_t n) {
+  double s = 0;
+  for (size_t i = 0; i < 3 * n; i++)
+    s += (b[i] - a[i]) * (b[i] - a[i]);
+  return n ? s / (double)n : 0.0;
+}
+
 /* Algorithm 5 after the bootstrap pass: K_i, d_L and the fits of the K_i
  * points once, then o->iterations passes of Eq. 6.2 (in the thesis's order,
  * or in parallel in Morton order, in blocks of points and of passes). */
@@ -131,10 +149,34 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
   const int seq = o->order == BSURF_ORDER_SEQUENTIAL;
   bsurf_status st = BSURF_OK;
   /* ---- multipass: K_i, d_L and the fits, once ---- */
-  /* 3 |W| by default (the thesis: |W|); errors below 1e-9 h are rounding, not noise, and their
-   * ratios carry no information (exact data keeps K_i = K) */
-  double kf = o->k_error_fraction > 0 ? o->k_error_fraction : 3.0;
-  c->k_error = o->k_error > 0 ? o->k_error : fmax(kf * meanW, 1e-9 * c->nb->h);
+  /* Eq. 6.4 only when asked for (--k-error; the thesis's is |W|): by
+   * default K_i = K and the guard's t test halves a neighbourhood whose fit
+   * is biased at its centre (no shrinking by the error level paid on the
+   * development set: docs/smoothing.md). Errors below 1e-9 h are rounding,
+   * not noise, and their ratios carry no information (exact data keeps
+   * K_i = K) */
+  const double kf = o->k_error_fraction > 0 ? o->k_error_fraction : 0.0;
+  c->k_error = o->k_error > 0 ? o->k_error : (kf > 0 ? fmax(kf * meanW, 1e-9 * c->nb->h) : 0.0);
+  /* h2 by default: 2 W_n, W_n the median W_i (the error of a fit that
+   * follows the surface: the noise level). W^2 = W_n^2 + b^2 reaches 2 W_n^2
+   * where a fit's misfit b^2 equals the noise, the break-even of a move (the
+   * guard's misfit test); G(W, 2 W_n) has its inflection, where it falls
+   * fastest, there (theta_2 = e^-1/2). A length or a multiple of |W| (the
+   * mean) when asked for (the thesis: 0.3 |W|) */
+  double wn = 0;
+  if (n) {
+    double *srt = bsurf_alloc_array(n, sizeof(double));
+    if (!srt) return BSURF_ERR_NOMEM;
+    memcpy(srt, c->W, n * sizeof(double));
+    qsort(srt, n, sizeof *srt, bsurf_cmp_double);
+    wn = n % 2 ? srt[n / 2] : 0.5 * (srt[n / 2 - 1] + srt[n / 2]);
+    free(srt);
+  }
+  if (!(o->h2 > 0) && !(o->h2_fraction > 0)) c->h2 = 2.0 * wn;
+  /* the passes: o->iterations of them, or (iterations < 0, the default)
+   * until the stop rule, at most MP_PASSES_MAX */
+  const int autostop = o->iterations < 0;
+  const int maxit = autostop ? MP_PASSES_MAX : o->iterations;
   c->khat = bsurf_alloc_array(n, sizeof(int));
   c->dl = bsurf_alloc_array(n, sizeof(double));
   c->e2 = bsurf_alloc_array(n, sizeof(double));
@@ -148,6 +190,22 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
   st = bsurf_parallel_points_ordered(n, visit, T, multipass_fit_task, c, staged_cb, sp);
   if (st != BSURF_OK) return st;
   sp->stage = 2;
+  /* the stop rule's level: a fit of p coefficients to K_i points predicts
+   * its own points with variance sigma^2 p / K_i on average (the mean
+   * leverage), so a pass whose mean squared move is below sigma^2 mean(p_i /
+   * K_i) moves points by less than the fits' own error: further passes only
+   * carry each fit's error and bias into its neighbours. sigma^2: the
+   * guard's noise estimate, else W_n^2 */
+  double stop2 = 0;
+  if (autostop && n) {
+    double sum = 0;
+    for (size_t i = 0; i < n; i++)
+      sum += (double)bsurf_poly_terms(c->fit_degree[i]) / (double)c->khat[i];
+    const double s2 = c->noise > 0 ? c->noise : wn * wn;
+    stop2 = s2 * sum / (double)n;
+  }
+  double *prev = NULL; /* the sequential sweep's positions before a pass */
+  if (autostop && seq && !(prev = bsurf_alloc_array(n * 3, sizeof(double)))) return BSURF_ERR_NOMEM;
   double *buf = NULL, *pos = c->out;
   uint32_t *perm = NULL, *rank = NULL;
   memcpy(c->out, c->xyz, n * 3 * sizeof(double));
@@ -199,7 +257,7 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
       c->mp_val = bsurf_alloc_array((size_t)T * 4 * (c->mp_cap ? c->mp_cap : 1), sizeof(double));
       c->act_off = bsurf_alloc_array(n + 1, sizeof(size_t));
       if (!c->mp_point || !c->mp_val || !c->act_off) st = BSURF_ERR_NOMEM;
-      if (st == BSURF_OK && c->tune.tblock_passes > 1 && o->iterations > 1) {
+      if (st == BSURF_OK && c->tune.tblock_passes > 1 && maxit > 1 && !autostop) {
         c->tb_S = c->tune.tblock_passes;
         c->nreg = (n + MP_REGION - 1) / MP_REGION;
         c->reg = bsurf_calloc_array(c->nreg ? c->nreg : 1, sizeof *c->reg);
@@ -216,10 +274,13 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
   int it = 0;
   double *from = pos, *to = buf; /* the passes read from and write to; swapped after each */
   double last = INFINITY;        /* the largest move of the last pass (none yet) */
-  while (st == BSURF_OK && it < o->iterations) {
+  int stop = 0;
+  while (st == BSURF_OK && it < maxit && !stop) {
     int s = 1; /* passes done in this round */
     if (seq) {
+      if (prev) memcpy(prev, c->out, n * 3 * sizeof(double));
       multipass_sequential_pass(c);
+      if (prev) stop = mean_sq_move(prev, c->out, n) < stop2;
     } else {
       c->cur = from;
       c->next = to;
@@ -243,7 +304,7 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
        * expected to stay within the margin until its last pass starts (at
        * most tb - 1 more moves of 1.5 times the last pass's largest);
        * else pass by pass, up to the rebuild */
-      int tb = c->reg ? (o->iterations - it < c->tb_max ? o->iterations - it : c->tb_max) : 1;
+      int tb = c->reg ? (maxit - it < c->tb_max ? maxit - it : c->tb_max) : 1;
       while (tb > 1 && !(drift + (tb - 1) * 1.5 * last <= margin))
         tb--;
       if (st == BSURF_OK && tb > 1) {
@@ -291,9 +352,10 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
       double *t = from;
       from = to;
       to = t;
+      if (autostop && st == BSURF_OK) stop = mean_sq_move(to, from, n) < stop2;
     }
     it += s;
-    if (st == BSURF_OK && sp->fn && staged_cb(sp, (size_t)it, (size_t)o->iterations))
+    if (st == BSURF_OK && sp->fn && staged_cb(sp, (size_t)it, (size_t)maxit))
       st = BSURF_ERR_CANCELLED;
   }
   if (st == BSURF_OK && !seq) {
@@ -301,6 +363,7 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
       memcpy(&c->out[3 * (size_t)perm[r]], &from[3 * r], 3 * sizeof(double));
   }
   free(buf);
+  free(prev);
   if (pos != c->out) free(pos);
   free(perm);
   free(rank);

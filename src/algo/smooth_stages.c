@@ -37,13 +37,13 @@ int bsurf_smooth_misfit(const double *sv, double noise) {
 }
 
 int bsurf_smooth_degree_test(const bsurf_smooth_options *o) {
-  /* auto: bilateral only. Its moves average the fits of many neighbourhoods,
-   * where the variance a lower degree saves adds up and its bias is small;
-   * naive (the bootstrap mean of the full-degree fit, the guard's fit only
-   * at two sheets) and multipass (each point onto its own fit of K_i points,
-   * down to k_min) ended farther from the surface with it on coarse meshes
-   * of the development set (docs/smoothing.md, "The degree test") */
-  return o->degree_test < 0 ? o->method == BSURF_SMOOTH_BILATERAL : o->degree_test;
+  /* auto: bilateral and multipass. Their moves average the fits of many
+   * neighbourhoods (multipass with h1 the local spacing), where the variance
+   * a lower degree saves adds up and its bias is small; naive (the bootstrap
+   * mean of the full-degree fit, the guard's fit only at two sheets) ended
+   * farther from the surface with it on coarse meshes of the development set
+   * (docs/smoothing.md, "The degree test") */
+  return o->degree_test < 0 ? o->method != BSURF_SMOOTH_NAIVE : o->degree_test;
 }
 
 int bsurf_smooth_w_column(const bsurf_smooth_options *o) {
