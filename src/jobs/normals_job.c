@@ -385,19 +385,48 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
 
 /* ---- in memory ---- */
 
+/* A run that needs each point's neighbours only for its own estimate (no
+ * reference normals of the neighbours, no smoothing, no orientation):
+ * estimated as the search goes, without the lists (normals_streamed). */
+static int normals_streamable(const normals_job *job, const bsurf_normals_job_options *o) {
+  return !job->test_error && !job->selecting && !job->curve && o->smooth_iterations == 0 &&
+         o->orient == BSURF_ORIENT_NONE;
+}
+
+/* bsurf_jobs_neighbors + normals_compute in one pass: the same rows, the
+ * same per-point estimate (bsurf_estimate_normals_streamed). */
+static bsurf_status normals_streamed(normals_job *job, const bsurf_cloud *c, normals_bufs *b,
+                                     bsurf_normals_job_summary *s) {
+  const size_t n = c->point_count;
+  if (n < (size_t)job->kmax)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "has %zu points, fewer than K = %d", n,
+                             job->kmax);
+  bsurf_normal_fields out = {b->normals, b->var, NULL};
+  return bsurf_estimate_normals_streamed(c->xyz, n, job->kmax, &job->no, &out, &s->report, &s->h,
+                                         &s->duplicates);
+}
+
 static bsurf_status normals_in_memory(const bsurf_job_io *io, const bsurf_normals_job_options *o,
                                       normals_job *job, bsurf_normals_job_summary *s) {
   bsurf_cloud *c = io->cloud;
   const size_t n = c->point_count;
+  const int streamed = normals_streamable(job, o);
   bsurf_neighbors nb;
-  bsurf_status st = bsurf_jobs_neighbors(c, job->kmax, job->no.threads, job->no.progress,
-                                         job->no.progress_user, &nb, &s->duplicates);
-  if (st != BSURF_OK) return st;
-  s->points = n;
-  s->h = nb.h;
+  memset(&nb, 0, sizeof nb);
+  bsurf_status st = BSURF_OK;
+  if (!streamed) {
+    st = bsurf_jobs_neighbors(c, job->kmax, job->no.threads, job->no.progress,
+                              job->no.progress_user, &nb, &s->duplicates);
+    if (st != BSURF_OK) return st;
+    s->points = n;
+    s->h = nb.h;
+  }
   normals_bufs b;
   st = normals_bufs_alloc(&b, job, n);
-  if (st == BSURF_OK) st = normals_compute(job, c->xyz, &nb, NULL, NULL, &b, &s->report);
+  if (st == BSURF_OK)
+    st = streamed ? normals_streamed(job, c, &b, s)
+                  : normals_compute(job, c->xyz, &nb, NULL, NULL, &b, &s->report);
+  if (st == BSURF_OK && streamed) s->points = n;
   s->curve_rows = job->curve_rows;
   if (st == BSURF_OK && o->smooth_iterations > 0) {
     /* auto: the threshold of the top 15% of normal_var (Table 5.2's split) */
