@@ -61,7 +61,9 @@ static bsurf_status normals_bufs_alloc(normals_bufs *b, const normals_job *job, 
   memset(b, 0, sizeof *b);
   const size_t m = n ? n : 1;
   b->normals = bsurf_alloc_array(m * 3, sizeof(double)); /* large: huge pages (status.c) */
-  b->var = bsurf_calloc_array(m, sizeof(double));
+  /* without replicates no variance is written out: calloc's untouched pages */
+  b->var =
+      job->no.bootstrap >= 2 ? bsurf_calloc_array(m, sizeof(double)) : calloc(m, sizeof(double));
   /* calloc: pages that are never written (no test error) are never touched */
   b->err = calloc(m, sizeof(double));
   int ok = b->normals && b->var && b->err;
@@ -265,15 +267,21 @@ static int normals_field_names(const normals_job *job, const char **names, bsurf
 }
 
 /* Normals replaced (FLOAT32 when the input had none), fields added; with b,
- * the values copied in. */
-static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, const normals_bufs *b) {
+ * the values copied in, or with move (a cloud that owns its arrays) and no
+ * normals in c, b's array moved in (no copy; it then belongs to c). */
+static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, normals_bufs *b,
+                                  int move) {
   const size_t n = c->point_count;
-  if (!c->normals) {
+  move = move && b && !c->normals;
+  if (!c->normals) c->normal_type = BSURF_FLOAT32;
+  if (move) {
+    c->normals = b->normals;
+    b->normals = NULL;
+  } else if (!c->normals) {
     c->normals = bsurf_calloc_array(n ? n * 3 : 3, sizeof(double));
-    c->normal_type = BSURF_FLOAT32;
     if (!c->normals) return BSURF_ERR_NOMEM;
   }
-  if (b) memcpy(c->normals, b->normals, n * 3 * sizeof(double));
+  if (b && !move) memcpy(c->normals, b->normals, n * 3 * sizeof(double));
   const char *names[4];
   bsurf_type types[4];
   int which[4];
@@ -293,7 +301,7 @@ static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, const 
 #define NORMALS_SUMS 8 /* replicates total, skipped, degree reduced, degenerate, 4 field sums */
 
 static bsurf_status normals_prepare(void *user, bsurf_cloud *c) {
-  return normals_store(user, c, NULL);
+  return normals_store(user, c, NULL, 0);
 }
 
 static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud *core,
@@ -307,7 +315,7 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
    * first stage (normals_ref_run) */
   st = normals_compute(job, tile->xyz, tile->nb, tile->point_index,
                        job->test_error ? tile->values : NULL, &b, &total);
-  if (st == BSURF_OK) st = normals_store(job, core, &b);
+  if (st == BSURF_OK) st = normals_store(job, core, &b, 0);
   if (st == BSURF_OK) {
     bsurf_jobs_add_counts(sums, total.replicates_total, total.replicates_skipped,
                           total.degree_reduced, total.degenerate);
@@ -401,7 +409,7 @@ static bsurf_status normals_streamed(normals_job *job, const bsurf_cloud *c, nor
   if (n < (size_t)job->kmax)
     return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "has %zu points, fewer than K = %d", n,
                              job->kmax);
-  bsurf_normal_fields out = {b->normals, b->var, NULL};
+  bsurf_normal_fields out = {b->normals, job->no.bootstrap >= 2 ? b->var : NULL, NULL};
   return bsurf_estimate_normals_streamed(c->xyz, n, job->kmax, &job->no, &out, &s->report, &s->h,
                                          &s->duplicates);
 }
@@ -445,7 +453,7 @@ static bsurf_status normals_in_memory(const bsurf_job_io *io, const bsurf_normal
   if (st == BSURF_OK && o->orient == BSURF_ORIENT_MST)
     st = bsurf_orient_normals(c->xyz, &nb, job->no.k, b.normals);
   /* outputs: normals replaced, confidence and error fields added */
-  if (st == BSURF_OK) st = normals_store(job, c, &b);
+  if (st == BSURF_OK) st = normals_store(job, c, &b, 1);
   for (int t = 0; st == BSURF_OK && t < s->field_count; t++)
     s->means[t] = bsurf_jobs_mean(bsurf_cloud_field(c, s->field_names[t])->values, n);
   normals_bufs_free(&b);
