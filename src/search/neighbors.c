@@ -72,6 +72,18 @@ static bsurf_status knn_with_spacing(const double *xyz, size_t point_count, int 
   return st;
 }
 
+/* The checks of bsurf_neighbors_build and _stream (messages name `who`). */
+static bsurf_status neighbors_check(const char *who, const double *xyz, size_t point_count, int k) {
+  BSURF_REQUIRE_IN(who, xyz, "xyz is NULL");
+  BSURF_REQUIRE_IN(who, k >= 2, "k = %d: must be at least 2 (the point and a neighbour)", k);
+  BSURF_REQUIRE_IN(who, point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points",
+                   point_count);
+  if (point_count == 0 || (size_t)k > point_count)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "%s: k = %d exceeds the %zu points", who, k,
+                             point_count);
+  return BSURF_OK;
+}
+
 bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz, size_t point_count,
                                    int k, int threads, bsurf_progress_fn progress,
                                    void *progress_user) {
@@ -81,14 +93,8 @@ bsurf_status bsurf_neighbors_build(bsurf_neighbors *nb, const double *xyz, size_
 
   BSURF_REQUIRE(nb, "nb is NULL");
   memset(nb, 0, sizeof *nb);
-  BSURF_REQUIRE(xyz, "xyz is NULL");
-  BSURF_REQUIRE(k >= 2, "k = %d: must be at least 2 (the point and a neighbour)", k);
-  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points",
-                point_count);
-  if (point_count == 0 || (size_t)k > point_count)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
-                             "bsurf_neighbors_build: k = %d exceeds the %zu points", k,
-                             point_count);
+  st = neighbors_check("bsurf_neighbors_build", xyz, point_count, k);
+  if (st != BSURF_OK) return st;
 
   idx = bsurf_alloc_array(point_count, (size_t)k * sizeof *idx);
   uint32_t *order = bsurf_alloc_array(point_count, sizeof *order);
@@ -116,20 +122,14 @@ bsurf_status bsurf_neighbors_stream(const double *xyz, size_t point_count, int k
                                     bsurf_knn_row_fn row, void *row_user, double *h,
                                     size_t *duplicates, bsurf_progress_fn progress,
                                     void *progress_user) {
-  BSURF_REQUIRE(xyz && row && h && duplicates, "xyz, row, h and duplicates must not be NULL");
-  BSURF_REQUIRE(k >= 2, "k = %d: must be at least 2 (the point and a neighbour)", k);
-  BSURF_REQUIRE(point_count <= UINT32_MAX, "point_count = %zu: at most 2^32 - 1 points",
-                point_count);
-  if (point_count == 0 || (size_t)k > point_count)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
-                             "bsurf_neighbors_stream: k = %d exceeds the %zu points", k,
-                             point_count);
+  BSURF_REQUIRE(row && h && duplicates, "row, h and duplicates must not be NULL");
+  bsurf_status st = neighbors_check("bsurf_neighbors_stream", xyz, point_count, k);
+  if (st != BSURF_OK) return st;
   const int T = bsurf_threads_resolve(threads);
   size_t *dup = bsurf_calloc_array((size_t)(T > 0 ? T : 1) * 8, sizeof *dup);
   if (!dup) return BSURF_ERR_NOMEM;
   stream_ctx sc = {row, row_user, dup};
-  bsurf_status st =
-      knn_with_spacing(xyz, point_count, k, threads, NULL, NULL, &sc, h, progress, progress_user);
+  st = knn_with_spacing(xyz, point_count, k, threads, NULL, NULL, &sc, h, progress, progress_user);
   *duplicates = 0;
   for (int t = 0; t < T; t++)
     *duplicates += dup[8 * (size_t)t];
