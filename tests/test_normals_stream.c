@@ -172,6 +172,18 @@ static void test_stream_job(void **state) {
   assert_int_equal(s.duplicates, dups);
   assert_int_equal(s.points, n);
   assert_int_equal(s.report.replicates_total, n * 9);
+  /* a cloud without normals receives the estimate's array (moved, not copied) */
+  free(plain.normals);
+  plain.normals = NULL;
+  io.cloud = &plain;
+  jo.normals.bootstrap = 0;
+  assert_int_equal(bsurf_normals_job(&io, &jo, &s, &err), BSURF_OK);
+  jo.normals.threads = 1;
+  assert_int_equal(bsurf_estimate_normals(plain.xyz, &nb, NULL, &jo.normals, &fa, NULL), BSURF_OK);
+  assert_non_null(plain.normals);
+  assert_int_equal(plain.normal_type, BSURF_FLOAT32);
+  assert_memory_equal(plain.normals, a, 3 * n * sizeof *a);
+  assert_null(bsurf_cloud_field(&plain, "normal_var"));
   free(a);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&plain);
