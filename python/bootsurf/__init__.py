@@ -256,7 +256,7 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
 # ---------------------------------------------------------------- chapter 5
 
 _FITS = ("pca", "poly")
-_RULES = ("test-error", "mse")
+_RULES = ("test-error", "mse", "auto")  # BSURF_KSELECT_TEST_ERROR, _MSE, _AUTO
 _NOISE_POOLS = ("global", "local")
 _ORIENTS = ("none", "mst")
 
@@ -281,14 +281,14 @@ _builtin_range = range
 
 
 def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid", bootstrap=50,
-            seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="test-error",
+            seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="auto",
             noise_k=12, noise_pool="global", select_degree=None, curve=False, truth=None,
             smooth_iterations=0,
             alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", output=None,
             tile_points=None, progress=None):
     """normals(points, *, neighbors=30, fit='pca', degree=2,
     pca_center='centroid', bootstrap=50, seed=1, threads=0, test_error=False,
-    k_ref=0, select_k=None, select_rule='test-error', noise_k=12,
+    k_ref=0, select_k=None, select_rule='auto', noise_k=12,
     noise_pool='global', select_degree=None, curve=False, truth=None, smooth_iterations=0,
     alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', output=None,
     tile_points=None, progress=None)
@@ -315,9 +315,11 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
       k_ref              neighbourhood of the reference normals (0 = K)
       select_k           per point, the K chosen by select_rule: 'A:B:STEP'
                          or a list of K (5.5, Algorithm 3)
-      select_rule        test-error (Eq. 5.10) or mse (estimated variance +
-                         bias^2 of the PCA normal; also writes two_sheet,
-                         1 where the neighbourhood mixes two sheets)
+      select_rule        mse (estimated variance + bias^2 of the PCA normal;
+                         also writes two_sheet, 1 where the neighbourhood
+                         mixes two sheets), test-error (Eq. 5.10) or auto
+                         (mse where it applies: fit='pca', no select_degree
+                         or curve, K >= 7; else test-error)
       noise_k            with select_rule='mse': the noise fits' K (12)
       noise_pool         with select_rule='mse': one noise level for the cloud
                          ('global') or each point's own ('local')
