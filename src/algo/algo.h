@@ -180,6 +180,19 @@ double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_s
                                     const double *ry, const double *rz, int k, int kread,
                                     double *scratch);
 
+/* bsurf_estimate_normals without the neighbour lists: the cloud's
+ * neighbourhoods searched (bsurf_neighbors_stream, nb_k neighbours, of which
+ * opts->k are used) and each point's normal estimated from its row while it
+ * is in cache, so the point_count x nb_k array is never built. The same
+ * fields as bsurf_estimate_normals on bsurf_neighbors_build's lists (the
+ * same rows, the same per-point code: the same bits), without reference
+ * normals (out->normal_err must be NULL) and with opts->point_index NULL;
+ * h and duplicates as bsurf_neighbors_build's h and the jobs' count. */
+bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_count, int nb_k,
+                                             const bsurf_normal_options *opts,
+                                             bsurf_normal_fields *out, bsurf_normal_report *report,
+                                             double *h, size_t *duplicates);
+
 /* Per-point K and degree selection of polynomial normals (5.5, Algorithm 3;
  * select_degree.c): every candidate (ks[a], ds[d]) as bsurf_select_normals_k
  * does for PCA (Poisson(1) counts over the kmax = ks[nk - 1] neighbours,

@@ -127,13 +127,15 @@ typedef struct normals_ctx {
   bsurf_normal_select_fields *sel;
 } normals_ctx;
 
-static void normals_point(void *vctx, void *scratch, size_t i) {
-  normals_ctx *c = vctx;
+/* Point i with its neighbourhood: ids, the points' indices (i first, then
+ * the others by distance), their coordinates at xyz[3 idx[j]]. The estimate
+ * of both passes: the stored lists' (normals_point: the cloud's xyz, idx =
+ * ids) and the streamed search's (stream_row: the row's coordinates, idx =
+ * 0, 1, ...). */
+static void normals_point_row(const normals_ctx *c, normal_scratch *s, size_t i, const double *xyz,
+                              const uint32_t *idx, const uint32_t *ids) {
   const bsurf_normal_options *o = c->o;
-  normal_scratch *s = scratch;
   const int k = o->k, B = o->bootstrap;
-  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
-  const double *xyz = c->xyz;
 
   /* the B resamples: for PCA their multiplicities as weights in lanes, for
    * a polynomial their draws */
@@ -227,12 +229,18 @@ static void normals_point(void *vctx, void *scratch, size_t i) {
           const double *cb = b >= 0 ? &s->coefs[(size_t)(b + 1) * m] : s->coefs;
           bsurf_localfit_normal(&s->lf, &frame, degree, cb, s->lf.u[j], s->lf.v[j], g);
         }
-        total += bsurf_angle_between(g, &c->ref[3 * (size_t)idx[j]], 1);
+        total += bsurf_angle_between(g, &c->ref[3 * (size_t)ids[j]], 1);
         terms++;
       }
     }
     c->out->normal_err[i] = terms ? total / terms : 0.0;
   }
+}
+
+static void normals_point(void *vctx, void *scratch, size_t i) {
+  const normals_ctx *c = vctx;
+  const uint32_t *row = &c->nb->idx[i * (size_t)c->nb->k];
+  normals_point_row(c, scratch, i, c->xyz, row, row);
 }
 
 static void normals_tally(void *vctx, const void *scratch) {
@@ -244,6 +252,32 @@ static void normals_tally(void *vctx, const void *scratch) {
   c->report->degenerate += s->degenerate;
 }
 
+/* The options' checks of bsurf_estimate_normals, against lists of nb_k
+ * neighbours of n points. */
+static bsurf_status normals_check(const char *who, const bsurf_normal_options o, int nb_k,
+                                  size_t n) {
+  BSURF_REQUIRE_IN(who, o.fit == BSURF_NORMAL_PCA || o.fit == BSURF_NORMAL_POLY,
+                   "fit = %d: must be BSURF_NORMAL_PCA or BSURF_NORMAL_POLY", (int)o.fit);
+  BSURF_REQUIRE_IN(who,
+                   o.fit != BSURF_NORMAL_POLY || (o.degree >= 1 && o.degree <= BSURF_DEGREE_MAX),
+                   "degree = %d: must be in [1, %d]", o.degree, BSURF_DEGREE_MAX);
+  BSURF_REQUIRE_IN(who, (unsigned)o.pca_center <= BSURF_PCA_POINT,
+                   "pca_center = %d: must be BSURF_PCA_CENTROID or BSURF_PCA_POINT",
+                   (int)o.pca_center);
+  BSURF_REQUIRE_IN(who, o.bootstrap >= 0 && o.bootstrap <= 100000,
+                   "bootstrap (B) = %d: must be in [0, 100000]", o.bootstrap);
+  BSURF_REQUIRE_IN(who, o.k >= 3 && o.k <= 65535 && o.k <= nb_k,
+                   "k = %d: must be in [3, %d] (nb->k = %d)", o.k, nb_k < 65535 ? nb_k : 65535,
+                   nb_k);
+  if ((size_t)o.k > n)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d exceeds the %zu points", o.k, n);
+  if (o.fit == BSURF_NORMAL_POLY && o.k < bsurf_poly_terms(o.degree))
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
+                             "k = %d is too small for degree %d: a fit needs %d points", o.k,
+                             o.degree, bsurf_poly_terms(o.degree));
+  return BSURF_OK;
+}
+
 bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb,
                                     const double *ref_normals, const bsurf_normal_options *opts,
                                     bsurf_normal_fields *out, bsurf_normal_report *report) {
@@ -253,32 +287,68 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
   BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build",
                 nb ? "empty" : "NULL");
   BSURF_REQUIRE(out, "out is NULL (give a bsurf_normal_fields, its unwanted outputs NULL)");
-  BSURF_REQUIRE(o.fit == BSURF_NORMAL_PCA || o.fit == BSURF_NORMAL_POLY,
-                "fit = %d: must be BSURF_NORMAL_PCA or BSURF_NORMAL_POLY", (int)o.fit);
-  BSURF_REQUIRE(o.fit != BSURF_NORMAL_POLY || (o.degree >= 1 && o.degree <= BSURF_DEGREE_MAX),
-                "degree = %d: must be in [1, %d]", o.degree, BSURF_DEGREE_MAX);
-  BSURF_REQUIRE((unsigned)o.pca_center <= BSURF_PCA_POINT,
-                "pca_center = %d: must be BSURF_PCA_CENTROID or BSURF_PCA_POINT",
-                (int)o.pca_center);
-  BSURF_REQUIRE(o.bootstrap >= 0 && o.bootstrap <= 100000,
-                "bootstrap (B) = %d: must be in [0, 100000]", o.bootstrap);
-  BSURF_REQUIRE(o.k >= 3 && o.k <= 65535 && o.k <= nb->k, "k = %d: must be in [3, %d] (nb->k = %d)",
-                o.k, nb->k < 65535 ? nb->k : 65535, nb->k);
-  if ((size_t)o.k > nb->point_count)
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "k = %d exceeds the %zu points", o.k,
-                             nb->point_count);
-  if (o.fit == BSURF_NORMAL_POLY && o.k < bsurf_poly_terms(o.degree))
-    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS,
-                             "k = %d is too small for degree %d: a fit needs %d points", o.k,
-                             o.degree, bsurf_poly_terms(o.degree));
+  bsurf_status st = normals_check("bsurf_estimate_normals", o, nb->k, nb->point_count);
+  if (st != BSURF_OK) return st;
 
   static const bsurf_point_loop loop = {sizeof(normal_scratch), scratch_alloc, scratch_free,
                                         normals_point, normals_tally};
   const scratch_sizes sizes = {o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1, 1};
   normals_ctx ctx = {xyz, nb, ref_normals, &o, out, report, NULL, 0, NULL};
-  bsurf_status st =
-      bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
   if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o.bootstrap;
+  return st;
+}
+
+/* ---- the same estimate on the search's rows as they come ---- */
+
+typedef struct stream_ctx {
+  normals_ctx c;
+  normal_scratch *scratch; /* one per thread */
+  uint32_t *iota;          /* 0, 1, ..., nb_k - 1 */
+} stream_ctx;
+
+static void stream_row(void *vctx, int thread, uint32_t point, const uint32_t *ids,
+                       const double *xyz) {
+  stream_ctx *sc = vctx;
+  normals_point_row(&sc->c, &sc->scratch[thread], point, xyz, sc->iota, ids);
+}
+
+bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_count, int nb_k,
+                                             const bsurf_normal_options *opts,
+                                             bsurf_normal_fields *out, bsurf_normal_report *report,
+                                             double *h, size_t *duplicates) {
+  bsurf_normal_options o = *opts;
+  if (report) memset(report, 0, sizeof *report);
+  BSURF_REQUIRE(xyz && out && h && duplicates, "xyz, out, h and duplicates must not be NULL");
+  BSURF_REQUIRE(!o.point_index, "opts->point_index: the streamed pass numbers the points itself");
+  BSURF_REQUIRE(!out->normal_err, "out->normal_err: the test error needs reference normals");
+  bsurf_status st = normals_check("bsurf_estimate_normals_streamed", o, nb_k, point_count);
+  if (st != BSURF_OK) return st;
+  const int T = bsurf_threads_resolve(o.threads);
+  normal_scratch *scr = bsurf_calloc_array((size_t)T, sizeof *scr);
+  uint32_t *iota = bsurf_alloc_array((size_t)nb_k, sizeof *iota);
+  if (!scr || !iota) {
+    free(scr);
+    free(iota);
+    return BSURF_ERR_NOMEM;
+  }
+  for (int j = 0; j < nb_k; j++)
+    iota[j] = (uint32_t)j;
+  const scratch_sizes sizes = {o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1, 1};
+  for (int t = 0; t < T && st == BSURF_OK; t++)
+    st = scratch_alloc(&scr[t], &sizes);
+  /* no reference normals: a streamed point cannot wait for its neighbours' */
+  stream_ctx sc = {{xyz, NULL, NULL, &o, out, report, NULL, 0, NULL}, scr, iota};
+  if (st == BSURF_OK)
+    st = bsurf_neighbors_stream(xyz, point_count, nb_k, o.threads, stream_row, &sc, h, duplicates,
+                                o.progress, o.progress_user);
+  for (int t = 0; t < T; t++) {
+    if (st == BSURF_OK) normals_tally(&sc.c, &scr[t]);
+    scratch_free(&scr[t]);
+  }
+  free(scr);
+  free(iota);
+  if (report && st == BSURF_OK) report->replicates_total = point_count * (size_t)o.bootstrap;
   return st;
 }
 

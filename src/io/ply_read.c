@@ -9,7 +9,23 @@
 
 /* ------------------------------------------------------------------------ */
 
-static double get_value(const unsigned char *p, bsurf_type type, int be) {
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+#define PLY_HOST_LE 1
+#else
+#define PLY_HOST_LE 0
+#endif
+
+static inline double get_value(const unsigned char *p, bsurf_type type, int be) {
+  if (PLY_HOST_LE && !be && type == BSURF_FLOAT64) { /* the file's bytes are the host's double */
+    double d;
+    memcpy(&d, p, sizeof d);
+    return d;
+  }
+  if (PLY_HOST_LE && !be && type == BSURF_FLOAT32) {
+    float f;
+    memcpy(&f, p, sizeof f);
+    return f;
+  }
   switch (type) {
   case BSURF_INT8: return p[0] >= 0x80 ? (double)p[0] - 256.0 : (double)p[0];
   case BSURF_UINT8: return p[0];

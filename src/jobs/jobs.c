@@ -1,5 +1,6 @@
 /* Pieces every job shares (src/jobs/jobs.h). */
 #include "jobs/jobs.h"
+#include "search/search.h"
 
 #include <string.h>
 
@@ -38,8 +39,7 @@ bsurf_status bsurf_jobs_neighbors(const bsurf_cloud *c, int k, int threads,
    * point itself comes first) is at distance 0 */
   size_t dup = 0;
   for (size_t i = 0; i < n; i++) {
-    const double *a = c->xyz + 3 * i, *b = c->xyz + 3 * (size_t)nb->idx[i * (size_t)nb->k + 1];
-    dup += a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+    dup += bsurf_same_place(c->xyz + 3 * i, c->xyz + 3 * (size_t)nb->idx[i * (size_t)nb->k + 1]);
   }
   *duplicates = dup;
   return BSURF_OK;

@@ -61,7 +61,9 @@ static bsurf_status normals_bufs_alloc(normals_bufs *b, const normals_job *job, 
   memset(b, 0, sizeof *b);
   const size_t m = n ? n : 1;
   b->normals = bsurf_alloc_array(m * 3, sizeof(double)); /* large: huge pages (status.c) */
-  b->var = bsurf_calloc_array(m, sizeof(double));
+  /* without replicates no variance is written out: calloc's untouched pages */
+  b->var =
+      job->no.bootstrap >= 2 ? bsurf_calloc_array(m, sizeof(double)) : calloc(m, sizeof(double));
   /* calloc: pages that are never written (no test error) are never touched */
   b->err = calloc(m, sizeof(double));
   int ok = b->normals && b->var && b->err;
@@ -265,15 +267,21 @@ static int normals_field_names(const normals_job *job, const char **names, bsurf
 }
 
 /* Normals replaced (FLOAT32 when the input had none), fields added; with b,
- * the values copied in. */
-static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, const normals_bufs *b) {
+ * the values copied in, or with move (a cloud that owns its arrays) and no
+ * normals in c, b's array moved in (no copy; it then belongs to c). */
+static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, normals_bufs *b,
+                                  int move) {
   const size_t n = c->point_count;
-  if (!c->normals) {
+  move = move && b && !c->normals;
+  if (!c->normals) c->normal_type = BSURF_FLOAT32;
+  if (move) {
+    c->normals = b->normals;
+    b->normals = NULL;
+  } else if (!c->normals) {
     c->normals = bsurf_calloc_array(n ? n * 3 : 3, sizeof(double));
-    c->normal_type = BSURF_FLOAT32;
     if (!c->normals) return BSURF_ERR_NOMEM;
   }
-  if (b) memcpy(c->normals, b->normals, n * 3 * sizeof(double));
+  if (b && !move) memcpy(c->normals, b->normals, n * 3 * sizeof(double));
   const char *names[4];
   bsurf_type types[4];
   int which[4];
@@ -293,7 +301,7 @@ static bsurf_status normals_store(const normals_job *job, bsurf_cloud *c, const 
 #define NORMALS_SUMS 8 /* replicates total, skipped, degree reduced, degenerate, 4 field sums */
 
 static bsurf_status normals_prepare(void *user, bsurf_cloud *c) {
-  return normals_store(user, c, NULL);
+  return normals_store(user, c, NULL, 0);
 }
 
 static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud *core,
@@ -307,7 +315,7 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
    * first stage (normals_ref_run) */
   st = normals_compute(job, tile->xyz, tile->nb, tile->point_index,
                        job->test_error ? tile->values : NULL, &b, &total);
-  if (st == BSURF_OK) st = normals_store(job, core, &b);
+  if (st == BSURF_OK) st = normals_store(job, core, &b, 0);
   if (st == BSURF_OK) {
     bsurf_jobs_add_counts(sums, total.replicates_total, total.replicates_skipped,
                           total.degree_reduced, total.degenerate);
@@ -385,19 +393,48 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
 
 /* ---- in memory ---- */
 
+/* A run that needs each point's neighbours only for its own estimate (no
+ * reference normals of the neighbours, no smoothing, no orientation):
+ * estimated as the search goes, without the lists (normals_streamed). */
+static int normals_streamable(const normals_job *job, const bsurf_normals_job_options *o) {
+  return !job->test_error && !job->selecting && !job->curve && o->smooth_iterations == 0 &&
+         o->orient == BSURF_ORIENT_NONE;
+}
+
+/* bsurf_jobs_neighbors + normals_compute in one pass: the same rows, the
+ * same per-point estimate (bsurf_estimate_normals_streamed). */
+static bsurf_status normals_streamed(normals_job *job, const bsurf_cloud *c, normals_bufs *b,
+                                     bsurf_normals_job_summary *s) {
+  const size_t n = c->point_count;
+  if (n < (size_t)job->kmax)
+    return bsurf_set_message(BSURF_ERR_TOO_FEW_POINTS, "has %zu points, fewer than K = %d", n,
+                             job->kmax);
+  bsurf_normal_fields out = {b->normals, job->no.bootstrap >= 2 ? b->var : NULL, NULL};
+  return bsurf_estimate_normals_streamed(c->xyz, n, job->kmax, &job->no, &out, &s->report, &s->h,
+                                         &s->duplicates);
+}
+
 static bsurf_status normals_in_memory(const bsurf_job_io *io, const bsurf_normals_job_options *o,
                                       normals_job *job, bsurf_normals_job_summary *s) {
   bsurf_cloud *c = io->cloud;
   const size_t n = c->point_count;
+  const int streamed = normals_streamable(job, o);
   bsurf_neighbors nb;
-  bsurf_status st = bsurf_jobs_neighbors(c, job->kmax, job->no.threads, job->no.progress,
-                                         job->no.progress_user, &nb, &s->duplicates);
-  if (st != BSURF_OK) return st;
-  s->points = n;
-  s->h = nb.h;
+  memset(&nb, 0, sizeof nb);
+  bsurf_status st = BSURF_OK;
+  if (!streamed) {
+    st = bsurf_jobs_neighbors(c, job->kmax, job->no.threads, job->no.progress,
+                              job->no.progress_user, &nb, &s->duplicates);
+    if (st != BSURF_OK) return st;
+    s->points = n;
+    s->h = nb.h;
+  }
   normals_bufs b;
   st = normals_bufs_alloc(&b, job, n);
-  if (st == BSURF_OK) st = normals_compute(job, c->xyz, &nb, NULL, NULL, &b, &s->report);
+  if (st == BSURF_OK)
+    st = streamed ? normals_streamed(job, c, &b, s)
+                  : normals_compute(job, c->xyz, &nb, NULL, NULL, &b, &s->report);
+  if (st == BSURF_OK && streamed) s->points = n;
   s->curve_rows = job->curve_rows;
   if (st == BSURF_OK && o->smooth_iterations > 0) {
     /* auto: the threshold of the top 15% of normal_var (Table 5.2's split) */
@@ -416,7 +453,7 @@ static bsurf_status normals_in_memory(const bsurf_job_io *io, const bsurf_normal
   if (st == BSURF_OK && o->orient == BSURF_ORIENT_MST)
     st = bsurf_orient_normals(c->xyz, &nb, job->no.k, b.normals);
   /* outputs: normals replaced, confidence and error fields added */
-  if (st == BSURF_OK) st = normals_store(job, c, &b);
+  if (st == BSURF_OK) st = normals_store(job, c, &b, 1);
   for (int t = 0; st == BSURF_OK && t < s->field_count; t++)
     s->means[t] = bsurf_jobs_mean(bsurf_cloud_field(c, s->field_names[t])->values, n);
   normals_bufs_free(&b);

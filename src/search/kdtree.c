@@ -544,11 +544,13 @@ static inline void knn_prefetch_row(const bsurf_knn_index *ix, size_t j, int k, 
 /* Row of the point at tree position j: itself, then its k - 1 nearest others.
  * `buf` is the thread's buffer (k - 1 = buf->k); *prev is the tree position
  * of the query whose results the buffer holds (SIZE_MAX: none), and becomes
- * j. */
+ * j. The row goes to idx (and dist2) at the point's index, or, streamed
+ * (idx and dist2 NULL), to `own` (k entries; NULL otherwise). */
 static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_buffer *buf, size_t *prev,
-                    uint32_t *idx, double *dist2, double *nn_dist2) {
+                    uint32_t *idx, double *dist2, double *nn_dist2, uint32_t *own,
+                    double *own_xyz) {
   const uint32_t self = ix->ids[j];
-  const size_t row = (size_t)self * (size_t)k;
+  const size_t row = own ? 0 : (size_t)self * (size_t)k;
   const int m = k - 1;
   const knn_entry *scratch;
   knn_search s;
@@ -574,6 +576,7 @@ static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_buffer *buf,
     *prev = j;
   }
   scratch = buf->e;
+  if (own) idx = own;
   if (idx) {
     idx[row] = self;
     for (int c = 0; c < m; c++)
@@ -585,15 +588,25 @@ static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_buffer *buf,
       dist2[row + 1 + (size_t)c] = scratch[c].d;
   }
   if (nn_dist2) nn_dist2[self] = m > 0 ? scratch[0].d : 0.0;
+  if (own_xyz) /* the row's coordinates, from the tree's arrays the search just read */
+    for (int d = 0; d < 3; d++) {
+      const double *c = ix->xyz[d];
+      own_xyz[d] = c[j];
+      for (int e = 0; e < m; e++)
+        own_xyz[3 * (size_t)(e + 1) + (size_t)d] = c[scratch[e].pos];
+    }
 }
 
-bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,
-                              double *dist2, double *nn_dist2, bsurf_progress_fn progress,
-                              void *progress_user) {
+/* bsurf_knn_all_ex and bsurf_knn_stream: with `row` set (and idx NULL),
+ * each point's row handed to it in a per-thread array instead of stored. */
+static bsurf_status knn_all_run(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,
+                                double *dist2, double *nn_dist2, bsurf_knn_row_fn row,
+                                void *row_user, bsurf_progress_fn progress, void *progress_user) {
   size_t n, chunk, m, cap;
   int nt;
   knn_entry *scratch;
-  uint32_t *hist;
+  uint32_t *hist, *own = NULL;
+  double *own_xyz = NULL;
   knn_buffer *bufs;
 
   BSURF_REQUIRE(index, "index is NULL");
@@ -618,11 +631,17 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
   hist = bsurf_alloc_array((size_t)nt * ((KNN_SPREAD + 1) * cap + 1), sizeof *hist);
   bufs = bsurf_alloc_array((size_t)nt, sizeof *bufs);
   size_t *prev = bsurf_alloc_array((size_t)nt, sizeof *prev);
-  if (!scratch || !hist || !bufs || !prev) {
+  /* the streamed rows: one per thread, a cache line apart */
+  const size_t own_stride = ((size_t)k + 15) & ~(size_t)15;
+  if (row) own = bsurf_alloc_array((size_t)nt, own_stride * sizeof *own);
+  if (row) own_xyz = bsurf_alloc_array((size_t)nt, 3 * own_stride * sizeof *own_xyz);
+  if (!scratch || !hist || !bufs || !prev || (row && (!own || !own_xyz))) {
     free(scratch);
     free(hist);
     free(bufs);
     free(prev);
+    free(own);
+    free(own_xyz);
     return BSURF_ERR_NOMEM;
   }
   for (int t = 0; t < nt; t++) {
@@ -652,13 +671,18 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
 #endif
       /* The next query's rows, usually this thread's (dynamic chunks). */
       if (j + 1 < last) knn_prefetch_row(index, (size_t)j + 1, k, idx, dist2);
-      knn_row(index, (size_t)j, k, &bufs[t], &prev[t], idx, dist2, nn_dist2);
+      uint32_t *mine = own ? own + t * own_stride : NULL;
+      double *mine_xyz = own_xyz ? own_xyz + t * 3 * own_stride : NULL;
+      knn_row(index, (size_t)j, k, &bufs[t], &prev[t], idx, dist2, nn_dist2, mine, mine_xyz);
+      if (row) row(row_user, (int)t, index->ids[j], mine, mine_xyz);
     }
     if (progress && progress(progress_user, (size_t)last, n)) {
       free(scratch);
       free(hist);
       free(bufs);
       free(prev);
+      free(own);
+      free(own_xyz);
       return BSURF_ERR_CANCELLED;
     }
   }
@@ -666,7 +690,23 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
   free(hist);
   free(bufs);
   free(prev);
+  free(own);
+  free(own_xyz);
   return BSURF_OK;
+}
+
+bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,
+                              double *dist2, double *nn_dist2, bsurf_progress_fn progress,
+                              void *progress_user) {
+  return knn_all_run(index, k, threads, idx, dist2, nn_dist2, NULL, NULL, progress, progress_user);
+}
+
+bsurf_status bsurf_knn_stream(const bsurf_knn_index *index, int k, int threads,
+                              bsurf_knn_row_fn row, void *row_user, double *nn_dist2,
+                              bsurf_progress_fn progress, void *progress_user) {
+  BSURF_REQUIRE(row, "row is NULL");
+  return knn_all_run(index, k, threads, NULL, NULL, nn_dist2, row, row_user, progress,
+                     progress_user);
 }
 
 bsurf_status bsurf_knn_all(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,

@@ -28,6 +28,35 @@ bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, 
                               double *dist2, double *nn_dist2, bsurf_progress_fn progress,
                               void *progress_user);
 
+/* The all-kNN without the point_count x k array: each point's row (itself,
+ * then its k - 1 nearest others, as bsurf_knn_all's) handed to row(user,
+ * thread, point, ids, xyz) while it is in cache, in place of being stored;
+ * xyz: the row's coordinates (k x 3, the same values as the cloud's, copied
+ * from the tree's arrays the search has just read). Rows come in tree
+ * order, from `threads` threads at once (thread in [0,
+ * bsurf_threads_resolve(threads))); ids and xyz are the thread's own arrays,
+ * valid during the call. nn_dist2, progress and cancellation as
+ * bsurf_knn_all_ex. */
+typedef void (*bsurf_knn_row_fn)(void *user, int thread, uint32_t point, const uint32_t *ids,
+                                 const double *xyz);
+bsurf_status bsurf_knn_stream(const bsurf_knn_index *index, int k, int threads,
+                              bsurf_knn_row_fn row, void *row_user, double *nn_dist2,
+                              bsurf_progress_fn progress, void *progress_user);
+
+/* bsurf_neighbors_build streamed (bsurf_knn_stream): the same checks, the same
+ * rows handed to row() instead of stored, *h as nb->h, and *duplicates the
+ * points whose nearest other neighbour is at the same place (the count of
+ * the jobs, bsurf_same_place). */
+bsurf_status bsurf_neighbors_stream(const double *xyz, size_t point_count, int k, int threads,
+                                    bsurf_knn_row_fn row, void *row_user, double *h,
+                                    size_t *duplicates, bsurf_progress_fn progress,
+                                    void *progress_user);
+
+/* 1 when the points at a and b have the same coordinates. */
+static inline int bsurf_same_place(const double *a, const double *b) {
+  return a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
+}
+
 /* The original index of each tree position (n entries): the points in the
  * index's spatially coherent order. */
 const uint32_t *bsurf_knn_tree_ids(const bsurf_knn_index *index);
