@@ -588,8 +588,8 @@ void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, c
 #endif
 }
 
-void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, int degree,
-                           const double *coef, double u, double v, double n[3]) {
+void bsurf_localfit_normal_local(const bsurf_localfit *lf, int degree, const double *coef, double u,
+                                 double v, double l[3]) {
   double fu = 0, fv = 0;
   if (u == 0 && v == 0 && degree >= 1) {
     /* at the frame's origin (the point d_i itself): the gradient is the
@@ -605,10 +605,16 @@ void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, i
     }
   }
   /* r = (x, y, f(x, y)): r_x x r_y = (-f_x, -f_y, 1) (Eq. 5.9) */
-  double l[3] = {-fu / lf->scale, -fv / lf->scale, 1.0};
+  l[0] = -fu / lf->scale, l[1] = -fv / lf->scale, l[2] = 1.0;
   double len = sqrt(l[0] * l[0] + l[1] * l[1] + 1.0);
   for (int t = 0; t < 3; t++)
     l[t] /= len;
+}
+
+void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, int degree,
+                           const double *coef, double u, double v, double n[3]) {
+  double l[3];
+  bsurf_localfit_normal_local(lf, degree, coef, u, v, l);
   bsurf_frame_dir_to_global(frame, l, n);
 }
 
