@@ -477,24 +477,26 @@ static void grad_map(int degree, double factor, int *src, double *mul) {
 }
 
 /* Cephes' atanf: x + x z P(z), z = x^2, for |x| <= tan(pi / 8). */
+enum { ECOL = 64 }; /* replicates summed in float before a double sum */
 static const float FP0 = 8.05374449538e-2f, FP1 = -1.38776856032e-1f, FP2 = 1.99777106478e-1f,
                    FP3 = -3.33329491539e-1f, FPIO4 = 0.785398163397448309616f,
                    FPIO2 = 1.57079632679489661923f, FTAN8 = 0.414213562373095f;
 
 /* Eq. 5.10's angles of `nrep` polynomial normal fields at the neighbours,
- * single precision, added to acc[j] (j < n, n a multiple of the vectors):
- * replicate b's field at j is g = (gx, gy, gz) with gx = sum_t e[t] phi[t
- * kq + j], gy with e[mg + t], gz = e[2 mg] (the slopes pre-scaled so that
- * none exceeds 1: float neither overflows nor loses the direction); the
+ * single precision, added to acc[j] (j < L): replicate b's field at j is
+ * g = (gx, gy, gz), gx = sum_t e[t ECOL + b] ph[t kq + j], gy with e[(mg +
+ * t) ECOL + b], gz = e[2 mg ECOL + b] (the slopes pre-scaled so that none
+ * exceeds 1: float neither overflows nor loses the direction); the
  * unoriented angle to (rx, ry, rz)[j] is atan2(|g x r|, |g . r|), the first
  * quadrant reduced to atan of a ratio <= 1 (pi / 2 - atan(x / y) above the
  * diagonal), Cephes' atanf (reduction by pi / 4 above tan(pi / 8), one
  * division). Products and sums as fmaf: exactly rounded wherever it runs
  * (an instruction on the x86-64-v3/v4 clones, libm's on the baseline one),
- * so the bits do not depend on the clone. mg is constant in each instance (the switch below), so
- * the loop over j runs in vector lanes with the small sums unrolled; lanes over the neighbours, the
- * replicates one after the other: every lane is the same sequence of operations whatever the vector
- * width. */
+ * so the bits do not depend on the clone. L (16 or 8) and mg are constant
+ * in each instance: the loop over j is one vector with the small sums
+ * unrolled, the replicates one after the other inside it (their sums in
+ * registers, the basis and references loaded once); every lane is the same
+ * sequence of operations whatever the vector width. */
 #if defined(__GNUC__) && !defined(__clang__)
 __attribute__((optimize("no-trapping-math")))
 #endif
@@ -502,18 +504,17 @@ static inline __attribute__((always_inline)) void
 field_block(int L, int mg, int nrep, const float *restrict e, const float *restrict ph, size_t kq,
             const float *restrict rx, const float *restrict ry, const float *restrict rz,
             float *restrict acc) {
-  const int es = 2 * mg + 1;
   float aL[16];
   for (int l = 0; l < L; l++)
     aL[l] = acc[l];
-  const float *restrict eb = e;
-  for (int b = 0; b < nrep; b++, eb += es) {
-    const float gz = eb[2 * mg];
+  for (int b = 0; b < nrep; b++) {
+    const float *restrict eb = e + b; /* column-major: entry q at eb[q ECOL] */
+    const float gz = eb[2 * mg * ECOL];
     for (int l = 0; l < L; l++) {
       float gx = 0.0f, gy = 0.0f;
       for (int t = 0; t < mg; t++) {
-        gx = fmaf(eb[t], ph[(size_t)t * kq + l], gx);
-        gy = fmaf(eb[mg + t], ph[(size_t)t * kq + l], gy);
+        gx = fmaf(eb[t * ECOL], ph[(size_t)t * kq + l], gx);
+        gy = fmaf(eb[(mg + t) * ECOL], ph[(size_t)t * kq + l], gy);
       }
       const float r0 = rx[l], r1 = ry[l], r2 = rz[l];
       const float c0 = fmaf(gy, r2, -(gz * r1)), c1 = fmaf(gz, r0, -(gx * r2)),
@@ -561,14 +562,41 @@ field_acc_m(int mg, int nrep, const float *e, const float *phi, size_t kq, const
   }
 }
 
+/* The kernel's rows of `used` replicates (bi: their indices), column-major
+ * (field_block): (f_u, f_v, 1) / big, big the largest of 1 and the
+ * slopes' coefficients, so that the largest entry is 1; entries below 1e-30
+ * of it (no float subnormals) are 0, negligible beside it. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+BSURF_CLONES static void
+field_rows(int mg, int m, int used, const int *bi, const int *src, const double *mul,
+           const double *coefs, float *e) {
+  double g[2 * BSURF_TERMS_MAX * ECOL], big[ECOL];
+  for (int u = 0; u < used; u++)
+    big[u] = 1.0;
+  for (int q = 0; q < 2 * mg; q++)
+    for (int u = 0; u < used; u++) {
+      const double v = coefs[(size_t)bi[u] * m + src[q]] * mul[q];
+      g[q * ECOL + u] = v;
+      big[u] = fabs(v) > big[u] ? fabs(v) : big[u];
+    }
+  for (int u = 0; u < used; u++)
+    big[u] = 1.0 / big[u];
+  for (int q = 0; q < 2 * mg; q++)
+    for (int u = 0; u < used; u++) {
+      const double a = g[q * ECOL + u] * big[u];
+      e[q * ECOL + u] = fabs(a) < 1e-30 ? 0.0f : (float)a;
+    }
+  for (int u = 0; u < used; u++)
+    e[2 * mg * ECOL + u] = big[u] < 1e-30 ? 0.0f : (float)big[u];
+}
+
 double bsurf_nested_field_angle_total(int degree, int nrep, const double *coefs,
                                       const unsigned char *valid, double inv_scale,
                                       const float *phif, size_t kq, const float *rf, int k,
                                       float *accf, double *accd) {
-  enum { CHUNK = 64 }; /* replicates summed in float before a double sum */
   const int m = bsurf_poly_terms(degree), mg = degree >= 1 ? bsurf_poly_terms(degree - 1) : 1;
-  const int es = 2 * mg + 1;
-  float e[CHUNK * (2 * BSURF_TERMS_MAX + 1)];
   /* the gradient's coefficients: f_u's q < mg, f_v's mg + q, each the
    * coefficient src[q] of f times its exponent and -1 / s */
   int src[2 * BSURF_TERMS_MAX];
@@ -579,31 +607,20 @@ double bsurf_nested_field_angle_total(int degree, int nrep, const double *coefs,
     src[0] = src[1] = 0;
     mul[0] = mul[1] = 0.0;
   }
+  /* up to ECOL replicates at a time, column-major: (f_u, f_v, 1) of
+   * replicate u at e[q ECOL + u] */
+  float e[(2 * BSURF_TERMS_MAX + 1) * ECOL];
+  int bi[ECOL];
   const float *rx = rf, *ry = rf + kq, *rz = ry + kq;
   const int n = (k + 7) / 8 * 8; /* the lanes evaluated (<= kq) */
   for (int j = 0; j < n; j++)
     accd[j] = 0.0;
-  for (int b0 = 0; b0 < nrep; b0 += CHUNK) {
-    const int bn = nrep - b0 < CHUNK ? nrep - b0 : CHUNK;
+  for (int b0 = 0; b0 < nrep;) {
     int used = 0;
-    for (int b = b0; b < b0 + bn; b++) {
-      if (valid && !valid[b]) continue;
-      float *row = &e[(size_t)used++ * es];
-      double g[2 * BSURF_TERMS_MAX], big = 1.0;
-      for (int q = 0; q < 2 * mg; q++) {
-        g[q] = coefs[(size_t)b * m + src[q]] * mul[q];
-        big = fabs(g[q]) > big ? fabs(g[q]) : big;
-      }
-      /* (f_u, f_v, 1) / big: the largest entry 1; entries below 1e-30 of it
-       * (no float subnormals) are 0, negligible beside it */
-      const double sc = 1.0 / big;
-      for (int q = 0; q < 2 * mg; q++) {
-        const double a = g[q] * sc;
-        row[q] = fabs(a) < 1e-30 ? 0.0f : (float)a;
-      }
-      row[2 * mg] = sc < 1e-30 ? 0.0f : (float)sc;
-    }
-    if (used == 0) continue;
+    for (; b0 < nrep && used < ECOL; b0++)
+      if (!valid || valid[b0]) bi[used++] = b0;
+    if (used == 0) break;
+    field_rows(mg, m, used, bi, src, mul, coefs, e);
     for (int j = 0; j < n; j++)
       accf[j] = 0.0f;
     field_acc_m(mg, used, e, phif, kq, rx, ry, rz, n, accf);

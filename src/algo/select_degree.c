@@ -128,16 +128,13 @@ static void kd_candidate(const kd_ctx *c, kd_scratch *s, const bsurf_frame *fram
    * once */
   double nP[3] = {0.0, 0.0, 1.0}; /* degree 0, a constant height: the tangent plane */
   if (degree > 0) bsurf_localfit_normal_local(lf, degree, fit, lf->u[0], lf->v[0], nP);
-  const int m = bsurf_poly_terms(degree);
   /* the replicates (Eq. 4.2 as Poisson counts): enough distinct points for
    * the candidate's degree, or, reduced, let the solve decide */
   for (int b = 0; b < B; b++)
     s->valid[b] = (s->nz[b] >= bsurf_poly_terms(degree0) || degree < degree0) && degree > 0;
   if (degree > 0) bsurf_localfit_solve_lanes(lf, degree, B, s->lanes, s->valid, reps);
-  for (int b = 0; b < B; b++)
-    if (s->valid[b])
-      bsurf_localfit_normal_local(lf, degree, &reps[(size_t)b * m], lf->u[0], lf->v[0],
-                                  &s->bn[3 * b]);
+  if (degree > 0) /* every row (the invalid ones' are not used) */
+    bsurf_localfit_normals_local(lf, degree, B, reps, lf->u[0], lf->v[0], s->bn);
   double nl[3];
   const int nvalid = bsurf_nested_summary(B, nP, s->bn, s->valid, nl, &s->var[cand], s->ang2);
   bsurf_frame_dir_to_global(frame, nl, &s->nrm[3 * cand]);
