@@ -47,72 +47,46 @@ typedef long long v4l_idx __attribute__((vector_size(32)));
 #define SHUF2(a, b, i, j, k, l) __builtin_shuffle(a, b, (v4l_idx){i, j, k, l})
 #endif
 
-/* One 4 x 8 block of W A: rows w[0..3] (k weights each) times columns
- * c..c+7 of A; acc[2 r + h] holds row r, columns c + 4h .. c + 4h + 3. */
+/* One block of W A: rows w[0..3] (k weights each) times 2 L columns c ..
+ * c + 2L - 1 of A, in vectors V of L doubles (L = 4: AVX2; 8: the
+ * x86-64-v4 clone's 512-bit registers, half the loads and instructions a
+ * multiply-add); the eight accumulators (row r, half h) written in that
+ * order to acc as doubles: acc[(2L / 4) r + q] holds row r, columns c + 4q
+ * .. c + 4q + 3. Every entry is summed in the order j = 0..k-1 whatever L. */
+#define GEMM_BLOCK(V, L)                                                                           \
+  do {                                                                                             \
+    V a00 = {0}, a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00, a31 = a00;      \
+    const double *w0 = w[0], *w1 = w[1], *w2 = w[2], *w3 = w[3];                                   \
+    for (int j = 0; j < k; j++) {                                                                  \
+      V x0, x1;                                                                                    \
+      memcpy(&x0, &A[(size_t)j * nc + c], sizeof x0);                                              \
+      memcpy(&x1, &A[(size_t)j * nc + c + (L)], sizeof x1);                                        \
+      const double s0 = w0[j], s1 = w1[j], s2 = w2[j], s3 = w3[j];                                 \
+      a00 += s0 * x0;                                                                              \
+      a01 += s0 * x1;                                                                              \
+      a10 += s1 * x0;                                                                              \
+      a11 += s1 * x1;                                                                              \
+      a20 += s2 * x0;                                                                              \
+      a21 += s2 * x1;                                                                              \
+      a30 += s3 * x0;                                                                              \
+      a31 += s3 * x1;                                                                              \
+    }                                                                                              \
+    const V all[8] = {a00, a01, a10, a11, a20, a21, a30, a31};                                     \
+    memcpy(acc, all, sizeof all);                                                                  \
+  } while (0)
+
 static inline __attribute__((always_inline)) void
 gemm_block(const double *const w[4], int k, int nc, const double *A, int c, v4d acc[8]) {
-  v4d a00 = {0, 0, 0, 0}, a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00,
-      a31 = a00;
-  const double *w0 = w[0], *w1 = w[1], *w2 = w[2], *w3 = w[3];
-  for (int j = 0; j < k; j++) {
-    v4d x0, x1;
-    memcpy(&x0, &A[(size_t)j * nc + c], sizeof x0);
-    memcpy(&x1, &A[(size_t)j * nc + c + 4], sizeof x1);
-    const v4d s0 = {w0[j], w0[j], w0[j], w0[j]}, s1 = {w1[j], w1[j], w1[j], w1[j]};
-    const v4d s2 = {w2[j], w2[j], w2[j], w2[j]}, s3 = {w3[j], w3[j], w3[j], w3[j]};
-    a00 += s0 * x0;
-    a01 += s0 * x1;
-    a10 += s1 * x0;
-    a11 += s1 * x1;
-    a20 += s2 * x0;
-    a21 += s2 * x1;
-    a30 += s3 * x0;
-    a31 += s3 * x1;
-  }
-  acc[0] = a00;
-  acc[1] = a01;
-  acc[2] = a10;
-  acc[3] = a11;
-  acc[4] = a20;
-  acc[5] = a21;
-  acc[6] = a30;
-  acc[7] = a31;
+  GEMM_BLOCK(v4d, 4);
 }
+
 typedef double v8d __attribute__((vector_size(64)));
 
-/* One 4 x 16 block: gemm_block with 8-wide vectors (the x86-64-v4 clone's
- * 512-bit registers: half the loads and instructions a multiply-add);
- * acc[4 r + q] holds row r, columns c + 4q .. c + 4q + 3, the same sums in
- * the same order. */
 static inline __attribute__((always_inline)) void
 gemm_block16(const double *const w[4], int k, int nc, const double *A, int c, v4d acc[16]) {
-  v8d a00 = {0}, a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00, a31 = a00;
-  const double *w0 = w[0], *w1 = w[1], *w2 = w[2], *w3 = w[3];
-  for (int j = 0; j < k; j++) {
-    v8d x0, x1;
-    memcpy(&x0, &A[(size_t)j * nc + c], sizeof x0);
-    memcpy(&x1, &A[(size_t)j * nc + c + 8], sizeof x1);
-    const double s0 = w0[j], s1 = w1[j], s2 = w2[j], s3 = w3[j];
-    a00 += s0 * x0;
-    a01 += s0 * x1;
-    a10 += s1 * x0;
-    a11 += s1 * x1;
-    a20 += s2 * x0;
-    a21 += s2 * x1;
-    a30 += s3 * x0;
-    a31 += s3 * x1;
-  }
-  double t[64]; /* row r, columns c .. c + 15 at t[16 r ..] */
-  memcpy(t, &a00, sizeof a00);
-  memcpy(t + 8, &a01, sizeof a01);
-  memcpy(t + 16, &a10, sizeof a10);
-  memcpy(t + 24, &a11, sizeof a11);
-  memcpy(t + 32, &a20, sizeof a20);
-  memcpy(t + 40, &a21, sizeof a21);
-  memcpy(t + 48, &a30, sizeof a30);
-  memcpy(t + 56, &a31, sizeof a31);
-  memcpy(acc, t, sizeof t);
+  GEMM_BLOCK(v8d, 8);
 }
+#undef GEMM_BLOCK
 
 /* Columns c + 4h .. c + 4h + 3 of a 4-row group, rows r0..r3 (one vector
  * each), to the lanes layout: two 4 x 4 transposes' worth. */
