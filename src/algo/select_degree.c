@@ -94,6 +94,9 @@ static bsurf_status kd_alloc(void *vs, const void *vz) {
   s->err = bsurf_blocks_array(m, (size_t)ncand, sizeof(double));
   s->var = bsurf_blocks_array(m, (size_t)ncand, sizeof(double));
   s->nrm = bsurf_blocks_array(m, (size_t)ncand, 3 * sizeof(double));
+  /* the invalid replicates' rows are read (their normals computed in lanes,
+   * not used): never uninitialised */
+  if (s->coefs) memset(s->coefs, 0, (b1 + 1) * BSURF_TERMS_MAX * sizeof(double));
   return bsurf_blocks_status(m); /* the loop frees what was made */
 }
 
