@@ -14,10 +14,12 @@
 # 0.5 h. Every pair is run alternately (A B A B ...) REPS times; the table gives
 # the median wall and CPU (user + sys) seconds of each command and the ratio of
 # the medians, so a shared machine's load hits both sides alike. The ratios:
-#   select-k / one PCA pass    normals --select-k 10:80:5 -B 50  vs  normals -k 30 -B 0
+#   select-k / one PCA pass    normals --select-k 10:80:5 --select-rule test-error -B 50
+#                              vs  normals -k 30 -B 0 (the thesis's rule, the nested pass)
 #   normals B50 / error B50    normals -k 50 -B 50  vs  error -k 50 -d 3 -B 50
 #   select-degree / select-k   normals --fit poly --select-k 10:80:5 --select-degree 1,2,3 -B 50
-#                              vs  normals --select-k 10:80:5 -B 50 (PCA), on SD_N points
+#                              vs  normals --select-k 10:80:5 --select-rule test-error -B 50
+#                              (PCA), on SD_N points
 #   whole command vs Open3D    normals -k 30 -B 0 (read, kNN, fit, write)  vs
 #                              bench/peers/normals_open3d.py -k 30 (Python start-up,
 #                              import, read, estimate_normals, write): the processes' wall time
@@ -71,10 +73,10 @@ echo "== machine: $(nproc) cores; $(uptime)" >&2
 for r in $(seq "$REPS"); do
   echo "== rep $r" >&2
   timed pca "$BS" normals "$WORK/sn.ply" -k 30 -B 0 -o "$WORK/o.ply" "${J[@]}"
-  timed select "$BS" normals "$WORK/sn.ply" --select-k 10:80:5 -B 50 -o "$WORK/o.ply" "${J[@]}"
+  timed select "$BS" normals "$WORK/sn.ply" --select-k 10:80:5 --select-rule test-error -B 50 -o "$WORK/o.ply" "${J[@]}"
   timed boot "$BS" normals "$WORK/sn.ply" -k 50 -B 50 -o "$WORK/o.ply" "${J[@]}"
   timed error "$BS" error "$WORK/sn.ply" -k 50 -d 3 -B 50 -o "$WORK/o.ply" "${J[@]}"
-  timed sel_small "$BS" normals "$WORK/tn.ply" --select-k 10:80:5 -B 50 -o "$WORK/o.ply" "${J[@]}"
+  timed sel_small "$BS" normals "$WORK/tn.ply" --select-k 10:80:5 --select-rule test-error -B 50 -o "$WORK/o.ply" "${J[@]}"
   timed seldeg "$BS" normals "$WORK/tn.ply" --fit poly --select-k 10:80:5 --select-degree 1,2,3 -B 50 \
     -o "$WORK/o.ply" "${J[@]}"
   if [ "$OPEN3D" = 1 ]; then

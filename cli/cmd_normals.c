@@ -62,7 +62,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   const char *fit = "pca", *center = "centroid", *output = NULL, *select_k = NULL,
              *select_degree = NULL;
   const char *curve = NULL, *truth_path = NULL, *sigma_nu_s = "auto", *orient = "none";
-  const char *select_rule = "test-error", *noise_pool = "global";
+  const char *select_rule = "auto", *noise_pool = "global";
   bsurf_kselect_options ksel = bsurf_kselect_options_default();
   int k_ref = 0, test_error = 0, iterations = 0, ascii = 0, json = 0, quiet = 0, force = 0;
   double alpha = 0.1, sigma_d = 0;
@@ -86,7 +86,10 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       {0, "select-k", ARG_STRING, &select_k, "A:B:STEP", "per point, the K chosen by --select-rule",
        1, 0},
       {0, "select-rule", ARG_STRING, &select_rule, "R",
-       "test-error (Eq. 5.10) or mse (estimated variance + bias^2 of the PCA normal)", 1, 0},
+       "mse (estimated variance + bias^2 of the PCA normal), test-error (Eq. 5.10) or auto "
+       "(mse where it applies: --fit pca, no --select-degree or --curve, K >= 7, in memory; "
+       "else test-error)",
+       1, 0},
       {0, "noise-k", ARG_INT, &ksel.noise_k, "K",
        "with --select-rule mse: neighbourhood of the noise estimate", 12, 65535},
       {0, "noise-pool", ARG_STRING, &noise_pool, "P",
@@ -139,10 +142,11 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       return cli_usage_error(cmd, "--select-degree needs a list of degrees 1..4 like 1,2,3");
   }
   if (curve && !select_k) return cli_usage_error(cmd, "--curve needs --select-k");
-  static const char *const rules[] = {"test-error", "mse"};
-  int sr = cli_choice(select_rule, rules, 2);
+  static const char *const rules[] = {"test-error", "mse", "auto"};
+  int sr = cli_choice(select_rule, rules, 3);
   if (sr < 0)
-    return cli_usage_error(cmd, "--select-rule must be test-error or mse, not '%s'", select_rule);
+    return cli_usage_error(cmd, "--select-rule must be test-error, mse or auto, not '%s'",
+                           select_rule);
   ksel.rule = (bsurf_kselect_rule)sr;
   static const char *const pools[] = {"global", "local"};
   int np = cli_choice(noise_pool, pools, 2);
@@ -166,7 +170,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   if (k_ref == 0) k_ref = no.k;
   if (k_ref < 3) return cli_usage_error(cmd, "--k-ref must be at least 3");
   int kmax = k_ref > no.k ? k_ref : no.k;
-  if (ksel.rule == BSURF_KSELECT_MSE && ksel.noise_k > kmax) kmax = ksel.noise_k;
+  if (ksel.rule != BSURF_KSELECT_TEST_ERROR && ksel.noise_k > kmax) kmax = ksel.noise_k;
   for (int a = 0; a < nk; a++) {
     if (ks[a] > kmax) kmax = ks[a];
     for (int b = 0; b < nd; b++)
@@ -254,9 +258,10 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     json_int(&j, "threads", bsurf_threads_resolve(no.threads));
     if (test_error) json_int(&j, "k_ref", k_ref);
     if (select_k) json_str(&j, "select_k", select_k);
-    if (select_k) json_str(&j, "select_rule", select_rule);
-    if (ksel.rule == BSURF_KSELECT_MSE) json_int(&j, "noise_k", ksel.noise_k);
-    if (ksel.rule == BSURF_KSELECT_MSE) json_str(&j, "noise_pool", noise_pool);
+    const int mse = sum.select_rule == BSURF_KSELECT_MSE; /* auto resolved */
+    if (select_k) json_str(&j, "select_rule", mse ? "mse" : "test-error");
+    if (mse) json_int(&j, "noise_k", ksel.noise_k);
+    if (mse) json_str(&j, "noise_pool", noise_pool);
     if (select_degree) json_str(&j, "select_degree", select_degree);
     if (iterations > 0) {
       json_int(&j, "smooth_iterations", iterations);

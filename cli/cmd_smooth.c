@@ -39,7 +39,7 @@ static int parse_length(const char *text, int allow_w, double *value, int *in_h,
 int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   bsurf_smooth_options so = bsurf_smooth_options_default();
   const char *method = "bilateral", *order = "parallel", *estimator = "auto", *gamma = "fit",
-             *center = "centroid", *threshold = "auto", *h1_text = "h", *h2_text = "auto",
+             *center = "centroid", *threshold = "auto", *h1_text = "auto", *h2_text = "auto",
              *kerr_text = "auto", *guard = "on", *dtest = "auto", *output = NULL,
              *memory_limit = "auto";
   size_t tile_points = 0;
@@ -67,7 +67,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "auto (the mean W_i) or none (every point)",
        1, 0},
       {0, "h1", ARG_STRING, &h1_text, "X",
-       "bilateral: distance sigma of Eq. 6.2 (a length; h = the mean spacing)", 1, 0},
+       "bilateral: distance sigma of Eq. 6.2: a length (h = the mean spacing) or auto "
+       "(sqrt(h^2 + 2 sigma^2), sigma the guard's noise estimate; h with --guard off)",
+       1, 0},
       {0, "h2", ARG_STRING, &h2_text, "X",
        "bilateral, multipass: error sigma of Eq. 6.2: a length, a multiple of |W| (e.g. 1W) "
        "or auto (2W; the thesis's multipass setting is 0.3W)",
@@ -93,7 +95,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "fit biased at its centre by a second sheet or an edge, by a t test on its nearest "
        "points' residuals, is made again from fewer points, or moves nothing; a fit whose "
        "residual variance shows more misfit than noise -- above twice the cloud's noise "
-       "variance, the lower quartile over the fits, at the 5% level -- moves nothing) or off "
+       "variance, the lower decile over the fits (each scaled by the share of the noise its "
+       "interval keeps), at the 5% level -- moves nothing) or off "
        "(the thesis's methods as written)",
        1, 0},
       {0, "degree-test", ARG_STRING, &dtest, "T",
@@ -145,9 +148,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
            parse_length(threshold, 0, &so.threshold, &jo.threshold_in_h, &frac))
     return cli_usage_error(
         cmd, "--threshold must be a length (e.g. 0.01 or 0.5h), auto or none, not '%s'", threshold);
-  if (parse_length(h1_text, 0, &so.h1, &jo.h1_in_h, &frac) || so.h1 <= 0)
-    return cli_usage_error(cmd, "--h1 must be a positive length (e.g. 0.01 or 1.5h), not '%s'",
-                           h1_text);
+  if (strcmp(h1_text, "auto") &&
+      (parse_length(h1_text, 0, &so.h1, &jo.h1_in_h, &frac) || so.h1 <= 0))
+    return cli_usage_error(
+        cmd, "--h1 must be a positive length (e.g. 0.01 or 1.5h) or auto, not '%s'", h1_text);
   frac = 0;
   if (strcmp(h2_text, "auto") &&
       (parse_length(h2_text, 1, &so.h2, &jo.h2_in_h, &frac) || (so.h2 <= 0 && frac <= 0)))

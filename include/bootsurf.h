@@ -490,10 +490,17 @@ BSURF_API bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_nei
  * is smallest (bsurf_estimate_normals with ref_normals, once per candidate,
  * compared by the caller). BSURF_KSELECT_MSE minimises an estimate of the
  * PCA normal's mean squared angle error, variance + squared bias, with the
- * noise and the curvature from local quadrics (bsurf_select_k). */
+ * noise and the curvature from local quadrics, the candidates within the
+ * estimate's scatter of the minimum told apart by the neighbours' agreement
+ * (bsurf_select_k).
+ * BSURF_KSELECT_AUTO (bsurf_normals_job's default): MSE where it applies
+ * (select_k, the PCA fit, no select_degree, no curve, candidates >= 7, in
+ * memory), TEST_ERROR otherwise; MSE was the nearer to the best fixed K on
+ * the development benchmark (docs/normals.md, "What the benchmark says"). */
 typedef enum bsurf_kselect_rule {
   BSURF_KSELECT_TEST_ERROR = 0,
-  BSURF_KSELECT_MSE
+  BSURF_KSELECT_MSE,
+  BSURF_KSELECT_AUTO
 } bsurf_kselect_rule;
 
 /* Where BSURF_KSELECT_MSE pools its noise estimate (docs/normals.md,
@@ -627,7 +634,9 @@ typedef struct bsurf_smooth_options {
    * the cloud, the thesis's reference value of 6.2); INFINITY = every point. */
   double threshold;
   /* bilateral: theta_1 = G(., h1) and theta_2 = G(., h2) of Eq. 6.2, with
-   * G(a, b) = exp(-a^2/b^2) (Eq. 5.7). h1 <= 0: h (mean spacing). h2 <= 0:
+   * G(a, b) = exp(-a^2/b^2) (Eq. 5.7). h1 <= 0: sqrt(h^2 + 2 sigma^2), h
+   * the mean spacing and sigma the guard's noise estimate (h without the
+   * guard; docs/smoothing.md, "The distance sigma"). h2 <= 0:
    * h2_fraction x |W|, the mean of W_i. */
   double h1, h2;
   double h2_fraction;       /* <= 0: the default, 2 (the thesis shows 0.5-1 for
@@ -1454,9 +1463,11 @@ typedef struct bsurf_normals_job_options {
   int select_k_count;
   const int *select_degree;
   int select_degree_count;
-  bsurf_kselect_rule select_rule; /* TEST_ERROR (the thesis's), or MSE
-                                     (bsurf_select_k: PCA, select_k only,
-                                     candidates >= 7, in memory only) */
+  bsurf_kselect_rule select_rule; /* AUTO (the default: MSE where it
+                                     applies, else TEST_ERROR), TEST_ERROR
+                                     (the thesis's), or MSE (bsurf_select_k:
+                                     PCA, select_k only, candidates >= 7, in
+                                     memory only) */
   int noise_k;                    /* MSE: the noise fits' neighbourhood (12; >= 12) */
   bsurf_noise_pool noise_pool;    /* MSE: GLOBAL (default) or LOCAL noise level */
   /* Bilateral normal smoothing after the estimate (bsurf_smooth_normals,
@@ -1491,11 +1502,12 @@ typedef struct bsurf_normals_job_summary {
                                  normal_err, k_selected, degree_selected */
   double means[BSURF_NORMALS_JOB_FIELDS];            /* each field's mean over the
                                                         points (as the error job's) */
-  double sigma_d, sigma_nu;  /* smoothing: the sigmas applied (INFINITY: single Gaussian) */
-  size_t curve_rows;         /* rows filled in opts->curve */
-  size_t tile_points, tiles; /* tiled runs: the tile size used, the tiles */
-  size_t bad_point;          /* BSURF_ERR_INVALID_VALUE in a tiled run: the
-                                first non-finite point */
+  double sigma_d, sigma_nu;       /* smoothing: the sigmas applied (INFINITY: single Gaussian) */
+  size_t curve_rows;              /* rows filled in opts->curve */
+  size_t tile_points, tiles;      /* tiled runs: the tile size used, the tiles */
+  size_t bad_point;               /* BSURF_ERR_INVALID_VALUE in a tiled run: the
+                                     first non-finite point */
+  bsurf_kselect_rule select_rule; /* the rule applied (AUTO resolved) */
 } bsurf_normals_job_summary;
 
 /* Normals with bootstrap confidence of every point (bsurf_estimate_normals,

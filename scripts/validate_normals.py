@@ -127,7 +127,8 @@ def main():
                     if best is None or a < best[1]:
                         best = (k, a)
                 res = path("sel.ply")
-                j = normals(noisy[(name, xi)], res, "-B", "20", "--select-k", "10:50:5", "--k-ref", "30", *fit)
+                j = normals(noisy[(name, xi)], res, "-B", "20", "--select-k", "10:50:5", "--select-rule", "test-error",
+                            "--k-ref", "30", *fit)
                 e = evaluate(res, truths[name])
                 row("%g" % xi, best[0], "%.4f" % best[1], "%.4f" % e["normals"]["mean_rad"],
                     "%.1f" % j["mean"]["k_selected"])

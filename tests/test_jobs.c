@@ -135,6 +135,16 @@ static void test_normals_job(void **state) {
   const int ks[3] = {10, 15, 20};
   o.select_k = ks;
   o.select_k_count = 3;
+  /* the default rule, AUTO, is MSE in memory and TEST_ERROR in tiles */
+  pair p;
+  pair_open(&p, "normals_auto");
+  bsurf_normals_job_summary sm, st;
+  assert_int_equal(bsurf_normals_job(&p.mem, &o, &sm, NULL), BSURF_OK);
+  assert_int_equal(sm.select_rule, BSURF_KSELECT_MSE);
+  assert_int_equal(bsurf_normals_job(&p.tiled, &o, &st, NULL), BSURF_OK);
+  assert_int_equal(st.select_rule, BSURF_KSELECT_TEST_ERROR);
+  bsurf_cloud_free(&p.c);
+  o.select_rule = BSURF_KSELECT_TEST_ERROR;
   run_normals(&o, "normals_select");
   /* and of the polynomial degree */
   const int ds[2] = {1, 2};

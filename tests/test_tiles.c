@@ -449,12 +449,12 @@ static void check_smooth(const char *path, bsurf_smooth_options so, const size_t
       sw += v[i * j.nv + (size_t)bsurf_smooth_w_column(&so)];
     /* the guard's noise from the stage values, as bsurf_smooth makes it */
     double *scratch = malloc(n * sizeof(double));
-    j.noise = so.guard ? bsurf_smooth_noise(&v[j.nv - 2], n, j.nv, scratch) : NAN;
+    j.noise = so.guard ? bsurf_smooth_noise(&v[j.nv - BSURF_SMOOTH_SV], n, j.nv, scratch) : NAN;
     if (so.guard) assert_true(sqrt(j.noise) == ref.noise);
     free(scratch);
     free(v);
     assert_true(sw / (double)n == ref.mean_error);
-    bsurf_smooth_resolve(&j.so, rep.h, sw / (double)n);
+    bsurf_smooth_resolve(&j.so, rep.h, sw / (double)n, j.noise);
     ops.prepare = smooth_prepare;
     if (so.method == BSURF_SMOOTH_NAIVE) {
       ops.range_points = 97;

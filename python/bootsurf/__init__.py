@@ -256,7 +256,7 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
 # ---------------------------------------------------------------- chapter 5
 
 _FITS = ("pca", "poly")
-_RULES = ("test-error", "mse")
+_RULES = ("test-error", "mse", "auto")  # BSURF_KSELECT_TEST_ERROR, _MSE, _AUTO
 _NOISE_POOLS = ("global", "local")
 _ORIENTS = ("none", "mst")
 
@@ -281,14 +281,14 @@ _builtin_range = range
 
 
 def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid", bootstrap=50,
-            seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="test-error",
+            seed=1, threads=0, test_error=False, k_ref=0, select_k=None, select_rule="auto",
             noise_k=12, noise_pool="global", select_degree=None, curve=False, truth=None,
             smooth_iterations=0,
             alpha=0.1, sigma_d=0.0, sigma_nu="auto", orient="none", output=None,
             tile_points=None, progress=None):
     """normals(points, *, neighbors=30, fit='pca', degree=2,
     pca_center='centroid', bootstrap=50, seed=1, threads=0, test_error=False,
-    k_ref=0, select_k=None, select_rule='test-error', noise_k=12,
+    k_ref=0, select_k=None, select_rule='auto', noise_k=12,
     noise_pool='global', select_degree=None, curve=False, truth=None, smooth_iterations=0,
     alpha=0.1, sigma_d=0.0, sigma_nu='auto', orient='none', output=None,
     tile_points=None, progress=None)
@@ -315,9 +315,11 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
       k_ref              neighbourhood of the reference normals (0 = K)
       select_k           per point, the K chosen by select_rule: 'A:B:STEP'
                          or a list of K (5.5, Algorithm 3)
-      select_rule        test-error (Eq. 5.10) or mse (estimated variance +
-                         bias^2 of the PCA normal; also writes two_sheet,
-                         1 where the neighbourhood mixes two sheets)
+      select_rule        mse (estimated variance + bias^2 of the PCA normal;
+                         also writes two_sheet, 1 where the neighbourhood
+                         mixes two sheets), test-error (Eq. 5.10) or auto
+                         (mse where it applies: fit='pca', no select_degree
+                         or curve, K >= 7; else test-error)
       noise_k            with select_rule='mse': the noise fits' K (12)
       noise_pool         with select_rule='mse': one noise level for the cloud
                          ('global') or each point's own ('local')
@@ -400,12 +402,12 @@ _DEGREE_TESTS = ("auto", "off", "on")  # degree_test -1, 0, 1
 
 
 def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, gamma="fit",
-           pca_center="centroid", estimator="auto", threshold="auto", h1="h", h2="auto",
+           pca_center="centroid", estimator="auto", threshold="auto", h1="auto", h2="auto",
            order="parallel", a=0.1, iterations=300, k_min=10, k_error="auto", guard="on",
            degree_test="auto", seed=1, threads=0, output=None, tile_points=None, progress=None):
     """smooth(points, *, method='bilateral', neighbors=50, degree=3,
     bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
-    threshold='auto', h1='h', h2='auto', order='parallel', a=0.1,
+    threshold='auto', h1='auto', h2='auto', order='parallel', a=0.1,
     iterations=300, k_min=10, k_error='auto', guard='on', degree_test='auto',
     seed=1, threads=0, output=None, tile_points=None, progress=None)
     -> (points, fields, summary)
@@ -426,7 +428,8 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
       estimator    the error W_i: 632, 632plus or auto (.632+ for naive,
                    .632 otherwise)
       threshold    naive: a length, 'auto' (the mean W_i) or 'none' (every point)
-      h1           bilateral: distance sigma of Eq. 6.2 ('h')
+      h1           bilateral: distance sigma of Eq. 6.2 ('auto' = sqrt(h^2 +
+                   2 sigma^2), sigma the guard's noise estimate; h without it)
       h2           bilateral, multipass: error sigma of Eq. 6.2 ('auto' = 2W)
       order        parallel (order-independent) or sequential (the thesis's
                    in-place sweep, one thread)
@@ -438,8 +441,9 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
       guard        on (a fit biased at its centre by a second sheet or an
                    edge is made again from fewer points, or moves nothing;
                    a fit with more misfit than noise -- residual variance
-                   above twice the cloud's noise variance, the lower quartile
-                   over the fits, at the 5% level -- moves nothing; the
+                   above twice the cloud's noise variance, the lower decile
+                   over the fits (each scaled by the share of the noise its
+                   interval keeps), at the 5% level -- moves nothing; the
                    report's noise and misfit_fits) or off (the thesis's
                    methods as written)
       degree_test  the guard's sheet fits choose their degree, -d down to a
@@ -455,9 +459,10 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
         thr = _math.inf
     elif threshold != "auto":
         thr, thr_h, _ = _length(threshold, "threshold")
-    v1, h1_h, _ = _length(h1, "h1")
-    if not v1 > 0:
-        raise ValueError("h1 must be a positive length (e.g. 0.01 or 1.5h), not %r" % (h1,))
+    v1, h1_h = (0.0, False) if h1 == "auto" else _length(h1, "h1")[:2]
+    if not (v1 > 0 or h1 == "auto"):
+        raise ValueError("h1 must be a positive length (e.g. 0.01 or 1.5h) or 'auto', not %r"
+                         % (h1,))
     v2, h2_h, f2 = (_math.nan, False, _math.nan) if h2 == "auto" else _length(h2, "h2", True)
     ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error == "auto"
                     else _length(k_error, "k_error", True))

@@ -59,7 +59,7 @@ def normals(
     test_error: bool = ...,
     k_ref: int = ...,
     select_k: Optional[Union[str, Sequence[int]]] = ...,
-    select_rule: Literal["test-error", "mse"] = ...,
+    select_rule: Literal["test-error", "mse", "auto"] = ...,
     noise_k: int = ...,
     noise_pool: Literal["global", "local"] = ...,
     select_degree: Optional[Sequence[int]] = ...,

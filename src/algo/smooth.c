@@ -118,7 +118,7 @@ void boot_task(void *vc, int thread, size_t i) {
       int deg = fit.degree;
       fit_store(F, &fit.frame, fit.inv_scale, fit.coef, c->m);
       int kg = guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg,
-                         c->svar ? &c->svar[2 * i] : NULL);
+                         c->svar ? &c->svar[BSURF_SMOOTH_SV * i] : NULL);
       if (kg == 0)
         height = 0;
       else if (kg != c->k) {
@@ -136,7 +136,7 @@ void boot_task(void *vc, int thread, size_t i) {
     if (c->o.guard) {
       deg = fit.degree;
       guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg,
-                c->svar ? &c->svar[2 * i] : NULL);
+                c->svar ? &c->svar[BSURF_SMOOTH_SV * i] : NULL);
     }
     if (c->fit_degree) c->fit_degree[i] = deg;
   } else if (c->svar) {
@@ -145,7 +145,8 @@ void boot_task(void *vc, int thread, size_t i) {
     double F[FIT_HEAD + BSURF_TERMS_MAX];
     fit_store(F, &fit.frame, fit.inv_scale, fit.coef, c->m);
     int deg = fit.degree;
-    guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg, &c->svar[2 * i]);
+    guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, c->k, F, &deg,
+              &c->svar[BSURF_SMOOTH_SV * i]);
   }
 }
 
@@ -289,7 +290,7 @@ static void bilateral_sequential(smooth_ctx *c) {
     bsurf_localfit_predict(lf, d, 1, coef, NULL, pred);
     double F[FIT_HEAD + BSURF_TERMS_MAX];
     if (c->o.guard) {
-      double sv[2];
+      double sv[BSURF_SMOOTH_SV];
       fit_store(F, &fr, 1.0 / lf->scale, coef, c->m);
       guard_fit(c, &c->scr[0], GCOUNT(c, 0), c->out, idx, k, F, &d, sv);
       if (guard_misfit(sv, c->noise)) continue; /* moves nothing */
@@ -445,7 +446,7 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
     st = BSURF_ERR_NOMEM;
     goto done;
   }
-  if (o.guard && !(c.svar = bsurf_alloc_array(n ? n : 1, 2 * sizeof(double)))) {
+  if (o.guard && !(c.svar = bsurf_alloc_array(n ? n : 1, BSURF_SMOOTH_SV * sizeof(double)))) {
     st = BSURF_ERR_NOMEM;
     goto done;
   }
@@ -492,10 +493,10 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
       st = BSURF_ERR_NOMEM;
       goto done;
     }
-    c.noise = guard_noise(c.svar, n, 2, scratch);
+    c.noise = guard_noise(c.svar, n, BSURF_SMOOTH_SV, scratch);
     free(scratch);
     for (size_t i = 0; i < n; i++)
-      if (guard_misfit(&c.svar[2 * i], c.noise)) {
+      if (guard_misfit(&c.svar[BSURF_SMOOTH_SV * i], c.noise)) {
         misfit++;
         if (o.method == BSURF_SMOOTH_NAIVE)
           memcpy(&out_xyz[3 * i], &xyz[3 * i], 3 * sizeof(double));
@@ -507,7 +508,7 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
     sumW += c.W[i];
   const double meanW = n ? sumW / (double)n : 0.0; /* |W| (Algorithm 4 step 2) */
   bsurf_smooth_options ro = o;
-  bsurf_smooth_resolve(&ro, nb->h, meanW);
+  bsurf_smooth_resolve(&ro, nb->h, meanW, c.noise);
   c.h1 = ro.h1;
   c.h2 = ro.h2;
   if (report) {
@@ -535,7 +536,7 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
       goto done;
     }
     for (size_t i = 0; i < n; i++)
-      set_theta2(&c, i, c.W[i], !seq && c.svar ? &c.svar[2 * i] : NULL);
+      set_theta2(&c, i, c.W[i], !seq && c.svar ? &c.svar[BSURF_SMOOTH_SV * i] : NULL);
     c.inv_h1sq_global = 1.0 / (c.h1 * c.h1);
     sp.stage = 1;
     if (seq) {

@@ -5,6 +5,7 @@
 #define BSURF_SMOOTH_CTX_H
 
 #include "algo/algo.h"
+#include "algo/smooth_stages.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -196,7 +197,8 @@ typedef struct smooth_ctx {
   double *tb_pos;   /* threads x 2 tb_cap x 3: a block's local positions, two passes */
   double *tb_step;  /* threads x MP_TSTRIDE: the largest squared move of each pass of a block */
   uint32_t *gcount; /* threads x k: the guard's sheet (guard_fit) */
-  double *svar; /* n x 2: the guard's sheet fit's residual variance and its degrees of freedom */
+  double *svar;     /* n x BSURF_SMOOTH_SV: the guard's sheet fit's record for the misfit test
+                      (residual variance, degrees of freedom, share kept; smooth_stages.h) */
   bsurf_smooth_tuning tune; /* how the multipass passes run (same bits either way) */
 } smooth_ctx;
 #define GCOUNT(c, thread) (&(c)->gcount[(size_t)(thread) * (size_t)(c)->k])

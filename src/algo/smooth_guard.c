@@ -140,40 +140,77 @@ static double chi2_frac(double nu, double z) {
   const double a = 2.0 / (9.0 * nu), b = 1.0 - a + z * sqrt(a);
   return b > 0 ? b * b * b : 0.0;
 }
-#define GUARD_Q1_Z -0.6744897501960817    /* the normal lower quartile */
+#define GUARD_Q_Z -1.2815515655446004     /* the normal lower decile */
 #define GUARD_MISFIT_Z 1.6448536269514722 /* the normal quantile of 1 - 0.05 */
 
+/* The share of a normal variance left inside the interval |x| <= c sigma:
+ * Var(X | |X| <= c) / sigma^2 = 1 - 2 c phi(c) / (2 Phi(c) - 1) (the
+ * truncated normal's variance; c^2 / 3 as c -> 0, where the density is flat
+ * across the interval). */
+static double trunc_share(double c) {
+  if (!(c > 1e-4)) return c > 0 ? c * c / 3.0 : 0.0;
+  if (c > 40) return 1.0;
+  const double phi = exp(-0.5 * c * c) * 0.3989422804014327 /* 1 / sqrt(2 pi) */;
+  const double mass = erf(c / sqrt(2.0));
+  const double g = 1.0 - 2.0 * c * phi / mass;
+  return g > c * c / 3.0 * 1e-3 ? g : c * c / 3.0 * 1e-3;
+}
+
+/* The share of the noise variance a sheet's interval keeps, from the share p
+ * of the points it would move (within GUARD_MOVE half-widths) that fall
+ * outside its interval: for normal noise the interval is |x| <= c sigma with
+ * p = erfc(c / sqrt 2), and keeps trunc_share(c); light-tailed noise (a
+ * uniform's interval is about 4 of its standard deviations wide) leaves no
+ * point outside, p = 0 and a share of 1. */
+static double kept_share(int n_out, int n_in) {
+  if (n_out <= 0 || n_in <= 0) return 1.0;
+  const double p = (double)n_out / (n_out + n_in);
+  double lo = 0, hi = 40;
+  for (int it = 0; it < 60; it++) {
+    const double mid = 0.5 * (lo + hi);
+    if (erfc(mid * 0.7071067811865476) > p)
+      lo = mid;
+    else
+      hi = mid;
+  }
+  return trunc_share(0.5 * (lo + hi));
+}
+
 /* The cloud's noise variance for the misfit test (docs/smoothing.md, "The
- * misfit test"): the lower quartile over the sheet fits of s_i^2 / q(nu_i),
- * s_i^2 = RSS / nu_i a fit's residual variance, q(nu) the lower quartile of
- * chi^2_nu / nu. Where every fit sees only noise of variance sigma^2, s_i^2 /
- * q(nu_i) falls below sigma^2 for a quarter of the fits, whatever their
- * degrees of freedom; fits with misfit (a coarse mesh's creases, two sheets
- * the guard did not part) only raise the upper part, so up to three
- * quarters of the fits may be biased. sv: rows of (s^2, nu) with `stride`
- * doubles; scratch: n doubles. NAN when no fit has a variance. */
+ * misfit test"): the lower decile over the sheet fits of s_i^2 / (q(nu_i)
+ * g_i), s_i^2 = RSS / nu_i a fit's residual variance over the points of its
+ * interval, g_i the share of the noise variance that interval keeps
+ * (kept_share) and q(nu) the lower decile of chi^2_nu / nu. Where every fit
+ * sees only noise of variance sigma^2, s_i^2 / (q(nu_i) g_i) falls below
+ * sigma^2 for a tenth of the fits, whatever their degrees of freedom and
+ * intervals; fits with misfit (a coarse mesh's creases, two sheets the guard
+ * did not part) only raise the upper part, so up to nine tenths of the fits
+ * may be biased (the lower quartile, used before, was a mixture's on the
+ * thin plate at uniform 0.5 h, where about 60% of the fits hold both faces).
+ * sv: records (s^2, nu, g) every `stride` doubles; scratch: n doubles. NAN
+ * when no fit has a variance. */
 double guard_noise(const double *sv, size_t n, size_t stride, double *scratch) {
   size_t m = 0;
   for (size_t i = 0; i < n; i++) {
-    const double s2 = sv[i * stride], nu = sv[i * stride + 1];
-    if (s2 >= 0 && nu >= 1) scratch[m++] = s2 / chi2_frac(nu, GUARD_Q1_Z);
+    const double *v = &sv[i * stride];
+    if (v[0] >= 0 && v[1] >= 1) scratch[m++] = v[0] / (chi2_frac(v[1], GUARD_Q_Z) * v[2]);
   }
   if (!m) return NAN;
   qsort(scratch, m, sizeof *scratch, bsurf_cmp_double);
-  return scratch[m / 4];
+  return scratch[m / 10];
 }
 
-/* 1 when a sheet fit (sv: its s^2 and nu) has more misfit than noise: a
- * point moved onto it ends farther from the surface, on average, than it
- * was. Its residual variance estimates sigma^2 + b^2 (b^2 the mean squared
- * misfit, which is also about the squared bias of its predictions), and a
- * full move helps when b^2 < sigma^2: the test rejects "s^2 <= 2 sigma^2"
- * when s^2 exceeds 2 sigma^2 times the upper 5% quantile of chi^2_nu / nu.
- * noise NAN: no test. */
+/* 1 when a sheet fit (sv: its record) has more misfit than noise: a point
+ * moved onto it ends farther from the surface, on average, than it was. Its
+ * residual variance over its interval, s^2 / g, estimates sigma^2 + b^2 (b^2
+ * the mean squared misfit, which is also about the squared bias of its
+ * predictions), and a full move helps when b^2 < sigma^2: the test rejects
+ * "s^2 / g <= 2 sigma^2" when s^2 / g exceeds 2 sigma^2 times the upper 5%
+ * quantile of chi^2_nu / nu. noise NAN: no test. */
 int guard_misfit(const double *sv, double noise) {
   if (!(noise > 0)) return 0;
   if (!(sv[1] >= 1)) return 0; /* no variance: no fit (moves nothing anyway) */
-  return !(sv[0] <= 2.0 * noise * chi2_frac(sv[1], GUARD_MISFIT_Z));
+  return !(sv[0] <= 2.0 * noise * sv[2] * chi2_frac(sv[1], GUARD_MISFIT_Z));
 }
 
 /* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the
@@ -185,12 +222,14 @@ int guard_misfit(const double *sv, double noise) {
  * Where the first fit's residuals fall in two groups apart (guard_gap), the
  * centre's group is its sheet: the offset and scale come from that sheet's
  * nearest points, and no point beyond the gap belongs to it or is moved.
- * svar (NULL: not wanted): the passing fit's residual variance over its
- * sheet's points, RSS / nu, and nu = points - coefficients (NAN, 0 when
- * none passes), for the misfit test (guard_noise, guard_misfit). */
+ * svar (NULL: not wanted): the passing fit's record for the misfit test
+ * (guard_noise, guard_misfit): its residual variance over its sheet's
+ * points, RSS / nu, nu = points - coefficients, and g, the share of the
+ * noise variance its interval keeps (kept_share, from the points it would
+ * move outside the interval) (NAN, 0, NAN when none passes). */
 int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
               const uint32_t *idx, int k, double *F, int *degree, double *svar) {
-  if (svar) svar[0] = NAN, svar[1] = 0;
+  if (svar) svar[0] = NAN, svar[1] = 0, svar[2] = NAN;
   /* tiny: the rounding level of residuals, 1e-9 of the neighbourhood's
    * radius in its frame (lf->scale of the plane fit below). Of the
    * neighbourhood's own points only: a tile's neighbour graph has no global
@@ -337,12 +376,17 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
        * interval (docs/smoothing.md, "The misfit test", for why not those
        * of the wider move bound) */
       double rss = 0;
-      int nin = 0;
+      int nin = 0, nout = 0;
+      const double mv = fmin(GUARD_MOVE * bound, lim_kc);
       for (int j = 0; j < kc; j++)
-        if (fabs(r[j] - m) <= bin) rss += r[j] * r[j], nin++;
+        if (fabs(r[j] - m) <= bin)
+          rss += r[j] * r[j], nin++;
+        else if (fabs(r[j] - m) <= mv)
+          nout++;
       const int p = bsurf_poly_terms(deg);
       svar[0] = nin > p ? rss / (nin - p) : NAN;
       svar[1] = nin - p;
+      svar[2] = kept_share(nout, nin);
     }
     if (n >= 3 && !(fabs(mean) > tiny &&
                     fabs(mean) * sqrt((double)n) > student_t_quantile(BSURF_GUARD_Z, n - 1) * sd)) {
@@ -353,7 +397,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
       return na < kc ? -kc : kc;
     }
   }
-  if (svar) svar[0] = NAN, svar[1] = 0;
+  if (svar) svar[0] = NAN, svar[1] = 0, svar[2] = NAN;
   F[12] = NAN;
   return 0;
 }

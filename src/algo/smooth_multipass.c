@@ -45,12 +45,13 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
   fit_store(&c->fits[i * (size_t)c->stride], &fr, 1.0 / lf->scale, coef, c->m);
   /* the misfit test of the neighbourhood's whole-K fit (stage 1, more
    * degrees of freedom) holds for its K_i fit too */
-  const int misfit_k = c->svar && guard_misfit(&c->svar[2 * i], c->noise);
+  const int misfit_k = c->svar && guard_misfit(&c->svar[BSURF_SMOOTH_SV * i], c->noise);
   if (c->o.guard)
     guard_fit(c, &c->scr[thread], GCOUNT(c, thread), c->xyz, idx, kh,
-              &c->fits[i * (size_t)c->stride], &c->fit_degree[i], c->svar ? &c->svar[2 * i] : NULL);
+              &c->fits[i * (size_t)c->stride], &c->fit_degree[i],
+              c->svar ? &c->svar[BSURF_SMOOTH_SV * i] : NULL);
   /* the guard's misfit test of the K_i fit (smooth_guard.c) */
-  if (misfit_k || (c->svar && guard_misfit(&c->svar[2 * i], c->noise)))
+  if (misfit_k || (c->svar && guard_misfit(&c->svar[BSURF_SMOOTH_SV * i], c->noise)))
     c->fits[i * (size_t)c->stride + 12] = NAN;
 
   double h1 = c->o.a * c->dl[i];

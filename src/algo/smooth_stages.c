@@ -21,11 +21,11 @@
 
 size_t bsurf_smooth_stage_values(const bsurf_smooth_options *o) {
   if (!o || o->method == BSURF_SMOOTH_MULTIPASS) return 0;
-  /* W (2), the naive position (3) or the fit record, the guard's sheet
-   * variance and its degrees of freedom (2) */
-  if (o->method == BSURF_SMOOTH_NAIVE) return 2 + 3 + 2;
+  /* W (2), the naive position (3) or the fit record, the guard's record of
+   * its sheet fit for the misfit test (BSURF_SMOOTH_SV) */
+  if (o->method == BSURF_SMOOTH_NAIVE) return 2 + 3 + BSURF_SMOOTH_SV;
   if (o->order != BSURF_ORDER_PARALLEL) return 0;
-  return 2 + FIT_HEAD + (size_t)bsurf_poly_terms(o->error.degree) + 2;
+  return 2 + FIT_HEAD + (size_t)bsurf_poly_terms(o->error.degree) + BSURF_SMOOTH_SV;
 }
 
 double bsurf_smooth_noise(const double *sv, size_t n, size_t stride, double *scratch) {
@@ -53,7 +53,7 @@ int bsurf_smooth_w_column(const bsurf_smooth_options *o) {
   return est == BSURF_SMOOTH_EST_632PLUS;
 }
 
-void bsurf_smooth_resolve(bsurf_smooth_options *o, double h, double mean_w) {
+void bsurf_smooth_resolve(bsurf_smooth_options *o, double h, double mean_w, double noise) {
   /* h2 default: 2 |W|. Bilateral: the thesis shows 0.5-1 |W| (Figs.
    * 6.4-6.6), but on fandisk and the cube at noise 0.25 and 0.5 the distance
    * to the true surface keeps falling up to about 2 |W|, feature points
@@ -62,7 +62,14 @@ void bsurf_smooth_resolve(bsurf_smooth_options *o, double h, double mean_w) {
    * way to its fit (docs/smoothing.md, "Why the thesis's multipass barely
    * moves points") */
   double frac = o->h2_fraction > 0 ? o->h2_fraction : 2.0;
-  o->h1 = o->h1 > 0 ? o->h1 : h;
+  /* h1 default: the typical distance from a neighbourhood's centre to a
+   * neighbour of its sheet one spacing away, each displaced by the noise
+   * along the normal: sqrt(h^2 + 2 sigma^2), sigma^2 the guard's noise
+   * variance (h without the guard). h alone (the thesis's Fig. 6.5: h1 = d)
+   * gives the points the noise displaced farthest, the ones a move helps
+   * most, the least weight once sigma nears h (docs/smoothing.md, "The
+   * distance sigma") */
+  o->h1 = o->h1 > 0 ? o->h1 : sqrt(h * h + (noise > 0 ? 2.0 * noise : 0.0));
   o->h2 = o->h2 > 0 ? o->h2 : frac * mean_w;
   /* naive: Eq. 6.1 only where W_i < threshold (6.2, Figs. 6.2-6.3) */
   if (isnan(o->threshold)) o->threshold = mean_w;
@@ -95,7 +102,7 @@ bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb,
     c.fits = bsurf_alloc_array(n, (size_t)c.stride * sizeof(double));
   if (o.guard) {
     c.gcount = bsurf_alloc_array((size_t)T * (size_t)c.k, sizeof(uint32_t));
-    c.svar = bsurf_alloc_array(n ? n : 1, 2 * sizeof(double));
+    c.svar = bsurf_alloc_array(n ? n : 1, BSURF_SMOOTH_SV * sizeof(double));
   }
   if (!c.err_632 || !c.err_632plus || !c.scr || !(c.out || c.fits) ||
       (o.guard && (!c.gcount || !c.svar)))
@@ -105,13 +112,16 @@ bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK) st = bsurf_parallel_sweep(n, T, boot_task, &c);
   if (st == BSURF_OK) {
     const double *rest = c.out ? c.out : c.fits;
-    const size_t w = nv - 4;
+    const size_t w = nv - 2 - BSURF_SMOOTH_SV;
     for (size_t i = 0; i < n; i++) {
       values[i * nv] = c.err_632[i];
       values[i * nv + 1] = c.err_632plus[i];
       memcpy(&values[i * nv + 2], &rest[i * w], w * sizeof(double));
-      values[i * nv + nv - 2] = c.svar ? c.svar[2 * i] : NAN;
-      values[i * nv + nv - 1] = c.svar ? c.svar[2 * i + 1] : 0;
+      double *sv = &values[i * nv + nv - BSURF_SMOOTH_SV];
+      if (c.svar)
+        memcpy(sv, &c.svar[BSURF_SMOOTH_SV * i], BSURF_SMOOTH_SV * sizeof(double));
+      else
+        sv[0] = NAN, sv[1] = 0, sv[2] = NAN;
     }
     if (report) {
       report->replicates_total = n * (size_t)o.error.bootstrap;
@@ -147,7 +157,7 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
       const size_t p = point ? point[r] : r;
       const double *v = &values[p * nv];
       memcpy(&out_xyz[3 * r], &v[2], 3 * sizeof(double));
-      if (guard_misfit(&v[nv - 2], noise)) /* the point stays, as in bsurf_smooth */
+      if (guard_misfit(&v[nv - BSURF_SMOOTH_SV], noise)) /* the point stays, as in bsurf_smooth */
         memcpy(&out_xyz[3 * r], &xyz[3 * p], 3 * sizeof(double));
       naive_select(v[wc], o->threshold, &xyz[3 * p], &out_xyz[3 * r]);
     }
@@ -170,7 +180,7 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
     if (!c.e2 || !c.w2) st = BSURF_ERR_NOMEM;
     c.noise = noise;
     for (size_t i = 0; i < local_count && st == BSURF_OK; i++)
-      set_theta2(&c, i, values[i * nv + (size_t)wc], &values[i * nv + nv - 2]);
+      set_theta2(&c, i, values[i * nv + (size_t)wc], &values[i * nv + nv - BSURF_SMOOTH_SV]);
     if (st == BSURF_OK)
       st = bsurf_parallel_sweep(count, bsurf_threads_resolve(o->error.threads),
                                 gather_bilateral_task, &c);

@@ -22,10 +22,11 @@ int bsurf_smooth_w_column(const bsurf_smooth_options *opts);
 bsurf_status bsurf_smooth_stage1(const double *xyz, const bsurf_neighbors *nb,
                                  const bsurf_smooth_options *opts, double *values,
                                  bsurf_error_report *report);
-/* The sigmas and the threshold bsurf_smooth applies, from h (mean spacing)
- * and |W| (the mean of W_i over the cloud, summed in index order): sets
+/* The sigmas and the threshold bsurf_smooth applies, from h (mean spacing),
+ * |W| (the mean of W_i over the cloud, summed in index order) and the
+ * guard's noise variance (bsurf_smooth_noise's; NAN without the guard): sets
  * opts->h1, opts->h2 and opts->threshold. */
-void bsurf_smooth_resolve(bsurf_smooth_options *opts, double h, double mean_w);
+void bsurf_smooth_resolve(bsurf_smooth_options *opts, double h, double mean_w, double noise);
 /* Stage 2 with resolved options, for `count` points at the local indices
  * point[] (NULL: 0..count-1) of xyz; values: stage 1's of every local point.
  * Bilateral: rev[rev_off[r] .. rev_off[r + 1]) are the local indices
@@ -35,12 +36,16 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
                                  size_t count, const uint32_t *point, const size_t *rev_off,
                                  const uint32_t *rev, const bsurf_smooth_options *opts,
                                  double noise, double *out_xyz, double *moved);
+/* The guard's record of a sheet fit for its misfit test: residual variance,
+ * degrees of freedom, and the share of the noise variance the interval that
+ * kept its points keeps (the last BSURF_SMOOTH_SV of stage 1's values). */
+#define BSURF_SMOOTH_SV 3
 /* The guard's noise variance of the cloud (its misfit test, smooth_guard.c)
- * from the (variance, degrees of freedom) pairs at sv, rows of `stride`
- * doubles, of stage 1's values: pass it to stage 2 (NAN: no test).
+ * from the BSURF_SMOOTH_SV records at sv, rows of `stride` doubles, of stage
+ * 1's values: pass it to stage 2 (NAN: no test).
  * scratch: n doubles. */
 double bsurf_smooth_noise(const double *sv, size_t n, size_t stride, double *scratch);
-/* 1 when the fit of (variance, degrees of freedom) sv fails the misfit test
+/* 1 when the fit of record sv fails the misfit test
  * at that noise (it moves nothing). */
 int bsurf_smooth_misfit(const double *sv, double noise);
 

@@ -16,7 +16,7 @@ bsurf_normals_job_options bsurf_normals_job_options_default(void) {
   bsurf_normals_job_options o;
   memset(&o, 0, sizeof o);
   o.normals = bsurf_normal_options_default();
-  o.select_rule = BSURF_KSELECT_TEST_ERROR;
+  o.select_rule = BSURF_KSELECT_AUTO;
   o.noise_k = bsurf_kselect_options_default().noise_k;
   o.alpha = 0.1;
   o.sigma_d = 0;
@@ -567,6 +567,12 @@ bsurf_status bsurf_normals_job(const bsurf_job_io *io, const bsurf_normals_job_o
                                bsurf_normals_job_summary *summary, bsurf_failure *err) {
   bsurf_status st = bsurf_jobs_begin(NJ, io, summary, sizeof *summary);
   bsurf_normals_job_options o = opts ? *opts : bsurf_normals_job_options_default();
+  if (st == BSURF_OK && o.select_rule == BSURF_KSELECT_AUTO) /* MSE where it applies */
+    o.select_rule = o.select_k && o.select_k_count > 0 && o.normals.fit == BSURF_NORMAL_PCA &&
+                            !o.select_degree && !o.curve && o.select_k[0] >= 7 && io->cloud
+                        ? BSURF_KSELECT_MSE
+                        : BSURF_KSELECT_TEST_ERROR;
+  if (st == BSURF_OK) summary->select_rule = o.select_rule;
   if (st == BSURF_OK) st = normals_check(&o, io->cloud == NULL);
   if (st != BSURF_OK) return st;
   normals_job *job = calloc(1, sizeof *job);

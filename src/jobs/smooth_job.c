@@ -176,15 +176,15 @@ static bsurf_status values_sums(const bsurf_tile_values *v, double *sum, size_t 
   return BSURF_OK;
 }
 
-/* The guard's noise estimate from stage 1's (variance, degrees of freedom)
- * columns, the last two of every row, as bsurf_smooth makes it (the same
- * values in index order), and the count of fits its misfit test rejects.
- * Holds 3 doubles per point in memory. */
+/* The guard's noise estimate from stage 1's misfit records (variance, degrees
+ * of freedom, interval half-width), the last BSURF_SMOOTH_SV columns of every row, as bsurf_smooth
+ * makes it (the same values in index order), and the count of fits its misfit test rejects. Holds
+ * BSURF_SMOOTH_SV + 1 doubles per point in memory. */
 static bsurf_status values_noise(const bsurf_tile_values *v, double *noise, size_t *misfit,
                                  bsurf_failure *err) {
   const size_t per = 1 << 16, nv = v->nvalues, n = v->count;
   double *buf = malloc(per * nv * sizeof(double));
-  double *sv = bsurf_alloc_array(n ? n : 1, 2 * sizeof(double));
+  double *sv = bsurf_alloc_array(n ? n : 1, BSURF_SMOOTH_SV * sizeof(double));
   double *scratch = bsurf_alloc_array(n ? n : 1, sizeof(double));
   bsurf_status st = buf && sv && scratch ? BSURF_OK : BSURF_ERR_NOMEM;
   for (size_t i = 0; i < n && st == BSURF_OK; i += per) {
@@ -194,13 +194,14 @@ static bsurf_status values_noise(const bsurf_tile_values *v, double *noise, size
       break;
     }
     for (size_t r = 0; r < m; r++)
-      memcpy(&sv[2 * (i + r)], &buf[r * nv + nv - 2], 2 * sizeof(double));
+      memcpy(&sv[BSURF_SMOOTH_SV * (i + r)], &buf[r * nv + nv - BSURF_SMOOTH_SV],
+             BSURF_SMOOTH_SV * sizeof(double));
   }
   if (st == BSURF_OK) {
-    *noise = bsurf_smooth_noise(sv, n, 2, scratch);
+    *noise = bsurf_smooth_noise(sv, n, BSURF_SMOOTH_SV, scratch);
     *misfit = 0;
     for (size_t i = 0; i < n; i++)
-      *misfit += bsurf_smooth_misfit(&sv[2 * i], *noise);
+      *misfit += bsurf_smooth_misfit(&sv[BSURF_SMOOTH_SV * i], *noise);
   }
   free(buf);
   free(sv);
@@ -285,7 +286,7 @@ static bsurf_status smooth_tiled(const bsurf_job_io *io, const bsurf_smooth_job_
       rep->noise = sqrt(t.noise);
     }
     smooth_lengths(&t.so, o, s->h);
-    bsurf_smooth_resolve(&t.so, s->h, rep->mean_error);
+    bsurf_smooth_resolve(&t.so, s->h, rep->mean_error, t.noise);
     rep->h = s->h;
     rep->threshold = t.so.threshold;
     rep->h1 = t.so.h1;
