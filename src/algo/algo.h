@@ -163,22 +163,26 @@ double bsurf_angle_between(const double a[3], const double b[3], int unoriented)
  * number of valid replicates. */
 int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned char *valid,
                          double nrm[3], double *var, double *ang);
-/* sum_j theta(g_j, r_j), j < k, for the normals of a height polynomial in
- * its local frame (Eq. 5.9, unnormalised): g_j = (-f_u / s, -f_v / s, 1) at
- * neighbour j for f = sum_t coef[t] phi_t of degree `degree` (0: g =
- * (0, 0, 1)), inv_scale = 1 / s, phit the graded basis at the neighbours
- * (term-major, row stride kp >= k, at least terms(degree - 1) rows: the
- * gradient is a polynomial of one degree less); r_j the reference normals
- * in the same frame. Unoriented angles as bsurf_nested_angle_sum, in vector
- * lanes over j, summed in its fixed order. The angles are evaluated for j <
- * max(k, kread) (kread <= kp; rx, ry, rz, phit and scratch hold that many;
- * phit zero-padded), only the first k summed: a caller whose arrays are
- * padded (r = (0, 0, 1)) passes kread = kp, so that the vector loop has no
- * scalar tail. The inner sum of Eq. 5.10 for a polynomial fit. */
-double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_scale,
-                                    const double *phit, size_t kp, const double *rx,
-                                    const double *ry, const double *rz, int k, int kread,
-                                    double *scratch);
+/* Eq. 5.10's inner double sum for one polynomial candidate: sum over the
+ * replicates b < nrep with valid[b] (valid NULL: all) of sum_{j<k}
+ * theta(g_b(p_j), r_j), where g_b(p_j) = (-f_u / s, -f_v / s, 1) is the
+ * normal (Eq. 5.9, unnormalised) at neighbour j of replicate b's height
+ * polynomial f = sum_t coefs[b m + t] phi_t (degree `degree`, m its terms;
+ * 0: g = (0, 0, 1)), inv_scale = 1 / s, and r_j the reference normals in
+ * the same frame. phif: the graded basis at the neighbours in float,
+ * term-major, row stride kq (a multiple of 16, >= k), at least
+ * terms(degree - 1) rows (the gradient is a polynomial of one degree less),
+ * zero past k; rf: rx, ry, rz, each kq floats, (0, 0, 1) past k. The angles
+ * are evaluated in single precision (unoriented, atan2 reduced to Cephes'
+ * atanf; within 1e-6 rad of libm's atan2 of the double field,
+ * tests/test_nested.c), in vector lanes over j < k rounded up to a multiple
+ * of 8 (the padding evaluated, not summed), summed over at most 64
+ * replicates in float, then in double in a fixed order. accf, accd: kq
+ * floats and doubles of scratch. */
+double bsurf_nested_field_angle_total(int degree, int nrep, const double *coefs,
+                                      const unsigned char *valid, double inv_scale,
+                                      const float *phif, size_t kq, const float *rf, int k,
+                                      float *accf, double *accd);
 
 /* bsurf_estimate_normals without the neighbour lists: the cloud's
  * neighbourhoods searched (bsurf_neighbors_stream, nb_k neighbours, of which

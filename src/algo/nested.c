@@ -200,52 +200,37 @@ static const double PIO4 = 7.85398163397448309616e-1, MOREBITS = 6.1232339957367
 
 /* atan(t) for 0 <= t <= 1 (Cephes' atan: below 0.66 a rational function of
  * t^2, above it pi/4 + atan((t - 1) / (t + 1))), written branch-free so that
- * a loop of them runs in vector lanes; zn / zd is the reduced argument;
- * one_div (a constant where inlined) picks the form with one division. */
+ * a loop of them runs in vector lanes; zn / zd is the reduced argument. */
 #if defined(__GNUC__) && !defined(__clang__)
 __attribute__((optimize("no-trapping-math")))
 #endif
 static inline __attribute__((always_inline)) double
-atan_reduced(double num, double den, int one_div) {
+atan_reduced(double num, double den) {
   /* t = num / den <= 1; above 0.66 (num > 0.66 den) reduce */
   const double dif = num - den, tot = num + den; /* both computed: no branches */
   const int big = num > 0.66 * den;
   const double zn = big ? dif : num, zd = big ? tot : den;
-  double r;
-  if (!one_div) {
-    const double x = zn / zd; /* zd >= den > 0 for unit vectors */
-    const double z = x * x;
-    const double p = (((P0 * z + P1) * z + P2) * z + P3) * z + P4;
-    const double q = ((((z + Q0) * z + Q1) * z + Q2) * z + Q3) * z + Q4;
-    r = x * (z * p / q) + x;
-  } else {
-    /* one division instead of two: x = zn / zd and z = x^2 substituted into
-     * x + x z P(z) / Q(z) (P of degree 4, Q monic of degree 5) and both
-     * polynomials made homogeneous in Z = zn^2, D = zd^2: z P(z) / Q(z) =
-     * Z P~(Z, D) / Q~(Z, D), so r = zn (Q~ + Z P~) / (zd Q~), the same
-     * rational function. Needs zd^10 finite (the caller bounds den). */
-    const double Z = zn * zn, D = zd * zd, D2 = D * D, D3 = D2 * D, D4 = D2 * D2, D5 = D4 * D;
-    const double pt = (((P0 * Z + P1 * D) * Z + P2 * D2) * Z + P3 * D3) * Z + P4 * D4;
-    const double qt = ((((Z + Q0 * D) * Z + Q1 * D2) * Z + Q2 * D3) * Z + Q3 * D4) * Z + Q4 * D5;
-    r = (zn * (qt + Z * pt)) / (zd * qt);
-  }
+  const double x = zn / zd; /* zd >= den > 0 for unit vectors */
+  const double z = x * x;
+  const double p = (((P0 * z + P1) * z + P2) * z + P3) * z + P4;
+  const double q = ((((z + Q0) * z + Q1) * z + Q2) * z + Q3) * z + Q4;
+  const double r = x * (z * p / q) + x;
   const double rb = PIO4 + (r + 0.5 * MOREBITS);
   return big ? rb : r;
 }
 
 /* atan2(|c|, |dot|) (c = g x r, dot = g . r: the unoriented angle between g
  * and r) with atan2 of the first quadrant reduced to atan of a ratio <= 1
- * (pi/2 - atan(x / y) above the diagonal); one_div (a constant where
- * inlined) picks atan_reduced's one-division form. */
+ * (pi/2 - atan(x / y) above the diagonal). */
 #if defined(__GNUC__) && !defined(__clang__)
 __attribute__((optimize("no-trapping-math")))
 #endif
 static inline __attribute__((always_inline)) double
-q1_angle(double c0, double c1, double c2, double dot, int one_div) {
+q1_angle(double c0, double c1, double c2, double dot) {
   const double y = sqrt(c0 * c0 + c1 * c1 + c2 * c2);
   const double x = fabs(dot);
   const double lo = y > x ? x : y, hi = y > x ? y : x;
-  const double a = atan_reduced(lo, hi, one_div);
+  const double a = atan_reduced(lo, hi);
   const double as = (PIO2 - a) + MOREBITS;
   return y > x ? as : a;
 }
@@ -283,7 +268,7 @@ pair_chunk(int nv, const double *restrict vk, const double *restrict kl, const d
     for (int l = 8 * v0; l < np; l++) {
       const double g0 = gx[l], g1 = gy[l], g2 = gz[l];
       const double c0 = g1 * r2 - g2 * r1, c1 = g2 * r0 - g0 * r2, c2 = g0 * r1 - g1 * r0;
-      const double t = q1_angle(c0, c1, c2, g0 * r0 + g1 * r1 + g2 * r2, 0);
+      const double t = q1_angle(c0, c1, c2, g0 * r0 + g1 * r1 + g2 * r2);
       a[l] += kl[l] > jd ? t : 0.0;
     }
   }
@@ -343,23 +328,10 @@ oriented_angles(const double g[3], const double *restrict rx, const double *rest
     const double c0 = g1 * rz[j] - g2 * ry[j], c1 = g2 * rx[j] - g0 * rz[j],
                  c2 = g0 * ry[j] - g1 * rx[j];
     const double dot = g0 * rx[j] + g1 * ry[j] + g2 * rz[j];
-    const double a = q1_angle(c0, c1, c2, dot, 0);
+    const double a = q1_angle(c0, c1, c2, dot);
     const double ar = (2 * PIO2 - a) + 2 * MOREBITS;
     out[j] = dot < 0 ? ar : a;
   }
-}
-
-/* sum_j a[j], j < k, as four running sums (j mod 4) then combined: a fixed
- * order. */
-static double fixed_sum(const double *a, int k) {
-  double s[4] = {0, 0, 0, 0};
-  int j = 0;
-  for (; j + 4 <= k; j += 4)
-    for (int l = 0; l < 4; l++)
-      s[l] += a[j + l];
-  for (int l = 0; j < k; j++, l++)
-    s[l] += a[j];
-  return (s[0] + s[1]) + (s[2] + s[3]);
 }
 
 /* One lane r of bsurf_nested_cov_lanes. */
@@ -491,72 +463,173 @@ int bsurf_nested_summary(int B, const double nP[3], double *bn, const unsigned c
 }
 
 /* The gradient of f = sum_t coef[t] phi_t (degree M, graded basis) as two
- * polynomials of degree M - 1 in the same basis, times `factor`: f_u = sum_b
- * eu[b] phi_b, f_v = sum_b ev[b] phi_b (terms(M - 1) coefficients each). */
-static void grad_coefs(int degree, const double *coef, double factor, double *eu, double *ev) {
+ * polynomials of degree M - 1 in the same basis, times `factor`: f_u =
+ * sum_b coef[src[b]] mul[b] phi_b, f_v = sum_b coef[src[mg + b]] mul[mg +
+ * b] phi_b, b < mg = terms(M - 1). */
+static void grad_map(int degree, double factor, int *src, double *mul) {
+  const int mg = bsurf_poly_terms(degree - 1);
   for (int d = 1; d <= degree; d++)
     for (int e = 0; e <= d; e++) { /* u^i v^e, i = d - e */
       const int i = d - e, t = d * (d + 1) / 2 + e, lo = (d - 1) * d / 2;
-      if (i > 0) eu[lo + e] = factor * (i * coef[t]);
-      if (e > 0) ev[lo + e - 1] = factor * (e * coef[t]);
+      if (i > 0) src[lo + e] = t, mul[lo + e] = factor * i;
+      if (e > 0) src[mg + lo + e - 1] = t, mul[mg + lo + e - 1] = factor * e;
     }
 }
 
-/* The unoriented angles between g_j = (gx_j, gy_j, 1) (unnormalised: the
- * angle does not depend on the length), gx_j = sum_b eu[b] phi[b kp + j]
- * (gy_j with ev), and (rx, ry, rz)[j], as angles() with g varying per j;
- * mg (the slopes' terms) constant in each instance so that the loop over j
- * runs in vector lanes with the small sums unrolled. */
+/* Cephes' atanf: x + x z P(z), z = x^2, for |x| <= tan(pi / 8). */
+enum { ECOL = 64 }; /* replicates summed in float before a double sum */
+static const float FP0 = 8.05374449538e-2f, FP1 = -1.38776856032e-1f, FP2 = 1.99777106478e-1f,
+                   FP3 = -3.33329491539e-1f, FPIO4 = 0.785398163397448309616f,
+                   FPIO2 = 1.57079632679489661923f, FTAN8 = 0.414213562373095f;
+
+/* Eq. 5.10's angles of `nrep` polynomial normal fields at the neighbours,
+ * single precision, added to acc[j] (j < L): replicate b's field at j is
+ * g = (gx, gy, gz), gx = sum_t e[t ECOL + b] ph[t kq + j], gy with e[(mg +
+ * t) ECOL + b], gz = e[2 mg ECOL + b] (the slopes pre-scaled so that none
+ * exceeds 1: float neither overflows nor loses the direction); the
+ * unoriented angle to (rx, ry, rz)[j] is atan2(|g x r|, |g . r|), the first
+ * quadrant reduced to atan of a ratio <= 1 (pi / 2 - atan(x / y) above the
+ * diagonal), Cephes' atanf (reduction by pi / 4 above tan(pi / 8), one
+ * division). Products and sums as fmaf: exactly rounded wherever it runs
+ * (an instruction on the x86-64-v3/v4 clones, libm's on the baseline one),
+ * so the bits do not depend on the clone. L (16 or 8) and mg are constant
+ * in each instance: the loop over j is one vector with the small sums
+ * unrolled, the replicates one after the other inside it (their sums in
+ * registers, the basis and references loaded once); every lane is the same
+ * sequence of operations whatever the vector width. */
 #if defined(__GNUC__) && !defined(__clang__)
 __attribute__((optimize("no-trapping-math")))
 #endif
 static inline __attribute__((always_inline)) void
-field_angles(int mg, const double *restrict eu, const double *restrict ev,
-             const double *restrict phi, size_t kp, const double *restrict rx,
-             const double *restrict ry, const double *restrict rz, int k, double *restrict out) {
-  for (int j = 0; j < k; j++) {
-    double g0 = 0, g1 = 0;
-    for (int b = 0; b < mg; b++) {
-      g0 += eu[b] * phi[(size_t)b * kp + j];
-      g1 += ev[b] * phi[(size_t)b * kp + j];
+field_block(int L, int mg, int nrep, const float *restrict e, const float *restrict ph, size_t kq,
+            const float *restrict rx, const float *restrict ry, const float *restrict rz,
+            float *restrict acc) {
+  float aL[16];
+  for (int l = 0; l < L; l++)
+    aL[l] = acc[l];
+  for (int b = 0; b < nrep; b++) {
+    const float *restrict eb = e + b; /* column-major: entry q at eb[q ECOL] */
+    const float gz = eb[2 * mg * ECOL];
+    for (int l = 0; l < L; l++) {
+      float gx = 0.0f, gy = 0.0f;
+      for (int t = 0; t < mg; t++) {
+        gx = fmaf(eb[t * ECOL], ph[(size_t)t * kq + l], gx);
+        gy = fmaf(eb[(mg + t) * ECOL], ph[(size_t)t * kq + l], gy);
+      }
+      const float r0 = rx[l], r1 = ry[l], r2 = rz[l];
+      const float c0 = fmaf(gy, r2, -(gz * r1)), c1 = fmaf(gz, r0, -(gx * r2)),
+                  c2 = fmaf(gx, r1, -(gy * r0));
+      const float y = sqrtf(fmaf(c0, c0, fmaf(c1, c1, c2 * c2)));
+      const float x = fabsf(fmaf(gx, r0, fmaf(gy, r1, gz * r2)));
+      const float lo = y > x ? x : y, hi = y > x ? y : x;
+      const int big = lo > FTAN8 * hi;
+      const float num = big ? lo - hi : lo, den0 = big ? lo + hi : hi;
+      const float den = den0 > 1e-30f ? den0 : 1e-30f; /* g = 0 (never in a fit): 0 */
+      const float t = num / den, z = t * t;
+      const float p = fmaf(fmaf(fmaf(fmaf(FP0, z, FP1), z, FP2), z, FP3), z * t, t);
+      const float ap = big ? p + FPIO4 : p;
+      aL[l] += y > x ? FPIO2 - ap : ap;
     }
-    /* the one-division atan needs zd^10 finite, zd <= 2 |g|: g scaled by 1e-20 (its
-     * direction kept) where a slope exceeds 1e20 */
-    const double sc = fabs(g0) + fabs(g1) > 1e20 ? 1e-20 : 1.0;
-    g0 *= sc;
-    g1 *= sc;
-    const double c0 = g1 * rz[j] - sc * ry[j], c1 = sc * rx[j] - g0 * rz[j],
-                 c2 = g0 * ry[j] - g1 * rx[j];
-    out[j] = q1_angle(c0, c1, c2, g0 * rx[j] + g1 * ry[j] + sc * rz[j], 1);
   }
+  for (int l = 0; l < L; l++)
+    acc[l] = aL[l];
+}
+
+/* n a multiple of 8: 16 neighbours at a time (one 512-bit vector), a last
+ * 8; the replicates inside, their sums in registers, the basis and the
+ * references loaded once per block */
+static inline __attribute__((always_inline)) void
+field_acc(int mg, int nrep, const float *restrict e, const float *restrict phi, size_t kq,
+          const float *restrict rx, const float *restrict ry, const float *restrict rz, int n,
+          float *restrict acc) {
+  int j0 = 0;
+  for (; j0 + 16 <= n; j0 += 16)
+    field_block(16, mg, nrep, e, phi + j0, kq, rx + j0, ry + j0, rz + j0, acc + j0);
+  if (j0 < n) field_block(8, mg, nrep, e, phi + j0, kq, rx + j0, ry + j0, rz + j0, acc + j0);
 }
 
 #if defined(__GNUC__) && !defined(__clang__)
 __attribute__((optimize("no-trapping-math")))
 #endif
 BSURF_CLONES static void
-field_angles_m(int mg, const double *eu, const double *ev, const double *phi, size_t kp,
-               const double *rx, const double *ry, const double *rz, int k, double *out) {
+field_acc_m(int mg, int nrep, const float *e, const float *phi, size_t kq, const float *rx,
+            const float *ry, const float *rz, int n, float *acc) {
   switch (mg) { /* the degrees 1..4 */
-  case 1: field_angles(1, eu, ev, phi, kp, rx, ry, rz, k, out); break;
-  case 3: field_angles(3, eu, ev, phi, kp, rx, ry, rz, k, out); break;
-  case 6: field_angles(6, eu, ev, phi, kp, rx, ry, rz, k, out); break;
-  default: field_angles(mg, eu, ev, phi, kp, rx, ry, rz, k, out); break;
+  case 1: field_acc(1, nrep, e, phi, kq, rx, ry, rz, n, acc); break;
+  case 3: field_acc(3, nrep, e, phi, kq, rx, ry, rz, n, acc); break;
+  case 6: field_acc(6, nrep, e, phi, kq, rx, ry, rz, n, acc); break;
+  default: field_acc(mg, nrep, e, phi, kq, rx, ry, rz, n, acc); break;
   }
 }
 
-double bsurf_nested_field_angle_sum(int degree, const double *coef, double inv_scale,
-                                    const double *phit, size_t kp, const double *rx,
-                                    const double *ry, const double *rz, int k, int kread,
-                                    double *scratch) {
-  double eu[BSURF_TERMS_MAX], ev[BSURF_TERMS_MAX];
-  int mg = bsurf_poly_terms(degree - 1);
+/* The kernel's rows of `used` replicates (bi: their indices), column-major
+ * (field_block): (f_u, f_v, 1) / big, big the largest of 1 and the
+ * slopes' coefficients, so that the largest entry is 1; entries below 1e-30
+ * of it (no float subnormals) are 0, negligible beside it. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+BSURF_CLONES static void
+field_rows(int mg, int m, int used, const int *bi, const int *src, const double *mul,
+           const double *coefs, float *e) {
+  double g[2 * BSURF_TERMS_MAX * ECOL], big[ECOL];
+  for (int u = 0; u < used; u++)
+    big[u] = 1.0;
+  for (int q = 0; q < 2 * mg; q++)
+    for (int u = 0; u < used; u++) {
+      const double v = coefs[(size_t)bi[u] * m + src[q]] * mul[q];
+      g[q * ECOL + u] = v;
+      big[u] = fabs(v) > big[u] ? fabs(v) : big[u];
+    }
+  for (int u = 0; u < used; u++)
+    big[u] = 1.0 / big[u];
+  for (int q = 0; q < 2 * mg; q++)
+    for (int u = 0; u < used; u++) {
+      const double a = g[q * ECOL + u] * big[u];
+      e[q * ECOL + u] = fabs(a) < 1e-30 ? 0.0f : (float)a;
+    }
+  for (int u = 0; u < used; u++)
+    e[2 * mg * ECOL + u] = big[u] < 1e-30 ? 0.0f : (float)big[u];
+}
+
+double bsurf_nested_field_angle_total(int degree, int nrep, const double *coefs,
+                                      const unsigned char *valid, double inv_scale,
+                                      const float *phif, size_t kq, const float *rf, int k,
+                                      float *accf, double *accd) {
+  const int m = bsurf_poly_terms(degree), mg = degree >= 1 ? bsurf_poly_terms(degree - 1) : 1;
+  /* the gradient's coefficients: f_u's q < mg, f_v's mg + q, each the
+   * coefficient src[q] of f times its exponent and -1 / s */
+  int src[2 * BSURF_TERMS_MAX];
+  double mul[2 * BSURF_TERMS_MAX];
   if (degree >= 1) {
-    grad_coefs(degree, coef, -inv_scale, eu, ev);
+    grad_map(degree, -inv_scale, src, mul);
   } else { /* a constant height: g = (0, 0, 1) */
-    mg = 1;
-    eu[0] = ev[0] = 0.0;
+    src[0] = src[1] = 0;
+    mul[0] = mul[1] = 0.0;
   }
-  field_angles_m(mg, eu, ev, phit, kp, rx, ry, rz, kread > k ? kread : k, scratch);
-  return fixed_sum(scratch, k);
+  /* up to ECOL replicates at a time, column-major: (f_u, f_v, 1) of
+   * replicate u at e[q ECOL + u] */
+  float e[(2 * BSURF_TERMS_MAX + 1) * ECOL];
+  int bi[ECOL];
+  const float *rx = rf, *ry = rf + kq, *rz = ry + kq;
+  const int n = (k + 7) / 8 * 8; /* the lanes evaluated (<= kq) */
+  for (int j = 0; j < n; j++)
+    accd[j] = 0.0;
+  for (int b0 = 0; b0 < nrep;) {
+    int used = 0;
+    for (; b0 < nrep && used < ECOL; b0++)
+      if (!valid || valid[b0]) bi[used++] = b0;
+    if (used == 0) break;
+    field_rows(mg, m, used, bi, src, mul, coefs, e);
+    for (int j = 0; j < n; j++)
+      accf[j] = 0.0f;
+    field_acc_m(mg, used, e, phif, kq, rx, ry, rz, n, accf);
+    for (int j = 0; j < n; j++)
+      accd[j] += accf[j];
+  }
+  /* sum_j, j < k, as four running sums (j mod 4) then combined: a fixed order */
+  double s[4] = {0, 0, 0, 0};
+  for (int j = 0; j < k; j++)
+    s[j & 3] += accd[j];
+  return (s[0] + s[1]) + (s[2] + s[3]);
 }

@@ -40,11 +40,14 @@ typedef struct kd_scratch {
   bsurf_localfit lf;
   uint32_t *u;             /* kmax */
   double *Wt;              /* kmax x B: the Poisson counts */
+  double *Wr;              /* B x kmax: the same, replicate-major */
   double *W;               /* rows x K: one candidate's weight rows */
   double *lanes;           /* rows x ncols: its normal equations */
   int *nz;                 /* B: distinct points among the first K */
-  double *ref;             /* 3 x kmax: the reference normals in the frame */
-  double *ang;             /* kp: the angles */
+  float *ref;              /* 3 x kq: the reference normals in the frame (float) */
+  float *phif;             /* terms(dmax - 1) x kq: the gradient's basis (float) */
+  float *accf;             /* kq */
+  double *accd;            /* kq */
   double *coefs;           /* (B + 1) x terms: the whole fit, then the replicates */
   unsigned char *valid;    /* B */
   double *bn, *ang2;       /* B x 3, B */
@@ -71,15 +74,19 @@ static bsurf_status kd_alloc(void *vs, const void *vz) {
   bsurf_status st = bsurf_localfit_alloc(&s->lf, kmax, z->dmax);
   if (st != BSURF_OK) return st;
   const size_t kk = (size_t)kmax, b1 = (size_t)(B > 0 ? B : 1), rows = (size_t)bsurf_boot_rows(B);
-  const size_t kp = (kk + 7) / 8 * 8;
+  const size_t kq = (kk + 15) / 16 * 16;
+  const size_t mg = (size_t)bsurf_poly_terms(z->dmax - 1);
   bsurf_blocks *m = &s->mem;
   s->u = bsurf_blocks_array(m, kk, sizeof(uint32_t));
   s->Wt = bsurf_blocks_aligned(m, kk * b1, sizeof(double));
+  s->Wr = bsurf_blocks_aligned(m, b1 * kk, sizeof(double));
   s->W = bsurf_blocks_aligned(m, rows * kk, sizeof(double));
   s->lanes = bsurf_blocks_aligned(m, rows, BSURF_NCOLS_MAX * sizeof(double));
   s->nz = bsurf_blocks_array(m, b1, sizeof(int));
-  s->ref = bsurf_blocks_aligned(m, 3 * kp, sizeof(double));
-  s->ang = bsurf_blocks_aligned(m, kp, sizeof(double));
+  s->ref = bsurf_blocks_aligned(m, 3 * kq, sizeof(float));
+  s->phif = bsurf_blocks_aligned(m, mg * kq, sizeof(float));
+  s->accf = bsurf_blocks_aligned(m, kq, sizeof(float));
+  s->accd = bsurf_blocks_aligned(m, kq, sizeof(double));
   s->coefs = bsurf_blocks_aligned(m, b1 + 1, BSURF_TERMS_MAX * sizeof(double));
   s->valid = bsurf_blocks_array(m, b1, 1);
   s->bn = bsurf_blocks_array(m, b1, 3 * sizeof(double));
@@ -87,6 +94,9 @@ static bsurf_status kd_alloc(void *vs, const void *vz) {
   s->err = bsurf_blocks_array(m, (size_t)ncand, sizeof(double));
   s->var = bsurf_blocks_array(m, (size_t)ncand, sizeof(double));
   s->nrm = bsurf_blocks_array(m, (size_t)ncand, 3 * sizeof(double));
+  /* the invalid replicates' rows are read (their normals computed in lanes,
+   * not used): never uninitialised */
+  if (s->coefs) memset(s->coefs, 0, (b1 + 1) * BSURF_TERMS_MAX * sizeof(double));
   return bsurf_blocks_status(m); /* the loop frees what was made */
 }
 
@@ -104,11 +114,10 @@ typedef struct kd_ctx {
 
 /* Candidate (K, degree) of one point, the K's frame, fits and weights set
  * up: writes s->nrm, s->var and s->err of candidate c. */
-static void kd_candidate(const kd_ctx *c, kd_scratch *s, const bsurf_frame *frame, int K,
+static void kd_candidate(const kd_ctx *c, kd_scratch *s, const bsurf_frame *frame, int K, size_t kq,
                          int degree0, int cand) {
   const int B = c->o->bootstrap;
   const bsurf_localfit *lf = &s->lf;
-  const size_t kp = (size_t)lf->kp;
   double *const fit = s->coefs, *const reps = s->coefs + BSURF_TERMS_MAX;
   /* the whole neighbourhood (row B), the degree reduced while rank-deficient */
   double row[BSURF_NCOLS_MAX];
@@ -117,41 +126,33 @@ static void kd_candidate(const kd_ctx *c, kd_scratch *s, const bsurf_frame *fram
   while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, fit) != 0)
     degree--;
   if (degree != degree0) s->reduced++;
-  double nP[3];
-  if (degree == 0) /* a constant height: the tangent plane itself */
-    for (int t = 0; t < 3; t++)
-      nP[t] = frame->rot[2][t];
-  else
-    bsurf_localfit_normal(lf, frame, degree, fit, lf->u[0], lf->v[0], nP);
-  const int m = bsurf_poly_terms(degree);
+  /* the normals in the frame's coordinates: Eqs. 5.4 and 5.5 (orientation,
+   * mean, angles) do not depend on the rotation, the mean is rotated back
+   * once */
+  double nP[3] = {0.0, 0.0, 1.0}; /* degree 0, a constant height: the tangent plane */
+  if (degree > 0) bsurf_localfit_normal_local(lf, degree, fit, lf->u[0], lf->v[0], nP);
   /* the replicates (Eq. 4.2 as Poisson counts): enough distinct points for
    * the candidate's degree, or, reduced, let the solve decide */
   for (int b = 0; b < B; b++)
     s->valid[b] = (s->nz[b] >= bsurf_poly_terms(degree0) || degree < degree0) && degree > 0;
   if (degree > 0) bsurf_localfit_solve_lanes(lf, degree, B, s->lanes, s->valid, reps);
-  for (int b = 0; b < B; b++)
-    if (s->valid[b])
-      bsurf_localfit_normal(lf, frame, degree, &reps[(size_t)b * m], lf->u[0], lf->v[0],
-                            &s->bn[3 * b]);
-  const int nvalid =
-      bsurf_nested_summary(B, nP, s->bn, s->valid, &s->nrm[3 * cand], &s->var[cand], s->ang2);
+  if (degree > 0) /* every row (the invalid ones' are not used) */
+    bsurf_localfit_normals_local(lf, degree, B, reps, lf->u[0], lf->v[0], s->bn);
+  double nl[3];
+  const int nvalid = bsurf_nested_summary(B, nP, s->bn, s->valid, nl, &s->var[cand], s->ang2);
+  bsurf_frame_dir_to_global(frame, nl, &s->nrm[3 * cand]);
   s->skipped += (size_t)(B - nvalid);
   /* Eq. 5.10: (1 / (B K)) sum_b sum_j theta(g^b(p_j), n_j); with no valid
    * replicate the single fit's training error */
-  const double *rx = s->ref, *ry = rx + kp, *rz = ry + kp;
   const double inv = 1.0 / lf->scale;
-  double total = 0;
-  if (nvalid > 0) {
-    for (int b = 0; b < B; b++)
-      if (s->valid[b])
-        total += bsurf_nested_field_angle_sum(degree, &reps[(size_t)b * m], inv, lf->phit, kp, rx,
-                                              ry, rz, K, (int)kp, s->ang);
-    s->err[cand] = total / ((double)nvalid * K);
-  } else {
-    s->err[cand] = bsurf_nested_field_angle_sum(degree, fit, inv, lf->phit, kp, rx, ry, rz, K,
-                                                (int)kp, s->ang) /
+  if (nvalid > 0)
+    s->err[cand] = bsurf_nested_field_angle_total(degree, B, reps, s->valid, inv, s->phif, kq,
+                                                  s->ref, K, s->accf, s->accd) /
+                   ((double)nvalid * K);
+  else
+    s->err[cand] = bsurf_nested_field_angle_total(degree, 1, fit, NULL, inv, s->phif, kq, s->ref, K,
+                                                  s->accf, s->accd) /
                    K;
-  }
 }
 
 static void kd_point(void *vctx, void *scratch, size_t i) {
@@ -165,6 +166,9 @@ static void kd_point(void *vctx, void *scratch, size_t i) {
   /* the replicates: one draw per point, shared by every candidate */
   const uint64_t key = o->point_index ? o->point_index[i] : i;
   if (B > 0) bsurf_boot_poisson_rows(o->seed, key, B, kmax, s->u, s->Wt);
+  for (int j = 0; j < kmax; j++) /* replicate-major once: each K copies row prefixes */
+    for (int b = 0; b < B; b++)
+      s->Wr[(size_t)b * kmax + j] = s->Wt[(size_t)j * B + b];
   memset(s->nz, 0, (size_t)(B > 0 ? B : 1) * sizeof *s->nz);
 
   int best = 0, k0 = 0;
@@ -185,27 +189,37 @@ static void kd_point(void *vctx, void *scratch, size_t i) {
     /* the weight rows (replicates, then the whole P), row-major R x K */
     double *W = s->W;
     for (int b = 0; b < B; b++)
-      for (int j = 0; j < K; j++)
-        W[(size_t)b * K + j] = s->Wt[(size_t)j * B + b];
+      memcpy(&W[(size_t)b * K], &s->Wr[(size_t)b * kmax], (size_t)K * sizeof *W);
     for (int j = 0; j < K; j++)
       W[(size_t)B * K + j] = 1.0;
     memset(&W[(size_t)(B + 1) * K], 0, (size_t)(R - B - 1) * K * sizeof *W);
     bsurf_localfit_normal_eq_lanes(lf, R, W, s->lanes);
-    /* the reference normals in the frame, padded with (0, 0, 1) to kp (a
-     * multiple of 8, as phit): the angle loops run over whole vectors */
-    const size_t kp = (size_t)lf->kp;
-    double *rx = s->ref, *ry = rx + kp, *rz = ry + kp;
+    /* the reference normals in the frame and the gradient's basis rows, in
+     * float (Eq. 5.10's angles are single precision), padded to kq (a
+     * multiple of 16) with r = (0, 0, 1) and phi = 0: the angle loops run
+     * over whole vectors */
+    const size_t kq = (size_t)(K + 15) / 16 * 16;
+    float *rx = s->ref, *ry = rx + kq, *rz = ry + kq;
     for (int j = 0; j < K; j++) {
       const double *r = &c->ref[3 * (size_t)idx[j]];
-      rx[j] = frame.rot[0][0] * r[0] + frame.rot[0][1] * r[1] + frame.rot[0][2] * r[2];
-      ry[j] = frame.rot[1][0] * r[0] + frame.rot[1][1] * r[1] + frame.rot[1][2] * r[2];
-      rz[j] = frame.rot[2][0] * r[0] + frame.rot[2][1] * r[1] + frame.rot[2][2] * r[2];
+      rx[j] = (float)(frame.rot[0][0] * r[0] + frame.rot[0][1] * r[1] + frame.rot[0][2] * r[2]);
+      ry[j] = (float)(frame.rot[1][0] * r[0] + frame.rot[1][1] * r[1] + frame.rot[1][2] * r[2]);
+      rz[j] = (float)(frame.rot[2][0] * r[0] + frame.rot[2][1] * r[1] + frame.rot[2][2] * r[2]);
     }
-    for (size_t j = (size_t)K; j < kp; j++)
-      rx[j] = ry[j] = 0.0, rz[j] = 1.0;
+    for (size_t j = (size_t)K; j < kq; j++)
+      rx[j] = ry[j] = 0.0f, rz[j] = 1.0f;
+    const int mg = bsurf_poly_terms(c->dmax - 1);
+    for (int t = 0; t < mg; t++) {
+      float *row = &s->phif[(size_t)t * kq];
+      const double *src = &lf->phit[(size_t)t * lf->kp];
+      for (int j = 0; j < K; j++)
+        row[j] = (float)src[j];
+      for (size_t j = (size_t)K; j < kq; j++)
+        row[j] = 0.0f;
+    }
     for (int d = 0; d < nd; d++) {
       const int cand = a * nd + d;
-      kd_candidate(c, s, &frame, K, c->ds[d], cand);
+      kd_candidate(c, s, &frame, K, kq, c->ds[d], cand);
       if (s->err[cand] < s->err[best]) best = cand; /* ties: the smaller K, then degree */
     }
   }

@@ -47,36 +47,59 @@ typedef long long v4l_idx __attribute__((vector_size(32)));
 #define SHUF2(a, b, i, j, k, l) __builtin_shuffle(a, b, (v4l_idx){i, j, k, l})
 #endif
 
-/* One 4 x 8 block of W A: rows w[0..3] (k weights each) times columns
- * c..c+7 of A; acc[2 r + h] holds row r, columns c + 4h .. c + 4h + 3. */
+/* One block of W A: rows w[0..3] (k weights each) times 2 L columns c ..
+ * c + 2L - 1 of A, in vectors V of L doubles (L = 4: AVX2; 8: the
+ * x86-64-v4 clone's 512-bit registers, half the loads and instructions a
+ * multiply-add); the eight accumulators (row r, half h) written in that
+ * order to acc as doubles: acc[(2L / 4) r + q] holds row r, columns c + 4q
+ * .. c + 4q + 3. Every entry is summed in the order j = 0..k-1 whatever L. */
+#define GEMM_BLOCK(V, L)                                                                           \
+  do {                                                                                             \
+    V a00 = {0}, a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00, a31 = a00;      \
+    const double *w0 = w[0], *w1 = w[1], *w2 = w[2], *w3 = w[3];                                   \
+    for (int j = 0; j < k; j++) {                                                                  \
+      V x0, x1;                                                                                    \
+      memcpy(&x0, &A[(size_t)j * nc + c], sizeof x0);                                              \
+      memcpy(&x1, &A[(size_t)j * nc + c + (L)], sizeof x1);                                        \
+      const double s0 = w0[j], s1 = w1[j], s2 = w2[j], s3 = w3[j];                                 \
+      a00 += s0 * x0;                                                                              \
+      a01 += s0 * x1;                                                                              \
+      a10 += s1 * x0;                                                                              \
+      a11 += s1 * x1;                                                                              \
+      a20 += s2 * x0;                                                                              \
+      a21 += s2 * x1;                                                                              \
+      a30 += s3 * x0;                                                                              \
+      a31 += s3 * x1;                                                                              \
+    }                                                                                              \
+    const V all[8] = {a00, a01, a10, a11, a20, a21, a30, a31};                                     \
+    memcpy(acc, all, sizeof all);                                                                  \
+  } while (0)
+
 static inline __attribute__((always_inline)) void
 gemm_block(const double *const w[4], int k, int nc, const double *A, int c, v4d acc[8]) {
-  v4d a00 = {0, 0, 0, 0}, a01 = a00, a10 = a00, a11 = a00, a20 = a00, a21 = a00, a30 = a00,
-      a31 = a00;
-  const double *w0 = w[0], *w1 = w[1], *w2 = w[2], *w3 = w[3];
-  for (int j = 0; j < k; j++) {
-    v4d x0, x1;
-    memcpy(&x0, &A[(size_t)j * nc + c], sizeof x0);
-    memcpy(&x1, &A[(size_t)j * nc + c + 4], sizeof x1);
-    const v4d s0 = {w0[j], w0[j], w0[j], w0[j]}, s1 = {w1[j], w1[j], w1[j], w1[j]};
-    const v4d s2 = {w2[j], w2[j], w2[j], w2[j]}, s3 = {w3[j], w3[j], w3[j], w3[j]};
-    a00 += s0 * x0;
-    a01 += s0 * x1;
-    a10 += s1 * x0;
-    a11 += s1 * x1;
-    a20 += s2 * x0;
-    a21 += s2 * x1;
-    a30 += s3 * x0;
-    a31 += s3 * x1;
-  }
-  acc[0] = a00;
-  acc[1] = a01;
-  acc[2] = a10;
-  acc[3] = a11;
-  acc[4] = a20;
-  acc[5] = a21;
-  acc[6] = a30;
-  acc[7] = a31;
+  GEMM_BLOCK(v4d, 4);
+}
+
+typedef double v8d __attribute__((vector_size(64)));
+
+static inline __attribute__((always_inline)) void
+gemm_block16(const double *const w[4], int k, int nc, const double *A, int c, v4d acc[16]) {
+  GEMM_BLOCK(v8d, 8);
+}
+#undef GEMM_BLOCK
+
+/* Columns c + 4h .. c + 4h + 3 of a 4-row group, rows r0..r3 (one vector
+ * each), to the lanes layout: two 4 x 4 transposes' worth. */
+static inline __attribute__((always_inline)) void lanes_store4(v4d r0, v4d r1, v4d r2, v4d r3,
+                                                               double *oc) {
+  const v4d t0 = SHUF2(r0, r1, 0, 4, 2, 6), t1 = SHUF2(r0, r1, 1, 5, 3, 7);
+  const v4d t2 = SHUF2(r2, r3, 0, 4, 2, 6), t3 = SHUF2(r2, r3, 1, 5, 3, 7);
+  const v4d c0 = SHUF2(t0, t2, 0, 1, 4, 5), c1 = SHUF2(t1, t3, 0, 1, 4, 5);
+  const v4d c2 = SHUF2(t0, t2, 2, 3, 6, 7), c3 = SHUF2(t1, t3, 2, 3, 6, 7);
+  memcpy(oc, &c0, sizeof c0);
+  memcpy(oc + 4, &c1, sizeof c1);
+  memcpy(oc + 8, &c2, sizeof c2);
+  memcpy(oc + 12, &c3, sizeof c3);
 }
 #endif
 
@@ -84,26 +107,29 @@ BSURF_CLONES
 void bsurf_gemm_lanes(int R, int k, int nc, const double *restrict W, const double *restrict A,
                       double *restrict out) {
 #ifdef HAVE_V4D
+  int wide = 0; /* 16 columns at a time where the clone has 512-bit vectors */
+#if defined(__x86_64__) && !defined(__clang__)
+  wide = __builtin_cpu_supports("avx512f");
+#endif
   for (int b = 0; b < R; b += 4) {
     const double *w[4] = {&W[(size_t)b * k], &W[(size_t)(b + 1) * k], &W[(size_t)(b + 2) * k],
                           &W[(size_t)(b + 3) * k]};
     double *o = &out[(size_t)b * nc];
-    for (int c = 0; c < nc; c += 8) {
+    int c = 0;
+    if (wide)
+      for (; c + 16 <= nc; c += 16) {
+        v4d acc[16];
+        gemm_block16(w, k, nc, A, c, acc);
+        /* column c + 4q + l of rows 0..3 is one vector */
+        for (int q = 0; q < 4; q++)
+          lanes_store4(acc[q], acc[4 + q], acc[8 + q], acc[12 + q], &o[(size_t)(c + 4 * q) * 4]);
+      }
+    for (; c < nc; c += 8) {
       v4d acc[8];
       gemm_block(w, k, nc, A, c, acc);
       /* two 4 x 4 transposes: column c + 4h + l of rows 0..3 is one vector */
-      for (int h = 0; h < 2; h++) {
-        const v4d r0 = acc[h], r1 = acc[2 + h], r2 = acc[4 + h], r3 = acc[6 + h];
-        const v4d t0 = SHUF2(r0, r1, 0, 4, 2, 6), t1 = SHUF2(r0, r1, 1, 5, 3, 7);
-        const v4d t2 = SHUF2(r2, r3, 0, 4, 2, 6), t3 = SHUF2(r2, r3, 1, 5, 3, 7);
-        const v4d c0 = SHUF2(t0, t2, 0, 1, 4, 5), c1 = SHUF2(t1, t3, 0, 1, 4, 5);
-        const v4d c2 = SHUF2(t0, t2, 2, 3, 6, 7), c3 = SHUF2(t1, t3, 2, 3, 6, 7);
-        double *oc = &o[(size_t)(c + 4 * h) * 4];
-        memcpy(oc, &c0, sizeof c0);
-        memcpy(oc + 4, &c1, sizeof c1);
-        memcpy(oc + 8, &c2, sizeof c2);
-        memcpy(oc + 12, &c3, sizeof c3);
-      }
+      for (int h = 0; h < 2; h++)
+        lanes_store4(acc[h], acc[2 + h], acc[4 + h], acc[6 + h], &o[(size_t)(c + 4 * h) * 4]);
     }
   }
 #else

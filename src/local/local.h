@@ -162,6 +162,13 @@ void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, c
  * coordinates (u, v): (-f_x, -f_y, 1) / |.|, f_x = (df/du) / scale. */
 void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, int degree,
                            const double *coef, double u, double v, double n[3]);
+/* The same unit normal in the frame's coordinates (before the rotation). */
+void bsurf_localfit_normal_local(const bsurf_localfit *lf, int degree, const double *coef, double u,
+                                 double v, double l[3]);
+/* bsurf_localfit_normal_local of n fits at one point (coefs: n rows of
+ * bsurf_poly_terms(degree)), out[3 b ..]: the same bits, in vector lanes. */
+void bsurf_localfit_normals_local(const bsurf_localfit *lf, int degree, int n, const double *coefs,
+                                  double u, double v, double *out);
 
 /* The fit's height at a point given in unscaled local coordinates. */
 double bsurf_localfit_eval(const bsurf_localfit *lf, int degree, const double *coef, double x,

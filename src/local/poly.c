@@ -588,27 +588,62 @@ void bsurf_localfit_residual_sums(const bsurf_localfit *lf, int degree, int B, c
 #endif
 }
 
-void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, int degree,
-                           const double *coef, double u, double v, double n[3]) {
+/* The gradient (f_u, f_v) of the fit `coef` at the point whose basis
+ * gradient is (du, dv), or at the frame's origin (the point d_i itself,
+ * du NULL): there the linear terms (the general sum adds only zeros to
+ * them); then (-f_u / s, -f_v / s, 1) normalised (Eq. 5.9). */
+static inline __attribute__((always_inline)) void normal_local(double scale, int m,
+                                                               const double *coef, const double *du,
+                                                               const double *dv, double l[3]) {
   double fu = 0, fv = 0;
-  if (u == 0 && v == 0 && degree >= 1) {
-    /* at the frame's origin (the point d_i itself): the gradient is the
-     * linear terms (the general sum adds only zeros to them) */
+  if (!du) {
     fu = 0 + coef[1];
     fv = 0 + coef[2];
   } else {
-    double du[BSURF_TERMS_MAX], dv[BSURF_TERMS_MAX];
-    bsurf_poly_basis_grad(degree, u, v, du, dv);
-    for (int a = 0; a < bsurf_poly_terms(degree); a++) {
+    for (int a = 0; a < m; a++) {
       fu += coef[a] * du[a];
       fv += coef[a] * dv[a];
     }
   }
   /* r = (x, y, f(x, y)): r_x x r_y = (-f_x, -f_y, 1) (Eq. 5.9) */
-  double l[3] = {-fu / lf->scale, -fv / lf->scale, 1.0};
+  l[0] = -fu / scale, l[1] = -fv / scale, l[2] = 1.0;
   double len = sqrt(l[0] * l[0] + l[1] * l[1] + 1.0);
   for (int t = 0; t < 3; t++)
     l[t] /= len;
+}
+
+void bsurf_localfit_normal_local(const bsurf_localfit *lf, int degree, const double *coef, double u,
+                                 double v, double l[3]) {
+  double du[BSURF_TERMS_MAX], dv[BSURF_TERMS_MAX];
+  const int origin = u == 0 && v == 0 && degree >= 1;
+  if (!origin) bsurf_poly_basis_grad(degree, u, v, du, dv);
+  normal_local(lf->scale, bsurf_poly_terms(degree), coef, origin ? NULL : du, origin ? NULL : dv,
+               l);
+}
+
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-trapping-math")))
+#endif
+BSURF_CLONES void
+bsurf_localfit_normals_local(const bsurf_localfit *lf, int degree, int n, const double *coefs,
+                             double u, double v, double *out) {
+  double du[BSURF_TERMS_MAX], dv[BSURF_TERMS_MAX];
+  const int m = bsurf_poly_terms(degree);
+  const double scale = lf->scale;
+  if (u == 0 && v == 0 && degree >= 1) {
+    for (int b = 0; b < n; b++) /* the loop in vector lanes */
+      normal_local(scale, m, &coefs[(size_t)b * m], NULL, NULL, &out[3 * (size_t)b]);
+  } else {
+    bsurf_poly_basis_grad(degree, u, v, du, dv);
+    for (int b = 0; b < n; b++)
+      normal_local(scale, m, &coefs[(size_t)b * m], du, dv, &out[3 * (size_t)b]);
+  }
+}
+
+void bsurf_localfit_normal(const bsurf_localfit *lf, const bsurf_frame *frame, int degree,
+                           const double *coef, double u, double v, double n[3]) {
+  double l[3];
+  bsurf_localfit_normal_local(lf, degree, coef, u, v, l);
   bsurf_frame_dir_to_global(frame, l, n);
 }
 
