@@ -38,7 +38,7 @@ static int parse_length(const char *text, int allow_w, double *value, int *in_h,
 
 int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   bsurf_smooth_options so = bsurf_smooth_options_default();
-  const char *method = "bilateral", *order = "parallel", *estimator = "auto", *gamma = "fit",
+  const char *method = "auto", *order = "parallel", *estimator = "auto", *gamma = "fit",
              *center = "centroid", *threshold = "auto", *h1_text = "auto", *h2_text = "auto",
              *kerr_text = "none", *guard = "on", *dtest = "auto", *output = NULL,
              *memory_limit = "auto", *a_text = "auto", *iter_text = "auto";
@@ -46,8 +46,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   int ascii = 0, json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
       {0, "method", ARG_STRING, &method, "M",
-       "naive (Eq. 6.1), bilateral (Algorithm 4, Eq. 6.2) or multipass (Algorithm 5; not tiled: "
-       "--iterations passes reach as many rings)",
+       "naive (Eq. 6.1), bilateral (Algorithm 4, Eq. 6.2), multipass (Algorithm 5; not tiled: "
+       "--iterations passes reach as many rings) or auto (multipass in memory, bilateral in "
+       "tiled runs)",
        1, 0},
       {'k', "neighbors", ARG_INT, &so.error.k, "K", "neighbourhood size K, the point included", 2,
        65535},
@@ -121,10 +122,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
   if (!output) return cli_usage_error(cmd, "-o OUTPUT is required");
-  static const char *const methods[] = {"naive", "bilateral", "multipass"};
+  static const char *const methods[] = {"naive", "bilateral", "multipass", "auto"};
   static const char *const orders[] = {"parallel", "sequential"};
   static const char *const estimators[] = {"auto", "632", "632plus"};
-  int mi = cli_choice(method, methods, 3), oi = cli_choice(order, orders, 2);
+  int mi = cli_choice(method, methods, 4), oi = cli_choice(order, orders, 2);
   int ei = cli_choice(estimator, estimators, 3);
   static const char *const onoff[] = {"off", "on"};
   int gi = cli_choice(guard, onoff, 2);
@@ -135,7 +136,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   if (di < 0) return cli_usage_error(cmd, "--degree-test must be auto, on or off, not '%s'", dtest);
   so.degree_test = di == 2 ? -1 : di;
   if (mi < 0)
-    return cli_usage_error(cmd, "--method must be naive, bilateral or multipass, not '%s'", method);
+    return cli_usage_error(cmd, "--method must be naive, bilateral, multipass or auto, not '%s'",
+                           method);
   if (oi < 0)
     return cli_usage_error(cmd, "--order must be parallel or sequential, not '%s'", order);
   if (ei < 0)
@@ -200,9 +202,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   if (rc) return rc;
   if (plan && so.method == BSURF_SMOOTH_MULTIPASS)
     return cli_error(
-        "%s: smooth --method multipass is not available in tiled runs: it runs --iterations passes "
-        "(300), each reaching one neighbourhood ring further, so a tile would need a halo of "
-        "that many rings",
+        "%s: smooth --method multipass is not available in tiled runs: it runs --iterations "
+        "passes, "
+        "each reaching one neighbourhood ring further, so a tile would need a halo of that many "
+        "rings (--method auto, the default, runs bilateral in tiles)",
         pos[0]);
   if (plan && !nv)
     return cli_error(
@@ -231,6 +234,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   const double h = sum.h, *means = sum.means;
   const int nfields = sum.field_count;
   const char *est_used = sum.estimator;
+  so.method = sum.method; /* auto resolved: what ran */
+  method = methods[sum.method];
   double secs = cli_now() - t0;
   double hh = h > 0 ? h : 1;
   if (json) {

@@ -610,7 +610,12 @@ BSURF_API bsurf_status bsurf_orient_normals(const double *xyz, const bsurf_neigh
 typedef enum bsurf_smooth_method {
   BSURF_SMOOTH_NAIVE = 0, /* 6.2, Eq. 6.1: projection to the mean bootstrap fit */
   BSURF_SMOOTH_BILATERAL, /* 6.3, Algorithm 4, Eq. 6.2 */
-  BSURF_SMOOTH_MULTIPASS  /* 6.4, Algorithm 5, Eqs. 6.3-6.5 */
+  BSURF_SMOOTH_MULTIPASS, /* 6.4, Algorithm 5, Eqs. 6.3-6.5 */
+  /* the default: MULTIPASS in memory (at its defaults it is below BILATERAL
+   * on 35 of the 38 development cases, docs/smoothing.md), BILATERAL in
+   * tiled runs, where MULTIPASS is refused (its passes reach one ring
+   * further each); bsurf_smooth_job_summary.method says which ran */
+  BSURF_SMOOTH_AUTO
 } bsurf_smooth_method;
 
 typedef enum bsurf_smooth_order {
@@ -626,7 +631,7 @@ typedef enum bsurf_smooth_estimator {
 } bsurf_smooth_estimator;
 
 typedef struct bsurf_smooth_options {
-  bsurf_smooth_method method;       /* BILATERAL */
+  bsurf_smooth_method method;       /* AUTO */
   bsurf_error_options error;        /* K, degree, B, seed, gamma, PCA centre,
                                        threads, progress of the bootstrap pass */
   bsurf_smooth_estimator estimator; /* which error is W_i (DEFAULT) */
@@ -1562,6 +1567,7 @@ typedef struct bsurf_smooth_job_summary {
                                                        moved, k_hat, d_local */
   double means[BSURF_SMOOTH_JOB_FIELDS];
   size_t tile_points, tiles, bad_point; /* as bsurf_normals_job_summary */
+  bsurf_smooth_method method;           /* the method that ran (AUTO resolved) */
 } bsurf_smooth_job_summary;
 
 /* Denoising driven by the bootstrap error (bsurf_smooth), in memory or

@@ -154,13 +154,16 @@ static void test_normals_job(void **state) {
   run_normals(&o, "normals_degree");
 }
 
-static void run_smooth(const bsurf_smooth_job_options *o, const char *name) {
+/* o in memory, ot (NULL: o) in tiles: the same bytes */
+static void run_smooth(const bsurf_smooth_job_options *o, const bsurf_smooth_job_options *ot,
+                       const char *name) {
   pair p;
   pair_open(&p, name);
   bsurf_smooth_job_summary sm, st;
   bsurf_failure err = {0, -1, ""};
   assert_int_equal(bsurf_smooth_job(&p.mem, o, &sm, NULL), BSURF_OK);
-  assert_int_equal(bsurf_smooth_job(&p.tiled, o, &st, &err), BSURF_OK);
+  assert_int_equal(bsurf_smooth_job(&p.tiled, ot ? ot : o, &st, &err), BSURF_OK);
+  assert_int_equal(sm.method, st.method);
   assert_null(p.c.normals); /* they belonged to the points before they moved */
   assert_int_equal(sm.points, st.points);
   assert_memory_equal(&sm.h, &st.h, sizeof sm.h);
@@ -192,11 +195,33 @@ static void test_smooth_job(void **state) {
   o.smooth.error.bootstrap = 6;
   o.smooth.h1 = 1.5; /* 1.5 h */
   o.h1_in_h = 1;
-  run_smooth(&o, "bilateral");
+  /* the default, AUTO: bilateral in tiles, the bytes of BILATERAL in memory */
+  assert_int_equal(o.smooth.method, BSURF_SMOOTH_AUTO);
+  bsurf_smooth_job_options ob = o;
+  ob.smooth.method = BSURF_SMOOTH_BILATERAL;
+  run_smooth(&ob, &o, "bilateral");
+  /* AUTO in memory: multipass, bit for bit */
+  bsurf_smooth_job_options om = o;
+  om.smooth.method = BSURF_SMOOTH_MULTIPASS;
+  bsurf_cloud c[2];
+  for (int r = 0; r < 2; r++) {
+    bsurf_failure err;
+    bsurf_cloud_init(&c[r]);
+    assert_int_equal(bsurf_read(input_path(), &c[r], &err), BSURF_OK);
+    bsurf_job_io io = {0};
+    io.cloud = &c[r];
+    bsurf_smooth_job_summary s;
+    assert_int_equal(bsurf_smooth_job(&io, r ? &om : &o, &s, NULL), BSURF_OK);
+    assert_int_equal(s.method, BSURF_SMOOTH_MULTIPASS);
+    assert_int_equal(s.field_count, 5);
+  }
+  assert_memory_equal(c[0].xyz, c[1].xyz, c[0].point_count * 3 * sizeof(double));
+  for (int r = 0; r < 2; r++)
+    bsurf_cloud_free(&c[r]);
   o.smooth.method = BSURF_SMOOTH_NAIVE;
   o.smooth.threshold = 0.8; /* 0.8 h */
   o.threshold_in_h = 1;
-  run_smooth(&o, "naive");
+  run_smooth(&o, NULL, "naive");
 }
 
 static void run_features(const bsurf_feature_options *o, const char *name) {

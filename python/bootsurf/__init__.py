@@ -369,7 +369,7 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
 
 # ---------------------------------------------------------------- chapter 6
 
-_METHODS = ("naive", "bilateral", "multipass")
+_METHODS = ("naive", "bilateral", "multipass", "auto")
 _ORDERS = ("parallel", "sequential")
 _ESTIMATORS = ("auto", "632", "632plus")
 
@@ -401,11 +401,11 @@ def _length(value, option, allow_w=False):
 _DEGREE_TESTS = ("auto", "off", "on")  # degree_test -1, 0, 1
 
 
-def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, gamma="fit",
+def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma="fit",
            pca_center="centroid", estimator="auto", threshold="auto", h1="auto", h2="auto",
            order="parallel", a="auto", iterations="auto", k_min=10, k_error="none", guard="on",
            degree_test="auto", seed=1, threads=0, output=None, tile_points=None, progress=None):
-    """smooth(points, *, method='bilateral', neighbors=50, degree=3,
+    """smooth(points, *, method='auto', neighbors=50, degree=3,
     bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
     threshold='auto', h1='auto', h2='auto', order='parallel', a='auto',
     iterations='auto', k_min=10, k_error='none', guard='on', degree_test='auto',
@@ -424,7 +424,8 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
 
     Options (lengths: a number in model units, 'Xh' in units of the mean
     spacing h, and for h2 and k_error 'XW', X times the mean error |W|):
-      method       naive, bilateral or multipass
+      method       naive, bilateral, multipass or auto (multipass in memory,
+                   bilateral in tiled runs; summary['method'] says which ran)
       neighbors, degree, bootstrap, gamma, pca_center, seed: as error()
       estimator    the error W_i: 632, 632plus or auto (.632+ for naive,
                    .632 otherwise)
@@ -458,7 +459,7 @@ def smooth(points, *, method="bilateral", neighbors=50, degree=3, bootstrap=50, 
 
     Returns (points, fields, summary): the moved points (N, 3) (the input is
     not modified), fields err_632, err_632plus, moved (and k_hat, d_local
-    for multipass), and the summary (h, estimator, means, report).
+    for multipass), and the summary (h, method, estimator, means, report).
     """
     thr, thr_h = _math.nan, False
     if threshold == "none":

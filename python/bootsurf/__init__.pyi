@@ -142,7 +142,7 @@ Length = Union[float, str]
 def smooth(
     points: Points,
     *,
-    method: Literal["naive", "bilateral", "multipass"] = ...,
+    method: Literal["naive", "bilateral", "multipass", "auto"] = ...,
     neighbors: int = ...,
     degree: int = ...,
     bootstrap: int = ...,

@@ -864,7 +864,11 @@ static PyObject *py_smooth(PyObject *self, PyObject *args) {
       points, fields,
       job_summary(
           s.points, s.h, s.duplicates, s.tile_points, s.tiles,
-          Py_BuildValue("{s:s,s:N,s:N}", "estimator", s.estimator ? s.estimator : "", "means",
+          Py_BuildValue("{s:s,s:s,s:N,s:N}", "method",
+                        s.method == BSURF_SMOOTH_NAIVE       ? "naive"
+                        : s.method == BSURF_SMOOTH_BILATERAL ? "bilateral"
+                                                             : "multipass",
+                        "estimator", s.estimator ? s.estimator : "", "means",
                         means_dict(s.field_names, s.means, s.field_count), "report",
                         Py_BuildValue("{s:N,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:d,s:d,s:i,s:d,s:n}",
                                       "error", report_error(&r->error), "mean_error", r->mean_error,

@@ -61,7 +61,7 @@
 bsurf_smooth_options bsurf_smooth_options_default(void) {
   /* every member not named is zero */
   bsurf_smooth_options o = {
-      .method = BSURF_SMOOTH_BILATERAL,
+      .method = BSURF_SMOOTH_AUTO,
       .error = bsurf_error_options_default(),
       .estimator = BSURF_SMOOTH_EST_DEFAULT,
       .threshold = NAN,
@@ -373,6 +373,7 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
                                 double *out_xyz, bsurf_smooth_fields *fields,
                                 bsurf_smooth_report *report) {
   bsurf_smooth_options o = opts ? *opts : bsurf_smooth_options_default();
+  if (o.method == BSURF_SMOOTH_AUTO) o.method = BSURF_SMOOTH_MULTIPASS; /* in memory */
   if (report) memset(report, 0, sizeof *report);
   BSURF_REQUIRE_IN("bsurf_smooth", xyz, "xyz is NULL");
   BSURF_REQUIRE_IN("bsurf_smooth", out_xyz, "out_xyz is NULL");

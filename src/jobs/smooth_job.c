@@ -369,6 +369,8 @@ bsurf_status bsurf_smooth_job(const bsurf_job_io *io, const bsurf_smooth_job_opt
                               bsurf_smooth_job_summary *summary, bsurf_failure *err) {
   bsurf_status st = bsurf_jobs_begin(SJ, io, summary, sizeof *summary);
   bsurf_smooth_job_options o = opts ? *opts : bsurf_smooth_job_options_default();
+  if (o.smooth.method == BSURF_SMOOTH_AUTO) /* multipass is in memory only */
+    o.smooth.method = io->cloud ? BSURF_SMOOTH_MULTIPASS : BSURF_SMOOTH_BILATERAL;
   if (st == BSURF_OK) st = smooth_check(&o, io->cloud == NULL);
   if (st != BSURF_OK) return st;
   const bsurf_smooth_options *so = &o.smooth;
@@ -377,6 +379,7 @@ bsurf_status bsurf_smooth_job(const bsurf_job_io *io, const bsurf_smooth_job_opt
               (so->estimator == BSURF_SMOOTH_EST_DEFAULT && so->method == BSURF_SMOOTH_NAIVE)
           ? "err_632plus"
           : "err_632";
+  summary->method = so->method;
   summary->field_count = so->method == BSURF_SMOOTH_MULTIPASS ? 5 : 3;
   for (int f = 0; f < BSURF_SMOOTH_JOB_FIELDS; f++)
     summary->field_names[f] = smooth_field_names[f];

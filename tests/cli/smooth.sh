@@ -35,11 +35,22 @@ cmp -s "$T/b.parallel.ply" "$T/b.sequential.ply" && fail "the two orders gave th
 expect 0 "multipass sequential" -- "$BSURF" smooth "$T/n.ply" --order sequential --iterations 3 -k 30 -B 20 \
   --a 0.5 --h2 0.01 --k-min 12 --k-error 0.5h -o "$T/x.ply" -q
 expect 0 "multipass k-error in W" -- "$BSURF" smooth "$T/n.ply" --method multipass --iterations 2 -k 30 -B 20 --k-error 2W -o "$T/x.ply" -q
+# the default method, auto: multipass in memory, bilateral in tiles (multipass is not tiled)
+expect 0 "auto" -- "$BSURF" smooth "$T/n.ply" -k 30 -B 20 -o "$T/auto.ply" --json
+grep -qF '"method":"multipass"' "$T/out" && ok || fail "auto in memory is not multipass"
+expect 0 "multipass named" -- "$BSURF" smooth "$T/n.ply" --method multipass -k 30 -B 20 -o "$T/mp.ply" -q
+cmp -s "$T/auto.ply" "$T/mp.ply" && ok || fail "auto in memory differs from --method multipass"
+expect 0 "auto tiled" -- "$BSURF" smooth "$T/n.ply" -k 30 -B 20 --tile-points 1500 -o "$T/auto_t.ply" --json
+grep -qF '"method":"bilateral"' "$T/out" && ok || fail "auto in tiles is not bilateral"
+expect 0 "bilateral named" -- "$BSURF" smooth "$T/n.ply" --method bilateral -k 30 -B 20 -o "$T/bil.ply" -q
+cmp -s "$T/auto_t.ply" "$T/bil.ply" && ok || fail "auto in tiles differs from --method bilateral"
+expect 1 "multipass tiled" -- "$BSURF" smooth "$T/n.ply" --method multipass -k 30 -B 20 --tile-points 1500 -o "$T/x.ply"
+stderr_has "not available in tiled runs" "multipass tiled message"
 [ "$(cksum <"$T/n.ply")" = "$sum_before" ] && ok || fail "input modified"
 # bad usage (exit 2) and bad input (exit 1), never an output
 rm -f "$T/x.ply"
 expect 2 "bad method" -- "$BSURF" smooth "$T/n.ply" --method mls -o "$T/x.ply"
-stderr_has "--method must be naive, bilateral or multipass" "bad method message"
+stderr_has "--method must be naive, bilateral, multipass or auto" "bad method message"
 expect 2 "bad order" -- "$BSURF" smooth "$T/n.ply" --order random -o "$T/x.ply"
 expect 2 "bad threshold" -- "$BSURF" smooth "$T/n.ply" --threshold low -o "$T/x.ply"
 expect 2 "bad h1" -- "$BSURF" smooth "$T/n.ply" --h1 0 -o "$T/x.ply"
