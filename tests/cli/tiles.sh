@@ -50,7 +50,8 @@ for m in naive bilateral; do
   done
 done
 # the cube: sharp edges, an input with fields of its own; automatic tiling
-expect 0 "smooth cube" -- "$BSURF" smooth "$T/c.ply" -k 10 -d 2 -B 4 -o "$T/sc.ply" -q
+# the default (auto) tiles as bilateral: the in-memory bilateral bytes
+expect 0 "smooth cube" -- "$BSURF" smooth "$T/c.ply" --method bilateral -k 10 -d 2 -B 4 -o "$T/sc.ply" -q
 expect 0 "smooth cube tiles" -- "$BSURF" smooth "$T/c.ply" -k 10 -d 2 -B 4 -o "$T/sct.ply" --memory-limit 1M
 stderr_has "tiles of" "smooth: automatic tiling warns"
 cmp -s "$T/sc.ply" "$T/sct.ply" && ok || fail "smooth cube --memory-limit 1M: output differs"
