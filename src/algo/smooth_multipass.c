@@ -168,8 +168,7 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
     double *srt = bsurf_alloc_array(n, sizeof(double));
     if (!srt) return BSURF_ERR_NOMEM;
     memcpy(srt, c->W, n * sizeof(double));
-    qsort(srt, n, sizeof *srt, bsurf_cmp_double);
-    wn = n % 2 ? srt[n / 2] : 0.5 * (srt[n / 2 - 1] + srt[n / 2]);
+    wn = bsurf_median(srt, n);
     free(srt);
   }
   if (!(o->h2 > 0) && !(o->h2_fraction > 0)) c->h2 = 2.0 * wn;
