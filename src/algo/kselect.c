@@ -364,6 +364,64 @@ static bsurf_status pool_global(double *noise, size_t n) {
   return BSURF_OK;
 }
 
+/* ---- Curve-sampled neighbourhoods (docs/normals.md, "Curve-sampled
+ * neighbourhoods") ----
+ *
+ * Every term above assumes that the K points sample a surface, so that
+ * their two tangent eigenvalues measure its extent. Where a mesh's
+ * vertices lie on rings (CAD meshes of skinny triangles), a point's nearest
+ * neighbours come from one or two rings: a curve, whose PCA plane is its
+ * osculating plane, perpendicular to the surface, while every estimate
+ * above reads a clean plane. The test: the maximum-likelihood estimate of
+ * the intrinsic dimension from the neighbour distances T_1 <= ... <= T_k
+ * (Levina & Bickel 2005, "Maximum likelihood estimation of intrinsic
+ * dimension", NIPS 17): for points that form a Poisson process of dimension
+ * d around the point, the ln(T_k / T_j), j < k, are the order statistics of
+ * k - 1 independent Exp(d) variables, so S = sum_{j<k} ln(T_k / T_j) is
+ * Gamma(k - 1, 1 / d) and, on a surface (d = 2), 4 S is chi^2 with
+ * 2 (k - 1) degrees of freedom. A curve makes S large (d = 1: twice as
+ * large). The point is tested once, on its largest candidate's
+ * neighbourhood (k = K_max - 1 neighbours besides the point), the most
+ * powerful of the nested tests, and a curve at K_max holds its smaller
+ * nested neighbourhoods too; when 4 S exceeds the (1 - CURVE_ALPHA)
+ * quantile (Wilson-Hilferty), no candidate's plane is determined by the
+ * surface and the point is unassessed: the largest candidate (on a ring
+ * its normal is the least wrong) and normal_err pi / 2. Noise thickens a
+ * curve's sample towards three dimensions at the smallest scales, which is
+ * why the test is not made per candidate (at K = 15 joint's vertices read
+ * a median dimension of 1.4-1.5, too close to 2 to be told apart). The
+ * level: one false flag in about 10^5 points of a surface sampled as a
+ * Poisson process; mesh vertices are not one (regular or ring-like
+ * sampling), and the test's level is not calibrated there (docs/normals.md
+ * gives its rates on the development set). Duplicate points (T_j = 0) are
+ * left out of the sum. */
+#define CURVE_Z 4.264890793922825 /* the standard normal's 1 - 1e-5 quantile: CURVE_ALPHA */
+
+/* Whether point i's nearest K - 1 neighbours (idx[0] the point itself,
+ * sorted by distance) sample a curve rather than a surface. */
+static int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, int K) {
+  const double *p = &xyz[3 * i];
+  double lt = 0, s = 0;
+  int m = 0;
+  for (int j = K - 1; j >= 1; j--) {
+    const double *q = &xyz[3 * (size_t)idx[j]];
+    const double r2 = (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) +
+                      (q[2] - p[2]) * (q[2] - p[2]);
+    if (j == K - 1) {
+      if (!(r2 > 0)) return 0;
+      lt = 0.5 * log(r2);
+      continue;
+    }
+    if (!(r2 > 0)) continue; /* duplicates of the point */
+    s += lt - 0.5 * log(r2);
+    m++;
+  }
+  if (m < 2) return 0;
+  /* Wilson-Hilferty: chi^2_nu's quantile at CURVE_Z, nu = 2 m */
+  const double nu = 2.0 * m, w = 1.0 - 2.0 / (9.0 * nu) + CURVE_Z * sqrt(2.0 / (9.0 * nu));
+  return 4.0 * s > nu * w * w * w;
+}
+
 /* Pass 3: every candidate's normal, variance V and quadric bias^2 (noise
  * share removed), their drifts, and the smallest V + Bias^2. */
 static void select_point(void *vctx, int thread, size_t i) {
@@ -423,6 +481,10 @@ static void select_point(void *vctx, int thread, size_t i) {
     }
     qb[a] = b2 - s2 * tr; /* unbiased; clipped at 0 below */
   }
+  /* a curve's sample assesses no candidate (the section above) */
+  if (curve_sampled(c->xyz, idx, i, o->ks[nk - 1]))
+    for (int a = 0; a < nk; a++)
+      var[a] = INFINITY;
   /* the smallest V + Bias^2, each bias estimate the point's own */
   int best = -1;
   double best_mse = INFINITY, *mse = s->mse;
