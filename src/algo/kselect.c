@@ -234,6 +234,7 @@ typedef struct ksel_scratch {
   double *nrm, *var, *qb; /* nk x 3, nk, nk: each candidate's normal, variance, quadric bias^2 */
   double *mse;            /* nk: each candidate's V + Bias^2 */
   double *res;            /* kmax: residuals of the two-sheet test */
+  int *curve;             /* nk: the curve test's per-candidate verdicts */
   bsurf_blocks mem;       /* the arrays above */
   size_t unfit, none;
 } ksel_scratch;
@@ -380,46 +381,60 @@ static bsurf_status pool_global(double *noise, size_t n) {
  * k - 1 independent Exp(d) variables, so S = sum_{j<k} ln(T_k / T_j) is
  * Gamma(k - 1, 1 / d) and, on a surface (d = 2), 4 S is chi^2 with
  * 2 (k - 1) degrees of freedom. A curve makes S large (d = 1: twice as
- * large). The point is tested once, on its largest candidate's
- * neighbourhood (k = K_max - 1 neighbours besides the point), the most
- * powerful of the nested tests, and a curve at K_max holds its smaller
- * nested neighbourhoods too; when 4 S exceeds the (1 - CURVE_ALPHA)
- * quantile (Wilson-Hilferty), no candidate's plane is determined by the
- * surface and the point is unassessed: the largest candidate (on a ring
- * its normal is the least wrong) and normal_err pi / 2. Noise thickens a
- * curve's sample towards three dimensions at the smallest scales, which is
- * why the test is not made per candidate (at K = 15 joint's vertices read
- * a median dimension of 1.4-1.5, too close to 2 to be told apart). The
- * level: one false flag in about 10^5 points of a surface sampled as a
- * Poisson process; mesh vertices are not one (regular or ring-like
- * sampling), and the test's level is not calibrated there (docs/normals.md
- * gives its rates on the development set). Duplicate points (T_j = 0) are
- * left out of the sum. */
+ * large). The point is tested on its largest candidate's neighbourhood
+ * (k = K_max - 1 neighbours besides the point), the most powerful of the
+ * nested tests: noise thickens a curve's sample towards three dimensions
+ * at the smallest scales, so the small candidates' own tests have little
+ * power (at K = 15 joint's vertices read a median dimension of 1.4-1.5).
+ * Where 4 S at K_max exceeds the (1 - CURVE_ALPHA) quantile
+ * (Wilson-Hilferty), the sample is a curve at that scale, and each
+ * candidate whose own neighbourhood reads fewer than two dimensions (its
+ * 4 S above the median of chi^2 on a surface) is not assessed: on CAD
+ * rings that is nearly every candidate, and where none is left the point
+ * is unassessed (the largest candidate, whose normal is the least wrong on
+ * a ring, and normal_err pi / 2); a thin limb, a curve at K_max but a
+ * surface at small K, keeps its small candidates. The level: one false
+ * flag in about 10^5 points of a surface sampled as a Poisson process;
+ * mesh vertices are not one (regular or ring-like sampling), and the
+ * test's level is not calibrated there (docs/normals.md gives its rates on
+ * the development set). Duplicate points (T_j = 0) are left out of the
+ * sums. */
 #define CURVE_Z 4.264890793922825 /* the standard normal's 1 - 1e-5 quantile: CURVE_ALPHA */
 
-/* Whether point i's nearest K - 1 neighbours (idx[0] the point itself,
- * sorted by distance) sample a curve rather than a surface. */
-static int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, int K) {
+/* chi^2_nu's quantile at the standard normal's z (Wilson-Hilferty) */
+static double chi2_quantile_wh(double nu, double z) {
+  const double w = 1.0 - 2.0 / (9.0 * nu) + z * sqrt(2.0 / (9.0 * nu));
+  return nu * w * w * w;
+}
+
+/* The curve test of point i (idx[0] the point itself, the neighbours sorted
+ * by distance): 0 where its K_max - 1 neighbours sample a surface;
+ * otherwise 1, and curve[a] = 1 for each candidate a whose own
+ * neighbourhood reads fewer than two dimensions (its S above the median of
+ * S on a surface; the section above). */
+static int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, const int *ks, int nk,
+                         int *curve) {
   const double *p = &xyz[3 * i];
-  double lt = 0, s = 0;
-  int m = 0;
-  for (int j = K - 1; j >= 1; j--) {
+  double cum = 0; /* sum of ln T_j over the positive distances before j */
+  int m = 0, a = 0, any = 0;
+  const int kmax = ks[nk - 1];
+  for (int j = 1; j < kmax && a < nk; j++) {
     const double *q = &xyz[3 * (size_t)idx[j]];
     const double r2 = (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) +
                       (q[2] - p[2]) * (q[2] - p[2]);
-    if (j == K - 1) {
-      if (!(r2 > 0)) return 0;
-      lt = 0.5 * log(r2);
-      continue;
+    const double lt = r2 > 0 ? 0.5 * log(r2) : 0;
+    if (j == ks[a] - 1) { /* candidate a's farthest neighbour: T_k, k = K - 1 */
+      const double S = m * lt - cum;
+      curve[a] = r2 > 0 && m >= 2 && 4.0 * S > chi2_quantile_wh(2.0 * m, 0.0);
+      if (a == nk - 1) any = r2 > 0 && m >= 2 && 4.0 * S > chi2_quantile_wh(2.0 * m, CURVE_Z);
+      a++;
     }
-    if (!(r2 > 0)) continue; /* duplicates of the point */
-    s += lt - 0.5 * log(r2);
-    m++;
+    if (r2 > 0) { /* duplicates of the point are left out */
+      cum += lt;
+      m++;
+    }
   }
-  if (m < 2) return 0;
-  /* Wilson-Hilferty: chi^2_nu's quantile at CURVE_Z, nu = 2 m */
-  const double nu = 2.0 * m, w = 1.0 - 2.0 / (9.0 * nu) + CURVE_Z * sqrt(2.0 / (9.0 * nu));
-  return 4.0 * s > nu * w * w * w;
+  return any;
 }
 
 /* Pass 3: every candidate's normal, variance V and quadric bias^2 (noise
@@ -481,10 +496,11 @@ static void select_point(void *vctx, int thread, size_t i) {
     }
     qb[a] = b2 - s2 * tr; /* unbiased; clipped at 0 below */
   }
-  /* a curve's sample assesses no candidate (the section above) */
-  if (curve_sampled(c->xyz, idx, i, o->ks[nk - 1]))
+  /* where the K_max neighbours sample a curve, the candidates that read
+   * fewer than two dimensions are not assessed (the section above) */
+  if (curve_sampled(c->xyz, idx, i, o->ks, nk, s->curve))
     for (int a = 0; a < nk; a++)
-      var[a] = INFINITY;
+      if (s->curve[a]) var[a] = INFINITY;
   /* the smallest V + Bias^2, each bias estimate the point's own */
   int best = -1;
   double best_mse = INFINITY, *mse = s->mse;
@@ -696,6 +712,7 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
     s->qb = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->mse = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->res = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
+    s->curve = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(int));
     st = bsurf_blocks_status(&s->mem);
   }
   uint32_t *owned = NULL;
