@@ -136,7 +136,10 @@ bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int 
 }
 
 /* ---- the null's scale: the expected lambda0 of a smooth patch ----
- * s^2 = median lambda0 is the noise where the cloud is flat. On a curved
+ * The thesis (7.2.1): "a high variance is caused either by noise or the
+ * presence of a feature. Assuming that the noise level is uniform, a high
+ * value of variance will signify the feature area". s^2 = median lambda0 is
+ * that uniform level, the noise where the cloud is flat. On a curved
  * smooth patch the plane fit's residual also holds the patch's departure
  * from its tangent plane: for h = (k1 x^2 + k2 y^2) / 2 sampled uniformly
  * on a disc of radius r (E x^2 = r^2 / 4, E x^4 = r^4 / 8, E x^2 y^2 =

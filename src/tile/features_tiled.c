@@ -366,6 +366,7 @@ typedef struct fv_run {
   fd_run fd; /* first: the stages get &fd as their user */
   double s2;
   bsurf_fvar_fit fit;
+  int col; /* (v2)'s column */
   double *all;
   size_t nall, features;
   bsurf_fvar_result res;
@@ -430,23 +431,11 @@ static bsurf_status run_var_filter(void *user, const bsurf_tile *t, bsurf_cloud 
   return st;
 }
 
-/* (v2): the second or third of the NV values into v->all */
-static void scan_col1(void *vv, size_t count, const double *x) {
+/* (v2): the column v->col of the NV values into v->all */
+static void scan_col(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[NV * i + 1];
-}
-
-static void scan_col2(void *vv, size_t count, const double *x) {
-  fv_run *v = vv;
-  for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[NV * i + 2];
-}
-
-static void scan_col5(void *vv, size_t count, const double *x) {
-  fv_run *v = vv;
-  for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[NV * i + 5];
+    v->all[v->nall++] = x[NV * i + (size_t)v->col];
 }
 
 /* lambda0 into its bin of g (bsurf_fvar_fit) */
@@ -513,15 +502,18 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   double eta = 0;
   if (st == BSURF_OK && !(v.all = bsurf_alloc_array(local.count ? local.count : 1, sizeof(double))))
     st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col1);
+  v.col = 1;
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col);
   if (st == BSURF_OK) v.s2 = bsurf_median(v.all, v.nall);
   v.nall = 0;
-  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col5);
+  v.col = 5;
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col);
   if (st == BSURF_OK) bsurf_fvar_fit_prepare(&v.fit, v.all, v.nall);
   if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_fit);
   if (st == BSURF_OK) bsurf_fvar_fit_solve(&v.fit, v.all, v.s2);
   v.nall = 0;
-  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col2);
+  v.col = 2;
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col);
   if (st == BSURF_OK) eta = bsurf_median(v.all, v.nall);
   st = agree_local(cm, st);
   /* (v3) */
