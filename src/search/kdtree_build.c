@@ -215,12 +215,15 @@ static bsurf_status knn_build(const char *who, bsurf_knn_index **index, const do
     ix->box_lo[d] = INFINITY;
     ix->box_hi[d] = -INFINITY;
   }
+  int finite = 1;
   for (size_t i = 0; i < point_count; i++)
     for (int d = 0; d < 3; d++) {
       const double v = xyz[3 * i + d];
       if (v < ix->box_lo[d]) ix->box_lo[d] = v;
       if (v > ix->box_hi[d]) ix->box_hi[d] = v;
+      finite &= isfinite(v) != 0;
     }
+  ix->finite = finite;
 
   for (int d = 0; d < 3; d++)
     b.c[d] = ix->xyz[d];

@@ -52,6 +52,16 @@ bsurf_status bsurf_neighbors_stream(const double *xyz, size_t point_count, int k
                                     size_t *duplicates, bsurf_progress_fn progress,
                                     void *progress_user);
 
+/* For the tests: the all-kNN's paths (knn_all.c). batches 0: every query
+ * by the tree search; simd 0: the batches' portable scan instead of
+ * AVX-512. The default is both on (AVX-512 where the processor has it). Not
+ * to be called while an all-kNN runs. */
+void bsurf_knn_set_paths(int batches, int simd);
+/* For the tests: the last all-kNN's batches searched through their gathered
+ * candidates [0] and through the tree [1], and its queries answered from the
+ * candidates [2] and by the tree search after the candidates fell short [3]. */
+void bsurf_knn_path_counts(size_t counts[4]);
+
 /* 1 when the points at a and b have the same coordinates. */
 static inline int bsurf_same_place(const double *a, const double *b) {
   return a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
