@@ -196,11 +196,17 @@ double bsurf_knn_i_buffer_sort(knn_buffer *b) {
   knn_entry *e = b->e;
   double lo = INFINITY, hi = -INFINITY;
   int nan = 0, keep = n;
-  for (int i = 0; i < n; i++) {
-    const double d = e[i].d;
-    lo = d < lo ? d : lo;
-    hi = d > hi ? d : hi;
-    nan |= isnan(d);
+  if (b->ranged) { /* from the scan's registers: reading the entries just stored stalled */
+    lo = b->lo;
+    hi = b->hi;
+    b->ranged = 0;
+  } else {
+    for (int i = 0; i < n; i++) {
+      const double d = e[i].d;
+      lo = d < lo ? d : lo;
+      hi = d > hi ? d : hi;
+      nan |= isnan(d);
+    }
   }
   /* KNN_SPREAD buckets per entry: fewer entries share a bucket, so fewer
    * are out of order for the insertion sort. */

@@ -74,6 +74,8 @@ typedef struct knn_buffer {
   int cap;
   int k;
   int count;
+  int ranged;    /* 1: lo and hi bound the entries' distances (none NaN), set by the scan */
+  double lo, hi; /* (the sort then skips its own pass over them) */
 } knn_buffer;
 
 #if defined(__GNUC__)

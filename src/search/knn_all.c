@@ -35,8 +35,9 @@
  * Output. Rows go to idx and dist2 at the point's index (rows are in input
  * order, queries in tree order: the next query's rows are prefetched), or,
  * streamed, to the caller's function from a per-thread array. Queries run in
- * parallel over batches (OpenMP, dynamic chunks of KNN_DYNAMIC_BATCHES), each
- * writing only its own row: the result is the same for any thread count.
+ * parallel over batches (OpenMP threads taking chunks of KNN_DYNAMIC_BATCHES
+ * batches), each writing only its own row: the result is the same for any
+ * thread count.
  */
 #include "search/kdtree.h"
 
@@ -46,7 +47,7 @@
 
 /* A batch: the points of a node of at most this many points (a leaf holds
  * 8..16). */
-#define KNN_BATCH_MAX 16
+#define KNN_BATCH_MAX 32
 /* r2 = the previous batch's largest (k - 1)-th distance times this. */
 #define KNN_SLACK 1.25
 /* Batches handed to a thread at a time (dynamic schedule). */
@@ -292,6 +293,16 @@ static int knn_scan_cands(knn_thread *t, uint32_t self, const double *q, double 
 #if defined(__GNUC__) && defined(__x86_64__)
 #include <immintrin.h>
 #define KNN_HAVE_AVX512 1
+/* The smallest and largest distance kept (their lanes), for the sort. A
+ * NaN distance (not with finite coordinates, which the batches need) would
+ * be left out of both: then the sort's own pass. */
+__attribute__((target("avx512f"))) static inline void knn_buffer_range(knn_buffer *buf, __m512d lo,
+                                                                       __m512d hi) {
+  buf->lo = _mm512_reduce_min_pd(lo);
+  buf->hi = _mm512_reduce_max_pd(hi);
+  buf->ranged = 1;
+}
+
 /* knn_scan_cands in AVX-512 (eight lanes; the same operations in the same
  * order, so the same distances, and the same entries in the same order):
  * the lanes kept are compressed, and each (distance, index | position << 32)
@@ -302,9 +313,13 @@ __attribute__((target("avx512f"))) static int knn_scan_cands_avx512(knn_thread *
   const __m512d qx = _mm512_set1_pd(q[0]), qy = _mm512_set1_pd(q[1]), qz = _mm512_set1_pd(q[2]);
   const __m512i first = _mm512_set_epi64(11, 3, 10, 2, 9, 1, 8, 0);
   const __m512i second = _mm512_set_epi64(15, 7, 14, 6, 13, 5, 12, 4);
+  __m512d lo = _mm512_set1_pd(INFINITY), hi = _mm512_set1_pd(-INFINITY);
   buf->count = 0;
   for (unsigned b = 0; b < (unsigned)t->cn; b += 8) {
-    if (buf->count > buf->cap - KNN_BLOCK) bound = bsurf_knn_i_buffer_sort(buf);
+    if (buf->count > buf->cap - KNN_BLOCK) {
+      knn_buffer_range(buf, lo, hi);
+      bound = bsurf_knn_i_buffer_sort(buf);
+    }
     const __m512d x = _mm512_sub_pd(qx, _mm512_loadu_pd(t->cx + b));
     const __m512d y = _mm512_sub_pd(qy, _mm512_loadu_pd(t->cy + b));
     const __m512d z = _mm512_sub_pd(qz, _mm512_loadu_pd(t->cz + b));
@@ -321,7 +336,10 @@ __attribute__((target("avx512f"))) static int knn_scan_cands_avx512(knn_thread *
     _mm512_storeu_pd(out, _mm512_permutex2var_pd(dc, first, ic));
     _mm512_storeu_pd(out + 8, _mm512_permutex2var_pd(dc, second, ic));
     buf->count += __builtin_popcount(keep);
+    lo = _mm512_mask_min_pd(lo, (__mmask8)keep, lo, d);
+    hi = _mm512_mask_max_pd(hi, (__mmask8)keep, hi, d);
   }
+  knn_buffer_range(buf, lo, hi);
   bsurf_knn_i_buffer_sort(buf);
   return buf->count == buf->k;
 }
@@ -526,32 +544,42 @@ static bsurf_status knn_all_run(const bsurf_knn_index *index, int k, int threads
   }
   bsurf_status st = BSURF_OK;
   const knn_node *nodes = index->nodes;
-  for (size_t first = 0; first < nbat;) {
-    /* the batches of the next BSURF_PROGRESS_CHUNK points (all without
-     * progress) */
-    size_t last = first + 1;
-    if (!progress) last = nbat;
-    while (last < nbat && nodes[bat[last]].begin - nodes[bat[first]].begin < BSURF_PROGRESS_CHUNK)
-      last++;
-    const int64_t b0 = (int64_t)first, b1 = (int64_t)last;
+  /* One parallel region: the threads take KNN_DYNAMIC_BATCHES batches at a
+   * time from a shared counter, and the calling thread (OpenMP's thread 0)
+   * reports progress between its chunks, every BSURF_PROGRESS_CHUNK points
+   * or more; a cancellation stops every thread before its next chunk. (A
+   * region per BSURF_PROGRESS_CHUNK points ended in 244 barriers at 1M
+   * points, each waiting for the slower thread: costly on a loaded machine.) */
+  const size_t chunks = (nbat + KNN_DYNAMIC_BATCHES - 1) / KNN_DYNAMIC_BATCHES;
+  size_t next = 0, done = 0;
+  int cancel = 0;
 #ifdef _OPENMP
-#pragma omp parallel for num_threads(nt) schedule(dynamic, KNN_DYNAMIC_BATCHES)
+#pragma omp parallel num_threads(nt)
 #endif
-    for (int64_t b = b0; b < b1; b++) {
+  {
 #ifdef _OPENMP
-      const int t = omp_get_thread_num();
+    const int t = omp_get_thread_num();
 #else
-      const int t = 0;
+    const int t = 0;
 #endif
-      knn_batch(index, bat[b], k, &ts[t], t, idx, dist2, nn_dist2, row, row_user);
-    }
-    first = last;
-    const size_t done = last < nbat ? nodes[bat[last]].begin : n;
-    if (progress && progress(progress_user, done, n)) {
-      st = BSURF_ERR_CANCELLED;
-      break;
+    size_t reported = 0;
+    while (!__atomic_load_n(&cancel, __ATOMIC_RELAXED)) {
+      const size_t c = __atomic_fetch_add(&next, 1, __ATOMIC_RELAXED);
+      if (c >= chunks) break;
+      const size_t b1 = (c + 1) * KNN_DYNAMIC_BATCHES < nbat ? (c + 1) * KNN_DYNAMIC_BATCHES : nbat;
+      size_t points = 0;
+      for (size_t b = c * KNN_DYNAMIC_BATCHES; b < b1; b++) {
+        knn_batch(index, bat[b], k, &ts[t], t, idx, dist2, nn_dist2, row, row_user);
+        points += nodes[bat[b]].end - nodes[bat[b]].begin;
+      }
+      const size_t now = __atomic_add_fetch(&done, points, __ATOMIC_RELAXED);
+      if (t == 0 && progress && now < n && now - reported >= BSURF_PROGRESS_CHUNK) {
+        reported = now;
+        if (progress(progress_user, now, n)) __atomic_store_n(&cancel, 1, __ATOMIC_RELAXED);
+      }
     }
   }
+  if (cancel || (progress && progress(progress_user, n, n))) st = BSURF_ERR_CANCELLED;
   for (int c = 0; c < 4; c++) {
     size_t sum = 0;
     for (int t = 0; t < nt; t++)
