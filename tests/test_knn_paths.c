@@ -1,7 +1,8 @@
 /* Tests of the all-kNN's paths (src/search/knn_all.c): the batches' gathered
  * candidates scanned in AVX-512 (where the processor has it) and by the
  * portable scan, and the tree search alone, each bit for bit against the
- * brute force (indices and squared distances, ties by index included), on
+ * brute force (indices and squared distances, ties by index included; the
+ * AVX2 scan too where the processor has it), on
  * clouds chosen so that every path is taken (bsurf_knn_path_counts): the
  * candidates' answers, the tree search after the candidates fell short
  * (density jumps), batches whose candidates do not fit (coincident
@@ -96,11 +97,12 @@ static void run_path(const double *xyz, size_t n, int k, int threads, int batche
                      uint32_t *idx, double *d2, size_t counts[4]) {
   bsurf_knn_index *index = NULL;
   bsurf_knn_set_paths(batches, simd);
+  if (simd == 0) assert_int_equal(bsurf_knn_simd(), 0);
   assert_int_equal(bsurf_knn_build(&index, xyz, n), BSURF_OK);
   assert_int_equal(bsurf_knn_all(index, k, threads, idx, d2, NULL, NULL), BSURF_OK);
   bsurf_knn_path_counts(counts);
   bsurf_knn_free(index);
-  bsurf_knn_set_paths(1, 1);
+  bsurf_knn_set_paths(1, 2);
 }
 
 static void expect_rows(const uint32_t *ia, const double *da, const uint32_t *ib, const double *db,
@@ -126,11 +128,12 @@ static void check_paths(const paths_case *c, int k, size_t sum_simd[4], size_t s
   static const struct {
     int batches, simd, threads;
     const char *what;
-  } paths[] = {{1, 1, 1, "batches, SIMD scan, 1 thread"},
-               {1, 1, 2, "batches, SIMD scan, 2 threads"},
+  } paths[] = {{1, 2, 1, "batches, AVX-512 scan (or the best), 1 thread"},
+               {1, 2, 2, "batches, AVX-512 scan (or the best), 2 threads"},
+               {1, 1, 2, "batches, AVX2 scan (or portable), 2 threads"},
                {1, 0, 1, "batches, portable scan, 1 thread"},
                {1, 0, 2, "batches, portable scan, 2 threads"},
-               {0, 1, 2, "tree search only, 2 threads"}};
+               {0, 2, 2, "tree search only, 2 threads"}};
   for (size_t p = 0; p < sizeof paths / sizeof paths[0]; p++) {
     memset(it, 0xff, len * sizeof *it);
     memset(dt, 0xff, len * sizeof *dt);

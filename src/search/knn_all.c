@@ -239,7 +239,12 @@ static int knn_gather_batch(const bsurf_knn_index *ix, uint32_t node, double r2,
  * tree positions. The distances of a block are computed KNN_LANES at a time
  * with the operations and order of knn_dist2 (the same bits), as in
  * kdtree.c's knn_scan_leaf. */
-static int knn_scan_cands(knn_thread *t, uint32_t self, const double *q, double bound) {
+#if defined(__GNUC__)
+#define KNN_INLINE __attribute__((always_inline)) inline
+#else
+#define KNN_INLINE inline
+#endif
+static KNN_INLINE int knn_scan_cands(knn_thread *t, uint32_t self, const double *q, double bound) {
   knn_buffer *buf = &t->buf;
   buf->count = 0;
   for (int b = 0; b < t->cn; b += KNN_BLOCK) {
@@ -345,19 +350,41 @@ __attribute__((target("avx512f"))) static int knn_scan_cands_avx512(knn_thread *
 }
 #endif
 
-/* Which scan the batches use: 1 AVX-512 (where the processor has it), 0
- * the portable one, -1 not decided yet (bsurf_knn_set_paths). */
-static int knn_use_avx512 = -1;
+#if defined(__GNUC__) && defined(__x86_64__)
+#define KNN_HAVE_AVX2 1
+/* The portable scan compiled for AVX2 (a lane block of four doubles is one
+ * register; the same operations, so the same bits): processors without
+ * AVX-512. */
+__attribute__((target("avx2"))) static int knn_scan_cands_avx2(knn_thread *t, uint32_t self,
+                                                               const double *q, double bound) {
+  return knn_scan_cands(t, self, q, bound);
+}
+#endif
+
+static int knn_scan_plain(knn_thread *t, uint32_t self, const double *q, double bound) {
+  return knn_scan_cands(t, self, q, bound);
+}
+
+/* Which scan the batches use: 2 AVX-512, 1 AVX2, 0 the portable one (the
+ * best the processor has, at most bsurf_knn_set_paths's simd), -1 not
+ * decided yet. */
+static int knn_simd = -1;
 static int knn_use_batches = 1;
 
 void bsurf_knn_set_paths(int batches, int simd) {
   knn_use_batches = batches;
-#ifdef KNN_HAVE_AVX512
-  knn_use_avx512 = simd ? __builtin_cpu_supports("avx512f") != 0 : 0;
-#else
-  (void)simd;
-  knn_use_avx512 = 0;
+  knn_simd = 0;
+#ifdef KNN_HAVE_AVX2
+  if (simd >= 1 && __builtin_cpu_supports("avx2")) knn_simd = 1;
 #endif
+#ifdef KNN_HAVE_AVX512
+  if (simd >= 2 && __builtin_cpu_supports("avx512f")) knn_simd = 2;
+#endif
+}
+
+int bsurf_knn_simd(void) {
+  if (knn_simd < 0) bsurf_knn_set_paths(knn_use_batches, 2);
+  return knn_simd;
 }
 
 /* The last all-kNN's counts (bsurf_knn_path_counts). */
@@ -370,9 +397,12 @@ void bsurf_knn_path_counts(size_t counts[4]) {
 
 static int knn_scan(knn_thread *t, uint32_t self, const double *q, double bound) {
 #ifdef KNN_HAVE_AVX512
-  if (knn_use_avx512) return knn_scan_cands_avx512(t, self, q, bound);
+  if (knn_simd == 2) return knn_scan_cands_avx512(t, self, q, bound);
 #endif
-  return knn_scan_cands(t, self, q, bound);
+#ifdef KNN_HAVE_AVX2
+  if (knn_simd == 1) return knn_scan_cands_avx2(t, self, q, bound);
+#endif
+  return knn_scan_plain(t, self, q, bound);
 }
 
 /* Writes the row of the point at tree position j from the buffer (its
@@ -527,7 +557,7 @@ static bsurf_status knn_all_run(const bsurf_knn_index *index, int k, int threads
   BSURF_REQUIRE(k >= 1 && (size_t)k <= n, "k = %d: must be in [1, %zu] (the indexed points)", k, n);
   BSURF_REQUIRE(!nn_dist2 || k >= 2, "k = %d: the spacing needs k >= 2", k);
 
-  if (knn_use_avx512 < 0) bsurf_knn_set_paths(knn_use_batches, 1);
+  bsurf_knn_simd(); /* decided before the threads start */
   uint32_t *bat = bsurf_alloc_array(n / 8 + 2, sizeof *bat);
   if (!bat) return BSURF_ERR_NOMEM;
   const size_t nbat = knn_batches(index, bat);

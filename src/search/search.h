@@ -53,10 +53,12 @@ bsurf_status bsurf_neighbors_stream(const double *xyz, size_t point_count, int k
                                     void *progress_user);
 
 /* For the tests: the all-kNN's paths (knn_all.c). batches 0: every query
- * by the tree search; simd 0: the batches' portable scan instead of
- * AVX-512. The default is both on (AVX-512 where the processor has it). Not
- * to be called while an all-kNN runs. */
+ * by the tree search; simd: the batches' scan, at most AVX-512 (2), AVX2 (1)
+ * or the portable one (0), the best the processor has within that. The
+ * default is (1, 2). Not to be called while an all-kNN runs. */
 void bsurf_knn_set_paths(int batches, int simd);
+/* The scan the batches use now: 2 AVX-512, 1 AVX2, 0 portable. */
+int bsurf_knn_simd(void);
 /* For the tests: the last all-kNN's batches searched through their gathered
  * candidates [0] and through the tree [1], and its queries answered from the
  * candidates [2] and by the tree search after the candidates fell short [3]. */
