@@ -34,19 +34,20 @@ static double *alloc_xyz(size_t n) {
   return xyz;
 }
 
-/* A noisy sphere in a coherent (generated) order. */
-static double *gen_sphere(size_t n, uint64_t seed) {
-  double *xyz = alloc_xyz(n);
-  bsurf_rng r;
-  bsurf_rng_init(&r, seed, 1, 0);
-  for (size_t i = 0; i < n; i++) {
-    const double z = 2.0 * bsurf_rng_uniform(&r) - 1.0;
-    const double phi = 6.283185307179586 * bsurf_rng_uniform(&r);
-    const double s = sqrt(1.0 - z * z), rad = 1.0 + 0.002 * bsurf_rng_normal(&r);
-    xyz[3 * i] = rad * s * cos(phi);
-    xyz[3 * i + 1] = rad * s * sin(phi);
-    xyz[3 * i + 2] = rad * z;
-  }
+/* The benchmark's cloud, small: a regularly sampled sphere (coherent order)
+ * with uniform noise along the normals of about half the spacing. */
+static double *gen_sphere(size_t *n_out) {
+  bsurf_cloud c;
+  bsurf_cloud_init(&c);
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 6000, BSURF_SAMPLING_REGULAR, 1, 0.0),
+                   BSURF_OK);
+  assert_int_equal(
+      bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_UNIFORM, 0.5, 0.045, 1),
+      BSURF_OK);
+  double *xyz = alloc_xyz(c.point_count);
+  memcpy(xyz, c.xyz, c.point_count * 3 * sizeof *xyz);
+  *n_out = c.point_count;
+  bsurf_cloud_free(&c);
   return xyz;
 }
 
@@ -152,7 +153,10 @@ static void check_paths(const paths_case *c, int k, size_t sum_simd[4], size_t s
 static void test_knn_paths_against_brute(void **state) {
   (void)state;
   paths_case cases[3];
-  cases[0] = (paths_case){"noisy sphere", gen_sphere(6000, 1), 6000};
+  size_t sn = 0;
+  cases[0].xyz = gen_sphere(&sn);
+  cases[0].n = sn;
+  cases[0].name = "noisy sphere";
   cases[1] = (paths_case){"clusters", gen_clusters(5000, 2), 5000};
   size_t gn = 0;
   cases[2].xyz = gen_grid_copies(&gn);
