@@ -25,12 +25,13 @@
  * query finds at least k - 1 candidates within r2, its k - 1 nearest are
  * among them and the buffer's sort gives them in the exact order (ties by
  * index), the same row as the tree search and the brute force. When it
- * finds fewer (the guess was small for this query), the query runs the tree
- * search (kdtree.c), warm-started with the (k - 1)-th distance among all
- * the candidates. A batch whose candidates would not fit in the thread's
- * arrays (a guess far too large, coincident points), a thread's first batch
- * and an index with a non-finite coordinate use the tree search for every
- * query (warm-started from the previous query's results).
+ * finds fewer (the guess was small for this query: density changes), its
+ * (k - 1)-th distance among all the candidates bounds its row, and the
+ * batch's queries in that case share a second gather within the largest of
+ * these bounds, which holds their rows. A gather whose candidates would not
+ * fit in the thread's arrays (a guess far too large, coincident points), a
+ * thread's first batch and an index with a non-finite coordinate use the
+ * tree search (kdtree.c) instead, warm-started with the best bound at hand.
  *
  * Output. Rows go to idx and dist2 at the point's index (rows are in input
  * order, queries in tree order: the next query's rows are prefetched), or,
@@ -50,6 +51,8 @@
 #define KNN_BATCH_MAX 32
 /* r2 = the previous batch's largest (k - 1)-th distance times this. */
 #define KNN_SLACK 1.25
+/* Queries of a batch that may wait for its second gather. */
+#define KNN_WAITING 64
 /* Batches handed to a thread at a time (dynamic schedule). */
 #define KNN_DYNAMIC_BATCHES 8
 
@@ -126,11 +129,12 @@ typedef struct knn_thread {
   double *cx, *cy, *cz;
   uint64_t *cip; /* the candidates' index | tree position << 32 (a knn_entry's i and pos) */
   int cn, ccap;
-  uint32_t *own;    /* streamed: the row (k) */
-  double *own_xyz;  /* streamed: its coordinates (k x 3) */
-  void *block;      /* everything above, one allocation */
-  size_t counts[4]; /* bsurf_knn_path_counts */
-  char pad[64];     /* threads' states a cache line apart */
+  uint32_t *own;              /* streamed: the row (k) */
+  double *own_xyz;            /* streamed: its coordinates (k x 3) */
+  void *block;                /* everything above, one allocation */
+  size_t counts[4];           /* bsurf_knn_path_counts */
+  uint32_t wait[KNN_WAITING]; /* the batch's queries waiting for its second gather */
+  char pad[64];               /* threads' states a cache line apart */
 } knn_thread;
 
 /* The batch's gathering: its box, r2 and the thread's candidate arrays. */
@@ -435,7 +439,11 @@ static void knn_put_row(const bsurf_knn_index *ix, size_t j, int k, const knn_th
     }
 }
 
-/* The rows of the batch `node` (see the top of this file). */
+/* The rows of the batch `node` (see the top of this file). A query that
+ * finds fewer than k - 1 candidates within r2 waits, with an upper bound of
+ * its (k - 1)-th distance (the (k - 1)-th among all the candidates); the
+ * waiting queries then share a second gather within the largest of their
+ * bounds, which holds their rows (the tree search where it does not fit). */
 static void knn_batch(const bsurf_knn_index *ix, uint32_t node, int k, knn_thread *t, int tid,
                       uint32_t *idx, double *dist2, double *nn_dist2, bsurf_knn_row_fn row,
                       void *row_user) {
@@ -445,28 +453,47 @@ static void knn_batch(const bsurf_knn_index *ix, uint32_t node, int k, knn_threa
   const int gathered = m > 0 && knn_use_batches && ix->finite && !isnan(t->guess) &&
                        knn_gather_batch(ix, node, r2, t);
   t->counts[gathered ? 0 : 1]++;
-  double worst = -INFINITY;
+  double worst = -INFINITY, r2b = -INFINITY;
+  int waiting = 0;
   for (uint32_t j = nd->begin; j < nd->end; j++) {
     if (j + 1 < ix->n) knn_prefetch_row(ix, j + 1, k, idx, dist2);
     if (m > 0) {
       const double q[3] = {ix->xyz[0][j], ix->xyz[1][j], ix->xyz[2][j]};
-      const int found = gathered && knn_scan(t, j - nd->begin, q, r2);
-      if (!found) {
-        double warm = NAN;
-        if (gathered) {
-          if (knn_scan(t, j - nd->begin, q, INFINITY)) warm = t->buf.e[m - 1].d;
-        } else if (t->prev != SIZE_MAX) {
-          warm = knn_warm_bound(ix, j, t->prev, t->buf.e, m);
+      if (gathered) {
+        if (knn_scan(t, j - nd->begin, q, r2)) {
+          t->counts[2]++;
+        } else {
+          t->counts[3]++;
+          const int bounded = knn_scan(t, j - nd->begin, q, INFINITY);
+          if (bounded && waiting < KNN_WAITING) {
+            t->wait[waiting++] = j;
+            r2b = t->buf.e[m - 1].d > r2b ? t->buf.e[m - 1].d : r2b;
+            continue; /* its row after the second gather */
+          }
+          bsurf_knn_i_search(ix, j, &t->buf, bounded ? t->buf.e[m - 1].d : NAN);
         }
+      } else {
+        const double warm = t->prev != SIZE_MAX ? knn_warm_bound(ix, j, t->prev, t->buf.e, m) : NAN;
         bsurf_knn_i_search(ix, j, &t->buf, warm);
       }
-      t->counts[2] += (size_t)found;
-      t->counts[3] += (size_t)(gathered && !found);
       t->prev = j;
       worst = t->buf.e[m - 1].d > worst ? t->buf.e[m - 1].d : worst;
     }
     knn_put_row(ix, j, k, t, idx, dist2, nn_dist2);
     if (row) row(row_user, tid, ix->ids[j], t->own, t->own_xyz);
+  }
+  if (waiting) {
+    const int again = knn_gather_batch(ix, node, r2b, t);
+    for (int w = 0; w < waiting; w++) {
+      const uint32_t j = t->wait[w];
+      const double q[3] = {ix->xyz[0][j], ix->xyz[1][j], ix->xyz[2][j]};
+      /* r2b is at least this query's (k - 1)-th distance: a valid warm start */
+      if (!(again && knn_scan(t, j - nd->begin, q, r2b))) bsurf_knn_i_search(ix, j, &t->buf, r2b);
+      t->prev = j;
+      worst = t->buf.e[m - 1].d > worst ? t->buf.e[m - 1].d : worst;
+      knn_put_row(ix, j, k, t, idx, dist2, nn_dist2);
+      if (row) row(row_user, tid, ix->ids[j], t->own, t->own_xyz);
+    }
   }
   t->guess = m > 0 ? worst : NAN;
 }

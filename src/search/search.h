@@ -61,7 +61,8 @@ void bsurf_knn_set_paths(int batches, int simd);
 int bsurf_knn_simd(void);
 /* For the tests: the last all-kNN's batches searched through their gathered
  * candidates [0] and through the tree [1], and its queries answered from the
- * candidates [2] and by the tree search after the candidates fell short [3]. */
+ * first gather's candidates [2] and after they fell short (from a second
+ * gather or by the tree search) [3]. */
 void bsurf_knn_path_counts(size_t counts[4]);
 
 /* 1 when the points at a and b have the same coordinates. */
