@@ -1,6 +1,7 @@
 /*
  * kdtree.c — exact K-nearest-neighbour search: a k-d tree, single queries,
- * all-K-nearest neighbours of a cloud, and the brute-force reference.
+ * the all-kNN's per-query search, and the brute-force reference (the
+ * all-K-nearest neighbours of a cloud, batch by batch, are in knn_all.c).
  *
  * What it is for: every local analysis of the thesis works on the
  * K-nearest neighbourhood of each point (thesis 3.3: "we search for K-nearest
@@ -49,33 +50,30 @@
  *    10..100, up to ~500). The all-kNN appends every candidate within the
  *    bound to an unsorted buffer instead and sorts it (buckets by distance,
  *    then an insertion sort of the first buckets by the exact order) when it
- *    fills and at the end: the same k, in the same order.
+ *    fills and at the end: the same k, in the same order (knn_all.c's
+ *    batches use the same buffer).
  *  - The order is total even with NaN: a NaN distance sorts after every number
  *    (then by index), and NaN bounds never prune. So NaN or infinite input
  *    gives the same answer as brute force instead of a crash or a hang
  *    (rejecting them is the caller's job: bsurf_cloud_check_finite).
- *  - All-kNN visits the points in tree order (neighbouring queries touch the
- *    same leaves: cache locality), in parallel with OpenMP, each query writing
- *    only its own row (the next query's row is prefetched), with per-thread
- *    scratch allocated once per call. The
- *    points are processed in chunks of BSURF_PROGRESS_CHUNK between progress
- *    callbacks on the calling thread.
+ *  - All-kNN (knn_all.c) visits the points in tree order, a batch of
+ *    neighbouring queries at a time, in parallel with OpenMP; the tree
+ *    search here (bsurf_knn_i_search) answers the queries its batches'
+ *    candidates cannot.
  *
  * Memory of an index: 24 bytes/point (tree-ordered coordinates) + 4 bytes/point
  * (original index of each tree position) + 32 bytes per node; leaves hold 8..16
  * points, so there are N/8 to N/4 nodes: 32 to 36 bytes/point in total (32 MB
  * for a million points). Build: O(N log N) time, no memory beyond the index.
  * All-kNN: per thread, a buffer of 2(k - 1) + 16 16-byte entries (at least
- * 80), twice, and 12 bytes per entry of bucket counts and keys.
+ * 80), twice, 12 bytes per entry of bucket counts and keys, and the
+ * batches' candidates (32 bytes each, 8(k + 16) + 256 of them).
  */
 #include "search/kdtree.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-
-/* Queries handed to a thread at a time in bsurf_knn_all (dynamic schedule). */
-#define KNN_DYNAMIC_CHUNK 64
 
 /* ------------------------------------------------------------------------ */
 /* Distances and the result list, shared by the tree and the brute force      */
@@ -88,14 +86,6 @@ static inline double knn_dist2(const double *q, const double *p) {
   const double dx = q[0] - p[0];
   const double dy = q[1] - p[1];
   const double dz = q[2] - p[2];
-  return dx * dx + dy * dy + dz * dz;
-}
-
-/* knn_dist2 to the point at tree position j of the coordinate arrays c. */
-static inline double knn_dist2_at(const double *q, const double *const c[3], size_t j) {
-  const double dx = q[0] - c[0][j];
-  const double dy = q[1] - c[1][j];
-  const double dz = q[2] - c[2][j];
   return dx * dx + dy * dy + dz * dz;
 }
 
@@ -116,15 +106,6 @@ static inline int knn_before(double d1, uint32_t i1, double d2, uint32_t i2) {
     return i1 < i2;
   }
 }
-
-/* The k best candidates so far, sorted by knn_before. `worst` is the k-th
- * distance once the list is full and NaN before, so that `d > worst` (cheap
- * rejection) and `bound > worst` (pruning) are both false until then. */
-typedef struct knn_entry {
-  double d;
-  uint32_t i;
-  uint32_t pos; /* the point's position in the tree's arrays (a warm start's candidates) */
-} knn_entry;
 
 typedef struct knn_list {
   knn_entry *e; /* k */
@@ -186,27 +167,6 @@ static inline void knn_list_insert(knn_list *l, double d, uint32_t id, uint32_t 
   if (l->count == l->k) l->worst = e[l->k - 1].d;
 }
 
-/* The all-kNN's candidates (buffered selection): every point within the
- * bound is appended, unsorted, and the buffer is sorted only when it fills
- * and at the end of the query, where the list above shifts its tail at every
- * insertion (at 1M points, K = 50: 72 insertions and about 800 shifts per
- * query, each insertion ending in a mispredicted branch). The bound is then
- * looser between sorts (the warm start's, or the k-th distance of the last
- * sort), so more points are appended than the list would take, but an append
- * costs a few stores. */
-/* Buckets per entry in knn_buffer_sort (1, 2 and 4 measured alike). */
-#define KNN_SPREAD 2
-
-typedef struct knn_buffer {
-  knn_entry *e;   /* cap entries; after knn_buffer_sort, the first min(count, k) in order */
-  knn_entry *tmp; /* cap: the bucket pass's output */
-  uint32_t *hist; /* KNN_SPREAD * cap + 1 bucket counts */
-  uint32_t *key;  /* cap: each entry's bucket */
-  int cap;
-  int k;
-  int count;
-} knn_buffer;
-
 /* Sorts e[0, n) by knn_before (ties by index, NaN last) by insertion. */
 static void knn_insertion_sort(knn_entry *e, int n) {
   for (int i = 1; i < n; i++) {
@@ -231,16 +191,22 @@ static void knn_insertion_sort(knn_entry *e, int n) {
  * insertion sort that has little to move and predictable branches. With a
  * NaN, an infinite distance or a zero range, the insertion sort alone (same
  * result, slower). */
-static double knn_buffer_sort(knn_buffer *b) {
+double bsurf_knn_i_buffer_sort(knn_buffer *b) {
   const int n = b->count, k = b->k;
   knn_entry *e = b->e;
   double lo = INFINITY, hi = -INFINITY;
   int nan = 0, keep = n;
-  for (int i = 0; i < n; i++) {
-    const double d = e[i].d;
-    lo = d < lo ? d : lo;
-    hi = d > hi ? d : hi;
-    nan |= isnan(d);
+  if (b->ranged) { /* from the scan's registers: reading the entries just stored stalled */
+    lo = b->lo;
+    hi = b->hi;
+    b->ranged = 0;
+  } else {
+    for (int i = 0; i < n; i++) {
+      const double d = e[i].d;
+      lo = d < lo ? d : lo;
+      hi = d > hi ? d : hi;
+      nan |= isnan(d);
+    }
   }
   /* KNN_SPREAD buckets per entry: fewer entries share a bucket, so fewer
    * are out of order for the insertion sort. */
@@ -309,16 +275,6 @@ typedef struct knn_search {
   knn_buffer *buf; /* all-kNN: the candidates buffered (NULL: in list) */
 } knn_search;
 
-#if defined(__GNUC__)
-typedef double knn_v4d __attribute__((vector_size(KNN_LANES * sizeof(double))));
-typedef long long knn_v4l __attribute__((vector_size(KNN_LANES * sizeof(double))));
-#define KNN_HAVE_V4D 1
-#endif
-
-/* Points per block of knn_scan_leaf: a leaf holds at most KNN_LEAF_MAX
- * points unless they all coincide (then it takes several blocks). */
-#define KNN_BLOCK 16
-
 /* Offers the points [begin, end) of a leaf to the list. The distances of a
  * block are computed KNN_LANES at a time (GCC vector types: SSE2 pairs or
  * AVX2), lane by lane the same operations in the same order as knn_dist2, so
@@ -337,7 +293,7 @@ static inline void knn_scan_leaf(knn_search *s, uint32_t begin, uint32_t end) {
   for (uint32_t b = begin; b < end; b += KNN_BLOCK) {
     const uint32_t cnt = end - b < KNN_BLOCK ? end - b : KNN_BLOCK;
     knn_buffer *buf = s->buf;
-    if (buf && buf->count > buf->cap - KNN_BLOCK) s->list.worst = knn_buffer_sort(buf);
+    if (buf && buf->count > buf->cap - KNN_BLOCK) s->list.worst = bsurf_knn_i_buffer_sort(buf);
     const double worst = s->list.worst;
     const knn_v4d w = {worst, worst, worst, worst};
     double dd[KNN_BLOCK];
@@ -387,7 +343,7 @@ static inline void knn_scan_leaf(knn_search *s, uint32_t begin, uint32_t end) {
     if (s->buf) {
       knn_buffer *buf = s->buf;
       if (buf->count == buf->cap) {
-        s->list.worst = knn_buffer_sort(buf);
+        s->list.worst = bsurf_knn_i_buffer_sort(buf);
         if (d > s->list.worst) continue;
       }
       buf->e[buf->count].d = d;
@@ -478,241 +434,28 @@ bsurf_status bsurf_knn_query(const bsurf_knn_index *index, const double query[3]
   return BSURF_OK;
 }
 
-/* A warm start: an upper bound on the m-th smallest distance from the point
- * at tree position j to the others, from the m results of the same thread's
- * previous query (tree position prev, usually j's neighbour in tree order):
- * those points, with prev itself standing in for j when j is among them, are
- * m candidates, so the largest of their distances (knn_dist2, the search's
- * own expression) is at least the m-th smallest. The search then starts with
- * this bound instead of none and prunes from its first leaf; the k nearest
- * and their order are the same, since no candidate within the bound (ties
- * included: the tests are d > bound) is skipped. NaN when it cannot help. */
-static double knn_warm_bound(const bsurf_knn_index *ix, size_t j, size_t prev, const knn_entry *e,
-                             int m) {
-  const double *const *xyz = (const double *const *)ix->xyz;
-  const double q[3] = {xyz[0][j], xyz[1][j], xyz[2][j]};
-  double bound = -INFINITY;
-  int used = 0;
-  for (int c = 0; c < m; c++) {
-    if (e[c].pos == j) continue;
-    const double d = knn_dist2_at(q, xyz, e[c].pos);
-    if (d > bound) bound = d;
-    used++;
-    if (isnan(d)) return NAN;
-  }
-  if (used < m) {
-    const double d = knn_dist2_at(q, xyz, prev);
-    if (d > bound) bound = d;
-    if (isnan(d)) return NAN;
-  }
-  return bound;
-}
-
-/* Fetches len bytes at p into the cache ahead of their writes. GCC 12 sees
- * no effect in a loop of prefetches and drops it once inlined, or the whole
- * call once it has found the function const: hence noipa (a call per query
- * costs nothing here). */
-#if defined(__GNUC__) && !defined(__clang__)
-#define KNN_NOIPA __attribute__((noipa))
-#else
-#define KNN_NOIPA
-#endif
-#if defined(__GNUC__)
-KNN_NOIPA static void knn_prefetch(const void *p, size_t len) {
-  const char *c = p;
-  for (size_t o = 0; o < len; o += 64)
-    __builtin_prefetch(c + o, 1);
-  __builtin_prefetch(c + len - 1, 1);
-}
-#endif
-
-/* Fetches the output rows of the point at tree position j. The rows are in
- * input order, so consecutive queries (tree order) write far apart: without
- * this, the first writes of a row missed the cache and filled the store
- * buffer (about 12% of the all-kNN's time at 1M points, K = 50, in perf). */
-static inline void knn_prefetch_row(const bsurf_knn_index *ix, size_t j, int k, const uint32_t *idx,
-                                    const double *dist2) {
-#if defined(__GNUC__)
-  const size_t row = (size_t)ix->ids[j] * (size_t)k;
-  if (idx) knn_prefetch(idx + row, (size_t)k * sizeof *idx);
-  if (dist2) knn_prefetch(dist2 + row, (size_t)k * sizeof *dist2);
-#else
-  (void)ix, (void)j, (void)k, (void)idx, (void)dist2;
-#endif
-}
-
-/* Row of the point at tree position j: itself, then its k - 1 nearest others.
- * `buf` is the thread's buffer (k - 1 = buf->k); *prev is the tree position
- * of the query whose results the buffer holds (SIZE_MAX: none), and becomes
- * j. The row goes to idx (and dist2) at the point's index, or, streamed
- * (idx and dist2 NULL), to `own` (k entries; NULL otherwise). */
-static void knn_row(const bsurf_knn_index *ix, size_t j, int k, knn_buffer *buf, size_t *prev,
-                    uint32_t *idx, double *dist2, double *nn_dist2, uint32_t *own,
-                    double *own_xyz) {
-  const uint32_t self = ix->ids[j];
-  const size_t row = own ? 0 : (size_t)self * (size_t)k;
-  const int m = k - 1;
-  const knn_entry *scratch;
+/* The all-kNN's search for the point at tree position j (knn_all.c): its
+ * k - 1 = buf->k nearest others into buf (the first buf->k entries of buf->e
+ * in order, pos their tree positions), starting from the bound `warm` (an
+ * upper bound on the (k - 1)-th distance, or NaN for none). */
+void bsurf_knn_i_search(const bsurf_knn_index *ix, size_t j, knn_buffer *buf, double warm) {
   knn_search s;
-
-  if (m > 0) {
-    for (int d = 0; d < 3; d++)
-      s.c[d] = ix->xyz[d];
-    s.ids = ix->ids;
-    s.nodes = ix->nodes;
-    s.skip = j;
-    for (int d = 0; d < 3; d++)
-      s.q[d] = ix->xyz[d][j];
-    s.off[0] = s.off[1] = s.off[2] = 0.0; /* the query is inside the root box */
-    s.list.e = NULL;
-    s.list.k = m;
-    const double warm = *prev != SIZE_MAX ? knn_warm_bound(ix, j, *prev, buf->e, m) : NAN;
-    knn_list_reset(&s.list);
-    s.list.worst = warm;
-    s.buf = buf;
-    buf->count = 0;
-    knn_visit(&s, 0);
-    knn_buffer_sort(buf);
-    *prev = j;
-  }
-  scratch = buf->e;
-  if (own) idx = own;
-  if (idx) {
-    idx[row] = self;
-    for (int c = 0; c < m; c++)
-      idx[row + 1 + (size_t)c] = scratch[c].i;
-  }
-  if (dist2) {
-    dist2[row] = 0.0;
-    for (int c = 0; c < m; c++)
-      dist2[row + 1 + (size_t)c] = scratch[c].d;
-  }
-  if (nn_dist2) nn_dist2[self] = m > 0 ? scratch[0].d : 0.0;
-  if (own_xyz) /* the row's coordinates, from the tree's arrays the search just read */
-    for (int d = 0; d < 3; d++) {
-      const double *c = ix->xyz[d];
-      own_xyz[d] = c[j];
-      for (int e = 0; e < m; e++)
-        own_xyz[3 * (size_t)(e + 1) + (size_t)d] = c[scratch[e].pos];
-    }
-}
-
-/* bsurf_knn_all_ex and bsurf_knn_stream: with `row` set (and idx NULL),
- * each point's row handed to it in a per-thread array instead of stored. */
-static bsurf_status knn_all_run(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,
-                                double *dist2, double *nn_dist2, bsurf_knn_row_fn row,
-                                void *row_user, bsurf_progress_fn progress, void *progress_user) {
-  size_t n, chunk, m, cap;
-  int nt;
-  knn_entry *scratch;
-  uint32_t *hist, *own = NULL;
-  double *own_xyz = NULL;
-  knn_buffer *bufs;
-
-  BSURF_REQUIRE(index, "index is NULL");
-  n = index->n;
-  BSURF_REQUIRE(k >= 1 && (size_t)k <= n, "k = %d: must be in [1, %zu] (the indexed points)", k, n);
-  BSURF_REQUIRE(!nn_dist2 || k >= 2, "k = %d: the spacing needs k >= 2", k);
-
-  nt = bsurf_threads_resolve(threads);
-  if (nt < 1) nt = 1;
-  /* No more threads than dynamic chunks (small inputs; does not change the
-   * result). */
-  if ((size_t)nt > (n + KNN_DYNAMIC_CHUNK - 1) / KNN_DYNAMIC_CHUNK)
-    nt = (int)((n + KNN_DYNAMIC_CHUNK - 1) / KNN_DYNAMIC_CHUNK);
-  /* Per-thread buffers, allocated once for the whole call. Room for twice
-   * the k - 1 results (at least 64) beside a block, within L1 for K = 50
-   * (1.8 KB, twice for the sort's copy): at 1M points, K = 50, a query
-   * appends about 91 candidates and sorts 1.5 times; three times the results
-   * (one sort) measured the same. */
-  m = k > 1 ? (size_t)(k - 1) : 1;
-  cap = (m > 32 ? 2 * m : 64) + KNN_BLOCK;
-  scratch = bsurf_alloc_array((size_t)nt * 2 * cap, sizeof *scratch);
-  hist = bsurf_alloc_array((size_t)nt * ((KNN_SPREAD + 1) * cap + 1), sizeof *hist);
-  bufs = bsurf_alloc_array((size_t)nt, sizeof *bufs);
-  size_t *prev = bsurf_alloc_array((size_t)nt, sizeof *prev);
-  /* the streamed rows: one per thread, a cache line apart */
-  const size_t own_stride = ((size_t)k + 15) & ~(size_t)15;
-  if (row) own = bsurf_alloc_array((size_t)nt, own_stride * sizeof *own);
-  if (row) own_xyz = bsurf_alloc_array((size_t)nt, 3 * own_stride * sizeof *own_xyz);
-  if (!scratch || !hist || !bufs || !prev || (row && (!own || !own_xyz))) {
-    free(scratch);
-    free(hist);
-    free(bufs);
-    free(prev);
-    free(own);
-    free(own_xyz);
-    return BSURF_ERR_NOMEM;
-  }
-  for (int t = 0; t < nt; t++) {
-    prev[t] = SIZE_MAX;
-    bufs[t].e = scratch + (size_t)t * 2 * cap;
-    bufs[t].tmp = bufs[t].e + cap;
-    bufs[t].hist = hist + (size_t)t * ((KNN_SPREAD + 1) * cap + 1);
-    bufs[t].key = bufs[t].hist + KNN_SPREAD * cap + 1;
-    bufs[t].cap = (int)cap;
-    bufs[t].k = (int)m;
-    bufs[t].count = 0;
-  }
-
-  chunk = progress ? BSURF_PROGRESS_CHUNK : n;
-  for (size_t start = 0; start < n; start += chunk) {
-    const int64_t first = (int64_t)start;
-    const int64_t last = (int64_t)(n - start < chunk ? n : start + chunk);
-    /* Tree order: consecutive queries share leaves. */
-#ifdef _OPENMP
-#pragma omp parallel for num_threads(nt) schedule(dynamic, KNN_DYNAMIC_CHUNK)
-#endif
-    for (int64_t j = first; j < last; j++) {
-#ifdef _OPENMP
-      const size_t t = (size_t)omp_get_thread_num();
-#else
-      const size_t t = 0;
-#endif
-      /* The next query's rows, usually this thread's (dynamic chunks). */
-      if (j + 1 < last) knn_prefetch_row(index, (size_t)j + 1, k, idx, dist2);
-      uint32_t *mine = own ? own + t * own_stride : NULL;
-      double *mine_xyz = own_xyz ? own_xyz + t * 3 * own_stride : NULL;
-      knn_row(index, (size_t)j, k, &bufs[t], &prev[t], idx, dist2, nn_dist2, mine, mine_xyz);
-      if (row) row(row_user, (int)t, index->ids[j], mine, mine_xyz);
-    }
-    if (progress && progress(progress_user, (size_t)last, n)) {
-      free(scratch);
-      free(hist);
-      free(bufs);
-      free(prev);
-      free(own);
-      free(own_xyz);
-      return BSURF_ERR_CANCELLED;
-    }
-  }
-  free(scratch);
-  free(hist);
-  free(bufs);
-  free(prev);
-  free(own);
-  free(own_xyz);
-  return BSURF_OK;
-}
-
-bsurf_status bsurf_knn_all_ex(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,
-                              double *dist2, double *nn_dist2, bsurf_progress_fn progress,
-                              void *progress_user) {
-  return knn_all_run(index, k, threads, idx, dist2, nn_dist2, NULL, NULL, progress, progress_user);
-}
-
-bsurf_status bsurf_knn_stream(const bsurf_knn_index *index, int k, int threads,
-                              bsurf_knn_row_fn row, void *row_user, double *nn_dist2,
-                              bsurf_progress_fn progress, void *progress_user) {
-  BSURF_REQUIRE(row, "row is NULL");
-  return knn_all_run(index, k, threads, NULL, NULL, nn_dist2, row, row_user, progress,
-                     progress_user);
-}
-
-bsurf_status bsurf_knn_all(const bsurf_knn_index *index, int k, int threads, uint32_t *idx,
-                           double *dist2, bsurf_progress_fn progress, void *progress_user) {
-  BSURF_REQUIRE(idx, "idx is NULL");
-  return bsurf_knn_all_ex(index, k, threads, idx, dist2, NULL, progress, progress_user);
+  for (int d = 0; d < 3; d++)
+    s.c[d] = ix->xyz[d];
+  s.ids = ix->ids;
+  s.nodes = ix->nodes;
+  s.skip = j;
+  for (int d = 0; d < 3; d++)
+    s.q[d] = ix->xyz[d][j];
+  s.off[0] = s.off[1] = s.off[2] = 0.0; /* the query is inside the root box */
+  s.list.e = NULL;
+  s.list.k = buf->k;
+  knn_list_reset(&s.list);
+  s.list.worst = warm;
+  s.buf = buf;
+  buf->count = 0;
+  knn_visit(&s, 0);
+  bsurf_knn_i_buffer_sort(buf);
 }
 
 /* ------------------------------------------------------------------------ */

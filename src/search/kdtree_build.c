@@ -32,24 +32,27 @@ static inline void swap_points(double *const c[3], uint32_t *ids, size_t a, size
  * that would be there if they were sorted along `dim`, with no larger one
  * before it and no smaller one after (nth_element). Wirth's variant of Hoare's
  * selection; the scans stop on equal keys, which keeps the partitions balanced
- * on grids with many equal coordinates. Deterministic. */
-static void select_nth(double *const c[3], uint32_t *ids, int64_t lo, int64_t hi, int64_t nth,
-                       int dim) {
+ * on grids with many equal coordinates. Deterministic. With `finite` (no
+ * NaN among the coordinates) the order is the plain <, which coord_less is
+ * then: the same swaps, without the NaN tests. */
+#define LESS(a, b) (finite ? (a) < (b) : coord_less(a, b))
+static inline void select_nth_order(double *const c[3], uint32_t *ids, int64_t lo, int64_t hi,
+                                    int64_t nth, int dim, int finite) {
   const double *key = c[dim];
   while (lo < hi) {
     const int64_t mid = lo + (hi - lo) / 2;
     /* Median of three into position nth (the pivot). */
-    if (coord_less(key[mid], key[lo])) swap_points(c, ids, (size_t)mid, (size_t)lo);
-    if (coord_less(key[hi], key[lo])) swap_points(c, ids, (size_t)hi, (size_t)lo);
-    if (coord_less(key[hi], key[mid])) swap_points(c, ids, (size_t)hi, (size_t)mid);
+    if (LESS(key[mid], key[lo])) swap_points(c, ids, (size_t)mid, (size_t)lo);
+    if (LESS(key[hi], key[lo])) swap_points(c, ids, (size_t)hi, (size_t)lo);
+    if (LESS(key[hi], key[mid])) swap_points(c, ids, (size_t)hi, (size_t)mid);
     if (mid != nth) swap_points(c, ids, (size_t)mid, (size_t)nth);
     {
       const double x = key[nth];
       int64_t i = lo, j = hi;
       do {
-        while (coord_less(key[i], x))
+        while (LESS(key[i], x))
           i++;
-        while (coord_less(x, key[j]))
+        while (LESS(x, key[j]))
           j--;
         if (i <= j) {
           if (i != j) swap_points(c, ids, (size_t)i, (size_t)j);
@@ -62,6 +65,16 @@ static void select_nth(double *const c[3], uint32_t *ids, int64_t lo, int64_t hi
       if (nth < i) hi = j;
     }
   }
+}
+
+#undef LESS
+
+static void select_nth(double *const c[3], uint32_t *ids, int64_t lo, int64_t hi, int64_t nth,
+                       int dim, int finite) {
+  if (finite)
+    select_nth_order(c, ids, lo, hi, nth, dim, 1);
+  else
+    select_nth_order(c, ids, lo, hi, nth, dim, 0);
 }
 
 /* The number of nodes of the tree of n points when no node stops early
@@ -95,6 +108,7 @@ static size_t count_nodes(size_t n) {
 #define BUILD_TASK_MIN 32768
 
 typedef struct knn_builder {
+  int finite; /* no NaN coordinate */
   double *c[3];
   uint32_t *ids;
   knn_node *nodes;
@@ -138,7 +152,7 @@ static void build_node(knn_builder *b, size_t begin, size_t end, uint32_t id) {
   if (dim < 0) return; /* all points coincide (or have no finite extent) */
 
   mid = begin + (end - begin) / 2;
-  select_nth(b->c, b->ids, (int64_t)begin, (int64_t)end - 1, (int64_t)mid, dim);
+  select_nth(b->c, b->ids, (int64_t)begin, (int64_t)end - 1, (int64_t)mid, dim, b->finite);
   {
     double lmax = -INFINITY, rmin = INFINITY;
     const double *key = b->c[dim];
@@ -215,17 +229,21 @@ static bsurf_status knn_build(const char *who, bsurf_knn_index **index, const do
     ix->box_lo[d] = INFINITY;
     ix->box_hi[d] = -INFINITY;
   }
+  int finite = 1;
   for (size_t i = 0; i < point_count; i++)
     for (int d = 0; d < 3; d++) {
       const double v = xyz[3 * i + d];
       if (v < ix->box_lo[d]) ix->box_lo[d] = v;
       if (v > ix->box_hi[d]) ix->box_hi[d] = v;
+      finite &= isfinite(v) != 0;
     }
+  ix->finite = finite;
 
   for (int d = 0; d < 3; d++)
     b.c[d] = ix->xyz[d];
   b.ids = ix->ids;
   b.nodes = ix->nodes;
+  b.finite = finite;
   /* the subtrees of the top levels as tasks (the tree does not depend on
    * nt: build_node's places are fixed in advance) */
 #ifdef _OPENMP

@@ -52,6 +52,19 @@ bsurf_status bsurf_neighbors_stream(const double *xyz, size_t point_count, int k
                                     size_t *duplicates, bsurf_progress_fn progress,
                                     void *progress_user);
 
+/* For the tests: the all-kNN's paths (knn_all.c). batches 0: every query
+ * by the tree search; simd: the batches' scan, at most AVX-512 (2), AVX2 (1)
+ * or the portable one (0), the best the processor has within that. The
+ * default is (1, 2). Not to be called while an all-kNN runs. */
+void bsurf_knn_set_paths(int batches, int simd);
+/* The scan the batches use now: 2 AVX-512, 1 AVX2, 0 portable. */
+int bsurf_knn_simd(void);
+/* For the tests: the last all-kNN's batches searched through their gathered
+ * candidates [0] and through the tree [1], and its queries answered from the
+ * first gather's candidates [2] and after they fell short (from a second
+ * gather or by the tree search) [3]. */
+void bsurf_knn_path_counts(size_t counts[4]);
+
 /* 1 when the points at a and b have the same coordinates. */
 static inline int bsurf_same_place(const double *a, const double *b) {
   return a[0] == b[0] && a[1] == b[1] && a[2] == b[2];
