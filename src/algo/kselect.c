@@ -188,7 +188,9 @@ static int quad_solve(const quad_sums *q, double coef[QT], double *rss, double g
   for (int b = 0; b < QT; b++)
     for (int a = 0; a <= b; a++)
       G[bsurf_packed_index(a, b)] = q->mono[mono_index(QE[a][0] + QE[b][0], QE[a][1] + QE[b][1])];
-  if (bsurf_ldl_solve_packed(QT, G, q->phiz, BSURF_RANK_TOL, coef) != 0) return -1;
+  bsurf_ldl f; /* factored once for the four solves (the bits of one-by-one) */
+  if (bsurf_ldl_factor_packed(QT, G, BSURF_RANK_TOL, &f) != 0) return -1;
+  bsurf_ldl_solve_factored(&f, q->phiz, coef);
   double r = q->zz;
   for (int a = 0; a < QT; a++)
     r -= coef[a] * q->phiz[a];
@@ -197,7 +199,7 @@ static int quad_solve(const quad_sums *q, double coef[QT], double *rss, double g
     for (int c = 0; c < 3; c++) {
       double e[QT] = {0}, x[QT];
       e[3 + c] = 1;
-      if (bsurf_ldl_solve_packed(QT, G, e, BSURF_RANK_TOL, x) != 0) return -1;
+      bsurf_ldl_solve_factored(&f, e, x);
       for (int r2 = 0; r2 < 3; r2++)
         ginv_hh[r2][c] = x[3 + r2];
     }
@@ -343,11 +345,19 @@ static void pool_point(void *vctx, int thread, size_t i) {
     c->noise[i] = 0;
     return;
   }
-  qsort(s->pool, (size_t)m, sizeof(double), bsurf_cmp_double);
-  /* the order statistic nearest the quartile (interpolated) */
+  /* the order statistic nearest the quartile (interpolated): the lo-th
+   * smallest by selection, the next the smallest above it (the values of a
+   * full sort) */
   const double r = POOL_Q * (m - 1);
   const int lo = (int)r;
-  c->noise[i] = lo + 1 < m ? s->pool[lo] + (r - lo) * (s->pool[lo + 1] - s->pool[lo]) : s->pool[lo];
+  const double vlo = bsurf_kth_smallest(s->pool, (size_t)m, (size_t)lo);
+  double vhi = vlo;
+  if (lo + 1 < m) {
+    vhi = s->pool[lo + 1];
+    for (int j = lo + 2; j < m; j++)
+      vhi = s->pool[j] < vhi ? s->pool[j] : vhi;
+  }
+  c->noise[i] = lo + 1 < m ? vlo + (r - lo) * (vhi - vlo) : vlo;
 }
 
 /* Pass 2b (BSURF_NOISE_POOL_GLOBAL): one noise level for the cloud, the

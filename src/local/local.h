@@ -58,6 +58,16 @@ static inline int bsurf_packed_index(int i, int j) {
  * leaves c undefined; 0 on success. */
 int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol, double *c);
 
+/* The same in two steps, for several right-hand sides of one G: the
+ * factors (0, or -1 as above), then a solve (the bits of
+ * bsurf_ldl_solve_packed's). */
+typedef struct bsurf_ldl {
+  int m;
+  double L[BSURF_TERMS_MAX * BSURF_TERMS_MAX], inv[BSURF_TERMS_MAX];
+} bsurf_ldl;
+int bsurf_ldl_factor_packed(int m, const double *G, double rel_tol, bsurf_ldl *f);
+void bsurf_ldl_solve_factored(const bsurf_ldl *f, const double *r, double *c);
+
 /* Default relative pivot tolerance for rank detection. */
 #define BSURF_RANK_TOL 1e-10
 
