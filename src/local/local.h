@@ -40,7 +40,19 @@ void bsurf_frame_dir_to_global(const bsurf_frame *f, const double local[3], doub
 /* Monomials of total degree <= degree (at most 2 * BSURF_DEGREE_MAX) in
  * graded order 1, u, v, u^2, uv, v^2, u^3, u^2 v, u v^2, v^3, ...
  * so the basis of a lower degree is a prefix of the basis of a higher one. */
-void bsurf_poly_basis(int degree, double u, double v, double *phi);
+static inline void bsurf_poly_basis(int degree, double u, double v, double *phi) {
+  /* degree d: u^d, u^(d-1) v, ..., v^d from the previous degree's block
+   * (at phi + p), in place; inline, so that a constant degree unrolls (a
+   * copy through arrays and a call per point were a third of the MSE
+   * rule's quadric sums; the same products, the same bits) */
+  phi[0] = 1.0;
+  for (int d = 1, p = 0; d <= degree; p += d, d++) {
+    double *cur = phi + p + d;
+    for (int j = 0; j < d; j++)
+      cur[j] = phi[p + j] * u;
+    cur[d] = phi[p + d - 1] * v;
+  }
+}
 
 /* Partial derivatives of the basis: du[a] = d phi_a / du, dv[a] = d phi_a / dv
  * (appendix A lists them for M = 2, 3, 4). */

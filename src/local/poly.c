@@ -19,19 +19,6 @@ int bsurf_poly_terms(int degree) {
   return (degree + 1) * (degree + 2) / 2;
 }
 
-void bsurf_poly_basis(int degree, double u, double v, double *phi) {
-  /* degree d: u^d, u^(d-1) v, ..., v^d from the previous degree's block
-   * (at phi + p), in place: no copies (they were memcpy calls a monomial
-   * row, a third of the MSE rule's quadric sums; the same products) */
-  phi[0] = 1.0;
-  for (int d = 1, p = 0; d <= degree; p += d, d++) {
-    double *cur = phi + p + d;
-    for (int j = 0; j < d; j++)
-      cur[j] = phi[p + j] * u;
-    cur[d] = phi[p + d - 1] * v;
-  }
-}
-
 void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *dv) {
   /* monomial u^(d-j) v^j: d/du = (d-j) u^(d-j-1) v^j, d/dv = j u^(d-j) v^(j-1) */
   double up[BSURF_DEGREE_MAX + 1], vp[BSURF_DEGREE_MAX + 1];
