@@ -237,8 +237,13 @@ typedef struct ksel_scratch {
   double *nrm, *var, *qb; /* nk x 3, nk, nk: each candidate's normal, variance, quadric bias^2 */
   double *mse;            /* nk: each candidate's V + Bias^2 */
   double *res;            /* kmax: residuals of the two-sheet test */
+  double *tcand, *tcrit;  /* nk x 3, nk: one point's tied candidates, as tie_store takes them */
   bsurf_blocks mem;       /* the arrays above */
   size_t unfit, none;
+  /* pass 3's tied candidates, in blocks that never move (tie_put) */
+  double **tie_blocks;
+  int tie_nblocks, tie_cap, tie_nomem;
+  size_t tie_used; /* doubles used in the last block */
 } ksel_scratch;
 
 typedef struct ksel_ctx {
@@ -250,8 +255,8 @@ typedef struct ksel_ctx {
   double *s2;         /* pass 1: the point's residual variance (NAN: no fit) */
   double *noise;      /* pass 2: the pooled noise variance */
   double *sheet_crit; /* per candidate: the two-sheet test's critical ratio, or NULL */
-  double *cand;       /* pass 3: n x nk x 3 normals of the tied candidates (NAN: not tied) */
-  double *crit;       /* pass 3: n x nk, their criterion V + Bias^2 */
+  double **tied;      /* pass 3: per point its tied candidates (tie_put) */
+  double *fnrm;       /* pass 3: n x 3, the normal of the smallest criterion */
   int *first;         /* pass 3: the candidate of the smallest criterion */
   bsurf_kselect_fields *out;
 } ksel_ctx;
@@ -375,6 +380,69 @@ static bsurf_status pool_global(double *noise, size_t n) {
   return BSURF_OK;
 }
 
+/* Pass 3's tied candidates, compacted (a point has a few of the nk): in
+ * its thread's blocks, which never move, c->tied[i] points at m, then per
+ * tied candidate a, its normal and its criterion (TIE_W values); the first
+ * choice's normal also in c->fnrm (the neighbours' references in pass 4).
+ * Where n x nk normals and criteria were 32 nk bytes a point. */
+#define TIE_W 5
+#define TIE_BLOCK ((size_t)1 << 16) /* doubles */
+
+/* point i's tied candidates from s->tcand (NAN: not tied) and s->tcrit;
+ * out of memory: s->tie_nomem, c->tied[i] NULL */
+static void tie_store(ksel_ctx *c, ksel_scratch *s, size_t i) {
+  const int nk = c->o->nk;
+  memcpy(&c->fnrm[3 * i], &s->tcand[3 * (size_t)c->first[i]], 3 * sizeof(double));
+  const size_t need = 1 + (size_t)TIE_W * nk;
+  if (!s->tie_nblocks || s->tie_used + need > TIE_BLOCK) { /* a new block */
+    if (s->tie_nblocks == s->tie_cap) {
+      const int cap = s->tie_cap ? 2 * s->tie_cap : 16;
+      double **b = realloc(s->tie_blocks, (size_t)cap * sizeof *b);
+      if (!b) {
+        s->tie_nomem = 1, c->tied[i] = NULL;
+        return;
+      }
+      s->tie_blocks = b, s->tie_cap = cap;
+    }
+    double *blk = malloc((need > TIE_BLOCK ? need : TIE_BLOCK) * sizeof(double));
+    if (!blk) {
+      s->tie_nomem = 1, c->tied[i] = NULL;
+      return;
+    }
+    s->tie_blocks[s->tie_nblocks++] = blk;
+    s->tie_used = 0;
+  }
+  double *e = s->tie_blocks[s->tie_nblocks - 1] + s->tie_used, *w = e + 1;
+  int m = 0;
+  for (int a = 0; a < nk; a++) {
+    if (isnan(s->tcand[3 * a])) continue;
+    w[0] = a;
+    memcpy(&w[1], &s->tcand[3 * a], 3 * sizeof(double));
+    w[4] = s->tcrit[a];
+    w += TIE_W, m++;
+  }
+  e[0] = m;
+  s->tie_used += 1 + (size_t)TIE_W * m;
+  c->tied[i] = e;
+}
+
+/* point i's tied candidates back into s->tcand (NAN: not tied) and
+ * s->tcrit; returns s->tcand */
+static const double *tie_load(const ksel_ctx *c, ksel_scratch *s, size_t i) {
+  const int nk = c->o->nk;
+  for (int a = 0; a < nk; a++)
+    s->tcand[3 * a] = NAN;
+  const double *e = c->tied[i];
+  const int m = (int)e[0];
+  for (int q = 0; q < m; q++) {
+    const double *w = e + 1 + (size_t)TIE_W * q;
+    const int a = (int)w[0];
+    memcpy(&s->tcand[3 * a], &w[1], 3 * sizeof(double));
+    s->tcrit[a] = w[4];
+  }
+  return s->tcand;
+}
+
 /* Pass 3: every candidate's normal, variance V and quadric bias^2 (noise
  * share removed), their drifts, and the smallest V + Bias^2. */
 static void select_point(void *vctx, int thread, size_t i) {
@@ -455,7 +523,7 @@ static void select_point(void *vctx, int thread, size_t i) {
     if (mse[a] < best_mse) /* ties keep the smaller K */
       best_mse = mse[a], best = a;
   }
-  double *cand = &c->cand[i * (size_t)nk * 3], *crit = &c->crit[i * (size_t)nk];
+  double *cand = s->tcand, *crit = s->tcrit; /* compacted by tie_store */
   for (int a = 0; a < nk; a++)
     cand[3 * a] = NAN;
   if (best < 0) {
@@ -472,6 +540,7 @@ static void select_point(void *vctx, int thread, size_t i) {
     memcpy(&cand[3 * a], &nrm[3 * a], 3 * sizeof(double));
     crit[a] = a == best ? best_mse : mse[a];
   }
+  tie_store(c, s, i);
 }
 
 /* Pass 4: among the tied candidates, the one nearest the neighbours' first
@@ -482,7 +551,7 @@ static void tie_point(void *vctx, int thread, size_t i) {
   const bsurf_kselect_options *o = c->o;
   const int nk = o->nk;
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
-  const double *cand = &c->cand[i * (size_t)nk * 3];
+  const double *cand = tie_load(c, s, i); /* s->tcand, s->tcrit */
   int best = c->first[i];
   double best_t = INFINITY;
   for (int a = 0; a < nk; a++) {
@@ -492,14 +561,14 @@ static void tie_point(void *vctx, int thread, size_t i) {
     for (int j = 0; j < o->noise_k; j++) {
       const uint32_t r = idx[j];
       if (r == i) continue;
-      const double *nr = &c->cand[(r * (size_t)nk + (size_t)c->first[r]) * 3];
+      const double *nr = &c->fnrm[3 * (size_t)r];
       const double dot = na[0] * nr[0] + na[1] * nr[1] + na[2] * nr[2];
       t += 1.0 - dot * dot;
     }
     if (t < best_t) /* ties keep the smaller K */
       best_t = t, best = a;
   }
-  const double m = c->crit[i * (size_t)nk + (size_t)best];
+  const double m = s->tcrit[best];
   bsurf_kselect_fields *out = c->out;
   if (out->normals) memcpy(&out->normals[3 * i], &cand[3 * best], 3 * sizeof(double));
   if (out->k_selected) out->k_selected[i] = o->ks[best];
@@ -626,10 +695,10 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   const int T = bsurf_threads_resolve(o->threads);
   ksel_scratch *scr = calloc((size_t)T, sizeof *scr);
   double *s2 = bsurf_alloc_array(n, sizeof(double)), *noise = bsurf_alloc_array(n, sizeof(double));
-  double *cand = bsurf_alloc_array(n, (size_t)o->nk * 3 * sizeof(double));
-  double *critv = bsurf_alloc_array(n, (size_t)o->nk * sizeof(double));
+  double **tied = bsurf_alloc_array(n, sizeof(double *));
+  double *fnrm = bsurf_alloc_array(n, 3 * sizeof(double));
   int *first = bsurf_alloc_array(n, sizeof(int));
-  bsurf_status st = scr && s2 && noise && cand && critv && first ? BSURF_OK : BSURF_ERR_NOMEM;
+  bsurf_status st = scr && s2 && noise && tied && fnrm && first ? BSURF_OK : BSURF_ERR_NOMEM;
   for (int t = 0; t < T && st == BSURF_OK; t++) {
     ksel_scratch *s = &scr[t];
     s->u = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
@@ -645,12 +714,14 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
     s->qb = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->mse = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->res = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
+    s->tcand = bsurf_blocks_array(&s->mem, (size_t)o->nk, 3 * sizeof(double));
+    s->tcrit = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     st = bsurf_blocks_status(&s->mem);
   }
   uint32_t *owned = NULL;
   const uint32_t *order = NULL;
   if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
-  ksel_ctx ctx = {xyz, nb, o, kmax, scr, s2, noise, NULL, cand, critv, first, out};
+  ksel_ctx ctx = {xyz, nb, o, kmax, scr, s2, noise, NULL, tied, fnrm, first, out};
   double *crit = NULL; /* nk critical ratios, then SHEET_DRAWS ratios per candidate */
   if (st == BSURF_OK && out->two_sheet) {
     if (!(crit = bsurf_alloc_array((size_t)o->nk, (1 + SHEET_DRAWS) * sizeof(double))))
@@ -667,18 +738,24 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK)
     st = bsurf_parallel_points_ordered(n, order, T, select_point, &ctx, o->progress,
                                        o->progress_user);
+  for (int t = 0; t < T && st == BSURF_OK; t++)
+    if (scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) st = bsurf_parallel_points_ordered(n, order, T, tie_point, &ctx, NULL, NULL);
   free(crit);
-  free(cand);
-  free(critv);
+  free(tied);
+  free(fnrm);
   free(first);
   if (report && st == BSURF_OK)
     for (int t = 0; t < T; t++)
       report->unassessed += scr[t].none;
   free(owned);
   if (scr)
-    for (int t = 0; t < T; t++)
+    for (int t = 0; t < T; t++) {
       bsurf_blocks_free(&scr[t].mem);
+      for (int b = 0; b < scr[t].tie_nblocks; b++)
+        free(scr[t].tie_blocks[b]);
+      free(scr[t].tie_blocks);
+    }
   free(scr);
   free(s2);
   free(noise);
