@@ -198,9 +198,26 @@ static int quad_solve(const quad_sums *q, double coef[QT], double *rss, double g
   *rss = r > 0 ? r : 0;
   if (ginv_hh)
     for (int c = 0; c < 3; c++) {
-      double e[QT] = {0}, x[QT];
-      e[3 + c] = 1;
-      bsurf_ldl_solve_factored(&f, e, x);
+      /* G^-1 e_(3+c), rows 3..5: the solve of the unit vector with the
+       * forward rows before 3 + c (exact +0: 0 - L (+0) is +0) and the
+       * backward rows below 3 (no row 3..5 uses them) left out, so the
+       * bits of bsurf_ldl_solve_factored's full solve */
+      const int s0 = 3 + c;
+      double y[QT], x[QT];
+      for (int i = 3; i < s0; i++)
+        y[i] = 0.0;
+      for (int i = s0; i < QT; i++) { /* L y = e */
+        double a = i == s0 ? 1.0 : 0.0;
+        for (int t = s0; t < i; t++)
+          a -= f.L[i * QT + t] * y[t];
+        y[i] = a;
+      }
+      for (int i = QT - 1; i >= 3; i--) { /* L^T x = D^-1 y */
+        double a = y[i] * f.inv[i];
+        for (int t = i + 1; t < QT; t++)
+          a -= f.L[t * QT + i] * x[t];
+        x[i] = a;
+      }
       for (int r2 = 0; r2 < 3; r2++)
         ginv_hh[r2][c] = x[3 + r2];
     }
