@@ -84,7 +84,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        1, 0},
       {0, "a", ARG_STRING, &a_text, "A",
        "multipass: h1 = A x d_L, the mean distance to the K_i neighbours (Eq. 6.5), or auto "
-       "(A = 1.5 sqrt(pi / K_i): h1 = the local spacing; the thesis's is 0.1)",
+       "(A = 1.5 sqrt(pi / K_i): h1 = sqrt((A d_L)^2 + 2 noise^2), the local spacing widened "
+       "by the guard's noise estimate; the thesis's A is 0.1)",
        1, 0},
       {0, "iterations", ARG_STRING, &iter_text, "N",
        "multipass: N smoothing passes (the thesis: 300), or auto (stop after the first pass "

@@ -650,8 +650,10 @@ typedef struct bsurf_smooth_options {
                                6.4.1, where its points barely move; see
                                docs/smoothing.md) */
   bsurf_smooth_order order; /* bilateral and multipass (PARALLEL) */
-  /* multipass: h1 = a d_L (Eq. 6.5); a < 0 (default): 1.5 sqrt(pi / K_i),
-   * h1 = the local spacing (the thesis's is 0.1). iterations passes; -1
+  /* multipass: h1 = a d_L (Eq. 6.5); a < 0 (default): a = 1.5 sqrt(pi / K_i),
+   * the local spacing, and with the guard h1 = sqrt((a d_L)^2 + 2 sigma^2),
+   * sigma its noise estimate (as bilateral's h1 auto; the thesis's a is
+   * 0.1). iterations passes; -1
    * (default): until the first pass whose mean squared move is below
    * sigma^2 mean(p_i / K_i), at most 300 (the thesis: 300). K_i = max{k_min,
    * y} with y the linear map of Eq. 6.4 from (0, K) to (k_error, k_min);

@@ -437,7 +437,8 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
       order        parallel (order-independent) or sequential (the thesis's
                    in-place sweep, one thread)
       a            multipass: h1 = a x d_L (Eq. 6.5); 'auto': 1.5 sqrt(pi / K_i),
-                   h1 = the local spacing (the thesis: 0.1)
+                   the local spacing, widened by the guard's noise estimate
+                   sigma to sqrt((a d_L)^2 + 2 sigma^2) (the thesis: a = 0.1)
       iterations   multipass: passes; 'auto': until a pass's mean squared move
                    is below the fits' prediction variance (at most 300; the
                    thesis: 300)

@@ -64,6 +64,15 @@ static void multipass_fit_task(void *vc, int thread, size_t i) {
    * (docs/smoothing.md, "Why the thesis's multipass barely moves points") */
   const double a = c->o.a >= 0 ? c->o.a : 1.5 * sqrt(3.14159265358979323846 / (double)kh);
   double h1 = a * c->dl[i];
+  /* with the guard's noise estimate, by default: h1 = sqrt((a d_L)^2 + 2
+   * sigma^2), bilateral's rule (smooth.c, bsurf_smooth_resolve): two points
+   * a d_L apart on the surface are, with noise sigma along the normal at
+   * each, sqrt((a d_L)^2 + 2 sigma^2) apart on average, and a d_L alone
+   * gives the points the noise displaced farthest, those a move helps most,
+   * the least weight (d_L, a mean over K_i neighbours mostly several
+   * spacings away, hardly grows with the noise). An explicit a keeps Eq.
+   * 6.5 as written */
+  if (c->o.a < 0 && c->noise > 0) h1 = sqrt(h1 * h1 + 2.0 * c->noise);
   c->inv_h1sq[i] = h1 > 0 ? 1.0 / (h1 * h1) : 0.0;
   set_theta2(c, i, c->W[i], NULL); /* misfit: the fit is NAN above */
   double *rec = &c->fits[i * (size_t)c->stride + FIT_HEAD + (size_t)c->m];
