@@ -200,7 +200,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   /* the MSE rule in memory (explicit, or auto where it applies, as
    * bsurf_normals_job decides), bsurf_select_k's and normals_job.c's arrays:
    * per point the tie-break's record, 8 + 40 bytes per tied candidate (up
-   * to nk; counted as 4, above the 2.4 of a sphere at u0.5 with 15
+   * to nk; counted as 4, above the 2.6 or so of a sphere at u0.5 with 15
    * candidates), with its pointer and the first choice's normal (32); the
    * noise fits' and the pool's variances, the first choice, the visit
    * order, the chosen K and the two-sheet flag (32); the pooling's copy (8) */

@@ -257,7 +257,7 @@ typedef struct ksel_scratch {
   double *tcand, *tcrit;  /* nk x 3, nk: one point's tied candidates, as tie_store takes them */
   bsurf_blocks mem;       /* the arrays above */
   size_t unfit, none;
-  /* pass 3's tied candidates, in blocks that never move (tie_put) */
+  /* pass 3's tied candidates, in blocks that never move (tie_store) */
   double **tie_blocks;
   int tie_nblocks, tie_cap, tie_nomem;
   size_t tie_used; /* doubles used in the last block */
@@ -272,7 +272,7 @@ typedef struct ksel_ctx {
   double *s2;         /* pass 1: the point's residual variance (NAN: no fit) */
   double *noise;      /* pass 2: the pooled noise variance */
   double *sheet_crit; /* per candidate: the two-sheet test's critical ratio, or NULL */
-  double **tied;      /* pass 3: per point its tied candidates (tie_put) */
+  double **tied;      /* pass 3: per point its tied candidates (tie_store) */
   double *fnrm;       /* pass 3: n x 3, the normal of the smallest criterion */
   int *first;         /* pass 3: the candidate of the smallest criterion */
   bsurf_kselect_fields *out;
@@ -432,7 +432,7 @@ static void tie_store(ksel_ctx *c, ksel_scratch *s, size_t i) {
   double *e = s->tie_blocks[s->tie_nblocks - 1] + s->tie_used, *w = e + 1;
   int m = 0;
   for (int a = 0; a < nk; a++) {
-    if (isnan(s->tcand[3 * a])) continue;
+    if (isnan(s->tcand[3 * a]) && a != c->first[i]) continue; /* the first always */
     w[0] = a;
     memcpy(&w[1], &s->tcand[3 * a], 3 * sizeof(double));
     w[4] = s->tcrit[a];
