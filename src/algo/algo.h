@@ -296,6 +296,28 @@ typedef struct bsurf_fvar_result {
   double sigma0;           /* the null patch's noise (unit density); 0 if none */
   double border_threshold; /* t_b: the null patch's (1 - alpha) quantile of zb */
 } bsurf_fvar_result;
+/* The expected lambda0 of a smooth patch at a neighbourhood of tangential
+ * spread g = (lambda1 + lambda2)^2: E(g) = sigma2 + c g (noise plus the plane
+ * fit's bias on a curved patch), fitted to the medians of lambda0 in
+ * FVAR_FIT_BINS equal-count bins of g (features_variance.c). Use: prepare
+ * on a copy of g (sorted in place), put every (g, lambda0) into an array of
+ * n, solve on that array. */
+enum { FVAR_FIT_BINS = 16 };
+typedef struct bsurf_fvar_fit {
+  int bins;
+  double edge[FVAR_FIT_BINS]; /* upper g edge of bins 0 .. bins - 2 */
+  double g[FVAR_FIT_BINS];    /* the median g of each bin */
+  size_t first[FVAR_FIT_BINS + 1], fill[FVAR_FIT_BINS];
+  double sigma2, c; /* E(g) = sigma2 + c clamp(g, g[0], g[bins - 1]) */
+} bsurf_fvar_fit;
+void bsurf_fvar_fit_prepare(bsurf_fvar_fit *f, double *g, size_t n);
+void bsurf_fvar_fit_put(bsurf_fvar_fit *f, double *dst, double g, double l0);
+/* s2: the median lambda0 (sigma2 when lambda0 does not grow with g) */
+void bsurf_fvar_fit_solve(bsurf_fvar_fit *f, double *dst, double s2);
+/* u and w (may be NULL; w >= 0 only) of n points scaled by s2 / E(g): the
+ * filter's Z = u / s2 becomes nu d / E(g) */
+void bsurf_fvar_fit_scale(const bsurf_fvar_fit *f, double s2, size_t n, const double *g, double *u,
+                          double *w);
 /* A point is a feature: z > threshold or zb > border_threshold. */
 int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb);
 /* The filter's neighbours k_f (variance_filter_k, 0 = normals.k / 2). */
@@ -303,10 +325,11 @@ int bsurf_fvar_filter_k(const bsurf_feature_options *o);
 /* Per row of the k-neighbourhoods: u = nu d (the design of
  * bsurf_pca_l0_trace), lambda0 and lambda0 / tr;
  * w (may be NULL): where the neighbourhood holds two parallel sheets
- * (bsurf_pca_l0_trace's test) their pair's residual variance mu0, else -1. */
+ * (bsurf_pca_l0_trace's test) their pair's residual variance mu0, else -1;
+ * b (may be NULL): the border statistic; g (may be NULL): (lambda1 + lambda2)^2. */
 bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
                               const double *nu, double *u, double *l0, double *ratio, double *w,
-                              double *b);
+                              double *b, double *g);
 /* z[r] = median of Z over the first kf neighbours of row r, Z_j = u_j / s2
  * (s2 <= 0: u_j), or 0 where w_j (w may be NULL; k-neighbourhoods) says two
  * parallel sheets whose residual variance is within the noise s2's 99%

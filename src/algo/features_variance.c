@@ -105,7 +105,7 @@ typedef struct local_ctx {
   const bsurf_neighbors *nb;
   int k;
   const double *nu; /* by row */
-  double *u, *l0, *ratio, *w, *b;
+  double *u, *l0, *ratio, *w, *b, *g;
   double *scratch; /* threads x 2 k, with w */
 } local_ctx;
 
@@ -119,19 +119,139 @@ static void local_row(void *vctx, int thread, size_t r) {
   if (c->b) c->b[r] = border;
   c->l0[r] = l0;
   c->ratio[r] = tr > 0 ? l0 / tr : 0;
+  if (c->g) c->g[r] = (tr - l0) * (tr - l0);
   if (c->w) c->w[r] = two ? mu0 : -1;
 }
 
 bsurf_status bsurf_fvar_local(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
                               const double *nu, double *u, double *l0, double *ratio, double *w,
-                              double *b) {
+                              double *b, double *g) {
   const int t = bsurf_threads_resolve(threads);
-  local_ctx c = {xyz, nb, k, nu, u, l0, ratio, w, b, NULL};
+  local_ctx c = {xyz, nb, k, nu, u, l0, ratio, w, b, g, NULL};
   if (w && !(c.scratch = bsurf_alloc_array(2 * (size_t)t * (size_t)k, sizeof(double))))
     return BSURF_ERR_NOMEM;
   bsurf_status st = bsurf_parallel_points(nb->point_count, t, local_row, &c, NULL, NULL);
   free(c.scratch);
   return st;
+}
+
+/* ---- the null's scale: the expected lambda0 of a smooth patch ----
+ * The thesis (7.2.1): "a high variance is caused either by noise or the
+ * presence of a feature. Assuming that the noise level is uniform, a high
+ * value of variance will signify the feature area". s^2 = median lambda0 is
+ * that uniform level, the noise where the cloud is flat. On a curved
+ * smooth patch the plane fit's residual also holds the patch's departure
+ * from its tangent plane: for h = (k1 x^2 + k2 y^2) / 2 sampled uniformly
+ * on a disc of radius r (E x^2 = r^2 / 4, E x^4 = r^4 / 8, E x^2 y^2 =
+ * r^4 / 24) Var h = r^4 (k1^2 + k2^2 - 2 k1 k2 / 3) / 64, and with the
+ * tangential eigenvalues lambda1 = lambda2 = r^2 / 4
+ *     E[lambda0] = sigma^2 + c g,   g = (lambda1 + lambda2)^2,
+ *     c = (k1^2 + k2^2 - 2 k1 k2 / 3) / 16
+ * (a sphere: k^2 / 12, a cylinder: k^2 / 16; the curvature and noise terms
+ * of the normal's error, Mitra, Nguyen and Guibas 2004). The bootstrap
+ * resamples these residuals as it does the noise, so nu grows with them:
+ * where the sampling is sparse (large r, g ~ r^4) a curved smooth area
+ * has a larger nu d than the median s^2 explains, and was read as an
+ * edge (the anisotropic torus: 24.7% flagged at u0.25). The model is fitted
+ * to the cloud, robustly: the medians m_b of lambda0 in equal-count bins of
+ * g (features, a minority, do not move a median), Theil-Sen's slope (the
+ * median of the pairwise slopes of the bins, Sen 1968) where its one-sided
+ * 99% confidence bound (Sen's, from Kendall's S) is above 0, else 0; the
+ * intercept the median of m_b - c g_b clipped at 0. c = 0 (lambda0 does
+ * not grow with the neighbourhood's spread: flat parts, or a uniform
+ * density) leaves s^2 as it was. E(g) is not extrapolated below the
+ * lowest bin's median g_0 (a smaller E would raise Z); above the highest
+ * it is (a larger E only makes the test more conservative there). The
+ * bootstrap resamples the curvature's residuals as it does the noise, but
+ * they are not independent of the position: for the tilt of a least-squares
+ * plane the sandwich variance E[x^2 e^2] / (K E[x^2]^2) replaces sigma^2 /
+ * (K E[x^2]); with e the residual of h above, on a disc it is the noise's
+ * for a sphere (k1 = k2), 4/3 of it for a cylinder (k2 = 0; averaged over
+ * the two tilts: 2 across the axis, 2/3 along it) and 3/2 for a saddle (k2 =
+ * -k1), rising monotonically from the sphere to the saddle (numerically,
+ * k2 / k1 in [-1, 1]: 1.500 1.474 1.333 1.091 1.000 at -1, -1/2, 0, 1/2, 1).
+ * nu d is compared with
+ *     V(g) = sigma2 + gamma c g,   gamma = 3/2
+ * (the saddle's, the largest: a curved area is never under-normalised),
+ * Z_i = nu_i d_i / V(g_i): bsurf_fvar_fit_scale multiplies u by s^2 / V(g)
+ * for the filter's division by s^2. */
+enum { FIT_BIN_MIN = 64 }; /* points per bin at least (its median's scatter) */
+#define FIT_GAMMA 1.5      /* the sandwich factor's largest (a saddle) */
+
+static int fit_bin(const bsurf_fvar_fit *f, double g) {
+  int b = 0;
+  while (b < f->bins - 1 && g > f->edge[b])
+    b++;
+  return b;
+}
+
+void bsurf_fvar_fit_prepare(bsurf_fvar_fit *f, double *g, size_t n) {
+  memset(f, 0, sizeof *f);
+  size_t bins = n / FIT_BIN_MIN;
+  f->bins = bins >= FVAR_FIT_BINS ? FVAR_FIT_BINS : bins >= 2 ? (int)bins : 1;
+  qsort(g, n, sizeof(double), bsurf_cmp_double);
+  for (int b = 0; b < f->bins - 1; b++)
+    f->edge[b] = g[(size_t)(b + 1) * n / (size_t)f->bins - 1];
+  /* the members of bin b are a run of the sorted g (ties go to the lower) */
+  size_t i = 0;
+  for (int b = 0; b < f->bins; b++) {
+    f->first[b] = f->fill[b] = i;
+    while (i < n && fit_bin(f, g[i]) == b)
+      i++;
+    f->g[b] = bsurf_median_sorted(g + f->first[b], i - f->first[b]);
+  }
+  f->first[f->bins] = n;
+}
+
+void bsurf_fvar_fit_put(bsurf_fvar_fit *f, double *dst, double g, double l0) {
+  dst[f->fill[fit_bin(f, g)]++] = l0;
+}
+
+void bsurf_fvar_fit_solve(bsurf_fvar_fit *f, double *dst, double s2) {
+  double m[FVAR_FIT_BINS], sl[FVAR_FIT_BINS * FVAR_FIT_BINS], r[FVAR_FIT_BINS];
+  int nb = 0, ns = 0;
+  f->sigma2 = s2;
+  f->c = 0;
+  for (int b = 0; b < f->bins; b++) {
+    const size_t cnt = f->first[b + 1] - f->first[b];
+    if (!cnt) continue;
+    m[nb] = bsurf_median(dst + f->first[b], cnt);
+    f->g[nb++] = f->g[b];
+  }
+  for (int a = 0; a < nb; a++)
+    for (int b = a + 1; b < nb; b++)
+      if (f->g[b] > f->g[a]) sl[ns++] = (m[b] - m[a]) / (f->g[b] - f->g[a]);
+  if (!ns) return;
+  const double c = bsurf_median(sl, (size_t)ns); /* sorts sl */
+  /* growth with g at all? Sen's one-sided 99% confidence bound on the
+   * slope (Kendall's S: variance nb (nb - 1) (2 nb + 5) / 18) must be
+   * above 0; else no growth: the median, as before */
+  const double cs = 2.3263478740408408 * sqrt(nb * (nb - 1.0) * (2 * nb + 5.0) / 18);
+  const double lo = floor((ns - cs) / 2);
+  if (!(c > 0) || !(sl[lo > 0 ? (size_t)lo : 0] > 0)) return;
+  for (int b = 0; b < nb; b++)
+    r[b] = m[b] - c * f->g[b];
+  const double s = bsurf_median(r, (size_t)nb);
+  f->c = c;
+  f->sigma2 = s > 0 ? s : 0;
+  f->bins = nb;
+}
+
+static double fit_expected(const bsurf_fvar_fit *f, double g) {
+  if (!(f->c > 0)) return f->sigma2;
+  const double lo = f->g[0];
+  return f->sigma2 + FIT_GAMMA * f->c * (g < lo ? lo : g);
+}
+
+void bsurf_fvar_fit_scale(const bsurf_fvar_fit *f, double s2, size_t n, const double *g, double *u,
+                          double *w) {
+  if (!(f->c > 0) || !(s2 > 0)) return;
+  for (size_t i = 0; i < n; i++) {
+    const double e = fit_expected(f, g[i]);
+    if (!(e > 0)) continue;
+    u[i] *= s2 / e;
+    if (w && w[i] >= 0) w[i] *= s2 / e;
+  }
 }
 
 /* ---- the median filter ---- */
@@ -281,7 +401,7 @@ static bsurf_status patch_init(null_patch *p, const bsurf_feature_options *o, in
 static bsurf_status patch_eta(null_patch *p, int k, int threads, double sigma, double *eta) {
   patch_place(p, sigma);
   bsurf_status st =
-      bsurf_fvar_local(p->xyz, &p->nb, k, threads, p->nu, p->u, p->l0, p->ratio, NULL, NULL);
+      bsurf_fvar_local(p->xyz, &p->nb, k, threads, p->nu, p->u, p->l0, p->ratio, NULL, NULL, NULL);
   if (st != BSURF_OK) return st;
   size_t m = 0;
   for (size_t i = 0; i < p->n; i++)
@@ -307,7 +427,7 @@ static bsurf_status patch_scores(null_patch *p, const bsurf_feature_options *o, 
   bsurf_status st = bsurf_estimate_normals(p->xyz, &p->nb, NULL, &no, &nf, NULL);
   if (st == BSURF_OK)
     st = bsurf_fvar_local(p->xyz, &p->nb, k, o->threads, p->nu, p->u, p->l0, p->ratio, p->w,
-                          border ? p->b : NULL);
+                          border ? p->b : NULL, NULL);
   if (st == BSURF_OK && border)
     st = bsurf_fvar_filter(&p->nb, kf, o->threads, 0, k, p->b, NULL, p->zb);
   if (st != BSURF_OK) return st;
@@ -422,7 +542,8 @@ bsurf_status bsurf_fvar_eta(const double *xyz, const bsurf_neighbors *nb, int k,
          *l0 = bsurf_alloc_array(n ? n : 1, sizeof(double)),
          *ratio = bsurf_alloc_array(n ? n : 1, sizeof(double));
   bsurf_status st = nu && u && l0 && ratio ? BSURF_OK : BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio, NULL, NULL);
+  if (st == BSURF_OK)
+    st = bsurf_fvar_local(xyz, nb, k, threads, nu, u, l0, ratio, NULL, NULL, NULL);
   if (st == BSURF_OK) *eta = bsurf_median(ratio, n);
   free(nu);
   free(u);
@@ -445,14 +566,22 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
   const size_t n = nb->point_count;
   double *u = bsurf_alloc_array(n, sizeof(double)), *l0 = bsurf_alloc_array(n, sizeof(double)),
          *ratio = bsurf_alloc_array(n, sizeof(double)), *w = bsurf_alloc_array(n, sizeof(double)),
-         *b = bsurf_alloc_array(n, sizeof(double));
-  bsurf_status st = u && l0 && ratio && w && b ? BSURF_OK : BSURF_ERR_NOMEM;
+         *b = bsurf_alloc_array(n, sizeof(double)), *g = bsurf_alloc_array(n, sizeof(double));
+  bsurf_status st = u && l0 && ratio && w && b && g ? BSURF_OK : BSURF_ERR_NOMEM;
   if (st == BSURF_OK)
-    st = bsurf_fvar_local(xyz, nb, o->normals.k, o->threads, score, u, l0, ratio, w, b);
+    st = bsurf_fvar_local(xyz, nb, o->normals.k, o->threads, score, u, l0, ratio, w, b, g);
   double s2 = 0, eta = 0;
   if (st == BSURF_OK) {
-    s2 = bsurf_median(l0, n);
     eta = bsurf_median(ratio, n);
+    /* E(g) (ratio, no longer needed, holds the sorted g, then lambda0 by bin) */
+    bsurf_fvar_fit fit;
+    memcpy(ratio, g, n * sizeof(double));
+    bsurf_fvar_fit_prepare(&fit, ratio, n);
+    for (size_t i = 0; i < n; i++)
+      bsurf_fvar_fit_put(&fit, ratio, g[i], l0[i]);
+    s2 = bsurf_median(l0, n);
+    bsurf_fvar_fit_solve(&fit, ratio, s2);
+    bsurf_fvar_fit_scale(&fit, s2, n, g, u, w);
     st = bsurf_fvar_filter(nb, kf, o->threads, s2, o->normals.k, u, w, score);
   }
   /* the border score zb into l0 (no longer needed) */
@@ -466,6 +595,7 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
   free(ratio);
   free(w);
   free(b);
+  free(g);
   return st;
 }
 

@@ -161,7 +161,7 @@ static bsurf_status eta_stage_run(void *user, const bsurf_tile *tile, bsurf_clou
   bsurf_status st = nu && u && l0 ? BSURF_OK : BSURF_ERR_NOMEM;
   if (st == BSURF_OK)
     st = bsurf_fvar_local(tile->xyz, tile->nb, ft->no.k, ft->no.threads, nu, u, l0,
-                          tile->values_out, NULL, NULL);
+                          tile->values_out, NULL, NULL, NULL);
   free(nu);
   free(u);
   free(l0);

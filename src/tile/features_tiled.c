@@ -345,22 +345,28 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
  * rules: cli/cmd_features.c) ----
  *  (v1) K = normals.k: nu (bootstrap normals keyed by global index, as in
  *       memory) and, per point, u = nu d, lambda0, lambda0 / tr, w (mu0
- *       where two sheets) and the border statistic b (bsurf_fvar_local);
- *  (v2) s^2 = median lambda0 and eta = median lambda0 / tr over the values
- *       read back in index order (8 bytes per point in memory at a time);
- *  (v3) K = k_f, reading (v1)'s values of the tile's points: z = the median
- *       of u over the first k_f neighbours / s^2, zb = that of b;
+ *       where two sheets), the border statistic b and the spread g
+ *       (bsurf_fvar_local);
+ *  (v2) s^2 = median lambda0, eta = median lambda0 / tr and the expected
+ *       lambda0 E(g) (bsurf_fvar_fit: the sorted g, then lambda0 by g's
+ *       bin) over the values read back in index order (8 bytes per point in
+ *       memory at a time);
+ *  (v3) K = k_f, reading (v1)'s values of the tile's points: u and w scaled
+ *       by s^2 / E(g) (bsurf_fvar_fit_scale), z = the median of u over the
+ *       first k_f neighbours / s^2, zb = that of b;
  *  (v4) t from z (all of it in memory, for Otsu) and the null patch (t and
  *       the border's t_b: bsurf_fvar_threshold, the in-memory function); the
  *       feature count (z > t or zb > t_b);
  *       the output by a pointwise stage. */
 
-/* (v1)'s values per point: u, lambda0, lambda0 / tr, w, b */
-#define NV 5
+/* (v1)'s values per point: u, lambda0, lambda0 / tr, w, b, g */
+#define NV 6
 
 typedef struct fv_run {
   fd_run fd; /* first: the stages get &fd as their user */
   double s2;
+  bsurf_fvar_fit fit;
+  int col; /* (v2)'s column */
   double *all;
   size_t nall, features;
   bsurf_fvar_result res;
@@ -373,9 +379,9 @@ static bsurf_status run_var_local(void *user, const bsurf_tile *t, bsurf_cloud *
   (void)sums;
   const fv_run *v = user;
   const size_t nc = t->core_count;
-  double *nu = bsurf_alloc_array(6 * (nc ? nc : 1), sizeof(double));
+  double *nu = bsurf_alloc_array(7 * (nc ? nc : 1), sizeof(double));
   if (!nu) return BSURF_ERR_NOMEM;
-  double *u = nu + nc, *l0 = u + nc, *ratio = l0 + nc, *w = ratio + nc, *b = w + nc;
+  double *u = nu + nc, *l0 = u + nc, *ratio = l0 + nc, *w = ratio + nc, *b = w + nc, *g = b + nc;
   bsurf_normal_options no = v->fd.o.normals;
   no.threads = v->fd.o.threads;
   no.progress = NULL;
@@ -383,13 +389,14 @@ static bsurf_status run_var_local(void *user, const bsurf_tile *t, bsurf_cloud *
   bsurf_normal_fields nf = {NULL, nu, NULL};
   bsurf_status st = bsurf_estimate_normals(t->xyz, t->nb, NULL, &no, &nf, NULL);
   if (st == BSURF_OK)
-    st = bsurf_fvar_local(t->xyz, t->nb, no.k, v->fd.o.threads, nu, u, l0, ratio, w, b);
+    st = bsurf_fvar_local(t->xyz, t->nb, no.k, v->fd.o.threads, nu, u, l0, ratio, w, b, g);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
     t->values_out[NV * r] = u[r];
     t->values_out[NV * r + 1] = l0[r];
     t->values_out[NV * r + 2] = ratio[r];
     t->values_out[NV * r + 3] = w[r];
     t->values_out[NV * r + 4] = b[r];
+    t->values_out[NV * r + 5] = g[r];
   }
   free(nu);
   return st;
@@ -403,14 +410,16 @@ static bsurf_status run_var_filter(void *user, const bsurf_tile *t, bsurf_cloud 
   const fv_run *v = user;
   const size_t nl = t->local_count;
   const size_t m = nl ? nl : 1, nc = t->core_count;
-  double *u = bsurf_alloc_array(5 * m, sizeof(double));
+  double *u = bsurf_alloc_array(6 * m, sizeof(double));
   if (!u) return BSURF_ERR_NOMEM;
-  double *w = u + m, *b = w + m, *z = b + m, *zb = z + m;
+  double *w = u + m, *b = w + m, *z = b + m, *zb = z + m, *g = zb + m;
   for (size_t l = 0; l < nl; l++) {
     u[l] = t->values[NV * l];
     w[l] = t->values[NV * l + 3];
     b[l] = t->values[NV * l + 4];
+    g[l] = t->values[NV * l + 5];
   }
+  bsurf_fvar_fit_scale(&v->fit, v->s2, nl, g, u, w);
   const int kf = bsurf_fvar_filter_k(&v->fd.o), k = v->fd.o.normals.k;
   bsurf_status st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, v->s2, k, u, w, z);
   if (st == BSURF_OK) st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, 0, k, b, NULL, zb);
@@ -422,17 +431,18 @@ static bsurf_status run_var_filter(void *user, const bsurf_tile *t, bsurf_cloud 
   return st;
 }
 
-/* (v2): the second or third of the NV values into v->all */
-static void scan_col1(void *vv, size_t count, const double *x) {
+/* (v2): the column v->col of the NV values into v->all */
+static void scan_col(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[NV * i + 1];
+    v->all[v->nall++] = x[NV * i + (size_t)v->col];
 }
 
-static void scan_col2(void *vv, size_t count, const double *x) {
+/* lambda0 into its bin of g (bsurf_fvar_fit) */
+static void scan_fit(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[NV * i + 2];
+    bsurf_fvar_fit_put(&v->fit, v->all, x[NV * i + 5], x[NV * i + 1]);
 }
 
 /* (v4): z of the pairs (z, zb); then the features */
@@ -492,10 +502,18 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   double eta = 0;
   if (st == BSURF_OK && !(v.all = bsurf_alloc_array(local.count ? local.count : 1, sizeof(double))))
     st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col1);
+  v.col = 1;
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col);
   if (st == BSURF_OK) v.s2 = bsurf_median(v.all, v.nall);
   v.nall = 0;
-  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col2);
+  v.col = 5;
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col);
+  if (st == BSURF_OK) bsurf_fvar_fit_prepare(&v.fit, v.all, v.nall);
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_fit);
+  if (st == BSURF_OK) bsurf_fvar_fit_solve(&v.fit, v.all, v.s2);
+  v.nall = 0;
+  v.col = 2;
+  if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col);
   if (st == BSURF_OK) eta = bsurf_median(v.all, v.nall);
   st = agree_local(cm, st);
   /* (v3) */

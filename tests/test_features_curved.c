@@ -1,0 +1,172 @@
+/* The variance test's null on curved, unevenly sampled surfaces (issue 22;
+ * features_variance.c, "the null's scale"): the expected lambda0 of a
+ * smooth patch E(g) = sigma^2 + c g, g = (lambda1 + lambda2)^2, fitted to the
+ * cloud, and a featureless surface whose density varies 10x flagged at about
+ * the tests' level. */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <cmocka.h>
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "algo/algo.h"
+#include "bootsurf.h"
+
+static uint64_t rng_next(uint64_t *s) {
+  *s ^= *s << 13, *s ^= *s >> 7, *s ^= *s << 17;
+  return *s;
+}
+
+static double rng_uniform(uint64_t *s) {
+  return (double)(rng_next(s) >> 11) * (1.0 / 9007199254740992.0);
+}
+
+/* E(g) = sigma2 + c g fitted on its pieces as the callers use them */
+static bsurf_fvar_fit fit_of(const double *l0, const double *g, size_t n, double *s2) {
+  double *a = malloc(n * sizeof(double)), *b = malloc(n * sizeof(double));
+  memcpy(a, g, n * sizeof(double));
+  bsurf_fvar_fit f;
+  bsurf_fvar_fit_prepare(&f, a, n);
+  for (size_t i = 0; i < n; i++)
+    bsurf_fvar_fit_put(&f, a, g[i], l0[i]);
+  memcpy(b, l0, n * sizeof(double));
+  *s2 = bsurf_median(b, n);
+  bsurf_fvar_fit_solve(&f, a, *s2);
+  free(a);
+  free(b);
+  return f;
+}
+
+/* Exact cases: lambda0 = sigma^2 + c g times a chi^2-like scatter (the
+ * median of the scatter is 1), g spread over 100x, and a fifth of the points
+ * "features" (lambda0 50 times larger, anywhere in g): the fit recovers
+ * sigma^2 and c to 3% (after the medians' known bias). lambda0 that does not grow with g (a flat
+ * cloud, a uniform density) gives c = 0 and sigma2 = the median lambda0
+ * exactly, and scaling changes nothing. */
+static void test_fit_exact(void **state) {
+  (void)state;
+  const size_t n = 20000;
+  double *l0 = malloc(n * sizeof(double)), *g = malloc(n * sizeof(double));
+  double *u = malloc(n * sizeof(double)), *w = malloc(n * sizeof(double));
+  uint64_t r = 0x853c49e6748fea9bull;
+  for (int model = 0; model < 2; model++) {
+    const double sigma2 = 2.0, c = model ? 0.5 : 0;
+    for (size_t i = 0; i < n; i++) {
+      g[i] = pow(100.0, rng_uniform(&r));
+      /* median 1: exp of a symmetric variate */
+      const double scatter = exp(0.5 * (rng_uniform(&r) - 0.5));
+      l0[i] = (sigma2 + c * g[i]) * scatter * (i % 5 == 0 ? 50 : 1);
+      u[i] = w[i] = 1;
+    }
+    double s2;
+    bsurf_fvar_fit f = fit_of(l0, g, n, &s2);
+    printf("model c %.2f: fitted sigma2 %.4f c %.4f (median lambda0 %.4f, %d bins)\n", c, f.sigma2,
+           f.c, s2, f.bins);
+    assert_int_equal(f.bins, FVAR_FIT_BINS);
+    if (model) {
+      /* a fifth of features moves each bin's median to the scatter's
+       * 0.5 / 0.8 quantile: exp((0.625 - 0.5) / 2) of the model */
+      const double bias = exp(0.0625);
+      assert_true(fabs(f.sigma2 / (bias * sigma2) - 1) < 0.03);
+      assert_true(fabs(f.c / (bias * c) - 1) < 0.03);
+      /* the scaled u is s2 / E(g): 1 at the g where E = s2, lower where sparser */
+      bsurf_fvar_fit_scale(&f, s2, n, g, u, w);
+      for (size_t i = 0; i < n; i++) {
+        const double gg = g[i] < f.g[0] ? f.g[0] : g[i];
+        assert_true(fabs(u[i] - s2 / (f.sigma2 + 1.5 * f.c * gg)) < 1e-12 * u[i]);
+        assert_true(u[i] == w[i]);
+      }
+    } else {
+      assert_true(f.c == 0);
+      assert_true(f.sigma2 == s2);
+      bsurf_fvar_fit_scale(&f, s2, n, g, u, w);
+      for (size_t i = 0; i < n; i++)
+        assert_true(u[i] == 1 && w[i] == 1);
+    }
+  }
+  /* too few points for two bins of 64: one bin, the median */
+  double s2;
+  bsurf_fvar_fit f = fit_of(l0, g, 100, &s2);
+  assert_int_equal(f.bins, 1);
+  assert_true(f.c == 0 && f.sigma2 == s2);
+  free(l0);
+  free(g);
+  free(u);
+  free(w);
+}
+
+/* A featureless shape whose sampling density varies 10x (the development
+ * set's `aniso` sampling in small: random points thinned with keep
+ * probability 0.1^t, t the x coordinate scaled to [0, 1]), uniform noise
+ * 0.25 mean spacings, the default options. Where the sampling is sparse the
+ * neighbourhood is wider and the surface's curvature raises lambda0 and nu
+ * (r^4); with the median lambda0 as the noise this was read as an edge.
+ * Bound: the two tests at alpha each flag at most 2 alpha of a flat area
+ * (test_null_featureless), with the same 2.5x allowance for the estimate.
+ * Measured (100,000 points thinned to about 39,000): the torus 24.3%
+ * flagged with s^2 = the median lambda0 as the noise (23.1% by the variance
+ * test), 2.2% with V(g) (0.9%); the sphere 1.4% (0.1%). */
+static double aniso_rate(bsurf_shape shape, double *alpha) {
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, shape, 100000, BSURF_SAMPLING_RANDOM, 7, 0), BSURF_OK);
+  double lo = INFINITY, hi = -INFINITY;
+  for (size_t i = 0; i < c.point_count; i++) {
+    lo = fmin(lo, c.xyz[3 * i]);
+    hi = fmax(hi, c.xyz[3 * i]);
+  }
+  uint64_t r = 0x9e3779b97f4a7c15ull;
+  size_t m = 0;
+  for (size_t i = 0; i < c.point_count; i++) {
+    const double t = (c.xyz[3 * i] - lo) / (hi - lo);
+    if (rng_uniform(&r) < pow(0.1, t)) {
+      memmove(&c.xyz[3 * m], &c.xyz[3 * i], 3 * sizeof(double));
+      memmove(&c.normals[3 * m], &c.normals[3 * i], 3 * sizeof(double));
+      m++;
+    }
+  }
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, m, 0, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, m, BSURF_NOISE_UNIFORM, 0.25, h, 3), BSURF_OK);
+  bsurf_neighbors nb;
+  bsurf_feature_options o = bsurf_feature_options_default();
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, m, o.normals.k, 0, NULL, NULL), BSURF_OK);
+  uint8_t *feat = malloc(m);
+  double *z = malloc(m * sizeof(double));
+  bsurf_feature_report rep;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, feat, z, &rep), BSURF_OK);
+  size_t byz = 0;
+  for (size_t i = 0; i < m; i++)
+    byz += z[i] > rep.threshold;
+  free(z);
+  *alpha = o.false_positive_rate;
+  const double rate = (double)rep.feature_points / (double)m;
+  printf("%s, density varying 10x (%zu points), uniform noise 0.25 h: K %d, %.4f flagged (%.4f "
+         "by the variance test)\n",
+         bsurf_shape_name(shape), m, rep.k, rate, (double)byz / (double)m);
+  free(feat);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+  return rate;
+}
+
+static void test_aniso_featureless(void **state) {
+  (void)state;
+  double alpha;
+  const double torus = aniso_rate(BSURF_SHAPE_TORUS, &alpha);
+  assert_true(torus <= 2.5 * 2 * alpha);
+  const double sphere = aniso_rate(BSURF_SHAPE_SPHERE, &alpha);
+  assert_true(sphere <= 2.5 * 2 * alpha);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_fit_exact),
+      cmocka_unit_test(test_aniso_featureless),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
