@@ -535,7 +535,10 @@ typedef struct bsurf_kselect_fields {
   int *k_selected; /* the chosen K */
   double *rmse;    /* the estimated root mean squared angle error of
                       that normal (rad): sqrt(variance + bias^2);
-                      pi / 2 where no candidate could be assessed */
+                      pi / 2 where no candidate could be assessed
+                      (among them the points whose K_max neighbours
+                      sample a curve, not a surface: docs/normals.md,
+                      "Curve-sampled neighbourhoods") */
   double *noise;   /* the estimated noise standard deviation along the
                       normal (length) */
   int *two_sheet;  /* 1 where the chosen neighbourhood mixes two sheets
@@ -547,8 +550,9 @@ typedef struct bsurf_kselect_fields {
 
 typedef struct bsurf_kselect_report {
   size_t unassessed; /* points where no candidate could be assessed (the
-                        noise exceeds the tangent spread of every K, or
-                        the quadrics are rank-deficient): the largest K */
+                        noise exceeds the tangent spread of every K, the
+                        quadrics are rank-deficient, or the K_max
+                        neighbours sample a curve): the largest K */
 } bsurf_kselect_report;
 
 /* K selection by BSURF_KSELECT_MSE for every point; nb->k must be at least
