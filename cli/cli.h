@@ -232,6 +232,12 @@ extern size_t cli_range_points;
 int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
                    size_t tile_points, const char *memory_limit, int k, int out_fields,
                    size_t *plan);
+/* The same with point_bytes more bytes a point in memory than the
+ * neighbourhoods, the fields and the files count (the in-memory run's own
+ * arrays, such as the MSE rule's candidates). */
+int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *output, int ascii,
+                         size_t tile_points, const char *memory_limit, int k, int out_fields,
+                         double point_bytes, size_t *plan);
 /* Before a tiled run: an empty input is refused by name. 0 or 1 (printed). */
 int cli_check_tiled_input(const char *input);
 /* A failed tiled run's message (rank 0): the file, the line or byte, the

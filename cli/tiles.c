@@ -48,6 +48,13 @@ size_t cli_range_points = 0;
 int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output, int ascii,
                    size_t tile_points, const char *memory_limit, int k, int out_fields,
                    size_t *plan) {
+  return cli_tiles_plan_bytes(cmd, input, output, ascii, tile_points, memory_limit, k, out_fields,
+                              0, plan);
+}
+
+int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *output, int ascii,
+                         size_t tile_points, const char *memory_limit, int k, int out_fields,
+                         double point_bytes, size_t *plan) {
   *plan = 0;
   double limit;
   if (strcmp(memory_limit, "auto") == 0) {
@@ -67,7 +74,7 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
   if (cli_read_header(input, &n)) return 1;
   struct stat sb;
   double size = stat(input, &sb) == 0 ? (double)sb.st_size : 0;
-  double need = 3 * size + (double)n * (4.0 * k + 40 + 8.0 * out_fields);
+  double need = 3 * size + (double)n * (4.0 * k + 40 + 8.0 * out_fields + point_bytes);
   int distributed = cli_mpi_ranks() > 1;
   int automatic = !tile_points && !distributed && limit > 0 && need > limit;
   if (!tile_points && !automatic && !distributed) return 0;

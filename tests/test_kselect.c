@@ -341,6 +341,48 @@ static void test_determinism(void **state) {
   shape_free(&s);
 }
 
+/* The tie-break's compact store (kselect.c, tie_store / tie_load) hands
+ * back the chosen candidate's own normal: every output normal has the bits
+ * of the PCA normal of the chosen K as select_point computes it (nested
+ * sums, bsurf_eigen_sym3), on a cube (edges and faces: several K
+ * chosen); -j1 and -j2 agree. */
+static void test_tie_store_exact(void **state) {
+  (void)state;
+  noisy_shape s;
+  shape_make(&s, BSURF_SHAPE_CUBE, 6000, BSURF_NOISE_UNIFORM, 0.5);
+  sel_out a, b;
+  select_run(&s, 1, &a);
+  select_run(&s, 2, &b);
+  const size_t n = s.c.point_count;
+  assert_memory_equal(a.normals, b.normals, 3 * n * sizeof(double));
+  assert_memory_equal(a.k, b.k, n * sizeof(int));
+  double terms[80 * BSURF_NESTED_COLS], sums[NKS * BSURF_NESTED_COLS];
+  int chosen[NKS] = {0};
+  for (size_t i = 0; i < n; i++) {
+    const uint32_t *idx = &s.nb.idx[i * (size_t)s.nb.k];
+    bsurf_nested_terms(s.c.xyz, idx, 80, terms);
+    bsurf_nested_sums(terms, 80, 1, NULL, KS, NKS, sums, NULL);
+    int c = 0;
+    while (c < NKS && KS[c] != a.k[i])
+      c++;
+    assert_true(c < NKS);
+    chosen[c] = 1;
+    double mu[3], cv[6];
+    bsurf_nested_cov(&sums[(size_t)c * BSURF_NESTED_COLS], 1, BSURF_PCA_CENTROID, mu, cv);
+    double C[3][3] = {{cv[0], cv[1], cv[2]}, {cv[1], cv[3], cv[4]}, {cv[2], cv[4], cv[5]}};
+    double ev[3], V[3][3];
+    bsurf_eigen_sym3(C, ev, V);
+    assert_memory_equal(&a.normals[3 * i], V[0], 3 * sizeof(double));
+  }
+  int distinct = 0; /* the store's candidate indices exercised */
+  for (int c = 0; c < NKS; c++)
+    distinct += chosen[c];
+  assert_true(distinct >= 3);
+  sel_free(&a);
+  sel_free(&b);
+  shape_free(&s);
+}
+
 static void test_bad_options(void **state) {
   (void)state;
   noisy_shape s;
@@ -509,7 +551,8 @@ int main(void) {
       cmocka_unit_test(test_k_grows_with_noise), cmocka_unit_test(test_cube_edges),
       cmocka_unit_test(test_sphere_smooth),      cmocka_unit_test(test_determinism),
       cmocka_unit_test(test_bad_options),        cmocka_unit_test(test_two_sheets),
-      cmocka_unit_test(test_noise_pool),         cmocka_unit_test(test_curve_sampled),
+      cmocka_unit_test(test_noise_pool),         cmocka_unit_test(test_tie_store_exact),
+      cmocka_unit_test(test_curve_sampled),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

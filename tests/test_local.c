@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "bootsurf.h"
+#include "common/common.h"
 #include "local/local.h"
 
 static void test_eigen_known(void **state) {
@@ -114,6 +115,107 @@ static void test_poly_basis_order(void **state) {
   assert_int_equal(bsurf_poly_terms(2), 6);
   assert_int_equal(bsurf_poly_terms(3), 10);
   assert_int_equal(bsurf_poly_terms(4), 15);
+}
+
+/* The basis as the recurrence through copies it replaced (poly.c): the
+ * same products, so the same bits for every degree up to 2 M_max. */
+static void poly_basis_copies(int degree, double u, double v, double *phi) {
+  int t = 0;
+  phi[t++] = 1.0;
+  double prev[2 * BSURF_DEGREE_MAX + 1] = {1.0};
+  for (int d = 1; d <= degree; d++) {
+    double cur[2 * BSURF_DEGREE_MAX + 1];
+    for (int j = 0; j < d; j++)
+      cur[j] = prev[j] * u;
+    cur[d] = prev[d - 1] * v;
+    for (int j = 0; j <= d; j++) {
+      phi[t++] = cur[j];
+      prev[j] = cur[j];
+    }
+  }
+}
+
+static void test_poly_basis_bits(void **state) {
+  (void)state;
+  srand(5);
+  for (int trial = 0; trial < 2000; trial++) {
+    const double u = (rand() / (double)RAND_MAX - 0.5) * (trial % 3 ? 2.0 : 1e-3);
+    const double v = (rand() / (double)RAND_MAX - 0.5) * (trial % 5 ? 2.0 : 7.0);
+    const int degree = trial % (2 * BSURF_DEGREE_MAX + 1);
+    double a[64], b[64];
+    memset(a, 0, sizeof a);
+    memset(b, 0, sizeof b);
+    bsurf_poly_basis(degree, u, v, a);
+    poly_basis_copies(degree, u, v, b);
+    assert_memory_equal(a, b, sizeof a);
+  }
+}
+
+/* One factorisation, several right-hand sides: the bits of a solve each
+ * (bsurf_ldl_solve_packed), and the solutions solve the system. */
+static void test_ldl_factored(void **state) {
+  (void)state;
+  srand(9);
+  for (int trial = 0; trial < 200; trial++) {
+    const int m = 1 + trial % BSURF_TERMS_MAX;
+    double X[3 * BSURF_TERMS_MAX][BSURF_TERMS_MAX], G[BSURF_PACKED_MAX];
+    for (int r = 0; r < 3 * m; r++)
+      for (int a = 0; a < m; a++)
+        X[r][a] = rand() / (double)RAND_MAX - 0.5;
+    for (int b = 0; b < m; b++)
+      for (int a = 0; a <= b; a++) {
+        double g = 0;
+        for (int r = 0; r < 3 * m; r++)
+          g += X[r][a] * X[r][b];
+        G[bsurf_packed_index(a, b)] = g;
+      }
+    bsurf_ldl f;
+    assert_int_equal(bsurf_ldl_factor_packed(m, G, BSURF_RANK_TOL, &f), 0);
+    for (int rhs = 0; rhs < 4; rhs++) {
+      double r[BSURF_TERMS_MAX], c1[BSURF_TERMS_MAX], c2[BSURF_TERMS_MAX];
+      for (int a = 0; a < m; a++)
+        r[a] = rhs == 0 ? rand() / (double)RAND_MAX : (a == rhs % m);
+      bsurf_ldl_solve_factored(&f, r, c1);
+      assert_int_equal(bsurf_ldl_solve_packed(m, G, r, BSURF_RANK_TOL, c2), 0);
+      assert_memory_equal(c1, c2, (size_t)m * sizeof(double));
+      for (int a = 0; a < m; a++) { /* G c = r */
+        double s = 0;
+        for (int b = 0; b < m; b++)
+          s += G[a <= b ? bsurf_packed_index(a, b) : bsurf_packed_index(b, a)] * c1[b];
+        assert_true(fabs(s - r[a]) < 1e-8 * (1 + fabs(r[a])));
+      }
+    }
+  }
+  /* a dependent column: refused by both */
+  double G[3] = {1, 1, 1}, r[2] = {1, 1}, c[2];
+  bsurf_ldl f;
+  assert_int_equal(bsurf_ldl_factor_packed(2, G, BSURF_RANK_TOL, &f), -1);
+  assert_int_equal(bsurf_ldl_solve_packed(2, G, r, BSURF_RANK_TOL, c), -1);
+}
+
+/* Selection's k-th smallest is the sorted array's k-th value, for every k,
+ * with and without repeated values. */
+static void test_kth_smallest(void **state) {
+  (void)state;
+  srand(3);
+  double v[101], w[101], sorted[101];
+  for (int trial = 0; trial < 300; trial++) {
+    const int n = 1 + trial % 101, levels = trial % 4 ? 1000000 : 1 + trial % 7;
+    for (int j = 0; j < n; j++)
+      v[j] = (double)(rand() % levels) - levels / 3;
+    if (trial % 9 == 0) /* sorted or reversed input */
+      for (int j = 0; j < n; j++)
+        v[j] = trial % 2 ? j : n - j;
+    memcpy(sorted, v, (size_t)n * sizeof(double));
+    qsort(sorted, (size_t)n, sizeof(double), bsurf_cmp_double);
+    for (int k = 0; k < n; k++) {
+      memcpy(w, v, (size_t)n * sizeof(double));
+      assert_true(bsurf_kth_smallest(w, (size_t)n, (size_t)k) == sorted[k]);
+      assert_true(w[k] == sorted[k]);
+      for (int j = 0; j < n; j++)
+        assert_true(j < k ? w[j] <= w[k] : w[j] >= w[k]);
+    }
+  }
 }
 
 /* Identity frame at the origin: local coordinates are the coordinates. */
@@ -507,6 +609,9 @@ int main(void) {
       cmocka_unit_test(test_eigen_degenerate),
       cmocka_unit_test(test_frame_tangent_plane_height_zero),
       cmocka_unit_test(test_poly_basis_order),
+      cmocka_unit_test(test_poly_basis_bits),
+      cmocka_unit_test(test_ldl_factored),
+      cmocka_unit_test(test_kth_smallest),
       cmocka_unit_test(test_poly_exact_recovery),
       cmocka_unit_test(test_rank_deficient_detected),
       cmocka_unit_test(test_gemm_lanes_any_shape),

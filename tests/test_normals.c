@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "bootsurf.h"
+#include "algo/algo.h"
 
 static double angle_u(const double *a, const double *b) {
   double d = fabs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
@@ -138,6 +139,58 @@ static void test_determinism_and_single_fit(void **state) {
   free(a);
   free(b);
   free(truth);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+/* Each point's own K in one pass (bsurf_estimate_normals_at, the MSE
+ * rule's replicates): the bits of a pass at that K, for -j1 and -j2. */
+static void test_estimate_at(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_TORUS, 6000, BSURF_SAMPLING_RANDOM, 3, 0),
+                   BSURF_OK);
+  const size_t n = c.point_count;
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 40, 2, NULL, NULL), BSURF_OK);
+  static const int KS3[3] = {10, 25, 40};
+  int *k_at = malloc(n * sizeof(int));
+  for (size_t i = 0; i < n; i++)
+    k_at[i] = KS3[(i * 2654435761u >> 7) % 3];
+  double *want = malloc(4 * n * sizeof(double)), *got = malloc(4 * n * sizeof(double));
+  double *tmp = malloc(4 * n * sizeof(double));
+  bsurf_normal_options o = bsurf_normal_options_default();
+  o.bootstrap = 20;
+  o.threads = 2;
+  for (int a = 0; a < 3; a++) {
+    o.k = KS3[a];
+    bsurf_normal_fields f = {tmp, tmp + 3 * n, NULL};
+    assert_int_equal(bsurf_estimate_normals(c.xyz, &nb, NULL, &o, &f, NULL), BSURF_OK);
+    for (size_t i = 0; i < n; i++)
+      if (k_at[i] == KS3[a]) {
+        memcpy(&want[3 * i], &tmp[3 * i], 3 * sizeof(double));
+        want[3 * n + i] = tmp[3 * n + i];
+      }
+  }
+  o.k = 40;
+  for (int threads = 1; threads <= 2; threads++) {
+    o.threads = threads;
+    memset(got, 0, 4 * n * sizeof(double));
+    bsurf_normal_fields f = {got, got + 3 * n, NULL};
+    bsurf_normal_report rep;
+    assert_int_equal(bsurf_estimate_normals_at(c.xyz, &nb, &o, k_at, &f, &rep), BSURF_OK);
+    assert_memory_equal(got, want, 4 * n * sizeof(double));
+    assert_true(rep.replicates_total == 20 * n);
+  }
+  /* a K above opts->k is refused */
+  k_at[0] = 41;
+  bsurf_normal_fields f = {got, NULL, NULL};
+  assert_int_equal(bsurf_estimate_normals_at(c.xyz, &nb, &o, k_at, &f, NULL),
+                   BSURF_ERR_INVALID_ARG);
+  free(k_at);
+  free(want);
+  free(got);
+  free(tmp);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
 }
@@ -288,6 +341,7 @@ int main(void) {
       cmocka_unit_test(test_plane_exact),
       cmocka_unit_test(test_sphere_poly_normals),
       cmocka_unit_test(test_determinism_and_single_fit),
+      cmocka_unit_test(test_estimate_at),
       cmocka_unit_test(test_variance_flags_bad_normals),
       cmocka_unit_test(test_orientation_agreement),
       cmocka_unit_test(test_smoothing),

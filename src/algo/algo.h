@@ -184,6 +184,15 @@ double bsurf_nested_field_angle_total(int degree, int nrep, const double *coefs,
                                       const float *phif, size_t kq, const float *rf, int k,
                                       float *accf, double *accd);
 
+/* bsurf_estimate_normals with each point's own K: point i's fields are
+ * those of bsurf_estimate_normals with opts->k = k_at[i] (the same bits;
+ * opts->k is the largest, 3 <= k_at[i] <= opts->k), in one pass instead of
+ * one pass per K (the MSE rule's chosen K with B replicates). No reference
+ * normals: out->normal_err must be NULL. */
+bsurf_status bsurf_estimate_normals_at(const double *xyz, const bsurf_neighbors *nb,
+                                       const bsurf_normal_options *opts, const int *k_at,
+                                       bsurf_normal_fields *out, bsurf_normal_report *report);
+
 /* bsurf_estimate_normals without the neighbour lists: the cloud's
  * neighbourhoods searched (bsurf_neighbors_stream, nb_k neighbours, of which
  * opts->k are used) and each point's normal estimated from its row while it

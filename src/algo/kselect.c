@@ -126,17 +126,13 @@
  * 6 x 6 solve per candidate. Deterministic: no random draws, and a point's
  * result depends on its neighbours' neighbourhoods only (through the pooled
  * noise), not on threads or order. */
-#include "algo/algo.h"
-#include "common/common.h"
-#include "local/local.h"
-#include "search/search.h"
+#include "algo/kselect.h"
+#include "bootstrap/bootstrap.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define QT 6  /* quadric terms 1, u, v, u^2, uv, v^2 */
-#define QM 15 /* monomials of degree <= 4 */
 /* the drift's allowance, in units of the first-order variance difference,
  * for one smaller candidate; ln(a) is added for a of them (see the top of
  * the file) */
@@ -162,42 +158,43 @@ static int mono_index(int i, int j) {
   return d * (d + 1) / 2 + j;
 }
 
-/* Running sums of a quadric height fit: the monomials (G's entries), z times
- * the basis, z^2. */
-typedef struct quad_sums {
-  double mono[QM], phiz[QT], zz;
-  int n;
-} quad_sums;
-
-static void quad_add(quad_sums *q, double u, double v, double z) {
-  double m[QM];
-  bsurf_poly_basis(4, u, v, m);
-  for (int a = 0; a < QM; a++)
-    q->mono[a] += m[a];
-  for (int a = 0; a < QT; a++)
-    q->phiz[a] += m[a] * z;
-  q->zz += z * z;
-  q->n++;
-}
-
 /* Solves the quadric from the sums: coef (QT), the residual sum of squares,
  * and, when ginv_hh is not NULL, the 3 x 3 block of G^-1 of the Hessian
  * coefficients (3, 4, 5). Returns 0, or -1 when rank-deficient. */
-static int quad_solve(const quad_sums *q, double coef[QT], double *rss, double ginv_hh[3][3]) {
+int quad_solve(const quad_sums *q, double coef[QT], double *rss, double ginv_hh[3][3]) {
   double G[QT * (QT + 1) / 2];
   for (int b = 0; b < QT; b++)
     for (int a = 0; a <= b; a++)
       G[bsurf_packed_index(a, b)] = q->mono[mono_index(QE[a][0] + QE[b][0], QE[a][1] + QE[b][1])];
-  if (bsurf_ldl_solve_packed(QT, G, q->phiz, BSURF_RANK_TOL, coef) != 0) return -1;
+  bsurf_ldl f; /* factored once for the four solves (the bits of one-by-one) */
+  if (bsurf_ldl_factor_packed(QT, G, BSURF_RANK_TOL, &f) != 0) return -1;
+  bsurf_ldl_solve_factored(&f, q->phiz, coef);
   double r = q->zz;
   for (int a = 0; a < QT; a++)
     r -= coef[a] * q->phiz[a];
   *rss = r > 0 ? r : 0;
   if (ginv_hh)
     for (int c = 0; c < 3; c++) {
-      double e[QT] = {0}, x[QT];
-      e[3 + c] = 1;
-      if (bsurf_ldl_solve_packed(QT, G, e, BSURF_RANK_TOL, x) != 0) return -1;
+      /* G^-1 e_(3+c), rows 3..5: the solve of the unit vector with the
+       * forward rows before 3 + c (exact +0: 0 - L (+0) is +0) and the
+       * backward rows below 3 (no row 3..5 uses them) left out, so the
+       * bits of bsurf_ldl_solve_factored's full solve */
+      const int s0 = 3 + c;
+      double y[QT], x[QT];
+      for (int i = 3; i < s0; i++)
+        y[i] = 0.0;
+      for (int i = s0; i < QT; i++) { /* L y = e */
+        double a = i == s0 ? 1.0 : 0.0;
+        for (int t = s0; t < i; t++)
+          a -= f.L[i * QT + t] * y[t];
+        y[i] = a;
+      }
+      for (int i = QT - 1; i >= 3; i--) { /* L^T x = D^-1 y */
+        double a = y[i] * f.inv[i];
+        for (int t = i + 1; t < QT; t++)
+          a -= f.L[t * QT + i] * x[t];
+        x[i] = a;
+      }
       for (int r2 = 0; r2 < 3; r2++)
         ginv_hh[r2][c] = x[3 + r2];
     }
@@ -206,8 +203,8 @@ static int quad_solve(const quad_sums *q, double coef[QT], double *rss, double g
 
 /* The frame of the noise fit and the point's neighbours in it: local x, y
  * scaled by 1 / scale, heights unscaled. */
-static double local_coords(const double *xyz, const uint32_t *idx, int kn, int kmax, bsurf_frame *f,
-                           double *u, double *v, double *z) {
+double local_coords(const double *xyz, const uint32_t *idx, int kn, int kmax, bsurf_frame *f,
+                    double *u, double *v, double *z) {
   bsurf_local_frame(xyz, idx, kn, BSURF_PCA_CENTROID, f);
   double r2 = 0;
   for (int j = 0; j < kmax; j++) {
@@ -226,143 +223,71 @@ static double local_coords(const double *xyz, const uint32_t *idx, int kn, int k
   return s;
 }
 
-typedef struct ksel_scratch {
-  double *u, *v, *z;      /* kmax */
-  double *terms, *sums;   /* kmax x BSURF_NESTED_COLS, nk x BSURF_NESTED_COLS */
-  double *mu, *cov;       /* nk x 3, nk x 6 */
-  double *pool;           /* noise_k */
-  double *nrm, *var, *qb; /* nk x 3, nk, nk: each candidate's normal, variance, quadric bias^2 */
-  double *mse;            /* nk: each candidate's V + Bias^2 */
-  double *res;            /* kmax: residuals of the two-sheet test */
-  int *curve;             /* nk: the curve test's per-candidate verdicts */
-  bsurf_blocks mem;       /* the arrays above */
-  size_t unfit, none;
-} ksel_scratch;
-
-typedef struct ksel_ctx {
-  const double *xyz;
-  const bsurf_neighbors *nb;
-  const bsurf_kselect_options *o;
-  int kmax;
-  ksel_scratch *scr;
-  double *s2;         /* pass 1: the point's residual variance (NAN: no fit) */
-  double *noise;      /* pass 2: the pooled noise variance */
-  double *sheet_crit; /* per candidate: the two-sheet test's critical ratio, or NULL */
-  double *cand;       /* pass 3: n x nk x 3 normals of the tied candidates (NAN: not tied) */
-  double *crit;       /* pass 3: n x nk, their criterion V + Bias^2 */
-  int *first;         /* pass 3: the candidate of the smallest criterion */
-  bsurf_kselect_fields *out;
-} ksel_ctx;
-
 /* the two-sheet test of the chosen neighbourhood (below bsurf_select_k's
  * passes: "Two sheets") */
 static int two_sheets(const ksel_ctx *c, ksel_scratch *s, const uint32_t *idx, int a);
 
-/* The noise's pooling: the lower quartile of the neighbours' estimates,
- * each divided by the lower quartile of chi^2_nu / nu (see the top of the
- * file); Z_Q is the standard normal's quartile. */
-#define POOL_Q 0.25
-#define Z_Q (-0.6744897501960817)
+/* Pass 3's tied candidates, compacted (a point has a few of the nk): in
+ * its thread's blocks, which never move, c->tied[i] points at m, then per
+ * tied candidate a, its normal and its criterion (TIE_W values); the first
+ * choice's normal also in c->fnrm (the neighbours' references in pass 4).
+ * Where n x nk normals and criteria were 32 nk bytes a point. */
+#define TIE_W 5
+#define TIE_BLOCK ((size_t)1 << 16) /* doubles */
 
-/* Wilson-Hilferty: the POOL_Q quantile of chi^2_nu / nu. */
-static double chi2_quantile_ratio(int nu) {
-  const double w = 1.0 - 2.0 / (9.0 * nu) + Z_Q * sqrt(2.0 / (9.0 * nu));
-  return w * w * w;
-}
-
-/* Pass 1: the residual variance of a quadric on the point's K nearest
- * neighbours, in their own PCA frame, for K = noise_k and then the larger
- * candidates, until the K-th neighbour lies at least TRUNC residual standard
- * deviations away (see the top of the file). Stored divided by the lower
- * quartile of chi^2_nu / nu, for the quartile pooling of pass 2. */
-#define TRUNC 5.0
-/* the residual variance of a quadric on the first K neighbours in their own
- * PCA frame, and the mean sixth power of their tangential distances (the
- * scale of a cubic's misfit); -1 when rank-deficient */
-static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratch *s, double *var,
-                      double *m6) {
-  bsurf_frame f;
-  const double sc = local_coords(xyz, idx, K, K, &f, s->u, s->v, s->z);
-  quad_sums q;
-  memset(&q, 0, sizeof q);
-  double r6 = 0;
-  for (int j = 0; j < K; j++) {
-    quad_add(&q, s->u[j], s->v[j], s->z[j]);
-    const double r2 = s->u[j] * s->u[j] + s->v[j] * s->v[j];
-    r6 += r2 * r2 * r2;
+/* point i's tied candidates from s->tcand (NAN: not tied) and s->tcrit;
+ * out of memory: s->tie_nomem, c->tied[i] NULL */
+static void tie_store(ksel_ctx *c, ksel_scratch *s, size_t i) {
+  const int nk = c->o->nk;
+  memcpy(&c->fnrm[3 * i], &s->tcand[3 * (size_t)c->first[i]], 3 * sizeof(double));
+  const size_t need = 1 + (size_t)TIE_W * nk;
+  if (!s->tie_nblocks || s->tie_used + need > TIE_BLOCK) { /* a new block */
+    if (s->tie_nblocks == s->tie_cap) {
+      const int cap = s->tie_cap ? 2 * s->tie_cap : 16;
+      double **b = realloc(s->tie_blocks, (size_t)cap * sizeof *b);
+      if (!b) {
+        s->tie_nomem = 1, c->tied[i] = NULL;
+        return;
+      }
+      s->tie_blocks = b, s->tie_cap = cap;
+    }
+    double *blk = malloc((need > TIE_BLOCK ? need : TIE_BLOCK) * sizeof(double));
+    if (!blk) {
+      s->tie_nomem = 1, c->tied[i] = NULL;
+      return;
+    }
+    s->tie_blocks[s->tie_nblocks++] = blk;
+    s->tie_used = 0;
   }
-  double coef[QT], rss;
-  if (quad_solve(&q, coef, &rss, NULL) != 0) return -1;
-  *var = rss / (K - QT);
-  *m6 = r6 / K * sc * sc * sc * sc * sc * sc;
-  return 0;
-}
-
-static void noise_point(void *vctx, int thread, size_t i) {
-  ksel_ctx *c = vctx;
-  ksel_scratch *s = &c->scr[thread];
-  const bsurf_kselect_options *o = c->o;
-  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
-  const double *d = &c->xyz[3 * (size_t)idx[0]];
-  c->s2[i] = NAN;
-  int ka = 0;
-  double va = 0, m6a = 0;
-  for (int a = -1; a < o->nk; a++) {
-    const int K = a < 0 ? o->noise_k : o->ks[a];
-    if (a >= 0 && K <= o->noise_k) continue;
-    double v, m6;
-    if (quad_resid(c->xyz, idx, K, s, &v, &m6) != 0) continue;
-    ka = K, va = v, m6a = m6;
-    c->s2[i] = v / chi2_quantile_ratio(K - QT);
-    const double *p = &c->xyz[3 * (size_t)idx[K - 1]];
-    const double R2 = (p[0] - d[0]) * (p[0] - d[0]) + (p[1] - d[1]) * (p[1] - d[1]) +
-                      (p[2] - d[2]) * (p[2] - d[2]);
-    if (R2 >= TRUNC * TRUNC * v) break;
-  }
-  if (!ka) return;
-  /* Richardson extrapolation of the quadric's misfit (see the top of the
-   * file): a second fit on twice the points, the misfit's share removed */
-  const int kb = 2 * ka < c->kmax ? 2 * ka : c->kmax;
-  if (kb <= ka + QT) return;
-  double vb, m6b;
-  if (quad_resid(c->xyz, idx, kb, s, &vb, &m6b) != 0 || !(m6b > m6a)) return;
-  const double e = (va * m6b - vb * m6a) / (m6b - m6a);
-  c->s2[i] = (e < 0 ? 0 : e < va ? e : va) / chi2_quantile_ratio(ka - QT);
-}
-
-/* Pass 2: the lower quartile of the (quartile-corrected) residual
- * variances over the point's kmax neighbours (the largest candidate's
- * neighbourhood; see the top of the file). */
-static void pool_point(void *vctx, int thread, size_t i) {
-  ksel_ctx *c = vctx;
-  ksel_scratch *s = &c->scr[thread];
-  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  double *e = s->tie_blocks[s->tie_nblocks - 1] + s->tie_used, *w = e + 1;
   int m = 0;
-  for (int j = 0; j < c->kmax; j++)
-    if (!isnan(c->s2[idx[j]])) s->pool[m++] = c->s2[idx[j]];
-  if (m == 0) {
-    c->noise[i] = 0;
-    return;
+  for (int a = 0; a < nk; a++) {
+    if (isnan(s->tcand[3 * a]) && a != c->first[i]) continue; /* the first always */
+    w[0] = a;
+    memcpy(&w[1], &s->tcand[3 * a], 3 * sizeof(double));
+    w[4] = s->tcrit[a];
+    w += TIE_W, m++;
   }
-  qsort(s->pool, (size_t)m, sizeof(double), bsurf_cmp_double);
-  /* the order statistic nearest the quartile (interpolated) */
-  const double r = POOL_Q * (m - 1);
-  const int lo = (int)r;
-  c->noise[i] = lo + 1 < m ? s->pool[lo] + (r - lo) * (s->pool[lo + 1] - s->pool[lo]) : s->pool[lo];
+  e[0] = m;
+  s->tie_used += 1 + (size_t)TIE_W * m;
+  c->tied[i] = e;
 }
 
-/* Pass 2b (BSURF_NOISE_POOL_GLOBAL): one noise level for the cloud, the
- * median of the points' pooled estimates (see the top of the file), of a
- * sorted copy: the same whatever the threads. */
-static bsurf_status pool_global(double *noise, size_t n) {
-  double *tmp = bsurf_alloc_array(n, sizeof(double));
-  if (!tmp) return BSURF_ERR_NOMEM;
-  memcpy(tmp, noise, n * sizeof(double));
-  const double med = bsurf_median(tmp, n);
-  for (size_t i = 0; i < n; i++)
-    noise[i] = med;
-  free(tmp);
-  return BSURF_OK;
+/* point i's tied candidates back into s->tcand (NAN: not tied) and
+ * s->tcrit; returns s->tcand */
+static const double *tie_load(const ksel_ctx *c, ksel_scratch *s, size_t i) {
+  const int nk = c->o->nk;
+  for (int a = 0; a < nk; a++)
+    s->tcand[3 * a] = NAN;
+  const double *e = c->tied[i];
+  const int m = (int)e[0];
+  for (int q = 0; q < m; q++) {
+    const double *w = e + 1 + (size_t)TIE_W * q;
+    const int a = (int)w[0];
+    memcpy(&s->tcand[3 * a], &w[1], 3 * sizeof(double));
+    s->tcrit[a] = w[4];
+  }
+  return s->tcand;
 }
 
 /* ---- Curve-sampled neighbourhoods (docs/normals.md, "Curve-sampled
@@ -522,7 +447,7 @@ static void select_point(void *vctx, int thread, size_t i) {
     if (mse[a] < best_mse) /* ties keep the smaller K */
       best_mse = mse[a], best = a;
   }
-  double *cand = &c->cand[i * (size_t)nk * 3], *crit = &c->crit[i * (size_t)nk];
+  double *cand = s->tcand, *crit = s->tcrit; /* compacted by tie_store */
   for (int a = 0; a < nk; a++)
     cand[3 * a] = NAN;
   if (best < 0) {
@@ -539,6 +464,7 @@ static void select_point(void *vctx, int thread, size_t i) {
     memcpy(&cand[3 * a], &nrm[3 * a], 3 * sizeof(double));
     crit[a] = a == best ? best_mse : mse[a];
   }
+  tie_store(c, s, i);
 }
 
 /* Pass 4: among the tied candidates, the one nearest the neighbours' first
@@ -549,7 +475,7 @@ static void tie_point(void *vctx, int thread, size_t i) {
   const bsurf_kselect_options *o = c->o;
   const int nk = o->nk;
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
-  const double *cand = &c->cand[i * (size_t)nk * 3];
+  const double *cand = tie_load(c, s, i); /* s->tcand, s->tcrit */
   int best = c->first[i];
   double best_t = INFINITY;
   for (int a = 0; a < nk; a++) {
@@ -559,14 +485,14 @@ static void tie_point(void *vctx, int thread, size_t i) {
     for (int j = 0; j < o->noise_k; j++) {
       const uint32_t r = idx[j];
       if (r == i) continue;
-      const double *nr = &c->cand[(r * (size_t)nk + (size_t)c->first[r]) * 3];
+      const double *nr = &c->fnrm[3 * (size_t)r];
       const double dot = na[0] * nr[0] + na[1] * nr[1] + na[2] * nr[2];
       t += 1.0 - dot * dot;
     }
     if (t < best_t) /* ties keep the smaller K */
       best_t = t, best = a;
   }
-  const double m = c->crit[i * (size_t)nk + (size_t)best];
+  const double m = s->tcrit[best];
   bsurf_kselect_fields *out = c->out;
   if (out->normals) memcpy(&out->normals[3 * i], &cand[3 * best], 3 * sizeof(double));
   if (out->k_selected) out->k_selected[i] = o->ks[best];
@@ -609,7 +535,7 @@ static void tie_point(void *vctx, int thread, size_t i) {
 /* The smallest within-groups sum of squares over the splits of the sorted
  * values, over the total sum of squares (1 when the values are equal). */
 static double split_ratio(double *r, int K) {
-  qsort(r, (size_t)K, sizeof(double), bsurf_cmp_double);
+  bsurf_sort_doubles(r, K); /* stable: qsort's order, fewer calls */
   return bsurf_split_share(r, K, 1, 0, NULL);
 }
 
@@ -693,10 +619,10 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   const int T = bsurf_threads_resolve(o->threads);
   ksel_scratch *scr = calloc((size_t)T, sizeof *scr);
   double *s2 = bsurf_alloc_array(n, sizeof(double)), *noise = bsurf_alloc_array(n, sizeof(double));
-  double *cand = bsurf_alloc_array(n, (size_t)o->nk * 3 * sizeof(double));
-  double *critv = bsurf_alloc_array(n, (size_t)o->nk * sizeof(double));
+  double **tied = bsurf_alloc_array(n, sizeof(double *));
+  double *fnrm = bsurf_alloc_array(n, 3 * sizeof(double));
   int *first = bsurf_alloc_array(n, sizeof(int));
-  bsurf_status st = scr && s2 && noise && cand && critv && first ? BSURF_OK : BSURF_ERR_NOMEM;
+  bsurf_status st = scr && s2 && noise && tied && fnrm && first ? BSURF_OK : BSURF_ERR_NOMEM;
   for (int t = 0; t < T && st == BSURF_OK; t++) {
     ksel_scratch *s = &scr[t];
     s->u = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
@@ -712,13 +638,15 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
     s->qb = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->mse = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->res = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
+    s->tcand = bsurf_blocks_array(&s->mem, (size_t)o->nk, 3 * sizeof(double));
+    s->tcrit = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->curve = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(int));
     st = bsurf_blocks_status(&s->mem);
   }
   uint32_t *owned = NULL;
   const uint32_t *order = NULL;
   if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
-  ksel_ctx ctx = {xyz, nb, o, kmax, scr, s2, noise, NULL, cand, critv, first, out};
+  ksel_ctx ctx = {xyz, nb, o, kmax, scr, s2, noise, NULL, tied, fnrm, first, out};
   double *crit = NULL; /* nk critical ratios, then SHEET_DRAWS ratios per candidate */
   if (st == BSURF_OK && out->two_sheet) {
     if (!(crit = bsurf_alloc_array((size_t)o->nk, (1 + SHEET_DRAWS) * sizeof(double))))
@@ -735,18 +663,24 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK)
     st = bsurf_parallel_points_ordered(n, order, T, select_point, &ctx, o->progress,
                                        o->progress_user);
+  for (int t = 0; t < T && st == BSURF_OK; t++)
+    if (scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) st = bsurf_parallel_points_ordered(n, order, T, tie_point, &ctx, NULL, NULL);
   free(crit);
-  free(cand);
-  free(critv);
+  free(tied);
+  free(fnrm);
   free(first);
   if (report && st == BSURF_OK)
     for (int t = 0; t < T; t++)
       report->unassessed += scr[t].none;
   free(owned);
   if (scr)
-    for (int t = 0; t < T; t++)
+    for (int t = 0; t < T; t++) {
       bsurf_blocks_free(&scr[t].mem);
+      for (int b = 0; b < scr[t].tie_nblocks; b++)
+        free(scr[t].tie_blocks[b]);
+      free(scr[t].tie_blocks);
+    }
   free(scr);
   free(s2);
   free(noise);

@@ -125,6 +125,7 @@ typedef struct normals_ctx {
   const int *ks;
   int nk;
   bsurf_normal_select_fields *sel;
+  const int *k_at; /* NULL, or each point's own K (bsurf_estimate_normals_at) */
 } normals_ctx;
 
 /* Point i with its neighbourhood: ids, the points' indices (i first, then
@@ -135,7 +136,7 @@ typedef struct normals_ctx {
 static void normals_point_row(const normals_ctx *c, normal_scratch *s, size_t i, const double *xyz,
                               const uint32_t *idx, const uint32_t *ids) {
   const bsurf_normal_options *o = c->o;
-  const int k = o->k, B = o->bootstrap;
+  const int k = c->k_at ? c->k_at[i] : o->k, B = o->bootstrap;
 
   /* the B resamples: for PCA their multiplicities as weights in lanes, for
    * a polynomial their draws */
@@ -293,7 +294,30 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
   static const bsurf_point_loop loop = {sizeof(normal_scratch), scratch_alloc, scratch_free,
                                         normals_point, normals_tally};
   const scratch_sizes sizes = {o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1, 1};
-  normals_ctx ctx = {xyz, nb, ref_normals, &o, out, report, NULL, 0, NULL};
+  normals_ctx ctx = {xyz, nb, ref_normals, &o, out, report, NULL, 0, NULL, NULL};
+  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o.bootstrap;
+  return st;
+}
+
+bsurf_status bsurf_estimate_normals_at(const double *xyz, const bsurf_neighbors *nb,
+                                       const bsurf_normal_options *opts, const int *k_at,
+                                       bsurf_normal_fields *out, bsurf_normal_report *report) {
+  bsurf_normal_options o = *opts;
+  if (report) memset(report, 0, sizeof *report);
+  BSURF_REQUIRE(xyz && nb && nb->idx && k_at && out && !out->normal_err,
+                "xyz, nb, nb->idx, k_at and out must not be NULL, out->normal_err must be");
+  bsurf_status st = normals_check("bsurf_estimate_normals_at", o, nb->k, nb->point_count);
+  if (st != BSURF_OK) return st;
+  for (size_t i = 0; i < nb->point_count; i++)
+    BSURF_REQUIRE(k_at[i] >= 3 && k_at[i] <= o.k, "k_at[%zu] = %d must be in [3, opts->k = %d]", i,
+                  k_at[i], o.k);
+  static const bsurf_point_loop loop = {sizeof(normal_scratch), scratch_alloc, scratch_free,
+                                        normals_point, normals_tally};
+  /* the scratch of the largest K; point i's estimate is bsurf_estimate_normals's with
+   * opts->k = k_at[i] (the same draws, keyed by the point and K: the same bits) */
+  const scratch_sizes sizes = {o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1, 1};
+  normals_ctx ctx = {xyz, nb, NULL, &o, out, report, NULL, 0, NULL, k_at};
   st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
   if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o.bootstrap;
   return st;
@@ -338,7 +362,7 @@ bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_cou
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = scratch_alloc(&scr[t], &sizes);
   /* no reference normals: a streamed point cannot wait for its neighbours' */
-  stream_ctx sc = {{xyz, NULL, NULL, &o, out, report, NULL, 0, NULL}, scr, iota};
+  stream_ctx sc = {{xyz, NULL, NULL, &o, out, report, NULL, 0, NULL, NULL}, scr, iota};
   if (st == BSURF_OK)
     st = bsurf_neighbors_stream(xyz, point_count, nb_k, o.threads, stream_row, &sc, h, duplicates,
                                 o.progress, o.progress_user);
@@ -529,7 +553,7 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
   static const bsurf_point_loop loop = {sizeof(select_scratch), select_scratch_alloc,
                                         select_scratch_free, select_point, select_tally};
   const scratch_sizes sizes = {ks[nk - 1], o.bootstrap, 1, nk};
-  normals_ctx ctx = {xyz, nb, ref_normals, &o, NULL, report, ks, nk, out};
+  normals_ctx ctx = {xyz, nb, ref_normals, &o, NULL, report, ks, nk, out, NULL};
   st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
   if (report && st == BSURF_OK)
     report->replicates_total = nb->point_count * (size_t)o.bootstrap * (size_t)nk;

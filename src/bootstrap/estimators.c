@@ -25,7 +25,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Sorts up to 64 values by counting each one's rank: value i goes to the
+/* Sorts up to 128 values by counting each one's rank: value i goes to the
  * number of values below it plus the equal ones before it (a stable sort,
  * as the insertion sort this replaced, so even -0 and +0 keep their order).
  * K^2 comparisons, but branch-free and vectorised: a point's two sorts
@@ -40,7 +40,7 @@ BSURF_CLONES
 static void rank_sort(double *a, int n) {
 #if defined(__GNUC__)
   /* padded with +inf, which no finite value exceeds or equals */
-  double v[64 + 4];
+  double v[128 + 4];
   for (int i = 0; i < n; i++)
     v[i] = a[i];
   for (int i = n; i < (n + 3) / 4 * 4; i++)
@@ -60,7 +60,7 @@ static void rank_sort(double *a, int n) {
     a[-(cnt[0] + cnt[1] + cnt[2] + cnt[3])] = x;
   }
 #else
-  double v[64];
+  double v[128];
   for (int i = 0; i < n; i++)
     v[i] = a[i];
   for (int i = 0; i < n; i++) {
@@ -76,7 +76,7 @@ static void rank_sort(double *a, int n) {
 }
 
 void bsurf_sort_doubles(double *a, int n) {
-  if (n > 64) {
+  if (n > 128) { /* (up to 128 the MSE rule's two-sheet residuals, K_max = 80) */
     qsort(a, (size_t)n, sizeof *a, bsurf_cmp_double);
     return;
   }

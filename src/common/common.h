@@ -83,6 +83,10 @@ int bsurf_cmp_u64(const void *pa, const void *pb);
 int bsurf_cmp_u32(const void *pa, const void *pb);
 double bsurf_median_sorted(const double *v, size_t n);
 double bsurf_median(double *v, size_t n);
+/* The k-th smallest of n NaN-free values (k < n), without a full sort: v
+ * rearranged so that v[k] is the value sorting would put there, v[j] <=
+ * v[k] before it and >= after it (deterministic quickselect). */
+double bsurf_kth_smallest(double *v, size_t n, size_t k);
 
 /* BSURF_ERR_INVALID_ARG with a message for bsurf_last_message(): "FUNC:
  * what is wrong" naming the parameter, its value and the allowed range.

@@ -5,6 +5,7 @@
  * middle values. */
 #include "common/common.h"
 
+#include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
 
@@ -32,4 +33,35 @@ double bsurf_median(double *v, size_t n) {
   if (!n) return 0;
   qsort(v, n, sizeof *v, bsurf_cmp_double);
   return bsurf_median_sorted(v, n);
+}
+
+double bsurf_kth_smallest(double *v, size_t n, size_t k) {
+  /* Wirth's selection (Hoare's partition about the median of the first,
+   * middle and last, which is one of the values: the scans stop at it) */
+  ptrdiff_t lo = 0, hi = (ptrdiff_t)n - 1;
+  const ptrdiff_t kk = (ptrdiff_t)k;
+  while (lo < hi) {
+    const double a = v[lo], b = v[lo + (hi - lo) / 2], c = v[hi];
+    const double p = a < b ? (b < c ? b : a < c ? c : a) : (a < c ? a : b < c ? c : b);
+    ptrdiff_t i = lo, j = hi;
+    while (i <= j) {
+      while (v[i] < p)
+        i++;
+      while (v[j] > p)
+        j--;
+      if (i <= j) {
+        const double t = v[i];
+        v[i++] = v[j];
+        v[j--] = t;
+      }
+    }
+    /* v[lo..j] <= p <= v[i..hi], and what lies between equals p */
+    if (kk <= j)
+      hi = j;
+    else if (kk >= i)
+      lo = i;
+    else
+      break;
+  }
+  return v[k];
 }

@@ -40,7 +40,19 @@ void bsurf_frame_dir_to_global(const bsurf_frame *f, const double local[3], doub
 /* Monomials of total degree <= degree (at most 2 * BSURF_DEGREE_MAX) in
  * graded order 1, u, v, u^2, uv, v^2, u^3, u^2 v, u v^2, v^3, ...
  * so the basis of a lower degree is a prefix of the basis of a higher one. */
-void bsurf_poly_basis(int degree, double u, double v, double *phi);
+static inline void bsurf_poly_basis(int degree, double u, double v, double *phi) {
+  /* degree d: u^d, u^(d-1) v, ..., v^d from the previous degree's block
+   * (at phi + p), in place; inline, so that a constant degree unrolls (a
+   * copy through arrays and a call per point were a third of the MSE
+   * rule's quadric sums; the same products, the same bits) */
+  phi[0] = 1.0;
+  for (int d = 1, p = 0; d <= degree; p += d, d++) {
+    double *cur = phi + p + d;
+    for (int j = 0; j < d; j++)
+      cur[j] = phi[p + j] * u;
+    cur[d] = phi[p + d - 1] * v;
+  }
+}
 
 /* Partial derivatives of the basis: du[a] = d phi_a / du, dv[a] = d phi_a / dv
  * (appendix A lists them for M = 2, 3, 4). */
@@ -57,6 +69,16 @@ static inline int bsurf_packed_index(int i, int j) {
  * the columns of the design are (numerically) dependent: returns -1 and
  * leaves c undefined; 0 on success. */
 int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol, double *c);
+
+/* The same in two steps, for several right-hand sides of one G: the
+ * factors (0, or -1 as above), then a solve (the bits of
+ * bsurf_ldl_solve_packed's). */
+typedef struct bsurf_ldl {
+  int m;
+  double L[BSURF_TERMS_MAX * BSURF_TERMS_MAX], inv[BSURF_TERMS_MAX];
+} bsurf_ldl;
+int bsurf_ldl_factor_packed(int m, const double *G, double rel_tol, bsurf_ldl *f);
+void bsurf_ldl_solve_factored(const bsurf_ldl *f, const double *r, double *c);
 
 /* Default relative pivot tolerance for rank detection. */
 #define BSURF_RANK_TOL 1e-10

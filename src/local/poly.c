@@ -19,24 +19,6 @@ int bsurf_poly_terms(int degree) {
   return (degree + 1) * (degree + 2) / 2;
 }
 
-void bsurf_poly_basis(int degree, double u, double v, double *phi) {
-  int t = 0;
-  phi[t++] = 1.0;
-  /* degree up to 2 * BSURF_DEGREE_MAX: the moments of localfit */
-  double prev[2 * BSURF_DEGREE_MAX + 1] = {1.0}; /* monomials of degree d-1 */
-  for (int d = 1; d <= degree; d++) {
-    /* degree d: u^d, u^(d-1) v, ..., v^d from the previous degree */
-    double cur[2 * BSURF_DEGREE_MAX + 1];
-    for (int j = 0; j < d; j++)
-      cur[j] = prev[j] * u;
-    cur[d] = prev[d - 1] * v;
-    for (int j = 0; j <= d; j++) {
-      phi[t++] = cur[j];
-      prev[j] = cur[j];
-    }
-  }
-}
-
 void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *dv) {
   /* monomial u^(d-j) v^j: d/du = (d-j) u^(d-j-1) v^j, d/dv = j u^(d-j) v^(j-1) */
   double up[BSURF_DEGREE_MAX + 1], vp[BSURF_DEGREE_MAX + 1];
@@ -54,14 +36,15 @@ void bsurf_poly_basis_grad(int degree, double u, double v, double *du, double *d
     }
 }
 
-int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol, double *c) {
+int bsurf_ldl_factor_packed(int m, const double *G, double rel_tol, bsurf_ldl *f) {
   /* G = L D L^T with L unit lower triangular (LDL^T: no square roots), by
    * columns: A[i][j] = G[i][j] - sum_t L[i][t] A[j][t] (t < j) is L[i][j]
    * D[j], D[j] = A[j][j], L[i][j] = A[i][j] inv[j] with inv[j] = 1 / D[j],
    * so each column costs one division. L and A row-major in full m x m
    * arrays. */
-  double L[BSURF_TERMS_MAX * BSURF_TERMS_MAX], A[BSURF_TERMS_MAX * BSURF_TERMS_MAX];
-  double inv[BSURF_TERMS_MAX];
+  double A[BSURF_TERMS_MAX * BSURF_TERMS_MAX];
+  double *L = f->L, *inv = f->inv;
+  f->m = m;
   for (int j = 0; j < m; j++) {
     const double gjj = G[bsurf_packed_index(j, j)];
     double s = gjj;
@@ -77,6 +60,12 @@ int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_t
       L[i * m + j] = a * inv[j];
     }
   }
+  return 0;
+}
+
+void bsurf_ldl_solve_factored(const bsurf_ldl *f, const double *r, double *c) {
+  const int m = f->m;
+  const double *L = f->L, *inv = f->inv;
   double y[BSURF_TERMS_MAX];
   for (int i = 0; i < m; i++) { /* L y = r */
     double a = r[i];
@@ -90,6 +79,12 @@ int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_t
       a -= L[t * m + i] * c[t];
     c[i] = a;
   }
+}
+
+int bsurf_ldl_solve_packed(int m, const double *G, const double *r, double rel_tol, double *c) {
+  bsurf_ldl f;
+  if (bsurf_ldl_factor_packed(m, G, rel_tol, &f) != 0) return -1;
+  bsurf_ldl_solve_factored(&f, r, c);
   return 0;
 }
 

@@ -50,39 +50,6 @@ int bsurf_view_from_name(const char *name, double *azimuth, double *elevation) {
   return -1;
 }
 
-/* The k-th smallest of v[0..n-1] (quickselect, median-of-three pivots; v is
- * reordered). */
-static double select_kth(double *v, size_t n, size_t k) {
-  size_t lo = 0, hi = n - 1;
-  while (hi > lo) {
-    size_t mid = lo + (hi - lo) / 2;
-    double a = v[lo], b = v[mid], c = v[hi];
-    double pivot = a < b ? (b < c ? b : (a < c ? c : a)) : (a < c ? a : (b < c ? c : b));
-    size_t i = lo, j = hi;
-    while (i <= j) {
-      while (v[i] < pivot)
-        i++;
-      while (v[j] > pivot)
-        j--;
-      if (i <= j) {
-        double t = v[i];
-        v[i] = v[j];
-        v[j] = t;
-        i++;
-        if (j == 0) break;
-        j--;
-      }
-    }
-    if (k <= j)
-      hi = j;
-    else if (k >= i)
-      lo = i;
-    else
-      return v[k];
-  }
-  return v[k];
-}
-
 bsurf_status bsurf_render_range(const double *values, size_t count, double percentile_lo,
                                 double percentile_hi, double *lo, double *hi) {
   BSURF_REQUIRE(values && lo && hi, "values, lo or hi is NULL");
@@ -105,8 +72,8 @@ bsurf_status bsurf_render_range(const double *values, size_t count, double perce
     a = b;
     b = t;
   }
-  *lo = select_kth(v, n, a);
-  *hi = select_kth(v, n, b);
+  *lo = bsurf_kth_smallest(v, n, a);
+  *hi = bsurf_kth_smallest(v, n, b);
   free(v);
   return BSURF_OK;
 }

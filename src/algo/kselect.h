@@ -1,0 +1,91 @@
+/* The MSE rule's shared pieces (kselect.c: the selection, the tie-break,
+ * the two-sheet test; kselect_noise.c: the noise passes): the quadric's
+ * running sums, the scratch and the context of the passes. Private to
+ * src/algo. */
+#ifndef BSURF_KSELECT_H
+#define BSURF_KSELECT_H
+
+#include "algo/algo.h"
+#include "common/common.h"
+#include "local/local.h"
+#include "search/search.h"
+
+#include <string.h>
+
+#define QT 6  /* quadric terms 1, u, v, u^2, uv, v^2 */
+#define QM 15 /* monomials of degree <= 4 */
+
+/* Running sums of a quadric height fit: the monomials (G's entries), z times
+ * the basis, z^2. */
+typedef struct quad_sums {
+  double mono[QM], phiz[QT], zz;
+  int n;
+} quad_sums;
+
+static inline void quad_add(quad_sums *q, double u, double v, double z) {
+  double m[QM];
+  bsurf_poly_basis(4, u, v, m);
+  for (int a = 0; a < QM; a++)
+    q->mono[a] += m[a];
+  for (int a = 0; a < QT; a++)
+    q->phiz[a] += m[a] * z;
+  q->zz += z * z;
+  q->n++;
+}
+
+#define quad_solve bsurf_i_ksel_quad_solve
+#define local_coords bsurf_i_ksel_local_coords
+#define noise_point bsurf_i_ksel_noise_point
+#define pool_point bsurf_i_ksel_pool_point
+#define pool_global bsurf_i_ksel_pool_global
+
+/* Solves the quadric from the sums: coef (QT), the residual sum of squares,
+ * and, when ginv_hh is not NULL, the 3 x 3 block of G^-1 of the Hessian
+ * coefficients (3, 4, 5). Returns 0, or -1 when rank-deficient. */
+int quad_solve(const quad_sums *q, double coef[QT], double *rss, double ginv_hh[3][3]);
+/* The frame of the noise fit and the point's neighbours in it: local x, y
+ * scaled by 1 / scale, heights unscaled; returns the scale. */
+double local_coords(const double *xyz, const uint32_t *idx, int kn, int kmax, bsurf_frame *f,
+                    double *u, double *v, double *z);
+
+typedef struct ksel_scratch {
+  double *u, *v, *z;      /* kmax */
+  double *terms, *sums;   /* kmax x BSURF_NESTED_COLS, nk x BSURF_NESTED_COLS */
+  double *mu, *cov;       /* nk x 3, nk x 6 */
+  double *pool;           /* noise_k */
+  double *nrm, *var, *qb; /* nk x 3, nk, nk: each candidate's normal, variance, quadric bias^2 */
+  double *mse;            /* nk: each candidate's V + Bias^2 */
+  double *res;            /* kmax: residuals of the two-sheet test */
+  double *tcand, *tcrit;  /* nk x 3, nk: one point's tied candidates, as tie_store takes them */
+  int *curve;             /* nk: the curve test's per-candidate verdicts */
+  bsurf_blocks mem;       /* the arrays above */
+  size_t unfit, none;
+  /* pass 3's tied candidates, in blocks that never move (tie_store) */
+  double **tie_blocks;
+  int tie_nblocks, tie_cap, tie_nomem;
+  size_t tie_used; /* doubles used in the last block */
+} ksel_scratch;
+
+typedef struct ksel_ctx {
+  const double *xyz;
+  const bsurf_neighbors *nb;
+  const bsurf_kselect_options *o;
+  int kmax;
+  ksel_scratch *scr;
+  double *s2;         /* pass 1: the point's residual variance (NAN: no fit) */
+  double *noise;      /* pass 2: the pooled noise variance */
+  double *sheet_crit; /* per candidate: the two-sheet test's critical ratio, or NULL */
+  double **tied;      /* pass 3: per point its tied candidates (tie_store) */
+  double *fnrm;       /* pass 3: n x 3, the normal of the smallest criterion */
+  int *first;         /* pass 3: the candidate of the smallest criterion */
+  bsurf_kselect_fields *out;
+} ksel_ctx;
+
+/* The noise passes (kselect_noise.c; the top of kselect.c): pass 1, each
+ * point's quadric residual variance (c->s2); pass 2, their lower quartile
+ * over the K_max neighbours (c->noise); pass 2b, its median over the cloud. */
+void noise_point(void *vctx, int thread, size_t i);
+void pool_point(void *vctx, int thread, size_t i);
+bsurf_status pool_global(double *noise, size_t n);
+
+#endif

@@ -1,0 +1,126 @@
+/* The MSE rule's noise passes (docs/normals.md, "Choosing K"; the
+ * derivation at the top of kselect.c, "Noise s2"): the residual variance
+ * of a local quadric per point with the truncation rule and the Richardson
+ * extrapolation of its misfit, pooled as the lower quartile over the
+ * K_max neighbours, then (BSURF_NOISE_POOL_GLOBAL) as the median over the
+ * cloud. */
+#include "algo/kselect.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* The noise's pooling: the lower quartile of the neighbours' estimates,
+ * each divided by the lower quartile of chi^2_nu / nu (see the top of the
+ * file); Z_Q is the standard normal's quartile. */
+#define POOL_Q 0.25
+#define Z_Q (-0.6744897501960817)
+
+/* Wilson-Hilferty: the POOL_Q quantile of chi^2_nu / nu. */
+static double chi2_quantile_ratio(int nu) {
+  const double w = 1.0 - 2.0 / (9.0 * nu) + Z_Q * sqrt(2.0 / (9.0 * nu));
+  return w * w * w;
+}
+
+/* Pass 1: the residual variance of a quadric on the point's K nearest
+ * neighbours, in their own PCA frame, for K = noise_k and then the larger
+ * candidates, until the K-th neighbour lies at least TRUNC residual standard
+ * deviations away (see the top of the file). Stored divided by the lower
+ * quartile of chi^2_nu / nu, for the quartile pooling of pass 2. */
+#define TRUNC 5.0
+/* the residual variance of a quadric on the first K neighbours in their own
+ * PCA frame, and the mean sixth power of their tangential distances (the
+ * scale of a cubic's misfit); -1 when rank-deficient */
+static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratch *s, double *var,
+                      double *m6) {
+  bsurf_frame f;
+  const double sc = local_coords(xyz, idx, K, K, &f, s->u, s->v, s->z);
+  quad_sums q;
+  memset(&q, 0, sizeof q);
+  double r6 = 0;
+  for (int j = 0; j < K; j++) {
+    quad_add(&q, s->u[j], s->v[j], s->z[j]);
+    const double r2 = s->u[j] * s->u[j] + s->v[j] * s->v[j];
+    r6 += r2 * r2 * r2;
+  }
+  double coef[QT], rss;
+  if (quad_solve(&q, coef, &rss, NULL) != 0) return -1;
+  *var = rss / (K - QT);
+  *m6 = r6 / K * sc * sc * sc * sc * sc * sc;
+  return 0;
+}
+
+void noise_point(void *vctx, int thread, size_t i) {
+  ksel_ctx *c = vctx;
+  ksel_scratch *s = &c->scr[thread];
+  const bsurf_kselect_options *o = c->o;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  const double *d = &c->xyz[3 * (size_t)idx[0]];
+  c->s2[i] = NAN;
+  int ka = 0;
+  double va = 0, m6a = 0;
+  for (int a = -1; a < o->nk; a++) {
+    const int K = a < 0 ? o->noise_k : o->ks[a];
+    if (a >= 0 && K <= o->noise_k) continue;
+    double v, m6;
+    if (quad_resid(c->xyz, idx, K, s, &v, &m6) != 0) continue;
+    ka = K, va = v, m6a = m6;
+    c->s2[i] = v / chi2_quantile_ratio(K - QT);
+    const double *p = &c->xyz[3 * (size_t)idx[K - 1]];
+    const double R2 = (p[0] - d[0]) * (p[0] - d[0]) + (p[1] - d[1]) * (p[1] - d[1]) +
+                      (p[2] - d[2]) * (p[2] - d[2]);
+    if (R2 >= TRUNC * TRUNC * v) break;
+  }
+  if (!ka) return;
+  /* Richardson extrapolation of the quadric's misfit (see the top of the
+   * file): a second fit on twice the points, the misfit's share removed */
+  const int kb = 2 * ka < c->kmax ? 2 * ka : c->kmax;
+  if (kb <= ka + QT) return;
+  double vb, m6b;
+  if (quad_resid(c->xyz, idx, kb, s, &vb, &m6b) != 0 || !(m6b > m6a)) return;
+  const double e = (va * m6b - vb * m6a) / (m6b - m6a);
+  c->s2[i] = (e < 0 ? 0 : e < va ? e : va) / chi2_quantile_ratio(ka - QT);
+}
+
+/* Pass 2: the lower quartile of the (quartile-corrected) residual
+ * variances over the point's kmax neighbours (the largest candidate's
+ * neighbourhood; see the top of the file). */
+void pool_point(void *vctx, int thread, size_t i) {
+  ksel_ctx *c = vctx;
+  ksel_scratch *s = &c->scr[thread];
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  int m = 0;
+  for (int j = 0; j < c->kmax; j++)
+    if (!isnan(c->s2[idx[j]])) s->pool[m++] = c->s2[idx[j]];
+  if (m == 0) {
+    c->noise[i] = 0;
+    return;
+  }
+  /* the order statistic nearest the quartile (interpolated): the lo-th
+   * smallest by selection, the next the smallest above it (the values of a
+   * full sort) */
+  const double r = POOL_Q * (m - 1);
+  const int lo = (int)r;
+  const double vlo = bsurf_kth_smallest(s->pool, (size_t)m, (size_t)lo);
+  double vhi = vlo;
+  if (lo + 1 < m) {
+    vhi = s->pool[lo + 1];
+    for (int j = lo + 2; j < m; j++)
+      vhi = s->pool[j] < vhi ? s->pool[j] : vhi;
+  }
+  c->noise[i] = lo + 1 < m ? vlo + (r - lo) * (vhi - vlo) : vlo;
+}
+
+/* Pass 2b (BSURF_NOISE_POOL_GLOBAL): one noise level for the cloud, the
+ * median of the points' pooled estimates (see the top of the file), of a
+ * sorted copy: the same whatever the threads. */
+bsurf_status pool_global(double *noise, size_t n) {
+  double *tmp = bsurf_alloc_array(n, sizeof(double));
+  if (!tmp) return BSURF_ERR_NOMEM;
+  memcpy(tmp, noise, n * sizeof(double));
+  const double med = bsurf_median(tmp, n);
+  for (size_t i = 0; i < n; i++)
+    noise[i] = med;
+  free(tmp);
+  return BSURF_OK;
+}
