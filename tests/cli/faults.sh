@@ -119,11 +119,26 @@ bad 1 "full disk, tiled" "$OUT: cannot write" -- full "$BSURF" normals "$IN/s20k
 
 # ---- signals: 130 / 143 within a second, nothing left ---------------------------------
 now() { date +%s.%N; }
+# The signal must reach the command while it works, on any machine: a fixed
+# sleep (2 s before) outlasted the whole `generate -n 3000000` (0.5 s) on an
+# idle Zen 5, which then exited 0. Wait instead until the process has used
+# 5 clock ticks of CPU time (/proc/PID/stat's utime + stime; the generation
+# needs about 100), then signal.
+cpu_ticks() { sed 's/.*) //' "/proc/$1/stat" 2>/dev/null | awk '{ print $12 + $13 }'; }
+wait_working() {
+  local t
+  for _ in $(seq 3000); do
+    t=$(cpu_ticks "$1")
+    [ -z "$t" ] && return 0
+    [ "$t" -ge 5 ] && return 0
+    sleep 0.01
+  done
+}
 for sig in INT TERM; do
   rm -f "$T/g.ply"
   "$BSURF" generate sphere -n 3000000 -o "$T/g.ply" 2>"$T/err" &
   pid=$!
-  sleep 2
+  wait_working "$pid"
   t0=$(now)
   kill -"$sig" "$pid"
   wait "$pid"
@@ -144,7 +159,25 @@ import os, signal, subprocess, sys, time
 bsurf, tdir = sys.argv[1], sys.argv[2]
 script = 'for f in 1 2 3; do "$0" generate sphere -n 3000000 -o "$1/loop$f.ply" || st=$?; echo "after $f" >>"$1/loop.log"; done'
 p = subprocess.Popen(["bash", "-c", script, bsurf, tdir], start_new_session=True, stderr=subprocess.DEVNULL)
-time.sleep(2)
+# signal once the loop's first generate has used 5 clock ticks of CPU (a
+# fixed sleep could outlast it on a fast machine; see wait_working above)
+def ticks(pid):
+    try:
+        with open("/proc/%d/stat" % pid) as f:
+            rest = f.read().rsplit(")", 1)[1].split()
+        return int(rest[11]) + int(rest[12])
+    except (OSError, IndexError, ValueError):
+        return -1
+def children(pid):
+    try:
+        with open("/proc/%d/task/%d/children" % (pid, pid)) as f:
+            return [int(c) for c in f.read().split()]
+    except OSError:
+        return []
+for _ in range(3000):
+    if p.poll() is not None or any(ticks(c) >= 5 for c in children(p.pid)):
+        break
+    time.sleep(0.01)
 os.killpg(p.pid, signal.SIGINT)
 rc = p.wait()
 print(rc)
