@@ -323,19 +323,25 @@ static void test_noise_pool(void **state) {
   shape_free(&s);
 }
 
+/* The selection on one thread (*a) and on two (*b): the same bits in every
+ * output. */
+static void select_both_threads(const noisy_shape *s, sel_out *a, sel_out *b) {
+  select_run(s, 1, a);
+  select_run(s, 2, b);
+  const size_t n = s->c.point_count;
+  assert_memory_equal(a->normals, b->normals, 3 * n * sizeof(double));
+  assert_memory_equal(a->k, b->k, n * sizeof(int));
+  assert_memory_equal(a->rmse, b->rmse, n * sizeof(double));
+  assert_memory_equal(a->noise, b->noise, n * sizeof(double));
+}
+
 /* Same bits with one thread and with two. */
 static void test_determinism(void **state) {
   (void)state;
   noisy_shape s;
   shape_make(&s, BSURF_SHAPE_TORUS, 5000, BSURF_NOISE_UNIFORM, 0.5);
   sel_out a, b;
-  select_run(&s, 1, &a);
-  select_run(&s, 2, &b);
-  const size_t n = s.c.point_count;
-  assert_memory_equal(a.normals, b.normals, 3 * n * sizeof(double));
-  assert_memory_equal(a.k, b.k, n * sizeof(int));
-  assert_memory_equal(a.rmse, b.rmse, n * sizeof(double));
-  assert_memory_equal(a.noise, b.noise, n * sizeof(double));
+  select_both_threads(&s, &a, &b);
   sel_free(&a);
   sel_free(&b);
   shape_free(&s);
@@ -351,11 +357,8 @@ static void test_tie_store_exact(void **state) {
   noisy_shape s;
   shape_make(&s, BSURF_SHAPE_CUBE, 6000, BSURF_NOISE_UNIFORM, 0.5);
   sel_out a, b;
-  select_run(&s, 1, &a);
-  select_run(&s, 2, &b);
+  select_both_threads(&s, &a, &b);
   const size_t n = s.c.point_count;
-  assert_memory_equal(a.normals, b.normals, 3 * n * sizeof(double));
-  assert_memory_equal(a.k, b.k, n * sizeof(int));
   double terms[80 * BSURF_NESTED_COLS], sums[NKS * BSURF_NESTED_COLS];
   int chosen[NKS] = {0};
   for (size_t i = 0; i < n; i++) {
