@@ -279,6 +279,22 @@ static bsurf_status normals_check(const char *who, const bsurf_normal_options o,
   return BSURF_OK;
 }
 
+/* The point loop of bsurf_estimate_normals and bsurf_estimate_normals_at
+ * (k_at: NULL, or each point's own K <= o->k), after their checks. */
+static bsurf_status normals_run(const double *xyz, const bsurf_neighbors *nb,
+                                const double *ref_normals, const bsurf_normal_options *o,
+                                const int *k_at, bsurf_normal_fields *out,
+                                bsurf_normal_report *report) {
+  static const bsurf_point_loop loop = {sizeof(normal_scratch), scratch_alloc, scratch_free,
+                                        normals_point, normals_tally};
+  const scratch_sizes sizes = {o->k, o->bootstrap, o->fit == BSURF_NORMAL_POLY ? o->degree : 1, 1};
+  normals_ctx ctx = {xyz, nb, ref_normals, o, out, report, NULL, 0, NULL, k_at};
+  bsurf_status st =
+      bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o->threads, o->progress, o->progress_user);
+  if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o->bootstrap;
+  return st;
+}
+
 bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb,
                                     const double *ref_normals, const bsurf_normal_options *opts,
                                     bsurf_normal_fields *out, bsurf_normal_report *report) {
@@ -290,14 +306,7 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
   BSURF_REQUIRE(out, "out is NULL (give a bsurf_normal_fields, its unwanted outputs NULL)");
   bsurf_status st = normals_check("bsurf_estimate_normals", o, nb->k, nb->point_count);
   if (st != BSURF_OK) return st;
-
-  static const bsurf_point_loop loop = {sizeof(normal_scratch), scratch_alloc, scratch_free,
-                                        normals_point, normals_tally};
-  const scratch_sizes sizes = {o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1, 1};
-  normals_ctx ctx = {xyz, nb, ref_normals, &o, out, report, NULL, 0, NULL, NULL};
-  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
-  if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o.bootstrap;
-  return st;
+  return normals_run(xyz, nb, ref_normals, &o, NULL, out, report);
 }
 
 bsurf_status bsurf_estimate_normals_at(const double *xyz, const bsurf_neighbors *nb,
@@ -309,18 +318,13 @@ bsurf_status bsurf_estimate_normals_at(const double *xyz, const bsurf_neighbors 
                 "xyz, nb, nb->idx, k_at and out must not be NULL, out->normal_err must be");
   bsurf_status st = normals_check("bsurf_estimate_normals_at", o, nb->k, nb->point_count);
   if (st != BSURF_OK) return st;
+  const int kmin = o.fit == BSURF_NORMAL_POLY ? bsurf_poly_terms(o.degree) : 3;
   for (size_t i = 0; i < nb->point_count; i++)
-    BSURF_REQUIRE(k_at[i] >= 3 && k_at[i] <= o.k, "k_at[%zu] = %d must be in [3, opts->k = %d]", i,
-                  k_at[i], o.k);
-  static const bsurf_point_loop loop = {sizeof(normal_scratch), scratch_alloc, scratch_free,
-                                        normals_point, normals_tally};
+    BSURF_REQUIRE(k_at[i] >= kmin && k_at[i] <= o.k, "k_at[%zu] = %d must be in [%d, opts->k = %d]",
+                  i, k_at[i], kmin, o.k);
   /* the scratch of the largest K; point i's estimate is bsurf_estimate_normals's with
    * opts->k = k_at[i] (the same draws, keyed by the point and K: the same bits) */
-  const scratch_sizes sizes = {o.k, o.bootstrap, o.fit == BSURF_NORMAL_POLY ? o.degree : 1, 1};
-  normals_ctx ctx = {xyz, nb, NULL, &o, out, report, NULL, 0, NULL, k_at};
-  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
-  if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o.bootstrap;
-  return st;
+  return normals_run(xyz, nb, NULL, &o, k_at, out, report);
 }
 
 /* ---- the same estimate on the search's rows as they come ---- */
