@@ -272,12 +272,8 @@ static double filter_value(const filter_ctx *c, uint32_t j) {
   return c->w && c->w[j] >= 0 && c->w[j] <= c->flat ? 0 : c->u[j];
 }
 
-/* Wilson-Hilferty: the 99% quantile of chi^2_nu / nu */
-static double chi2_upper_ratio(int nu) {
-  const double z = 2.3263478740408408; /* the standard normal's 99% quantile */
-  const double w = 1.0 - 2.0 / (9.0 * nu) + z * sqrt(2.0 / (9.0 * nu));
-  return w * w * w;
-}
+/* the standard normal's 99% quantile: the flat test's chi^2 level */
+#define FLAT_Z 2.3263478740408408
 
 static void filter_row(void *vctx, int thread, size_t r) {
   const filter_ctx *c = vctx;
@@ -294,7 +290,8 @@ bsurf_status bsurf_fvar_filter(const bsurf_neighbors *nb, int kf, int threads, d
   /* two parallel flat sheets: the pair's residual variance mu0 (k points,
    * 4 parameters: two offsets and the normal's two angles) within the 99%
    * quantile of the noise's, s^2 (lambda0 of one sheet: 3 parameters) */
-  const double flat = k > 4 && s2 > 0 ? s2 * chi2_upper_ratio(k - 4) * (k - 4) / (k - 3) : -1;
+  const double flat =
+      k > 4 && s2 > 0 ? s2 * bsurf_chi2_ratio_wh(k - 4, FLAT_Z) * (k - 4) / (k - 3) : -1;
   filter_ctx c = {nb, kf, flat, s2 > 0 ? 1 / s2 : 1, u, w, z, NULL};
   c.scratch = bsurf_alloc_array((size_t)t * (size_t)kf, sizeof(double));
   if (!c.scratch) return BSURF_ERR_NOMEM;

@@ -326,12 +326,6 @@ static const double *tie_load(const ksel_ctx *c, ksel_scratch *s, size_t i) {
  * sums. */
 #define CURVE_Z 4.264890793922825 /* the standard normal's 1 - 1e-5 quantile: CURVE_ALPHA */
 
-/* chi^2_nu's quantile at the standard normal's z (Wilson-Hilferty) */
-static double chi2_quantile_wh(double nu, double z) {
-  const double w = 1.0 - 2.0 / (9.0 * nu) + z * sqrt(2.0 / (9.0 * nu));
-  return nu * w * w * w;
-}
-
 /* The curve test of point i (idx[0] the point itself, the neighbours sorted
  * by distance): 0 where its K_max - 1 neighbours sample a surface;
  * otherwise 1, and curve[a] = 1 for each candidate a whose own
@@ -350,8 +344,9 @@ static int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, const
     const double lt = r2 > 0 ? 0.5 * log(r2) : 0;
     if (j == ks[a] - 1) { /* candidate a's farthest neighbour: T_k, k = K - 1 */
       const double S = m * lt - cum;
-      curve[a] = r2 > 0 && m >= 2 && 4.0 * S > chi2_quantile_wh(2.0 * m, 0.0);
-      if (a == nk - 1) any = r2 > 0 && m >= 2 && 4.0 * S > chi2_quantile_wh(2.0 * m, CURVE_Z);
+      curve[a] = r2 > 0 && m >= 2 && 4.0 * S > 2.0 * m * bsurf_chi2_ratio_wh(2.0 * m, 0.0);
+      if (a == nk - 1)
+        any = r2 > 0 && m >= 2 && 4.0 * S > 2.0 * m * bsurf_chi2_ratio_wh(2.0 * m, CURVE_Z);
       a++;
     }
     if (r2 > 0) { /* duplicates of the point are left out */

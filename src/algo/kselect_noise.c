@@ -16,10 +16,9 @@
 #define POOL_Q 0.25
 #define Z_Q (-0.6744897501960817)
 
-/* Wilson-Hilferty: the POOL_Q quantile of chi^2_nu / nu. */
+/* the POOL_Q quantile of chi^2_nu / nu (Wilson-Hilferty) */
 static double chi2_quantile_ratio(int nu) {
-  const double w = 1.0 - 2.0 / (9.0 * nu) + Z_Q * sqrt(2.0 / (9.0 * nu));
-  return w * w * w;
+  return bsurf_chi2_ratio_wh(nu, Z_Q);
 }
 
 /* Pass 1: the residual variance of a quadric on the point's K nearest

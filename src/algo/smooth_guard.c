@@ -134,12 +134,6 @@ static double guard_bimodal(const double *v, int n, double tiny) {
   return bsurf_split_bimodal(v, n, tiny, &cut) ? cut : NAN;
 }
 
-/* chi^2_nu / nu at the standard normal quantile z (Wilson-Hilferty: within
- * 1% for nu >= 5 at |z| <= 2.33) */
-static double chi2_frac(double nu, double z) {
-  const double a = 2.0 / (9.0 * nu), b = 1.0 - a + z * sqrt(a);
-  return b > 0 ? b * b * b : 0.0;
-}
 #define GUARD_Q_Z -1.2815515655446004     /* the normal lower decile */
 #define GUARD_MISFIT_Z 1.6448536269514722 /* the normal quantile of 1 - 0.05 */
 
@@ -193,7 +187,7 @@ double guard_noise(const double *sv, size_t n, size_t stride, double *scratch) {
   size_t m = 0;
   for (size_t i = 0; i < n; i++) {
     const double *v = &sv[i * stride];
-    if (v[0] >= 0 && v[1] >= 1) scratch[m++] = v[0] / (chi2_frac(v[1], GUARD_Q_Z) * v[2]);
+    if (v[0] >= 0 && v[1] >= 1) scratch[m++] = v[0] / (bsurf_chi2_ratio_wh(v[1], GUARD_Q_Z) * v[2]);
   }
   if (!m) return NAN;
   qsort(scratch, m, sizeof *scratch, bsurf_cmp_double);
@@ -210,7 +204,7 @@ double guard_noise(const double *sv, size_t n, size_t stride, double *scratch) {
 int guard_misfit(const double *sv, double noise) {
   if (!(noise > 0)) return 0;
   if (!(sv[1] >= 1)) return 0; /* no variance: no fit (moves nothing anyway) */
-  return !(sv[0] <= 2.0 * noise * sv[2] * chi2_frac(sv[1], GUARD_MISFIT_Z));
+  return !(sv[0] <= 2.0 * noise * sv[2] * bsurf_chi2_ratio_wh(sv[1], GUARD_MISFIT_Z));
 }
 
 /* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the

@@ -87,6 +87,10 @@ double bsurf_median(double *v, size_t n);
  * rearranged so that v[k] is the value sorting would put there, v[j] <=
  * v[k] before it and >= after it (deterministic quickselect). */
 double bsurf_kth_smallest(double *v, size_t n, size_t k);
+/* chi^2_nu / nu at the standard normal quantile z, by Wilson and Hilferty's
+ * cube-root approximation (within 1% for nu >= 5 at |z| <= 2.33); 0 where
+ * the approximation's cube root falls at or below 0. */
+double bsurf_chi2_ratio_wh(double nu, double z);
 
 /* BSURF_ERR_INVALID_ARG with a message for bsurf_last_message(): "FUNC:
  * what is wrong" naming the parameter, its value and the allowed range.

@@ -5,6 +5,8 @@
  * middle values. */
 #include "common/common.h"
 
+#include <math.h>
+
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -64,4 +66,9 @@ double bsurf_kth_smallest(double *v, size_t n, size_t k) {
       break;
   }
   return v[k];
+}
+
+double bsurf_chi2_ratio_wh(double nu, double z) {
+  const double a = 2.0 / (9.0 * nu), b = 1.0 - a + z * sqrt(a);
+  return b > 0 ? b * b * b : 0.0;
 }
