@@ -206,6 +206,35 @@ bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_cou
                                              bsurf_normal_fields *out, bsurf_normal_report *report,
                                              double *h, size_t *duplicates);
 
+/* The MSE rule's passes (bsurf_select_k, kselect_run.c) on the rows of any
+ * neighbourhood table, for the tiled job (src/jobs/normals_mse_tiled.c,
+ * docs/scaling.md): a row's point is nb->idx[r k] (r on the whole cloud, a
+ * local index in a tile); the values a pass reads at the neighbours are
+ * indexed like nb->idx, its own values by row. A run holds the options, the
+ * threads' scratch and (two_sheet) the two-sheet test's critical ratios, for
+ * any number of tables, one at a time. bsurf_ksel_noise: pass 1, each row's
+ * residual variance s2; bsurf_ksel_pool: pass 2, each row's pooled noise
+ * variance from the neighbours' s2; bsurf_ksel_level: the pooled values of
+ * every point of the cloud (n, in index order) made the noise the passes
+ * below read (GLOBAL: their median); bsurf_ksel_first: pass 3's first
+ * choices' normals (row x 3); bsurf_ksel_choose: passes 3 and 4 into out
+ * (fref: the neighbours' first choices, NULL: this table's own, when its
+ * rows are every point). The same bits as bsurf_select_k for the same rows. */
+typedef struct bsurf_ksel_run bsurf_ksel_run;
+bsurf_status bsurf_ksel_open(const bsurf_kselect_options *opts, int nb_k, int two_sheet,
+                             bsurf_ksel_run **run);
+void bsurf_ksel_close(bsurf_ksel_run *run);
+bsurf_status bsurf_ksel_noise(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
+                              double *s2);
+bsurf_status bsurf_ksel_pool(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
+                             const double *s2, double *noise);
+bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n);
+bsurf_status bsurf_ksel_first(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
+                              const double *noise, double *fnrm);
+bsurf_status bsurf_ksel_choose(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
+                               const double *noise, const double *fref, bsurf_kselect_fields *out,
+                               bsurf_kselect_report *report);
+
 /* Per-point K and degree selection of polynomial normals (5.5, Algorithm 3;
  * select_degree.c): every candidate (ks[a], ds[d]) as bsurf_select_normals_k
  * does for PCA (Poisson(1) counts over the kmax = ks[nk - 1] neighbours,

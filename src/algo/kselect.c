@@ -240,6 +240,7 @@ static int two_sheets(const ksel_ctx *c, ksel_scratch *s, const uint32_t *idx, i
 static void tie_store(ksel_ctx *c, ksel_scratch *s, size_t i) {
   const int nk = c->o->nk;
   memcpy(&c->fnrm[3 * i], &s->tcand[3 * (size_t)c->first[i]], 3 * sizeof(double));
+  if (!c->tied) return; /* the first choices only (bsurf_ksel_first) */
   const size_t need = 1 + (size_t)TIE_W * nk;
   if (!s->tie_nblocks || s->tie_used + need > TIE_BLOCK) { /* a new block */
     if (s->tie_nblocks == s->tie_cap) {
@@ -359,7 +360,7 @@ static int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, const
 
 /* Pass 3: every candidate's normal, variance V and quadric bias^2 (noise
  * share removed), their drifts, and the smallest V + Bias^2. */
-static void select_point(void *vctx, int thread, size_t i) {
+void select_point(void *vctx, int thread, size_t i) {
   ksel_ctx *c = vctx;
   ksel_scratch *s = &c->scr[thread];
   const bsurf_kselect_options *o = c->o;
@@ -418,7 +419,7 @@ static void select_point(void *vctx, int thread, size_t i) {
   }
   /* where the K_max neighbours sample a curve, the candidates that read
    * fewer than two dimensions are not assessed (the section above) */
-  if (curve_sampled(c->xyz, idx, i, o->ks, nk, s->curve))
+  if (curve_sampled(c->xyz, idx, idx[0], o->ks, nk, s->curve))
     for (int a = 0; a < nk; a++)
       if (s->curve[a]) var[a] = INFINITY;
   /* the smallest V + Bias^2, each bias estimate the point's own */
@@ -464,7 +465,7 @@ static void select_point(void *vctx, int thread, size_t i) {
 
 /* Pass 4: among the tied candidates, the one nearest the neighbours' first
  * choices (the top of the file); the outputs. */
-static void tie_point(void *vctx, int thread, size_t i) {
+void tie_point(void *vctx, int thread, size_t i) {
   ksel_ctx *c = vctx;
   ksel_scratch *s = &c->scr[thread];
   const bsurf_kselect_options *o = c->o;
@@ -479,8 +480,8 @@ static void tie_point(void *vctx, int thread, size_t i) {
     double t = 0;
     for (int j = 0; j < o->noise_k; j++) {
       const uint32_t r = idx[j];
-      if (r == i) continue;
-      const double *nr = &c->fnrm[3 * (size_t)r];
+      if (r == idx[0]) continue;
+      const double *nr = &c->fref[3 * (size_t)r];
       const double dot = na[0] * nr[0] + na[1] * nr[1] + na[2] * nr[2];
       t += 1.0 - dot * dot;
     }
@@ -587,37 +588,67 @@ static int two_sheets(const ksel_ctx *c, ksel_scratch *s, const uint32_t *idx, i
   return split_ratio(s->res, K) < c->sheet_crit[a];
 }
 
-bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
-                            const bsurf_kselect_options *opts, bsurf_kselect_fields *out,
-                            bsurf_kselect_report *report) {
-  if (report) memset(report, 0, sizeof *report);
-  BSURF_REQUIRE(xyz && nb && nb->idx && opts && out && opts->ks,
-                "xyz, nb, nb->idx, opts, opts->ks and out must not be NULL");
-  const bsurf_kselect_options *o = opts;
-  BSURF_REQUIRE(o->nk >= 1, "opts->nk = %d: at least one candidate K", o->nk);
-  BSURF_REQUIRE(o->rule == BSURF_KSELECT_MSE, "opts->rule = %d must be BSURF_KSELECT_MSE",
-                (int)o->rule);
-  BSURF_REQUIRE(o->noise_pool == BSURF_NOISE_POOL_GLOBAL || o->noise_pool == BSURF_NOISE_POOL_LOCAL,
-                "opts->noise_pool = %d must be BSURF_NOISE_POOL_GLOBAL or LOCAL",
-                (int)o->noise_pool);
-  BSURF_REQUIRE(o->noise_k >= 2 * QT && o->noise_k <= nb->k,
-                "opts->noise_k = %d must be in [%d, the neighbourhoods' k = %d]", o->noise_k,
-                2 * QT, nb->k);
+/* ---- A run of the passes (bsurf_ksel_run: kselect.h; the passes
+ * themselves: kselect_run.c) ---- */
+
+void bsurf_i_ksel_reset(bsurf_ksel_run *r) {
+  for (int t = 0; t < r->T; t++) {
+    ksel_scratch *s = &r->scr[t];
+    for (int b = 0; b < s->tie_nblocks; b++)
+      free(s->tie_blocks[b]);
+    free(s->tie_blocks);
+    s->tie_blocks = NULL;
+    s->tie_nblocks = s->tie_cap = s->tie_nomem = 0;
+    s->tie_used = 0;
+    s->unfit = s->none = 0;
+  }
+}
+
+void bsurf_ksel_close(bsurf_ksel_run *r) {
+  if (!r) return;
+  if (r->scr) {
+    bsurf_i_ksel_reset(r);
+    for (int t = 0; t < r->T; t++)
+      bsurf_blocks_free(&r->scr[t].mem);
+  }
+  free(r->scr);
+  free(r->crit);
+  free(r);
+}
+
+/* The options against rows of nb_k neighbours; `who` names the caller. */
+bsurf_status bsurf_i_ksel_check(const char *who, const bsurf_kselect_options *o, int nb_k) {
+  BSURF_REQUIRE_IN(who, o && o->ks, "opts and opts->ks must not be NULL");
+  BSURF_REQUIRE_IN(who, o->nk >= 1, "opts->nk = %d: at least one candidate K", o->nk);
+  BSURF_REQUIRE_IN(who, o->rule == BSURF_KSELECT_MSE, "opts->rule = %d must be BSURF_KSELECT_MSE",
+                   (int)o->rule);
+  BSURF_REQUIRE_IN(
+      who, o->noise_pool == BSURF_NOISE_POOL_GLOBAL || o->noise_pool == BSURF_NOISE_POOL_LOCAL,
+      "opts->noise_pool = %d must be BSURF_NOISE_POOL_GLOBAL or LOCAL", (int)o->noise_pool);
+  BSURF_REQUIRE_IN(who, o->noise_k >= 2 * QT && o->noise_k <= nb_k,
+                   "opts->noise_k = %d must be in [%d, the neighbourhoods' k = %d]", o->noise_k,
+                   2 * QT, nb_k);
   for (int a = 0; a < o->nk; a++)
-    BSURF_REQUIRE(o->ks[a] > QT && o->ks[a] <= nb->k && (a == 0 || o->ks[a] > o->ks[a - 1]),
-                  "opts->ks[%d] = %d must be in (%d, the neighbourhoods' k = %d] and above the "
-                  "K before it",
-                  a, o->ks[a], QT, nb->k);
+    BSURF_REQUIRE_IN(who, o->ks[a] > QT && o->ks[a] <= nb_k && (a == 0 || o->ks[a] > o->ks[a - 1]),
+                     "opts->ks[%d] = %d must be in (%d, the neighbourhoods' k = %d] and above the "
+                     "K before it",
+                     a, o->ks[a], QT, nb_k);
+  return BSURF_OK;
+}
+
+bsurf_status bsurf_ksel_open(const bsurf_kselect_options *o, int nb_k, int two_sheet,
+                             bsurf_ksel_run **run) {
+  *run = NULL;
+  bsurf_status st = bsurf_i_ksel_check(__func__, o, nb_k);
+  if (st != BSURF_OK) return st;
   const int kmax = o->ks[o->nk - 1] > o->noise_k ? o->ks[o->nk - 1] : o->noise_k;
-  if ((size_t)kmax > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
-  const size_t n = nb->point_count;
-  const int T = bsurf_threads_resolve(o->threads);
-  ksel_scratch *scr = calloc((size_t)T, sizeof *scr);
-  double *s2 = bsurf_alloc_array(n, sizeof(double)), *noise = bsurf_alloc_array(n, sizeof(double));
-  double **tied = bsurf_alloc_array(n, sizeof(double *));
-  double *fnrm = bsurf_alloc_array(n, 3 * sizeof(double));
-  int *first = bsurf_alloc_array(n, sizeof(int));
-  bsurf_status st = scr && s2 && noise && tied && fnrm && first ? BSURF_OK : BSURF_ERR_NOMEM;
+  bsurf_ksel_run *r = calloc(1, sizeof *r);
+  if (!r) return BSURF_ERR_NOMEM;
+  r->o = *o;
+  r->kmax = kmax;
+  const int T = r->T = bsurf_threads_resolve(o->threads);
+  ksel_scratch *scr = r->scr = calloc((size_t)T, sizeof *scr);
+  st = scr ? BSURF_OK : BSURF_ERR_NOMEM;
   for (int t = 0; t < T && st == BSURF_OK; t++) {
     ksel_scratch *s = &scr[t];
     s->u = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
@@ -638,46 +669,18 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
     s->curve = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(int));
     st = bsurf_blocks_status(&s->mem);
   }
-  uint32_t *owned = NULL;
-  const uint32_t *order = NULL;
-  if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
-  ksel_ctx ctx = {xyz, nb, o, kmax, scr, s2, noise, NULL, tied, fnrm, first, out};
-  double *crit = NULL; /* nk critical ratios, then SHEET_DRAWS ratios per candidate */
-  if (st == BSURF_OK && out->two_sheet) {
-    if (!(crit = bsurf_alloc_array((size_t)o->nk, (1 + SHEET_DRAWS) * sizeof(double))))
+  ksel_ctx ctx = {.o = &r->o, .kmax = kmax, .scr = scr};
+  if (st == BSURF_OK && two_sheet) {
+    if (!(r->crit = bsurf_alloc_array((size_t)o->nk, (1 + SHEET_DRAWS) * sizeof(double))))
       st = BSURF_ERR_NOMEM;
-    ctx.sheet_crit = crit;
+    ctx.sheet_crit = r->crit;
     if (st == BSURF_OK)
       st = bsurf_parallel_points((size_t)o->nk, T, sheet_crit_point, &ctx, NULL, NULL);
   }
-  /* four passes; progress is reported for the third (the bulk of the work) */
-  if (st == BSURF_OK)
-    st = bsurf_parallel_points_ordered(n, order, T, noise_point, &ctx, NULL, NULL);
-  if (st == BSURF_OK) st = bsurf_parallel_points_ordered(n, order, T, pool_point, &ctx, NULL, NULL);
-  if (st == BSURF_OK && o->noise_pool == BSURF_NOISE_POOL_GLOBAL) st = pool_global(noise, n);
-  if (st == BSURF_OK)
-    st = bsurf_parallel_points_ordered(n, order, T, select_point, &ctx, o->progress,
-                                       o->progress_user);
-  for (int t = 0; t < T && st == BSURF_OK; t++)
-    if (scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_parallel_points_ordered(n, order, T, tie_point, &ctx, NULL, NULL);
-  free(crit);
-  free(tied);
-  free(fnrm);
-  free(first);
-  if (report && st == BSURF_OK)
-    for (int t = 0; t < T; t++)
-      report->unassessed += scr[t].none;
-  free(owned);
-  if (scr)
-    for (int t = 0; t < T; t++) {
-      bsurf_blocks_free(&scr[t].mem);
-      for (int b = 0; b < scr[t].tie_nblocks; b++)
-        free(scr[t].tie_blocks[b]);
-      free(scr[t].tie_blocks);
-    }
-  free(scr);
-  free(s2);
-  free(noise);
-  return st;
+  if (st != BSURF_OK) {
+    bsurf_ksel_close(r);
+    return st;
+  }
+  *run = r;
+  return BSURF_OK;
 }

@@ -77,6 +77,7 @@ typedef struct ksel_ctx {
   double *sheet_crit; /* per candidate: the two-sheet test's critical ratio, or NULL */
   double **tied;      /* pass 3: per point its tied candidates (tie_store) */
   double *fnrm;       /* pass 3: n x 3, the normal of the smallest criterion */
+  const double *fref; /* pass 4: the neighbours' fnrm, indexed like nb->idx */
   int *first;         /* pass 3: the candidate of the smallest criterion */
   bsurf_kselect_fields *out;
 } ksel_ctx;
@@ -87,5 +88,33 @@ typedef struct ksel_ctx {
 void noise_point(void *vctx, int thread, size_t i);
 void pool_point(void *vctx, int thread, size_t i);
 bsurf_status pool_global(double *noise, size_t n);
+
+#define select_point bsurf_i_ksel_select_point
+#define tie_point bsurf_i_ksel_tie_point
+/* Pass 3, the selection (kselect.c): every candidate's criterion, the
+ * first choice (c->first, its normal in c->fnrm) and, with c->tied, the
+ * candidates tied with it; pass 4, the tie-break by the neighbours' first
+ * choices (c->fref) and the outputs. */
+void select_point(void *vctx, int thread, size_t i);
+void tie_point(void *vctx, int thread, size_t i);
+
+/* ---- The passes' scaffolding: one run (bsurf_ksel_run, algo.h) holds the
+ * options, each thread's scratch and the two-sheet test's critical ratios;
+ * its passes run on the rows of any neighbourhood table, so bsurf_select_k
+ * runs them on the whole cloud and the tiled job (normals_mse_tiled.c) on
+ * each tile's core points, with the neighbours' values of the previous
+ * pass given for the halo (docs/scaling.md). A row's point is idx[0] (the
+ * row itself on the whole cloud, a local index in a tile); values read at
+ * the neighbours (s2 in pass 2, the first choices' normals in pass 4) are
+ * indexed like idx, the passes' own values by row. */
+struct bsurf_ksel_run {
+  bsurf_kselect_options o;
+  int kmax, T;
+  ksel_scratch *scr;
+  double *crit; /* nk critical ratios, then SHEET_DRAWS ratios per candidate; or NULL */
+};
+void bsurf_i_ksel_reset(bsurf_ksel_run *r); /* the tied records freed, counts zeroed */
+/* The options against rows of nb_k neighbours; `who` names the caller. */
+bsurf_status bsurf_i_ksel_check(const char *who, const bsurf_kselect_options *o, int nb_k);
 
 #endif
