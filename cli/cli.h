@@ -233,8 +233,9 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
                    size_t tile_points, const char *memory_limit, int k, int out_fields,
                    size_t *plan);
 /* The same with point_bytes more bytes a point in memory than the
- * neighbourhoods, the fields and the files count (the in-memory run's own
- * arrays, such as the MSE rule's candidates). */
+ * neighbourhoods, the fields and the files count (the command's own arrays,
+ * such as the MSE rule's candidates: counted for the whole cloud in memory
+ * and for a tile's points when the tile size is chosen). */
 int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *output, int ascii,
                          size_t tile_points, const char *memory_limit, int k, int out_fields,
                          double point_bytes, size_t *plan);

@@ -87,8 +87,8 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
        1, 0},
       {0, "select-rule", ARG_STRING, &select_rule, "R",
        "mse (estimated variance + bias^2 of the PCA normal), test-error (Eq. 5.10) or auto "
-       "(mse where it applies: --fit pca, no --select-degree or --curve, K >= 7, in memory; "
-       "else test-error)",
+       "(mse where it applies: --fit pca, no --select-degree or --curve, K >= 7; else "
+       "test-error)",
        1, 0},
       {0, "noise-k", ARG_INT, &ksel.noise_k, "K",
        "with --select-rule mse: neighbourhood of the noise estimate", 12, 65535},
@@ -197,8 +197,9 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   jo.sigma_nu = sigma_nu;
   jo.orient = om == 1 ? BSURF_ORIENT_MST : BSURF_ORIENT_NONE;
   size_t plan = 0;
-  /* the MSE rule in memory (explicit, or auto where it applies, as
-   * bsurf_normals_job decides), bsurf_select_k's and normals_job.c's arrays:
+  /* the MSE rule (explicit, or auto where it applies, as bsurf_normals_job
+   * decides), bsurf_select_k's and normals_job.c's arrays, per point of the
+   * cloud in memory or of a tile (the tiled stages' values are on disk):
    * per point the tie-break's record, 8 + 40 bytes per tied candidate (up
    * to nk; counted as 4, above the 2.6 or so of a sphere at u0.5 with 15
    * candidates), with its pointer and the first choice's normal (32); the
@@ -217,10 +218,6 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     return cli_error(
         "%s: --curve keeps every candidate's values of every point: not available in tiled runs",
         pos[0]);
-  if (plan && ksel.rule == BSURF_KSELECT_MSE)
-    return cli_error("%s: --select-rule mse grows its noise fits beyond the K_max-neighbourhood: "
-                     "not available in tiled runs",
-                     pos[0]);
   if (plan && (iterations > 0 || om == 1))
     return cli_error(
         "%s: --smooth-iterations and --orient mst use more than each point's K-neighbourhood: "

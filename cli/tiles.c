@@ -94,9 +94,10 @@ int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *
     return cli_error("%s: --drop-invalid is not available in tiled runs", input);
   if (!tile_points) {
     /* tiles well inside the budget: the neighbourhood rows (12 K bytes per
-     * point while they are built), the fields and the halo */
+     * point while they are built), the fields, the command's arrays and the
+     * halo */
     double budget = limit > 0 ? limit : 4.0 * 1024 * 1024 * 1024;
-    double per = 4.0 * (12.0 * k + 8.0 * out_fields + 200);
+    double per = 4.0 * (12.0 * k + 8.0 * out_fields + point_bytes + 200);
     tile_points = (size_t)fmin(budget / per, 2e8);
   }
   if (tile_points < 2 * (size_t)k) tile_points = 2 * (size_t)k;

@@ -494,8 +494,8 @@ BSURF_API bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_nei
  * estimate's scatter of the minimum told apart by the neighbours' agreement
  * (bsurf_select_k).
  * BSURF_KSELECT_AUTO (bsurf_normals_job's default): MSE where it applies
- * (select_k, the PCA fit, no select_degree, no curve, candidates >= 7, in
- * memory), TEST_ERROR otherwise; MSE was the nearer to the best fixed K on
+ * (select_k, the PCA fit, no select_degree, no curve, candidates >= 7; in
+ * memory and tiled), TEST_ERROR otherwise; MSE was the nearer to the best fixed K on
  * the development benchmark (docs/normals.md, "What the benchmark says"). */
 typedef enum bsurf_kselect_rule {
   BSURF_KSELECT_TEST_ERROR = 0,
@@ -1482,8 +1482,8 @@ typedef struct bsurf_normals_job_options {
   bsurf_kselect_rule select_rule; /* AUTO (the default: MSE where it
                                      applies, else TEST_ERROR), TEST_ERROR
                                      (the thesis's), or MSE (bsurf_select_k:
-                                     PCA, select_k only, candidates >= 7, in
-                                     memory only) */
+                                     PCA, select_k only, candidates >= 7; in
+                                     four stages in a tiled run) */
   int noise_k;                    /* MSE: the noise fits' neighbourhood (12; >= 12) */
   bsurf_noise_pool noise_pool;    /* MSE: GLOBAL (default) or LOCAL noise level */
   /* Bilateral normal smoothing after the estimate (bsurf_smooth_normals,

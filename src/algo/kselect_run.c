@@ -8,22 +8,21 @@
 #include <string.h>
 
 /* A pass over nb's rows in their visit order (no result depends on it). */
-static bsurf_status ksel_pass(const bsurf_ksel_run *r, ksel_ctx *c,
-                              void (*fn)(void *, int, size_t), int progress) {
+static bsurf_status ksel_pass(const bsurf_ksel_run *r, ksel_ctx *c, void (*fn)(void *, int, size_t),
+                              int progress) {
   uint32_t *owned = NULL;
   const uint32_t *order = bsurf_visit_order(c->nb, c->xyz, &owned);
   if (!order) return BSURF_ERR_NOMEM;
-  bsurf_status st =
-      bsurf_parallel_points_ordered(c->nb->point_count, order, r->T, fn, c,
-                                    progress ? r->o.progress : NULL,
-                                    progress ? r->o.progress_user : NULL);
+  bsurf_status st = bsurf_parallel_points_ordered(c->nb->point_count, order, r->T, fn, c,
+                                                  progress ? r->o.progress : NULL,
+                                                  progress ? r->o.progress_user : NULL);
   free(owned);
   return st;
 }
 
 static ksel_ctx ksel_ctx_of(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb) {
-  ksel_ctx c = {.xyz = xyz, .nb = nb, .o = &r->o, .kmax = r->kmax, .scr = r->scr,
-                .sheet_crit = r->crit};
+  ksel_ctx c = {
+      .xyz = xyz, .nb = nb, .o = &r->o, .kmax = r->kmax, .scr = r->scr, .sheet_crit = r->crit};
   return c;
 }
 

@@ -35,6 +35,11 @@ typedef struct normals_job {
   bsurf_normals_curve_row *curve; /* in memory: the candidates' means */
   size_t curve_rows;
   const double *truth; /* the curve's true normals, or NULL */
+  /* a tiled run of the MSE rule's last stage (normals_mse_tiled.c): the
+   * run, and per tile the noise by core row and the neighbours' first
+   * choices; NULL in memory */
+  bsurf_ksel_run *mse_run;
+  const double *mse_noise, *mse_fref;
 } normals_job;
 
 /* Per-point results (n long, x 3 for vectors). */
@@ -206,7 +211,9 @@ static bsurf_status normals_compute(normals_job *job, const double *xyz, const b
       return BSURF_ERR_NOMEM;
     }
     bsurf_kselect_fields kf = {bootstrap ? NULL : b->normals, kmse, b->err, NULL, sheet};
-    st = bsurf_select_k(xyz, nb, &ko, &kf, NULL);
+    st = job->mse_run
+             ? bsurf_ksel_choose(job->mse_run, xyz, nb, job->mse_noise, job->mse_fref, &kf, NULL)
+             : bsurf_select_k(xyz, nb, &ko, &kf, NULL);
     for (size_t i = 0; i < n; i++)
       b->ksel[i] = kmse[i], b->sheet[i] = sheet[i];
     free(sheet);
@@ -306,10 +313,21 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
   bsurf_status st = normals_bufs_alloc(&b, job, tile->core_count);
   if (st != BSURF_OK) return st;
   bsurf_normal_report total;
+  double *noise = NULL, *fref = NULL;
+  /* the MSE rule: the noise and the neighbours' first choices, from the
+   * first stages (normals_mse_tiled.c) */
+  if (job->mse_run && (st = bsurf_jobs_mse_tile(tile, &noise, &fref)) != BSURF_OK) {
+    normals_bufs_free(&b);
+    return st;
+  }
+  job->mse_noise = noise;
+  job->mse_fref = fref;
   /* with normal_err: the reference normals of every local point, from the
    * first stage (normals_ref_run) */
   st = normals_compute(job, tile->xyz, tile->nb, tile->point_index,
-                       job->test_error ? tile->values : NULL, &b, &total);
+                       job->test_error && !job->mse_run ? tile->values : NULL, &b, &total);
+  free(noise);
+  free(fref);
   if (st == BSURF_OK) st = normals_store(job, core, &b, 0);
   if (st == BSURF_OK) {
     bsurf_jobs_add_counts(sums, total.replicates_total, total.replicates_skipped,
@@ -358,7 +376,12 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
   bsurf_tile_report tr;
   memset(&tr, 0, sizeof tr);
   bsurf_tile_ops ops;
-  if (job->test_error) {
+  if (job->ksel.rule == BSURF_KSELECT_MSE) { /* four stages (normals_mse_tiled.c) */
+    st = bsurf_ksel_open(&job->ksel, job->kmax, 1, &job->mse_run);
+    if (st == BSURF_OK)
+      st = bsurf_jobs_mse_stages(io, &job->ksel, job->kmax, job->no.threads, progress,
+                                 progress_user, job->mse_run, &refs, &tr, err);
+  } else if (job->test_error) {
     bsurf_jobs_tile_ops(&ops, io, job->k_ref, job->no.threads, progress, progress_user, job);
     ops.run = normals_ref_run;
     ops.nvalues = 3;
@@ -376,6 +399,8 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
     st = bsurf_tiles_run(io->input, io->output, &ops, &tr, err);
   }
   bsurf_tile_values_close(&refs);
+  bsurf_ksel_close(job->mse_run);
+  job->mse_run = NULL;
   s->tile_points = io->tile_points;
   bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   if (st != BSURF_OK) return st;
@@ -554,9 +579,6 @@ static bsurf_status normals_check(const bsurf_normals_job_options *o, int tiled)
   if (!tiled) return BSURF_OK;
   BSURF_REQUIRE_IN(NJ, !o->curve,
                    "opts->curve keeps every candidate's values of every point: in memory only");
-  BSURF_REQUIRE_IN(NJ, o->select_rule != BSURF_KSELECT_MSE,
-                   "opts->select_rule MSE grows its noise fits beyond the K_max-neighbourhood: in "
-                   "memory only");
   BSURF_REQUIRE_IN(NJ, o->smooth_iterations == 0 && o->orient == BSURF_ORIENT_NONE,
                    "opts->smooth_iterations = %d, opts->orient = %d: smoothing and orientation use "
                    "more than each point's K-neighbourhood: in memory only",
@@ -601,7 +623,7 @@ bsurf_status bsurf_normals_job(const bsurf_job_io *io, const bsurf_normals_job_o
   bsurf_normals_job_options o = opts ? *opts : bsurf_normals_job_options_default();
   if (st == BSURF_OK && o.select_rule == BSURF_KSELECT_AUTO) /* MSE where it applies */
     o.select_rule = o.select_k && o.select_k_count > 0 && o.normals.fit == BSURF_NORMAL_PCA &&
-                            !o.select_degree && !o.curve && o.select_k[0] >= 7 && io->cloud
+                            !o.select_degree && !o.curve && o.select_k[0] >= 7
                         ? BSURF_KSELECT_MSE
                         : BSURF_KSELECT_TEST_ERROR;
   if (st == BSURF_OK) summary->select_rule = o.select_rule;

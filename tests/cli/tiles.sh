@@ -27,11 +27,13 @@ cmp -s "$T/e.ply" "$T/ea.ply" && ok || fail "error --memory-limit 2M: output dif
 # the MSE rule's arrays (its tie-break's record, 40 bytes a tied candidate)
 # count in the estimate: 5.2M holds the in-memory run without them (4.3M) but
 # not with them (7.0M),
-# so the default rule tiles, where it is the test error; the test error's own
-# run fits in memory
+# so the default rule tiles, where it is the same rule with the in-memory
+# bytes (four stages); the test error's own run fits in memory
 expect 0 "normals select-k auto, --memory-limit" -- "$BSURF" normals "$T/n.ply" --select-k 10:40:10 -B 0 -o "$T/ma.ply" --memory-limit 5.2M --json
 stderr_has "tiles of" "the MSE rule's candidates counted: tiles"
-grep -q '"select_rule":"test-error"' "$T/out" && ok || fail "select-k auto over the memory limit: not the test-error rule in tiles"
+grep -q '"select_rule":"mse"' "$T/out" && ok || fail "select-k auto over the memory limit: not the mse rule in tiles"
+expect 0 "normals select-k auto in memory" -- "$BSURF" normals "$T/n.ply" --select-k 10:40:10 -B 0 -o "$T/mm.ply" -q
+cmp -s "$T/mm.ply" "$T/ma.ply" && ok || fail "select-k auto, --memory-limit: output differs from the in-memory run"
 expect 0 "normals select-k test-error, --memory-limit" -- "$BSURF" normals "$T/n.ply" --select-k 10:40:10 -B 0 --select-rule test-error -o "$T/mb.ply" --memory-limit 5.2M --json
 grep -q '"tiles":' "$T/out" && fail "select-k test-error within the memory limit: tiled" || ok
 # an input that already has fields (the cube's feature_dist, feature), normals
@@ -129,6 +131,28 @@ for args in "-k 12 -B 6 --test-error --k-ref 10" "--select-k 6:20:7 -B 5 --k-ref
   expect 0 "normals $args tiles" -- "$BSURF" normals "$T/c.ply" $args -o "$T/mt.ply" --tile-points 100 -q
   cmp -s "$T/m.ply" "$T/mt.ply" && ok || fail "normals $args: tiled output differs"
 done
+# the MSE rule (the default of --select-k) in four stages: the noise fits, their
+# pool over the K_max neighbours (the halo rows carry the fits) and its median
+# over the cloud, the first choices, then the choice with the neighbours' first
+# choices: the in-memory bytes and summary for any tile size and thread count,
+# with either noise pool, on the noisy sphere and on the cube's edges
+for case in "n|--select-k 10:40:10 -B 6" "c|--select-k 10:40:10 -B 6" "c|--select-k 7:30:4 -B 0 --noise-pool local" \
+  "n|--select-k 10:25:5 --noise-k 30 -k 12 -B 3 --select-rule mse"; do
+  f=${case%%|*} args=${case#*|}
+  expect 0 "normals $f $args" -- "$BSURF" normals "$T/$f.ply" $args -o "$T/m.ply" --json
+  cp "$T/out" "$T/m.json"
+  for tj in "150 1" "2500 2"; do
+    tp=${tj% *} j=${tj#* }
+    expect 0 "normals $f $args tiles $tp -j $j" -- "$BSURF" normals "$T/$f.ply" $args -j $j -o "$T/mt.ply" \
+      --tile-points $tp --json
+    cmp -s "$T/m.ply" "$T/mt.ply" && ok || fail "normals $f $args --tile-points $tp -j $j: output differs"
+    for key in h select_rule noise_pool mean replicates_skipped; do
+      grep -o "\"$key\":[^,]*" "$T/out" | cmp -s - <(grep -o "\"$key\":[^,]*" "$T/m.json") && ok ||
+        fail "normals $f $args --tile-points $tp: $key differs"
+    done
+  done
+done
+grep -q '"select_rule":"mse"' "$T/out" && ok || fail "tiled --select-rule mse: json select_rule"
 expect 1 "normals --curve tiles" -- "$BSURF" normals "$T/n.ply" --select-k 10:20:5 --curve "$T/x.csv" -o "$T/x.ply" \
   --tile-points 100
 stderr_has "not available in tiled runs" "normals --curve refused"
@@ -222,6 +246,13 @@ else
       --select-k 6:20:7 -B 4 -j 1 -o "$T/mpis.ply" -q --tile-points 150
     expect 0 "normals select-k serial" -- "$BSURF" normals "$T/c.ply" --select-k 6:20:7 -B 4 -o "$T/sers.ply" -q
     cmp -s "$T/sers.ply" "$T/mpis.ply" && ok || fail "mpirun normals --select-k: output differs"
+    # the MSE rule's stages: every rank reads the pooled noise back for the median
+    expect 0 "normals select-k mse serial" -- "$BSURF" normals "$T/c.ply" --select-k 10:30:5 -B 4 -o "$T/serm.ply" -q
+    for P in 2 3; do
+      expect 0 "mpirun -n $P normals select-k mse" -- mpirun "${root[@]}" --oversubscribe -n $P "$BSURF" normals \
+        "$T/c.ply" --select-k 10:30:5 -B 4 -j 1 -o "$T/mpim.ply" -q --tile-points 150
+      cmp -s "$T/serm.ply" "$T/mpim.ply" && ok || fail "mpirun -n $P normals --select-k (mse): output differs"
+    done
     # two stages under MPI: the values of the first are shared by every rank
     for m in naive bilateral; do
       expect 0 "smooth $m serial" -- "$BSURF" smooth "$T/n.ply" --method $m -k 12 -B 4 -o "$T/sser.ply" -q
