@@ -222,6 +222,14 @@ static int cancel_cb(void *user, size_t done, size_t total) {
   return 1;
 }
 
+/* A regular sphere of n points, its k-neighbourhoods and zeroed fields. */
+static void sphere_setup(size_t n, int k, bsurf_cloud *c, bsurf_neighbors *nb, fields *F) {
+  assert_int_equal(bsurf_generate(c, BSURF_SHAPE_SPHERE, n, BSURF_SAMPLING_REGULAR, 1, 0),
+                   BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(nb, c->xyz, c->point_count, k, 1, NULL, NULL), BSURF_OK);
+  fields_alloc(F, c->point_count);
+}
+
 typedef struct {
   int calls;
   size_t last, step; /* the previous `done`; the largest step between calls */
@@ -251,12 +259,9 @@ static void test_progress_chunk(void **state) {
   assert_int_equal(bsurf_progress_chunk(1e30), 16);
 
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 3000, BSURF_SAMPLING_REGULAR, 1, 0),
-                   BSURF_OK);
   bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 12, 1, NULL, NULL), BSURF_OK);
   fields M;
-  fields_alloc(&M, c.point_count);
+  sphere_setup(3000, 12, &c, &nb, &M);
   bsurf_error_options o = bsurf_error_options_default();
   o.k = 12;
   o.degree = 2;
@@ -288,12 +293,9 @@ static void test_progress_chunk(void **state) {
 static void test_arguments(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 500, BSURF_SAMPLING_REGULAR, 1, 0),
-                   BSURF_OK);
   bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 20, 1, NULL, NULL), BSURF_OK);
   fields F;
-  fields_alloc(&F, c.point_count);
+  sphere_setup(500, 20, &c, &nb, &F);
   bsurf_error_options o = bsurf_error_options_default();
   o.k = 30; /* more than the neighbourhoods hold */
   assert_int_equal(bsurf_estimate_error(c.xyz, &nb, NULL, &o, &F.f, NULL), BSURF_ERR_INVALID_ARG);
