@@ -141,7 +141,7 @@ for case in "n|--select-k 10:40:10 -B 6" "c|--select-k 10:40:10 -B 6" "c|--selec
   f=${case%%|*} args=${case#*|}
   expect 0 "normals $f $args" -- "$BSURF" normals "$T/$f.ply" $args -o "$T/m.ply" --json
   cp "$T/out" "$T/m.json"
-  for tj in "150 1" "2500 2"; do
+  for tj in "400 1" "2500 2"; do
     tp=${tj% *} j=${tj#* }
     expect 0 "normals $f $args tiles $tp -j $j" -- "$BSURF" normals "$T/$f.ply" $args -j $j -o "$T/mt.ply" \
       --tile-points $tp --json
