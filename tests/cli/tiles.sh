@@ -136,6 +136,14 @@ done
 # over the cloud, the first choices, then the choice with the neighbours' first
 # choices: the in-memory bytes and summary for any tile size and thread count,
 # with either noise pool, on the noisy sphere and on the cube's edges
+# the summary's keys $3.. in $T/out as in the summary file $1 ($2 names the run)
+same_keys() {
+  local ref=$1 what=$2 key
+  shift 2
+  for key in "$@"; do
+    grep -o "\"$key\":[^,]*" "$T/out" | cmp -s - <(grep -o "\"$key\":[^,]*" "$ref") && ok || fail "$what: $key differs"
+  done
+}
 for case in "n|--select-k 10:40:10 -B 6" "c|--select-k 10:40:10 -B 6" "c|--select-k 7:30:4 -B 0 --noise-pool local" \
   "n|--select-k 10:25:5 --noise-k 30 -k 12 -B 3 --select-rule mse"; do
   f=${case%%|*} args=${case#*|}
@@ -146,10 +154,7 @@ for case in "n|--select-k 10:40:10 -B 6" "c|--select-k 10:40:10 -B 6" "c|--selec
     expect 0 "normals $f $args tiles $tp -j $j" -- "$BSURF" normals "$T/$f.ply" $args -j $j -o "$T/mt.ply" \
       --tile-points $tp --json
     cmp -s "$T/m.ply" "$T/mt.ply" && ok || fail "normals $f $args --tile-points $tp -j $j: output differs"
-    for key in h select_rule noise_pool mean replicates_skipped; do
-      grep -o "\"$key\":[^,]*" "$T/out" | cmp -s - <(grep -o "\"$key\":[^,]*" "$T/m.json") && ok ||
-        fail "normals $f $args --tile-points $tp: $key differs"
-    done
+    same_keys "$T/m.json" "normals $f $args --tile-points $tp" h select_rule noise_pool mean replicates_skipped
   done
 done
 grep -q '"select_rule":"mse"' "$T/out" && ok || fail "tiled --select-rule mse: json select_rule"
