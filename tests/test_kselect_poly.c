@@ -92,8 +92,7 @@ static void test_gradient_variance(void **state) {
   bsurf_rng_init(&rng, 5, 0, 0);
   for (int j = 0; j < K; j++) { /* a disc, the point at its centre */
     double x = 0, y = 0;
-    if (j)
-      do {
+    if (j) do {
         x = 2 * bsurf_rng_uniform(&rng) - 1, y = 2 * bsurf_rng_uniform(&rng) - 1;
       } while (x * x + y * y > 1);
     xyz[3 * j] = 0.1 * x, xyz[3 * j + 1] = 0.1 * y, xyz[3 * j + 2] = 0;
@@ -313,9 +312,9 @@ static void test_bad_options(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_gradient_variance),   cmocka_unit_test(test_alias_identity),
-      cmocka_unit_test(test_plane_degree_one),    cmocka_unit_test(test_border_higher_degree),
-      cmocka_unit_test(test_determinism),         cmocka_unit_test(test_bad_options),
+      cmocka_unit_test(test_gradient_variance), cmocka_unit_test(test_alias_identity),
+      cmocka_unit_test(test_plane_degree_one),  cmocka_unit_test(test_border_higher_degree),
+      cmocka_unit_test(test_determinism),       cmocka_unit_test(test_bad_options),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -22,36 +22,39 @@
  *    pooled noise), the least-squares coefficients have Cov(c^) = s2
  *    (X^T X)^-1 (Gauss-Markov), so the gradient has Sigma_g = s2 [(X^T
  *    X)^-1]_gg (the 2 x 2 block of the linear terms; scaled coordinates
- *    divided by the frame's scale). The normal's angle moves, to first
- *    order, by dg^T M dg with M = (I - g g^T / L^2) / L^2, L^2 = 1 + |g|^2
- *    (the derivative of the unit normal), so
- *        V(K, d) = tr(M Sigma_g).
- *  - Bias. Where the surface has terms beyond degree d (X_2 beta_2), the
- *    degree-d fit's coefficients have E c^_d = beta_d + A beta_2 with the
- *    alias matrix A = (X_d^T X_d)^-1 X_d^T X_2 (Box & Draper 1987, ch. 3;
- *    Montgomery, Design and Analysis of Experiments, "alias matrix"). By
- *    the same algebra (the omitted-variable identity) the degree-d fit and
- *    a degree-d' > d fit of the same points differ by exactly A^ beta^_2,
- *    the alias applied to the larger fit's extra coefficients, so
- *    g_d - g_d' estimates the gradient's bias of degree d (that of d'
- *    taken as negligible), and where both are unbiased the difference has
- *    covariance Sigma_g(d') - Sigma_g(d): g_d is efficient under the
- *    smaller model and Cov(g_d, g_d' - g_d) = 0 (Hausman 1978). The same
- *    identity holds between K < K' at one degree (the larger sample's
- *    fit is efficient), which is the PCA rule's drift. So every candidate
- *    a = (K, d) is compared with each less biased one r = (K' <= K,
- *    d' >= d) as the PCA rule compares K with the smaller K (kselect.c,
- *    bias (b)): the squared bias of a is estimated by
- *        D(a) = max(0, max_r sin^2(n_a, n_r) - c (V(r) - V(a))),
- *    c = drift_tol(the number of such r): a test at level 5% over them all
- *    (Bonferroni), so an unbiased candidate is charged only rarely, where
- *    the unbiased estimate (c = 1, clipped at 0) would charge every degree
- *    below the top about e^-1 times its reference's extra variance. The
- *    criterion is M(a) = V(a) + D(a); the candidates within the tie band
- *    of the smallest are told apart by the neighbours' first choices
- *    (kselect.c, ksel_ties, tie_point). Candidates whose K reads as a
- *    curve (the curve test), and fits whose system is rank-deficient, are
- *    not assessed; where none is, the largest K at the smallest degree.
+ *    divided by the frame's scale). To first order the normal turns by
+ *    dg^T M dg, M = (I - g g^T / L^2) / L^2, L^2 = 1 + |g|^2; the true
+ *    slope at the point is small in the K_max frame, and M at a noisy g^
+ *    understates the variance of near-interpolating fits (K = 10, degree
+ *    3: a nearly vertical slope, M -> 0), so M = I:
+ *        V(K, d) = tr(Sigma_g).
+ *  - Bias of the degree (Q). Where the surface has terms beyond degree d
+ *    (X_2 beta_2), the degree-d fit has E c^_d = beta_d + A beta_2 with
+ *    the alias matrix A = (X_d^T X_d)^-1 X_d^T X_2 (Box & Draper 1987,
+ *    ch. 3; Montgomery, Design and Analysis of Experiments, "alias
+ *    matrix"). By the omitted-variable identity the degree-d fit and a
+ *    degree-d' > d fit of the same points differ by exactly A beta^_2,
+ *    so g_d - g_d' estimates the gradient's bias of degree d (that of d'
+ *    taken as negligible); where both are unbiased, g_d is efficient
+ *    under the smaller model, Cov(g_d, g_d' - g_d) = 0 (Hausman 1978), so
+ *    Cov(g_d - g_d') = Sigma_g(d') - Sigma_g(d) and
+ *        Q(K, d) = sin^2(n_d, n_d') - (V(K, d') - V(K, d))
+ *    is unbiased for the squared angle bias, d' the next larger candidate
+ *    degree at the same K (the largest degree: Q = 0).
+ *  - Bias beyond the polynomials (D: an edge, the far side of a thin
+ *    part): the drift over K at one degree, by the same identity between
+ *    nested samples (the larger sample's fit is efficient), as the PCA
+ *    rule's drift: D(K, d) = max_{K' < K} sin^2(n_K', n_K) - c (V(K') -
+ *    V(K)), with c = drift_tol(1) = 3, the level e^-3 of one comparison:
+ *    the drifts of one point's nested neighbourhoods are strongly
+ *    correlated, so Bonferroni's ln(a) (the PCA rule's) charged too little
+ *    here (docs/normals.md, "Choosing K and the degree", gives both).
+ *  - The criterion is M(K, d) = V + max(Q, D, 0); the candidates within
+ *    the tie band of the smallest are told apart by the neighbours' first
+ *    choices (kselect.c, ksel_ties, tie_point). Candidates whose K reads
+ *    as a curve (the curve test), and fits whose system is rank-deficient,
+ *    are not assessed; where none is, the largest K at the smallest
+ *    degree.
  *
  * Deterministic: no draws; a point's result depends on its neighbourhood
  * and the pooled noise only. */
@@ -63,7 +66,7 @@
 
 typedef struct kpoly_scratch {
   bsurf_localfit lf;
-  double *rows;  /* nk x ncols: each candidate K's moments and phi z sums */
+  double *rows; /* nk x ncols: each candidate K's moments and phi z sums */
   bsurf_blocks mem;
   int dmax, dlow; /* the largest degree, the index of the smallest */
 } kpoly_scratch;
