@@ -64,7 +64,7 @@ static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsur
   c.fref = fref ? fref : c.fnrm;
   bsurf_i_ksel_reset(r);
   /* progress is reported for pass 3 (the bulk of the work) */
-  if (st == BSURF_OK) st = ksel_pass(r, &c, select_point, 1);
+  if (st == BSURF_OK) st = ksel_pass(r, &c, r->o.nd > 0 ? poly_point : select_point, 1);
   for (int t = 0; t < r->T && st == BSURF_OK; t++)
     if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK && !fnrm) st = ksel_pass(r, &c, tie_point, 0);

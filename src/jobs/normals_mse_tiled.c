@@ -68,8 +68,8 @@ static bsurf_status first_run(void *user, const bsurf_tile *t, bsurf_cloud *core
 static bsurf_status mse_stage(const bsurf_job_io *io, bsurf_tile_ops *ops, mse_stages *m,
                               bsurf_status (*run)(void *, const bsurf_tile *, bsurf_cloud *,
                                                   double *),
-                              const bsurf_tile_values *in, size_t nvalues,
-                              bsurf_tile_values *out, bsurf_tile_report *tr, bsurf_failure *err) {
+                              const bsurf_tile_values *in, size_t nvalues, bsurf_tile_values *out,
+                              bsurf_tile_report *tr, bsurf_failure *err) {
   ops->user = m;
   ops->run = run;
   ops->values_in = in;
