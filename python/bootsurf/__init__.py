@@ -168,7 +168,15 @@ def read(path):
     malformed file.
     """
     import os
-    d, shape = _core.read(os.fspath(path))
+    import stat
+    path = os.fspath(path)
+    try:  # the command line's first check (cli/util.c), with its words
+        st = os.stat(path)
+    except OSError:
+        st = None  # the library names what is wrong
+    if st is not None and stat.S_ISREG(st.st_mode) and st.st_size == 0:
+        raise OSError("%s: the file is empty" % path)
+    d, shape = _core.read(path)
     return _cloud(d, shape)
 
 

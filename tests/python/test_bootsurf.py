@@ -527,6 +527,9 @@ def test_bad_input(cube):
     assert bootsurf.generate("plane", points=100.0)["points"].shape[0] > 0  # so are 100.0
     with pytest.raises(OSError, match="nonexistent.ply"):
         bootsurf.read(tmp("nonexistent.ply"))
+    open(tmp("empty.ply"), "w").close()
+    with pytest.raises(OSError, match=r"empty.ply: the file is empty$"):  # the CLI's words
+        bootsurf.read(tmp("empty.ply"))
     with open(tmp("bad.ply"), "w") as f:
         f.write("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
                 "property float z\nend_header\n1 2 3\n1 2\n")
