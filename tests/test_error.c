@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "bootsurf.h"
+#include "common/common.h"
 
 typedef struct {
   double *v[10];
@@ -221,15 +222,80 @@ static int cancel_cb(void *user, size_t done, size_t total) {
   return 1;
 }
 
+/* A regular sphere of n points, its k-neighbourhoods and zeroed fields. */
+static void sphere_setup(size_t n, int k, bsurf_cloud *c, bsurf_neighbors *nb, fields *F) {
+  assert_int_equal(bsurf_generate(c, BSURF_SHAPE_SPHERE, n, BSURF_SAMPLING_REGULAR, 1, 0),
+                   BSURF_OK);
+  assert_int_equal(bsurf_neighbors_build(nb, c->xyz, c->point_count, k, 1, NULL, NULL), BSURF_OK);
+  fields_alloc(F, c->point_count);
+}
+
+typedef struct {
+  int calls;
+  size_t last, step; /* the previous `done`; the largest step between calls */
+} progress_log;
+
+static int log_cb(void *user, size_t done, size_t total) {
+  progress_log *l = user;
+  assert_true(done > l->last && done <= total);
+  if (done - l->last > l->step) l->step = done - l->last;
+  l->last = done;
+  l->calls++;
+  return 0;
+}
+
+/* The progress calls come every BSURF_PROGRESS_CHUNK points at the default
+ * work, proportionally more often for heavy points (bsurf_progress_chunk:
+ * Ctrl-C answered as soon for `error -B 1000`), never at less than 16 points;
+ * the results do not depend on it. */
+static void test_progress_chunk(void **state) {
+  (void)state;
+  const double ref = BSURF_PROGRESS_REF_WORK;
+  assert_int_equal(bsurf_progress_chunk(0), BSURF_PROGRESS_CHUNK);
+  assert_int_equal(bsurf_progress_chunk(ref), BSURF_PROGRESS_CHUNK);
+  assert_int_equal(bsurf_progress_chunk(NAN), BSURF_PROGRESS_CHUNK);
+  assert_int_equal(bsurf_progress_chunk(2 * ref), BSURF_PROGRESS_CHUNK / 2);
+  assert_int_equal(bsurf_progress_chunk(8 * ref), BSURF_PROGRESS_CHUNK / 8);
+  assert_int_equal(bsurf_progress_chunk(1e30), 16);
+
+  bsurf_cloud c;
+  bsurf_neighbors nb;
+  fields M;
+  sphere_setup(3000, 12, &c, &nb, &M);
+  bsurf_error_options o = bsurf_error_options_default();
+  o.k = 12;
+  o.degree = 2;
+  o.threads = 2;
+  o.bootstrap = 1200; /* 12 x 1201 x 6 units a point: chunks of 1207 points */
+  const size_t chunk = bsurf_progress_chunk(12.0 * 1201 * 6);
+  assert_true(chunk < c.point_count / 2);
+  progress_log l = {0, 0, 0};
+  o.progress = log_cb;
+  o.progress_user = &l;
+  assert_int_equal(bsurf_estimate_error(c.xyz, &nb, NULL, &o, &M.f, NULL), BSURF_OK);
+  assert_int_equal(l.calls, (int)((c.point_count + chunk - 1) / chunk));
+  assert_int_equal(l.step, chunk);
+  assert_int_equal(l.last, c.point_count);
+  /* the same replicates at 1 thread without progress: the same bits */
+  fields S;
+  fields_alloc(&S, c.point_count);
+  o.progress = NULL;
+  o.threads = 1;
+  assert_int_equal(bsurf_estimate_error(c.xyz, &nb, NULL, &o, &S.f, NULL), BSURF_OK);
+  for (int t = 0; t < 10; t++)
+    if (M.v[t]) assert_memory_equal(M.v[t], S.v[t], c.point_count * sizeof(double));
+  fields_free(&S);
+  fields_free(&M);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
 static void test_arguments(void **state) {
   (void)state;
   bsurf_cloud c;
-  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 500, BSURF_SAMPLING_REGULAR, 1, 0),
-                   BSURF_OK);
   bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, c.point_count, 20, 1, NULL, NULL), BSURF_OK);
   fields F;
-  fields_alloc(&F, c.point_count);
+  sphere_setup(500, 20, &c, &nb, &F);
   bsurf_error_options o = bsurf_error_options_default();
   o.k = 30; /* more than the neighbourhoods hold */
   assert_int_equal(bsurf_estimate_error(c.xyz, &nb, NULL, &o, &F.f, NULL), BSURF_ERR_INVALID_ARG);
@@ -255,11 +321,9 @@ static void test_arguments(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_plane_zero_error),
-      cmocka_unit_test(test_thread_determinism),
-      cmocka_unit_test(test_degenerate_neighbourhoods),
-      cmocka_unit_test(test_sum_paths_agree),
-      cmocka_unit_test(test_arguments),
+      cmocka_unit_test(test_plane_zero_error), cmocka_unit_test(test_thread_determinism),
+      cmocka_unit_test(test_progress_chunk),   cmocka_unit_test(test_degenerate_neighbourhoods),
+      cmocka_unit_test(test_sum_paths_agree),  cmocka_unit_test(test_arguments),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -15,7 +15,8 @@ optionally ``normals`` (N, 3) and ``faces`` (F, 3), and one (N,) array per
 named field.
 
 The library computes with the GIL released; Ctrl-C raises
-KeyboardInterrupt within a chunk of points (16384), and ``progress=`` takes
+KeyboardInterrupt within a chunk of points (4096, fewer for heavy
+settings), and ``progress=`` takes
 a callable ``progress(done, total)`` (raise in it to stop). Bad arguments
 raise ValueError or TypeError with the library's message; file errors raise
 OSError naming the file and the line.

@@ -15,7 +15,8 @@
  * release is called on every one, also after a failed alloc), calls point(ctx, that thread's
  * scratch, i) for every point in k-d tree order (bsurf_visit_order: cache locality, no result
  * depends on it), then, if all went well, tally(ctx, scratch) for every thread (NULL: none), and
- * release(scratch) for every thread. */
+ * release(scratch) for every thread. `work`: one point's work in the unit of
+ * bsurf_progress_chunk (it sets how many points run between progress calls). */
 typedef struct bsurf_point_loop {
   size_t scratch_size;
   bsurf_status (*alloc)(void *scratch, const void *arg);
@@ -24,8 +25,8 @@ typedef struct bsurf_point_loop {
   void (*tally)(void *ctx, const void *scratch);
 } bsurf_point_loop;
 bsurf_status bsurf_point_loop_run(const bsurf_point_loop *loop, const void *arg, void *ctx,
-                                  const bsurf_neighbors *nb, const double *xyz, int threads,
-                                  bsurf_progress_fn progress, void *progress_user);
+                                  const bsurf_neighbors *nb, const double *xyz, double work,
+                                  int threads, bsurf_progress_fn progress, void *progress_user);
 
 /* One thread's scratch for bsurf_error_point. */
 typedef struct bsurf_error_scratch {

@@ -248,7 +248,8 @@ bsurf_status bsurf_estimate_error(const double *xyz, const bsurf_neighbors *nb,
   static const bsurf_point_loop loop = {sizeof(bsurf_error_scratch), error_scratch_alloc,
                                         error_scratch_free, error_point_task, error_tally};
   error_ctx ctx = {xyz, nb, test_xyz, &o, out, report};
-  st = bsurf_point_loop_run(&loop, &o, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  const double work = (double)o.k * (o.bootstrap + 1) * bsurf_poly_terms(o.degree);
+  st = bsurf_point_loop_run(&loop, &o, &ctx, nb, xyz, work, o.threads, o.progress, o.progress_user);
   if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o.bootstrap;
   return st;
 }

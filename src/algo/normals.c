@@ -289,8 +289,10 @@ static bsurf_status normals_run(const double *xyz, const bsurf_neighbors *nb,
                                         normals_point, normals_tally};
   const scratch_sizes sizes = {o->k, o->bootstrap, o->fit == BSURF_NORMAL_POLY ? o->degree : 1, 1};
   normals_ctx ctx = {xyz, nb, ref_normals, o, out, report, NULL, 0, NULL, k_at};
-  bsurf_status st =
-      bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o->threads, o->progress, o->progress_user);
+  const double work = (double)o->k * (o->bootstrap + 1) *
+                      (o->fit == BSURF_NORMAL_POLY ? bsurf_poly_terms(o->degree) : 3);
+  bsurf_status st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, work, o->threads,
+                                         o->progress, o->progress_user);
   if (report && st == BSURF_OK) report->replicates_total = nb->point_count * (size_t)o->bootstrap;
   return st;
 }
@@ -558,7 +560,9 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
                                         select_scratch_free, select_point, select_tally};
   const scratch_sizes sizes = {ks[nk - 1], o.bootstrap, 1, nk};
   normals_ctx ctx = {xyz, nb, ref_normals, &o, NULL, report, ks, nk, out, NULL};
-  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  const double work = (double)ks[nk - 1] * nk * (o.bootstrap + 1) * 3;
+  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, work, o.threads, o.progress,
+                            o.progress_user);
   if (report && st == BSURF_OK)
     report->replicates_total = nb->point_count * (size_t)o.bootstrap * (size_t)nk;
   return st;

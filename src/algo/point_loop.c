@@ -42,8 +42,8 @@ static void loop_task(void *vctx, int thread, size_t r) {
 }
 
 bsurf_status bsurf_point_loop_run(const bsurf_point_loop *loop, const void *arg, void *ctx,
-                                  const bsurf_neighbors *nb, const double *xyz, int threads,
-                                  bsurf_progress_fn progress, void *progress_user) {
+                                  const bsurf_neighbors *nb, const double *xyz, double work,
+                                  int threads, bsurf_progress_fn progress, void *progress_user) {
   const int T = bsurf_threads_resolve(threads);
   const size_t size = loop->scratch_size;
   char *scr = bsurf_calloc_array((size_t)T, size);
@@ -56,7 +56,8 @@ bsurf_status bsurf_point_loop_run(const bsurf_point_loop *loop, const void *arg,
   if (st == BSURF_OK && !(order = bsurf_visit_order(nb, xyz, &owned))) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) {
     loop_ctx c = {loop, ctx, scr, order, nb, xyz};
-    st = bsurf_parallel_points(nb->point_count, T, loop_task, &c, progress, progress_user);
+    st = bsurf_parallel_points_chunk(nb->point_count, bsurf_progress_chunk(work), T, loop_task, &c,
+                                     progress, progress_user);
   }
   free(owned);
   for (int t = 0; t < T; t++) {

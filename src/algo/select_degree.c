@@ -282,7 +282,9 @@ bsurf_status bsurf_select_normals_kd(const double *xyz, const bsurf_neighbors *n
   static const bsurf_point_loop loop = {sizeof(kd_scratch), kd_alloc, kd_free, kd_point, kd_tally};
   const kd_sizes sizes = {ks[nk - 1], dmax, o.bootstrap, nk * nd};
   kd_ctx ctx = {xyz, nb, ref_normals, &o, ks, ds, nk, nd, dmax, out, degree_selected, report};
-  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, o.threads, o.progress, o.progress_user);
+  const double work = (double)ks[nk - 1] * nk * nd * (o.bootstrap + 1) * bsurf_poly_terms(dmax);
+  st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, work, o.threads, o.progress,
+                            o.progress_user);
   if (report && st == BSURF_OK)
     report->replicates_total = nb->point_count * (size_t)o.bootstrap * (size_t)nk * (size_t)nd;
   return st;

@@ -167,17 +167,35 @@ bsurf_status bsurf_atomic_close(bsurf_atomic_file *af, bsurf_status status, int 
 /* Number of points processed between two progress callbacks; also the unit
  * of cancellation: 4096 points of `error` with the defaults (K 50, B 50) take
  * about 0.25-0.5 s on two busy cores, so Ctrl-C (the CLI's handler, the
- * Python package's KeyboardInterrupt) is answered within a second. Results
- * never depend on it (each point's work is its own). */
+ * Python package's KeyboardInterrupt) is answered within a second. Heavier
+ * settings take proportionally fewer points a chunk (bsurf_progress_chunk).
+ * Results never depend on it (each point's work is its own). */
 #define BSURF_PROGRESS_CHUNK 4096
+
+/* The work of one point of that reference job, in the unit of
+ * bsurf_progress_chunk: K x (B + 1) x the cubic's 10 terms. */
+#define BSURF_PROGRESS_REF_WORK (50.0 * 51.0 * 10.0)
+
+/* Points a chunk for a loop whose points cost `work` units each (neighbours
+ * x (replicates + 1) x fitted terms, summed over the candidates a point
+ * assesses): BSURF_PROGRESS_CHUNK up to BSURF_PROGRESS_REF_WORK, then
+ * proportionally fewer, at least 16, so that a chunk takes about as long
+ * whatever the settings (`error -B 1000`: 205 points). A function of the
+ * settings only, never of timing: the progress calls stay the same from
+ * run to run and for any thread count. */
+size_t bsurf_progress_chunk(double work);
 
 /* Work on point i by thread `thread` (0 .. threads-1). */
 typedef void (*bsurf_point_fn)(void *ctx, int thread, size_t i);
 
 /* Runs fn for every point 0..n-1 with bsurf_threads_resolve(threads) threads
- * (see parallel.c). */
+ * (see parallel.c), calling progress after every BSURF_PROGRESS_CHUNK points. */
 bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, void *ctx,
                                    bsurf_progress_fn progress, void *progress_user);
+/* The same with progress after every `chunk` points (bsurf_progress_chunk). */
+bsurf_status bsurf_parallel_points_chunk(size_t n, size_t chunk, int threads, bsurf_point_fn fn,
+                                         void *ctx, bsurf_progress_fn progress,
+                                         void *progress_user);
 
 /* The same, visiting point order[r] at step r (order: a permutation of
  * 0..n-1, e.g. bsurf_spatial_order's; NULL = index order). Progress counts

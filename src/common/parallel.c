@@ -1,17 +1,32 @@
 /* The parallel loop over points shared by every per-point algorithm.
  *
- * Points are processed in chunks of BSURF_PROGRESS_CHUNK; inside a chunk
+ * Points are processed in chunks (BSURF_PROGRESS_CHUNK points, or fewer for
+ * heavy points: bsurf_progress_chunk); inside a chunk
  * OpenMP threads take small dynamic blocks. After each chunk the calling
  * thread reports progress (and may be told to cancel). Each point's work
  * must write only that point's outputs and use the scratch of the thread
  * that runs it, so results do not depend on the thread count. */
 #include "common/common.h"
 
+size_t bsurf_progress_chunk(double work) {
+  if (!(work > BSURF_PROGRESS_REF_WORK)) return BSURF_PROGRESS_CHUNK; /* also NaN */
+  const double c = BSURF_PROGRESS_CHUNK * (BSURF_PROGRESS_REF_WORK / work);
+  return c < 16 ? 16 : (size_t)c;
+}
+
 bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, void *ctx,
                                    bsurf_progress_fn progress, void *progress_user) {
+  return bsurf_parallel_points_chunk(n, BSURF_PROGRESS_CHUNK, threads, fn, ctx, progress,
+                                     progress_user);
+}
+
+bsurf_status bsurf_parallel_points_chunk(size_t n, size_t chunk, int threads, bsurf_point_fn fn,
+                                         void *ctx, bsurf_progress_fn progress,
+                                         void *progress_user) {
   const int T = bsurf_threads_resolve(threads);
-  for (size_t start = 0; start < n; start += BSURF_PROGRESS_CHUNK) {
-    size_t end = start + BSURF_PROGRESS_CHUNK < n ? start + BSURF_PROGRESS_CHUNK : n;
+  if (chunk < 1) chunk = 1;
+  for (size_t start = 0; start < n; start += chunk) {
+    size_t end = start + chunk < n ? start + chunk : n;
     long long s0 = (long long)start, s1 = (long long)end;
 #ifdef _OPENMP
 #pragma omp parallel for num_threads(T) schedule(dynamic, 32)
