@@ -4,7 +4,7 @@
 usage:
   nice -n 10 /usr/bin/python3 scripts/features_table.py --bootsurf BUILD --devset DIR \\
       --peers DIR [--models LIST] [--noise LIST] [--extra LIST] [--write docs/features.md]
-      [--work DIR] [--jobs N]
+      [--work DIR] [--jobs N] [--no-peers] [--oracle]
 
 For every case MODEL_NOISE of the development set (scripts/devset.py; default models:
 the CAD meshes fandisk_large, couplingdown and joint, then the organic meshes bunny00,
@@ -31,7 +31,11 @@ spacings of a sharp edge: faces whose normals differ by more than 30 degrees; th
 generated shapes' edges). Cases without labels (the torus: no edge) show the share of
 points flagged instead, in brackets. The peers' scores are kept in --work per case and
 reused (they do not depend on bootsurf); bootsurf's are recomputed when its binary
-changes. --write replaces the part of the file between the markers
+changes. --no-peers leaves the peers' columns empty (held-out noise levels, for which no
+peer scores are cached: `--noise g0.25,g1.2 --extra "" --no-peers --oracle`). --oracle adds
+the column "oracle z": the default's F1 at the best threshold on its score z (over z's
+0.5-99.5% quantiles, the border test's flags kept), the ceiling of any threshold rule on
+that score. --write replaces the part of the file between the markers
 <!-- features-table:begin --> and <!-- features-table:end --> with the table.
 """
 import argparse
@@ -81,6 +85,12 @@ def prf(pred, truth):
     return {"p": p, "r": r, "f1": 2 * tp / (2 * tp + fp + fn) if tp + fp + fn else float("nan")}
 
 
+def oracle(z, feat, t, truth):
+    """the best F1 of (z > q) | border over z's quantiles q (border: flagged with z <= t)"""
+    border = feat & ~(z > t)
+    return max(prf((z > q) | border, truth)["f1"] for q in np.quantile(z, np.linspace(0.005, 0.995, 199)))
+
+
 def cached(path, compute):
     if os.path.exists(path):
         with open(path) as f:
@@ -92,7 +102,7 @@ def cached(path, compute):
     return v
 
 
-def case_rows(bs, stamp, peers, case, work):
+def case_rows(bs, stamp, peers, case, work, want_oracle):
     d = os.path.join(work, case.name)
     os.makedirs(d, exist_ok=True)
     fields = devset.read_ply(case.truth)[0]
@@ -104,7 +114,10 @@ def case_rows(bs, stamp, peers, case, work):
             out = os.path.join(d, "f.ply")
             j = json.loads(run([bs, "features", case.noisy] + BOOTSURF[m] +
                                ["-o", out, "--force", "-q", "--json"]))
-            r = prf(devset.read_ply(out)[0]["feature"] != 0, truth)
+            f = devset.read_ply(out)[0]
+            r = prf(f["feature"] != 0, truth)
+            if m == "default" and truth is not None and "variance_z" in f:
+                r["oracle"] = oracle(f["variance_z"], f["feature"] != 0, j["threshold"], truth)
             r["h"] = j["h"]
             r["k"] = j["parameters"].get("k")
             os.remove(out)
@@ -129,17 +142,28 @@ def case_rows(bs, stamp, peers, case, work):
         s = np.loadtxt(txt)
         return prf(np.nan_to_num(s, nan=-np.inf) >= CGAL_THRESHOLD, truth)
 
-    res["PCL sv"] = cached(os.path.join(d, "pcl.json"), pcl)
-    res["CGAL VCM"] = cached(os.path.join(d, "vcm.json"), vcm)
+    nan = {"p": float("nan"), "r": float("nan"), "f1": float("nan")}
+    if truth is None:
+        nan = {"flagged": float("nan")}
+    res["PCL sv"] = cached(os.path.join(d, "pcl.json"), pcl) if peers else nan
+    res["CGAL VCM"] = cached(os.path.join(d, "vcm.json"), vcm) if peers else nan
+    if want_oracle:
+        if "oracle" not in res["default"] and truth is not None:
+            os.remove(os.path.join(d, "default.%s.json" % stamp))
+            res["default"] = bootsurf("default")
+        res["oracle z"] = ({"f1": res["default"]["oracle"], "p": float("nan"), "r": float("nan")}
+                           if truth is not None else {"flagged": float("nan")})
     n = len(fields["x"])
     res["all"] = prf(np.ones(n, dtype=bool), truth)
     return res, (float(truth.mean()) if truth is not None else None)
 
 
 def fmt(e):
-    if "flagged" in e:
-        return "(%.1f%%)" % (100 * e["flagged"])
     f = lambda v: "-" if math.isnan(v) else "%.2f" % v
+    if "flagged" in e:
+        return "-" if math.isnan(e["flagged"]) else "(%.1f%%)" % (100 * e["flagged"])
+    if math.isnan(e["p"]) and math.isnan(e["r"]):
+        return f(e["f1"])
     return "**%s** (%s / %s)" % (f(e["f1"]), f(e["p"]), f(e["r"]))
 
 
@@ -148,7 +172,9 @@ def main():
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bootsurf", required=True)
     ap.add_argument("--devset", required=True)
-    ap.add_argument("--peers", required=True)
+    ap.add_argument("--peers", help="the peers' programs (bench/peers/build.sh)")
+    ap.add_argument("--no-peers", action="store_true", help="leave PCL sv and CGAL VCM empty")
+    ap.add_argument("--oracle", action="store_true", help="add the column oracle z")
     ap.add_argument("--models", default=",".join(MODELS))
     ap.add_argument("--noise", default=",".join(NOISES))
     ap.add_argument("--extra", default=",".join(EXTRA), help="more cases by full name")
@@ -156,6 +182,11 @@ def main():
     ap.add_argument("--work", default="/tmp/bootsurf_features_table")
     ap.add_argument("--jobs", type=int, default=1)
     a = ap.parse_args()
+    if not a.peers and not a.no_peers:
+        ap.error("--peers DIR is needed (or --no-peers)")
+    peers = None if a.no_peers else a.peers
+    methods = METHODS + (["oracle z"] if a.oracle else [])
+    scored_methods = [m for m in METHODS if peers or m not in ("PCL sv", "CGAL VCM")]
     bs = os.path.abspath(a.bootsurf)
     if os.path.isdir(bs):
         bs = os.path.join(bs, "bootsurf")
@@ -170,31 +201,32 @@ def main():
             sys.exit("features_table: no case %s in %s" % (nm, a.devset))
 
     def one(nm):
-        return case_rows(bs, stamp, a.peers, all_cases[nm], a.work)
+        return case_rows(bs, stamp, peers, all_cases[nm], a.work, a.oracle)
 
     with ThreadPoolExecutor(max_workers=max(1, a.jobs)) as ex:
         results = list(ex.map(one, names))
-    lines = ["| case | features | " + " | ".join(METHODS) + " |",
-             "|---|---|" + "---|" * len(METHODS)]
+    lines = ["| case | features | " + " | ".join(methods) + " |",
+             "|---|---|" + "---|" * len(methods)]
     wins = {m: 0 for m in METHODS}
-    margin = {m: [] for m in METHODS}  # CAD rows: F1 - all
+    margin = {m: [] for m in methods}  # CAD rows: F1 - all
     scored = 0
     for nm, (res, frac) in zip(names, results):
         if frac is not None:
             scored += 1
-            best = max(res[m]["f1"] for m in METHODS if not math.isnan(res[m]["f1"]))
-            for m in METHODS:
+            # (the oracle is a ceiling, not a method: not counted)
+            best = max(res[m]["f1"] for m in scored_methods if not math.isnan(res[m]["f1"]))
+            for m in scored_methods:
                 wins[m] += res[m]["f1"] == best
             if any(nm.startswith(c) for c in CAD + ["cube", "plate", "shell"]):
-                for m in METHODS:
+                for m in methods:
                     margin[m].append((res[m]["f1"] - res["all"]["f1"], nm))
         lines.append("| %s | %s | %s |" % (nm, "-" if frac is None else "%.1f%%" % (100 * frac),
-                                          " | ".join(fmt(res[m]) for m in METHODS)))
+                                          " | ".join(fmt(res[m]) for m in methods)))
         print(lines[-1], flush=True)
     lines.append("")
     lines.append("Best F1 over the %d labelled rows (ties counted for each): " % scored +
-                 ", ".join("%s %d" % (m, wins[m]) for m in METHODS) + ".")
-    cad = [m for m in METHODS if m != "all" and margin[m]]
+                 ", ".join("%s %d" % (m, wins[m]) for m in scored_methods) + ".")
+    cad = [m for m in scored_methods + methods[len(METHODS):] if m != "all" and margin[m]]
     if cad:
         lines.append("")
         lines.append("F1 minus the trivial baseline on the %d rows of CAD and generated "
