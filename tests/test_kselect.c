@@ -178,6 +178,27 @@ static void test_k_grows_with_noise(void **state) {
   }
 }
 
+/* The mean angle error of the fixed-K PCA normals of s (single fits); with
+ * fe, also their mean over the points it flags (> 0.5) into *ef. */
+static double fixed_k_error(const noisy_shape *s, int k, const bsurf_field *fe, double *ef) {
+  const size_t n = s->c.point_count;
+  double *fixed = malloc(3 * n * sizeof(double));
+  bsurf_normal_options o = bsurf_normal_options_default();
+  o.k = k;
+  o.bootstrap = 0;
+  bsurf_normal_fields out = {fixed, NULL, NULL};
+  assert_int_equal(bsurf_estimate_normals(s->c.xyz, &s->nb, NULL, &o, &out, NULL), BSURF_OK);
+  double e = 0, sf = 0, nf = 0;
+  for (size_t i = 0; i < n; i++) {
+    const double d = angle_u(&fixed[3 * i], &s->clean_normals[3 * i]);
+    e += d;
+    if (fe && fe->values[i] > 0.5) sf += d, nf++;
+  }
+  if (fe) *ef = sf / nf;
+  free(fixed);
+  return e / n;
+}
+
 /* On a noisy cube, points near the edges get smaller neighbourhoods than
  * the faces' interiors, and the selection's mean angle error is no worse
  * than the best single candidate K's (chosen in hindsight), over the whole
@@ -207,28 +228,18 @@ static void test_cube_edges(void **state) {
   assert_true(kf / nf < 0.8 * (kn / nn));
   err /= n;
   errf /= nf;
-  double *fixed = malloc(3 * n * sizeof(double)), best = INFINITY, bestf = INFINITY;
+  double best = INFINITY, bestf = INFINITY;
   for (int a = 0; a < NKS; a++) {
-    bsurf_normal_options o = bsurf_normal_options_default();
-    o.k = KS[a];
-    o.bootstrap = 0;
-    bsurf_normal_fields out = {fixed, NULL, NULL};
-    assert_int_equal(bsurf_estimate_normals(s.c.xyz, &s.nb, NULL, &o, &out, NULL), BSURF_OK);
-    double e = 0, ef = 0;
-    for (size_t i = 0; i < n; i++) {
-      const double d = angle_u(&fixed[3 * i], &s.clean_normals[3 * i]);
-      e += d;
-      if (fe->values[i] > 0.5) ef += d;
-    }
-    if (e / n < best) best = e / n;
-    if (ef / nf < bestf) bestf = ef / nf;
+    double ef;
+    const double e = fixed_k_error(&s, KS[a], fe, &ef);
+    if (e < best) best = e;
+    if (ef < bestf) bestf = ef;
   }
   print_message("cube: selection %.5f (edges %.5f, K %.1f; faces K %.1f), best fixed K %.5f "
                 "(edges %.5f)\n",
                 err, errf, kf / nf, kn / nn, best, bestf);
   assert_true(err <= best);
   assert_true(errf <= bestf);
-  free(fixed);
   sel_free(&r);
   shape_free(&s);
 }
@@ -252,7 +263,6 @@ static void test_tie_weights(void **state) {
   const bsurf_field *fe = bsurf_cloud_field(&s.c, "feature");
   assert_non_null(fe);
   const size_t n = s.c.point_count;
-  double *fixed = malloc(3 * n * sizeof(double));
   double err = 0, errf = 0, nf = 0, best = INFINITY, bestf = INFINITY;
   for (size_t i = 0; i < n; i++) {
     const double e = angle_u(&r.normals[3 * i], &s.clean_normals[3 * i]);
@@ -261,43 +271,17 @@ static void test_tie_weights(void **state) {
   }
   assert_true(nf > 100);
   for (int a = 0; a < NKS; a++) {
-    bsurf_normal_options o = bsurf_normal_options_default();
-    o.k = KS[a];
-    o.bootstrap = 0;
-    bsurf_normal_fields out = {fixed, NULL, NULL};
-    assert_int_equal(bsurf_estimate_normals(s.c.xyz, &s.nb, NULL, &o, &out, NULL), BSURF_OK);
-    double e = 0, ef = 0;
-    for (size_t i = 0; i < n; i++) {
-      const double d = angle_u(&fixed[3 * i], &s.clean_normals[3 * i]);
-      e += d;
-      if (fe->values[i] > 0.5) ef += d;
-    }
-    if (e / n < best) best = e / n, bestf = ef / nf;
+    double ef;
+    const double e = fixed_k_error(&s, KS[a], fe, &ef);
+    if (e < best) best = e, bestf = ef;
   }
   print_message("tie weights: cube g0.6 selection %.5f (edges %.5f, K %.1f), best fixed K %.5f "
                 "(its edges %.5f)\n",
                 err / n, errf / nf, mean_k(&r, n), best, bestf);
   assert_true(err / n <= best);
   assert_true(errf / nf <= bestf);
-  free(fixed);
   sel_free(&r);
   shape_free(&s);
-}
-
-/* The mean angle error of the fixed-K PCA normals of s (single fits). */
-static double fixed_k_error(const noisy_shape *s, int k) {
-  const size_t n = s->c.point_count;
-  double *fixed = malloc(3 * n * sizeof(double));
-  bsurf_normal_options o = bsurf_normal_options_default();
-  o.k = k;
-  o.bootstrap = 0;
-  bsurf_normal_fields out = {fixed, NULL, NULL};
-  assert_int_equal(bsurf_estimate_normals(s->c.xyz, &s->nb, NULL, &o, &out, NULL), BSURF_OK);
-  double e = 0;
-  for (size_t i = 0; i < n; i++)
-    e += angle_u(&fixed[3 * i], &s->clean_normals[3 * i]);
-  free(fixed);
-  return e / n;
 }
 
 /* On a smooth sphere with noise (seed fixed), where larger K is better up to
@@ -320,7 +304,7 @@ static void test_sphere_smooth(void **state) {
   for (size_t i = 0; i < n; i++)
     err += angle_u(&r.normals[3 * i], &s.clean_normals[3 * i]);
   err /= n;
-  const double e15 = fixed_k_error(&s, 15), e80 = fixed_k_error(&s, 80);
+  const double e15 = fixed_k_error(&s, 15, NULL, NULL), e80 = fixed_k_error(&s, 80, NULL, NULL);
   print_message("sphere: selection %.5f (K %.1f), K = 15 %.5f, K = 80 %.5f\n", err, mean_k(&r, n),
                 e15, e80);
   assert_true(e80 < e15);
@@ -359,7 +343,7 @@ static void test_noise_pool(void **state) {
     assert_true(g.noise[i] == g.noise[0]);
   double best = INFINITY;
   for (int a = 0; a < NKS; a++) {
-    const double e = fixed_k_error(&s, KS[a]);
+    const double e = fixed_k_error(&s, KS[a], NULL, NULL);
     if (e < best) best = e;
   }
   const double eg = sel_error(&s, &g), el = sel_error(&s, &l);
