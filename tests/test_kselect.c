@@ -199,6 +199,16 @@ static double fixed_k_error(const noisy_shape *s, int k, const bsurf_field *fe, 
   return e / n;
 }
 
+/* A cube of 20,000 points with Gaussian noise of level h (seed fixed), the
+ * selection on it and its feature flag (points near an edge). */
+static const bsurf_field *cube_selected(noisy_shape *s, double level, sel_out *r) {
+  shape_make(s, BSURF_SHAPE_CUBE, 20000, BSURF_NOISE_GAUSSIAN, level);
+  select_run(s, 2, r);
+  const bsurf_field *fe = bsurf_cloud_field(&s->c, "feature");
+  assert_non_null(fe);
+  return fe;
+}
+
 /* On a noisy cube, points near the edges get smaller neighbourhoods than
  * the faces' interiors, and the selection's mean angle error is no worse
  * than the best single candidate K's (chosen in hindsight), over the whole
@@ -209,11 +219,8 @@ static double fixed_k_error(const noisy_shape *s, int k, const bsurf_field *fe, 
 static void test_cube_edges(void **state) {
   (void)state;
   noisy_shape s;
-  shape_make(&s, BSURF_SHAPE_CUBE, 20000, BSURF_NOISE_GAUSSIAN, 0.3);
   sel_out r;
-  select_run(&s, 2, &r);
-  const bsurf_field *fe = bsurf_cloud_field(&s.c, "feature");
-  assert_non_null(fe);
+  const bsurf_field *fe = cube_selected(&s, 0.3, &r);
   double kf = 0, kn = 0, nf = 0, nn = 0, err = 0, errf = 0;
   const size_t n = s.c.point_count;
   for (size_t i = 0; i < n; i++) {
@@ -257,11 +264,8 @@ static void test_cube_edges(void **state) {
 static void test_tie_weights(void **state) {
   (void)state;
   noisy_shape s;
-  shape_make(&s, BSURF_SHAPE_CUBE, 20000, BSURF_NOISE_GAUSSIAN, 0.6);
   sel_out r;
-  select_run(&s, 2, &r);
-  const bsurf_field *fe = bsurf_cloud_field(&s.c, "feature");
-  assert_non_null(fe);
+  const bsurf_field *fe = cube_selected(&s, 0.6, &r);
   const size_t n = s.c.point_count;
   double err = 0, errf = 0, nf = 0, best = INFINITY, bestf = INFINITY;
   for (size_t i = 0; i < n; i++) {
