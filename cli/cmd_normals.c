@@ -86,9 +86,9 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
       {0, "select-k", ARG_STRING, &select_k, "A:B:STEP", "per point, the K chosen by --select-rule",
        1, 0},
       {0, "select-rule", ARG_STRING, &select_rule, "R",
-       "mse (estimated variance + bias^2 of the PCA normal), test-error (Eq. 5.10) or auto "
-       "(mse where it applies: --fit pca, no --select-degree or --curve, K >= 7, in memory; "
-       "else test-error)",
+       "mse (estimated variance + bias^2 of the normal: the PCA plane's, or with --fit poly "
+       "the fit's over K and --select-degree), test-error (Eq. 5.10) or auto (mse where it "
+       "applies: no --curve, K >= 7, in memory; else test-error)",
        1, 0},
       {0, "noise-k", ARG_INT, &ksel.noise_k, "K",
        "with --select-rule mse: neighbourhood of the noise estimate", 12, 65535},
@@ -154,11 +154,8 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     return cli_usage_error(cmd, "--noise-pool must be global or local, not '%s'", noise_pool);
   ksel.noise_pool = (bsurf_noise_pool)np;
   if (ksel.rule == BSURF_KSELECT_MSE) {
-    if (!select_k) return cli_usage_error(cmd, "--select-rule mse needs --select-k");
-    if (no.fit != BSURF_NORMAL_PCA || select_degree)
-      return cli_usage_error(
-          cmd,
-          "--select-rule mse chooses K for PCA normals: not with --fit poly or --select-degree");
+    if (!select_k && !select_degree)
+      return cli_usage_error(cmd, "--select-rule mse needs --select-k or --select-degree");
     if (curve) return cli_usage_error(cmd, "--curve needs --select-rule test-error");
     if (ks[0] < 7)
       return cli_usage_error(
@@ -205,9 +202,9 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
    * criterion (40); the
    * noise fits' and the pool's variances, the first choice, the visit
    * order, the chosen K and the two-sheet flag (32); the pooling's copy (8) */
-  const int mse = ksel.rule == BSURF_KSELECT_MSE ||
-                  (ksel.rule == BSURF_KSELECT_AUTO && select_k && no.fit == BSURF_NORMAL_PCA &&
-                   !select_degree && !curve && ks[0] >= 7);
+  const int mse =
+      ksel.rule == BSURF_KSELECT_MSE ||
+      (ksel.rule == BSURF_KSELECT_AUTO && (select_k || select_degree) && !curve && ks[0] >= 7);
   const double mse_bytes = mse ? 8 + 40.0 * (nk < 4 ? nk : 4) + 80 : 0;
   rc = cli_tiles_plan_bytes(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 4,
                             mse_bytes, &plan);
@@ -272,7 +269,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     if (test_error) json_int(&j, "k_ref", k_ref);
     if (select_k) json_str(&j, "select_k", select_k);
     const int mse = sum.select_rule == BSURF_KSELECT_MSE; /* auto resolved */
-    if (select_k) json_str(&j, "select_rule", mse ? "mse" : "test-error");
+    if (select_k || select_degree) json_str(&j, "select_rule", mse ? "mse" : "test-error");
     if (mse) json_int(&j, "noise_k", ksel.noise_k);
     if (mse) json_str(&j, "noise_pool", noise_pool);
     if (select_degree) json_str(&j, "select_degree", select_degree);

@@ -524,6 +524,13 @@ typedef struct bsurf_kselect_options {
   int threads;                 /* 0 = all cores */
   bsurf_progress_fn progress;
   void *progress_user;
+  /* With nd >= 1: the candidates are the pairs (K, degree) of polynomial
+   * height fits of degrees ds[0..nd-1] (each in [1, 4]) instead of PCA
+   * planes, and the estimated mean squared error is that of the fit's
+   * normal at the point (docs/normals.md, "Choosing K and the degree");
+   * NULL, 0: PCA. */
+  const int *ds;
+  int nd;
 } bsurf_kselect_options;
 
 BSURF_API bsurf_kselect_options bsurf_kselect_options_default(void);
@@ -546,6 +553,9 @@ typedef struct bsurf_kselect_fields {
                       about a quadric split into two groups beyond what one
                       sheet with any unimodal noise gives at level 0.001
                       (docs/normals.md, "Two sheets"); else 0 */
+  /* with opts->nd >= 1: the chosen degree (the normals are then the
+   * chosen fit's, in the frame of the K_max neighbours) */
+  int *degree_selected;
 } bsurf_kselect_fields;
 
 typedef struct bsurf_kselect_report {

@@ -274,7 +274,7 @@ static void test_select_bad_input(void **state) {
   bsurf_kselect_options ko = bsurf_kselect_options_default();
   ko.ks = ks;
   ko.nk = 3;
-  bsurf_kselect_fields kf = {f->b, NULL, NULL, NULL, NULL};
+  bsurf_kselect_fields kf = {f->b, NULL, NULL, NULL, NULL, NULL};
   assert_invalid(bsurf_select_k(f->c.xyz, &f->nb, NULL, &kf, NULL), "bsurf_select_k",
                  "must not be NULL");
   bsurf_kselect_options bad = ko;

@@ -152,6 +152,24 @@ static void test_normals_job(void **state) {
   o.select_degree = ds;
   o.select_degree_count = 2;
   run_normals(&o, "normals_degree");
+  /* the default rule with the degree: the joint MSE rule in memory (its
+   * bootstrap at the chosen K and degree, bsurf_estimate_normals_at_kd),
+   * TEST_ERROR in tiles */
+  o.select_rule = BSURF_KSELECT_AUTO;
+  pair_open(&p, "normals_degree_auto");
+  assert_int_equal(bsurf_normals_job(&p.mem, &o, &sm, NULL), BSURF_OK);
+  assert_int_equal(sm.select_rule, BSURF_KSELECT_MSE);
+  const bsurf_field *fk = bsurf_cloud_field(&p.c, "k_selected");
+  const bsurf_field *fd = bsurf_cloud_field(&p.c, "degree_selected");
+  assert_non_null(fk);
+  assert_non_null(fd);
+  for (size_t i = 0; i < p.c.point_count; i++) {
+    assert_true(fk->values[i] == 10 || fk->values[i] == 15 || fk->values[i] == 20);
+    assert_true(fd->values[i] == 1 || fd->values[i] == 2);
+  }
+  assert_int_equal(bsurf_normals_job(&p.tiled, &o, &st, NULL), BSURF_OK);
+  assert_int_equal(st.select_rule, BSURF_KSELECT_TEST_ERROR);
+  bsurf_cloud_free(&p.c);
 }
 
 /* o in memory, ot (NULL: o) in tiles: the same bytes */

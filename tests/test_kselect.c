@@ -72,7 +72,7 @@ static void select_run_pool(const noisy_shape *s, int threads, bsurf_noise_pool 
   o.nk = NKS;
   o.threads = threads;
   o.noise_pool = pool;
-  bsurf_kselect_fields f = {r->normals, r->k, r->rmse, r->noise, NULL};
+  bsurf_kselect_fields f = {r->normals, r->k, r->rmse, r->noise, NULL, NULL};
   assert_int_equal(bsurf_select_k(s->c.xyz, &s->nb, &o, &f, NULL), BSURF_OK);
 }
 
@@ -432,7 +432,7 @@ static void test_bad_options(void **state) {
   shape_make(&s, BSURF_SHAPE_SPHERE, 500, BSURF_NOISE_GAUSSIAN, 0.1);
   double nrm[3 * 500];
   int k[500];
-  bsurf_kselect_fields f = {nrm, k, NULL, NULL, NULL};
+  bsurf_kselect_fields f = {nrm, k, NULL, NULL, NULL, NULL};
   bsurf_kselect_options o = bsurf_kselect_options_default();
   o.ks = KS;
   o.nk = NKS;
@@ -469,7 +469,7 @@ static double sheet_share(const double *xyz, const bsurf_neighbors *nb) {
   o.ks = KS;
   o.nk = NKS;
   o.threads = 2;
-  bsurf_kselect_fields f = {NULL, k, NULL, NULL, two};
+  bsurf_kselect_fields f = {NULL, k, NULL, NULL, two, NULL};
   assert_int_equal(bsurf_select_k(xyz, nb, &o, &f, NULL), BSURF_OK);
   size_t m = 0;
   for (size_t i = 0; i < n; i++) {
@@ -537,7 +537,7 @@ static int unassessed_count(const double *xyz, size_t n, int *kmax_share, size_t
   o.ks = KS;
   o.nk = NKS;
   o.threads = 2;
-  bsurf_kselect_fields f = {nrm, k, rmse, NULL, NULL};
+  bsurf_kselect_fields f = {nrm, k, rmse, NULL, NULL, NULL};
   bsurf_kselect_report rep;
   assert_int_equal(bsurf_select_k(xyz, &nb, &o, &f, &rep), BSURF_OK);
   int m = 0, mk = 0;

@@ -316,11 +316,12 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
       k_ref              neighbourhood of the reference normals (0 = K)
       select_k           per point, the K chosen by select_rule: 'A:B:STEP'
                          or a list of K (5.5, Algorithm 3)
-      select_rule        mse (estimated variance + bias^2 of the PCA normal;
-                         also writes two_sheet, 1 where the neighbourhood
-                         mixes two sheets), test-error (Eq. 5.10) or auto
-                         (mse where it applies: fit='pca', no select_degree
-                         or curve, K >= 7; else test-error)
+      select_rule        mse (estimated variance + bias^2 of the normal: the
+                         PCA plane's, or with fit='poly' the fit's over K and
+                         select_degree; also writes two_sheet, 1 where the
+                         neighbourhood mixes two sheets, where the degree is
+                         not selected), test-error (Eq. 5.10) or auto (mse
+                         where it applies: no curve, K >= 7; else test-error)
       noise_k            with select_rule='mse': the noise fits' K (12)
       noise_pool         with select_rule='mse': one noise level for the cloud
                          ('global') or each point's own ('local')

@@ -193,6 +193,14 @@ double bsurf_nested_field_angle_total(int degree, int nrep, const double *coefs,
 bsurf_status bsurf_estimate_normals_at(const double *xyz, const bsurf_neighbors *nb,
                                        const bsurf_normal_options *opts, const int *k_at,
                                        bsurf_normal_fields *out, bsurf_normal_report *report);
+/* The same with the POLY fit at each point's own degree too (d_at: NULL,
+ * or 1 <= d_at[i] <= opts->degree, k_at[i] >= its terms): point i's
+ * estimate is bsurf_estimate_normals's with opts->k = k_at[i] and
+ * opts->degree = d_at[i] (the chosen (K, degree) of the MSE rule). */
+bsurf_status bsurf_estimate_normals_at_kd(const double *xyz, const bsurf_neighbors *nb,
+                                          const bsurf_normal_options *opts, const int *k_at,
+                                          const int *d_at, bsurf_normal_fields *out,
+                                          bsurf_normal_report *report);
 
 /* bsurf_estimate_normals without the neighbour lists: the cloud's
  * neighbourhoods searched (bsurf_neighbors_stream, nb_k neighbours, of which

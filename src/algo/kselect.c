@@ -245,7 +245,7 @@ static int two_sheets(const ksel_ctx *c, ksel_scratch *s, const uint32_t *idx, i
 /* point i's tied candidates from s->tcand (NAN: not tied) and s->tcrit;
  * out of memory: s->tie_nomem, c->tied[i] NULL */
 static void tie_store(ksel_ctx *c, ksel_scratch *s, size_t i) {
-  const int nk = c->o->nk;
+  const int nk = c->o->nk * ksel_ndeg(c->o);
   memcpy(&c->fnrm[3 * i], &s->tcand[3 * (size_t)c->first[i]], 3 * sizeof(double));
   c->fmse[i] = s->tcrit[c->first[i]];
   const size_t need = 1 + (size_t)TIE_W * nk;
@@ -284,7 +284,7 @@ static void tie_store(ksel_ctx *c, ksel_scratch *s, size_t i) {
 /* point i's tied candidates back into s->tcand (NAN: not tied) and
  * s->tcrit; returns s->tcand */
 static const double *tie_load(const ksel_ctx *c, ksel_scratch *s, size_t i) {
-  const int nk = c->o->nk;
+  const int nk = c->o->nk * ksel_ndeg(c->o);
   for (int a = 0; a < nk; a++)
     s->tcand[3 * a] = NAN;
   const double *e = c->tied[i];
@@ -339,8 +339,8 @@ static const double *tie_load(const ksel_ctx *c, ksel_scratch *s, size_t i) {
  * otherwise 1, and curve[a] = 1 for each candidate a whose own
  * neighbourhood reads fewer than two dimensions (its S above the median of
  * S on a surface; the section above). */
-static int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, const int *ks, int nk,
-                         int *curve) {
+int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, const int *ks, int nk,
+                  int *curve) {
   const double *p = &xyz[3 * i];
   double cum = 0; /* sum of ln T_j over the positive distances before j */
   int m = 0, a = 0, any = 0;
@@ -438,7 +438,7 @@ static void select_point(void *vctx, int thread, size_t i) {
     double b2 = isfinite(qb[a]) && qb[a] > 0 ? qb[a] : 0;
     /* the drifts from the a smaller candidates (Lepski), each beyond the
      * Bonferroni allowance (the top of the file) */
-    const double tol = DRIFT_TOL + log(a > 1 ? a : 1);
+    const double tol = drift_tol(a);
     for (int b = 0; b < a; b++) {
       if (!isfinite(var[b])) continue;
       const double dot = nrm[3 * a] * nrm[3 * b] + nrm[3 * a + 1] * nrm[3 * b + 1] +
@@ -450,19 +450,29 @@ static void select_point(void *vctx, int thread, size_t i) {
     if (mse[a] < best_mse) /* ties keep the smaller K */
       best_mse = mse[a], best = a;
   }
+  /* none assessed (noise above the tangent spread of every K): the largest
+   * K, the most stable plane */
+  ksel_ties(c, s, i, nk, best, best_mse, nk - 1);
+}
+
+double drift_tol(int a) {
+  return DRIFT_TOL + log(a > 1 ? a : 1);
+}
+
+void ksel_ties(ksel_ctx *c, ksel_scratch *s, size_t i, int ncand, int best, double best_mse,
+               int fallback) {
+  const double *var = s->var, *mse = s->mse, *nrm = s->nrm;
   double *cand = s->tcand, *crit = s->tcrit; /* compacted by tie_store */
-  for (int a = 0; a < nk; a++)
+  for (int a = 0; a < ncand; a++)
     cand[3 * a] = NAN;
-  if (best < 0) {
-    /* no candidate could be assessed (noise above the tangent spread of
-     * every K): the largest K, the most stable plane */
+  if (best < 0) { /* no candidate could be assessed */
     s->none++;
-    best = nk - 1;
+    best = fallback;
   }
   c->first[i] = best;
   /* the candidates tied with the smallest criterion (the top of the file) */
   const double band = isfinite(best_mse) ? best_mse + TIE_F * var[best] : INFINITY;
-  for (int a = 0; a < nk; a++) {
+  for (int a = 0; a < ncand; a++) {
     if (a != best && !(isfinite(var[a]) && mse[a] <= band)) continue;
     memcpy(&cand[3 * a], &nrm[3 * a], 3 * sizeof(double));
     crit[a] = a == best ? best_mse : mse[a];
@@ -477,7 +487,7 @@ static void tie_point(void *vctx, int thread, size_t i) {
   ksel_ctx *c = vctx;
   ksel_scratch *s = &c->scr[thread];
   const bsurf_kselect_options *o = c->o;
-  const int nk = o->nk;
+  const int nd = ksel_ndeg(o), nk = o->nk * nd; /* candidates: K, then degree */
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const double *cand = tie_load(c, s, i); /* s->tcand, s->tcrit */
   int best = c->first[i];
@@ -504,11 +514,12 @@ static void tie_point(void *vctx, int thread, size_t i) {
   const double m = s->tcrit[best];
   bsurf_kselect_fields *out = c->out;
   if (out->normals) memcpy(&out->normals[3 * i], &cand[3 * best], 3 * sizeof(double));
-  if (out->k_selected) out->k_selected[i] = o->ks[best];
+  if (out->k_selected) out->k_selected[i] = o->ks[best / nd];
+  if (out->degree_selected && o->nd > 0) out->degree_selected[i] = o->ds[best % nd];
   /* pi / 2, the largest unoriented angle, where no candidate was assessed */
   if (out->rmse) out->rmse[i] = isfinite(m) ? sqrt(m) : 1.57079632679489661923;
   if (out->noise) out->noise[i] = sqrt(c->noise[i]);
-  if (out->two_sheet) out->two_sheet[i] = two_sheets(c, s, idx, best);
+  if (out->two_sheet) out->two_sheet[i] = two_sheets(c, s, idx, best / nd);
 }
 
 /* ---- Two sheets (the two_sheet field; docs/normals.md, "Two sheets") ----
@@ -617,6 +628,11 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   BSURF_REQUIRE(o->noise_k >= 2 * QT && o->noise_k <= nb->k,
                 "opts->noise_k = %d must be in [%d, the neighbourhoods' k = %d]", o->noise_k,
                 2 * QT, nb->k);
+  BSURF_REQUIRE(o->nd >= 0 && o->nd <= 4 && (!o->nd || o->ds), "opts->nd = %d (opts->ds %s)", o->nd,
+                o->ds ? "given" : "NULL");
+  for (int d = 0; d < o->nd; d++)
+    BSURF_REQUIRE(o->ds[d] >= 1 && o->ds[d] <= BSURF_DEGREE_MAX,
+                  "opts->ds[%d] = %d must be in [1, %d]", d, o->ds[d], BSURF_DEGREE_MAX);
   for (int a = 0; a < o->nk; a++)
     BSURF_REQUIRE(o->ks[a] > QT && o->ks[a] <= nb->k && (a == 0 || o->ks[a] > o->ks[a - 1]),
                   "opts->ks[%d] = %d must be in (%d, the neighbourhoods' k = %d] and above the "
@@ -626,6 +642,7 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   if ((size_t)kmax > nb->point_count) return BSURF_ERR_TOO_FEW_POINTS;
   const size_t n = nb->point_count;
   const int T = bsurf_threads_resolve(o->threads);
+  const size_t nc = (size_t)o->nk * ksel_ndeg(o); /* candidates */
   ksel_scratch *scr = calloc((size_t)T, sizeof *scr);
   double *s2 = bsurf_alloc_array(n, sizeof(double)), *noise = bsurf_alloc_array(n, sizeof(double));
   double **tied = bsurf_alloc_array(n, sizeof(double *));
@@ -642,15 +659,16 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
     s->mu = bsurf_blocks_array(&s->mem, (size_t)o->nk, 3 * sizeof(double));
     s->cov = bsurf_blocks_array(&s->mem, (size_t)o->nk, 6 * sizeof(double));
     s->pool = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
-    s->nrm = bsurf_blocks_array(&s->mem, (size_t)o->nk, 3 * sizeof(double));
-    s->var = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
+    s->nrm = bsurf_blocks_array(&s->mem, nc, 3 * sizeof(double));
+    s->var = bsurf_blocks_array(&s->mem, nc, sizeof(double));
     s->qb = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
-    s->mse = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
+    s->mse = bsurf_blocks_array(&s->mem, nc, sizeof(double));
     s->res = bsurf_blocks_array(&s->mem, (size_t)kmax, sizeof(double));
-    s->tcand = bsurf_blocks_array(&s->mem, (size_t)o->nk, 3 * sizeof(double));
-    s->tcrit = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
+    s->tcand = bsurf_blocks_array(&s->mem, nc, 3 * sizeof(double));
+    s->tcrit = bsurf_blocks_array(&s->mem, nc, sizeof(double));
     s->curve = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(int));
     st = bsurf_blocks_status(&s->mem);
+    if (st == BSURF_OK && o->nd > 0) st = poly_alloc(s, o, kmax);
   }
   uint32_t *owned = NULL;
   const uint32_t *order = NULL;
@@ -673,8 +691,8 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK) st = bsurf_parallel_points_ordered(n, order, T, pool_point, &ctx, NULL, NULL);
   if (st == BSURF_OK && o->noise_pool == BSURF_NOISE_POOL_GLOBAL) st = pool_global(noise, n);
   if (st == BSURF_OK)
-    st = bsurf_parallel_points_ordered(n, order, T, select_point, &ctx, o->progress,
-                                       o->progress_user);
+    st = bsurf_parallel_points_ordered(n, order, T, o->nd > 0 ? poly_point : select_point, &ctx,
+                                       o->progress, o->progress_user);
   for (int t = 0; t < T && st == BSURF_OK; t++)
     if (scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
   if (st == BSURF_OK) st = bsurf_parallel_points_ordered(n, order, T, tie_point, &ctx, NULL, NULL);
@@ -690,6 +708,7 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   if (scr)
     for (int t = 0; t < T; t++) {
       bsurf_blocks_free(&scr[t].mem);
+      poly_free(&scr[t]);
       for (int b = 0; b < scr[t].tie_nblocks; b++)
         free(scr[t].tie_blocks[b]);
       free(scr[t].tie_blocks);

@@ -64,6 +64,8 @@ typedef struct ksel_scratch {
   double **tie_blocks;
   int tie_nblocks, tie_cap, tie_nomem;
   size_t tie_used; /* doubles used in the last block */
+  /* the polynomial candidates' (kselect_poly.c), or NULL */
+  struct kpoly_scratch *poly;
 } ksel_scratch;
 
 typedef struct ksel_ctx {
@@ -88,5 +90,37 @@ typedef struct ksel_ctx {
 void noise_point(void *vctx, int thread, size_t i);
 void pool_point(void *vctx, int thread, size_t i);
 bsurf_status pool_global(double *noise, size_t n);
+
+/* The candidates of a point: nk K values, times nd degrees for the
+ * polynomial fits (candidate a K * nd + degree index), else one PCA plane. */
+static inline int ksel_ndeg(const bsurf_kselect_options *o) {
+  return o->nd > 0 ? o->nd : 1;
+}
+
+#define curve_sampled bsurf_i_ksel_curve_sampled
+#define drift_tol bsurf_i_ksel_drift_tol
+#define ksel_ties bsurf_i_ksel_ties
+#define poly_point bsurf_i_ksel_poly_point
+#define poly_alloc bsurf_i_ksel_poly_alloc
+#define poly_free bsurf_i_ksel_poly_free
+
+/* The curve test of point i (kselect.c, "Curve-sampled neighbourhoods"):
+ * 1 where its K_max neighbours sample a curve, curve[a] = 1 for each
+ * candidate K a whose own neighbourhood reads fewer than two dimensions. */
+int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, const int *ks, int nk,
+                  int *curve);
+/* The drift's allowance for a candidate compared with `a` less biased ones
+ * (kselect.c, the top of the file: a test at level exp(-3) for all a). */
+double drift_tol(int a);
+/* After pass 3's criterion s->mse of the ncand candidates (s->var finite:
+ * assessed; s->nrm their normals): best (the smallest, -1 for none: then
+ * `fallback`, counted unassessed) and the candidates tied with it, stored
+ * for pass 4's tie-break (tie_store). */
+void ksel_ties(ksel_ctx *c, ksel_scratch *s, size_t i, int ncand, int best, double best_mse,
+               int fallback);
+/* Pass 3 of the polynomial candidates (kselect_poly.c), and its scratch. */
+void poly_point(void *vctx, int thread, size_t i);
+bsurf_status poly_alloc(ksel_scratch *s, const bsurf_kselect_options *o, int kmax);
+void poly_free(ksel_scratch *s);
 
 #endif

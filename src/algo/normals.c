@@ -126,6 +126,7 @@ typedef struct normals_ctx {
   int nk;
   bsurf_normal_select_fields *sel;
   const int *k_at; /* NULL, or each point's own K (bsurf_estimate_normals_at) */
+  const int *d_at; /* NULL, or each point's own degree (bsurf_estimate_normals_at_kd) */
 } normals_ctx;
 
 /* Point i with its neighbourhood: ids, the points' indices (i first, then
@@ -137,6 +138,7 @@ static void normals_point_row(const normals_ctx *c, normal_scratch *s, size_t i,
                               const uint32_t *idx, const uint32_t *ids) {
   const bsurf_normal_options *o = c->o;
   const int k = c->k_at ? c->k_at[i] : o->k, B = o->bootstrap;
+  const int degree0 = c->d_at ? c->d_at[i] : o->degree;
 
   /* the B resamples: for PCA their multiplicities as weights in lanes, for
    * a polynomial their draws */
@@ -145,12 +147,12 @@ static void normals_point_row(const normals_ctx *c, normal_scratch *s, size_t i,
   if (pca)
     bsurf_boot_weight_lanes(o->seed, key, B, k, s->counts, s->weights);
   else
-    bsurf_boot_draw_rows(o->seed, key, B, k, bsurf_poly_terms(o->degree), s->counts, s->draws,
+    bsurf_boot_draw_rows(o->seed, key, B, k, bsurf_poly_terms(degree0), s->counts, s->draws,
                          s->valid);
 
   double nP[3];
   bsurf_frame frame;
-  int degree = o->degree;
+  int degree = degree0;
   if (pca) {
     /* the moment sums of P and of the replicates (nested.c, one candidate
      * K: the weighted sums in vector lanes, the replicates' distinct points
@@ -177,14 +179,14 @@ static void normals_point_row(const normals_ctx *c, normal_scratch *s, size_t i,
     if (!(frame.eigenvalues[2] > 0 && frame.eigenvalues[1] > 1e-12 * frame.eigenvalues[2]))
       s->degenerate++;
     bsurf_localfit *lf = &s->lf;
-    bsurf_localfit_setup(lf, xyz, idx, k, &frame, o->degree);
+    bsurf_localfit_setup(lf, xyz, idx, k, &frame, degree0);
     /* as lanes: four solves at a time (same bits as row by row) */
     bsurf_localfit_normal_eq_draws(lf, B, s->draws, s->rows);
     double row[BSURF_NCOLS_MAX];
     bsurf_lanes_row(lf->ncols, s->rows, B, row);
     while (degree > 0 && bsurf_localfit_solve_row(lf, degree, row, s->coefs) != 0)
       degree--;
-    if (degree != o->degree) s->reduced++;
+    if (degree != degree0) s->reduced++;
     if (degree == 0) {
       /* a constant height: the tangent plane itself */
       for (int t = 0; t < 3; t++)
@@ -196,7 +198,7 @@ static void normals_point_row(const normals_ctx *c, normal_scratch *s, size_t i,
     /* with a reduced degree fewer distinct points suffice: let the solve
      * decide for the replicates the first check rejected */
     for (int b = 0; b < B; b++)
-      s->valid[b] = (s->valid[b] || degree < o->degree) && degree > 0;
+      s->valid[b] = (s->valid[b] || degree < degree0) && degree > 0;
     bsurf_localfit_solve_lanes(lf, degree, B, s->rows, s->valid, s->coefs + m);
     for (int b = 0; b < B; b++)
       if (s->valid[b])
@@ -283,12 +285,12 @@ static bsurf_status normals_check(const char *who, const bsurf_normal_options o,
  * (k_at: NULL, or each point's own K <= o->k), after their checks. */
 static bsurf_status normals_run(const double *xyz, const bsurf_neighbors *nb,
                                 const double *ref_normals, const bsurf_normal_options *o,
-                                const int *k_at, bsurf_normal_fields *out,
+                                const int *k_at, const int *d_at, bsurf_normal_fields *out,
                                 bsurf_normal_report *report) {
   static const bsurf_point_loop loop = {sizeof(normal_scratch), scratch_alloc, scratch_free,
                                         normals_point, normals_tally};
   const scratch_sizes sizes = {o->k, o->bootstrap, o->fit == BSURF_NORMAL_POLY ? o->degree : 1, 1};
-  normals_ctx ctx = {xyz, nb, ref_normals, o, out, report, NULL, 0, NULL, k_at};
+  normals_ctx ctx = {xyz, nb, ref_normals, o, out, report, NULL, 0, NULL, k_at, d_at};
   const double work = (double)o->k * (o->bootstrap + 1) *
                       (o->fit == BSURF_NORMAL_POLY ? bsurf_poly_terms(o->degree) : 3);
   bsurf_status st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, work, o->threads,
@@ -308,25 +310,37 @@ bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_neighbors *nb
   BSURF_REQUIRE(out, "out is NULL (give a bsurf_normal_fields, its unwanted outputs NULL)");
   bsurf_status st = normals_check("bsurf_estimate_normals", o, nb->k, nb->point_count);
   if (st != BSURF_OK) return st;
-  return normals_run(xyz, nb, ref_normals, &o, NULL, out, report);
+  return normals_run(xyz, nb, ref_normals, &o, NULL, NULL, out, report);
 }
 
 bsurf_status bsurf_estimate_normals_at(const double *xyz, const bsurf_neighbors *nb,
                                        const bsurf_normal_options *opts, const int *k_at,
                                        bsurf_normal_fields *out, bsurf_normal_report *report) {
+  return bsurf_estimate_normals_at_kd(xyz, nb, opts, k_at, NULL, out, report);
+}
+
+bsurf_status bsurf_estimate_normals_at_kd(const double *xyz, const bsurf_neighbors *nb,
+                                          const bsurf_normal_options *opts, const int *k_at,
+                                          const int *d_at, bsurf_normal_fields *out,
+                                          bsurf_normal_report *report) {
   bsurf_normal_options o = *opts;
   if (report) memset(report, 0, sizeof *report);
   BSURF_REQUIRE(xyz && nb && nb->idx && k_at && out && !out->normal_err,
                 "xyz, nb, nb->idx, k_at and out must not be NULL, out->normal_err must be");
   bsurf_status st = normals_check("bsurf_estimate_normals_at", o, nb->k, nb->point_count);
   if (st != BSURF_OK) return st;
-  const int kmin = o.fit == BSURF_NORMAL_POLY ? bsurf_poly_terms(o.degree) : 3;
-  for (size_t i = 0; i < nb->point_count; i++)
+  BSURF_REQUIRE(!d_at || o.fit == BSURF_NORMAL_POLY, "d_at needs the POLY fit");
+  for (size_t i = 0; i < nb->point_count; i++) {
+    const int d = d_at ? d_at[i] : o.degree;
+    BSURF_REQUIRE(d >= 1 && d <= o.degree, "d_at[%zu] = %d must be in [1, opts->degree = %d]", i, d,
+                  o.degree);
+    const int kmin = o.fit == BSURF_NORMAL_POLY ? bsurf_poly_terms(d) : 3;
     BSURF_REQUIRE(k_at[i] >= kmin && k_at[i] <= o.k, "k_at[%zu] = %d must be in [%d, opts->k = %d]",
                   i, k_at[i], kmin, o.k);
+  }
   /* the scratch of the largest K; point i's estimate is bsurf_estimate_normals's with
    * opts->k = k_at[i] (the same draws, keyed by the point and K: the same bits) */
-  return normals_run(xyz, nb, NULL, &o, k_at, out, report);
+  return normals_run(xyz, nb, NULL, &o, k_at, d_at, out, report);
 }
 
 /* ---- the same estimate on the search's rows as they come ---- */
@@ -368,7 +382,7 @@ bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_cou
   for (int t = 0; t < T && st == BSURF_OK; t++)
     st = scratch_alloc(&scr[t], &sizes);
   /* no reference normals: a streamed point cannot wait for its neighbours' */
-  stream_ctx sc = {{xyz, NULL, NULL, &o, out, report, NULL, 0, NULL, NULL}, scr, iota};
+  stream_ctx sc = {{xyz, NULL, NULL, &o, out, report, NULL, 0, NULL, NULL, NULL}, scr, iota};
   if (st == BSURF_OK)
     st = bsurf_neighbors_stream(xyz, point_count, nb_k, o.threads, stream_row, &sc, h, duplicates,
                                 o.progress, o.progress_user);
@@ -559,7 +573,7 @@ bsurf_status bsurf_select_normals_k(const double *xyz, const bsurf_neighbors *nb
   static const bsurf_point_loop loop = {sizeof(select_scratch), select_scratch_alloc,
                                         select_scratch_free, select_point, select_tally};
   const scratch_sizes sizes = {ks[nk - 1], o.bootstrap, 1, nk};
-  normals_ctx ctx = {xyz, nb, ref_normals, &o, NULL, report, ks, nk, out, NULL};
+  normals_ctx ctx = {xyz, nb, ref_normals, &o, NULL, report, ks, nk, out, NULL, NULL};
   const double work = (double)ks[nk - 1] * nk * (o.bootstrap + 1) * 3;
   st = bsurf_point_loop_run(&loop, &sizes, &ctx, nb, xyz, work, o.threads, o.progress,
                             o.progress_user);

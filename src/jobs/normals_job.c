@@ -194,32 +194,41 @@ static bsurf_status normals_compute(normals_job *job, const double *xyz, const b
   if (selecting && job->ksel.rule != BSURF_KSELECT_MSE) /* nested candidates, one pass */
     return normals_select_nested(job, xyz, nb, &no, ref, b, total);
   if (job->ksel.rule == BSURF_KSELECT_MSE) {
-    int *kmse = NULL; /* the chosen K */
+    int *kmse = NULL, *dmse = NULL; /* the chosen K (and degree) */
     bsurf_kselect_options ko = job->ksel;
     ko.progress = no.progress;
     ko.progress_user = no.progress_user;
-    int bootstrap = no.bootstrap >= 2;
+    const int poly = ko.nd > 0;
+    /* the polynomial's normal is always re-estimated in the thesis's frame
+     * of the chosen K (the rule's fits share the K_max frame) */
+    int bootstrap = no.bootstrap >= 2 || poly;
     int *sheet = NULL;
     if (!(kmse = malloc((n ? n : 1) * sizeof(int))) ||
-        !(sheet = malloc((n ? n : 1) * sizeof(int)))) {
+        !(sheet = malloc((n ? n : 1) * sizeof(int))) ||
+        (poly && !(dmse = malloc((n ? n : 1) * sizeof(int))))) {
       free(kmse);
+      free(sheet);
       return BSURF_ERR_NOMEM;
     }
-    bsurf_kselect_fields kf = {bootstrap ? NULL : b->normals, kmse, b->err, NULL, sheet};
+    bsurf_kselect_fields kf = {bootstrap ? NULL : b->normals, kmse, b->err, NULL, sheet, dmse};
     st = bsurf_select_k(xyz, nb, &ko, &kf, NULL);
     for (size_t i = 0; i < n; i++)
-      b->ksel[i] = kmse[i], b->sheet[i] = sheet[i];
+      b->ksel[i] = kmse[i], b->sheet[i] = sheet[i], b->dsel[i] = poly ? dmse[i] : no.degree;
     free(sheet);
     if (st == BSURF_OK && bootstrap) {
-      /* the B replicates at each point's chosen K only, in one pass: the
-       * bits of one pass per candidate K kept at the points that chose it,
-       * a fifteenth of the work with 15 candidates (issue 25) */
+      /* the B replicates at each point's chosen K (and degree) only, in
+       * one pass: the bits of one pass per candidate kept at the points
+       * that chose it, a fifteenth of the work with 15 candidates (issue
+       * 25) */
       bsurf_normal_options o = no;
       o.k = job->ks[job->nk - 1];
-      bsurf_normal_fields out = {b->normals, b->var, NULL};
-      st = bsurf_estimate_normals_at(xyz, nb, &o, kmse, &out, total);
+      for (int d = 0; poly && d < job->nd; d++)
+        if (d == 0 || job->ds[d] > o.degree) o.degree = job->ds[d];
+      bsurf_normal_fields out = {b->normals, no.bootstrap >= 2 ? b->var : NULL, NULL};
+      st = bsurf_estimate_normals_at_kd(xyz, nb, &o, kmse, dmse, &out, total);
     }
     free(kmse);
+    free(dmse);
     return st;
   }
   for (int a = 0; a < job->nk; a++) {
@@ -247,8 +256,9 @@ static bsurf_status normals_compute(normals_job *job, const double *xyz, const b
 
 /* The output fields of a run, in the order they are added to the cloud;
  * which[t]: the buffer of field t (0 var, 1 err, 2 ksel, 3 dsel, 4 sheet).
- * At most BSURF_NORMALS_JOB_FIELDS = 4: two_sheet comes with the MSE rule,
- * which selects no degree. */
+ * At most BSURF_NORMALS_JOB_FIELDS = 4: two_sheet comes with the MSE rule
+ * where the degree is not selected (with B >= 2, normal_var, normal_err,
+ * k_selected and degree_selected fill the four). */
 static int normals_field_names(const normals_job *job, const char **names, bsurf_type *types,
                                int *which) {
   int nf = 0;
@@ -524,15 +534,12 @@ static bsurf_status normals_check(const bsurf_normals_job_options *o, int tiled)
       "opts->select_rule = %d must be BSURF_KSELECT_TEST_ERROR or BSURF_KSELECT_MSE",
       (int)o->select_rule);
   if (o->select_rule == BSURF_KSELECT_MSE) {
-    BSURF_REQUIRE_IN(NJ, o->select_k, "opts->select_rule MSE needs opts->select_k");
-    BSURF_REQUIRE_IN(NJ, no->fit == BSURF_NORMAL_PCA && !o->select_degree,
-                     "opts->select_rule MSE chooses K for PCA normals: not with the POLY fit or "
-                     "opts->select_degree");
+    BSURF_REQUIRE_IN(NJ, o->select_k || o->select_degree,
+                     "opts->select_rule MSE needs opts->select_k or opts->select_degree");
     BSURF_REQUIRE_IN(NJ, !o->curve, "opts->curve needs opts->select_rule TEST_ERROR");
-    BSURF_REQUIRE_IN(
-        NJ, o->select_k[0] >= 7,
-        "opts->select_k[0] = %d: the MSE rule needs candidates K >= 7 (a quadric per K)",
-        o->select_k[0]);
+    const int k0 = o->select_k ? o->select_k[0] : no->k;
+    BSURF_REQUIRE_IN(NJ, k0 >= 7, "%s = %d: the MSE rule needs candidates K >= 7 (a quadric per K)",
+                     o->select_k ? "opts->select_k[0]" : "opts->normals.k", k0);
     BSURF_REQUIRE_IN(NJ, o->noise_k >= 12 && o->noise_k <= 65535,
                      "opts->noise_k = %d must be in [12, 65535]", o->noise_k);
     BSURF_REQUIRE_IN(
@@ -586,6 +593,8 @@ static void normals_setup(normals_job *job, const bsurf_normals_job_options *o) 
   job->ksel.ks = job->ks;
   job->ksel.nk = job->nk;
   job->ksel.threads = o->normals.threads;
+  if (o->normals.fit == BSURF_NORMAL_POLY) /* the MSE rule's (K, degree) candidates */
+    job->ksel.ds = job->ds, job->ksel.nd = job->nd;
   int kmax = job->k_ref > job->no.k ? job->k_ref : job->no.k;
   if (job->ksel.rule == BSURF_KSELECT_MSE && job->ksel.noise_k > kmax) kmax = job->ksel.noise_k;
   for (int a = 0; a < job->nk; a++)
@@ -600,8 +609,9 @@ bsurf_status bsurf_normals_job(const bsurf_job_io *io, const bsurf_normals_job_o
   bsurf_status st = bsurf_jobs_begin(NJ, io, summary, sizeof *summary);
   bsurf_normals_job_options o = opts ? *opts : bsurf_normals_job_options_default();
   if (st == BSURF_OK && o.select_rule == BSURF_KSELECT_AUTO) /* MSE where it applies */
-    o.select_rule = o.select_k && o.select_k_count > 0 && o.normals.fit == BSURF_NORMAL_PCA &&
-                            !o.select_degree && !o.curve && o.select_k[0] >= 7 && io->cloud
+    o.select_rule = ((o.select_k && o.select_k_count > 0 && o.select_k[0] >= 7) ||
+                     (!o.select_k && o.select_degree && o.normals.k >= 7)) &&
+                            !o.curve && io->cloud
                         ? BSURF_KSELECT_MSE
                         : BSURF_KSELECT_TEST_ERROR;
   if (st == BSURF_OK) summary->select_rule = o.select_rule;

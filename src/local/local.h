@@ -147,6 +147,14 @@ void bsurf_localfit_normal_eq_draws(const bsurf_localfit *lf, int B, const uint1
  * Returns 0, or -1 when the system is rank-deficient. */
 int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double *row, double *coef);
 
+/* bsurf_localfit_solve_row for a fit of degree >= 1, and the gradient
+ * block of G^-1 (the rows and columns of the coefficients of u and v:
+ * (0, 0), (0, 1), (1, 1) in ginv_g), so that s2 times it is the covariance
+ * of the fitted gradient at the origin (in scaled units) under noise of
+ * variance s2 (the MSE rule of the polynomial fit, kselect_poly.c). */
+int bsurf_localfit_solve_row_grad(const bsurf_localfit *lf, int degree, const double *row,
+                                  double *coef, double ginv_g[3]);
+
 /* Solves every row b < B of bsurf_localfit_normal_eq_lanes with valid[b]
  * != 0 (coefs out: B x terms(degree)); a rank-deficient row gets valid[b]
  * = 0. Same results as bsurf_localfit_solve_row row by row, four at once in

@@ -352,6 +352,24 @@ int bsurf_localfit_solve_row(const bsurf_localfit *lf, int degree, const double 
   return bsurf_ldl_solve_packed(m, G, row + lf->p, BSURF_RANK_TOL, coef);
 }
 
+int bsurf_localfit_solve_row_grad(const bsurf_localfit *lf, int degree, const double *row,
+                                  double *coef, double ginv_g[3]) {
+  const int m = bsurf_poly_terms(degree);
+  double G[BSURF_PACKED_MAX];
+  gram_from_moments(m, row, G);
+  bsurf_ldl f;
+  if (bsurf_ldl_factor_packed(m, G, BSURF_RANK_TOL, &f) != 0) return -1;
+  bsurf_ldl_solve_factored(&f, row + lf->p, coef);
+  /* columns 1 and 2 of G^-1 (the gradient's coefficients u, v) */
+  double e[BSURF_TERMS_MAX] = {0}, x1[BSURF_TERMS_MAX], x2[BSURF_TERMS_MAX];
+  e[1] = 1.0;
+  bsurf_ldl_solve_factored(&f, e, x1);
+  e[1] = 0.0, e[2] = 1.0;
+  bsurf_ldl_solve_factored(&f, e, x2);
+  ginv_g[0] = x1[1], ginv_g[1] = 0.5 * (x1[2] + x2[1]), ginv_g[2] = x2[2];
+  return 0;
+}
+
 int bsurf_localfit_solve(const bsurf_localfit *lf, int degree, const uint16_t *counts,
                          double *coef) {
   const int k = lf->k, m = bsurf_poly_terms(degree), nc = lf->ncols;

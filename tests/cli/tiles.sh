@@ -124,7 +124,7 @@ expect 1 "test sample" -- "$BSURF" error "$T/n.ply" -k 10 -o "$T/x.ply" --test-s
 # normal_err and the K selection: two stages (the reference normals of every
 # point, then the tiles with their halos' reference normals): the in-memory bytes
 for args in "-k 12 -B 6 --test-error --k-ref 10" "--select-k 6:20:7 -B 5 --k-ref 9" \
-  "--fit poly --select-k 10:15:5 --select-degree 1,2 -B 3"; do
+  "--fit poly --select-k 10:15:5 --select-degree 1,2 -B 3 --select-rule test-error"; do
   expect 0 "normals $args" -- "$BSURF" normals "$T/c.ply" $args -o "$T/m.ply" -q
   expect 0 "normals $args tiles" -- "$BSURF" normals "$T/c.ply" $args -o "$T/mt.ply" --tile-points 100 -q
   cmp -s "$T/m.ply" "$T/mt.ply" && ok || fail "normals $args: tiled output differs"
