@@ -81,6 +81,7 @@ typedef struct ksel_ctx {
   double *fnrm;       /* pass 3: n x 3, the normal of the smallest criterion */
   int *first;         /* pass 3: the candidate of the smallest criterion */
   bsurf_kselect_fields *out;
+  double *fmse; /* pass 3: n, the smallest criterion (the first choice's M; pass 4's weights) */
 } ksel_ctx;
 
 /* The noise passes (kselect_noise.c; the top of kselect.c): pass 1, each
