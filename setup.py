@@ -34,7 +34,16 @@ core = Extension(
     include_dirs=[rel(os.path.join(ROOT, "include")), rel(os.path.join(ROOT, "src")),
                   rel(os.path.join(ROOT, "generated")), numpy.get_include()],
     define_macros=[("_POSIX_C_SOURCE", "200809L"), ("NDEBUG", None)],
-    extra_compile_args=["-std=c11", "-O3", "-fopenmp", "-fno-math-errno", "-fvisibility=hidden"],
+    # -fno-wrapv undoes the -fwrapv of Debian's python3 CFLAGS (sysconfig), which the
+    # CMake build does not use: with it, the PCA normals' bootstrap on an AVX-512 machine
+    # (the x86-64-v4 clones) gave other values than the command line's (normal_var 0.0177
+    # instead of 0.0055 on a noisy 20k cube, -B 10; equal with -fno-wrapv, and equal under
+    # valgrind, whose CPU has no AVX-512; the object that differs is src/algo/nested.c's):
+    # not the same bits, as the package promises. The cause (GCC 12 with -fwrapv selected
+    # the centroid in one vector lane of four: nested.c, cov4) is fixed and tested
+    # (test_nested_wrapv); -fno-wrapv stays so that the package keeps the CMake flags.
+    extra_compile_args=["-std=c11", "-O3", "-fno-wrapv", "-fopenmp", "-fno-math-errno",
+                        "-fvisibility=hidden"],
     extra_link_args=["-fopenmp"],
     libraries=["png", "m"],
 )

@@ -373,6 +373,11 @@ int render_auto_up(const bsurf_cloud *c);
 /* Writes an RGB image as PNG (atomically); prints the reason and returns 1
  * on failure. */
 int cli_write_png(const char *path, const uint8_t *rgb, int w, int h);
+/* -o of render, histogram and compare: a name with an extension other than
+ * .png (x.jpg, x.ply) is refused (CLI_USAGE after the message) rather than
+ * given PNG bytes under another type's name; names without one (-o out,
+ * /dev/stdout) are taken. 0 when accepted. */
+int cli_png_name(const cli_command *cmd, const char *path);
 /* One 7-nearest-neighbour search: the mean spacing h (0 for fewer than 2
  * points) and, returned, each point's splat spacing (malloc'ed, point_count;
  * NULL for fewer than 8 points or on failure, with *status set). */

@@ -25,6 +25,7 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
   int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
   if (!output) return cli_usage_error(cmd, "-o IMAGE.png is required");
+  if (cli_png_name(cmd, output)) return CLI_USAGE;
   if (!field) return cli_usage_error(cmd, "--field NAME is required");
   if (size && render_parse_size(cmd, size, &ho.width, &ho.height)) return CLI_USAGE;
   if (range && render_parse_range(cmd, range, &ho.range_lo, &ho.range_hi)) return CLI_USAGE;

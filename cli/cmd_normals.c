@@ -199,13 +199,14 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
    * cloud in memory or of a tile (the tiled stages' values are on disk):
    * per point the tie-break's record, 8 + 40 bytes per tied candidate (up
    * to nk; counted as 4, above the 2.6 or so of a sphere at u0.5 with 15
-   * candidates), with its pointer and the first choice's normal (32); the
+   * candidates), with its pointer and the first choice's normal and
+   * criterion (40); the
    * noise fits' and the pool's variances, the first choice, the visit
    * order, the chosen K and the two-sheet flag (32); the pooling's copy (8) */
   const int mse =
       ksel.rule == BSURF_KSELECT_MSE ||
       (ksel.rule == BSURF_KSELECT_AUTO && (select_k || select_degree) && !curve && ks[0] >= 7);
-  const double mse_bytes = mse ? 8 + 40.0 * (nk < 4 ? nk : 4) + 72 : 0;
+  const double mse_bytes = mse ? 8 + 40.0 * (nk < 4 ? nk : 4) + 80 : 0;
   rc = cli_tiles_plan_bytes(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 4,
                             mse_bytes, &plan);
   if (rc) return rc;

@@ -3,6 +3,7 @@
  * histogram and compare (declared in cli.h). */
 #include "cli.h"
 
+#include <ctype.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -84,8 +85,21 @@ static int render_up_option(const cli_command *cmd, const char *up, int *axis) {
   return 0;
 }
 
+int cli_png_name(const cli_command *cmd, const char *path) {
+  const char *base = strrchr(path, '/');
+  base = base ? base + 1 : path;
+  const char *dot = strrchr(base, '.');
+  if (!dot || dot == base || !dot[1]) return 0;
+  const char *png = ".png";
+  for (int i = 0; i < 5; i++)
+    if (tolower((unsigned char)dot[i]) != png[i])
+      return cli_usage_error(cmd, "-o %s: the output is a PNG image: name it .png", path);
+  return 0;
+}
+
 int render_args_apply(const cli_command *cmd, const render_args *a, bsurf_render_options *ro) {
   if (!a->output) return cli_usage_error(cmd, "-o IMAGE.png is required");
+  if (cli_png_name(cmd, a->output)) return CLI_USAGE;
   if (bsurf_colormap_from_name(a->cmap, &ro->colormap) != 0)
     return cli_usage_error(cmd, "--colormap must be viridis, magma, gray or coolwarm, not '%s'",
                            a->cmap);

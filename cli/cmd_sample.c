@@ -18,10 +18,9 @@ int cmd_sample(const cli_command *cmd, int argc, char **argv) {
        "feature = within W nominal spacings sqrt(area / points) of a sharp edge", 0, 1e300},
       {0, "seed", ARG_U64, &so.seed, "S", "random seed (area sampling)", 1, 0},
       CLI_OPT_THREADS(so.threads),
-      {'o', "output", ARG_STRING, &output, "FILE",
-       "output file (.ply keeps feature_dist and feature)", 1, 0},
-      {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY", 1, 0},
-      CLI_OPTS_END(force, json, quiet),
+      CLI_OPTS_OUTPUT(output, ascii, force),
+      CLI_OPT_DROP_INVALID,
+      CLI_OPTS_REPORT(json, quiet),
   };
   char *pos[1];
   int rc =

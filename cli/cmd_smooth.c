@@ -89,8 +89,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        1, 0},
       {0, "iterations", ARG_STRING, &iter_text, "N",
        "multipass: N smoothing passes (the thesis: 300), or auto (stop after the first pass "
-       "whose mean squared move is below the fits' own prediction variance, sigma^2 mean(p_i / "
-       "K_i), sigma the guard's noise; at most 300)",
+       "whose mean squared move is below the fits' own prediction variance, sigma^2 mean(kappa_i "
+       "p_i / K_i), sigma the guard's noise, kappa_i the share of it fit i's K-ball keeps; at "
+       "most 300)",
        1, 0},
       {0, "k-min", ARG_INT, &so.k_min, "K", "multipass: the smallest neighbourhood (Eq. 6.3)", 1,
        65535},
@@ -107,7 +108,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "points' residuals, is made again from fewer points, or moves nothing; a fit whose "
        "residual variance shows more misfit than noise -- above twice the cloud's noise "
        "variance, the lower decile over the fits (each scaled by the share of the noise its "
-       "interval keeps), at the 5% level -- moves nothing) or off "
+       "interval and its K-ball keep), at the 5% level -- moves nothing) or off "
        "(the thesis's methods as written)",
        1, 0},
       {0, "degree-test", ARG_STRING, &dtest, "T",

@@ -46,12 +46,14 @@ static const cli_command commands[] = {
      "normalised mean of B bootstrap normals (Eq. 5.4) and normal_var, the variance\n"
      "of their angles (Eq. 5.5), a confidence value: lower is more reliable. Optional:\n"
      "normal_err, the bootstrap test error of the normal (Eq. 5.10, Algorithm 3);\n"
-     "per-point choice of K (and degree) by smallest normal_err; bilateral smoothing\n"
-     "of the normals (Eqs. 5.6-5.8); consistent orientation (minimum spanning tree).\n"
+     "per-point choice of K (--select-k) by --select-rule (auto, the default: the mse\n"
+     "rule, an estimate of the normal's mean squared error; or test-error, smallest\n"
+     "normal_err; docs/normals.md); bilateral smoothing of the normals (Eqs.\n"
+     "5.6-5.8); consistent orientation (minimum spanning tree).\n"
      "Out of core: --tile-points N (or an input above --memory-limit), and mpirun,\n"
-     "as for error: same bytes as in memory, for the normals and normal_var; not with\n"
-     "--test-error, --select-k, --smooth-iterations or --orient (they reach beyond\n"
-     "the K-neighbourhood). smooth and features are tiled in stages. docs/scaling.md.",
+     "as for error: same bytes as in memory, --test-error and --select-k in tiled\n"
+     "stages; not with --curve, --smooth-iterations or --orient (they reach beyond\n"
+     "the K-neighbourhood). docs/scaling.md.",
      cmd_normals},
     {"sample", "Points from a triangle mesh with ground-truth normals and feature labels.",
      "MESH -o OUTPUT [options]",

@@ -67,6 +67,36 @@ def _choice(value, names, option):
     return names.index(value)
 
 
+# Ranges of the integer options as the command line checks them (cli/); the
+# library checks the rest (degree, K against the point count, ...).
+_INT_RANGES = {"neighbors": (2, 65535), "seed": (0, 2**64 - 1), "threads": (0, 4096),
+               "bootstrap": (0, None), "tile_points": (0, None)}
+
+
+def _int(value, name):
+    """An integer option: a whole number (int, numpy integer, or a float with
+    no fraction); TypeError for anything else (5.5, '50', True), ValueError
+    outside the command line's range, both naming the option."""
+    import operator
+    if isinstance(value, bool) or isinstance(value, str):
+        raise TypeError("%s needs a whole number, not %r" % (name, value))
+    try:
+        v = operator.index(value)
+    except TypeError:
+        try:
+            f = float(value)
+        except (TypeError, ValueError):
+            raise TypeError("%s needs a whole number, not %r" % (name, value)) from None
+        if not f.is_integer():
+            raise TypeError("%s needs a whole number, not %r" % (name, value)) from None
+        v = int(f)
+    lo, hi = _INT_RANGES.get(name, (None, None))
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise ValueError("%s needs a whole number (%s), not %d"
+                         % (name, "%d to %d" % (lo, hi) if hi is not None else "at least %d" % lo, v))
+    return v
+
+
 def _cloud(d, shape_name):
     return Cloud(d, shape_name=shape_name)
 
@@ -105,7 +135,7 @@ def _job_input(points, output, tile_points):
     if not os.fspath(points).lower().endswith(".ply"):
         raise ValueError("%s: tiled runs read binary PLY files (write one with write())"
                          % os.fspath(points))
-    return None, (os.fspath(points), os.fspath(output), int(tile_points))
+    return None, (os.fspath(points), os.fspath(output), _int(tile_points, "tile_points"))
 
 
 _TILED_DOC = """
@@ -138,7 +168,15 @@ def read(path):
     malformed file.
     """
     import os
-    d, shape = _core.read(os.fspath(path))
+    import stat
+    path = os.fspath(path)
+    try:  # the command line's first check (cli/util.c), with its words
+        st = os.stat(path)
+    except OSError:
+        st = None  # the library names what is wrong
+    if st is not None and stat.S_ISREG(st.st_mode) and st.st_size == 0:
+        raise OSError("%s: the file is empty" % path)
+    d, shape = _core.read(path)
     return _cloud(d, shape)
 
 
@@ -188,7 +226,7 @@ def knn(points, k, *, threads=0, progress=None):
     Returns idx (N, k) uint32 and dist2 (N, k) float64 (squared distances).
     The same for any thread count. k must be in [1, N].
     """
-    return _core.knn(points, int(k), int(threads), progress)
+    return _core.knn(points, _int(k, "k"), _int(threads, "threads"), progress)
 
 
 def spacing(points, *, threads=0, progress=None):
@@ -197,7 +235,7 @@ def spacing(points, *, threads=0, progress=None):
     h, the mean distance from each point to its nearest other point: the
     thesis's unit of noise levels and errors (4.2). Needs at least 2 points.
     """
-    return _core.spacing(_points(points)[0], int(threads), progress)
+    return _core.spacing(_points(points)[0], _int(threads, "threads"), progress)
 
 
 # ---------------------------------------------------------------- chapter 4
@@ -240,18 +278,18 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
     'report': {'replicates_total', 'replicates_skipped', 'degree_reduced',
     'center_unestimated'}, 'means': {field: mean}}.
     """
-    if int(bootstrap) < 1:
+    if _int(bootstrap, "bootstrap") < 1:
         raise ValueError("bootstrap = %d: the bootstrap estimators need at least one replicate"
-                         % int(bootstrap))
+                         % _int(bootstrap, "bootstrap"))
     pts, tiled = _job_input(points, output, tile_points)
     test = _maybe_read(test_sample)
     if isinstance(test, dict):
         test = test["points"]
     if tiled and test is not None:
         raise ValueError("test_sample: err_test needs the cloud in memory, not a tiled run")
-    return _core.error(pts, tiled, test, int(neighbors), int(degree), int(bootstrap),
-                       int(seed), _choice(gamma, _GAMMAS, "gamma"),
-                       _choice(pca_center, _CENTERS, "pca_center"), int(threads), progress)
+    return _core.error(pts, tiled, test, _int(neighbors, "neighbors"), _int(degree, "degree"), _int(bootstrap, "bootstrap"),
+                       _int(seed, "seed"), _choice(gamma, _GAMMAS, "gamma"),
+                       _choice(pca_center, _CENTERS, "pca_center"), _int(threads, "threads"), progress)
 
 
 # ---------------------------------------------------------------- chapter 5
@@ -275,7 +313,7 @@ def _ks(select_k):
             raise ValueError("select_k needs A:B:STEP with 3 <= A <= B and STEP >= 1, not %r"
                              % select_k)
         return list(_builtin_range(a, b + 1, step))
-    return [int(k) for k in select_k]
+    return [_int(k, "select_k") for k in select_k]
 
 
 _builtin_range = range
@@ -354,18 +392,18 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
     ks = _ks(select_k)
     if curve and not ks:
         raise ValueError("curve needs select_k")
-    ds = None if select_degree is None else [int(d) for d in select_degree]
+    ds = None if select_degree is None else [_int(d, "select_degree") for d in select_degree]
     pts, tiled = _job_input(points, output, tile_points)
     if truth is not None:
         truth = _maybe_read(truth)
         if isinstance(truth, dict):
             truth = truth["normals"]
-    return _core.normals(pts, tiled, int(neighbors), _choice(fit, _FITS, "fit"), int(degree),
-                         _choice(pca_center, _CENTERS, "pca_center"), int(bootstrap), int(seed),
-                         int(threads), bool(test_error), int(k_ref), ks,
-                         _choice(select_rule, _RULES, "select_rule"), int(noise_k),
+    return _core.normals(pts, tiled, _int(neighbors, "neighbors"), _choice(fit, _FITS, "fit"), _int(degree, "degree"),
+                         _choice(pca_center, _CENTERS, "pca_center"), _int(bootstrap, "bootstrap"), _int(seed, "seed"),
+                         _int(threads, "threads"), bool(test_error), _int(k_ref, "k_ref"), ks,
+                         _choice(select_rule, _RULES, "select_rule"), _int(noise_k, "noise_k"),
                          _choice(noise_pool, _NOISE_POOLS, "noise_pool"), ds,
-                         int(smooth_iterations), float(alpha), float(sigma_d), snu,
+                         _int(smooth_iterations, "smooth_iterations"), float(alpha), float(sigma_d), snu,
                          _choice(orient, _ORIENTS, "orient"), bool(curve), truth, progress)
 
 
@@ -477,14 +515,14 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
     ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error in ("auto", "none")
                     else _length(k_error, "k_error", True))
     pts, tiled = _job_input(points, output, tile_points)
-    return _core.smooth(pts, tiled, _choice(method, _METHODS, "method"), int(neighbors), int(degree),
-                        int(bootstrap), int(seed), _choice(gamma, _GAMMAS, "gamma"),
+    return _core.smooth(pts, tiled, _choice(method, _METHODS, "method"), _int(neighbors, "neighbors"), _int(degree, "degree"),
+                        _int(bootstrap, "bootstrap"), _int(seed, "seed"), _choice(gamma, _GAMMAS, "gamma"),
                         _choice(pca_center, _CENTERS, "pca_center"),
                         _choice(estimator, _ESTIMATORS, "estimator"), thr, thr_h, v1, h1_h, v2,
                         h2_h, f2, _choice(order, _ORDERS, "order"), -1.0 if a == "auto" else float(a),
-                        -1 if iterations == "auto" else int(iterations),
-                        int(k_min), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
-                        _choice(degree_test, _DEGREE_TESTS, "degree_test") - 1, int(threads),
+                        -1 if iterations == "auto" else _int(iterations, "iterations"),
+                        _int(k_min, "k_min"), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
+                        _choice(degree_test, _DEGREE_TESTS, "degree_test") - 1, _int(threads, "threads"),
                         progress)
 
 
@@ -565,13 +603,13 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
     """
     thr = _math.nan if threshold == "auto" else float(threshold)
     pts, tiled = _job_input(points, output, tile_points)
-    return _core.features(pts, tiled, _choice(method, _FEATURE_METHODS, "method"), int(neighbors),
-                          int(bootstrap), int(k_min), int(k_max), int(k_step),
+    return _core.features(pts, tiled, _choice(method, _FEATURE_METHODS, "method"), _int(neighbors, "neighbors"),
+                          _int(bootstrap, "bootstrap"), _int(k_min, "k_min"), _int(k_max, "k_max"), _int(k_step, "k_step"),
                           float(ratio_threshold), float(noise_factor), float(derivative),
-                          float(alpha), int(iterations), int(filter_k), float(sigma_range), thr,
+                          float(alpha), _int(iterations, "iterations"), _int(filter_k, "filter_k"), float(sigma_range), thr,
                           _choice(tail_rule, _TAIL_RULES, "tail_rule"),
-                          float(false_positive_rate), int(variance_filter_k),
-                          float(feature_angle), int(variance_k_max), int(seed), int(threads),
+                          float(false_positive_rate), _int(variance_filter_k, "variance_filter_k"),
+                          float(feature_angle), _int(variance_k_max, "variance_k_max"), _int(seed, "seed"), _int(threads, "threads"),
                           progress)
 
 
@@ -600,8 +638,8 @@ def generate(shape, *, points=10000, sampling="regular", seed=1, feature_width=2
     Returns a Cloud with 'points', exact 'normals' and, for the cube,
     'feature_dist' and 'feature'.
     """
-    d, name = _core.generate(shape, int(points), _choice(sampling, _SAMPLINGS, "sampling"),
-                             int(seed), float(feature_width))
+    d, name = _core.generate(shape, _int(points, "points"), _choice(sampling, _SAMPLINGS, "sampling"),
+                             _int(seed, "seed"), float(feature_width))
     return _cloud(d, name)
 
 
@@ -641,7 +679,7 @@ def noise(points, normals=None, *, level=0.5, sigma_diag=None, model="gaussian",
         sd = float(sigma_diag)
         if sd == 0:
             lvl = 0.0  # sigma_diag=0: no noise, as the command line
-    out, report = _core.noise(pts, normals, m, lvl, sd, int(seed), int(threads), progress)
+    out, report = _core.noise(pts, normals, m, lvl, sd, _int(seed, "seed"), _int(threads, "threads"), progress)
     noise.last_report = report
     return out
 
@@ -666,8 +704,8 @@ def sample(mesh, *, points=0, sharp_angle=30.0, feature_width=2.0, seed=1, threa
     sample.last_report holds the mesh statistics.
     """
     mesh = _maybe_read(mesh)
-    d, report = _core.sample(mesh, int(points), int(seed), float(sharp_angle),
-                             float(feature_width), int(threads))
+    d, report = _core.sample(mesh, _int(points, "points"), _int(seed, "seed"), float(sharp_angle),
+                             float(feature_width), _int(threads, "threads"))
     sample.last_report = report
     return _cloud(d, "")
 
@@ -766,7 +804,7 @@ def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None
         if surface is not None:
             surface = _maybe_read(surface)
         out["distances"], out["position"] = _core.eval_position(
-            pts, truth, getattr(truth, "shape_name", ""), surface, mask, int(threads), progress)
+            pts, truth, getattr(truth, "shape_name", ""), surface, mask, _int(threads, "threads"), progress)
     if not out or list(out) == ["split"]:
         raise ValueError("nothing to evaluate: give normals and true_normals, feature and "
                          "true_feature, or points and truth")
@@ -837,8 +875,8 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
                              colormap, view,
                              _math.nan if azimuth is None else float(azimuth),
                              _math.nan if elevation is None else float(elevation), up,
-                             shape_name, int(views), int(w), int(h), float(point_size), lo, hi,
-                             title, label, bool(flat), bool(square), int(threads), progress)
+                             shape_name, _int(views, "views"), int(w), int(h), float(point_size), lo, hi,
+                             title, label, bool(flat), bool(square), _int(threads, "threads"), progress)
     render.last_info = info
     return img
 

@@ -111,11 +111,18 @@
  * references; a point whose neighbours sit on its own face is drawn away
  * from a candidate that leans across an edge, and on a smooth part the
  * tie-break chooses, among equally good K, the normal its neighbours
- * confirm). On the development subset (candidates 15:80:5; at most the
- * best fixed K / more than 5% above / mean ratio, 32 ordinary cases): the
- * minimum alone 16 / 5 / 1.011, with the tie-break 22 / 4 / 1.003 (TIE_F
- * = 1 replayed: 19 / 5 / 1.007); the thin plate and shell 1.016 -> 0.968,
- * all five below the best fixed K. The point's output normal is the PCA normal of the K so
+ * confirm). The references are not equally good: each neighbour's first
+ * choice comes with its own estimated MSE M_j, so the sum weighs each
+ * sin^2 by the reference's precision 1 / M_j (the inverse-variance weights
+ * of a weighted least-squares fit to the references; an unassessed
+ * neighbour, M_j infinite, counts for nothing, and a point with no
+ * assessed neighbour keeps its first choice). On the development subset
+ * (candidates 15:80:5; at most the best fixed K / more than 5% above /
+ * mean ratio, 32 ordinary cases): the minimum alone 16 / 5 / 1.011, with
+ * the tie-break 22 / 4 / 1.003 (TIE_F = 1 replayed: 19 / 5 / 1.007); the
+ * thin plate and shell 1.016 -> 0.968, all five below the best fixed K;
+ * with the curve test, equal weights 21 / 2 / 0.976, precision weights
+ * 21 / 2 / 0.9745 (docs/normals.md). The point's output normal is the PCA normal of the K so
  * chosen, and sqrt(M(K)) its estimated RMS angle error.
  *
  * Candidates' centroids and covariances come from one pass over the sorted
@@ -240,6 +247,7 @@ static int two_sheets(const ksel_ctx *c, ksel_scratch *s, const uint32_t *idx, i
 static void tie_store(ksel_ctx *c, ksel_scratch *s, size_t i) {
   const int nk = c->o->nk * ksel_ndeg(c->o);
   memcpy(&c->fnrm[3 * i], &s->tcand[3 * (size_t)c->first[i]], 3 * sizeof(double));
+  c->fmse[i] = s->tcrit[c->first[i]];
   if (!c->tied) return; /* the first choices only (bsurf_ksel_first) */
   const size_t need = 1 + (size_t)TIE_W * nk;
   if (!s->tie_nblocks || s->tie_used + need > TIE_BLOCK) { /* a new block */
@@ -474,7 +482,8 @@ void ksel_ties(ksel_ctx *c, ksel_scratch *s, size_t i, int ncand, int best, doub
 }
 
 /* Pass 4: among the tied candidates, the one nearest the neighbours' first
- * choices (the top of the file); the outputs. */
+ * choices, each weighted by its precision 1 / M (the top of the file); the
+ * outputs. */
 void tie_point(void *vctx, int thread, size_t i) {
   ksel_ctx *c = vctx;
   ksel_scratch *s = &c->scr[thread];
@@ -487,15 +496,20 @@ void tie_point(void *vctx, int thread, size_t i) {
   for (int a = 0; a < nk; a++) {
     if (isnan(cand[3 * a])) continue;
     const double *na = &cand[3 * a];
-    double t = 0;
+    double t = 0, wsum = 0;
     for (int j = 0; j < o->noise_k; j++) {
       const uint32_t r = idx[j];
       if (r == idx[0]) continue;
+      /* each reference weighted by its precision, 1 / M of its first
+       * choice (0 where unassessed: M infinite) */
+      const double w = 1.0 / c->fmref[r];
       const double *nr = &c->fref[3 * (size_t)r];
       const double dot = na[0] * nr[0] + na[1] * nr[1] + na[2] * nr[2];
-      t += 1.0 - dot * dot;
+      t += w * (1.0 - dot * dot);
+      wsum += w;
     }
-    if (t < best_t) /* ties keep the smaller K */
+    if (!(wsum > 0)) break; /* no assessed reference: the first choice */
+    if (t < best_t)         /* ties keep the smaller K */
       best_t = t, best = a;
   }
   const double m = s->tcrit[best];

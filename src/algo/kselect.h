@@ -74,14 +74,16 @@ typedef struct ksel_ctx {
   const bsurf_kselect_options *o;
   int kmax;
   ksel_scratch *scr;
-  double *s2;         /* pass 1: the point's residual variance (NAN: no fit) */
-  double *noise;      /* pass 2: the pooled noise variance */
-  double *sheet_crit; /* per candidate: the two-sheet test's critical ratio, or NULL */
-  double **tied;      /* pass 3: per point its tied candidates (tie_store) */
-  double *fnrm;       /* pass 3: n x 3, the normal of the smallest criterion */
-  const double *fref; /* pass 4: the neighbours' fnrm, indexed like nb->idx */
-  int *first;         /* pass 3: the candidate of the smallest criterion */
+  double *s2;          /* pass 1: the point's residual variance (NAN: no fit) */
+  double *noise;       /* pass 2: the pooled noise variance */
+  double *sheet_crit;  /* per candidate: the two-sheet test's critical ratio, or NULL */
+  double **tied;       /* pass 3: per point its tied candidates (tie_store) */
+  double *fnrm;        /* pass 3: n x 3, the normal of the smallest criterion */
+  const double *fref;  /* pass 4: the neighbours' fnrm, indexed like nb->idx */
+  const double *fmref; /* pass 4: the neighbours' fmse, indexed like nb->idx */
+  int *first;          /* pass 3: the candidate of the smallest criterion */
   bsurf_kselect_fields *out;
+  double *fmse; /* pass 3: n, the smallest criterion (the first choice's M; pass 4's weights) */
 } ksel_ctx;
 
 /* The noise passes (kselect_noise.c; the top of kselect.c): pass 1, each

@@ -48,20 +48,25 @@ bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n) 
 /* Pass 3 (fnrm != NULL: only the first choices' normals, by row, no tied
  * record), or passes 3 and 4 into out. */
 static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                                const double *noise, const double *fref, double *fnrm,
-                                bsurf_kselect_fields *out, bsurf_kselect_report *report) {
+                                const double *noise, const double *fref, const double *fmref,
+                                double *fnrm, double *fmse, bsurf_kselect_fields *out,
+                                bsurf_kselect_report *report) {
   const size_t n = nb->point_count, m = n ? n : 1;
   ksel_ctx c = ksel_ctx_of(r, xyz, nb);
   c.noise = (double *)noise; /* read only, by row */
   c.out = out;
   int *first = bsurf_alloc_array(m, sizeof(int));
   double *own = fnrm ? NULL : bsurf_alloc_array(m, 3 * sizeof(double));
+  double *own_m = fmse ? NULL : bsurf_alloc_array(m, sizeof(double));
   double **tied = fnrm ? NULL : bsurf_alloc_array(m, sizeof(double *));
-  bsurf_status st = first && (fnrm || (own && tied)) ? BSURF_OK : BSURF_ERR_NOMEM;
+  bsurf_status st =
+      first && (fmse || own_m) && (fnrm || (own && tied)) ? BSURF_OK : BSURF_ERR_NOMEM;
   c.first = first;
   c.fnrm = fnrm ? fnrm : own;
   c.tied = tied;
+  c.fmse = fmse ? fmse : own_m;
   c.fref = fref ? fref : c.fnrm;
+  c.fmref = fmref ? fmref : c.fmse;
   bsurf_i_ksel_reset(r);
   /* progress is reported for pass 3 (the bulk of the work) */
   if (st == BSURF_OK) st = ksel_pass(r, &c, r->o.nd > 0 ? poly_point : select_point, 1);
@@ -74,20 +79,21 @@ static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsur
   bsurf_i_ksel_reset(r);
   free(first);
   free(own);
+  free(own_m);
   free(tied);
   return st;
 }
 
 bsurf_status bsurf_ksel_first(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                              const double *noise, double *fnrm) {
-  return ksel_select(r, xyz, nb, noise, NULL, fnrm, NULL, NULL);
+                              const double *noise, double *fnrm, double *fmse) {
+  return ksel_select(r, xyz, nb, noise, NULL, NULL, fnrm, fmse, NULL, NULL);
 }
 
 bsurf_status bsurf_ksel_choose(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                               const double *noise, const double *fref, bsurf_kselect_fields *out,
-                               bsurf_kselect_report *report) {
+                               const double *noise, const double *fref, const double *fmref,
+                               bsurf_kselect_fields *out, bsurf_kselect_report *report) {
   BSURF_REQUIRE(!out->two_sheet || r->crit, "the run was opened without the two-sheet test");
-  return ksel_select(r, xyz, nb, noise, fref, NULL, out, report);
+  return ksel_select(r, xyz, nb, noise, fref, fmref, NULL, NULL, out, report);
 }
 
 bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
@@ -112,7 +118,7 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK) st = bsurf_ksel_pool(r, xyz, nb, s2, noise);
   free(s2);
   if (st == BSURF_OK) st = bsurf_ksel_level(r, noise, n);
-  if (st == BSURF_OK) st = bsurf_ksel_choose(r, xyz, nb, noise, NULL, out, report);
+  if (st == BSURF_OK) st = bsurf_ksel_choose(r, xyz, nb, noise, NULL, NULL, out, report);
   free(noise);
   bsurf_ksel_close(r);
   return st;

@@ -356,7 +356,14 @@ typedef double cov_v4d __attribute__((vector_size(32)));
 /* Lanes r..r+3 of bsurf_nested_cov_lanes in GCC vector types (GCC left the
  * scalar loop scalar: nine divisions a lane, one lane at a time): the same
  * expressions, so the same bits; about the point (not the centroid) a
- * multiplies 0 * 0 = 0 and subtracts it, as the scalar code does. */
+ * multiplies 0 * 0 = 0 and subtracts it, as the scalar code does.
+ * about_centroid is a constant at each call (bsurf_nested_cov_lanes has one
+ * loop per centre), so the conditionals fold away: with it a run-time value,
+ * GCC 12 with -fwrapv (Debian's python3 CFLAGS, which a pip build of the
+ * package inherited) selected m0 in lane 0 only, by `?:` or by an if alike,
+ * leaving the centroid out of lanes 1-3 (the bootstrap's covariances about
+ * the point: normal_var about 3x too large); test_nested_wrapv builds this
+ * file with -fwrapv. */
 static inline __attribute__((always_inline)) void cov4(const double *block, int R, int r,
                                                        int about_centroid, double *cov, int *ok) {
   cov_v4d x[10];
@@ -381,8 +388,12 @@ void bsurf_nested_cov_lanes(const double *block, int R, bsurf_pca_center center,
   const int about_centroid = center == BSURF_PCA_CENTROID;
   int r = 0;
 #if defined(__GNUC__)
-  for (; r + 4 <= R; r += 4)
-    cov4(block, R, r, about_centroid, cov, ok);
+  if (about_centroid)
+    for (; r + 4 <= R; r += 4)
+      cov4(block, R, r, 1, cov, ok);
+  else
+    for (; r + 4 <= R; r += 4)
+      cov4(block, R, r, 0, cov, ok);
 #endif
   for (; r < R; r++)
     cov_one(block, R, r, about_centroid, cov, ok);

@@ -170,41 +170,93 @@ static double kept_share(int n_out, int n_in) {
   return trunc_share(0.5 * (lo + hi));
 }
 
+/* The share of the noise variance a ball keeps (docs/smoothing.md, "The
+ * noise estimate"): a neighbourhood is the K points nearest its centre in
+ * space, a ball of radius R about the centre, and where the noise sigma
+ * along the normal is not small against R the ball holds only the points
+ * whose heights lie within R of the centre's. With the surface a plane
+ * (heights N(0, sigma^2) over a uniform density), the centre at height z0
+ * and a neighbour at distance rho from its normal line, that neighbour's
+ * height is the normal truncated to [z0 - a, z0 + a], a = sqrt(R^2 -
+ * rho^2); the fit follows the mean height at each rho, and the residual
+ * variance left is the truncated normal's, averaged over the ball's points
+ * (density rho times the window's mass) and over z0 ~ N(0, sigma^2):
+ *   kappa(t) = E_z0 [ int_0^t rho M V drho / int_0^t rho M drho ],
+ *   t = R / sigma, M, V: the mass and variance (in sigma^2) of N(0, 1)
+ *   truncated to [z0 - a, z0 + a].
+ * kappa -> 1 as t grows (0.955 at t = 8: a 50-neighbourhood at 0.5
+ * spacings of noise) and -> t^2 / 5 (the variance of a uniform ball's
+ * heights) as t -> 0; it is 0.36 at t = 1.7, the development set's
+ * 50,000-point samplings at gaussian 0.6% of the diagonal (sigma 3.5 h,
+ * R 6 h), whose fits read the noise at 0.6 sigma. Tabulated at u = 1 / t
+ * = j / 32 (by adaptive quadrature; test_smooth_noise recomputes it), read
+ * by linear interpolation in u; t below 1 reads t = 1 (a ball narrower than
+ * the noise holds no surface to measure it by). */
+static const double ball_share_tab[33] = {
+    1.000000, 0.997375, 0.989423, 0.975911, 0.956412, 0.930258, 0.896645, 0.855485, 0.808270,
+    0.757596, 0.706076, 0.655703, 0.607742, 0.562864, 0.521338, 0.483181, 0.448265, 0.416391,
+    0.387322, 0.360819, 0.336645, 0.314578, 0.294413, 0.275963, 0.259059, 0.243548, 0.229295,
+    0.216176, 0.204084, 0.192920, 0.182598, 0.173040, 0.164176};
+
+double guard_ball_share(double t) {
+  if (!(t > 0)) return ball_share_tab[32];
+  const double u = fmin(1.0 / t, 1.0) * 32.0;
+  const int j = u >= 32 ? 31 : (int)u;
+  const double f = u - j;
+  return ball_share_tab[j] + f * (ball_share_tab[j + 1] - ball_share_tab[j]);
+}
+
 /* The cloud's noise variance for the misfit test (docs/smoothing.md, "The
- * misfit test"): the lower decile over the sheet fits of s_i^2 / (q(nu_i)
- * g_i), s_i^2 = RSS / nu_i a fit's residual variance over the points of its
+ * misfit test", "The noise estimate"): sigma^2 such that it is the lower
+ * decile over the sheet fits of s_i^2 / (q(nu_i) g_i kappa(R_i / sigma)),
+ * s_i^2 = RSS / nu_i a fit's residual variance over the points of its
  * interval, g_i the share of the noise variance that interval keeps
- * (kept_share) and q(nu) the lower decile of chi^2_nu / nu. Where every fit
- * sees only noise of variance sigma^2, s_i^2 / (q(nu_i) g_i) falls below
- * sigma^2 for a tenth of the fits, whatever their degrees of freedom and
- * intervals; fits with misfit (a coarse mesh's creases, two sheets the guard
- * did not part) only raise the upper part, so up to nine tenths of the fits
- * may be biased (the lower quartile, used before, was a mixture's on the
- * thin plate at uniform 0.5 h, where about 60% of the fits hold both faces).
- * sv: records (s^2, nu, g) every `stride` doubles; scratch: n doubles. NAN
- * when no fit has a variance. */
+ * (kept_share), kappa the share the fit's ball of radius R_i keeps
+ * (guard_ball_share) and q(nu) the lower decile of chi^2_nu / nu. Where every
+ * fit sees only noise of variance sigma^2, s_i^2 / (q(nu_i) g_i kappa_i)
+ * falls below sigma^2 for a tenth of the fits, whatever their degrees of
+ * freedom, intervals and balls; fits with misfit (a coarse mesh's creases,
+ * two sheets the guard did not part) only raise the upper part, so up to
+ * nine tenths of the fits may be biased (the lower quartile, used before,
+ * was a mixture's on the thin plate at uniform 0.5 h, where about 60% of
+ * the fits hold both faces). kappa depends on sigma: the fixed point is
+ * reached from below, from kappa = 1 (each step's estimate is at least the
+ * one before, and bounded, as kappa >= its value at t = 1), stopping when it
+ * changes by less than 1e-12 of itself (at most 200 steps). sv: records
+ * (s^2, nu, g, R) every `stride` doubles; scratch: n doubles. NAN when no fit
+ * has a variance. */
 double guard_noise(const double *sv, size_t n, size_t stride, double *scratch) {
-  size_t m = 0;
-  for (size_t i = 0; i < n; i++) {
-    const double *v = &sv[i * stride];
-    if (v[0] >= 0 && v[1] >= 1) scratch[m++] = v[0] / (bsurf_chi2_ratio_wh(v[1], GUARD_Q_Z) * v[2]);
+  double s2 = NAN;
+  for (int step = 0; step < 200; step++) {
+    size_t m = 0;
+    const double inv = step ? 1.0 / sqrt(s2) : 0.0;
+    for (size_t i = 0; i < n; i++) {
+      const double *v = &sv[i * stride];
+      if (!(v[0] >= 0 && v[1] >= 1)) continue;
+      const double kap = step ? guard_ball_share(v[3] * inv) : 1.0;
+      scratch[m++] = v[0] / (bsurf_chi2_ratio_wh(v[1], GUARD_Q_Z) * v[2] * kap);
+    }
+    if (!m) return NAN;
+    const double next = bsurf_kth_smallest(scratch, m, m / 10);
+    if (step && !(fabs(next - s2) > 1e-12 * s2)) return next;
+    s2 = next;
+    if (!(s2 > 0)) return s2; /* exact data: no noise to scale the balls by */
   }
-  if (!m) return NAN;
-  qsort(scratch, m, sizeof *scratch, bsurf_cmp_double);
-  return scratch[m / 10];
+  return s2;
 }
 
 /* 1 when a sheet fit (sv: its record) has more misfit than noise: a point
  * moved onto it ends farther from the surface, on average, than it was. Its
- * residual variance over its interval, s^2 / g, estimates sigma^2 + b^2 (b^2
- * the mean squared misfit, which is also about the squared bias of its
- * predictions), and a full move helps when b^2 < sigma^2: the test rejects
- * "s^2 / g <= 2 sigma^2" when s^2 / g exceeds 2 sigma^2 times the upper 5%
- * quantile of chi^2_nu / nu. noise NAN: no test. */
+ * residual variance over its interval and ball, s^2 / (g kappa), estimates
+ * sigma^2 + b^2 (b^2 the mean squared misfit, which is also about the
+ * squared bias of its predictions), and a full move helps when b^2 <
+ * sigma^2: the test rejects "s^2 / (g kappa) <= 2 sigma^2" when it exceeds 2
+ * sigma^2 times the upper 5% quantile of chi^2_nu / nu. noise NAN: no test. */
 int guard_misfit(const double *sv, double noise) {
   if (!(noise > 0)) return 0;
   if (!(sv[1] >= 1)) return 0; /* no variance: no fit (moves nothing anyway) */
-  return !(sv[0] <= 2.0 * noise * sv[2] * bsurf_chi2_ratio_wh(sv[1], GUARD_MISFIT_Z));
+  const double kap = guard_ball_share(sv[3] / sqrt(noise));
+  return !(sv[0] <= 2.0 * noise * sv[2] * kap * bsurf_chi2_ratio_wh(sv[1], GUARD_MISFIT_Z));
 }
 
 /* The guard on the neighbourhood idx[0..k-1] (idx[0] its centre) of the
@@ -220,10 +272,11 @@ int guard_misfit(const double *sv, double noise) {
  * (guard_noise, guard_misfit): its residual variance over its sheet's
  * points, RSS / nu, nu = points - coefficients, and g, the share of the
  * noise variance its interval keeps (kept_share, from the points it would
- * move outside the interval) (NAN, 0, NAN when none passes). */
+ * move outside the interval), and R, the radius of the ball its kc points
+ * fill (guard_ball_share) (NAN, 0, NAN, NAN when none passes). */
 int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
               const uint32_t *idx, int k, double *F, int *degree, double *svar) {
-  if (svar) svar[0] = NAN, svar[1] = 0, svar[2] = NAN;
+  if (svar) svar[0] = NAN, svar[1] = 0, svar[2] = NAN, svar[3] = NAN;
   /* tiny: the rounding level of residuals, 1e-9 of the neighbourhood's
    * radius in its frame (lf->scale of the plane fit below). Of the
    * neighbourhood's own points only: a tile's neighbour graph has no global
@@ -381,6 +434,16 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
       svar[0] = nin > p ? rss / (nin - p) : NAN;
       svar[1] = nin - p;
       svar[2] = kept_share(nout, nin);
+      /* the ball's radius: the farthest of the kc points from the centre */
+      double R2 = 0;
+      const double *z0 = &xyz[3 * (size_t)idx[0]];
+      for (int j = 1; j < kc; j++) {
+        const double *z = &xyz[3 * (size_t)idx[j]];
+        const double d2 = (z[0] - z0[0]) * (z[0] - z0[0]) + (z[1] - z0[1]) * (z[1] - z0[1]) +
+                          (z[2] - z0[2]) * (z[2] - z0[2]);
+        if (d2 > R2) R2 = d2;
+      }
+      svar[3] = sqrt(R2);
     }
     if (n >= 3 && !(fabs(mean) > tiny &&
                     fabs(mean) * sqrt((double)n) > student_t_quantile(BSURF_GUARD_Z, n - 1) * sd)) {
@@ -391,7 +454,7 @@ int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const 
       return na < kc ? -kc : kc;
     }
   }
-  if (svar) svar[0] = NAN, svar[1] = 0, svar[2] = NAN;
+  if (svar) svar[0] = NAN, svar[1] = 0, svar[2] = NAN, svar[3] = NAN;
   F[12] = NAN;
   return 0;
 }

@@ -203,12 +203,19 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
    * leverage), so a pass whose mean squared move is below sigma^2 mean(p_i /
    * K_i) moves points by less than the fits' own error: further passes only
    * carry each fit's error and bias into its neighbours. sigma^2: the
-   * guard's noise estimate, else W_n^2 */
+   * guard's noise estimate, else W_n^2; the variance a fit's points show is
+   * sigma^2 kappa_i, the share its ball keeps (guard_ball_share: at heavy
+   * noise a ball holds only the points whose heights are near its
+   * centre's), so the level is sigma^2 mean(kappa_i p_i / K_i) */
   double stop2 = 0;
   if (autostop && n) {
     double sum = 0;
-    for (size_t i = 0; i < n; i++)
-      sum += (double)bsurf_poly_terms(c->fit_degree[i]) / (double)c->khat[i];
+    const double inv = c->noise > 0 ? 1.0 / sqrt(c->noise) : 0.0;
+    for (size_t i = 0; i < n; i++) {
+      const double R = c->svar ? c->svar[BSURF_SMOOTH_SV * i + 3] : NAN;
+      const double kap = inv > 0 && R > 0 ? guard_ball_share(R * inv) : 1.0;
+      sum += kap * (double)bsurf_poly_terms(c->fit_degree[i]) / (double)c->khat[i];
+    }
     const double s2 = c->noise > 0 ? c->noise : wn * wn;
     stop2 = s2 * sum / (double)n;
   }

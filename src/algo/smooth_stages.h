@@ -37,9 +37,10 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
                                  const uint32_t *rev, const bsurf_smooth_options *opts,
                                  double noise, double *out_xyz, double *moved);
 /* The guard's record of a sheet fit for its misfit test: residual variance,
- * degrees of freedom, and the share of the noise variance the interval that
- * kept its points keeps (the last BSURF_SMOOTH_SV of stage 1's values). */
-#define BSURF_SMOOTH_SV 3
+ * degrees of freedom, the share of the noise variance the interval that
+ * kept its points keeps, and the radius of its neighbourhood's ball (the
+ * last BSURF_SMOOTH_SV of stage 1's values). */
+#define BSURF_SMOOTH_SV 4
 /* The guard's noise variance of the cloud (its misfit test, smooth_guard.c)
  * from the BSURF_SMOOTH_SV records at sv, rows of `stride` doubles, of stage
  * 1's values: pass it to stage 2 (NAN: no test).

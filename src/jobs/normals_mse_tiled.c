@@ -23,6 +23,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#define SEL_COLS 5 /* stage 3's values: the first choice's normal, its M, the noise */
+
 typedef struct mse_stages {
   bsurf_ksel_run *run;
   int global;   /* one noise level for the cloud */
@@ -43,7 +45,8 @@ static bsurf_status pool_run(void *user, const bsurf_tile *t, bsurf_cloud *core,
   return bsurf_ksel_pool(m->run, t->xyz, t->nb, t->values, t->values_out);
 }
 
-/* stage 3: per core point its first choice's normal and its noise */
+/* stage 3: per core point its first choice's normal, its criterion M (the
+ * tie-break's weight) and its noise */
 static bsurf_status first_run(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
   (void)core;
   (void)sums;
@@ -51,16 +54,19 @@ static bsurf_status first_run(void *user, const bsurf_tile *t, bsurf_cloud *core
   const size_t nc = t->core_count, k = (size_t)t->nb->k;
   double *noise = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
   double *f = bsurf_alloc_array(nc ? nc : 1, 3 * sizeof(double));
-  bsurf_status st = noise && f ? BSURF_OK : BSURF_ERR_NOMEM;
+  double *fm = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
+  bsurf_status st = noise && f && fm ? BSURF_OK : BSURF_ERR_NOMEM;
   for (size_t r = 0; r < nc && st == BSURF_OK; r++)
     noise[r] = m->global ? m->level : t->values[t->nb->idx[r * k]];
-  if (st == BSURF_OK) st = bsurf_ksel_first(m->run, t->xyz, t->nb, noise, f);
+  if (st == BSURF_OK) st = bsurf_ksel_first(m->run, t->xyz, t->nb, noise, f, fm);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
-    memcpy(&t->values_out[4 * r], &f[3 * r], 3 * sizeof(double));
-    t->values_out[4 * r + 3] = noise[r];
+    memcpy(&t->values_out[SEL_COLS * r], &f[3 * r], 3 * sizeof(double));
+    t->values_out[SEL_COLS * r + 3] = fm[r];
+    t->values_out[SEL_COLS * r + 4] = noise[r];
   }
   free(noise);
   free(f);
+  free(fm);
   return st;
 }
 
@@ -108,24 +114,29 @@ bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_o
   if (st == BSURF_OK) st = mse_stage(io, &ops, &m, pool_run, &s2, 1, &pooled, tr, err);
   bsurf_tile_values_close(&s2);
   if (st == BSURF_OK) st = mse_level(io, &m, &pooled);
-  if (st == BSURF_OK) st = mse_stage(io, &ops, &m, first_run, &pooled, 4, sel, tr, err);
+  if (st == BSURF_OK) st = mse_stage(io, &ops, &m, first_run, &pooled, SEL_COLS, sel, tr, err);
   bsurf_tile_values_close(&pooled);
   return st;
 }
 
-bsurf_status bsurf_jobs_mse_tile(const bsurf_tile *t, double **noise, double **fref) {
+bsurf_status bsurf_jobs_mse_tile(const bsurf_tile *t, double **noise, double **fref,
+                                 double **fmref) {
   const size_t nc = t->core_count, nl = t->local_count, k = (size_t)t->nb->k;
   *noise = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
   *fref = bsurf_alloc_array(nl ? nl : 1, 3 * sizeof(double));
-  if (!*noise || !*fref) {
+  *fmref = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
+  if (!*noise || !*fref || !*fmref) {
     free(*noise);
     free(*fref);
-    *noise = *fref = NULL;
+    free(*fmref);
+    *noise = *fref = *fmref = NULL;
     return BSURF_ERR_NOMEM;
   }
-  for (size_t l = 0; l < nl; l++)
-    memcpy(&(*fref)[3 * l], &t->values[4 * l], 3 * sizeof(double));
+  for (size_t l = 0; l < nl; l++) {
+    memcpy(&(*fref)[3 * l], &t->values[SEL_COLS * l], 3 * sizeof(double));
+    (*fmref)[l] = t->values[SEL_COLS * l + 3];
+  }
   for (size_t r = 0; r < nc; r++)
-    (*noise)[r] = t->values[4 * (size_t)t->nb->idx[r * k] + 3];
+    (*noise)[r] = t->values[SEL_COLS * (size_t)t->nb->idx[r * k] + 4];
   return BSURF_OK;
 }

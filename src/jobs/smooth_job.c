@@ -177,9 +177,9 @@ static bsurf_status values_sums(const bsurf_tile_values *v, double *sum, size_t 
 }
 
 /* The guard's noise estimate from stage 1's misfit records (variance, degrees
- * of freedom, interval half-width), the last BSURF_SMOOTH_SV columns of every row, as bsurf_smooth
- * makes it (the same values in index order), and the count of fits its misfit test rejects. Holds
- * BSURF_SMOOTH_SV + 1 doubles per point in memory. */
+ * of freedom, the interval's share, the ball's radius), the last BSURF_SMOOTH_SV columns of every
+ * row, as bsurf_smooth makes it (the same values in index order), and the count of fits its misfit
+ * test rejects. Holds BSURF_SMOOTH_SV + 1 doubles per point in memory. */
 static bsurf_status values_noise(const bsurf_tile_values *v, double *noise, size_t *misfit,
                                  bsurf_failure *err) {
   const size_t per = 1 << 16, nv = v->nvalues, n = v->count;

@@ -183,7 +183,16 @@ ln -sf n.ply "$IN/link.ply"
 bad 1 "output is a link to the input" "refusing to overwrite" -- "$BSURF" "${ERR[@]}" "$IN/n.ply" -o "$IN/link.ply"
 bad 1 "output is the test sample" "refusing to overwrite" -- "$BSURF" "${ERR[@]}" "$IN/n.ply" --test-sample "$IN/s.ply" -o "$IN/s.ply"
 bad 1 "output is the truth" "refusing to overwrite" -- "$BSURF" normals "$IN/n.ply" --select-k 10:12:2 --curve "$T/c.csv" --truth "$IN/s.ply" -o "$IN/s.ply"
-bad 1 "png output is the input" "refusing to overwrite" -- "$BSURF" render "$IN/n.ply" -o "$IN/n.ply"
+cp "$IN/n.ply" "$IN/cloud.png" # a PLY file named .png: read by its content
+bad 1 "png output is the input" "refusing to overwrite" -- "$BSURF" render "$IN/cloud.png" -o "$IN/cloud.png"
+for c in render histogram compare; do
+  args=("$IN/n.ply")
+  [ $c = histogram ] && args+=(--field err)
+  [ $c = compare ] && args+=("$IN/n.ply")
+  bad 2 "$c -o with another type's extension" "-o $T/img.ply: the output is a PNG image: name it .png" -- \
+    "$BSURF" $c "${args[@]}" -o "$T/img.ply"
+  [ ! -e "$T/img.ply" ] && ok || fail "$c wrote PNG bytes into $T/img.ply"
+done
 bad 1 "unknown output type" "$T/x.dat: unknown output file type" -- "$BSURF" "${ERR[@]}" "$IN/n.ply" -o "$T/x.dat"
 mkdir -p "$T/outdir"
 bad 1 "output is a directory without an extension" "$T/outdir: is a directory" -- "$BSURF" "${ERR[@]}" "$IN/n.ply" -o "$T/outdir"

@@ -50,6 +50,12 @@ expect 0 "sample other seed" -- "$BSURF" sample "$T/cube.off" -n 4000 --seed 9 -
 cmp -s "$T/a1.ply" "$T/a3.ply" && fail "sample seed has no effect" || ok
 expect 0 "sample sharp angle 95" -- "$BSURF" sample "$T/cube.off" --sharp-angle 95 -o "$T/v95.ply" --json
 grep -qF '"sharp_edges":0' "$T/out" && grep -qF '"feature_points":0' "$T/out" && ok || fail "no sharp edge above 90 deg"
+# the output options of every writing command (--format for -, --float32 for PCL's typed loaders)
+"$BSURF" sample "$T/cube.off" -o - --format pcd -q >"$T/v.pcd" && ok || fail "sample -o - --format pcd"
+grep -a -q "^FIELDS x y z normal_x normal_y normal_z feature_dist feature" "$T/v.pcd" && ok ||
+  fail "sample --format pcd keeps feature_dist and feature"
+expect 0 "sample --float32" -- "$BSURF" sample "$T/cube.off" -o "$T/f32.ply" --float32 -q
+grep -a -q "property float x" "$T/f32.ply" && ok || fail "sample --float32 writes float coordinates"
 expect 0 "sample text" -- "$BSURF" sample "$T/cube.off" -n 100 -o "$T/a4.xyz"
 grep -q "12 sharp" "$T/out" && ok || fail "sample text names the sharp edges"
 stderr_has "cannot store" "xyz output warns that the fields are lost"

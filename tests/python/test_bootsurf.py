@@ -505,8 +505,31 @@ def test_bad_input(cube):
         bootsurf.features(p, method="curvature")
     with pytest.raises(ValueError, match="select_k"):
         bootsurf.normals(p, select_k="30:10:1")
+    # integer options: as strict as the command line's (no silent truncation,
+    # its ranges), naming the option
+    with pytest.raises(ValueError, match=r"^neighbors needs a whole number \(2 to 65535\), not -5$"):
+        bootsurf.error(p, neighbors=-5)
+    with pytest.raises(TypeError, match=r"^neighbors needs a whole number, not 5.5$"):
+        bootsurf.error(p, neighbors=5.5)
+    with pytest.raises(TypeError, match=r"^neighbors needs a whole number, not 'abc'$"):
+        bootsurf.error(p, neighbors="abc")
+    with pytest.raises(ValueError, match=r"^seed needs a whole number \(0 to 18446744073709551615\)"):
+        bootsurf.normals(p, seed=-1)
+    with pytest.raises(ValueError, match=r"^threads needs a whole number \(0 to 4096\), not -1$"):
+        bootsurf.features(p, threads=-1)
+    with pytest.raises(TypeError, match=r"^select_k needs a whole number, not 20.5$"):
+        bootsurf.normals(p, select_k=[10, 20.5])
+    with pytest.raises(TypeError, match=r"^iterations needs a whole number, not 2.5$"):
+        bootsurf.smooth(p, iterations=2.5)
+    with pytest.raises(TypeError, match=r"^points needs a whole number"):
+        bootsurf.generate("cube", points="many")
+    assert bootsurf.knn(p[:50], np.int64(4))[0].shape == (50, 4)  # numpy integers are whole
+    assert bootsurf.generate("plane", points=100.0)["points"].shape[0] > 0  # so are 100.0
     with pytest.raises(OSError, match="nonexistent.ply"):
         bootsurf.read(tmp("nonexistent.ply"))
+    open(tmp("empty.ply"), "w").close()
+    with pytest.raises(OSError, match=r"empty.ply: the file is empty$"):  # the CLI's words
+        bootsurf.read(tmp("empty.ply"))
     with open(tmp("bad.ply"), "w") as f:
         f.write("ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
                 "property float z\nend_header\n1 2 3\n1 2\n")
