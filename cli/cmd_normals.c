@@ -286,8 +286,22 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
     json_num(&j, "seconds", secs);
     json_end(&j);
   } else if (!quiet) {
-    printf("normals: %zu points, h = %.6g, K = %d, %s%s, B = %d, %.2f s\n", sum.points, sum.h, no.k,
-           fit, no.fit == BSURF_NORMAL_POLY ? " (poly)" : "", no.bootstrap, secs);
+    char kdesc[96];
+    const char *rule = sum.select_rule == BSURF_KSELECT_MSE ? "mse" : "test-error"; /* resolved */
+    if (select_k)
+      snprintf(kdesc, sizeof kdesc, "K per point in %d..%d%s by the %s rule", ks[0], ks[nk - 1],
+               select_degree ? " and the degree" : "", rule);
+    else if (select_degree)
+      snprintf(kdesc, sizeof kdesc, "K = %d, the degree per point by the %s rule", no.k, rule);
+    else
+      snprintf(kdesc, sizeof kdesc, "K = %d", no.k);
+    char fdesc[48]; /* the fit, and a fixed polynomial's degree */
+    if (no.fit == BSURF_NORMAL_POLY && !select_degree)
+      snprintf(fdesc, sizeof fdesc, "poly, degree %d", no.degree);
+    else
+      snprintf(fdesc, sizeof fdesc, "%s", fit);
+    printf("normals: %zu points, h = %.6g, %s, %s, B = %d, %.2f s\n", sum.points, sum.h, kdesc,
+           fdesc, no.bootstrap, secs);
     print_means(stdout, sum.field_names, sum.means, sum.field_count, sum.h);
     if (sum.report.degenerate)
       printf("  %zu points have degenerate neighbourhoods\n", sum.report.degenerate);

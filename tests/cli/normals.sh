@@ -28,6 +28,13 @@ grep -a -q "property ushort k_selected$" "$T/m1.ply" && grep -a -q "property flo
 # the default rule (auto): mse where it applies, test-error with --curve, --fit poly, K < 7
 expect 0 "select-k default -j1" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 -j 1 -o "$T/d1.ply" --json
 cmp -s "$T/m1.ply" "$T/d1.ply" && grep -qF '"select_rule":"mse"' "$T/out" && ok || fail "the default rule is mse"
+# the text summary names the K range and the rule that ran
+expect 0 "select-k summary" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 -o "$T/d1t.ply"
+grep -qF "K per point in 15..40 by the mse rule, pca, B = 0" "$T/out" && ok || fail "select-k summary line"
+expect 0 "select-k summary, test-error" -- "$BSURF" normals "$T/n.ply" -B 2 --select-k 10:20:10 --select-rule test-error -o "$T/d1u.ply"
+grep -qF "K per point in 10..20 by the test-error rule" "$T/out" && ok || fail "test-error summary line"
+expect 0 "poly summary" -- "$BSURF" normals "$T/n.ply" -B 0 --fit poly -d 2 -k 20 -o "$T/d1v.ply"
+grep -qF "K = 20, poly, degree 2, B = 0" "$T/out" && ok || fail "poly summary line"
 expect 0 "select-k default -j2" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 -j 2 -o "$T/d2.ply" -q
 cmp -s "$T/d1.ply" "$T/d2.ply" && ok || fail "select-k default -j 1 and -j 2 differ"
 expect 0 "select-rule auto" -- "$BSURF" normals "$T/n.ply" -B 0 --select-k 15:40:5 --select-rule auto -o "$T/d3.ply" -q
