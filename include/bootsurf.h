@@ -495,8 +495,8 @@ BSURF_API bsurf_status bsurf_estimate_normals(const double *xyz, const bsurf_nei
  * (bsurf_select_k).
  * BSURF_KSELECT_AUTO (bsurf_normals_job's default): MSE where it applies
  * (select_k with candidates >= 7, or select_degree alone with k >= 7, PCA or
- * POLY fit, no curve; in memory and tiled), TEST_ERROR otherwise; MSE was the nearer to the best fixed K on
- * the development benchmark (docs/normals.md, "What the benchmark says"). */
+ * POLY fit, no curve; in memory and tiled), TEST_ERROR otherwise; MSE was the nearer to the best
+ * fixed K on the development benchmark (docs/normals.md, "What the benchmark says"). */
 typedef enum bsurf_kselect_rule {
   BSURF_KSELECT_TEST_ERROR = 0,
   BSURF_KSELECT_MSE,
