@@ -235,10 +235,12 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
 /* The same with point_bytes more bytes a point in memory than the
  * neighbourhoods, the fields and the files count (the command's own arrays,
  * such as the MSE rule's candidates: counted for the whole cloud in memory
- * and for a tile's points when the tile size is chosen). */
+ * and for a tile's points when the tile size is chosen), and cloud_bytes a
+ * point of the whole cloud that a tiled run holds beside a tile (taken
+ * from the budget of the tiles). */
 int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *output, int ascii,
                          size_t tile_points, const char *memory_limit, int k, int out_fields,
-                         double point_bytes, size_t *plan);
+                         double point_bytes, double cloud_bytes, size_t *plan);
 /* Before a tiled run: an empty input is refused by name. 0 or 1 (printed). */
 int cli_check_tiled_input(const char *input);
 /* A failed tiled run's message (rank 0): the file, the line or byte, the

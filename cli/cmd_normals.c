@@ -166,10 +166,7 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   if (selecting) test_error = 1;
   if (k_ref == 0) k_ref = no.k;
   if (k_ref < 3) return cli_usage_error(cmd, "--k-ref must be at least 3");
-  int kmax = k_ref > no.k ? k_ref : no.k;
-  if (ksel.rule != BSURF_KSELECT_TEST_ERROR && ksel.noise_k > kmax) kmax = ksel.noise_k;
   for (int a = 0; a < nk; a++) {
-    if (ks[a] > kmax) kmax = ks[a];
     for (int b = 0; b < nd; b++)
       if (no.fit == BSURF_NORMAL_POLY && ks[a] < (ds[b] + 1) * (ds[b] + 2) / 2)
         return cli_usage_error(cmd, "K = %d is too small for degree %d", ks[a], ds[b]);
@@ -194,21 +191,12 @@ int cmd_normals(const cli_command *cmd, int argc, char **argv) {
   jo.sigma_nu = sigma_nu;
   jo.orient = om == 1 ? BSURF_ORIENT_MST : BSURF_ORIENT_NONE;
   size_t plan = 0;
-  /* the MSE rule (explicit, or auto where it applies, as bsurf_normals_job
-   * decides), bsurf_select_k's and normals_job.c's arrays, per point of the
-   * cloud in memory or of a tile (the tiled stages' values are on disk):
-   * per point the tie-break's record, 8 + 40 bytes per tied candidate (up
-   * to nk; counted as 4, above the 2.6 or so of a sphere at u0.5 with 15
-   * candidates), with its pointer and the first choice's normal and
-   * criterion (40); the
-   * noise fits' and the pool's variances, the first choice, the visit
-   * order, the chosen K and the two-sheet flag (32); the pooling's copy (8) */
-  const int mse =
-      ksel.rule == BSURF_KSELECT_MSE ||
-      (ksel.rule == BSURF_KSELECT_AUTO && (select_k || select_degree) && !curve && ks[0] >= 7);
-  const double mse_bytes = mse ? 8 + 40.0 * (nk < 4 ? nk : 4) + 80 : 0;
-  rc = cli_tiles_plan_bytes(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 4,
-                            mse_bytes, &plan);
+  /* the rule the job applies, its K_max and its arrays' bytes per point
+   * (upper bounds: bootsurf.h, bsurf_normals_job_memory) */
+  bsurf_normals_job_plan jp;
+  if (bsurf_normals_job_memory(&jo, &jp) != BSURF_OK) return cli_error("%s", bsurf_last_message());
+  rc = cli_tiles_plan_bytes(cmd, pos[0], output, ascii, tile_points, memory_limit, jp.k_max,
+                            jp.field_count, jp.point_bytes, jp.cloud_bytes, &plan);
   if (rc) return rc;
   /* smoothing passes reach beyond the K-neighbourhood; orientation is
    * global (normal_err's reference normals: a first tiled stage) */

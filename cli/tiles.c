@@ -49,12 +49,12 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
                    size_t tile_points, const char *memory_limit, int k, int out_fields,
                    size_t *plan) {
   return cli_tiles_plan_bytes(cmd, input, output, ascii, tile_points, memory_limit, k, out_fields,
-                              0, plan);
+                              0, 0, plan);
 }
 
 int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *output, int ascii,
                          size_t tile_points, const char *memory_limit, int k, int out_fields,
-                         double point_bytes, size_t *plan) {
+                         double point_bytes, double cloud_bytes, size_t *plan) {
   *plan = 0;
   double limit;
   if (strcmp(memory_limit, "auto") == 0) {
@@ -97,6 +97,9 @@ int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *
      * point while they are built), the fields, the command's arrays and the
      * halo */
     double budget = limit > 0 ? limit : 4.0 * 1024 * 1024 * 1024;
+    /* less what the run holds for the whole cloud beside a tile (beyond the
+     * budget: the smallest tiles) */
+    budget -= cloud_bytes * (double)n;
     double per = 4.0 * (12.0 * k + 8.0 * out_fields + point_bytes + 200);
     tile_points = (size_t)fmin(budget / per, 2e8);
   }

@@ -1492,8 +1492,8 @@ typedef struct bsurf_normals_job_options {
   bsurf_kselect_rule select_rule; /* AUTO (the default: MSE where it
                                      applies, else TEST_ERROR), TEST_ERROR
                                      (the thesis's), or MSE (bsurf_select_k:
-                                     PCA, select_k only, candidates >= 7; in
-                                     four stages in a tiled run) */
+                                     candidates >= 7, PCA or POLY; in two
+                                     stages in a tiled run) */
   int noise_k;                    /* MSE: the noise fits' neighbourhood (12; >= 12) */
   bsurf_noise_pool noise_pool;    /* MSE: GLOBAL (default) or LOCAL noise level */
   /* Bilateral normal smoothing after the estimate (bsurf_smooth_normals,
@@ -1551,6 +1551,34 @@ typedef struct bsurf_normals_job_summary {
 BSURF_API bsurf_status bsurf_normals_job(const bsurf_job_io *io,
                                          const bsurf_normals_job_options *opts,
                                          bsurf_normals_job_summary *summary, bsurf_failure *err);
+
+/* What bsurf_normals_job runs with these options and the memory it needs,
+ * for a front end's memory plan (whether to tile, how large the tiles;
+ * docs/scaling.md): */
+typedef struct bsurf_normals_job_plan {
+  bsurf_kselect_rule select_rule; /* the rule applied (AUTO resolved as the job
+                                     resolves it) */
+  int k_max;                      /* the neighbourhood searched: the largest of
+                                     normals.k, k_ref, the candidates and, with
+                                     MSE, noise_k */
+  int field_count;                /* the fields written besides the normals */
+  double point_bytes;             /* bytes per point of the cloud in memory, or of a
+                                     tile's points, of the job's own arrays (results,
+                                     the selection's passes), besides the cloud, the
+                                     neighbour rows and the k-d tree: an upper bound
+                                     (MSE: every candidate counted as tied) */
+  double cloud_bytes;             /* bytes per point of the whole cloud that a tiled
+                                     run holds on every rank besides a tile: 16 for MSE
+                                     with the GLOBAL pool (the pooled values and their
+                                     median's copy), else 0 */
+} bsurf_normals_job_plan;
+
+/* The plan of bsurf_normals_job(io, opts, ...) for any io: opts NULL =
+ * defaults. BSURF_ERR_INVALID_ARG (message: bsurf_last_message(), naming
+ * bsurf_normals_job_memory) for the options the job refuses in memory, or
+ * plan NULL. */
+BSURF_API bsurf_status bsurf_normals_job_memory(const bsurf_normals_job_options *opts,
+                                                bsurf_normals_job_plan *plan);
 
 /* ---- smooth (thesis chapter 6) ---- */
 

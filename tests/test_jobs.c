@@ -361,13 +361,89 @@ static void test_bad_options(void **state) {
   bsurf_cloud_free(&p.c);
 }
 
+/* bsurf_normals_job_memory: the rule resolved, K_max, the fields and the
+ * bytes a point, exactly (the sums of the allocations its comment lists),
+ * for known settings; bad options refused by name. */
+static void test_normals_plan(void **state) {
+  (void)state;
+  bsurf_normals_job_plan jp;
+  /* the defaults: PCA, K = 30, B = 50, no selection: the normals, normal_var
+   * and normal_err buffers (40 bytes) */
+  assert_int_equal(bsurf_normals_job_memory(NULL, &jp), BSURF_OK);
+  assert_int_equal(jp.select_rule, BSURF_KSELECT_TEST_ERROR);
+  assert_int_equal(jp.k_max, 30);
+  assert_int_equal(jp.field_count, 1); /* normal_var */
+  assert_true(jp.point_bytes == 40 && jp.cloud_bytes == 0);
+  bsurf_normals_job_options o = bsurf_normals_job_options_default();
+  const int ks[4] = {10, 20, 30, 40}, ds[2] = {1, 2};
+  o.select_k = ks;
+  o.select_k_count = 4;
+  o.normals.bootstrap = 0;
+  /* AUTO with candidates >= 7: MSE; 40 + 64 + 8 + 284 with 4 candidates,
+   * the global median's 16 bytes a point of the cloud when tiled */
+  assert_int_equal(bsurf_normals_job_memory(&o, &jp), BSURF_OK);
+  assert_int_equal(jp.select_rule, BSURF_KSELECT_MSE);
+  assert_int_equal(jp.k_max, 40);
+  assert_int_equal(jp.field_count, 3); /* normal_err, k_selected, two_sheet */
+  assert_true(jp.point_bytes == 396 && jp.cloud_bytes == 16);
+  o.noise_k = 50; /* beyond the candidates: K_max */
+  o.noise_pool = BSURF_NOISE_POOL_LOCAL;
+  assert_int_equal(bsurf_normals_job_memory(&o, &jp), BSURF_OK);
+  assert_int_equal(jp.k_max, 50);
+  assert_true(jp.point_bytes == 396 && jp.cloud_bytes == 0);
+  /* POLY with two degrees: 8 candidates, 40 more bytes each */
+  o = bsurf_normals_job_options_default();
+  o.select_k = ks;
+  o.select_k_count = 4;
+  o.select_degree = ds;
+  o.select_degree_count = 2;
+  o.normals.fit = BSURF_NORMAL_POLY;
+  assert_int_equal(bsurf_normals_job_memory(&o, &jp), BSURF_OK);
+  assert_int_equal(jp.select_rule, BSURF_KSELECT_MSE);
+  assert_int_equal(jp.field_count, 4); /* normal_var, normal_err, k and degree */
+  assert_true(jp.point_bytes == 556 && jp.cloud_bytes == 16);
+  /* AUTO with a candidate below 7: the test error; its reference normals
+   * (24) and selection arrays (64 + 8) */
+  const int small[2] = {6, 20};
+  o = bsurf_normals_job_options_default();
+  o.select_k = small;
+  o.select_k_count = 2;
+  o.k_ref = 45;
+  assert_int_equal(bsurf_normals_job_memory(&o, &jp), BSURF_OK);
+  assert_int_equal(jp.select_rule, BSURF_KSELECT_TEST_ERROR);
+  assert_int_equal(jp.k_max, 45);
+  assert_true(jp.point_bytes == 136 && jp.cloud_bytes == 0);
+  /* the curve: every candidate's error and variance, and with the truth its
+   * normal (16 + 24 per candidate) */
+  bsurf_normals_curve_row rows[2];
+  o.curve = rows;
+  assert_int_equal(bsurf_normals_job_memory(&o, &jp), BSURF_OK);
+  assert_true(jp.point_bytes == 136 + 32);
+  const double truth[3] = {0, 0, 1};
+  o.curve_truth = truth;
+  assert_int_equal(bsurf_normals_job_memory(&o, &jp), BSURF_OK);
+  assert_true(jp.point_bytes == 136 + 32 + 48);
+  /* bad options: the job's checks, named as this function's */
+  assert_invalid(bsurf_normals_job_memory(&o, NULL), "bsurf_normals_job_memory", "plan");
+  o = bsurf_normals_job_options_default();
+  o.alpha = 2;
+  assert_invalid(bsurf_normals_job_memory(&o, &jp), "bsurf_normals_job_memory", "opts->alpha = 2");
+  o = bsurf_normals_job_options_default();
+  o.select_rule = BSURF_KSELECT_MSE; /* without candidates */
+  assert_invalid(bsurf_normals_job_memory(&o, &jp), "bsurf_normals_job_memory",
+                 "needs opts->select_k");
+  o.select_k = small; /* a candidate below 7 */
+  o.select_k_count = 2;
+  assert_invalid(bsurf_normals_job_memory(&o, &jp), "bsurf_normals_job_memory",
+                 "candidates K >= 7");
+}
+
 int main(void) {
   tmp_dir_init();
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_normals_job),
-      cmocka_unit_test(test_smooth_job),
-      cmocka_unit_test(test_features_job),
-      cmocka_unit_test(test_bad_options),
+      cmocka_unit_test(test_normals_job),  cmocka_unit_test(test_smooth_job),
+      cmocka_unit_test(test_features_job), cmocka_unit_test(test_bad_options),
+      cmocka_unit_test(test_normals_plan),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -228,7 +228,9 @@ bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_cou
  * below read (GLOBAL: their median); bsurf_ksel_first: pass 3's first
  * choices' normals (row x 3) and criteria M (row); bsurf_ksel_choose: passes
  * 3 and 4 into out (fref, fmref: the neighbours' first choices and their M,
- * NULL: this table's own, when its rows are every point). The same bits as bsurf_select_k for the
+ * indexed like nb->idx, given for the points that are not rows of nb; pass
+ * 3 writes the rows' own into them before pass 4 reads them; NULL: this
+ * table's own, when its rows are every point). The same bits as bsurf_select_k for the
  * same rows. */
 typedef struct bsurf_ksel_run bsurf_ksel_run;
 bsurf_status bsurf_ksel_open(const bsurf_kselect_options *opts, int nb_k, int two_sheet,
@@ -242,7 +244,7 @@ bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n);
 bsurf_status bsurf_ksel_first(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
                               const double *noise, double *fnrm, double *fmse);
 bsurf_status bsurf_ksel_choose(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                               const double *noise, const double *fref, const double *fmref,
+                               const double *noise, double *fref, double *fmref,
                                bsurf_kselect_fields *out, bsurf_kselect_report *report);
 
 /* Per-point K and degree selection of polynomial normals (5.5, Algorithm 3;

@@ -46,10 +46,11 @@ bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n) 
 }
 
 /* Pass 3 (fnrm != NULL: only the first choices' normals, by row, no tied
- * record), or passes 3 and 4 into out. */
+ * record), or passes 3 and 4 into out (fref, fmref given: the rows' own
+ * first choices are written into them, at the rows' points, before pass 4). */
 static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                                const double *noise, const double *fref, const double *fmref,
-                                double *fnrm, double *fmse, bsurf_kselect_fields *out,
+                                const double *noise, double *fref, double *fmref, double *fnrm,
+                                double *fmse, bsurf_kselect_fields *out,
                                 bsurf_kselect_report *report) {
   const size_t n = nb->point_count, m = n ? n : 1;
   ksel_ctx c = ksel_ctx_of(r, xyz, nb);
@@ -72,6 +73,11 @@ static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsur
   if (st == BSURF_OK) st = ksel_pass(r, &c, r->o.nd > 0 ? poly_point : select_point, 1);
   for (int t = 0; t < r->T && st == BSURF_OK; t++)
     if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
+  for (size_t i = 0; fref && st == BSURF_OK && i < n; i++) { /* row i's point: idx[i k] */
+    const size_t p = nb->idx[i * (size_t)nb->k];
+    memcpy(&fref[3 * p], &c.fnrm[3 * i], 3 * sizeof(double));
+    fmref[p] = c.fmse[i];
+  }
   if (st == BSURF_OK && !fnrm) st = ksel_pass(r, &c, tie_point, 0);
   if (report && st == BSURF_OK && !fnrm)
     for (int t = 0; t < r->T; t++)
@@ -90,7 +96,7 @@ bsurf_status bsurf_ksel_first(bsurf_ksel_run *r, const double *xyz, const bsurf_
 }
 
 bsurf_status bsurf_ksel_choose(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                               const double *noise, const double *fref, const double *fmref,
+                               const double *noise, double *fref, double *fmref,
                                bsurf_kselect_fields *out, bsurf_kselect_report *report) {
   BSURF_REQUIRE(!out->two_sheet || r->crit, "the run was opened without the two-sheet test");
   return ksel_select(r, xyz, nb, noise, fref, fmref, NULL, NULL, out, report);

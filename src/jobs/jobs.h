@@ -32,19 +32,21 @@ void bsurf_jobs_tiled_numbers(const bsurf_tile_report *tr, size_t *points, doubl
                               size_t *duplicates, size_t *tiles, size_t *bad_point);
 
 struct bsurf_ksel_run; /* algo/algo.h */
-/* The MSE rule's first three tiled stages (normals_mse_tiled.c,
- * docs/scaling.md): each point's noise residual variance, its pooled noise
- * (the level: the median of them read back, with the GLOBAL pool), then per
- * point its first choice's normal, its criterion M and its noise, 5 values kept in *sel for
- * the last stage; K = k (the job's K_max). tr: the last stage's report. */
+/* The MSE rule's first tiled stage (normals_mse_tiled.c, docs/scaling.md):
+ * each point's pooled noise (pass 1 on the tiles' rings too, then pass 2),
+ * kept in *pooled for the last stage, and with the GLOBAL pool the level,
+ * their median read back; K = k (the job's K_max, the ring's too). tr: the
+ * stage's report. */
 bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_options *ko, int k,
                                    int threads, bsurf_progress_fn progress, void *progress_user,
-                                   struct bsurf_ksel_run *run, bsurf_tile_values *sel,
-                                   bsurf_tile_report *tr, bsurf_failure *err);
-/* The last stage's inputs in a tile from those values: the noise by core
- * row, the first choices' normals and M of every local point (allocated). */
-bsurf_status bsurf_jobs_mse_tile(const bsurf_tile *t, double **noise, double **fref,
-                                 double **fmref);
+                                   struct bsurf_ksel_run *run, bsurf_tile_values *pooled,
+                                   double *level, bsurf_tile_report *tr, bsurf_failure *err);
+/* The last stage's inputs in a tile (its ring_k: the noise_k) from the
+ * pooled values (global: the level instead): the noise by row (core, then
+ * ring), and the first choices' normals and M of the ring's points by local
+ * point (pass 3 on the ring's rows; NAN elsewhere), allocated. */
+bsurf_status bsurf_jobs_mse_tile(struct bsurf_ksel_run *run, const bsurf_tile *t, int global,
+                                 double level, double **noise, double **fref, double **fmref);
 
 /* The mean of n values summed in point order (what the summaries report). */
 double bsurf_jobs_mean(const double *v, size_t n);

@@ -39,7 +39,9 @@ typedef struct normals_job {
    * run, and per tile the noise by core row and the neighbours' first
    * choices; NULL in memory */
   bsurf_ksel_run *mse_run;
-  const double *mse_noise, *mse_fref, *mse_fmref;
+  const double *mse_noise;
+  double *mse_fref, *mse_fmref; /* the ring's; bsurf_ksel_choose adds the core's */
+  double mse_level;             /* the GLOBAL pool's noise level */
 } normals_job;
 
 /* Per-point results (n long, x 3 for vectors). */
@@ -326,7 +328,9 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
   double *noise = NULL, *fref = NULL, *fmref = NULL;
   /* the MSE rule: the noise and the neighbours' first choices, from the
    * first stages (normals_mse_tiled.c) */
-  if (job->mse_run && (st = bsurf_jobs_mse_tile(tile, &noise, &fref, &fmref)) != BSURF_OK) {
+  if (job->mse_run &&
+      (st = bsurf_jobs_mse_tile(job->mse_run, tile, job->ksel.noise_pool == BSURF_NOISE_POOL_GLOBAL,
+                                job->mse_level, &noise, &fref, &fmref)) != BSURF_OK) {
     normals_bufs_free(&b);
     return st;
   }
@@ -334,8 +338,11 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
   job->mse_fref = fref;
   job->mse_fmref = fmref;
   /* with normal_err: the reference normals of every local point, from the
-   * first stage (normals_ref_run) */
-  st = normals_compute(job, tile->xyz, tile->nb, tile->point_index,
+   * first stage (normals_ref_run); the core's rows (the MSE rule's ring
+   * follows them) */
+  bsurf_neighbors cnb = *tile->nb;
+  cnb.point_count = tile->core_count;
+  st = normals_compute(job, tile->xyz, &cnb, tile->point_index,
                        job->test_error && !job->mse_run ? tile->values : NULL, &b, &total);
   free(noise);
   free(fref);
@@ -388,11 +395,11 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
   bsurf_tile_report tr;
   memset(&tr, 0, sizeof tr);
   bsurf_tile_ops ops;
-  if (job->ksel.rule == BSURF_KSELECT_MSE) { /* four stages (normals_mse_tiled.c) */
+  if (job->ksel.rule == BSURF_KSELECT_MSE) { /* two stages (normals_mse_tiled.c) */
     st = bsurf_ksel_open(&job->ksel, job->kmax, 1, &job->mse_run);
     if (st == BSURF_OK)
       st = bsurf_jobs_mse_stages(io, &job->ksel, job->kmax, job->no.threads, progress,
-                                 progress_user, job->mse_run, &refs, &tr, err);
+                                 progress_user, job->mse_run, &refs, &job->mse_level, &tr, err);
   } else if (job->test_error) {
     bsurf_jobs_tile_ops(&ops, io, job->k_ref, job->no.threads, progress, progress_user, job);
     ops.run = normals_ref_run;
@@ -406,6 +413,9 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
     ops.run = normals_run;
     ops.nsums = NORMALS_SUMS;
     ops.values_in = job->test_error ? &refs : NULL;
+    /* the MSE rule's tie-break reads the first choices of the noise_k
+     * nearest: the tiles' rings */
+    if (job->mse_run) ops.ring_k = job->ksel.noise_k;
     memset(&tr, 0, sizeof tr);
     tr.sums = sums;
     st = bsurf_tiles_run(io->input, io->output, &ops, &tr, err);
@@ -495,9 +505,9 @@ static bsurf_status normals_in_memory(const bsurf_job_io *io, const bsurf_normal
 
 /* ---- options ---- */
 
-#define NJ "bsurf_normals_job"
+#define NJ who /* the function called, in the messages */
 
-static bsurf_status normals_check_candidates(const bsurf_normals_job_options *o) {
+static bsurf_status normals_check_candidates(const char *who, const bsurf_normals_job_options *o) {
   const bsurf_normal_options *no = &o->normals;
   BSURF_REQUIRE_IN(NJ, !o->select_k == !o->select_k_count,
                    "opts->select_k_count = %d: give it with opts->select_k (count 0 and NULL: no "
@@ -538,7 +548,7 @@ static bsurf_status normals_check_candidates(const bsurf_normals_job_options *o)
   return BSURF_OK;
 }
 
-static bsurf_status normals_check(const bsurf_normals_job_options *o, int tiled) {
+static bsurf_status normals_check(const char *who, const bsurf_normals_job_options *o, int tiled) {
   const bsurf_normal_options *no = &o->normals;
   BSURF_REQUIRE_IN(NJ, no->fit == BSURF_NORMAL_PCA || no->fit == BSURF_NORMAL_POLY,
                    "opts->normals.fit = %d must be BSURF_NORMAL_PCA or BSURF_NORMAL_POLY",
@@ -554,7 +564,7 @@ static bsurf_status normals_check(const bsurf_normals_job_options *o, int tiled)
                    no->bootstrap);
   BSURF_REQUIRE_IN(NJ, o->k_ref == 0 || (o->k_ref >= 3 && o->k_ref <= 65535),
                    "opts->k_ref = %d must be 0 (normals.k) or in [3, 65535]", o->k_ref);
-  bsurf_status st = normals_check_candidates(o);
+  bsurf_status st = normals_check_candidates(who, o);
   if (st != BSURF_OK) return st;
   BSURF_REQUIRE_IN(
       NJ, o->select_rule == BSURF_KSELECT_TEST_ERROR || o->select_rule == BSURF_KSELECT_MSE,
@@ -628,22 +638,90 @@ static void normals_setup(normals_job *job, const bsurf_normals_job_options *o) 
   job->truth = o->curve_truth;
 }
 
+/* AUTO resolved: MSE where it applies (bootsurf.h, BSURF_KSELECT_AUTO) */
+static void normals_resolve_rule(bsurf_normals_job_options *o) {
+  if (o->select_rule == BSURF_KSELECT_AUTO)
+    o->select_rule = ((o->select_k && o->select_k_count > 0 && o->select_k[0] >= 7) ||
+                      (!o->select_k && o->select_degree && o->normals.k >= 7)) &&
+                             !o->curve
+                         ? BSURF_KSELECT_MSE
+                         : BSURF_KSELECT_TEST_ERROR;
+}
+
+/* The options resolved (AUTO) and checked, the run set up (the caller frees
+ * it); NULL with the status in *st. */
+static normals_job *normals_open(const char *who, bsurf_normals_job_options *o, int tiled,
+                                 bsurf_status *st) {
+  normals_resolve_rule(o);
+  if ((*st = normals_check(who, o, tiled)) != BSURF_OK) return NULL;
+  normals_job *job = calloc(1, sizeof *job);
+  if (!job) {
+    *st = BSURF_ERR_NOMEM;
+    return NULL;
+  }
+  normals_setup(job, o);
+  return job;
+}
+
+bsurf_status bsurf_normals_job_memory(const bsurf_normals_job_options *opts,
+                                      bsurf_normals_job_plan *plan) {
+  const char *who = "bsurf_normals_job_memory";
+  BSURF_REQUIRE_IN(NJ, plan, "plan must not be NULL");
+  memset(plan, 0, sizeof *plan);
+  bsurf_normals_job_options o = opts ? *opts : bsurf_normals_job_options_default();
+  bsurf_status st;
+  normals_job *job = normals_open(who, &o, 0, &st);
+  if (!job) return st;
+  bsurf_type types[4];
+  int which[4];
+  const char *names[4];
+  plan->select_rule = o.select_rule;
+  plan->k_max = job->kmax;
+  plan->field_count = normals_field_names(job, names, types, which);
+  /* Upper bounds, counted from the allocations (bytes per point):
+   * normals_bufs_alloc: the normals 24, normal_var 8, normal_err 8; the
+   * reference normals 24 (normal_err without the MSE rule); selecting: the
+   * candidate's normal 24, variance, error, best error, K, degree 8 each
+   * (64), the two-sheet flags 8 (MSE). */
+  const int mse = o.select_rule == BSURF_KSELECT_MSE;
+  const int ncand = job->nk * (o.normals.fit == BSURF_NORMAL_POLY ? job->nd : 1);
+  double b = 40;
+  if (job->test_error && !mse) b += 24;
+  if (job->selecting) b += 64 + (mse ? 8 : 0);
+  if (mse) {
+    /* the MSE rule (kselect_run.c, normals_compute): the chosen K, degree
+     * and flag as ints 12; the noise passes' s2 and pooled noise, or the
+     * pooled noise and the median's copy 16; pass 3's first choice 4, its
+     * normal 24 and M 8, the tied record's pointer 8, the visit order 4;
+     * the tied record, 8 + 40 per tied candidate, counted for every
+     * candidate (the worst case: a sphere at noise 0.5 has about 2.6 of 15
+     * tied); a tile's noise by row 8 and first choices by point 24 + 8
+     * (normals_mse_tiled.c) */
+    b += 12 + 16 + 4 + 24 + 8 + 8 + 4 + (8 + 40.0 * ncand) + 40;
+    /* a tiled run with the GLOBAL pool: every point's pooled value and the
+     * median's copy, on every rank, between the stages (not with a tile) */
+    if (job->ksel.noise_pool == BSURF_NOISE_POOL_GLOBAL) plan->cloud_bytes = 16;
+  } else if (job->selecting) {
+    /* the test-error selection: the chosen K and degree as ints 8, and
+     * with the curve every candidate's error and variance (16), and
+     * normal with curve_truth (24) */
+    b += 8;
+    if (job->curve) b += 16.0 * ncand + (job->truth ? 24.0 * ncand : 0);
+  }
+  plan->point_bytes = b;
+  free(job);
+  return BSURF_OK;
+}
+
 bsurf_status bsurf_normals_job(const bsurf_job_io *io, const bsurf_normals_job_options *opts,
                                bsurf_normals_job_summary *summary, bsurf_failure *err) {
+  const char *who = "bsurf_normals_job";
   bsurf_status st = bsurf_jobs_begin(NJ, io, summary, sizeof *summary);
   bsurf_normals_job_options o = opts ? *opts : bsurf_normals_job_options_default();
-  if (st == BSURF_OK && o.select_rule == BSURF_KSELECT_AUTO) /* MSE where it applies */
-    o.select_rule = ((o.select_k && o.select_k_count > 0 && o.select_k[0] >= 7) ||
-                     (!o.select_k && o.select_degree && o.normals.k >= 7)) &&
-                            !o.curve
-                        ? BSURF_KSELECT_MSE
-                        : BSURF_KSELECT_TEST_ERROR;
-  if (st == BSURF_OK) summary->select_rule = o.select_rule;
-  if (st == BSURF_OK) st = normals_check(&o, io->cloud == NULL);
   if (st != BSURF_OK) return st;
-  normals_job *job = calloc(1, sizeof *job);
-  if (!job) return BSURF_ERR_NOMEM;
-  normals_setup(job, &o);
+  normals_job *job = normals_open(who, &o, io->cloud == NULL, &st);
+  summary->select_rule = o.select_rule; /* AUTO resolved */
+  if (!job) return st;
   bsurf_type types[4];
   int which[4];
   summary->field_count = normals_field_names(job, summary->field_names, types, which);

@@ -1,142 +1,126 @@
 /* The MSE rule of `normals --select-k` tile by tile (docs/scaling.md,
  * "The MSE rule in stages"): the passes of bsurf_select_k (kselect_run.c)
- * each run on the tiles' core rows, every value a pass reads at a
- * neighbour carried from the previous stage in the halo rows, so that
- * every output byte is the in-memory run's.
+ * run on the tiles' rows, every value a pass reads at a neighbour computed
+ * in the same tile from the neighbour's own exact row (the tile's ring,
+ * bsurf_tile_ops.ring_k) or carried from the previous stage, so that every
+ * output byte is the in-memory run's.
  *
- *   stage 1 (K = K_max): each point's quadric residual variance s2 (pass 1;
- *     its fits use the point's own K_max neighbours, no more);
- *   stage 2 (K = K_max, s2 of every local point): each point's pooled noise
- *     (pass 2: a quantile of its K_max neighbours' s2, a 2-ring);
+ *   stage 1 (K = K_max, ring_k = K_max): pass 1 (each point's quadric
+ *     residual variance s2, from its own K_max neighbours) on the core's and
+ *     the ring's rows, so that every s2 the core reads is at hand, then
+ *     pass 2 (the pooled noise: a quantile of the K_max neighbours' s2) on
+ *     the core's rows; the pooled values are kept;
  *   the level: with the GLOBAL pool, the median of every point's pooled
  *     value, read back in index order (8 + 8 bytes per point in memory, on
  *     every rank);
- *   stage 3 (K = K_max): each point's first choice's normal (pass 3), kept
- *     with its noise;
- *   stage 4 (normals_job.c's tiled run, K = K_max): pass 3 again for the
- *     tied candidates, the tie-break (pass 4) with the neighbours' first
- *     choices from stage 3 (a 2-ring), the two-sheet test and the bootstrap
- *     at the chosen K. */
+ *   stage 2 (normals_job.c's tiled run, K = K_max, ring_k = noise_k): pass 3
+ *     on the ring's rows (the first choices that the tie-break reads at the
+ *     core's noise_k nearest outside the tile), passes 3 and 4 on the core's
+ *     (bsurf_ksel_choose writes the core's own first choices where pass 4
+ *     reads them), the two-sheet test and the bootstrap at the chosen K.
+ *
+ * Until issue 25 these were four stages (s2, pool, first choices, choice),
+ * each a tiled run with its passes over the input, its k-d trees and K_max
+ * searches, and pass 3 ran twice per point; the rings cost the rows of the
+ * points around each tile instead (docs/scaling.md, measured there). */
 #include "algo/algo.h"
 #include "jobs/jobs.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define SEL_COLS 5 /* stage 3's values: the first choice's normal, its M, the noise */
-
 typedef struct mse_stages {
   bsurf_ksel_run *run;
-  int global;   /* one noise level for the cloud */
-  double level; /* its variance */
 } mse_stages;
 
-static bsurf_status s2_run(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
-  (void)core;
-  (void)sums;
-  const mse_stages *m = user;
-  return bsurf_ksel_noise(m->run, t->xyz, t->nb, t->values_out);
+/* Values indexed by local point from values by row (a row's point is its
+ * first entry); NAN at the points that are not rows. */
+static void by_point(const bsurf_neighbors *nb, size_t rows, const double *row_vals, size_t width,
+                     double *point_vals, size_t nl) {
+  for (size_t l = 0; l < nl * width; l++)
+    point_vals[l] = NAN;
+  for (size_t r = 0; r < rows; r++)
+    memcpy(&point_vals[width * nb->idx[r * (size_t)nb->k]], &row_vals[width * r],
+           width * sizeof(double));
 }
 
-static bsurf_status pool_run(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
+/* stage 1: s2 of the core and the ring, the core's pooled noise */
+static bsurf_status noise_run(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
   (void)core;
   (void)sums;
   const mse_stages *m = user;
-  return bsurf_ksel_pool(m->run, t->xyz, t->nb, t->values, t->values_out);
-}
-
-/* stage 3: per core point its first choice's normal, its criterion M (the
- * tie-break's weight) and its noise */
-static bsurf_status first_run(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
-  (void)core;
-  (void)sums;
-  const mse_stages *m = user;
-  const size_t nc = t->core_count, k = (size_t)t->nb->k;
-  double *noise = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
-  double *f = bsurf_alloc_array(nc ? nc : 1, 3 * sizeof(double));
-  double *fm = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
-  bsurf_status st = noise && f && fm ? BSURF_OK : BSURF_ERR_NOMEM;
-  for (size_t r = 0; r < nc && st == BSURF_OK; r++)
-    noise[r] = m->global ? m->level : t->values[t->nb->idx[r * k]];
-  if (st == BSURF_OK) st = bsurf_ksel_first(m->run, t->xyz, t->nb, noise, f, fm);
-  for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
-    memcpy(&t->values_out[SEL_COLS * r], &f[3 * r], 3 * sizeof(double));
-    t->values_out[SEL_COLS * r + 3] = fm[r];
-    t->values_out[SEL_COLS * r + 4] = noise[r];
+  const size_t nc = t->core_count, rows = nc + t->ring_count, nl = t->local_count;
+  double *s2row = bsurf_alloc_array(rows ? rows : 1, sizeof(double));
+  double *s2 = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
+  bsurf_status st = s2row && s2 ? BSURF_OK : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) st = bsurf_ksel_noise(m->run, t->xyz, t->nb, s2row);
+  if (st == BSURF_OK) {
+    by_point(t->nb, rows, s2row, 1, s2, nl);
+    bsurf_neighbors cnb = *t->nb;
+    cnb.point_count = nc;
+    st = bsurf_ksel_pool(m->run, t->xyz, &cnb, s2, t->values_out);
   }
-  free(noise);
-  free(f);
-  free(fm);
-  return st;
-}
-
-/* One values-only stage. */
-static bsurf_status mse_stage(const bsurf_job_io *io, bsurf_tile_ops *ops, mse_stages *m,
-                              bsurf_status (*run)(void *, const bsurf_tile *, bsurf_cloud *,
-                                                  double *),
-                              const bsurf_tile_values *in, size_t nvalues, bsurf_tile_values *out,
-                              bsurf_tile_report *tr, bsurf_failure *err) {
-  ops->user = m;
-  ops->run = run;
-  ops->values_in = in;
-  ops->nvalues = nvalues;
-  ops->values_out = out;
-  memset(tr, 0, sizeof *tr);
-  return bsurf_tiles_run(io->input, io->output, ops, tr, err);
-}
-
-/* The level every rank takes from the pooled values read back (GLOBAL:
- * their median, in-memory pass 2b on the same array); the ranks agree on a
- * failure before the next collective run. */
-static bsurf_status mse_level(const bsurf_job_io *io, mse_stages *m, const bsurf_tile_values *v) {
-  bsurf_status st = BSURF_OK;
-  if (m->global) {
-    double *all = bsurf_alloc_array(v->count ? v->count : 1, sizeof(double));
-    st = all ? bsurf_tile_values_read(v, 0, v->count, all) : BSURF_ERR_NOMEM;
-    if (st == BSURF_OK) st = bsurf_ksel_level(m->run, all, v->count);
-    if (st == BSURF_OK) m->level = v->count ? all[0] : 0;
-    free(all);
-  }
-  if (io->comm && io->comm->max(io->comm->user, st != BSURF_OK) && st == BSURF_OK)
-    st = BSURF_ERR_IO;
+  free(s2row);
+  free(s2);
   return st;
 }
 
 bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_options *ko, int k,
                                    int threads, bsurf_progress_fn progress, void *progress_user,
-                                   bsurf_ksel_run *run, bsurf_tile_values *sel,
+                                   bsurf_ksel_run *run, bsurf_tile_values *pooled, double *level,
                                    bsurf_tile_report *tr, bsurf_failure *err) {
-  mse_stages m = {run, ko->noise_pool == BSURF_NOISE_POOL_GLOBAL, 0};
-  bsurf_tile_values s2 = {-1, 0, 0}, pooled = {-1, 0, 0};
+  mse_stages m = {run};
   bsurf_tile_ops ops;
   bsurf_jobs_tile_ops(&ops, io, k, threads, progress, progress_user, &m);
-  bsurf_status st = mse_stage(io, &ops, &m, s2_run, NULL, 1, &s2, tr, err);
-  if (st == BSURF_OK) st = mse_stage(io, &ops, &m, pool_run, &s2, 1, &pooled, tr, err);
-  bsurf_tile_values_close(&s2);
-  if (st == BSURF_OK) st = mse_level(io, &m, &pooled);
-  if (st == BSURF_OK) st = mse_stage(io, &ops, &m, first_run, &pooled, SEL_COLS, sel, tr, err);
-  bsurf_tile_values_close(&pooled);
+  ops.run = noise_run;
+  ops.nvalues = 1;
+  ops.values_out = pooled;
+  ops.ring_k = k;
+  memset(tr, 0, sizeof *tr);
+  bsurf_status st = bsurf_tiles_run(io->input, io->output, &ops, tr, err);
+  /* the level every rank takes from the pooled values read back (GLOBAL:
+   * their median, in-memory pass 2b on the same array); the ranks agree on
+   * a failure before the next collective run */
+  *level = 0;
+  if (st == BSURF_OK && ko->noise_pool == BSURF_NOISE_POOL_GLOBAL) {
+    double *all = bsurf_alloc_array(pooled->count ? pooled->count : 1, sizeof(double));
+    st = all ? bsurf_tile_values_read(pooled, 0, pooled->count, all) : BSURF_ERR_NOMEM;
+    if (st == BSURF_OK) st = bsurf_ksel_level(run, all, pooled->count);
+    if (st == BSURF_OK) *level = pooled->count ? all[0] : 0;
+    free(all);
+    if (io->comm && io->comm->max(io->comm->user, st != BSURF_OK) && st == BSURF_OK)
+      st = BSURF_ERR_IO;
+  }
   return st;
 }
 
-bsurf_status bsurf_jobs_mse_tile(const bsurf_tile *t, double **noise, double **fref,
-                                 double **fmref) {
-  const size_t nc = t->core_count, nl = t->local_count, k = (size_t)t->nb->k;
-  *noise = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
+bsurf_status bsurf_jobs_mse_tile(bsurf_ksel_run *run, const bsurf_tile *t, int global, double level,
+                                 double **noise, double **fref, double **fmref) {
+  const size_t nc = t->core_count, nr = t->ring_count, nl = t->local_count, k = (size_t)t->nb->k;
+  *noise = bsurf_alloc_array(nc + nr ? nc + nr : 1, sizeof(double));
   *fref = bsurf_alloc_array(nl ? nl : 1, 3 * sizeof(double));
   *fmref = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
-  if (!*noise || !*fref || !*fmref) {
+  double *rf = bsurf_alloc_array(nr ? nr : 1, 3 * sizeof(double));
+  double *rm = bsurf_alloc_array(nr ? nr : 1, sizeof(double));
+  bsurf_status st = *noise && *fref && *fmref && rf && rm ? BSURF_OK : BSURF_ERR_NOMEM;
+  for (size_t r = 0; r < nc + nr && st == BSURF_OK; r++) /* by row */
+    (*noise)[r] = global ? level : t->values[t->nb->idx[r * k]];
+  /* the ring's first choices (pass 3 on its rows), by local point; the
+   * core's own are written by bsurf_ksel_choose */
+  bsurf_neighbors ring = {nr, t->nb->k, t->nb->idx + nc * k, 0.0, NULL};
+  if (st == BSURF_OK && nr) st = bsurf_ksel_first(run, t->xyz, &ring, *noise + nc, rf, rm);
+  if (st == BSURF_OK) {
+    by_point(&ring, nr, rf, 3, *fref, nl);
+    by_point(&ring, nr, rm, 1, *fmref, nl);
+  }
+  free(rf);
+  free(rm);
+  if (st != BSURF_OK) {
     free(*noise);
     free(*fref);
     free(*fmref);
     *noise = *fref = *fmref = NULL;
-    return BSURF_ERR_NOMEM;
   }
-  for (size_t l = 0; l < nl; l++) {
-    memcpy(&(*fref)[3 * l], &t->values[SEL_COLS * l], 3 * sizeof(double));
-    (*fmref)[l] = t->values[SEL_COLS * l + 3];
-  }
-  for (size_t r = 0; r < nc; r++)
-    (*noise)[r] = t->values[SEL_COLS * (size_t)t->nb->idx[r * k] + 4];
-  return BSURF_OK;
+  return st;
 }

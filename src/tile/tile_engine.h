@@ -32,9 +32,10 @@ typedef struct bsurf_tile {
   size_t local_count;          /* those and their neighbours in the halo */
   const double *xyz;           /* local_count x 3, in increasing global order */
   const uint64_t *point_index; /* core_count global indices (increasing) */
-  const bsurf_neighbors *nb;   /* core_count rows of k local indices, each
-                                  point first, exactly the rows the whole
-                                  cloud gives (nb->h is 0: see report) */
+  const bsurf_neighbors *nb;   /* core_count (+ ring_count) rows of k local
+                                  indices, each point first, exactly the rows
+                                  the whole cloud gives (nb->h is 0: see
+                                  report) */
   double halo;                 /* the widest halo the tile needed */
   /* Two-stage runs (bsurf_tile_ops.values_in / nvalues; docs/scaling.md): */
   const double *values; /* values_in: local_count x values_in->nvalues,
@@ -45,6 +46,9 @@ typedef struct bsurf_tile {
    * included): rev[rev_off[r] .. rev_off[r + 1]) */
   const size_t *rev_off;
   const uint32_t *rev;
+  /* bsurf_tile_ops.ring_k: the ring's points (outside the tile) whose rows
+   * follow the core's in nb, in increasing global index */
+  size_t ring_count;
 } bsurf_tile;
 
 /* Per-point values of a first tiled stage, kept by global index in a scratch
@@ -98,6 +102,14 @@ typedef struct bsurf_tile_ops {
    * reverse neighbours, proven from the first stage's K-th distances). */
   const bsurf_tile_values *values_in;
   int reverse;
+  /* A fused stage (not with reverse): ring_k > 0 gives the tile the exact
+   * rows of its ring too, every point outside the tile among the first
+   * ring_k entries of the core's rows (proven as the core's, the halo grown
+   * as they need): nb then has core_count + ring_count rows. A value that a
+   * point reads at those neighbours, computed from their own rows (a
+   * 2-ring), is then computed in the same tile, without a stage between
+   * (the MSE rule, normals_mse_tiled.c). */
+  int ring_k;
 } bsurf_tile_ops;
 
 typedef struct bsurf_tile_report {

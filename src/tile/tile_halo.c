@@ -55,7 +55,7 @@ typedef struct search_ctx {
   size_t *pending;      /* their positions to search */
   double rlo[3], rhi[3];
   int complete;   /* the region holds the whole cloud */
-  uint64_t *rows; /* core x k global indices */
+  uint32_t *rows; /* core x k positions in G (remapped when G grows) */
   double *nn2;    /* core */
   double *kth2;   /* core: squared distance to the K-th (the row's last) */
   uint8_t *done, *dup;
@@ -77,17 +77,17 @@ static void search_point(void *vctx, int thread, size_t t) {
   /* the all-kNN row: the point, then the k - 1 nearest others (the query
    * returns the k nearest of all; the point itself is among them unless k
    * of its duplicates have smaller indices) */
-  uint64_t *row = s->rows + j * (size_t)k;
+  uint32_t *row = s->rows + j * (size_t)k;
   double r2 = 0, first = 0;
   int c = 1, seen_self = 0;
-  row[0] = s->core[j];
+  row[0] = (uint32_t)self;
   for (int q = 0; q < k && c < k; q++) {
     if (!seen_self && qi[q] == self) {
       seen_self = 1;
       continue;
     }
     if (c == 1) first = qd[q];
-    row[c++] = s->G[qi[q]];
+    row[c++] = qi[q];
     r2 = qd[q];
   }
   int ok = s->complete;
@@ -104,7 +104,7 @@ static void search_point(void *vctx, int thread, size_t t) {
   s->nn2[j] = k > 1 ? first : 0.0;
   s->kth2[j] = r2;
   if (k > 1) {
-    const double *q = s->gx + 3 * find_u64(s->G, s->m, row[1]);
+    const double *q = s->gx + 3 * (size_t)row[1];
     s->dup[j] = p[0] == q[0] && p[1] == q[1] && p[2] == q[2];
   }
 }
@@ -163,7 +163,7 @@ typedef struct tile_work {
   u64vec core, G;
   u64vec cand, S; /* reverse mode: candidates; the points searched (core + candidates) */
   double *gx;
-  uint64_t *rows;
+  uint32_t *rows; /* S x k positions in G */
   double *nn2, *kth2;
   size_t *cpos; /* core j -> its position in S */
   size_t *rev_off;
@@ -173,10 +173,13 @@ typedef struct tile_work {
   size_t *pending;
   uint32_t *qidx;
   double *qd2;
-  uint32_t *local; /* G position -> local index */
+  uint32_t *local;  /* G position -> local index */
+  uint32_t *coreof; /* reverse: G position -> core index, or UINT32_MAX */
   double *lxyz;
   uint32_t *idx;
   unsigned char *enc;
+  bsurf_knn_index *index; /* the last region's tree, between searches */
+  size_t nring;           /* ring points: S's last, after the core's (and candidates') */
 } tile_work;
 
 static void work_free(tile_work *w) {
@@ -201,9 +204,11 @@ static void work_free(tile_work *w) {
   free(w->qidx);
   free(w->qd2);
   free(w->local);
+  free(w->coreof);
   free(w->lxyz);
   free(w->idx);
   free(w->enc);
+  bsurf_knn_free(w->index);
   memset(w, 0, sizeof *w);
 }
 
@@ -332,6 +337,149 @@ static bsurf_status reverse_candidates(const tiles_ctx *c, const tile_box *b, u6
   return BSURF_OK;
 }
 
+/* The rows found so far, from positions in w->G to positions in G (a
+ * region that holds w->G's: both in increasing index, merged), and G made
+ * w->G (G emptied). */
+static bsurf_status remap_rows(const tiles_ctx *c, tile_work *w, u64vec *G) {
+  const size_t k = (size_t)c->k;
+  uint32_t *to = NULL;
+  if (w->G.n) {
+    if (!(to = bsurf_alloc_array(w->G.n, sizeof *to))) return BSURF_ERR_NOMEM;
+    for (size_t i = 0, p = 0; i < w->G.n; i++) {
+      while (p < G->n && G->v[p] < w->G.v[i])
+        p++;
+      assert(p < G->n && G->v[p] == w->G.v[i]);
+      to[i] = (uint32_t)p;
+    }
+    for (size_t q = 0; q < w->S.n; q++)
+      if (w->done[q])
+        for (size_t e = 0; e < k; e++)
+          w->rows[q * k + e] = to[w->rows[q * k + e]];
+  }
+  free(to);
+  free(w->G.v);
+  w->G = *G;
+  memset(G, 0, sizeof *G);
+  return BSURF_OK;
+}
+
+/* Searches the points of w->S at w->pending[0 .. npend) in regions of
+ * growing halo (doubled from *halo) until every row is proven. The last
+ * region's points, coordinates and tree stay in w; a next call (the ring)
+ * searches in them first. *grown: 1 if the halo had to widen. */
+static bsurf_status search_rounds(const tiles_ctx *c, const tile_box *b, tile_work *w, size_t npend,
+                                  const double box_lo[3], const double box_hi[3], double *halo,
+                                  int T, int *grown) {
+  *grown = 0;
+  for (;;) {
+    search_ctx s;
+    memset(&s, 0, sizeof s);
+    s.complete = 1;
+    for (int a = 0; a < 3; a++) {
+      s.rlo[a] = box_lo[a] - *halo;
+      s.rhi[a] = box_hi[a] + *halo;
+      if (s.rlo[a] > c->lo[a] || s.rhi[a] < c->hi[a]) s.complete = 0;
+    }
+    if (!w->index) { /* the region's points and their tree */
+      u64vec G = {NULL, 0, 0};
+      bsurf_status st = gather(c, b, s.rlo, s.rhi, &G);
+      if (st == BSURF_OK) st = remap_rows(c, w, &G);
+      free(G.v);
+      if (st != BSURF_OK) return st;
+      free(w->gx);
+      w->gx = bsurf_alloc_array(w->G.n, 3 * sizeof *w->gx);
+      if (!w->gx) return BSURF_ERR_NOMEM;
+      sweep sw = {&c->in, 0};
+      for (size_t j = 0; j < w->G.n; j++) {
+        xyz_of(c, w->G.v[j], w->gx + 3 * j);
+        sweep_at(&sw, c->layout.body + (size_t)w->G.v[j] * c->layout.record);
+      }
+      drop_pages(&c->in, 0, c->in.size);
+      st = bsurf_knn_build(&w->index, w->gx, w->G.n);
+      if (st != BSURF_OK) return st;
+    }
+    s.c = c;
+    s.G = w->G.v;
+    s.gx = w->gx;
+    s.m = w->G.n;
+    s.index = w->index;
+    s.core = w->S.v;
+    s.pending = w->pending;
+    s.rows = w->rows;
+    s.nn2 = w->nn2;
+    s.kth2 = w->kth2;
+    s.done = w->done;
+    s.dup = w->dup;
+    s.qidx = w->qidx;
+    s.qd2 = w->qd2;
+    bsurf_parallel_sweep(npend, T, search_point, &s);
+    size_t left = 0;
+    for (size_t q = 0; q < npend; q++)
+      if (!w->done[w->pending[q]]) w->pending[left++] = w->pending[q];
+    npend = left;
+    if (npend == 0) return BSURF_OK;
+    assert(!s.complete);
+    *grown = 1;
+    *halo *= 2;
+    bsurf_knn_free(w->index);
+    w->index = NULL;
+  }
+}
+
+static int u64_grow(void **p, size_t n, size_t size) {
+  void *q = realloc(*p, (n ? n : 1) * size);
+  if (!q) return -1;
+  *p = q;
+  return 0;
+}
+
+/* The ring of ops->ring_k: the distinct points outside the tile among the
+ * first ring_k entries of the core's (proven) rows, appended to w->S (its
+ * first ns entries: the searched points so far) in increasing index, with
+ * room for their rows and pending to search them. */
+static bsurf_status ring_points(const tiles_ctx *c, tile_work *w, size_t nc, size_t ns) {
+  const int k = c->k, rk = c->ops->ring_k < k ? c->ops->ring_k : k;
+  const size_t m = w->G.n;
+  u64vec ring = {NULL, 0, 0}; /* positions in G */
+  uint8_t *seen = bsurf_calloc_array(m ? m : 1, 1);
+  if (!seen) return BSURF_ERR_NOMEM;
+  for (size_t j = 0; j < nc; j++) /* a row's point is its first entry */
+    seen[w->rows[w->cpos[j] * (size_t)k]] = 1;
+  for (size_t j = 0; j < nc; j++)
+    for (int e = 1; e < rk; e++) {
+      uint32_t u = w->rows[w->cpos[j] * (size_t)k + (size_t)e];
+      if (seen[u]) continue;
+      seen[u] = 1;
+      if (u64_push(&ring, u)) {
+        free(seen);
+        free(ring.v);
+        return BSURF_ERR_NOMEM;
+      }
+    }
+  free(seen);
+  if (ring.n > 1) qsort(ring.v, ring.n, sizeof *ring.v, bsurf_cmp_u64); /* = index order */
+  const size_t nr = ring.n;
+  const size_t all = ns + nr;
+  if (u64_grow((void **)&w->S.v, all, sizeof *w->S.v) ||
+      u64_grow((void **)&w->rows, all, (size_t)k * sizeof *w->rows) ||
+      u64_grow((void **)&w->nn2, all, sizeof *w->nn2) ||
+      u64_grow((void **)&w->kth2, all, sizeof *w->kth2) || u64_grow((void **)&w->done, all, 1) ||
+      u64_grow((void **)&w->dup, all, 1) ||
+      u64_grow((void **)&w->pending, all, sizeof *w->pending)) {
+    free(ring.v);
+    return BSURF_ERR_NOMEM;
+  }
+  for (size_t q = 0; q < nr; q++) {
+    w->S.v[ns + q] = w->G.v[ring.v[q]];
+    w->done[ns + q] = w->dup[ns + q] = 0;
+    w->pending[q] = ns + q;
+  }
+  w->S.n = w->S.cap = all;
+  w->nring = nr;
+  free(ring.v);
+  return BSURF_OK;
+}
+
 /* The exact K-neighbourhoods of a tile's points (growing the halo until they
  * are proven), then the command's run and the output rows. In reverse mode
  * the candidates of reverse_candidates are searched with them, and the
@@ -407,57 +555,22 @@ bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failu
     box_lo[a] = c->origin[a] + c->cell * b->lo[a];
     box_hi[a] = c->origin[a] + c->cell * b->hi[a];
   }
-  for (int round = 0;; round++) {
-    search_ctx s;
-    memset(&s, 0, sizeof s);
-    s.complete = 1;
-    for (int a = 0; a < 3; a++) {
-      s.rlo[a] = box_lo[a] - halo;
-      s.rhi[a] = box_hi[a] + halo;
-      if (s.rlo[a] > c->lo[a] || s.rhi[a] < c->hi[a]) s.complete = 0;
-    }
-    st = gather(c, b, s.rlo, s.rhi, &w.G);
+  int grown = 0;
+  st = search_rounds(c, b, &w, npend, box_lo, box_hi, &halo, T, &grown);
+  if (st != BSURF_OK) goto out;
+  if (grown) rep->halo_grown++;
+  /* the ring (ops->ring_k): the points outside the tile among the first
+   * ring_k of the core's rows, searched after the core (the region and
+   * tree of its last round first), their rows after the core's */
+  if (c->ops->ring_k > 0) {
+    st = ring_points(c, &w, nc, ns);
+    if (st == BSURF_OK && w.nring)
+      st = search_rounds(c, b, &w, w.nring, box_lo, box_hi, &halo, T, &grown);
     if (st != BSURF_OK) goto out;
-    free(w.gx);
-    w.gx = bsurf_alloc_array(w.G.n, 3 * sizeof *w.gx);
-    if (!w.gx) {
-      st = BSURF_ERR_NOMEM;
-      goto out;
-    }
-    sweep sw = {&c->in, 0};
-    for (size_t j = 0; j < w.G.n; j++) {
-      xyz_of(c, w.G.v[j], w.gx + 3 * j);
-      sweep_at(&sw, c->layout.body + (size_t)w.G.v[j] * c->layout.record);
-    }
-    drop_pages(&c->in, 0, c->in.size);
-    bsurf_knn_index *index = NULL;
-    st = bsurf_knn_build(&index, w.gx, w.G.n);
-    if (st != BSURF_OK) goto out;
-    s.c = c;
-    s.G = w.G.v;
-    s.gx = w.gx;
-    s.m = w.G.n;
-    s.index = index;
-    s.core = w.S.v;
-    s.pending = w.pending;
-    s.rows = w.rows;
-    s.nn2 = w.nn2;
-    s.kth2 = w.kth2;
-    s.done = w.done;
-    s.dup = w.dup;
-    s.qidx = w.qidx;
-    s.qd2 = w.qd2;
-    bsurf_parallel_sweep(npend, T, search_point, &s);
-    bsurf_knn_free(index);
-    size_t left = 0;
-    for (size_t q = 0; q < npend; q++)
-      if (!w.done[w.pending[q]]) w.pending[left++] = w.pending[q];
-    npend = left;
-    if (npend == 0) break;
-    assert(!s.complete);
-    if (round == 0) rep->halo_grown++;
-    halo *= 2;
   }
+  bsurf_knn_free(w.index);
+  w.index = NULL;
+  const size_t nr = w.nring;
 
   /* The tile's cloud: its points, every neighbour they use and, in reverse
    * mode, every point whose row contains one of them, in increasing global
@@ -465,7 +578,7 @@ bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failu
   const size_t m = w.G.n;
   w.mark = bsurf_calloc_array(m, 1);
   w.local = bsurf_alloc_array(m, sizeof *w.local);
-  w.idx = bsurf_alloc_array(nc, (size_t)k * sizeof *w.idx);
+  w.idx = bsurf_alloc_array(nc + nr, (size_t)k * sizeof *w.idx);
   if (c->ops->reverse) w.rev_off = bsurf_calloc_array(nc + 1, sizeof *w.rev_off);
   if (!w.mark || !w.local || !w.idx || (c->ops->reverse && !w.rev_off)) {
     st = BSURF_ERR_NOMEM;
@@ -473,18 +586,31 @@ bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failu
   }
   for (size_t j = 0; j < nc; j++)
     for (int e = 0; e < k; e++) {
-      size_t pos = find_u64(w.G.v, m, w.rows[w.cpos[j] * (size_t)k + (size_t)e]);
+      size_t pos = w.rows[w.cpos[j] * (size_t)k + (size_t)e];
       w.idx[j * (size_t)k + (size_t)e] = (uint32_t)pos;
       w.mark[pos] = 1;
     }
+  for (size_t q = 0; q < nr; q++) /* the ring's rows after the core's */
+    for (int e = 0; e < k; e++) {
+      size_t pos = w.rows[(ns + q) * (size_t)k + (size_t)e];
+      w.idx[(nc + q) * (size_t)k + (size_t)e] = (uint32_t)pos;
+      w.mark[pos] = 1;
+    }
   if (c->ops->reverse) { /* how many rows contain each core point */
+    if (!(w.coreof = bsurf_alloc_array(m ? m : 1, sizeof *w.coreof))) {
+      st = BSURF_ERR_NOMEM;
+      goto out;
+    }
+    for (size_t j = 0; j < m; j++)
+      w.coreof[j] = UINT32_MAX;
+    for (size_t j = 0; j < nc; j++) /* a row's point is its first entry */
+      w.coreof[w.rows[w.cpos[j] * (size_t)k]] = (uint32_t)j;
     for (size_t q = 0; q < ns; q++)
       for (int e = 0; e < k; e++) {
-        uint64_t u = w.rows[q * (size_t)k + (size_t)e];
-        size_t j = find_u64(w.core.v, nc, u);
-        if (j < nc && w.core.v[j] == u) {
+        uint32_t j = w.coreof[w.rows[q * (size_t)k + (size_t)e]];
+        if (j != UINT32_MAX) {
           w.rev_off[j + 1]++;
-          w.mark[find_u64(w.G.v, m, w.S.v[q])] = 1;
+          w.mark[w.rows[q * (size_t)k]] = 1;
         }
       }
     for (size_t j = 0; j < nc; j++)
@@ -500,7 +626,7 @@ bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failu
   }
   for (size_t j = 0; j < m; j++)
     if (w.mark[j]) memcpy(w.lxyz + 3 * (size_t)w.local[j], w.gx + 3 * j, 3 * sizeof(double));
-  for (size_t e = 0; e < nc * (size_t)k; e++)
+  for (size_t e = 0; e < (nc + nr) * (size_t)k; e++)
     w.idx[e] = w.local[w.idx[e]];
   if (c->ops->reverse) { /* the lists, each in increasing index (S is) */
     size_t *fill = bsurf_alloc_array(nc + 1, sizeof *fill);
@@ -512,11 +638,10 @@ bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failu
     }
     memcpy(fill, w.rev_off, (nc + 1) * sizeof *fill);
     for (size_t q = 0; q < ns; q++) {
-      uint32_t lq = w.local[find_u64(w.G.v, m, w.S.v[q])];
+      uint32_t lq = w.local[w.rows[q * (size_t)k]];
       for (int e = 0; e < k; e++) {
-        uint64_t u = w.rows[q * (size_t)k + (size_t)e];
-        size_t j = find_u64(w.core.v, nc, u);
-        if (j < nc && w.core.v[j] == u) w.rev[fill[j]++] = lq;
+        uint32_t j = w.coreof[w.rows[q * (size_t)k + (size_t)e]];
+        if (j != UINT32_MAX) w.rev[fill[j]++] = lq;
       }
     }
     free(fill);
@@ -564,9 +689,9 @@ bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failu
     goto out;
   }
 
-  bsurf_neighbors nb = {nc, k, w.idx, 0.0, NULL};
-  bsurf_tile tile = {t,   c->ntiles, nc,      nl,     w.lxyz,    w.core.v,
-                     &nb, halo,      w.lvals, w.vout, w.rev_off, w.rev};
+  bsurf_neighbors nb = {nc + nr, k, w.idx, 0.0, NULL};
+  bsurf_tile tile = {t,    c->ntiles, nc,     nl,        w.lxyz, w.core.v, &nb,
+                     halo, w.lvals,   w.vout, w.rev_off, w.rev,  nr};
   double *sums = c->tile_sums + t * (c->ops->nsums + 1);
   st = c->ops->run(c->ops->user, &tile, &core, sums);
   if (st != BSURF_OK) goto out;

@@ -24,17 +24,18 @@ done
 expect 0 "error --memory-limit" -- "$BSURF" error "$T/n.ply" -k 20 -B 8 -o "$T/ea.ply" --memory-limit 2M
 stderr_has "tiles of" "automatic tiling warns"
 cmp -s "$T/e.ply" "$T/ea.ply" && ok || fail "error --memory-limit 2M: output differs"
-# the MSE rule's arrays (its tie-break's record, 40 bytes a tied candidate)
-# count in the estimate: 5.2M holds the in-memory run without them (4.3M) but
-# not with them (7.0M),
-# so the default rule tiles, where it is the same rule with the in-memory
-# bytes (four stages); the test error's own run fits in memory
-expect 0 "normals select-k auto, --memory-limit" -- "$BSURF" normals "$T/n.ply" --select-k 10:40:10 -B 0 -o "$T/ma.ply" --memory-limit 5.2M --json
+# the job's arrays count in the estimate (bsurf_normals_job_memory), the MSE
+# rule's with its tie-break's record (40 bytes a candidate, every one counted
+# as tied): 7M (7.3e6 bytes) holds the test-error run (1.7 MB of file x 3 +
+# 352 bytes a point: 5.9e6) but not the MSE rule's (620 bytes a point:
+# 9.2e6), so the default rule tiles, where it is the same rule with the
+# in-memory bytes (two stages); the test error's own run fits in memory
+expect 0 "normals select-k auto, --memory-limit" -- "$BSURF" normals "$T/n.ply" --select-k 10:40:10 -B 0 -o "$T/ma.ply" --memory-limit 7M --json
 stderr_has "tiles of" "the MSE rule's candidates counted: tiles"
 grep -q '"select_rule":"mse"' "$T/out" && ok || fail "select-k auto over the memory limit: not the mse rule in tiles"
 expect 0 "normals select-k auto in memory" -- "$BSURF" normals "$T/n.ply" --select-k 10:40:10 -B 0 -o "$T/mm.ply" -q
 cmp -s "$T/mm.ply" "$T/ma.ply" && ok || fail "select-k auto, --memory-limit: output differs from the in-memory run"
-expect 0 "normals select-k test-error, --memory-limit" -- "$BSURF" normals "$T/n.ply" --select-k 10:40:10 -B 0 --select-rule test-error -o "$T/mb.ply" --memory-limit 5.2M --json
+expect 0 "normals select-k test-error, --memory-limit" -- "$BSURF" normals "$T/n.ply" --select-k 10:40:10 -B 0 --select-rule test-error -o "$T/mb.ply" --memory-limit 7M --json
 grep -q '"tiles":' "$T/out" && fail "select-k test-error within the memory limit: tiled" || ok
 # an input that already has fields (the cube's feature_dist, feature), normals
 for args in "-k 20 -B 10" "--fit poly -d 2 -k 15 -B 5" "-k 10 -B 0"; do
