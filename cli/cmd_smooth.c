@@ -54,8 +54,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        65535},
       {'d', "degree", ARG_INT, &so.error.degree, "M", "degree of the height polynomial, 1..4", 1,
        4},
-      {'B', "bootstrap", ARG_INT, &so.error.bootstrap, "B", "bootstrap replicates per point", 0,
-       100000},
+      {'B', "bootstrap", ARG_INT, &so.error.bootstrap, "B",
+       "bootstrap replicates per point (at least 1: W_i is a bootstrap error)", 1, 100000},
       {0, "gamma", ARG_STRING, &gamma, "MODE", "no-information rate of .632+: fit, mean or max", 1,
        0},
       {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point", 1, 0},
@@ -183,8 +183,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     char *end = NULL;
     errno = 0;
     so.a = strtod(a_text, &end);
-    if (end == a_text || *end || errno || !isfinite(so.a) || so.a < 0)
-      return cli_usage_error(cmd, "--a must be a number >= 0 or auto, not '%s'", a_text);
+    /* A = 0 would make h1 = 0: every point moved by its own fit alone */
+    if (end == a_text || *end || errno || !isfinite(so.a) || so.a <= 0)
+      return cli_usage_error(cmd, "--a must be a positive number or auto, not '%s'", a_text);
   }
   if (strcmp(iter_text, "auto")) {
     char *end = NULL;

@@ -97,6 +97,18 @@ def _int(value, name):
     return v
 
 
+def _real(value):
+    """A finite number given as a number or its text ('0.5'), else NaN (which
+    the library would take for 'auto'): the caller names the option."""
+    if isinstance(value, bool):
+        return _math.nan
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return _math.nan
+    return v if _math.isfinite(v) else _math.nan
+
+
 def _cloud(d, shape_name):
     return Cloud(d, shape_name=shape_name)
 
@@ -514,6 +526,14 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
     v2, h2_h, f2 = (_math.nan, False, _math.nan) if h2 == "auto" else _length(h2, "h2", True)
     ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error in ("auto", "none")
                     else _length(k_error, "k_error", True))
+    # 'auto' is -1 for the library: a number must be positive (A = 0: h1 = 0)
+    if a != "auto" and not _real(a) > 0:
+        raise ValueError("a must be a positive number or 'auto', not %r" % (a,))
+    if iterations != "auto" and not 0 <= _int(iterations, "iterations") <= 1000000:
+        raise ValueError("iterations must be 0..1000000 or 'auto', not %r" % (iterations,))
+    if _int(bootstrap, "bootstrap") < 1:  # W_i is a bootstrap error
+        raise ValueError("bootstrap needs a whole number (1 to 100000), not %d"
+                         % _int(bootstrap, "bootstrap"))
     pts, tiled = _job_input(points, output, tile_points)
     return _core.smooth(pts, tiled, _choice(method, _METHODS, "method"), _int(neighbors, "neighbors"), _int(degree, "degree"),
                         _int(bootstrap, "bootstrap"), _int(seed, "seed"), _choice(gamma, _GAMMAS, "gamma"),
@@ -577,8 +597,8 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
       filter_k         distance: neighbours of the filter (0 = k_min)
       sigma_range      distance: range sigma of the filter, fraction of max
                        radius (0.05)
-      threshold        distance: fraction of max(feature_dist); variance:
-                       normal_var value; or 'auto'
+      threshold        distance: fraction of max(feature_dist), 0 to 1;
+                       variance: normal_var value, at least 0; or 'auto'
       tail_rule        variance auto threshold: null (test against a flat
                        patch at the measured noise), otsu or mad (on log
                        normal_var) (null)
@@ -601,7 +621,11 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
     neighbourhood, edge_power: the simulated edge's detected share at k,
     border_threshold: the border test's threshold).
     """
-    thr = _math.nan if threshold == "auto" else float(threshold)
+    thr = _math.nan
+    if threshold != "auto":  # NaN is the library's auto: a number must be finite
+        thr = _real(threshold)
+        if not _math.isfinite(thr):
+            raise ValueError("threshold must be a number or 'auto', not %r" % (threshold,))
     pts, tiled = _job_input(points, output, tile_points)
     return _core.features(pts, tiled, _choice(method, _FEATURE_METHODS, "method"), _int(neighbors, "neighbors"),
                           _int(bootstrap, "bootstrap"), _int(k_min, "k_min"), _int(k_max, "k_max"), _int(k_step, "k_step"),
@@ -829,8 +853,9 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
 
     points: (N, 3), a Cloud or a path. field: the name of a field of the
     cloud, or an (N,) array of values. Options as the command line's:
-      output      a PNG file to write (then None is returned); without it
-                  the (height, width, 3) uint8 image is returned
+      output      a PNG file to write (then None is returned; a name with
+                  another extension, x.jpg, is refused); without it the
+                  (height, width, 3) uint8 image is returned
       colormap    viridis, magma, gray or coolwarm
       range       (lo, hi) at the colormap's ends (default: 1st-99th
                   percentile)
@@ -871,6 +896,12 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
         if not (_math.isfinite(lo) and _math.isfinite(hi) and hi > lo):
             raise ValueError("range needs (lo, hi) with lo < hi, not %r" % (range,))
     import os
+    if output is not None:  # the command's check (cli_png_name): PNG bytes only under .png
+        base = os.path.basename(os.fspath(output))
+        dot = base.rfind(".")
+        if dot > 0 and dot + 1 < len(base) and base[dot:].lower() != ".png":
+            raise ValueError("output %s: the output is a PNG image: name it .png"
+                             % os.fspath(output))
     img, info = _core.render(pts, normals, values, None if output is None else os.fspath(output),
                              colormap, view,
                              _math.nan if azimuth is None else float(azimuth),

@@ -523,6 +523,26 @@ def test_bad_input(cube):
         bootsurf.smooth(p, iterations=2.5)
     with pytest.raises(TypeError, match=r"^points needs a whole number"):
         bootsurf.generate("cube", points="many")
+    # numbers outside their meaning, refused as the command line refuses them
+    # (no value taken silently for 'auto': the library's NaN and -1)
+    with pytest.raises(ValueError, match=r"threshold = -1 must be at least 0"):
+        bootsurf.features(p, threshold=-1)
+    with pytest.raises(ValueError, match=r"threshold = 1.5 must be in \[0, 1\]"):
+        bootsurf.features(p, method="distance", threshold=1.5)
+    with pytest.raises(ValueError, match=r"^threshold must be a number or 'auto', not nan$"):
+        bootsurf.features(p, threshold=float("nan"))
+    with pytest.raises(ValueError, match=r"^a must be a positive number or 'auto', not -1$"):
+        bootsurf.smooth(p, a=-1)
+    with pytest.raises(ValueError, match=r"^a must be a positive number or 'auto', not 0$"):
+        bootsurf.smooth(p, a=0)
+    with pytest.raises(ValueError, match=r"^iterations must be 0..1000000 or 'auto', not -1$"):
+        bootsurf.smooth(p, iterations=-1)
+    with pytest.raises(ValueError, match=r"^bootstrap needs a whole number \(1 to 100000\), not 0$"):
+        bootsurf.smooth(p, bootstrap=0)
+    # render: PNG bytes only under a .png name (the command's words)
+    with pytest.raises(ValueError, match=r"^output .*x.jpg: the output is a PNG image: name it .png$"):
+        bootsurf.render(p, output=tmp("x.jpg"))
+    assert not os.path.exists(tmp("x.jpg"))
     assert bootsurf.knn(p[:50], np.int64(4))[0].shape == (50, 4)  # numpy integers are whole
     assert bootsurf.generate("plane", points=100.0)["points"].shape[0] > 0  # so are 100.0
     with pytest.raises(OSError, match="nonexistent.ply"):
