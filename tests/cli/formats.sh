@@ -47,6 +47,22 @@ for ra, rb in zip(a[1:], b[1:]):
             assert x == y, (a[0][j], x, y)
 PY
 
+# ---- the LAS header's creation date: 0 0 (same bytes on every run), or
+# SOURCE_DATE_EPOCH's UTC date when it is set (docs/formats.md) ----
+las_date() { od -An -tu2 -j90 -N4 "$1" | tr -s ' ' | sed 's/^ //; s/ $//'; }
+(unset SOURCE_DATE_EPOCH; "$BSURF" convert "$T/a.ply" "$T/d0.las" -q && "$BSURF" convert "$T/a.ply" "$T/d0b.las" -q) &&
+  ok || fail "las without SOURCE_DATE_EPOCH"
+[ "$(las_date "$T/d0.las")" = "0 0" ] && ok || fail "las date without SOURCE_DATE_EPOCH: $(las_date "$T/d0.las")"
+cmp -s "$T/d0.las" "$T/d0b.las" && ok || fail "two las runs differ"
+SOURCE_DATE_EPOCH=1700000000 "$BSURF" convert "$T/a.ply" "$T/d1.las" -q && ok || fail "las with SOURCE_DATE_EPOCH"
+[ "$(las_date "$T/d1.las")" = "318 2023" ] && ok || fail "las date of 1700000000 (2023-11-14): $(las_date "$T/d1.las")"
+[ "$(cmp -l "$T/d0.las" "$T/d1.las" | awk '$1 < 91 || $1 > 94' | wc -l)" -eq 0 ] && ok || fail "SOURCE_DATE_EPOCH changed more than the date"
+SOURCE_DATE_EPOCH=1700000000 "$BSURF" convert "$T/a.ply" "$T/d12.las" --las-version 1.2 -q && [ "$(las_date "$T/d12.las")" = "318 2023" ] &&
+  ok || fail "las 1.2 date: $(las_date "$T/d12.las")"
+SOURCE_DATE_EPOCH=soon "$BSURF" convert "$T/a.ply" "$T/dbad.las" -q 2>"$T/err"
+[ $? -eq 1 ] && [ ! -e "$T/dbad.las" ] && ok || fail "a malformed SOURCE_DATE_EPOCH: not refused, or a file written"
+stderr_has "dbad.las: SOURCE_DATE_EPOCH='soon' is not a number of seconds since 1970" "malformed SOURCE_DATE_EPOCH"
+
 # ---- PCL ----
 if command -v pcl_pcd2ply >/dev/null 2>&1 && command -v pcl_ply2pcd >/dev/null 2>&1; then
   for mode in "" --ascii; do
