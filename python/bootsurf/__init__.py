@@ -62,8 +62,9 @@ class Cloud(dict):
 
 
 def _choice(value, names, option):
-    if value not in names:
-        raise ValueError("%s must be %s, not %r" % (option, " or ".join(names), value))
+    if value not in names:  # the command line's words: "a, b or c"
+        listed = ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else names[0]
+        raise ValueError("%s must be %s, not %r" % (option, listed, value))
     return names.index(value)
 
 
@@ -147,6 +148,13 @@ def _job_input(points, output, tile_points):
     if not os.fspath(points).lower().endswith(".ply"):
         raise ValueError("%s: tiled runs read binary PLY files (write one with write())"
                          % os.fspath(points))
+    try:  # the input is never replaced (the command line's check; it has --force)
+        same = os.path.samefile(points, output)
+    except OSError:
+        same = False  # no output yet, or no input: the library names what is wrong
+    if same:
+        raise ValueError("%s: the output is the input file; refusing to overwrite it"
+                         % os.fspath(output))
     return None, (os.fspath(points), os.fspath(output), _int(tile_points, "tile_points"))
 
 
@@ -524,8 +532,14 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
         raise ValueError("h1 must be a positive length (e.g. 0.01 or 1.5h) or 'auto', not %r"
                          % (h1,))
     v2, h2_h, f2 = (_math.nan, False, _math.nan) if h2 == "auto" else _length(h2, "h2", True)
+    if h2 != "auto" and not (v2 > 0 or f2 > 0):  # as the command line: G(W, 0) means nothing
+        raise ValueError("h2 must be a positive length, a multiple of |W| (e.g. '1W') or "
+                         "'auto', not %r" % (h2,))
     ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error in ("auto", "none")
                     else _length(k_error, "k_error", True))
+    if k_error not in ("auto", "none") and not (ke > 0 or fk > 0):
+        raise ValueError("k_error must be a positive length, a multiple of |W| or 'none', not %r"
+                         % (k_error,))
     # 'auto' is -1 for the library: a number must be positive (A = 0: h1 = 0)
     if a != "auto" and not _real(a) > 0:
         raise ValueError("a must be a positive number or 'auto', not %r" % (a,))
@@ -887,8 +901,11 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
         raise ValueError("give view or azimuth/elevation, not both")
     if views not in (1, 4):
         raise ValueError("views must be 1 or 4, not %r" % (views,))
-    w, h = size
-    if not (64 <= int(w) <= 8192 and 64 <= int(h) <= 8192):
+    try:
+        w, h = (_int(v, "size") for v in size)
+    except (TypeError, ValueError):
+        w = h = 0
+    if not (64 <= w <= 8192 and 64 <= h <= 8192):
         raise ValueError("size needs (width, height) with each in 64..8192, not %r" % (size,))
     lo = hi = _math.nan
     if range is not None:

@@ -543,6 +543,24 @@ def test_bad_input(cube):
     with pytest.raises(ValueError, match=r"^output .*x.jpg: the output is a PNG image: name it .png$"):
         bootsurf.render(p, output=tmp("x.jpg"))
     assert not os.path.exists(tmp("x.jpg"))
+    with pytest.raises(ValueError, match=r"^size needs \(width, height\) with each in 64..8192"):
+        bootsurf.render(p, size="100x100")
+    with pytest.raises(ValueError, match=r"^h2 must be a positive length"):
+        bootsurf.smooth(p, h2="0W")
+    with pytest.raises(ValueError, match=r"^k_error must be a positive length"):
+        bootsurf.smooth(p, k_error="0h")
+    with pytest.raises(ValueError, match=r"^ply_names must be plain, cloudcompare or meshlab, not 'gray'$"):
+        bootsurf.write(tmp("x.ply"), p, ply_names="gray")
+    with pytest.raises(OSError, match=r": is a directory$"):  # not 'unknown file extension'
+        bootsurf.write(TMP, p)
+    # a tiled run never replaces its input (the command line refuses it too)
+    bootsurf.write(tmp("in.ply"), cube)
+    with open(tmp("in.ply"), "rb") as f:
+        before_bytes = f.read()
+    with pytest.raises(ValueError, match=r"in.ply: the output is the input file; refusing"):
+        bootsurf.error(tmp("in.ply"), tile_points=1000, output=tmp("in.ply"), bootstrap=2)
+    with open(tmp("in.ply"), "rb") as f:
+        assert f.read() == before_bytes
     assert bootsurf.knn(p[:50], np.int64(4))[0].shape == (50, 4)  # numpy integers are whole
     assert bootsurf.generate("plane", points=100.0)["points"].shape[0] > 0  # so are 100.0
     with pytest.raises(OSError, match="nonexistent.ply"):
