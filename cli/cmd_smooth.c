@@ -307,9 +307,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       printf("  order %s, h1 = %.6g (%.4g h), h2 = %.6g (%.4g h)\n", order, rep.h1, rep.h1 / hh,
              rep.h2, rep.h2 / hh);
     else
-      printf("  order %s, %d passes, h1 = %s d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order,
-             rep.iterations, strcmp(a_text, "auto") ? a_text : "(1.5 sqrt(pi / K_i))", rep.h2,
-             rep.h2 / hh, so.k_min, so.error.k);
+      printf("  order %s, %d pass%s, h1 = %s d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order,
+             rep.iterations, rep.iterations == 1 ? "" : "es",
+             strcmp(a_text, "auto") ? a_text : "(1.5 sqrt(pi / K_i))", rep.h2, rep.h2 / hh,
+             so.k_min, so.error.k);
     if (so.guard)
       printf("  guard: noise %.6g (%.4g h), %zu fits with more misfit than noise moved nothing\n",
              rep.noise, rep.noise / hh, rep.misfit_fits);

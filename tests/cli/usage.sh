@@ -49,4 +49,8 @@ grep -q "fewer than K" "$T/err" && fail "empty stdin: 'fewer than K'" || ok
 "$BSURF" convert - "$T/back.csv" -q <"$IN/c.ply" && "$BSURF" convert "$IN/c.ply" "$T/ref.csv" -q &&
   cmp -s "$T/back.csv" "$T/ref.csv" && ok || fail "standard input: not the file's points"
 
+# ---- the text summary's words ----
+expect 0 "smooth, one pass" -- "$BSURF" smooth "$IN/c.ply" -k 20 -d 2 -B 2 --method multipass --iterations 1 -o "$T/s1.ply"
+grep -q ", 1 pass, h1" "$T/out" && ok || fail "smooth --iterations 1: $(grep order "$T/out")"
+
 finish
