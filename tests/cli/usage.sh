@@ -50,6 +50,9 @@ grep -q "fewer than K" "$T/err" && fail "empty stdin: 'fewer than K'" || ok
   cmp -s "$T/back.csv" "$T/ref.csv" && ok || fail "standard input: not the file's points"
 
 # ---- the text summary's words ----
+printf '1 2 3\n' >"$T/one.xyz"
+expect 0 "info, one point" -- "$BSURF" info "$T/one.xyz"
+grep -q "^  h          - (no spacing: fewer than 2 points)$" "$T/out" && ok || fail "info of one point: $(grep ' h ' "$T/out")"
 expect 0 "smooth, one pass" -- "$BSURF" smooth "$IN/c.ply" -k 20 -d 2 -B 2 --method multipass --iterations 1 -o "$T/s1.ply"
 grep -q ", 1 pass, h1" "$T/out" && ok || fail "smooth --iterations 1: $(grep order "$T/out")"
 
