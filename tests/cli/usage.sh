@@ -49,6 +49,13 @@ grep -q "fewer than K" "$T/err" && fail "empty stdin: 'fewer than K'" || ok
 "$BSURF" convert - "$T/back.csv" -q <"$IN/c.ply" && "$BSURF" convert "$IN/c.ply" "$T/ref.csv" -q &&
   cmp -s "$T/back.csv" "$T/ref.csv" && ok || fail "standard input: not the file's points"
 
+# ---- a CSV header naming some of x y z elsewhere than the first three columns ----
+printf 'i,x,y\n7,1,2\n8,3,4\n' >"$IN/ixy.csv"
+bad 1 "csv i,x,y" "$IN/ixy.csv:1: the header names x in column 2 but not all of x, y and z" -- "$BSURF" convert "$IN/ixy.csv" "$OUT"
+printf 'x,y,elevation\n1,2,3\n' >"$T/xye.csv" # the first three columns, as named
+expect 0 "csv x,y,elevation" -- "$BSURF" convert "$T/xye.csv" "$T/xye_back.csv" -q
+[ "$(tail -1 "$T/xye_back.csv")" = "1,2,3" ] && ok || fail "x,y,elevation: $(cat "$T/xye_back.csv")"
+
 # ---- the text summary's words ----
 printf '1 2 3\n' >"$T/one.xyz"
 expect 0 "info, one point" -- "$BSURF" info "$T/one.xyz"
