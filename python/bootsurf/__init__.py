@@ -98,6 +98,14 @@ def _int(value, name):
     return v
 
 
+def _progress(progress):
+    """progress= is None or a callable(done, total)."""
+    if progress is not None and not callable(progress):
+        raise TypeError("progress must be None or a callable(done, total), not %s"
+                        % type(progress).__name__)
+    return progress
+
+
 def _real(value):
     """A finite number given as a number or its text ('0.5'), else NaN (which
     the library would take for 'auto'): the caller names the option."""
@@ -126,6 +134,9 @@ def _points(x):
     """(points, cloud or None) of an array-like or a cloud dict."""
     x = _maybe_read(x)
     if isinstance(x, dict):
+        if "points" not in x:
+            raise ValueError("points: the cloud has no 'points' (a Cloud, an (N, 3) array or a "
+                             "path)")
         return x["points"], x
     return x, None
 
@@ -246,7 +257,7 @@ def knn(points, k, *, threads=0, progress=None):
     Returns idx (N, k) uint32 and dist2 (N, k) float64 (squared distances).
     The same for any thread count. k must be in [1, N].
     """
-    return _core.knn(points, _int(k, "k"), _int(threads, "threads"), progress)
+    return _core.knn(points, _int(k, "k"), _int(threads, "threads"), _progress(progress))
 
 
 def spacing(points, *, threads=0, progress=None):
@@ -255,7 +266,7 @@ def spacing(points, *, threads=0, progress=None):
     h, the mean distance from each point to its nearest other point: the
     thesis's unit of noise levels and errors (4.2). Needs at least 2 points.
     """
-    return _core.spacing(_points(points)[0], _int(threads, "threads"), progress)
+    return _core.spacing(_points(points)[0], _int(threads, "threads"), _progress(progress))
 
 
 # ---------------------------------------------------------------- chapter 4
@@ -309,7 +320,7 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
         raise ValueError("test_sample: err_test needs the cloud in memory, not a tiled run")
     return _core.error(pts, tiled, test, _int(neighbors, "neighbors"), _int(degree, "degree"), _int(bootstrap, "bootstrap"),
                        _int(seed, "seed"), _choice(gamma, _GAMMAS, "gamma"),
-                       _choice(pca_center, _CENTERS, "pca_center"), _int(threads, "threads"), progress)
+                       _choice(pca_center, _CENTERS, "pca_center"), _int(threads, "threads"), _progress(progress))
 
 
 # ---------------------------------------------------------------- chapter 5
@@ -424,7 +435,7 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
                          _choice(select_rule, _RULES, "select_rule"), _int(noise_k, "noise_k"),
                          _choice(noise_pool, _NOISE_POOLS, "noise_pool"), ds,
                          _int(smooth_iterations, "smooth_iterations"), float(alpha), float(sigma_d), snu,
-                         _choice(orient, _ORIENTS, "orient"), bool(curve), truth, progress)
+                         _choice(orient, _ORIENTS, "orient"), bool(curve), truth, _progress(progress))
 
 
 # ---------------------------------------------------------------- chapter 6
@@ -557,7 +568,7 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
                         -1 if iterations == "auto" else _int(iterations, "iterations"),
                         _int(k_min, "k_min"), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
                         _choice(degree_test, _DEGREE_TESTS, "degree_test") - 1, _int(threads, "threads"),
-                        progress)
+                        _progress(progress))
 
 
 # ---------------------------------------------------------------- chapter 7
@@ -648,7 +659,7 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
                           _choice(tail_rule, _TAIL_RULES, "tail_rule"),
                           float(false_positive_rate), _int(variance_filter_k, "variance_filter_k"),
                           float(feature_angle), _int(variance_k_max, "variance_k_max"), _int(seed, "seed"), _int(threads, "threads"),
-                          progress)
+                          _progress(progress))
 
 
 for _f in (error, normals, smooth, features):
@@ -676,6 +687,8 @@ def generate(shape, *, points=10000, sampling="regular", seed=1, feature_width=2
     Returns a Cloud with 'points', exact 'normals' and, for the cube,
     'feature_dist' and 'feature'.
     """
+    if not isinstance(shape, str):
+        raise TypeError("shape must be sphere, cube, torus or plane, not %r" % (shape,))
     d, name = _core.generate(shape, _int(points, "points"), _choice(sampling, _SAMPLINGS, "sampling"),
                              _int(seed, "seed"), float(feature_width))
     return _cloud(d, name)
@@ -717,7 +730,7 @@ def noise(points, normals=None, *, level=0.5, sigma_diag=None, model="gaussian",
         sd = float(sigma_diag)
         if sd == 0:
             lvl = 0.0  # sigma_diag=0: no noise, as the command line
-    out, report = _core.noise(pts, normals, m, lvl, sd, _int(seed, "seed"), _int(threads, "threads"), progress)
+    out, report = _core.noise(pts, normals, m, lvl, sd, _int(seed, "seed"), _int(threads, "threads"), _progress(progress))
     noise.last_report = report
     return out
 
@@ -842,7 +855,7 @@ def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None
         if surface is not None:
             surface = _maybe_read(surface)
         out["distances"], out["position"] = _core.eval_position(
-            pts, truth, getattr(truth, "shape_name", ""), surface, mask, _int(threads, "threads"), progress)
+            pts, truth, getattr(truth, "shape_name", ""), surface, mask, _int(threads, "threads"), _progress(progress))
     if not out or list(out) == ["split"]:
         raise ValueError("nothing to evaluate: give normals and true_normals, feature and "
                          "true_feature, or points and truth")
@@ -924,7 +937,7 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
                              _math.nan if azimuth is None else float(azimuth),
                              _math.nan if elevation is None else float(elevation), up,
                              shape_name, _int(views, "views"), int(w), int(h), float(point_size), lo, hi,
-                             title, label, bool(flat), bool(square), _int(threads, "threads"), progress)
+                             title, label, bool(flat), bool(square), _int(threads, "threads"), _progress(progress))
     render.last_info = info
     return img
 

@@ -553,6 +553,12 @@ def test_bad_input(cube):
         bootsurf.write(tmp("x.ply"), p, ply_names="gray")
     with pytest.raises(OSError, match=r": is a directory$"):  # not 'unknown file extension'
         bootsurf.write(TMP, p)
+    with pytest.raises(TypeError, match=r"^shape must be sphere, cube, torus or plane, not 5$"):
+        bootsurf.generate(5)
+    with pytest.raises(ValueError, match=r"^points: the cloud has no 'points'"):
+        bootsurf.error({"a": np.zeros(3)})
+    with pytest.raises(TypeError, match=r"^progress must be None or a callable"):
+        bootsurf.spacing(p, progress=5)
     # a tiled run never replaces its input (the command line refuses it too)
     bootsurf.write(tmp("in.ply"), cube)
     with open(tmp("in.ply"), "rb") as f:
