@@ -123,7 +123,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   char *pos[1];
   int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
-  if (!output) return cli_usage_error(cmd, "-o OUTPUT is required");
+  if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   static const char *const methods[] = {"naive", "bilateral", "multipass", "auto"};
   static const char *const orders[] = {"parallel", "sequential"};
   static const char *const estimators[] = {"auto", "632", "632plus"};

@@ -25,6 +25,11 @@ usage error "--ply-names gray: expected plain" -- "$BSURF" error "$IN/c.ply" -k 
 usage smooth "--las-version 1.3: expected 1.2 or 1.4" -- "$BSURF" smooth "$IN/c.ply" --las-version 1.3 -o "$OUT"
 grep -q "error:" "$T/err" && fail "--las-version: an error-style line" || ok
 
+# ---- a missing output, in the same words for every command that needs one ----
+for c in normals smooth features noise sample; do
+  usage "$c" "missing -o OUTPUT" -- "$BSURF" "$c" "$IN/c.ply"
+done
+
 # ---- thresholds and other numbers outside their meaning ----
 usage features "--threshold -1: --method variance takes a normal_var value, at least 0" -- \
   "$BSURF" features "$IN/c.ply" --threshold -1 -o "$OUT"
