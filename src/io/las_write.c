@@ -73,10 +73,10 @@ static int eb_type_code(bsurf_type t) {
 }
 
 /* The header's file creation day of year and year (LAS 1.4 R15, 2.4): 0 and
- * 0 (no date: January 1 is day 1), so that a run gives the same bytes whenever it runs
- * (results are deterministic for a seed), or the UTC date of the
- * SOURCE_DATE_EPOCH environment variable (reproducible-builds.org: seconds
- * since 1970) when it is set. A malformed value is refused, as that
+ * 0 (no date: January 1 is day 1), so that a run gives the same bytes
+ * whenever it runs (results are deterministic for a seed), or the UTC date
+ * of the SOURCE_DATE_EPOCH environment variable (reproducible-builds.org:
+ * seconds since 1970) when it is set. A malformed value is refused, as that
  * specification asks, rather than silently replaced. docs/formats.md. */
 static bsurf_status creation_date(unsigned *day, unsigned *year, bsurf_failure *err) {
   *day = *year = 0;
