@@ -273,7 +273,9 @@ typedef struct bsurf_write_options {
  * only when everything was written: a failed write leaves no partial file.
  * "-" writes standard output (opts->format required). `opts` may be NULL
  * (binary PLY). Formats that cannot carry every field (OFF, OBJ, XYZ) write
- * what they can; see bsurf_format_keeps_fields(). */
+ * what they can; see bsurf_format_keeps_fields(). LAS: the header's creation
+ * day and year are 0, or the UTC date of $SOURCE_DATE_EPOCH when it is set
+ * (a malformed value: BSURF_ERR_INVALID_ARG, nothing written). */
 BSURF_API bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
                                    const bsurf_write_options *opts, bsurf_failure *err);
 /* 1 if the format stores named scalar fields (PLY, PCD, LAS, CSV). */
