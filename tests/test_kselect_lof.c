@@ -78,9 +78,9 @@ static void shape_make(shape *s, bsurf_shape which, size_t n, double level) {
   bsurf_neighbors_free(&nb0);
   s->clean = malloc(3 * s->c.point_count * sizeof(double));
   memcpy(s->clean, s->c.normals, 3 * s->c.point_count * sizeof(double));
-  assert_int_equal(bsurf_add_noise(s->c.xyz, s->c.normals, s->c.point_count,
-                                   BSURF_NOISE_GAUSSIAN, level, h, 7),
-                   BSURF_OK);
+  assert_int_equal(
+      bsurf_add_noise(s->c.xyz, s->c.normals, s->c.point_count, BSURF_NOISE_GAUSSIAN, level, h, 7),
+      BSURF_OK);
   assert_int_equal(bsurf_neighbors_build(&s->nb, s->c.xyz, s->c.point_count, 80, 2, NULL, NULL),
                    BSURF_OK);
 }
@@ -109,8 +109,8 @@ static void run_passes(const shape *s, int emp, int threads, double *normals, in
   assert_int_equal(bsurf_ksel_level(r, noise, n), BSURF_OK);
   assert_int_equal(bsurf_ksel_first(r, s->c.xyz, &s->nb, noise, NULL, NULL, bref, bm), BSURF_OK);
   bsurf_kselect_fields f = {normals, k, NULL, NULL, NULL, NULL};
-  assert_int_equal(bsurf_ksel_choose(r, s->c.xyz, &s->nb, noise, emp ? bref : NULL,
-                                     emp ? bm : NULL, NULL, NULL, &f, NULL),
+  assert_int_equal(bsurf_ksel_choose(r, s->c.xyz, &s->nb, noise, emp ? bref : NULL, emp ? bm : NULL,
+                                     NULL, NULL, &f, NULL),
                    BSURF_OK);
   free(s2);
   free(noise);
@@ -176,7 +176,8 @@ static void test_cube_crease(void **state) {
   assert_memory_equal(n1, n2, 3 * n * sizeof(double));
   double kf0 = 0, kf1 = 0, ef0 = 0, ef1 = 0, e0 = 0, e1 = 0, nf = 0;
   for (size_t i = 0; i < n; i++) {
-    const double a0 = angle_u(&n0[3 * i], &s.clean[3 * i]), a1 = angle_u(&n1[3 * i], &s.clean[3 * i]);
+    const double a0 = angle_u(&n0[3 * i], &s.clean[3 * i]),
+                 a1 = angle_u(&n1[3 * i], &s.clean[3 * i]);
     e0 += a0, e1 += a1;
     if (fe->values[i] > 0.5) kf0 += k0[i], kf1 += k1[i], ef0 += a0, ef1 += a1, nf++;
   }
