@@ -41,12 +41,19 @@ bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_o
                                    int threads, bsurf_progress_fn progress, void *progress_user,
                                    struct bsurf_ksel_run *run, bsurf_tile_values *pooled,
                                    double *level, bsurf_tile_report *tr, bsurf_failure *err);
-/* The last stage's inputs in a tile (its ring_k: the noise_k) from the
- * pooled values (global: the level instead): the noise by row (core, then
- * ring), and the first choices' normals and M of the ring's points by local
- * point (pass 3 on the ring's rows; NAN elsewhere), allocated. */
+/* The rings the last stage needs (its ring_k is the noise_k): 2 with the
+ * empirical bias (bsurf_ksel_empirical: its references are the first
+ * choices without it at the noise_k nearest of the points whose first
+ * choices the tie-break reads), else 1. */
+int bsurf_jobs_mse_rings(const struct bsurf_ksel_run *run);
+/* The last stage's inputs in a tile from the pooled values (global: the
+ * level instead): the noise by row (core, then rings), the first choices'
+ * normals and M of the first ring's points by local point (pass 3 on its
+ * rows; NAN elsewhere), and with the empirical bias the first choices
+ * without it of every row's point (bref, bmref; else NULL), allocated. */
 bsurf_status bsurf_jobs_mse_tile(struct bsurf_ksel_run *run, const bsurf_tile *t, int global,
-                                 double level, double **noise, double **fref, double **fmref);
+                                 double level, double **noise, double **fref, double **fmref,
+                                 double **bref, double **bmref);
 
 /* The mean of n values summed in point order (what the summaries report). */
 double bsurf_jobs_mean(const double *v, size_t n);

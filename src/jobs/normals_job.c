@@ -39,7 +39,7 @@ typedef struct normals_job {
    * run, and per tile the noise by core row and the neighbours' first
    * choices; NULL in memory */
   bsurf_ksel_run *mse_run;
-  const double *mse_noise;
+  const double *mse_noise, *mse_bref, *mse_bmref;
   double *mse_fref, *mse_fmref; /* the ring's; bsurf_ksel_choose adds the core's */
   double mse_level;             /* the GLOBAL pool's noise level */
 } normals_job;
@@ -218,8 +218,8 @@ static bsurf_status normals_compute(normals_job *job, const double *xyz, const b
       return BSURF_ERR_NOMEM;
     }
     bsurf_kselect_fields kf = {bootstrap ? NULL : b->normals, kmse, b->err, NULL, sheet, dmse};
-    st = job->mse_run ? bsurf_ksel_choose(job->mse_run, xyz, nb, job->mse_noise, job->mse_fref,
-                                          job->mse_fmref, &kf, NULL)
+    st = job->mse_run ? bsurf_ksel_choose(job->mse_run, xyz, nb, job->mse_noise, job->mse_bref,
+                                          job->mse_bmref, job->mse_fref, job->mse_fmref, &kf, NULL)
                       : bsurf_select_k(xyz, nb, &ko, &kf, NULL);
     for (size_t i = 0; i < n; i++)
       b->ksel[i] = kmse[i], b->sheet[i] = sheet[i], b->dsel[i] = poly ? dmse[i] : no.degree;
@@ -325,18 +325,21 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
   bsurf_status st = normals_bufs_alloc(&b, job, tile->core_count);
   if (st != BSURF_OK) return st;
   bsurf_normal_report total;
-  double *noise = NULL, *fref = NULL, *fmref = NULL;
+  double *noise = NULL, *fref = NULL, *fmref = NULL, *bref = NULL, *bmref = NULL;
   /* the MSE rule: the noise and the neighbours' first choices, from the
    * first stages (normals_mse_tiled.c) */
-  if (job->mse_run &&
-      (st = bsurf_jobs_mse_tile(job->mse_run, tile, job->ksel.noise_pool == BSURF_NOISE_POOL_GLOBAL,
-                                job->mse_level, &noise, &fref, &fmref)) != BSURF_OK) {
+  if (job->mse_run && (st = bsurf_jobs_mse_tile(
+                           job->mse_run, tile, job->ksel.noise_pool == BSURF_NOISE_POOL_GLOBAL,
+                           job->mse_level, &noise, &fref, &fmref, &bref, &bmref)) != BSURF_OK) {
     normals_bufs_free(&b);
     return st;
   }
   job->mse_noise = noise;
   job->mse_fref = fref;
   job->mse_fmref = fmref;
+  /* the empirical bias's references (PCA candidates; NULL otherwise) */
+  job->mse_bref = bref;
+  job->mse_bmref = bmref;
   /* with normal_err: the reference normals of every local point, from the
    * first stage (normals_ref_run); the core's rows (the MSE rule's ring
    * follows them) */
@@ -347,6 +350,8 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
   free(noise);
   free(fref);
   free(fmref);
+  free(bref);
+  free(bmref);
   if (st == BSURF_OK) st = normals_store(job, core, &b, 0);
   if (st == BSURF_OK) {
     bsurf_jobs_add_counts(sums, total.replicates_total, total.replicates_skipped,
@@ -415,7 +420,8 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
     ops.values_in = job->test_error ? &refs : NULL;
     /* the MSE rule's tie-break reads the first choices of the noise_k
      * nearest: the tiles' rings */
-    if (job->mse_run) ops.ring_k = job->ksel.noise_k;
+    if (job->mse_run)
+      ops.ring_k = job->ksel.noise_k, ops.rings = bsurf_jobs_mse_rings(job->mse_run);
     memset(&tr, 0, sizeof tr);
     tr.sums = sums;
     st = bsurf_tiles_run(io->input, io->output, &ops, &tr, err);
@@ -695,9 +701,12 @@ bsurf_status bsurf_normals_job_memory(const bsurf_normals_job_options *opts,
      * normal 24 and M 8, the tied record's pointer 8, the visit order 4;
      * the tied record, 8 + 40 per tied candidate, counted for every
      * candidate (the worst case: a sphere at noise 0.5 has about 2.6 of 15
-     * tied); a tile's noise by row 8 and first choices by point 24 + 8
-     * (normals_mse_tiled.c) */
-    b += 12 + 16 + 4 + 24 + 8 + 8 + 4 + (8 + 40.0 * ncand) + 40;
+     * tied); a tile's noise by row 8, first choices by point 24 + 8 and
+     * by row 24 + 8 (normals_mse_tiled.c); with PCA candidates the
+     * empirical bias's references, the first choices without it, 24 + 8
+     * (kselect_lof.c) */
+    b += 12 + 16 + 4 + 24 + 8 + 8 + 4 + (8 + 40.0 * ncand) + 40 + 32;
+    if (o.normals.fit == BSURF_NORMAL_PCA) b += 32;
     /* a tiled run with the GLOBAL pool: every point's pooled value and the
      * median's copy, on every rank, between the stages (not with a tile) */
     if (job->ksel.noise_pool == BSURF_NOISE_POOL_GLOBAL) plan->cloud_bytes = 16;

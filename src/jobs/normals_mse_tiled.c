@@ -18,6 +18,12 @@
  *     core's noise_k nearest outside the tile), passes 3 and 4 on the core's
  *     (bsurf_ksel_choose writes the core's own first choices where pass 4
  *     reads them), the two-sheet test and the bootstrap at the chosen K.
+ *     With the empirical bias (PCA candidates: bsurf_ksel_empirical,
+ *     kselect_lof.c) pass 3 reads the first choices of a pass 3 without it
+ *     at the point's noise_k nearest: the tile then has two rings (ring_k =
+ *     noise_k, the ring of the first ring too), pass 3 without the bias runs
+ *     on every row (core and both rings: bsurf_select_k's first pass), then
+ *     with it on the first ring's rows, then passes 3 and 4 on the core's.
  *
  * Until issue 25 these were four stages (s2, pool, first choices, choice),
  * each a tiled run with its passes over the input, its k-d trees and K_max
@@ -95,24 +101,46 @@ bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_o
   return st;
 }
 
+int bsurf_jobs_mse_rings(const bsurf_ksel_run *run) {
+  return bsurf_ksel_empirical(run) ? 2 : 1;
+}
+
 bsurf_status bsurf_jobs_mse_tile(bsurf_ksel_run *run, const bsurf_tile *t, int global, double level,
-                                 double **noise, double **fref, double **fmref) {
-  const size_t nc = t->core_count, nr = t->ring_count, nl = t->local_count, k = (size_t)t->nb->k;
-  *noise = bsurf_alloc_array(nc + nr ? nc + nr : 1, sizeof(double));
+                                 double **noise, double **fref, double **fmref, double **bref,
+                                 double **bmref) {
+  const size_t nc = t->core_count, nr = t->ring_count, n1 = t->ring_first, nl = t->local_count,
+               k = (size_t)t->nb->k, rows = nc + nr;
+  const int emp = bsurf_ksel_empirical(run);
+  *noise = bsurf_alloc_array(rows ? rows : 1, sizeof(double));
   *fref = bsurf_alloc_array(nl ? nl : 1, 3 * sizeof(double));
   *fmref = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
-  double *rf = bsurf_alloc_array(nr ? nr : 1, 3 * sizeof(double));
-  double *rm = bsurf_alloc_array(nr ? nr : 1, sizeof(double));
-  bsurf_status st = *noise && *fref && *fmref && rf && rm ? BSURF_OK : BSURF_ERR_NOMEM;
-  for (size_t r = 0; r < nc + nr && st == BSURF_OK; r++) /* by row */
+  *bref = emp ? bsurf_alloc_array(nl ? nl : 1, 3 * sizeof(double)) : NULL;
+  *bmref = emp ? bsurf_alloc_array(nl ? nl : 1, sizeof(double)) : NULL;
+  double *rf = bsurf_alloc_array(rows ? rows : 1, 3 * sizeof(double));
+  double *rm = bsurf_alloc_array(rows ? rows : 1, sizeof(double));
+  bsurf_status st = *noise && *fref && *fmref && (!emp || (*bref && *bmref)) && rf && rm
+                        ? BSURF_OK
+                        : BSURF_ERR_NOMEM;
+  for (size_t r = 0; r < rows && st == BSURF_OK; r++) /* by row */
     (*noise)[r] = global ? level : t->values[t->nb->idx[r * k]];
-  /* the ring's first choices (pass 3 on its rows), by local point; the
-   * core's own are written by bsurf_ksel_choose */
-  bsurf_neighbors ring = {nr, t->nb->k, t->nb->idx + nc * k, 0.0, NULL};
-  if (st == BSURF_OK && nr) st = bsurf_ksel_first(run, t->xyz, &ring, *noise + nc, rf, rm);
+  if (st == BSURF_OK && emp) {
+    /* the first choices without the bias at every row's point: the
+     * references of the bias where the core and the first ring read them */
+    st = bsurf_ksel_first(run, t->xyz, t->nb, *noise, NULL, NULL, rf, rm);
+    if (st == BSURF_OK) {
+      by_point(t->nb, rows, rf, 3, *bref, nl);
+      by_point(t->nb, rows, rm, 1, *bmref, nl);
+    }
+  }
+  /* the first ring's first choices (pass 3 on its rows, with the bias's
+   * references), by local point; the core's own are written by
+   * bsurf_ksel_choose */
+  bsurf_neighbors ring = {emp ? n1 : nr, t->nb->k, t->nb->idx + nc * k, 0.0, NULL};
+  if (st == BSURF_OK && ring.point_count)
+    st = bsurf_ksel_first(run, t->xyz, &ring, *noise + nc, *bref, *bmref, rf, rm);
   if (st == BSURF_OK) {
-    by_point(&ring, nr, rf, 3, *fref, nl);
-    by_point(&ring, nr, rm, 1, *fmref, nl);
+    by_point(&ring, ring.point_count, rf, 3, *fref, nl);
+    by_point(&ring, ring.point_count, rm, 1, *fmref, nl);
   }
   free(rf);
   free(rm);
@@ -120,7 +148,9 @@ bsurf_status bsurf_jobs_mse_tile(bsurf_ksel_run *run, const bsurf_tile *t, int g
     free(*noise);
     free(*fref);
     free(*fmref);
-    *noise = *fref = *fmref = NULL;
+    free(*bref);
+    free(*bmref);
+    *noise = *fref = *fmref = *bref = *bmref = NULL;
   }
   return st;
 }

@@ -46,9 +46,10 @@ typedef struct bsurf_tile {
    * included): rev[rev_off[r] .. rev_off[r + 1]) */
   const size_t *rev_off;
   const uint32_t *rev;
-  /* bsurf_tile_ops.ring_k: the ring's points (outside the tile) whose rows
-   * follow the core's in nb, in increasing global index */
-  size_t ring_count;
+  /* bsurf_tile_ops.ring_k: the rings' points (outside the tile) whose rows
+   * follow the core's in nb, each ring in increasing global index:
+   * ring_count in all, the first ring's ring_first of them first */
+  size_t ring_count, ring_first;
 } bsurf_tile;
 
 /* Per-point values of a first tiled stage, kept by global index in a scratch
@@ -108,8 +109,11 @@ typedef struct bsurf_tile_ops {
    * as they need): nb then has core_count + ring_count rows. A value that a
    * point reads at those neighbours, computed from their own rows (a
    * 2-ring), is then computed in the same tile, without a stage between
-   * (the MSE rule, normals_mse_tiled.c). */
-  int ring_k;
+   * (the MSE rule, normals_mse_tiled.c). rings = 2: then also the ring of
+   * the first ring (the points outside the tile and the first ring among
+   * the first ring_k entries of its rows), for a value read at a
+   * neighbour's neighbours (a 3-ring); 0 or 1: one ring. */
+  int ring_k, rings;
 } bsurf_tile_ops;
 
 typedef struct bsurf_tile_report {

@@ -433,35 +433,40 @@ static int u64_grow(void **p, size_t n, size_t size) {
   return 0;
 }
 
-/* The ring of ops->ring_k: the distinct points outside the tile among the
- * first ring_k entries of the core's (proven) rows, appended to w->S (its
- * first ns entries: the searched points so far) in increasing index, with
- * room for their rows and pending to search them. */
-static bsurf_status ring_points(const tiles_ctx *c, tile_work *w, size_t nc, size_t ns) {
-  const int k = c->k, rk = c->ops->ring_k < k ? c->ops->ring_k : k;
-  const size_t m = w->G.n;
+/* A ring of ops->ring_k: the distinct points outside the tile and the
+ * rings so far (w->S from ns on) among the first ring_k entries of the rows
+ * of the points whose ring it is (the core's, or S's [from, to): the
+ * previous ring's), appended to w->S in increasing index, with room for
+ * their rows and pending (their positions) to search them. *added: how many. */
+static bsurf_status ring_points(const tiles_ctx *c, tile_work *w, size_t nc, size_t ns, size_t from,
+                                size_t to, size_t *added) {
+  const size_t k = (size_t)c->k, rk = (size_t)(c->ops->ring_k < c->k ? c->ops->ring_k : c->k);
+  const size_t m = w->G.n, have = w->S.n;
   u64vec ring = {NULL, 0, 0}; /* positions in G */
   uint8_t *seen = bsurf_calloc_array(m ? m : 1, 1);
   if (!seen) return BSURF_ERR_NOMEM;
   for (size_t j = 0; j < nc; j++) /* a row's point is its first entry */
-    seen[w->rows[w->cpos[j] * (size_t)k]] = 1;
-  for (size_t j = 0; j < nc; j++)
-    for (int e = 1; e < rk; e++) {
-      uint32_t u = w->rows[w->cpos[j] * (size_t)k + (size_t)e];
-      if (seen[u]) continue;
-      seen[u] = 1;
-      if (u64_push(&ring, u)) {
+    seen[w->rows[w->cpos[j] * k]] = 1;
+  for (size_t q = ns; q < have; q++)
+    seen[w->rows[q * k]] = 1;
+  const size_t nsrc = from < to ? to - from : nc;
+  for (size_t j = 0; j < nsrc; j++) {
+    const uint32_t *row = &w->rows[(from < to ? from + j : w->cpos[j]) * k];
+    for (size_t e = 1; e < rk; e++) {
+      if (seen[row[e]]) continue;
+      seen[row[e]] = 1;
+      if (u64_push(&ring, row[e])) {
         free(seen);
         free(ring.v);
         return BSURF_ERR_NOMEM;
       }
     }
+  }
   free(seen);
   if (ring.n > 1) qsort(ring.v, ring.n, sizeof *ring.v, bsurf_cmp_u64); /* = index order */
-  const size_t nr = ring.n;
-  const size_t all = ns + nr;
+  const size_t nr = ring.n, all = have + nr;
   if (u64_grow((void **)&w->S.v, all, sizeof *w->S.v) ||
-      u64_grow((void **)&w->rows, all, (size_t)k * sizeof *w->rows) ||
+      u64_grow((void **)&w->rows, all, k * sizeof *w->rows) ||
       u64_grow((void **)&w->nn2, all, sizeof *w->nn2) ||
       u64_grow((void **)&w->kth2, all, sizeof *w->kth2) || u64_grow((void **)&w->done, all, 1) ||
       u64_grow((void **)&w->dup, all, 1) ||
@@ -470,12 +475,13 @@ static bsurf_status ring_points(const tiles_ctx *c, tile_work *w, size_t nc, siz
     return BSURF_ERR_NOMEM;
   }
   for (size_t q = 0; q < nr; q++) {
-    w->S.v[ns + q] = w->G.v[ring.v[q]];
-    w->done[ns + q] = w->dup[ns + q] = 0;
-    w->pending[q] = ns + q;
+    w->S.v[have + q] = w->G.v[ring.v[q]];
+    w->done[have + q] = w->dup[have + q] = 0;
+    w->pending[q] = have + q;
   }
   w->S.n = w->S.cap = all;
-  w->nring = nr;
+  w->nring += nr;
+  *added = nr;
   free(ring.v);
   return BSURF_OK;
 }
@@ -562,11 +568,16 @@ bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failu
   /* the ring (ops->ring_k): the points outside the tile among the first
    * ring_k of the core's rows, searched after the core (the region and
    * tree of its last round first), their rows after the core's */
-  if (c->ops->ring_k > 0) {
-    st = ring_points(c, &w, nc, ns);
-    if (st == BSURF_OK && w.nring)
-      st = search_rounds(c, b, &w, w.nring, box_lo, box_hi, &halo, T, &grown);
+  size_t inner = 0, last = 0; /* the first ring's points, the last ring's */
+  for (int d = 0, rings = c->ops->rings > 1 ? c->ops->rings : 1; c->ops->ring_k > 0 && d < rings;
+       d++) {
+    if (d && !last) break; /* no ring beyond an empty one */
+    const size_t to = ns + w.nring, from = to - last;
+    st = ring_points(c, &w, nc, ns, from, to, &last);
+    if (st == BSURF_OK && last)
+      st = search_rounds(c, b, &w, last, box_lo, box_hi, &halo, T, &grown);
     if (st != BSURF_OK) goto out;
+    if (d == 0) inner = last;
   }
   bsurf_knn_free(w.index);
   w.index = NULL;
@@ -691,7 +702,7 @@ bsurf_status do_tile(tiles_ctx *c, size_t t, bsurf_tile_report *rep, bsurf_failu
 
   bsurf_neighbors nb = {nc + nr, k, w.idx, 0.0, NULL};
   bsurf_tile tile = {t,    c->ntiles, nc,     nl,        w.lxyz, w.core.v, &nb,
-                     halo, w.lvals,   w.vout, w.rev_off, w.rev,  nr};
+                     halo, w.lvals,   w.vout, w.rev_off, w.rev,  nr,       inner};
   double *sums = c->tile_sums + t * (c->ops->nsums + 1);
   st = c->ops->run(c->ops->user, &tile, &core, sums);
   if (st != BSURF_OK) goto out;

@@ -74,7 +74,8 @@ bsurf_status bsurf_tiles_run(const char *input, const char *output, const bsurf_
   if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
   if (!input || !output || !ops || !report || !ops->run || ops->k < 1 ||
       (ops->nsums && !report->sums) || (ops->nvalues && !ops->values_out) ||
-      (ops->reverse && !ops->values_in) || (ops->ring_k && ops->reverse) || ops->ring_k < 0)
+      (ops->reverse && !ops->values_in) || (ops->ring_k && ops->reverse) || ops->ring_k < 0 ||
+      ops->rings < 0 || ops->rings > 2)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
   double *user_sums = report->sums;
   memset(report, 0, sizeof *report);
