@@ -108,7 +108,8 @@ static void test_aniso_sphere(void **state) {
   bsurf_cloud_free(&dense);
   double h;
   assert_int_equal(bsurf_mean_spacing(xyz, n, 2, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(xyz, tn, n, BSURF_NOISE_GAUSSIAN, SPHERE_SIGMA, h, 11), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(xyz, tn, n, BSURF_NOISE_GAUSSIAN, SPHERE_SIGMA, h, 11),
+                   BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 80, 2, NULL, NULL), BSURF_OK);
   const sel_result r = select_on(xyz, tn, n, &nb);
