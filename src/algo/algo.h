@@ -309,6 +309,20 @@ bsurf_status bsurf_fdist_filter(const double *xyz, const bsurf_neighbors *nb,
 /* Otsu's split of the m positive values of the map (sorted in place); 0
  * when m < 2. */
 double bsurf_fdist_otsu_positive(double *pos, size_t m);
+/* The automatic T_h of the map of n points: Otsu's split of its positive
+ * values (features_distance.c). */
+bsurf_status bsurf_fdist_auto_threshold(const double *map, size_t n, double *t);
+/* The map of the whole cloud (bsurf_detect_features): the raw map, T_{a/c}
+ * from the cloud's medians, the points that stopped at once set to
+ * -max(radius); state (may be NULL) as bsurf_fdist_raw's, *t_kmin T_{a/c}
+ * at k_min. */
+bsurf_status bsurf_fdist_distance_raw(const double *xyz, const bsurf_neighbors *nb,
+                                      const bsurf_feature_options *opts, double *dist, int *ksel,
+                                      double *max_radius, size_t *immediate, double *t_kmin,
+                                      uint8_t *state);
+/* Otsu's two-class split of count >= 1 sorted values (features.c): the
+ * upper edge of the lower class's last bin of a 256-bin histogram. */
+double bsurf_otsu_sorted(const double *l, size_t count);
 /* feature of a point of map value v and state, with the absolute T_h thr;
  * threshold: the option (NAN = auto). */
 int bsurf_fdist_feature(double v, int state, double thr, double threshold);
