@@ -1,6 +1,6 @@
 /* The neighbourhood's scale from the noise (src/algo/ball_scale.c, issue 22):
- * the ball's count table against quadrature (kappa's: test_smooth_noise),
- * the rule's K against the noise, the rule in multipass smoothing at two
+ * the rule's K against the noise (the ball's tables against quadrature:
+ * test_smooth_noise), the rule in multipass smoothing at two
  * noise levels of a generated torus, and the variance features' false
  * positives on a featureless sphere at heavy noise (fixed seeds). */
 #include <math.h>
@@ -16,45 +16,6 @@
 #include "algo/algo.h"
 
 #define PI 3.14159265358979323846
-
-/* count(t) by quadrature (the model of ball_scale.c): over z0 ~ N(0, 1)
- * (midpoints on [-8, 8]) and over the ball's points at rho = t sin(th) from
- * the centre's normal line (midpoints in th), 2 pi rho times the mass of
- * N(0, 1) on [z0 - a, z0 + a], a = t cos(th). */
-static double count_quad(double t) {
-  const int nz = 801, nth = 400;
-  const double dz = 16.0 / nz;
-  double c = 0;
-  for (int iz = 0; iz < nz; iz++) {
-    const double z0 = -8 + (iz + 0.5) * dz;
-    const double wz = exp(-0.5 * z0 * z0) / sqrt(2 * PI) * dz;
-    double den = 0;
-    for (int it = 0; it < nth; it++) {
-      const double th = (it + 0.5) / nth * (PI / 2);
-      const double rho = t * sin(th), a = t * cos(th), w = rho * a * (PI / 2) / nth;
-      den += w * 0.5 * (erf((z0 + a) / sqrt(2.0)) - erf((z0 - a) / sqrt(2.0)));
-    }
-    c += wz * 2 * PI * den;
-  }
-  return c;
-}
-
-/* The count table at and between its nodes within 1e-3 (relative), its
- * wide-ball limit pi (t^2 - 2) (the heights' spread comes off the squared
- * radius), a volume (t^3) below t = 1, and increasing. */
-static void test_ball_count(void **state) {
-  (void)state;
-  double prev = 0;
-  for (int j = 64; j >= 2; j--) {
-    const double t = 64.0 / j, q = count_quad(t), c = bsurf_ball_count(t);
-    if (j % 16 == 0) print_message("t %.3f: count %.4f (quadrature %.4f)\n", t, c, q);
-    assert_true(fabs(c / q - 1) < 1e-3);
-    assert_true(c > prev);
-    prev = c;
-  }
-  assert_true(fabs(bsurf_ball_count(32) / (PI * (32.0 * 32 - 2)) - 1) < 1e-5);
-  assert_true(fabs(bsurf_ball_count(0.5) / bsurf_ball_count(1) - 0.125) < 1e-12);
-}
 
 /* The rule: k0 where the ball is wide against the noise, more where it is
  * not, never fewer at heavier noise or for fewer coefficients, at most the
@@ -79,6 +40,17 @@ static void test_scale_rule(void **state) {
   assert_int_equal(bsurf_scale_k(1.0, 50, 10, 400, NULL), 400);
 }
 
+/* 12,000 random points of shape (seed) with gaussian noise level h along
+ * the normals (noise_seed); *h the clean cloud's mean spacing */
+static void noisy_shape(bsurf_cloud *c, bsurf_shape shape, uint64_t seed, double level,
+                        uint64_t noise_seed, double *h) {
+  assert_int_equal(bsurf_generate(c, shape, 12000, BSURF_SAMPLING_RANDOM, seed, 0), BSURF_OK);
+  assert_int_equal(bsurf_mean_spacing(c->xyz, c->point_count, 2, h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c->xyz, c->normals, c->point_count, BSURF_NOISE_GAUSSIAN, level,
+                                   *h, noise_seed),
+                   BSURF_OK);
+}
+
 static double mean_distance(bsurf_shape shape, const double *xyz, size_t n) {
   double s = 0;
   for (size_t i = 0; i < n; i++)
@@ -96,13 +68,9 @@ static void test_scale_smooth_levels(void **state) {
   const double levels[2] = {0.5, 3.0};
   for (int l = 0; l < 2; l++) {
     bsurf_cloud c;
-    assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_TORUS, 12000, BSURF_SAMPLING_RANDOM, 9, 0),
-                     BSURF_OK);
-    const size_t n = c.point_count;
     double h;
-    assert_int_equal(bsurf_mean_spacing(c.xyz, n, 2, &h), BSURF_OK);
-    assert_int_equal(
-        bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_GAUSSIAN, levels[l], h, 21 + l), BSURF_OK);
+    noisy_shape(&c, BSURF_SHAPE_TORUS, 9, levels[l], 21 + l, &h);
+    const size_t n = c.point_count;
     bsurf_neighbors nb;
     assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 50, 2, NULL, NULL), BSURF_OK);
     bsurf_smooth_options o = bsurf_smooth_options_default();
@@ -116,8 +84,9 @@ static void test_scale_smooth_levels(void **state) {
     const double e0 = mean_distance(BSURF_SHAPE_TORUS, c.xyz, n),
                  e = mean_distance(BSURF_SHAPE_TORUS, out, n),
                  ef = mean_distance(BSURF_SHAPE_TORUS, fixed, n);
-    print_message("torus gaussian %.1f h: noise %.3f h, K %d: %.4f h (K 50: %.4f h, noisy %.4f h)\n",
-                  levels[l], rep.noise / h, rep.k, e / h, ef / h, e0 / h);
+    print_message(
+        "torus gaussian %.1f h: noise %.3f h, K %d: %.4f h (K 50: %.4f h, noisy %.4f h)\n",
+        levels[l], rep.noise / h, rep.k, e / h, ef / h, e0 / h);
     assert_int_equal(rf.k, 50);
     if (l == 0) {
       assert_int_equal(rep.k, 50);
@@ -145,13 +114,9 @@ static void test_scale_features_heavy(void **state) {
   const double levels[2] = {0.5, 3.0};
   for (int l = 0; l < 2; l++) {
     bsurf_cloud c;
-    assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_SPHERE, 12000, BSURF_SAMPLING_RANDOM, 4, 0),
-                     BSURF_OK);
-    const size_t n = c.point_count;
     double h;
-    assert_int_equal(bsurf_mean_spacing(c.xyz, n, 2, &h), BSURF_OK);
-    assert_int_equal(
-        bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_GAUSSIAN, levels[l], h, 31 + l), BSURF_OK);
+    noisy_shape(&c, BSURF_SHAPE_SPHERE, 4, levels[l], 31 + l, &h);
+    const size_t n = c.point_count;
     bsurf_feature_options fo = bsurf_feature_options_default();
     fo.threads = 2;
     const int cap = bsurf_fvar_k_cap(&fo, n);
@@ -175,7 +140,6 @@ static void test_scale_features_heavy(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_ball_count),
       cmocka_unit_test(test_scale_rule),
       cmocka_unit_test(test_scale_smooth_levels),
       cmocka_unit_test(test_scale_features_heavy),
