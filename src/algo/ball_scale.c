@@ -64,7 +64,9 @@ static double tab_read(const double *tab, double t) {
   return tab[j] + f * (tab[j + 1] - tab[j]);
 }
 
-double bsurf_ball_share(double t) { return tab_read(share_tab, t); }
+double bsurf_ball_share(double t) {
+  return tab_read(share_tab, t);
+}
 
 double bsurf_ball_count(double t) {
   if (!(t > 0)) return 0;
