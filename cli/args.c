@@ -212,10 +212,7 @@ int cli_parse(const cli_command *cmd, const cli_option *opts, int nopts, int arg
       quiet_warnings = 1;
   /* --format, --las-version and --ply-names are usage: refused before any
    * work is done, not after the computation when the file is written */
-  if (cli_out_format || cli_las_version || cli_ply_names) {
-    bsurf_write_options wo;
-    if (cli_write_options(NULL, 0, &wo)) return CLI_USAGE;
-  }
+  if (cli_write_options_check(cmd)) return CLI_USAGE;
   return CLI_PARSED;
 }
 

@@ -80,6 +80,9 @@ void cli_stdout_data_begin(void);
 /* bsurf_write_options from the options (ascii, --format, ...); 0, or prints
  * and returns 1. */
 int cli_write_options(const char *path, int ascii, bsurf_write_options *wo);
+/* --format, --las-version and --ply-names checked as usage (cli_parse, before
+ * any work): 0, or the usage error printed (CLI_USAGE). */
+int cli_write_options_check(const cli_command *cmd);
 /* The format a path will be written in (--format, else the extension). */
 bsurf_format cli_output_format(const char *path);
 /* bsurf_write, "-" to the real standard output. */

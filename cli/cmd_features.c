@@ -50,7 +50,9 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       {0, "sigma-range", ARG_DOUBLE, &fo.sigma_range, "S",
        "distance: range sigma of the filter, fraction of max radius", 1e-12, 1e6},
       {0, "threshold", ARG_STRING, &threshold_s, "T",
-       "distance: fraction of max(feature_dist) or auto; variance: normal_var value or auto", 1, 0},
+       "distance: fraction of max(feature_dist), 0 to 1, or auto; variance: normal_var value "
+       "(at least 0) or auto",
+       1, 0},
       {0, "tail-rule", ARG_STRING, &tail, "R",
        "variance auto threshold: null (test against a flat patch at the measured noise), otsu "
        "or mad (on log normal_var)",
@@ -88,6 +90,17 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     fo.threshold = strtod(threshold_s, &end);
     if (end == threshold_s || *end || !isfinite(fo.threshold))
       return cli_usage_error(cmd, "--threshold must be a number or auto, not '%s'", threshold_s);
+    /* distance: a fraction of max(feature_dist); variance: a normal_var,
+     * never negative (a threshold below 0 would flag every point) */
+    if (fo.method == BSURF_FEATURES_DISTANCE && !(fo.threshold >= 0 && fo.threshold <= 1))
+      return cli_usage_error(cmd,
+                             "--threshold %s: --method distance takes a fraction of "
+                             "max(feature_dist), 0 to 1, or auto",
+                             threshold_s);
+    if (fo.method == BSURF_FEATURES_VARIANCE && !(fo.threshold >= 0))
+      return cli_usage_error(
+          cmd, "--threshold %s: --method variance takes a normal_var value, at least 0, or auto",
+          threshold_s);
   }
   if (fo.k_max < fo.k_min) return cli_usage_error(cmd, "--k-max must be at least --k-min");
   if (fo.filter_k > fo.k_max) return cli_usage_error(cmd, "--filter-k must not exceed --k-max");

@@ -80,7 +80,10 @@ int cmd_info(const cli_command *cmd, int argc, char **argv) {
     if (c.point_count)
       printf("  bbox       [%g %g %g] .. [%g %g %g], diagonal %g\n", lo[0], lo[1], lo[2], hi[0],
              hi[1], hi[2], diag);
-    printf("  h          %.6g (mean nearest-neighbour distance)\n", h);
+    if (c.point_count < 2)
+      printf("  h          - (no spacing: fewer than 2 points)\n");
+    else
+      printf("  h          %.6g (mean nearest-neighbour distance)\n", h);
     cli_print_input_report(stdout);
   }
   bsurf_cloud_free(&c);

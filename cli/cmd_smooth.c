@@ -54,8 +54,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        65535},
       {'d', "degree", ARG_INT, &so.error.degree, "M", "degree of the height polynomial, 1..4", 1,
        4},
-      {'B', "bootstrap", ARG_INT, &so.error.bootstrap, "B", "bootstrap replicates per point", 0,
-       100000},
+      {'B', "bootstrap", ARG_INT, &so.error.bootstrap, "B",
+       "bootstrap replicates per point (at least 1: W_i is a bootstrap error)", 1, 100000},
       {0, "gamma", ARG_STRING, &gamma, "MODE", "no-information rate of .632+: fit, mean or max", 1,
        0},
       {0, "pca-center", ARG_STRING, &center, "C", "PCA about the centroid or the point", 1, 0},
@@ -131,7 +131,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   char *pos[1];
   int rc = cli_parse_input(cmd, opts, (int)(sizeof opts / sizeof opts[0]), argc, argv, pos);
   if (rc != CLI_PARSED) return rc;
-  if (!output) return cli_usage_error(cmd, "-o OUTPUT is required");
+  if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   static const char *const methods[] = {"naive", "bilateral", "multipass", "auto"};
   static const char *const orders[] = {"parallel", "sequential"};
   static const char *const estimators[] = {"auto", "632", "632plus"};
@@ -193,8 +193,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     char *end = NULL;
     errno = 0;
     so.a = strtod(a_text, &end);
-    if (end == a_text || *end || errno || !isfinite(so.a) || so.a < 0)
-      return cli_usage_error(cmd, "--a must be a number >= 0 or auto, not '%s'", a_text);
+    /* A = 0 would make h1 = 0: every point moved by its own fit alone */
+    if (end == a_text || *end || errno || !isfinite(so.a) || so.a <= 0)
+      return cli_usage_error(cmd, "--a must be a positive number or auto, not '%s'", a_text);
   }
   if (strcmp(iter_text, "auto")) {
     char *end = NULL;
@@ -317,9 +318,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       printf("  order %s, h1 = %.6g (%.4g h), h2 = %.6g (%.4g h)\n", order, rep.h1, rep.h1 / hh,
              rep.h2, rep.h2 / hh);
     else
-      printf("  order %s, %d passes, h1 = %s d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order,
-             rep.iterations, strcmp(a_text, "auto") ? a_text : "(1.5 sqrt(pi / K_i))", rep.h2,
-             rep.h2 / hh, so.k_min, rep.k > 0 ? rep.k : so.error.k);
+      printf("  order %s, %d pass%s, h1 = %s d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order,
+             rep.iterations, rep.iterations == 1 ? "" : "es",
+             strcmp(a_text, "auto") ? a_text : "(1.5 sqrt(pi / K_i))", rep.h2, rep.h2 / hh,
+             so.k_min, rep.k > 0 ? rep.k : so.error.k);
     if (so.guard)
       printf("  guard: noise %.6g (%.4g h), %zu fits with more misfit than noise moved nothing\n",
              rep.noise, rep.noise / hh, rep.misfit_fits);

@@ -35,31 +35,45 @@ int cli_output_is_stdout(int argc, char **argv) {
 
 static const char *const k_ply_names[] = {"plain", "cloudcompare", "meshlab"};
 
+/* What is wrong with --format, --las-version or --ply-names (written into
+ * msg), or 0. */
+static int write_options_problem(char *msg, size_t n) {
+  if (cli_out_format && bsurf_format_from_name(cli_out_format) == BSURF_FORMAT_UNKNOWN) {
+    snprintf(msg, n, "--format %s: unknown format (ply, pcd, las, csv, asc, xyz, off, obj)",
+             cli_out_format);
+    return 1;
+  }
+  if (cli_las_version && strcmp(cli_las_version, "1.2") != 0 &&
+      strcmp(cli_las_version, "1.4") != 0) {
+    snprintf(msg, n, "--las-version %s: expected 1.2 or 1.4", cli_las_version);
+    return 1;
+  }
+  if (cli_ply_names && cli_choice(cli_ply_names, k_ply_names, 3) < 0) {
+    snprintf(msg, n, "--ply-names %s: expected plain, cloudcompare or meshlab", cli_ply_names);
+    return 1;
+  }
+  return 0;
+}
+
+int cli_write_options_check(const cli_command *cmd) {
+  char msg[512];
+  return write_options_problem(msg, sizeof msg) ? cli_usage_error(cmd, "%s", msg) : 0;
+}
+
 int cli_write_options(const char *path, int ascii, bsurf_write_options *wo) {
   memset(wo, 0, sizeof *wo);
   wo->ascii = ascii;
   wo->float32 = cli_float32;
+  char msg[512];
+  if (write_options_problem(msg, sizeof msg)) return cli_error("%s", msg);
   if (cli_out_format) {
     wo->format = bsurf_format_from_name(cli_out_format);
-    if (wo->format == BSURF_FORMAT_UNKNOWN)
-      return cli_error("--format %s: unknown format (ply, pcd, las, csv, asc, xyz, off, obj)",
-                       cli_out_format);
   } else if (path && !strcmp(path, "-")) {
     return cli_error(
         "-: writing to standard output needs --format (ply, pcd, las, csv, xyz, off, obj)");
   }
-  if (cli_las_version) {
-    if (!strcmp(cli_las_version, "1.2"))
-      wo->las_legacy = 1;
-    else if (strcmp(cli_las_version, "1.4") != 0)
-      return cli_error("--las-version %s: expected 1.2 or 1.4", cli_las_version);
-  }
-  if (cli_ply_names) {
-    int k = cli_choice(cli_ply_names, k_ply_names, 3);
-    if (k < 0)
-      return cli_error("--ply-names %s: expected plain, cloudcompare or meshlab", cli_ply_names);
-    wo->ply_names = (bsurf_ply_names)k;
-  }
+  wo->las_legacy = cli_las_version && !strcmp(cli_las_version, "1.2");
+  if (cli_ply_names) wo->ply_names = (bsurf_ply_names)cli_choice(cli_ply_names, k_ply_names, 3);
   return 0;
 }
 

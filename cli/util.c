@@ -78,11 +78,18 @@ static int read_error(const char *path, bsurf_status st, const bsurf_failure *er
   return cli_error("%s: %s", path, msg);
 }
 
-/* The checks every read starts with: not empty. The format is the content's
- * signature, else the extension (bsurf_read, docs/formats.md). */
+/* The checks every read starts with: not empty (a file, or standard input,
+ * "-"). The format is the content's signature, else the extension
+ * (bsurf_read, docs/formats.md). */
 static int check_input_file(const char *path) {
   struct stat sb;
-  if (strcmp(path, "-") != 0 && stat(path, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size == 0)
+  if (!strcmp(path, "-")) { /* one byte looked at and put back for the reader */
+    int ch = getc(stdin);
+    if (ch == EOF) return cli_error("-: standard input is empty");
+    ungetc(ch, stdin);
+    return 0;
+  }
+  if (stat(path, &sb) == 0 && S_ISREG(sb.st_mode) && sb.st_size == 0)
     return cli_error("%s: the file is empty", path);
   return 0;
 }

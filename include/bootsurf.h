@@ -273,7 +273,9 @@ typedef struct bsurf_write_options {
  * only when everything was written: a failed write leaves no partial file.
  * "-" writes standard output (opts->format required). `opts` may be NULL
  * (binary PLY). Formats that cannot carry every field (OFF, OBJ, XYZ) write
- * what they can; see bsurf_format_keeps_fields(). */
+ * what they can; see bsurf_format_keeps_fields(). LAS: the header's creation
+ * day and year are 0, or the UTC date of $SOURCE_DATE_EPOCH when it is set
+ * (a malformed value: BSURF_ERR_INVALID_ARG, nothing written). */
 BSURF_API bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
                                    const bsurf_write_options *opts, bsurf_failure *err);
 /* 1 if the format stores named scalar fields (PLY, PCD, LAS, CSV). */
@@ -799,13 +801,14 @@ typedef struct bsurf_feature_options {
   double sigma_range;       /* range sigma of g_b as a fraction of
                                max(radius) (0.05; the thesis's 0.01 is
                                absolute on a unit-size model) */
-  /* threshold: distance: feature_dist <= threshold x max(feature_dist)
-   * (0: the thesis's T_h = 0 of Fig. 7.5, the points the accentuated,
+  /* threshold: distance: feature_dist <= threshold x max(feature_dist),
+   * threshold in [0, 1] (0: the thesis's T_h = 0 of Fig. 7.5, the points the accentuated,
    * filtered map keeps at or below zero); NAN = auto: the points <= 0 and
    * those below Otsu's split of the positive values that exceeded T_{a/c}
    * at some size (the band that met a feature before k_max, apart from the
    * plateau near max radius of those that met none).
-   * variance: normal_var > threshold; NAN = auto (tail_rule). */
+   * variance: normal_var > threshold (at least 0); NAN = auto
+   * (tail_rule). */
   double threshold;          /* NAN */
   bsurf_tail_rule tail_rule; /* NULL (variance) */
   /* variance, tail_rule NULL: the score is z = nu d / s^2 (d = 4 / (1 /

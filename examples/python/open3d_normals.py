@@ -20,6 +20,8 @@ except ImportError:
 
 if len(sys.argv) > 1:
     pcd = o3d.io.read_point_cloud(sys.argv[1])
+    if not pcd.has_points():  # Open3D warns and returns an empty cloud
+        sys.exit("%s: Open3D read no points from it" % sys.argv[1])
 else:
     cube = bootsurf.generate("cube", points=20000)
     pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(

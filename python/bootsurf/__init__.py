@@ -62,8 +62,9 @@ class Cloud(dict):
 
 
 def _choice(value, names, option):
-    if value not in names:
-        raise ValueError("%s must be %s, not %r" % (option, " or ".join(names), value))
+    if value not in names:  # the command line's words: "a, b or c"
+        listed = ", ".join(names[:-1]) + " or " + names[-1] if len(names) > 1 else names[0]
+        raise ValueError("%s must be %s, not %r" % (option, listed, value))
     return names.index(value)
 
 
@@ -97,6 +98,26 @@ def _int(value, name):
     return v
 
 
+def _progress(progress):
+    """progress= is None or a callable(done, total)."""
+    if progress is not None and not callable(progress):
+        raise TypeError("progress must be None or a callable(done, total), not %s"
+                        % type(progress).__name__)
+    return progress
+
+
+def _real(value):
+    """A finite number given as a number or its text ('0.5'), else NaN (which
+    the library would take for 'auto'): the caller names the option."""
+    if isinstance(value, bool):
+        return _math.nan
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return _math.nan
+    return v if _math.isfinite(v) else _math.nan
+
+
 def _cloud(d, shape_name):
     return Cloud(d, shape_name=shape_name)
 
@@ -113,6 +134,9 @@ def _points(x):
     """(points, cloud or None) of an array-like or a cloud dict."""
     x = _maybe_read(x)
     if isinstance(x, dict):
+        if "points" not in x:
+            raise ValueError("points: the cloud has no 'points' (a Cloud, an (N, 3) array or a "
+                             "path)")
         return x["points"], x
     return x, None
 
@@ -135,6 +159,13 @@ def _job_input(points, output, tile_points):
     if not os.fspath(points).lower().endswith(".ply"):
         raise ValueError("%s: tiled runs read binary PLY files (write one with write())"
                          % os.fspath(points))
+    try:  # the input is never replaced (the command line's check; it has --force)
+        same = os.path.samefile(points, output)
+    except OSError:
+        same = False  # no output yet, or no input: the library names what is wrong
+    if same:
+        raise ValueError("%s: the output is the input file; refusing to overwrite it"
+                         % os.fspath(output))
     return None, (os.fspath(points), os.fspath(output), _int(tile_points, "tile_points"))
 
 
@@ -226,7 +257,7 @@ def knn(points, k, *, threads=0, progress=None):
     Returns idx (N, k) uint32 and dist2 (N, k) float64 (squared distances).
     The same for any thread count. k must be in [1, N].
     """
-    return _core.knn(points, _int(k, "k"), _int(threads, "threads"), progress)
+    return _core.knn(points, _int(k, "k"), _int(threads, "threads"), _progress(progress))
 
 
 def spacing(points, *, threads=0, progress=None):
@@ -235,7 +266,7 @@ def spacing(points, *, threads=0, progress=None):
     h, the mean distance from each point to its nearest other point: the
     thesis's unit of noise levels and errors (4.2). Needs at least 2 points.
     """
-    return _core.spacing(_points(points)[0], _int(threads, "threads"), progress)
+    return _core.spacing(_points(points)[0], _int(threads, "threads"), _progress(progress))
 
 
 # ---------------------------------------------------------------- chapter 4
@@ -289,7 +320,7 @@ def error(points, *, neighbors=50, degree=3, bootstrap=50, gamma="fit", pca_cent
         raise ValueError("test_sample: err_test needs the cloud in memory, not a tiled run")
     return _core.error(pts, tiled, test, _int(neighbors, "neighbors"), _int(degree, "degree"), _int(bootstrap, "bootstrap"),
                        _int(seed, "seed"), _choice(gamma, _GAMMAS, "gamma"),
-                       _choice(pca_center, _CENTERS, "pca_center"), _int(threads, "threads"), progress)
+                       _choice(pca_center, _CENTERS, "pca_center"), _int(threads, "threads"), _progress(progress))
 
 
 # ---------------------------------------------------------------- chapter 5
@@ -404,7 +435,7 @@ def normals(points, *, neighbors=30, fit="pca", degree=2, pca_center="centroid",
                          _choice(select_rule, _RULES, "select_rule"), _int(noise_k, "noise_k"),
                          _choice(noise_pool, _NOISE_POOLS, "noise_pool"), ds,
                          _int(smooth_iterations, "smooth_iterations"), float(alpha), float(sigma_d), snu,
-                         _choice(orient, _ORIENTS, "orient"), bool(curve), truth, progress)
+                         _choice(orient, _ORIENTS, "orient"), bool(curve), truth, _progress(progress))
 
 
 # ---------------------------------------------------------------- chapter 6
@@ -519,8 +550,22 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
         raise ValueError("h1 must be a positive length (e.g. 0.01 or 1.5h) or 'auto', not %r"
                          % (h1,))
     v2, h2_h, f2 = (_math.nan, False, _math.nan) if h2 == "auto" else _length(h2, "h2", True)
+    if h2 != "auto" and not (v2 > 0 or f2 > 0):  # as the command line: G(W, 0) means nothing
+        raise ValueError("h2 must be a positive length, a multiple of |W| (e.g. '1W') or "
+                         "'auto', not %r" % (h2,))
     ke, ke_h, fk = ((_math.nan, False, _math.nan) if k_error in ("auto", "none")
                     else _length(k_error, "k_error", True))
+    if k_error not in ("auto", "none") and not (ke > 0 or fk > 0):
+        raise ValueError("k_error must be a positive length, a multiple of |W| or 'none', not %r"
+                         % (k_error,))
+    # 'auto' is -1 for the library: a number must be positive (A = 0: h1 = 0)
+    if a != "auto" and not _real(a) > 0:
+        raise ValueError("a must be a positive number or 'auto', not %r" % (a,))
+    if iterations != "auto" and not 0 <= _int(iterations, "iterations") <= 1000000:
+        raise ValueError("iterations must be 0..1000000 or 'auto', not %r" % (iterations,))
+    if _int(bootstrap, "bootstrap") < 1:  # W_i is a bootstrap error
+        raise ValueError("bootstrap needs a whole number (1 to 100000), not %d"
+                         % _int(bootstrap, "bootstrap"))
     pts, tiled = _job_input(points, output, tile_points)
     return _core.smooth(pts, tiled, _choice(method, _METHODS, "method"), _int(neighbors, "neighbors"), _int(degree, "degree"),
                         _int(bootstrap, "bootstrap"), _int(seed, "seed"), _choice(gamma, _GAMMAS, "gamma"),
@@ -530,8 +575,7 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
                         -1 if iterations == "auto" else _int(iterations, "iterations"),
                         _int(k_min, "k_min"), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
                         _choice(degree_test, _DEGREE_TESTS, "degree_test") - 1, _int(k_max, "k_max"),
-                        _int(threads, "threads"),
-                        progress)
+                        _int(threads, "threads"), _progress(progress))
 
 
 # ---------------------------------------------------------------- chapter 7
@@ -585,8 +629,8 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
       filter_k         distance: neighbours of the filter (0 = k_min)
       sigma_range      distance: range sigma of the filter, fraction of max
                        radius (0.05)
-      threshold        distance: fraction of max(feature_dist); variance:
-                       normal_var value; or 'auto'
+      threshold        distance: fraction of max(feature_dist), 0 to 1;
+                       variance: normal_var value, at least 0; or 'auto'
       tail_rule        variance auto threshold: null (test against a flat
                        patch at the measured noise), otsu or mad (on log
                        normal_var) (null)
@@ -609,7 +653,11 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
     neighbourhood, edge_power: the simulated edge's detected share at k,
     border_threshold: the border test's threshold).
     """
-    thr = _math.nan if threshold == "auto" else float(threshold)
+    thr = _math.nan
+    if threshold != "auto":  # NaN is the library's auto: a number must be finite
+        thr = _real(threshold)
+        if not _math.isfinite(thr):
+            raise ValueError("threshold must be a number or 'auto', not %r" % (threshold,))
     pts, tiled = _job_input(points, output, tile_points)
     return _core.features(pts, tiled, _choice(method, _FEATURE_METHODS, "method"), _int(neighbors, "neighbors"),
                           _int(bootstrap, "bootstrap"), _int(k_min, "k_min"), _int(k_max, "k_max"), _int(k_step, "k_step"),
@@ -618,7 +666,7 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
                           _choice(tail_rule, _TAIL_RULES, "tail_rule"),
                           float(false_positive_rate), _int(variance_filter_k, "variance_filter_k"),
                           float(feature_angle), _int(variance_k_max, "variance_k_max"), _int(seed, "seed"), _int(threads, "threads"),
-                          progress)
+                          _progress(progress))
 
 
 for _f in (error, normals, smooth, features):
@@ -646,6 +694,8 @@ def generate(shape, *, points=10000, sampling="regular", seed=1, feature_width=2
     Returns a Cloud with 'points', exact 'normals' and, for the cube,
     'feature_dist' and 'feature'.
     """
+    if not isinstance(shape, str):
+        raise TypeError("shape must be sphere, cube, torus or plane, not %r" % (shape,))
     d, name = _core.generate(shape, _int(points, "points"), _choice(sampling, _SAMPLINGS, "sampling"),
                              _int(seed, "seed"), float(feature_width))
     return _cloud(d, name)
@@ -687,7 +737,7 @@ def noise(points, normals=None, *, level=0.5, sigma_diag=None, model="gaussian",
         sd = float(sigma_diag)
         if sd == 0:
             lvl = 0.0  # sigma_diag=0: no noise, as the command line
-    out, report = _core.noise(pts, normals, m, lvl, sd, _int(seed, "seed"), _int(threads, "threads"), progress)
+    out, report = _core.noise(pts, normals, m, lvl, sd, _int(seed, "seed"), _int(threads, "threads"), _progress(progress))
     noise.last_report = report
     return out
 
@@ -812,7 +862,7 @@ def evaluate(normals=None, true_normals=None, *, feature=None, true_feature=None
         if surface is not None:
             surface = _maybe_read(surface)
         out["distances"], out["position"] = _core.eval_position(
-            pts, truth, getattr(truth, "shape_name", ""), surface, mask, _int(threads, "threads"), progress)
+            pts, truth, getattr(truth, "shape_name", ""), surface, mask, _int(threads, "threads"), _progress(progress))
     if not out or list(out) == ["split"]:
         raise ValueError("nothing to evaluate: give normals and true_normals, feature and "
                          "true_feature, or points and truth")
@@ -837,8 +887,9 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
 
     points: (N, 3), a Cloud or a path. field: the name of a field of the
     cloud, or an (N,) array of values. Options as the command line's:
-      output      a PNG file to write (then None is returned); without it
-                  the (height, width, 3) uint8 image is returned
+      output      a PNG file to write (then None is returned; a name with
+                  another extension, x.jpg, is refused); without it the
+                  (height, width, 3) uint8 image is returned
       colormap    viridis, magma, gray or coolwarm
       range       (lo, hi) at the colormap's ends (default: 1st-99th
                   percentile)
@@ -870,8 +921,11 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
         raise ValueError("give view or azimuth/elevation, not both")
     if views not in (1, 4):
         raise ValueError("views must be 1 or 4, not %r" % (views,))
-    w, h = size
-    if not (64 <= int(w) <= 8192 and 64 <= int(h) <= 8192):
+    try:
+        w, h = (_int(v, "size") for v in size)
+    except (TypeError, ValueError):
+        w = h = 0
+    if not (64 <= w <= 8192 and 64 <= h <= 8192):
         raise ValueError("size needs (width, height) with each in 64..8192, not %r" % (size,))
     lo = hi = _math.nan
     if range is not None:
@@ -879,12 +933,18 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
         if not (_math.isfinite(lo) and _math.isfinite(hi) and hi > lo):
             raise ValueError("range needs (lo, hi) with lo < hi, not %r" % (range,))
     import os
+    if output is not None:  # the command's check (cli_png_name): PNG bytes only under .png
+        base = os.path.basename(os.fspath(output))
+        dot = base.rfind(".")
+        if dot > 0 and dot + 1 < len(base) and base[dot:].lower() != ".png":
+            raise ValueError("output %s: the output is a PNG image: name it .png"
+                             % os.fspath(output))
     img, info = _core.render(pts, normals, values, None if output is None else os.fspath(output),
                              colormap, view,
                              _math.nan if azimuth is None else float(azimuth),
                              _math.nan if elevation is None else float(elevation), up,
                              shape_name, _int(views, "views"), int(w), int(h), float(point_size), lo, hi,
-                             title, label, bool(flat), bool(square), _int(threads, "threads"), progress)
+                             title, label, bool(flat), bool(square), _int(threads, "threads"), _progress(progress))
     render.last_info = info
     return img
 

@@ -558,6 +558,9 @@ bsurf_status bsurf_write(const char *path, const bsurf_cloud *cloud,
   /* a FIFO or device without an extension (-o /dev/null) gets PLY, the
    * format that keeps everything */
   if (format == BSURF_FORMAT_UNKNOWN && bsurf_output_is_stream(path)) format = BSURF_FORMAT_PLY;
+  struct stat sd; /* a directory, whatever its name, is named as one (the CLI's words) */
+  if (strcmp(path, "-") != 0 && stat(path, &sd) == 0 && S_ISDIR(sd.st_mode))
+    return bsurf_fail(err, BSURF_ERR_IO, 0, -1, "is a directory");
   if (format == BSURF_FORMAT_UNKNOWN)
     return bsurf_fail(err, BSURF_ERR_UNSUPPORTED, 0, -1, "%s",
                       strcmp(path, "-") == 0 ? "standard output needs a format (--format)"

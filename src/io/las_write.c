@@ -7,6 +7,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 /* ---- writing ---------------------------------------------------------------------- */
 
@@ -71,7 +72,38 @@ static int eb_type_code(bsurf_type t) {
   }
 }
 
+/* The header's file creation day of year and year (LAS 1.4 R15, 2.4): 0 and
+ * 0 (no date: January 1 is day 1), so that a run gives the same bytes
+ * whenever it runs (results are deterministic for a seed), or the UTC date
+ * of the SOURCE_DATE_EPOCH environment variable (reproducible-builds.org:
+ * seconds since 1970) when it is set. A malformed value is refused, as that
+ * specification asks, rather than silently replaced. docs/formats.md. */
+static bsurf_status creation_date(unsigned *day, unsigned *year, bsurf_failure *err) {
+  *day = *year = 0;
+  const char *e = getenv("SOURCE_DATE_EPOCH");
+  if (!e || !*e) return BSURF_OK;
+  unsigned long long v = 0;
+  const char *p = e;
+  for (; *p >= '0' && *p <= '9' && v <= 253402300799ull; p++) /* up to 9999-12-31 */
+    v = v * 10 + (unsigned)(*p - '0');
+  if (*p || v > 253402300799ull)
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
+                      "SOURCE_DATE_EPOCH='%.40s' is not a number of seconds since 1970 "
+                      "(up to the year 9999); unset it to write the date as 0",
+                      e);
+  time_t t = (time_t)v;
+  struct tm tm;
+  if (!gmtime_r(&t, &tm))
+    return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "SOURCE_DATE_EPOCH='%.40s': no date", e);
+  *day = (unsigned)tm.tm_yday + 1;
+  *year = (unsigned)tm.tm_year + 1900;
+  return BSURF_OK;
+}
+
 bsurf_status bsurf_io_las_check(const bsurf_cloud *cloud, bsurf_failure *err) {
+  unsigned day, year;
+  bsurf_status st = creation_date(&day, &year, err);
+  if (st != BSURF_OK) return st;
   size_t bytes = 38;
   for (size_t i = 0; i < 3 * cloud->point_count; i++)
     if (!isfinite(cloud->xyz[i]))
@@ -152,6 +184,9 @@ typedef struct las_col {
 bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int legacy,
                                 bsurf_failure *err) {
   size_t n = cloud->point_count, nf = cloud->field_count;
+  unsigned day, year;
+  bsurf_status date_st = creation_date(&day, &year, err);
+  if (date_st != BSURF_OK) return date_st;
   if (legacy && n > 0xffffffffu)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1,
                       "LAS 1.2 counts at most 2^32 - 1 points; write LAS 1.4");
@@ -236,6 +271,8 @@ bsurf_status bsurf_io_write_las(io_writer *w, const bsurf_cloud *cloud, int lega
   hdr[25] = legacy ? 2 : 4;
   memcpy(hdr + 26, "bootsurf", 8);
   snprintf((char *)hdr + 58, 32, "bootsurf %s", BSURF_VERSION_STRING);
+  put_u16(hdr + 90, day);
+  put_u16(hdr + 92, year);
   put_u16(hdr + 94, (unsigned)hsize);
   put_u32(hdr + 96, (uint32_t)(hsize + vlr_bytes));
   put_u32(hdr + 100, nvlr);

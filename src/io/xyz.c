@@ -111,7 +111,7 @@ static bsurf_type infer_type(const double *v, size_t stride, size_t n, int allow
 
 /* The cloud from rows named by a header. */
 static bsurf_status named_columns(bsurf_cloud *cloud, const double *rows, size_t n, size_t ncols,
-                                  const io_token *names, bsurf_failure *err) {
+                                  const io_token *names, long hdr_line, bsurf_failure *err) {
   size_t xyz[3] = {0, 1, 2}, nrm[3] = {0, 0, 0};
   int found = 0, nfound = 0;
   static const char *const cx[3] = {"x", "y", "z"}, *const cn[3] = {"nx", "ny", "nz"},
@@ -127,6 +127,14 @@ static bsurf_status named_columns(bsurf_cloud *cloud, const double *rows, size_t
         nfound |= 1 << k;
       }
     }
+  /* some of x y z named, but not all: the first three columns, unless that
+   * would put a named coordinate elsewhere ("i,x,y" would read i as x) */
+  for (int k = 0; k < 3 && found != 7; k++)
+    if ((found & (1 << k)) && xyz[k] != (size_t)k)
+      return bsurf_fail(err, BSURF_ERR_PARSE, hdr_line, -1,
+                        "the header names %s in column %zu but not all of x, y and z: the "
+                        "coordinates would be the first three columns",
+                        cx[k], xyz[k] + 1);
   if (found != 7) found = 0; /* no x y z names: the first three columns */
   if (!found) xyz[0] = 0, xyz[1] = 1, xyz[2] = 2;
   int with_normals = nfound == 7;
@@ -306,7 +314,7 @@ bsurf_status bsurf_io_read_xyz(const char *data, size_t size, bsurf_cloud *cloud
 
   size_t n = ncols ? rows.n / ncols : 0;
   if (st == BSURF_OK && n && names) {
-    st = named_columns(cloud, rows.v, n, ncols, names, err);
+    st = named_columns(cloud, rows.v, n, ncols, names, hdr_line, err);
   } else if (st == BSURF_OK && n) {
     if (ncols == 3) {
       cloud->point_count = n;

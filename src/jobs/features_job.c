@@ -297,6 +297,17 @@ static bsurf_status features_check(const bsurf_feature_options *fo) {
   }
   BSURF_REQUIRE_IN(FJ, isnan(fo->threshold) || isfinite(fo->threshold),
                    "opts->threshold = %g must be finite, or NAN (auto)", fo->threshold);
+  /* distance: a fraction of max(feature_dist); variance: a normal_var (a
+   * negative threshold would flag every point) */
+  if (fo->method == BSURF_FEATURES_DISTANCE)
+    BSURF_REQUIRE_IN(FJ, isnan(fo->threshold) || (fo->threshold >= 0 && fo->threshold <= 1),
+                     "opts->threshold = %g must be in [0, 1] (a fraction of max(feature_dist)), "
+                     "or NAN (auto)",
+                     fo->threshold);
+  else
+    BSURF_REQUIRE_IN(FJ, isnan(fo->threshold) || fo->threshold >= 0,
+                     "opts->threshold = %g must be at least 0 (a normal_var), or NAN (auto)",
+                     fo->threshold);
   return BSURF_OK;
 }
 

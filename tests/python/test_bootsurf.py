@@ -523,6 +523,50 @@ def test_bad_input(cube):
         bootsurf.smooth(p, iterations=2.5)
     with pytest.raises(TypeError, match=r"^points needs a whole number"):
         bootsurf.generate("cube", points="many")
+    # numbers outside their meaning, refused as the command line refuses them
+    # (no value taken silently for 'auto': the library's NaN and -1)
+    with pytest.raises(ValueError, match=r"threshold = -1 must be at least 0"):
+        bootsurf.features(p, threshold=-1)
+    with pytest.raises(ValueError, match=r"threshold = 1.5 must be in \[0, 1\]"):
+        bootsurf.features(p, method="distance", threshold=1.5)
+    with pytest.raises(ValueError, match=r"^threshold must be a number or 'auto', not nan$"):
+        bootsurf.features(p, threshold=float("nan"))
+    with pytest.raises(ValueError, match=r"^a must be a positive number or 'auto', not -1$"):
+        bootsurf.smooth(p, a=-1)
+    with pytest.raises(ValueError, match=r"^a must be a positive number or 'auto', not 0$"):
+        bootsurf.smooth(p, a=0)
+    with pytest.raises(ValueError, match=r"^iterations must be 0..1000000 or 'auto', not -1$"):
+        bootsurf.smooth(p, iterations=-1)
+    with pytest.raises(ValueError, match=r"^bootstrap needs a whole number \(1 to 100000\), not 0$"):
+        bootsurf.smooth(p, bootstrap=0)
+    # render: PNG bytes only under a .png name (the command's words)
+    with pytest.raises(ValueError, match=r"^output .*x.jpg: the output is a PNG image: name it .png$"):
+        bootsurf.render(p, output=tmp("x.jpg"))
+    assert not os.path.exists(tmp("x.jpg"))
+    with pytest.raises(ValueError, match=r"^size needs \(width, height\) with each in 64..8192"):
+        bootsurf.render(p, size="100x100")
+    with pytest.raises(ValueError, match=r"^h2 must be a positive length"):
+        bootsurf.smooth(p, h2="0W")
+    with pytest.raises(ValueError, match=r"^k_error must be a positive length"):
+        bootsurf.smooth(p, k_error="0h")
+    with pytest.raises(ValueError, match=r"^ply_names must be plain, cloudcompare or meshlab, not 'gray'$"):
+        bootsurf.write(tmp("x.ply"), p, ply_names="gray")
+    with pytest.raises(OSError, match=r": is a directory$"):  # not 'unknown file extension'
+        bootsurf.write(TMP, p)
+    with pytest.raises(TypeError, match=r"^shape must be sphere, cube, torus or plane, not 5$"):
+        bootsurf.generate(5)
+    with pytest.raises(ValueError, match=r"^points: the cloud has no 'points'"):
+        bootsurf.error({"a": np.zeros(3)})
+    with pytest.raises(TypeError, match=r"^progress must be None or a callable"):
+        bootsurf.spacing(p, progress=5)
+    # a tiled run never replaces its input (the command line refuses it too)
+    bootsurf.write(tmp("in.ply"), cube)
+    with open(tmp("in.ply"), "rb") as f:
+        before_bytes = f.read()
+    with pytest.raises(ValueError, match=r"in.ply: the output is the input file; refusing"):
+        bootsurf.error(tmp("in.ply"), tile_points=1000, output=tmp("in.ply"), bootstrap=2)
+    with open(tmp("in.ply"), "rb") as f:
+        assert f.read() == before_bytes
     assert bootsurf.knn(p[:50], np.int64(4))[0].shape == (50, 4)  # numpy integers are whole
     assert bootsurf.generate("plane", points=100.0)["points"].shape[0] > 0  # so are 100.0
     with pytest.raises(OSError, match="nonexistent.ply"):
