@@ -228,8 +228,12 @@ bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_cou
  * below read (GLOBAL: their median); bsurf_ksel_first: pass 3's first
  * choices' normals (row x 3) and criteria M (row); bsurf_ksel_choose: passes
  * 3 and 4 into out (fref, fmref: the neighbours' first choices and their M,
- * NULL: this table's own, when its rows are every point). The same bits as bsurf_select_k for the
- * same rows. */
+ * NULL: this table's own, when its rows are every point). bref, bmref: the
+ * neighbours' first choices of a pass 3 without them, the references of the
+ * empirical bias where the quadric does not fit (kselect_lof.c; NULL: none),
+ * when bsurf_ksel_empirical: bsurf_select_k runs bsurf_ksel_first twice,
+ * the second with the first's as bref. The same bits as bsurf_select_k for
+ * the same rows. */
 typedef struct bsurf_ksel_run bsurf_ksel_run;
 bsurf_status bsurf_ksel_open(const bsurf_kselect_options *opts, int nb_k, int two_sheet,
                              bsurf_ksel_run **run);
@@ -240,10 +244,13 @@ bsurf_status bsurf_ksel_pool(bsurf_ksel_run *r, const double *xyz, const bsurf_n
                              const double *s2, double *noise);
 bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n);
 bsurf_status bsurf_ksel_first(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                              const double *noise, double *fnrm, double *fmse);
+                              const double *noise, const double *bref, const double *bmref,
+                              double *fnrm, double *fmse);
 bsurf_status bsurf_ksel_choose(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                               const double *noise, const double *fref, const double *fmref,
-                               bsurf_kselect_fields *out, bsurf_kselect_report *report);
+                               const double *noise, const double *bref, const double *bmref,
+                               const double *fref, const double *fmref, bsurf_kselect_fields *out,
+                               bsurf_kselect_report *report);
+int bsurf_ksel_empirical(const bsurf_ksel_run *r);
 
 /* Per-point K and degree selection of polynomial normals (5.5, Algorithm 3;
  * select_degree.c): every candidate (ks[a], ds[d]) as bsurf_select_normals_k

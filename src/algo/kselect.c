@@ -406,7 +406,9 @@ void select_point(void *vctx, int thread, size_t i) {
     /* bias: the quadric's Hessian times the centroid's tangential offset */
     double coef[QT], rss, gi[3][3];
     qb[a] = INFINITY;
+    s->rssv[a] = NAN;
     if (quad_solve(&q, coef, &rss, gi) != 0) continue;
+    s->rssv[a] = rss / (K - QT);
     const double tu = (f.rot[0][0] * mu[0] + f.rot[0][1] * mu[1] + f.rot[0][2] * mu[2]) / scale;
     const double tv = (f.rot[1][0] * mu[0] + f.rot[1][1] * mu[1] + f.rot[1][2] * mu[2]) / scale;
     /* H t (scaled coordinates; f = ... + c3 u^2 + c4 u v + c5 v^2, the
@@ -430,6 +432,10 @@ void select_point(void *vctx, int thread, size_t i) {
   if (curve_sampled(c->xyz, idx, idx[0], o->ks, nk, s->curve))
     for (int a = 0; a < nk; a++)
       if (s->curve[a]) var[a] = INFINITY;
+  /* where the quadric does not fit, the bias from the neighbours' first
+   * choices (kselect_lof.c) */
+  const int emp = c->bref && ksel_lof_gate(s->rssv, o->ks, nk, s2, s->gate);
+  if (emp) ksel_emp_bias(c, idx, nrm, var, s->gate, nk, s->eb);
   /* the smallest V + Bias^2, each bias estimate the point's own */
   int best = -1;
   double best_mse = INFINITY, *mse = s->mse;
@@ -437,6 +443,7 @@ void select_point(void *vctx, int thread, size_t i) {
     if (!isfinite(var[a])) continue;
     /* the quadric tilt, clipped at 0 */
     double b2 = isfinite(qb[a]) && qb[a] > 0 ? qb[a] : 0;
+    if (emp && s->eb[a] > b2) b2 = s->eb[a];
     /* the drifts from the a smaller candidates (Lepski), each beyond the
      * Bonferroni allowance (the top of the file) */
     const double tol = drift_tol(a);
@@ -700,6 +707,9 @@ bsurf_status bsurf_ksel_open(const bsurf_kselect_options *o, int nb_k, int two_s
     s->tcand = bsurf_blocks_array(&s->mem, nc, 3 * sizeof(double));
     s->tcrit = bsurf_blocks_array(&s->mem, nc, sizeof(double));
     s->curve = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(int));
+    s->rssv = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
+    s->eb = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
+    s->gate = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(int));
     st = bsurf_blocks_status(&s->mem);
     if (st == BSURF_OK && o->nd > 0) st = poly_alloc(s, o, kmax);
   }

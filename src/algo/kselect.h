@@ -58,6 +58,8 @@ typedef struct ksel_scratch {
   double *res;            /* kmax: residuals of the two-sheet test */
   double *tcand, *tcrit;  /* nk x 3, nk: one point's tied candidates, as tie_store takes them */
   int *curve;             /* nk: the curve test's per-candidate verdicts */
+  double *rssv, *eb;      /* nk, nk: the quadric's residual variance, the empirical bias^2 */
+  int *gate;              /* nk: the lack-of-fit gate (kselect_lof.c) */
   bsurf_blocks mem;       /* the arrays above */
   size_t unfit, none;
   /* pass 3's tied candidates, in blocks that never move (tie_store) */
@@ -81,7 +83,11 @@ typedef struct ksel_ctx {
   double *fnrm;        /* pass 3: n x 3, the normal of the smallest criterion */
   const double *fref;  /* pass 4: the neighbours' fnrm, indexed like nb->idx */
   const double *fmref; /* pass 4: the neighbours' fmse, indexed like nb->idx */
-  int *first;          /* pass 3: the candidate of the smallest criterion */
+  /* pass 3: the neighbours' first choices without the empirical bias and
+   * their M (the references of kselect_lof.c), indexed like nb->idx; NULL:
+   * no empirical bias (the first of the two pass 3s) */
+  const double *bref, *bmref;
+  int *first; /* pass 3: the candidate of the smallest criterion */
   bsurf_kselect_fields *out;
   double *fmse; /* pass 3: n, the smallest criterion (the first choice's M; pass 4's weights) */
 } ksel_ctx;
@@ -124,6 +130,17 @@ void ksel_ties(ksel_ctx *c, ksel_scratch *s, size_t i, int ncand, int best, doub
 void poly_point(void *vctx, int thread, size_t i);
 bsurf_status poly_alloc(ksel_scratch *s, const bsurf_kselect_options *o, int kmax);
 void poly_free(ksel_scratch *s);
+
+#define ksel_lof_gate bsurf_i_ksel_lof_gate
+#define ksel_emp_bias bsurf_i_ksel_emp_bias
+/* The lack-of-fit gate (kselect_lof.c): gate[a] = 1 for the candidates
+ * from the first whose quadric residual variance rssv rejects the noise
+ * s2 on, none where the smallest rejects; returns whether any is gated. */
+int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, int *gate);
+/* The empirical bias^2 eb[a] of each gated candidate (0 elsewhere) against
+ * the neighbours' first choices c->bref (kselect_lof.c). */
+void ksel_emp_bias(const ksel_ctx *c, const uint32_t *idx, const double *nrm, const double *var,
+                   const int *gate, int nk, double *eb);
 
 #define select_point bsurf_i_ksel_select_point
 #define tie_point bsurf_i_ksel_tie_point

@@ -48,9 +48,9 @@ bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n) 
 /* Pass 3 (fnrm != NULL: only the first choices' normals, by row, no tied
  * record), or passes 3 and 4 into out. */
 static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                                const double *noise, const double *fref, const double *fmref,
-                                double *fnrm, double *fmse, bsurf_kselect_fields *out,
-                                bsurf_kselect_report *report) {
+                                const double *noise, const double *bref, const double *bmref,
+                                const double *fref, const double *fmref, double *fnrm, double *fmse,
+                                bsurf_kselect_fields *out, bsurf_kselect_report *report) {
   const size_t n = nb->point_count, m = n ? n : 1;
   ksel_ctx c = ksel_ctx_of(r, xyz, nb);
   c.noise = (double *)noise; /* read only, by row */
@@ -67,6 +67,8 @@ static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsur
   c.fmse = fmse ? fmse : own_m;
   c.fref = fref ? fref : c.fnrm;
   c.fmref = fmref ? fmref : c.fmse;
+  c.bref = bref; /* the empirical bias's references (kselect_lof.c), or none */
+  c.bmref = bmref;
   bsurf_i_ksel_reset(r);
   /* progress is reported for pass 3 (the bulk of the work) */
   if (st == BSURF_OK) st = ksel_pass(r, &c, r->o.nd > 0 ? poly_point : select_point, 1);
@@ -85,15 +87,21 @@ static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsur
 }
 
 bsurf_status bsurf_ksel_first(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                              const double *noise, double *fnrm, double *fmse) {
-  return ksel_select(r, xyz, nb, noise, NULL, NULL, fnrm, fmse, NULL, NULL);
+                              const double *noise, const double *bref, const double *bmref,
+                              double *fnrm, double *fmse) {
+  return ksel_select(r, xyz, nb, noise, bref, bmref, NULL, NULL, fnrm, fmse, NULL, NULL);
 }
 
 bsurf_status bsurf_ksel_choose(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                               const double *noise, const double *fref, const double *fmref,
-                               bsurf_kselect_fields *out, bsurf_kselect_report *report) {
+                               const double *noise, const double *bref, const double *bmref,
+                               const double *fref, const double *fmref, bsurf_kselect_fields *out,
+                               bsurf_kselect_report *report) {
   BSURF_REQUIRE(!out->two_sheet || r->crit, "the run was opened without the two-sheet test");
-  return ksel_select(r, xyz, nb, noise, fref, fmref, NULL, NULL, out, report);
+  return ksel_select(r, xyz, nb, noise, bref, bmref, fref, fmref, NULL, NULL, out, report);
+}
+
+int bsurf_ksel_empirical(const bsurf_ksel_run *r) {
+  return r->o.nd == 0; /* the PCA candidates' (kselect_lof.c) */
 }
 
 bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
@@ -118,7 +126,19 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK) st = bsurf_ksel_pool(r, xyz, nb, s2, noise);
   free(s2);
   if (st == BSURF_OK) st = bsurf_ksel_level(r, noise, n);
-  if (st == BSURF_OK) st = bsurf_ksel_choose(r, xyz, nb, noise, NULL, NULL, out, report);
+  /* the first choices without the empirical bias, its references where
+   * the quadric does not fit (kselect_lof.c) */
+  double *bref = NULL, *bmref = NULL;
+  if (st == BSURF_OK && bsurf_ksel_empirical(r)) {
+    bref = bsurf_alloc_array(n, 3 * sizeof(double));
+    bmref = bsurf_alloc_array(n, sizeof(double));
+    st = bref && bmref ? BSURF_OK : BSURF_ERR_NOMEM;
+    if (st == BSURF_OK) st = bsurf_ksel_first(r, xyz, nb, noise, NULL, NULL, bref, bmref);
+  }
+  if (st == BSURF_OK)
+    st = bsurf_ksel_choose(r, xyz, nb, noise, bref, bmref, NULL, NULL, out, report);
+  free(bref);
+  free(bmref);
   free(noise);
   bsurf_ksel_close(r);
   return st;

@@ -35,16 +35,19 @@ struct bsurf_ksel_run; /* algo/algo.h */
 /* The MSE rule's first three tiled stages (normals_mse_tiled.c,
  * docs/scaling.md): each point's noise residual variance, its pooled noise
  * (the level: the median of them read back, with the GLOBAL pool), then per
- * point its first choice's normal, its criterion M and its noise, 5 values kept in *sel for
- * the last stage; K = k (the job's K_max). tr: the last stage's report. */
+ * point its first choice's normal, its criterion M and its noise, and the
+ * first choice's normal and M without the empirical bias (kselect_lof.c;
+ * with bsurf_ksel_empirical, one more stage), 9 values kept in *sel for the
+ * last stage; K = k (the job's K_max). tr: the last stage's report. */
 bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_options *ko, int k,
                                    int threads, bsurf_progress_fn progress, void *progress_user,
                                    struct bsurf_ksel_run *run, bsurf_tile_values *sel,
                                    bsurf_tile_report *tr, bsurf_failure *err);
 /* The last stage's inputs in a tile from those values: the noise by core
- * row, the first choices' normals and M of every local point (allocated). */
-bsurf_status bsurf_jobs_mse_tile(const bsurf_tile *t, double **noise, double **fref,
-                                 double **fmref);
+ * row, the first choices' normals and M of every local point, and those
+ * without the empirical bias (allocated). */
+bsurf_status bsurf_jobs_mse_tile(const bsurf_tile *t, double **noise, double **fref, double **fmref,
+                                 double **bref, double **bmref);
 
 /* The mean of n values summed in point order (what the summaries report). */
 double bsurf_jobs_mean(const double *v, size_t n);

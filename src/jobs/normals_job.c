@@ -39,7 +39,7 @@ typedef struct normals_job {
    * run, and per tile the noise by core row and the neighbours' first
    * choices; NULL in memory */
   bsurf_ksel_run *mse_run;
-  const double *mse_noise, *mse_fref, *mse_fmref;
+  const double *mse_noise, *mse_fref, *mse_fmref, *mse_bref, *mse_bmref;
 } normals_job;
 
 /* Per-point results (n long, x 3 for vectors). */
@@ -216,8 +216,8 @@ static bsurf_status normals_compute(normals_job *job, const double *xyz, const b
       return BSURF_ERR_NOMEM;
     }
     bsurf_kselect_fields kf = {bootstrap ? NULL : b->normals, kmse, b->err, NULL, sheet, dmse};
-    st = job->mse_run ? bsurf_ksel_choose(job->mse_run, xyz, nb, job->mse_noise, job->mse_fref,
-                                          job->mse_fmref, &kf, NULL)
+    st = job->mse_run ? bsurf_ksel_choose(job->mse_run, xyz, nb, job->mse_noise, job->mse_bref,
+                                          job->mse_bmref, job->mse_fref, job->mse_fmref, &kf, NULL)
                       : bsurf_select_k(xyz, nb, &ko, &kf, NULL);
     for (size_t i = 0; i < n; i++)
       b->ksel[i] = kmse[i], b->sheet[i] = sheet[i], b->dsel[i] = poly ? dmse[i] : no.degree;
@@ -323,16 +323,21 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
   bsurf_status st = normals_bufs_alloc(&b, job, tile->core_count);
   if (st != BSURF_OK) return st;
   bsurf_normal_report total;
-  double *noise = NULL, *fref = NULL, *fmref = NULL;
+  double *noise = NULL, *fref = NULL, *fmref = NULL, *bref = NULL, *bmref = NULL;
   /* the MSE rule: the noise and the neighbours' first choices, from the
    * first stages (normals_mse_tiled.c) */
-  if (job->mse_run && (st = bsurf_jobs_mse_tile(tile, &noise, &fref, &fmref)) != BSURF_OK) {
+  if (job->mse_run &&
+      (st = bsurf_jobs_mse_tile(tile, &noise, &fref, &fmref, &bref, &bmref)) != BSURF_OK) {
     normals_bufs_free(&b);
     return st;
   }
   job->mse_noise = noise;
   job->mse_fref = fref;
   job->mse_fmref = fmref;
+  /* the empirical bias's references (stage 3's), for PCA candidates */
+  const int emp = job->mse_run && bsurf_ksel_empirical(job->mse_run);
+  job->mse_bref = emp ? bref : NULL;
+  job->mse_bmref = emp ? bmref : NULL;
   /* with normal_err: the reference normals of every local point, from the
    * first stage (normals_ref_run) */
   st = normals_compute(job, tile->xyz, tile->nb, tile->point_index,
@@ -340,6 +345,8 @@ static bsurf_status normals_run(void *user, const bsurf_tile *tile, bsurf_cloud 
   free(noise);
   free(fref);
   free(fmref);
+  free(bref);
+  free(bmref);
   if (st == BSURF_OK) st = normals_store(job, core, &b, 0);
   if (st == BSURF_OK) {
     bsurf_jobs_add_counts(sums, total.replicates_total, total.replicates_skipped,

@@ -13,17 +13,24 @@
  *     every rank);
  *   stage 3 (K = K_max): each point's first choice's normal (pass 3), kept
  *     with its noise;
+ *   stage 3b (K = K_max, PCA candidates: bsurf_ksel_empirical): pass 3
+ *     again with the empirical bias where the quadric does not fit, its
+ *     references the neighbours' first choices of stage 3 (a 2-ring;
+ *     kselect_lof.c), kept beside them;
  *   stage 4 (normals_job.c's tiled run, K = K_max): pass 3 again for the
- *     tied candidates, the tie-break (pass 4) with the neighbours' first
- *     choices from stage 3 (a 2-ring), the two-sheet test and the bootstrap
- *     at the chosen K. */
+ *     tied candidates (the references of stage 3), the tie-break (pass 4)
+ *     with the neighbours' first choices from stage 3b (stage 3 without
+ *     it), the two-sheet test and the bootstrap at the chosen K. */
 #include "algo/algo.h"
 #include "jobs/jobs.h"
 
 #include <stdlib.h>
 #include <string.h>
 
-#define SEL_COLS 5 /* stage 3's values: the first choice's normal, its M, the noise */
+/* stage 3's values: the first choice's normal, its M, the noise; then
+ * stage 3's normal and M again (stage 3b: its own first choice's in the
+ * first four, stage 3's kept in the last four) */
+#define SEL_COLS 9
 
 typedef struct mse_stages {
   bsurf_ksel_run *run;
@@ -58,15 +65,54 @@ static bsurf_status first_run(void *user, const bsurf_tile *t, bsurf_cloud *core
   bsurf_status st = noise && f && fm ? BSURF_OK : BSURF_ERR_NOMEM;
   for (size_t r = 0; r < nc && st == BSURF_OK; r++)
     noise[r] = m->global ? m->level : t->values[t->nb->idx[r * k]];
-  if (st == BSURF_OK) st = bsurf_ksel_first(m->run, t->xyz, t->nb, noise, f, fm);
+  if (st == BSURF_OK) st = bsurf_ksel_first(m->run, t->xyz, t->nb, noise, NULL, NULL, f, fm);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
-    memcpy(&t->values_out[SEL_COLS * r], &f[3 * r], 3 * sizeof(double));
-    t->values_out[SEL_COLS * r + 3] = fm[r];
-    t->values_out[SEL_COLS * r + 4] = noise[r];
+    double *v = &t->values_out[SEL_COLS * r];
+    memcpy(v, &f[3 * r], 3 * sizeof(double));
+    v[3] = fm[r];
+    v[4] = noise[r];
+    memcpy(&v[5], &f[3 * r], 3 * sizeof(double));
+    v[8] = fm[r];
   }
   free(noise);
   free(f);
   free(fm);
+  return st;
+}
+
+/* stage 3b: pass 3 with the empirical bias, its references the
+ * neighbours' stage 3 first choices; stage 3's own kept (kselect_lof.c) */
+static bsurf_status emp_run(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
+  (void)core;
+  (void)sums;
+  const mse_stages *m = user;
+  const size_t nc = t->core_count, nl = t->local_count, k = (size_t)t->nb->k;
+  double *noise = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
+  double *f = bsurf_alloc_array(nc ? nc : 1, 3 * sizeof(double));
+  double *fm = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
+  double *bref = bsurf_alloc_array(nl ? nl : 1, 3 * sizeof(double));
+  double *bmref = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
+  bsurf_status st = noise && f && fm && bref && bmref ? BSURF_OK : BSURF_ERR_NOMEM;
+  for (size_t l = 0; l < nl && st == BSURF_OK; l++) {
+    memcpy(&bref[3 * l], &t->values[SEL_COLS * l + 5], 3 * sizeof(double));
+    bmref[l] = t->values[SEL_COLS * l + 8];
+  }
+  for (size_t r = 0; r < nc && st == BSURF_OK; r++)
+    noise[r] = t->values[SEL_COLS * (size_t)t->nb->idx[r * k] + 4];
+  if (st == BSURF_OK) st = bsurf_ksel_first(m->run, t->xyz, t->nb, noise, bref, bmref, f, fm);
+  for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
+    double *v = &t->values_out[SEL_COLS * r];
+    const double *own = &t->values[SEL_COLS * (size_t)t->nb->idx[r * k]];
+    memcpy(v, &f[3 * r], 3 * sizeof(double));
+    v[3] = fm[r];
+    v[4] = noise[r];
+    memcpy(&v[5], &own[5], 4 * sizeof(double));
+  }
+  free(noise);
+  free(f);
+  free(fm);
+  free(bref);
+  free(bmref);
   return st;
 }
 
@@ -114,27 +160,41 @@ bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_o
   if (st == BSURF_OK) st = mse_stage(io, &ops, &m, pool_run, &s2, 1, &pooled, tr, err);
   bsurf_tile_values_close(&s2);
   if (st == BSURF_OK) st = mse_level(io, &m, &pooled);
-  if (st == BSURF_OK) st = mse_stage(io, &ops, &m, first_run, &pooled, SEL_COLS, sel, tr, err);
+  if (!bsurf_ksel_empirical(run)) {
+    if (st == BSURF_OK) st = mse_stage(io, &ops, &m, first_run, &pooled, SEL_COLS, sel, tr, err);
+    bsurf_tile_values_close(&pooled);
+    return st;
+  }
+  bsurf_tile_values first = {-1, 0, 0};
+  if (st == BSURF_OK) st = mse_stage(io, &ops, &m, first_run, &pooled, SEL_COLS, &first, tr, err);
   bsurf_tile_values_close(&pooled);
+  if (st == BSURF_OK) st = mse_stage(io, &ops, &m, emp_run, &first, SEL_COLS, sel, tr, err);
+  bsurf_tile_values_close(&first);
   return st;
 }
 
-bsurf_status bsurf_jobs_mse_tile(const bsurf_tile *t, double **noise, double **fref,
-                                 double **fmref) {
+bsurf_status bsurf_jobs_mse_tile(const bsurf_tile *t, double **noise, double **fref, double **fmref,
+                                 double **bref, double **bmref) {
   const size_t nc = t->core_count, nl = t->local_count, k = (size_t)t->nb->k;
   *noise = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
   *fref = bsurf_alloc_array(nl ? nl : 1, 3 * sizeof(double));
   *fmref = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
-  if (!*noise || !*fref || !*fmref) {
+  *bref = bsurf_alloc_array(nl ? nl : 1, 3 * sizeof(double));
+  *bmref = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
+  if (!*noise || !*fref || !*fmref || !*bref || !*bmref) {
     free(*noise);
     free(*fref);
     free(*fmref);
-    *noise = *fref = *fmref = NULL;
+    free(*bref);
+    free(*bmref);
+    *noise = *fref = *fmref = *bref = *bmref = NULL;
     return BSURF_ERR_NOMEM;
   }
   for (size_t l = 0; l < nl; l++) {
     memcpy(&(*fref)[3 * l], &t->values[SEL_COLS * l], 3 * sizeof(double));
     (*fmref)[l] = t->values[SEL_COLS * l + 3];
+    memcpy(&(*bref)[3 * l], &t->values[SEL_COLS * l + 5], 3 * sizeof(double));
+    (*bmref)[l] = t->values[SEL_COLS * l + 8];
   }
   for (size_t r = 0; r < nc; r++)
     (*noise)[r] = t->values[SEL_COLS * (size_t)t->nb->idx[r * k] + 4];

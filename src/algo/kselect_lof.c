@@ -1,0 +1,114 @@
+/* Where the quadric does not hold: the lack-of-fit test of the MSE rule's
+ * bias model and the empirical bias that replaces it there (docs/normals.md,
+ * "Choosing K", *where the quadric does not fit*; issues 24 and 25).
+ *
+ * The rule's bias term (a) reads the PCA plane's tilt off a least-squares
+ * quadric of the same K points, and (b) the drift from the smaller
+ * candidates. Both under-read on a crease: a crease is no quadric, so the
+ * quadric's Hessian is a compromise between the faces, and the drift
+ * measures bias relative to the smallest candidate, itself biased when the
+ * point lies within a neighbourhood of the edge. On Fandisk's vertices at
+ * u0.5 the true sin^2 of the edge vertices grows from 0.033 at K = 20 to
+ * 0.134 at K = 80 while V + bias^2 reads 0.012 to 0.033 (medians), and the
+ * rule chose mean K 44 there against the per-point oracle's 22.
+ *
+ * The quadric's own residuals say where it fails. With the noise variance
+ * s2 (the rule's pooled estimate, many degrees of freedom), the residual
+ * variance RSS / (K - 6) of a quadric that holds is s2 chi^2_nu / nu, nu =
+ * K - 6; a larger value rejects the quadric at that scale (the classical
+ * lack-of-fit test against a pure-error variance). The level is a
+ * Bonferroni share of 5% over the candidates, LOF_ALPHA / nk per test, the
+ * quantile of chi^2_nu / nu by Wilson-Hilferty. The neighbourhoods are
+ * nested, so from the first candidate that rejects on, every larger one
+ * holds the structure the quadric missed: those candidates' bias is not
+ * trusted (Lepski's logic: the first scale where the model breaks). Where
+ * the smallest candidate already rejects, the sampling does not resolve the
+ * surface at any candidate (a coarse vertex set: elephant's vertices reject
+ * at K = 15 at 65-84% of the points), the neighbours' normals share that
+ * misfit, and the test says nothing about scale: the rule is left as it is.
+ *
+ * For a candidate whose quadric is rejected the bias comes from the data,
+ * as in the thesis's test error (Eq. 5.10), without the bootstrap: against
+ * the first choices n_j of the point's noise_k - 1 nearest neighbours, each
+ * with its own estimated MSE M_j (the rule's criterion at its first
+ * choice; the references of the tie-break), the precision-weighted mean
+ *     T(K) = sum_j w_j sin^2(n_K, n_j) / sum_j w_j,   w_j = 1 / M_j,
+ * estimates E sin^2 between n_K and a reference, which, to first order and
+ * with independent errors, is the candidate's MSE V(K) + bias^2(K) plus the
+ * references' mean MSE, whose precision-weighted mean is the harmonic mean
+ * R = m / sum_j w_j of the m assessed references. So
+ *     bias^2_emp(K) = max(0, T(K) - R - V(K)),
+ * and the candidate's bias^2 is the larger of it and the model's. At an
+ * edge the neighbours on the point's own face confirm a small K and the
+ * candidate that leans across the edge pays its lean. */
+#include "algo/kselect.h"
+
+#include <math.h>
+
+/* the family level of the lack-of-fit tests over a point's candidates */
+#define LOF_ALPHA 0.05
+
+/* The standard normal's upper quantile z(p), P(Z > z) = p, 0 < p < 0.5:
+ * Newton's method on erfc from the logistic start (a few steps to the
+ * double's precision; the same bits on every machine with the same libm). */
+static double normal_upper_quantile(double p) {
+  double z = sqrt(-2.0 * log(p)); /* above the quantile: the tail's bound */
+  for (int it = 0; it < 50; it++) {
+    const double f = 0.5 * erfc(z / sqrt(2.0)) - p;
+    const double d = exp(-0.5 * z * z) / sqrt(2.0 * 3.14159265358979323846);
+    const double step = f / d;
+    z += step;
+    if (fabs(step) < 1e-12 * (1.0 + fabs(z))) break;
+  }
+  return z;
+}
+
+int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, int *gate) {
+  const double z = normal_upper_quantile(LOF_ALPHA / (nk > 1 ? nk : 1));
+  int on = 0, any = 0;
+  for (int a = 0; a < nk; a++) {
+    const double nu = ks[a] - QT;
+    const int rej = isfinite(rssv[a]) && s2 > 0 && rssv[a] > s2 * bsurf_chi2_ratio_wh(nu, z);
+    if (a == 0 && rej) { /* not resolved at the smallest candidate: no gate */
+      for (int b = 0; b < nk; b++)
+        gate[b] = 0;
+      return 0;
+    }
+    on |= rej;
+    gate[a] = on;
+    any |= on;
+  }
+  return any;
+}
+
+void ksel_emp_bias(const ksel_ctx *c, const uint32_t *idx, const double *nrm, const double *var,
+                   const int *gate, int nk, double *eb) {
+  double wsum = 0;
+  int m = 0;
+  for (int a = 0; a < nk; a++)
+    eb[a] = 0;
+  for (int j = 0; j < c->o->noise_k; j++) {
+    const uint32_t r = idx[j];
+    if (r == idx[0]) continue;
+    const double w = 1.0 / c->bmref[r];
+    if (w > 0) wsum += w, m++;
+  }
+  if (!(wsum > 0)) return; /* no assessed reference */
+  const double R = m / wsum;
+  for (int a = 0; a < nk; a++) {
+    if (!gate[a] || !isfinite(var[a])) continue;
+    const double *na = &nrm[3 * a];
+    double t = 0;
+    for (int j = 0; j < c->o->noise_k; j++) {
+      const uint32_t r = idx[j];
+      if (r == idx[0]) continue;
+      const double w = 1.0 / c->bmref[r];
+      if (!(w > 0)) continue;
+      const double *nr = &c->bref[3 * (size_t)r];
+      const double dot = na[0] * nr[0] + na[1] * nr[1] + na[2] * nr[2];
+      t += w * (1.0 - dot * dot);
+    }
+    const double b = t / wsum - R - var[a];
+    eb[a] = b > 0 ? b : 0;
+  }
+}
