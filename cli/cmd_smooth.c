@@ -95,6 +95,14 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        1, 0},
       {0, "k-min", ARG_INT, &so.k_min, "K", "multipass: the smallest neighbourhood (Eq. 6.3)", 1,
        65535},
+      {0, "k-max", ARG_INT, &so.k_max, "K",
+       "multipass with the guard: the largest K the noise may widen the neighbourhood to: where "
+       "the guard's noise is heavy against the K-ball (which then holds only the points near "
+       "its centre's height, and its fit keeps the centre's own noise), K grows to the smallest "
+       "size whose ball drops no more of the noise variance (1 - kappa) than its fit's own "
+       "prediction variance holds (p / K), and multipass runs on those neighbourhoods (0 = 8 K; "
+       "K = K stays fixed)",
+       0, 65535},
       {0, "k-error", ARG_STRING, &kerr_text, "X",
        "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length, a multiple "
        "of |W| (e.g. 2W; the thesis's is 1W) or none (K_i = K; the guard halves a neighbourhood "
@@ -152,6 +160,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   if (cli_check_terms(cmd, so.error.k, so.error.degree)) return CLI_USAGE;
   if (so.k_min > so.error.k)
     return cli_usage_error(cmd, "--k-min %d is larger than K = %d", so.k_min, so.error.k);
+  if (so.k_max && so.k_max < so.error.k)
+    return cli_usage_error(cmd, "--k-max %d is smaller than K = %d", so.k_max, so.error.k);
   /* Lengths: in model units, or in units of h, which the job knows. */
   bsurf_smooth_job_options jo = bsurf_smooth_job_options_default();
   double frac = 0;
@@ -272,6 +282,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       else
         json_str(&j, "a", "auto");
       json_int(&j, "iterations", rep.iterations);
+      json_int(&j, "k_used", rep.k);
       json_int(&j, "k_min", so.k_min);
       json_num(&j, "k_error", rep.k_error);
     }
@@ -298,7 +309,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     json_end(&j);
   } else if (!quiet) {
     printf("smooth: %s, %zu points, h = %.6g, K = %d, degree %d, B = %d, %.2f s\n", method, npoints,
-           h, so.error.k, so.error.degree, so.error.bootstrap, secs);
+           h, rep.k > 0 ? rep.k : so.error.k, so.error.degree, so.error.bootstrap, secs);
     printf("  W = %s, mean %.6g (%.4g h)\n", est_used, rep.mean_error, rep.mean_error / hh);
     if (so.method == BSURF_SMOOTH_NAIVE)
       printf("  threshold %.6g (%.4g h): %zu of %zu points projected\n", rep.threshold,
@@ -310,7 +321,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       printf("  order %s, %d pass%s, h1 = %s d_L, h2 = %.6g (%.4g h), K_i from %d to %d\n", order,
              rep.iterations, rep.iterations == 1 ? "" : "es",
              strcmp(a_text, "auto") ? a_text : "(1.5 sqrt(pi / K_i))", rep.h2, rep.h2 / hh,
-             so.k_min, so.error.k);
+             so.k_min, rep.k > 0 ? rep.k : so.error.k);
     if (so.guard)
       printf("  guard: noise %.6g (%.4g h), %zu fits with more misfit than noise moved nothing\n",
              rep.noise, rep.noise / hh, rep.misfit_fits);

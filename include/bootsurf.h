@@ -691,6 +691,16 @@ typedef struct bsurf_smooth_options {
    * -1 (default, auto) = 1 for bilateral and multipass, 0 for naive
    * (docs/smoothing.md, "The degree test"). */
   int degree_test;
+  /* multipass with the guard: the largest K the noise may widen the
+   * neighbourhood to. Where the guard's noise estimate is heavy against the
+   * error.k-ball (the ball then holds only the points near its centre's
+   * height, and its fit keeps the centre's own noise), K grows to the
+   * smallest size whose ball drops no more of the noise variance (1 - kappa)
+   * than its fit's own prediction variance holds (p / K; docs/smoothing.md,
+   * "The neighbourhood's scale"), and the
+   * method runs again on the K-neighbourhoods. 0 (default): 8 error.k;
+   * error.k: K stays error.k. */
+  int k_max;
 } bsurf_smooth_options;
 
 BSURF_API bsurf_smooth_options bsurf_smooth_options_default(void);
@@ -719,6 +729,8 @@ typedef struct bsurf_smooth_report {
   double noise;                 /* the guard's noise estimate sigma (NAN: guard off) */
   size_t misfit_fits;           /* the guard's misfit test: fits of the first stage
                                    with more misfit than noise (they move nothing) */
+  int k;                        /* the neighbourhood size used (error.k, or the scale
+                                   rule's, bsurf_smooth_options.k_max) */
 } bsurf_smooth_report;
 
 /* Moves the points of a cloud towards the bootstrap fits (chapter 6).

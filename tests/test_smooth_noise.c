@@ -14,19 +14,20 @@
 #include <string.h>
 
 #include "bootsurf.h"
-#include "algo/smooth_ctx.h" /* guard_ball_share */
+#include "algo/smooth_ctx.h" /* guard_ball_share, bsurf_ball_count */
 
 #define PI 3.14159265358979323846
 
-/* kappa(t) by quadrature (smooth_guard.c has the derivation): over z0 ~
- * N(0, 1) (midpoints on [-8, 8]) and over the ball's points at distance
- * rho = t sin(th) from the centre's normal line (midpoints in th, which
- * takes out the square root at rho = t), the variance of N(0, 1) truncated
- * to [z0 - a, z0 + a], a = t cos(th), weighted by rho and the window's mass. */
-static double ball_share_quad(double t) {
+/* kappa(t) and count(t) by quadrature (ball_scale.c has the derivation):
+ * over z0 ~ N(0, 1) (midpoints on [-8, 8]) and over the ball's points at
+ * distance rho = t sin(th) from the centre's normal line (midpoints in th,
+ * which takes out the square root at rho = t), the variance of N(0, 1)
+ * truncated to [z0 - a, z0 + a], a = t cos(th), weighted by rho and the
+ * window's mass; count: 2 pi times that weight. */
+static double ball_quad(double t, double *count) {
   const int nz = 801, nth = 200;
   const double dz = 16.0 / nz;
-  double tot = 0;
+  double tot = 0, cnt = 0;
   for (int iz = 0; iz < nz; iz++) {
     const double z0 = -8 + (iz + 0.5) * dz;
     const double wz = exp(-0.5 * z0 * z0) / sqrt(2 * PI) * dz;
@@ -44,8 +45,34 @@ static double ball_share_quad(double t) {
       num += w * M * (1 + (al * pa - be * pb) / M - m1 * m1);
     }
     tot += wz * num / den;
+    cnt += wz * 2 * PI * den * (PI / 2) / nth;
   }
+  if (count) *count = cnt;
   return tot;
+}
+
+static double ball_share_quad(double t) {
+  return ball_quad(t, NULL);
+}
+
+/* The ball's count (ball_scale.c, the scale rule's K -> t) at and between
+ * its nodes within 1e-3 (relative) of the quadrature, its wide-ball limit
+ * pi (t^2 - 2) (the heights' spread comes off the squared radius), a volume
+ * (t^3) below t = 1, and increasing. */
+static void test_ball_count(void **state) {
+  (void)state;
+  double prev = 0;
+  for (int j = 64; j >= 2; j--) {
+    const double t = 64.0 / j, c = bsurf_ball_count(t);
+    double q;
+    ball_quad(t, &q);
+    if (j % 16 == 0) print_message("count(%.3f) = %.4f (quadrature %.4f)\n", t, c, q);
+    assert_true(fabs(c / q - 1) < 1e-3);
+    assert_true(c > prev);
+    prev = c;
+  }
+  assert_true(fabs(bsurf_ball_count(32) / (PI * (32.0 * 32 - 2)) - 1) < 1e-5);
+  assert_true(fabs(bsurf_ball_count(0.5) / bsurf_ball_count(1) - 0.125) < 1e-12);
 }
 
 /* The table at its nodes t = 32 / j and between them, within 1e-3 of the
@@ -122,6 +149,7 @@ static void test_noise_estimate_levels(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_ball_share),
+      cmocka_unit_test(test_ball_count),
       cmocka_unit_test(test_noise_estimate_levels),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

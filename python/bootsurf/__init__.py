@@ -475,12 +475,13 @@ _DEGREE_TESTS = ("auto", "off", "on")  # degree_test -1, 0, 1
 def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma="fit",
            pca_center="centroid", estimator="auto", threshold="auto", h1="auto", h2="auto",
            order="parallel", a="auto", iterations="auto", k_min=10, k_error="none", guard="on",
-           degree_test="auto", seed=1, threads=0, output=None, tile_points=None, progress=None):
+           degree_test="auto", k_max=0, seed=1, threads=0, output=None, tile_points=None,
+           progress=None):
     """smooth(points, *, method='auto', neighbors=50, degree=3,
     bootstrap=50, gamma='fit', pca_center='centroid', estimator='auto',
     threshold='auto', h1='auto', h2='auto', order='parallel', a='auto',
     iterations='auto', k_min=10, k_error='none', guard='on', degree_test='auto',
-    seed=1, threads=0, output=None, tile_points=None, progress=None)
+    k_max=0, seed=1, threads=0, output=None, tile_points=None, progress=None)
     -> (points, fields, summary)
 
     Denoise: move points towards the bootstrap fits (thesis ch. 6);
@@ -528,6 +529,12 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
                    plane, by Mallows' C_p: on, off or auto (on for bilateral
                    and multipass);
                    docs/smoothing.md, "The degree test"
+      k_max        multipass with the guard: the largest K the noise may widen
+                   the neighbourhood to (0 = 8 x neighbors; neighbors keeps K):
+                   where the noise is heavy against the K-ball, K grows to the
+                   smallest size whose ball drops no more of the noise variance
+                   than its fit's prediction variance holds (report['k'] is the
+                   K used); docs/smoothing.md, "The neighbourhood's scale"
 
     Returns (points, fields, summary): the moved points (N, 3) (the input is
     not modified), fields err_632, err_632plus, moved (and k_hat, d_local
@@ -567,8 +574,8 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
                         h2_h, f2, _choice(order, _ORDERS, "order"), -1.0 if a == "auto" else float(a),
                         -1 if iterations == "auto" else _int(iterations, "iterations"),
                         _int(k_min, "k_min"), ke, ke_h, fk, bool(_choice(guard, ("off", "on"), "guard")),
-                        _choice(degree_test, _DEGREE_TESTS, "degree_test") - 1, _int(threads, "threads"),
-                        _progress(progress))
+                        _choice(degree_test, _DEGREE_TESTS, "degree_test") - 1, _int(k_max, "k_max"),
+                        _int(threads, "threads"), _progress(progress))
 
 
 # ---------------------------------------------------------------- chapter 7

@@ -159,6 +159,7 @@ def smooth(
     k_error: Length = ...,
     guard: Literal["on", "off"] = ...,
     degree_test: Literal["auto", "on", "off"] = ...,
+    k_max: int = ...,
     seed: int = ...,
     threads: int = ...,
     output: Optional[PathLike] = ...,

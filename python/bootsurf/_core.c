@@ -830,12 +830,12 @@ static PyObject *py_smooth(PyObject *self, PyObject *args) {
   bsurf_smooth_options *so = &o.smooth;
   int method, gamma, center, estimator, order;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OOiiiiKiiidpdpdpdidiidpdpiiO", &pts, &tiled, &method, &so->error.k,
+  if (!PyArg_ParseTuple(args, "OOiiiiKiiidpdpdpdidiidpdpiiiO", &pts, &tiled, &method, &so->error.k,
                         &so->error.degree, &so->error.bootstrap, &seed, &gamma, &center, &estimator,
                         &so->threshold, &o.threshold_in_h, &so->h1, &o.h1_in_h, &so->h2, &o.h2_in_h,
                         &so->h2_fraction, &order, &so->a, &so->iterations, &so->k_min, &so->k_error,
                         &o.k_error_in_h, &so->k_error_fraction, &so->guard, &so->degree_test,
-                        &so->error.threads, &progress))
+                        &so->k_max, &so->error.threads, &progress))
     return NULL;
   /* NAN: the library's default (the command's "auto") */
   const bsurf_smooth_options def = bsurf_smooth_options_default();
@@ -870,14 +870,14 @@ static PyObject *py_smooth(PyObject *self, PyObject *args) {
                                                              : "multipass",
                         "estimator", s.estimator ? s.estimator : "", "means",
                         means_dict(s.field_names, s.means, s.field_count), "report",
-                        Py_BuildValue("{s:N,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:d,s:d,s:i,s:d,s:n}",
+                        Py_BuildValue("{s:N,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:d,s:d,s:i,s:d,s:n,s:i}",
                                       "error", report_error(&r->error), "mean_error", r->mean_error,
                                       "threshold", r->threshold, "h1", r->h1, "h2", r->h2,
                                       "k_error", r->k_error, "projected", (Py_ssize_t)r->projected,
                                       "moved_points", (Py_ssize_t)r->moved_points, "moved_mean",
                                       r->moved_mean, "moved_max", r->moved_max, "iterations",
                                       r->iterations, "noise", r->noise, "misfit_fits",
-                                      (Py_ssize_t)r->misfit_fits))));
+                                      (Py_ssize_t)r->misfit_fits, "k", r->k))));
 }
 
 static PyObject *py_features(PyObject *self, PyObject *args) {

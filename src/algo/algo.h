@@ -271,6 +271,21 @@ bsurf_status bsurf_select_normals_kd(const double *xyz, const bsurf_neighbors *n
                                      bsurf_normal_select_fields *out, int *degree_selected,
                                      bsurf_normal_report *report);
 
+/* ---- the neighbourhood's ball against the noise (ball_scale.c) ----
+ * t = R / sigma, R the ball's radius, sigma the noise along the normal.
+ * kappa: the share of the noise variance the ball's points keep about its
+ * fit; count: its points per sigma^2 of area at unit areal density. */
+double bsurf_ball_share(double t);
+double bsurf_ball_count(double t);
+/* The scale rule: the smallest K >= k0 (steps of 2^(1/4), at most k_cap)
+ * whose ball drops no more of the noise than its fit's mean prediction
+ * variance holds, 1 - kappa(t_K) <= p / K, from t0 = R_k0 / sigma measured at
+ * k0; *t_k (may be NULL) its t. k0 when t0 is not > 0. */
+int bsurf_scale_k(double t0, int k0, int p, int k_cap, double *t_k);
+/* The median over the rows of nb of the distance to the k-th point of the
+ * row (the point itself first): the K-ball's radius. */
+bsurf_status bsurf_ball_radius(const double *xyz, const bsurf_neighbors *nb, int k, double *R);
+
 /* ---- features --method distance (7.1) in stages (features.c), run on the
  * whole cloud by bsurf_detect_features and tile by tile by
  * bsurf_features_distance_tiled (src/tile/features_tiled.c): the same functions on
@@ -318,6 +333,20 @@ bsurf_status bsurf_fdist_filter(const double *xyz, const bsurf_neighbors *nb,
 /* Otsu's split of the m positive values of the map (sorted in place); 0
  * when m < 2. */
 double bsurf_fdist_otsu_positive(double *pos, size_t m);
+/* The automatic T_h of the map of n points: Otsu's split of its positive
+ * values (features_distance.c). */
+bsurf_status bsurf_fdist_auto_threshold(const double *map, size_t n, double *t);
+/* The map of the whole cloud (bsurf_detect_features): the raw map, T_{a/c}
+ * from the cloud's medians, the points that stopped at once set to
+ * -max(radius); state (may be NULL) as bsurf_fdist_raw's, *t_kmin T_{a/c}
+ * at k_min. */
+bsurf_status bsurf_fdist_distance_raw(const double *xyz, const bsurf_neighbors *nb,
+                                      const bsurf_feature_options *opts, double *dist, int *ksel,
+                                      double *max_radius, size_t *immediate, double *t_kmin,
+                                      uint8_t *state);
+/* Otsu's two-class split of count >= 1 sorted values (features.c): the
+ * upper edge of the lower class's last bin of a 256-bin histogram. */
+double bsurf_otsu_sorted(const double *l, size_t count);
 /* feature of a point of map value v and state, with the absolute T_h thr;
  * threshold: the option (NAN = auto). */
 int bsurf_fdist_feature(double v, int state, double thr, double threshold);

@@ -70,8 +70,12 @@
  *    a quadric leaves out is cubic); a second fit on twice the points
  *    removes it by Richardson extrapolation:
  *        s2 = (v_a m6_b - v_b m6_a) / (m6_b - m6_a),
- *    m6 the mean sixth power of the tangential distances, clamped to
- *    [0, v_a]. The noise level varies slowly over a surface while each
+ *    m6 the mean sixth power of the tangential distances, at most v_a;
+ *    where it is not positive (the residual variance grew faster than the
+ *    misfit's law allows with no noise: the doubled neighbourhood crosses
+ *    an edge) the point has no estimate, and the quartile correction below
+ *    uses the extrapolation's effective degrees of freedom (kselect_noise.c).
+ *    The noise level varies slowly over a surface while each
  *    point's estimate (nu = K - 6 degrees of freedom) scatters by tens of
  *    per cent, and misfit the extrapolation leaves (coarse meshes, edges)
  *    only inflates it. So the estimates are pooled over the point's K_max

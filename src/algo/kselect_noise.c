@@ -78,7 +78,24 @@ void noise_point(void *vctx, int thread, size_t i) {
   double vb, m6b;
   if (quad_resid(c->xyz, idx, kb, s, &vb, &m6b) != 0 || !(m6b > m6a)) return;
   const double e = (va * m6b - vb * m6a) / (m6b - m6a);
-  c->s2[i] = (e < 0 ? 0 : e < va ? e : va) / chi2_quantile_ratio(ka - QT);
+  /* degenerate: the residual variance grew from ka to kb points faster
+   * than the misfit's sixth-power law allows with no noise at all (the
+   * doubled neighbourhood crosses an edge or wraps round a thin part), so
+   * the extrapolation says nothing about the noise: no estimate, as for a
+   * rank-deficient fit (formerly clamped to 0, which the lower-quartile
+   * pool then picked) */
+  if (!(e > 0)) {
+    c->s2[i] = NAN;
+    return;
+  }
+  /* the extrapolated estimate e = w va - (w - 1) vb, w = m6b / (m6b - m6a),
+   * scatters more than va: with Var(v) = 2 s2^2 / nu and, the samples
+   * nested, Cov(va, vb) = Var(vb), Var(e) = 2 s2^2 (w^2 / nu_a + (1 - w^2)
+   * / nu_b); its quartile is that of chi^2 / nu at Satterthwaite's
+   * effective degrees of freedom nu = 2 s2^2 / Var(e) */
+  const double w = m6b / (m6b - m6a), na = ka - QT, nb = kb - QT;
+  const double nu = 1.0 / (w * w / na + (1.0 - w * w) / nb);
+  c->s2[i] = (e < va ? e : va) / bsurf_chi2_ratio_wh(nu, Z_Q);
 }
 
 /* Pass 2: the lower quartile of the (quartile-corrected) residual

@@ -367,6 +367,22 @@ void ctx_free(smooth_ctx *c, int T) {
   free(c->svar);
 }
 
+/* The scale rule's K for multipass (docs/smoothing.md, "The
+ * neighbourhood's scale"): t0 = R / sigma, R the median radius of the
+ * K-balls, sigma the guard's noise estimate; p the coefficients of the
+ * asked degree; at most k_max (0: 8 K), 65535 and the points. */
+static bsurf_status scale_k(const smooth_ctx *c, const bsurf_smooth_options *o, int T, int *K) {
+  (void)T;
+  double R = 0;
+  bsurf_status st = bsurf_ball_radius(c->xyz, c->nb, c->k, &R);
+  if (st != BSURF_OK) return st;
+  long cap = o->k_max > 0 ? o->k_max : 8L * c->k;
+  if (cap > 65535) cap = 65535;
+  if ((size_t)cap > c->n) cap = (long)c->n;
+  *K = bsurf_scale_k(R / sqrt(c->noise), c->k, c->m, (int)cap, NULL);
+  return BSURF_OK;
+}
+
 /* (its messages name bsurf_smooth, the public function) */
 bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
                                 const bsurf_smooth_options *opts, const bsurf_smooth_tuning *tune,
@@ -403,6 +419,9 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
                      "iterations = %d: must be >= 0, or -1 (auto)", o.iterations);
     BSURF_REQUIRE_IN("bsurf_smooth", o.k_min >= 1 && o.k_min <= o.error.k,
                      "k_min = %d: must be in [1, error.k = %d]", o.k_min, o.error.k);
+    BSURF_REQUIRE_IN("bsurf_smooth", o.k_max == 0 || (o.k_max >= o.error.k && o.k_max <= 65535),
+                     "k_max = %d: must be 0 (auto) or in [error.k = %d, 65535]", o.k_max,
+                     o.error.k);
   }
 
   BSURF_REQUIRE_IN("bsurf_smooth", o.degree_test >= -1 && o.degree_test <= 1,
@@ -501,6 +520,25 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
           memcpy(&out_xyz[3 * i], &xyz[3 * i], 3 * sizeof(double));
       }
   }
+  if (o.method == BSURF_SMOOTH_MULTIPASS && c.noise > 0 && o.k_max != c.k) {
+    /* the scale rule (ball_scale.c): where the noise is heavy against the
+     * K-ball, the method runs again on wider neighbourhoods */
+    int K = c.k;
+    st = scale_k(&c, &o, T, &K);
+    if (st == BSURF_OK && K > c.k) {
+      bsurf_smooth_options o2 = opts ? *opts : bsurf_smooth_options_default();
+      o2.method = o.method;
+      o2.error.k = o2.k_max = K;
+      bsurf_neighbors nb2;
+      st = bsurf_neighbors_build(&nb2, xyz, n, K, T, NULL, NULL);
+      if (st == BSURF_OK) {
+        st = bsurf_smooth_tuned(xyz, &nb2, &o2, tune, out_xyz, fields, report);
+        bsurf_neighbors_free(&nb2);
+      }
+      goto done;
+    }
+    if (st != BSURF_OK) goto done;
+  }
   c.W = bsurf_smooth_w_column(&o) ? c.err_632plus : c.err_632;
   double sumW = 0;
   for (size_t i = 0; i < n; i++)
@@ -515,6 +553,7 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
     report->mean_error = meanW;
     report->noise = c.svar ? sqrt(c.noise) : NAN;
     report->misfit_fits = misfit;
+    report->k = c.k;
   }
 
   if (o.method == BSURF_SMOOTH_NAIVE) {

@@ -254,7 +254,7 @@ static inline double update_finish(const double *x, double P, double S, const do
 #define guard_fit bsurf_i_smooth_guard_fit
 #define guard_noise bsurf_i_smooth_guard_noise
 #define guard_misfit bsurf_i_smooth_guard_misfit
-#define guard_ball_share bsurf_i_smooth_guard_ball_share
+#define guard_ball_share bsurf_ball_share /* ball_scale.c */
 #define gather_multipass_block bsurf_i_smooth_gather_multipass_block
 #define mp_tblock_task bsurf_i_smooth_mp_tblock_task
 #define mp_regions_build bsurf_i_smooth_mp_regions_build
@@ -278,8 +278,6 @@ void ctx_free(smooth_ctx *c, int T);
 /* smooth_guard.c */
 double guard_noise(const double *sv, size_t n, size_t stride, double *scratch);
 int guard_misfit(const double *sv, double noise);
-/* the share of the noise variance a ball of radius t sigma keeps (smooth_guard.c) */
-double guard_ball_share(double t);
 int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
               const uint32_t *idx, int k, double *F, int *degree, double *svar);
 /* smooth_lanes.c */

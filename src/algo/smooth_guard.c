@@ -170,41 +170,9 @@ static double kept_share(int n_out, int n_in) {
   return trunc_share(0.5 * (lo + hi));
 }
 
-/* The share of the noise variance a ball keeps (docs/smoothing.md, "The
- * noise estimate"): a neighbourhood is the K points nearest its centre in
- * space, a ball of radius R about the centre, and where the noise sigma
- * along the normal is not small against R the ball holds only the points
- * whose heights lie within R of the centre's. With the surface a plane
- * (heights N(0, sigma^2) over a uniform density), the centre at height z0
- * and a neighbour at distance rho from its normal line, that neighbour's
- * height is the normal truncated to [z0 - a, z0 + a], a = sqrt(R^2 -
- * rho^2); the fit follows the mean height at each rho, and the residual
- * variance left is the truncated normal's, averaged over the ball's points
- * (density rho times the window's mass) and over z0 ~ N(0, sigma^2):
- *   kappa(t) = E_z0 [ int_0^t rho M V drho / int_0^t rho M drho ],
- *   t = R / sigma, M, V: the mass and variance (in sigma^2) of N(0, 1)
- *   truncated to [z0 - a, z0 + a].
- * kappa -> 1 as t grows (0.955 at t = 8: a 50-neighbourhood at 0.5
- * spacings of noise) and -> t^2 / 5 (the variance of a uniform ball's
- * heights) as t -> 0; it is 0.36 at t = 1.7, the development set's
- * 50,000-point samplings at gaussian 0.6% of the diagonal (sigma 3.5 h,
- * R 6 h), whose fits read the noise at 0.6 sigma. Tabulated at u = 1 / t
- * = j / 32 (by adaptive quadrature; test_smooth_noise recomputes it), read
- * by linear interpolation in u; t below 1 reads t = 1 (a ball narrower than
- * the noise holds no surface to measure it by). */
-static const double ball_share_tab[33] = {
-    1.000000, 0.997375, 0.989423, 0.975911, 0.956412, 0.930258, 0.896645, 0.855485, 0.808270,
-    0.757596, 0.706076, 0.655703, 0.607742, 0.562864, 0.521338, 0.483181, 0.448265, 0.416391,
-    0.387322, 0.360819, 0.336645, 0.314578, 0.294413, 0.275963, 0.259059, 0.243548, 0.229295,
-    0.216176, 0.204084, 0.192920, 0.182598, 0.173040, 0.164176};
-
-double guard_ball_share(double t) {
-  if (!(t > 0)) return ball_share_tab[32];
-  const double u = fmin(1.0 / t, 1.0) * 32.0;
-  const int j = u >= 32 ? 31 : (int)u;
-  const double f = u - j;
-  return ball_share_tab[j] + f * (ball_share_tab[j + 1] - ball_share_tab[j]);
-}
+/* kappa, the share of the noise variance a ball of radius t sigma keeps
+ * (guard_ball_share = bsurf_ball_share, ball_scale.c, which derives and
+ * tabulates it). */
 
 /* The cloud's noise variance for the misfit test (docs/smoothing.md, "The
  * misfit test", "The noise estimate"): sigma^2 such that it is the lower

@@ -1,0 +1,167 @@
+/* The MSE rule's noise estimate where its misfit extrapolation degenerates
+ * and at light noise on a sparse sampling (src/algo/kselect_noise.c;
+ * docs/normals.md, "Choosing K", *noise*): a cube whose edges make the
+ * extrapolation degenerate at the points near them, and a sphere whose
+ * density varies 10x across it with Gaussian noise about the sparse
+ * part's spacing (fixed seeds). */
+#include <setjmp.h>
+#include <stdarg.h>
+#include <stddef.h>
+#include <cmocka.h>
+#include <stdint.h>
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "bootsurf.h"
+
+static double angle_u(const double *a, const double *b) {
+  const double d = fabs(a[0] * b[0] + a[1] * b[1] + a[2] * b[2]);
+  const double c[3] = {a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                       a[0] * b[1] - a[1] * b[0]};
+  return atan2(sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), d);
+}
+
+#define SPHERE_SIGMA 1.0 /* the noise's deviation, in units of the thinned cloud's h */
+
+static const int KS[] = {15, 20, 25, 30, 35, 40, 45, 50, 55, 60, 65, 70, 75, 80};
+#define NKS ((int)(sizeof KS / sizeof KS[0]))
+
+/* the selection's mean angle error, the pooled noise deviation (global:
+ * one value) and the share and mean error of the points at K <= 30 */
+typedef struct sel_result {
+  double err, sigma, small_share, small_err;
+} sel_result;
+
+static sel_result select_on(const double *xyz, const double *tn, size_t n,
+                            const bsurf_neighbors *nb) {
+  double *nrm = malloc(3 * n * sizeof(double)), *noise = malloc(n * sizeof(double));
+  int *k = malloc(n * sizeof(int));
+  bsurf_kselect_options o = bsurf_kselect_options_default();
+  o.ks = KS;
+  o.nk = NKS;
+  o.threads = 2;
+  bsurf_kselect_fields f = {nrm, k, NULL, noise, NULL, NULL};
+  assert_int_equal(bsurf_select_k(xyz, nb, &o, &f, NULL), BSURF_OK);
+  sel_result r = {0, noise[0], 0, 0};
+  size_t nsmall = 0;
+  for (size_t i = 0; i < n; i++) {
+    const double e = angle_u(&nrm[3 * i], &tn[3 * i]);
+    r.err += e;
+    if (k[i] <= 30) r.small_err += e, nsmall++;
+  }
+  r.err /= n;
+  r.small_share = (double)nsmall / n;
+  r.small_err = nsmall ? r.small_err / nsmall : 0;
+  free(nrm);
+  free(noise);
+  free(k);
+  return r;
+}
+
+/* the mean angle error of the PCA normals at a fixed K */
+static double fixed_k(const double *xyz, const double *tn, size_t n, const bsurf_neighbors *nb,
+                      int K) {
+  double *nrm = malloc(3 * n * sizeof(double));
+  bsurf_normal_options no = bsurf_normal_options_default();
+  no.k = K;
+  no.bootstrap = 0;
+  bsurf_normal_fields out = {nrm, NULL, NULL};
+  assert_int_equal(bsurf_estimate_normals(xyz, nb, NULL, &no, &out, NULL), BSURF_OK);
+  double e = 0;
+  for (size_t i = 0; i < n; i++)
+    e += angle_u(&nrm[3 * i], &tn[3 * i]);
+  free(nrm);
+  return e / n;
+}
+
+/* A sphere of 30,000 random points thinned with keep probability 0.1^t,
+ * t = (x + 1) / 2 (the development set's anisotropic sampling: density
+ * 10x across), Gaussian noise of one thinned-cloud spacing h along the
+ * normals (fixed seeds): the development set's anisotropic sphere at g0.25
+ * in miniature. Its best fixed K is the largest; where the noise reads low
+ * the small candidates' variance reads low, a few sparse points take a
+ * small K whose normal is far off, and the larger candidates' drifts from
+ * it read as bias. Measured: with the degenerate extrapolations clamped to
+ * 0 and the quartile of chi^2 at the first fit's degrees of freedom, sigma
+ * 0.835 of the true one, 0.99% of the points at K <= 30 (mean error 0.326
+ * rad), 1.126x the best fixed K (80); now sigma 0.873, 0.59% (0.309 rad),
+ * 1.061x. The bounds sit between the two. */
+static void test_aniso_sphere(void **state) {
+  (void)state;
+  bsurf_cloud dense;
+  assert_int_equal(bsurf_generate(&dense, BSURF_SHAPE_SPHERE, 30000, BSURF_SAMPLING_RANDOM, 7, 2),
+                   BSURF_OK);
+  const size_t nd = dense.point_count;
+  double *xyz = malloc(3 * nd * sizeof(double)), *tn = malloc(3 * nd * sizeof(double));
+  size_t n = 0;
+  bsurf_rng rng;
+  bsurf_rng_init(&rng, 20261125, 0, 0);
+  for (size_t i = 0; i < nd; i++) {
+    const double t = (dense.xyz[3 * i] + 1) / 2;
+    if (!(bsurf_rng_uniform(&rng) < pow(0.1, t))) continue;
+    memcpy(&xyz[3 * n], &dense.xyz[3 * i], 3 * sizeof(double));
+    memcpy(&tn[3 * n], &dense.normals[3 * i], 3 * sizeof(double));
+    n++;
+  }
+  bsurf_cloud_free(&dense);
+  double h;
+  assert_int_equal(bsurf_mean_spacing(xyz, n, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(xyz, tn, n, BSURF_NOISE_GAUSSIAN, SPHERE_SIGMA, h, 11),
+                   BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 80, 2, NULL, NULL), BSURF_OK);
+  const sel_result r = select_on(xyz, tn, n, &nb);
+  double best = INFINITY;
+  int kbest = 0;
+  for (int a = 0; a < NKS; a++) {
+    const double e = fixed_k(xyz, tn, n, &nb, KS[a]);
+    if (e < best) best = e, kbest = KS[a];
+  }
+  print_message("aniso sphere (%zu points): sigma estimated / true %.3f; selection %.5f (%.4f of "
+                "the points at K <= 30, mean error %.3f), best fixed K %d %.5f, ratio %.3f\n",
+                n, r.sigma / (SPHERE_SIGMA * h), r.err, r.small_share, r.small_err, kbest, best,
+                r.err / best);
+  assert_true(r.sigma > 0.85 * SPHERE_SIGMA * h && r.sigma < 1.1 * SPHERE_SIGMA * h);
+  assert_true(r.err < 1.09 * best);
+  free(xyz);
+  free(tn);
+  bsurf_neighbors_free(&nb);
+}
+
+/* A cube of 3,000 random points with Gaussian noise of 0.1 h along the
+ * normals (fixed seeds): sparse enough that many points' doubled
+ * neighbourhoods (the misfit's extrapolation) cross an edge, where the
+ * extrapolation degenerates. Clamping those to 0, which the lower-quartile
+ * pool then picked, read sigma 0.766 of the true one; leaving them out
+ * (and the extrapolated estimates' effective degrees of freedom) 1.105. */
+static void test_cube_noise(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 3000, BSURF_SAMPLING_RANDOM, 3, 2),
+                   BSURF_OK);
+  const size_t n = c.point_count;
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, n, 2, &h), BSURF_OK);
+  double *tn = malloc(3 * n * sizeof(double));
+  memcpy(tn, c.normals, 3 * n * sizeof(double));
+  assert_int_equal(bsurf_add_noise(c.xyz, tn, n, BSURF_NOISE_GAUSSIAN, 0.1, h, 7), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 80, 2, NULL, NULL), BSURF_OK);
+  const sel_result r = select_on(c.xyz, tn, n, &nb);
+  print_message("cube: sigma estimated / true %.3f, selection %.5f, K = 30 %.5f\n",
+                r.sigma / (0.1 * h), r.err, fixed_k(c.xyz, tn, n, &nb, 30));
+  assert_true(r.sigma > 0.85 * 0.1 * h && r.sigma < 1.2 * 0.1 * h);
+  free(tn);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
+int main(void) {
+  const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_aniso_sphere),
+      cmocka_unit_test(test_cube_noise),
+  };
+  return cmocka_run_group_tests(tests, NULL, NULL);
+}
