@@ -21,13 +21,26 @@ that the default misses, and the rows it passes near them) it reports:
                p-values (p = rank from the top / (n + 1)); min-p a+b: of the smaller p
                (what a Bonferroni or Simes test over the scales thresholds)
 
+--eta prints instead how the noise sigma_0 of the simulated patches (docs/features.md, steps
+3 and 5) is read from eta = median lambda0 / tr at K 30: eta of a flat unit-density patch
+(uniform random positions, gaussian noise sigma along the normal, the interior's points)
+as a function of sigma, with the neighbourhoods built on the clean patch (as
+src/algo/features_variance.c's patch_init does) and on the noisy one (as the cloud's
+are); then, for each case, the cloud's eta, its true sigma in the patch's unit (case.json's
+noise_sigma over 1 / sqrt(density), the density read from the clean points of truth.ply:
+the median distance r to the 29th-nearest, pi r^2 = 29), the sigma_0 that patch_sigma's
+iteration (s = sqrt(eta K / 2 pi), then four steps s *= sqrt(eta / eta_patch(s))) reaches
+on the clean-neighbourhood patch, and
+(where the default's run is in --work) the shares of the points within one spacing of an
+edge (truth.ply's feature_dist / h) and beyond 8 spacings with z above its threshold.
+
 The quadric is fitted here with numpy (a measurement; the library's is quad_solve in
 src/algo/kselect.c). Results are cached per case in --work (the neighbourhoods and RSS
 in CASE/lof.npz, each CLI run in CASE/zK.npz, K 0 = the default).
 
 usage:
   nice -n 10 /usr/bin/python3 scripts/features_study.py --bootsurf build --devset DIR \\
-      [--cases LIST] [--work DIR]
+      [--cases LIST] [--work DIR] [--eta]
 """
 import argparse
 import json
@@ -52,7 +65,8 @@ Z99 = 2.3263478740408408  # the standard normal's 99% quantile
 
 
 def knn(xyz, k):
-    tree = o3d.geometry.KDTreeFlann(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz)))
+    pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(xyz))  # kept alive: the tree
+    tree = o3d.geometry.KDTreeFlann(pc)                             # reads its points
     idx = np.empty((len(xyz), k), dtype=np.int64)
     for i in range(len(xyz)):
         idx[i] = np.asarray(tree.search_knn_vector_3d(xyz[i], k)[1])
@@ -120,7 +134,8 @@ def study(bs, dev, case, work):
             r = subprocess.run(args, capture_output=True, text=True, check=True)
             j = json.loads(r.stdout)
             f = devset.read_ply(out)[0]
-            np.savez(fz, z=f["variance_z"], feat=f["feature"] != 0, k=j["parameters"]["k"])
+            np.savez(fz, z=f["variance_z"], feat=f["feature"] != 0, k=j["parameters"]["k"],
+                     t=j["threshold"])
             os.remove(out)
         Z[k] = dict(np.load(fz))
     row = {"case": case, "features": float(truth.mean()),
@@ -144,6 +159,60 @@ def study(bs, dev, case, work):
     return row
 
 
+def eta_of(xyz, idx, k=30):
+    """median lambda0 / (lambda0 + lambda1 + lambda2) of the k-neighbourhoods idx"""
+    P = xyz[idx[:, :k]]
+    Q = P - P.mean(1, keepdims=True)
+    w = np.linalg.eigvalsh(np.einsum("nki,nkj->nij", Q, Q) / k)
+    return float(np.median(w[:, 0] / w.sum(1)))
+
+
+def eta_study(dev, cases, work):
+    rng = np.random.default_rng(1)
+    side = 160
+    uv = rng.uniform(0, side, (side * side, 2))
+    g = rng.normal(size=side * side)
+    inside = np.all((uv > 10) & (uv < side - 10), 1)
+    clean = knn(np.c_[uv, 0 * g], 30)
+
+    def patch(s, noisy):
+        xyz = np.c_[uv, s * g]
+        return eta_of(xyz, (knn(xyz, 30) if noisy else clean)[inside])
+
+    print("| patch sigma (1 / sqrt(density)) | eta, clean neighbourhoods |"
+          " eta, noisy neighbourhoods |")
+    print("|---|---|---|")
+    for s in (0.25, 0.5, 1, 1.5, 2, 3, 4, 5, 6):
+        print("| %g | %.4f | %.4f |" % (s, patch(s, False), patch(s, True)))
+    print("\n| case | cloud eta | sigma (1 / sqrt(density)) | sigma_0 (clean-neighbourhood patch) |"
+          " z > t within 1 h of an edge / beyond 8 h |")
+    print("|---|---|---|---|---|")
+    for c in cases:
+        cj = json.load(open(os.path.join(dev, c, "case.json")))
+        f = devset.read_ply(os.path.join(dev, c, "noisy.ply"))[0]
+        xyz = np.stack([f[k] for k in "xyz"], 1).astype(float)
+        fn = os.path.join(work, c, "lof.npz")
+        idx = np.load(fn)["idx"] if os.path.exists(fn) else knn(xyz, 30)
+        eta = eta_of(xyz, idx)
+        s = np.sqrt(eta * 30 / (2 * np.pi))
+        for _ in range(4):
+            s *= np.sqrt(eta / patch(s, False))
+        t = devset.read_ply(os.path.join(dev, c, "truth.ply"))[0]
+        d = t["feature_dist"] / cj["h"]
+        # the patch's unit, 1 / sqrt(density): from the clean points' 29th-nearest
+        # distance r (a unit-density Poisson process has pi r^2 ~ 29 there)
+        pts = np.stack([t[k] for k in "xyz"], 1).astype(float)
+        unit = np.median(np.linalg.norm(pts[knn(pts, 30)[:, 29]] - pts, axis=1))
+        unit /= np.sqrt(29 / np.pi)
+        true = cj["noise_sigma"] / unit if cj.get("noise_sigma") else float("nan")
+        fz = os.path.join(work, c, "z0.npz")  # the default's run (study())
+        pr = "-"
+        if os.path.exists(fz):
+            Z = np.load(fz)
+            pr = "%.3f / %.3f" % tuple(np.mean(Z["z"][m] > float(Z["t"])) for m in (d < 1, d > 8))
+        print("| %s | %.4f | %.2f | %.2f | %s |" % (c, eta, true, s, pr))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[1],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -151,7 +220,11 @@ def main():
     ap.add_argument("--devset", required=True)
     ap.add_argument("--cases", default=",".join(CASES))
     ap.add_argument("--work", default="/tmp/bootsurf_features_study")
+    ap.add_argument("--eta", action="store_true", help="the noise's reading instead (above)")
     a = ap.parse_args()
+    if a.eta:
+        eta_study(a.devset, [c for c in a.cases.split(",") if c], a.work)
+        return
     bs = os.path.abspath(a.bootsurf)
     if os.path.isdir(bs):
         bs = os.path.join(bs, "bootsurf")
