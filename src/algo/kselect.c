@@ -370,6 +370,47 @@ int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, const int *k
   return any;
 }
 
+#ifdef BSURF_KSEL_TRACE
+/* A developer's trace of the rule's last selection pass (off unless compiled
+ * with -DBSURF_KSEL_TRACE; then with BSURF_KSEL_TRACE=FILE in the
+ * environment, and one thread, -j 1): per point its pooled noise, its first
+ * choice without the empirical bias (the references of kselect_lof.c) and
+ * its noise_k nearest; per candidate the normal, V, the quadric's bias^2,
+ * the drift, the lack-of-fit gate, the residual variance, |H t|^2 and its
+ * noise share's factor, the two tangent eigenvalues. scripts/ksel_replay.py
+ * replays the choice from it (docs/normals.md, "What the benchmark says",
+ * the vertex sets). */
+#include <stdio.h>
+static void trace_point(const ksel_ctx *c, const ksel_scratch *s, const uint32_t *idx, size_t i,
+                        double s2) {
+  static FILE *f;
+  const char *path = getenv("BSURF_KSEL_TRACE");
+  if (!path) return;
+  if (!f && !(f = fopen(path, "w"))) return;
+  const int nk = c->o->nk;
+  const double *nrm = s->nrm, *var = s->var;
+  fprintf(f, "P %zu %.17g %.17g %.17g %.17g %.17g", i, s2, c->bref[3 * i], c->bref[3 * i + 1],
+          c->bref[3 * i + 2], c->bmref[i]);
+  for (int j = 0; j < c->o->noise_k; j++)
+    fprintf(f, " %u", idx[j]);
+  fprintf(f, "\n");
+  for (int a = 0; a < nk && a < 64; a++) {
+    double D = -INFINITY;
+    for (int b = 0; b < a; b++) {
+      if (!isfinite(var[b])) continue;
+      const double dot = nrm[3 * a] * nrm[3 * b] + nrm[3 * a + 1] * nrm[3 * b + 1] +
+                         nrm[3 * a + 2] * nrm[3 * b + 2];
+      const double d = 1.0 - dot * dot - drift_tol(a) * (var[b] - var[a]);
+      if (d > D) D = d;
+    }
+    fprintf(f, "C %d %.17g %.17g %.17g %.17g %.17g %.17g %d %.17g %.17g %.17g %.17g %.17g\n", a,
+            nrm[3 * a], nrm[3 * a + 1], nrm[3 * a + 2], var[a], s->qb[a], D, s->gate[a], s->rssv[a],
+            s->trace[a][0], s->trace[a][1], s->trace[a][2], s->trace[a][3]);
+  }
+  fflush(f);
+}
+#endif
+
 /* Pass 3: every candidate's normal, variance V and quadric bias^2 (noise
  * share removed), their drifts, and the smallest V + Bias^2. */
 void select_point(void *vctx, int thread, size_t i) {
@@ -411,6 +452,9 @@ void select_point(void *vctx, int thread, size_t i) {
     double coef[QT], rss, gi[3][3];
     qb[a] = INFINITY;
     s->rssv[a] = NAN;
+#ifdef BSURF_KSEL_TRACE
+    if (a < 64) s->trace[a][0] = s->trace[a][1] = s->trace[a][2] = s->trace[a][3] = NAN;
+#endif
     if (quad_solve(&q, coef, &rss, gi) != 0) continue;
     s->rssv[a] = rss / (K - QT);
     const double tu = (f.rot[0][0] * mu[0] + f.rot[0][1] * mu[1] + f.rot[0][2] * mu[2]) / scale;
@@ -430,6 +474,10 @@ void select_point(void *vctx, int thread, size_t i) {
           tr += A[r][t] * gi[t][w] * A[r][w];
     }
     qb[a] = b2 - s2 * tr; /* unbiased; clipped at 0 below */
+#ifdef BSURF_KSEL_TRACE
+    if (a < 64)
+      s->trace[a][0] = b2, s->trace[a][1] = tr, s->trace[a][2] = ev[1], s->trace[a][3] = ev[2];
+#endif
   }
   /* where the K_max neighbours sample a curve, the candidates that read
    * fewer than two dimensions are not assessed (the section above) */
@@ -464,6 +512,9 @@ void select_point(void *vctx, int thread, size_t i) {
   }
   /* none assessed (noise above the tangent spread of every K): the largest
    * K, the most stable plane */
+#ifdef BSURF_KSEL_TRACE
+  if (c->bref) trace_point(c, s, idx, i, s2);
+#endif
   ksel_ties(c, s, i, nk, best, best_mse, nk - 1);
 }
 

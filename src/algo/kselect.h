@@ -68,6 +68,10 @@ typedef struct ksel_scratch {
   size_t tie_used; /* doubles used in the last block */
   /* the polynomial candidates' (kselect_poly.c), or NULL */
   struct kpoly_scratch *poly;
+#ifdef BSURF_KSEL_TRACE
+  /* per candidate |H t|^2, its noise share's factor, l1, l2 (kselect.c, trace_point) */
+  double trace[64][4];
+#endif
 } ksel_scratch;
 
 typedef struct ksel_ctx {

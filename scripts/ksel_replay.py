@@ -1,0 +1,291 @@
+#!/usr/bin/python3
+"""ksel_replay -- replay the mse rule's last pass on development cases (issue 24).
+
+usage:
+  /usr/bin/python3 scripts/ksel_replay.py DEVSET_DIR --bootsurf TRACE_BUILD/bootsurf
+      --out WORK_DIR [--sampling vertices] [--cases LIST] [--variants LIST]
+
+TRACE_BUILD is a build configured with -DCMAKE_C_FLAGS=-DBSURF_KSEL_TRACE: its
+`normals --select-k 15:80:5 -B 0 --select-rule mse -j 1` writes, with
+BSURF_KSEL_TRACE=FILE in the environment, each point's terms of the rule's last
+selection pass (src/algo/kselect.c, trace_point). This script runs it once per
+case (cached in WORK_DIR as CASE.npz, with K = 10's normals for the best fixed K),
+replays the choice in numpy -- the criterion M(K) = V + max(quadric tilt, drift,
+empirical bias where the lack-of-fit gate is on), the tie band and the
+precision-weighted tie-break -- checks that the replay gives the C code's normals,
+and prints, for each variant of the rule, each case's mean angle error over the
+best fixed K's (K in 10, 15, ..., 30, 40, ..., 80, in hindsight) and the count at
+most the best / more than 5% above / mean / worst. The variants are diagnostics
+(docs/normals.md, "What the benchmark says", the vertex sets), not rules.
+"""
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+from statistics import NormalDist
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+import devset  # noqa: E402
+
+KS = list(range(15, 81, 5))
+FIXED = [10, 15, 20, 25, 30, 40, 50, 60, 70, 80]
+TIE_F = 0.5  # kselect.c
+ALPHA = 0.05  # kselect_lof.c
+
+
+def ang(n, t):
+    return np.arctan2(np.linalg.norm(np.cross(n, t), axis=1), np.abs(np.sum(n * t, 1)))
+
+
+def normals_of(path):
+    f, _ = devset.read_ply(path)
+    return np.stack([f["nx"], f["ny"], f["nz"]], 1).astype(float), f
+
+
+def run_case(bs, dev, out, case):
+    npz = os.path.join(out, case + ".npz")
+    if os.path.exists(npz):
+        return dict(np.load(npz))
+    src = os.path.join(dev, case, "noisy.ply")
+    dump, res, r10 = (os.path.join(out, case + x) for x in (".trace", ".ply", ".k10.ply"))
+    env = dict(os.environ, BSURF_KSEL_TRACE=dump)
+    subprocess.run([bs, "normals", src, "-o", res, "-q", "-j", "1", "--select-k", "15:80:5", "-B", "0",
+                    "--select-rule", "mse"], env=env, check=True)
+    subprocess.run([bs, "normals", src, "-o", r10, "-q", "-k", "10", "-B", "0"], check=True)
+    P, C = [], []
+    for line in open(dump):
+        w = line.split()
+        (P if w[0] == "P" else C).append([float(x) for x in w[1 if w[0] == "P" else 2:]])
+    P, C = np.array(P), np.array(C)
+    order = np.argsort(P[:, 0].astype(int))
+    P, C = P[order], C.reshape(len(P), len(KS), -1)[order]
+    cn, f = normals_of(res)
+    d = dict(s2=P[:, 1], bref=P[:, 2:5], bmref=P[:, 5], nb=P[:, 6:].astype(int), nrm=C[:, :, 0:3],
+             var=C[:, :, 3], qb=C[:, :, 4], D=C[:, :, 5], gate=C[:, :, 6].astype(int), rssv=C[:, :, 7],
+             b2raw=C[:, :, 8], tr=C[:, :, 9], l1=C[:, :, 10], l2=C[:, :, 11], cnorm=cn,
+             k10=normals_of(r10)[0], truth=normals_of(os.path.join(dev, case, "truth.ply"))[0])
+    np.savez(npz, **d)
+    for p in (dump, res, r10):
+        os.remove(p)
+    return d
+
+
+def wh(nu, z):  # the quantile of chi^2_nu / nu by Wilson-Hilferty
+    a = 2.0 / (9 * nu)
+    return (1 - a + z * math.sqrt(a)) ** 3
+
+
+def rej0(d):  # the smallest candidate rejects the quadric (kselect_lof.c)
+    z = NormalDist().inv_cdf(1 - ALPHA / len(KS))
+    return d["rssv"][:, 0] > d["s2"] * wh(KS[0] - 6, z)
+
+
+def test_error(d):
+    """T(K) against the neighbours' first choices without the empirical bias, R, and
+    whether any reference is assessed (kselect_lof.c)."""
+    n, nb = len(d["s2"]), d["nb"]
+    with np.errstate(divide="ignore"):
+        w = 1.0 / d["bmref"][nb]
+    w[(nb == np.arange(n)[:, None]) | ~np.isfinite(w) | (w < 0)] = 0
+    ws = w.sum(1)
+    dots = np.einsum("nac,njc->naj", d["nrm"], d["bref"][nb])
+    T = np.einsum("naj,nj->na", 1 - dots ** 2, w) / np.where(ws > 0, ws, 1)[:, None]
+    R = (w > 0).sum(1) / np.where(ws > 0, ws, np.inf)
+    return T, R, ws > 0
+
+
+def drift(d, var, tol=None, hit=None, tri=None):
+    """max over smaller candidates of sin^2 - c (V(j) - V(K)), c = 3 + ln(a); tol
+    replaces c where hit; tri: the smaller candidate's own bias^2 taken off first."""
+    n, nk = var.shape
+    nrm = d["nrm"]
+    out = np.full((n, nk), -np.inf)
+    for a in range(1, nk):
+        c = np.full(n, 3 + math.log(max(a, 1)))
+        if tol is not None:
+            c = np.where(hit[:, a], tol, c)
+        for b in range(a):
+            s2 = 1 - np.sum(nrm[:, a] * nrm[:, b], 1) ** 2
+            with np.errstate(invalid="ignore"):
+                x = s2 - c * (var[:, b] - var[:, a])
+            if tri is not None:
+                x = np.maximum(0, np.sqrt(np.maximum(x, 0)) - np.sqrt(tri[:, b])) ** 2
+            out[:, a] = np.maximum(out[:, a], np.where(np.isfinite(var[:, b]), x, -np.inf))
+    return out
+
+
+def criterion(d, s2=None, gate=None, emp="R", drift_kw=None, no_drift=None):
+    """V + max(Q, D, the empirical bias where gated), recomputed; s2 replaces the
+    pooled noise (then V, Q, the gate and D follow it)."""
+    var, Q = d["var"], d["qb"]
+    n, nk = var.shape
+    if s2 is not None:
+        s2 = np.broadcast_to(np.reshape(s2, (-1, 1)), var.shape)
+        l1, l2 = d["l1"], d["l2"]
+        curve = ~np.isfinite(var) & (l1 > d["s2"][:, None]) & (l2 > 0)  # the curve test's
+        ok = (l1 > s2) & (l2 > 0) & ~curve
+        with np.errstate(all="ignore"):
+            var = np.where(ok, s2 / np.array(KS) * (l1 / (l1 - s2) ** 2 + l2 / (l2 - s2) ** 2), np.inf)
+            Q = d["b2raw"] - s2 * d["tr"]
+        z = NormalDist().inv_cdf(1 - ALPHA / nk)
+        rej = np.isfinite(d["rssv"]) & (d["rssv"] > s2 * np.array([wh(K - 6, z) for K in KS]))
+        gate = np.maximum.accumulate(rej, 1) & ~rej[:, :1]
+    if gate is None:
+        gate = d["gate"] == 1
+    Q = np.where(np.isfinite(Q) & (Q > 0), Q, 0)
+    D = drift(d, var, **(drift_kw or {}))
+    if no_drift is not None:
+        D[no_drift] = -np.inf
+    b2 = np.maximum(Q, D)
+    T, R, ok = test_error(d)
+    if emp == "R":
+        eb = np.maximum(0, T - R[:, None] - var)
+    else:  # differenced against the last candidate the gate passes: R cancels
+        k0 = np.maximum(np.argmax(gate, 1) - 1, 0)
+        ix = np.arange(n)
+        M0 = np.where(np.isfinite(var[ix, k0]), var[ix, k0] + b2[ix, k0], R)
+        eb = np.maximum(0, T - T[ix, k0][:, None] + M0[:, None] - var)
+    b2 = np.maximum(b2, np.where(gate & ok[:, None], eb, 0))
+    return var, np.where(np.isfinite(var), var + b2, np.inf)
+
+
+def choose(d, var, mse, band_f=TIE_F, band_inf=None, pick=None, agg=None):
+    """the minimum, the tie band and the precision-weighted tie-break (kselect.c)"""
+    n, nk = var.shape
+    ix = np.arange(n)
+    if agg is not None:  # the criterion averaged over the noise_k neighbours
+        nb = d["nb"]
+        Mn = mse[nb]
+        fin = np.isfinite(Mn)
+        fm = np.min(mse, 1)
+        w = (np.where(np.isfinite(fm), 1.0 / np.maximum(fm, 1e-300), 0)[nb] if agg[0] == "prec"
+             else np.ones(nb.shape))[:, :, None] * fin
+        X = np.log(np.where(fin, Mn, 1.0)) if agg[1] else np.where(fin, Mn, 0)
+        s = (w * X).sum(1) / np.maximum(w.sum(1), 1e-300)
+        mse = np.where(np.isfinite(mse) & (w.sum(1) > 0), np.exp(s) if agg[1] else s, np.inf)
+    best = np.argmin(mse, 1)
+    bm = mse[ix, best]
+    none = ~np.isfinite(bm)
+    best[none] = nk - 1
+    fn, fm = d["nrm"][ix, best], bm
+    band = np.where(none, np.inf, bm + band_f * np.where(none, 0, var[ix, best]))
+    if band_inf is not None:
+        band = np.where(band_inf & ~none, np.inf, band)
+    tied = np.isfinite(var) & (mse <= band[:, None])
+    tied[ix, best] = True
+    if pick == "small":
+        ch = np.argmax(tied, 1)
+    elif pick == "large":
+        ch = nk - 1 - np.argmax(tied[:, ::-1], 1)
+    else:
+        nb = d["nb"]
+        with np.errstate(divide="ignore"):
+            w = 1.0 / fm[nb]
+        w[nb == ix[:, None]] = 0
+        T = np.einsum("naj,nj->na", 1 - np.einsum("nac,njc->naj", d["nrm"], fn[nb]) ** 2, w)
+        ch = np.where(w.sum(1) > 0, np.argmin(np.where(tied, T, np.inf), 1), best)
+    ch = np.where(none, nk - 1, ch)
+    return d["nrm"][ix, ch]
+
+
+def true_s2(dev, case):
+    cj = json.load(open(os.path.join(dev, case, "case.json")))
+    if cj.get("noise_sigma"):
+        return cj["noise_sigma"] ** 2
+    return (float(cj["noise"][1:]) * cj["h"]) ** 2 / 3  # uniform in [-xi h, xi h]
+
+
+def variant(name, d, dev, case):
+    def r0_rows():
+        return rej0(d)
+    if name == "base":
+        return choose(d, *criterion(d))
+    if name.startswith("band"):
+        return choose(d, *criterion(d), band_f=float(name[4:]))
+    if name in ("tie_small", "tie_large"):
+        return choose(d, *criterion(d), pick=name[4:])
+    if name == "tie_all_r0":  # the neighbours' test error at every candidate where K_1 rejects
+        return choose(d, *criterion(d), band_inf=r0_rows())
+    if name.startswith("agg_"):  # agg_prec, agg_eq, agg_logeq, agg_logprec
+        w = name[4:]
+        return choose(d, *criterion(d), agg=(w.replace("log", ""), w.startswith("log")))
+    if name == "emp_diff":
+        return choose(d, *criterion(d, emp="diff"))
+    if name in ("emp_r0", "emp_diff_r0"):  # the empirical bias also where K_1 rejects
+        g = (d["gate"] == 1) | r0_rows()[:, None]
+        if name == "emp_diff_r0":
+            g[:, 0] &= ~r0_rows()
+        return choose(d, *criterion(d, gate=g, emp="diff" if "diff" in name else "R"))
+    if name == "drift_off_r0":
+        r0 = r0_rows()
+        return choose(d, *criterion(d, no_drift=np.repeat(r0[:, None], len(KS), 1)))
+    if name == "drift_c1":  # the unbiased drift where the gate or K_1 rejects
+        hit = (d["gate"] == 1) | r0_rows()[:, None]
+        return choose(d, *criterion(d, drift_kw=dict(tol=1.0, hit=hit)))
+    if name == "drift_tri":
+        var = d["var"]
+        Q = np.where(np.isfinite(d["qb"]) & (d["qb"] > 0), d["qb"], 0)
+        B = Q.copy()  # each candidate's bias^2, built up from the smaller ones
+        for a in range(1, len(KS)):
+            B[:, a] = np.maximum(B[:, a], drift(d, var, tri=B)[:, a])
+        return choose(d, *criterion(d, drift_kw=dict(tri=B)))
+    if name == "fgate":  # the gate by the nested F test of the residual variance's growth
+        rng = np.random.default_rng(1)
+        RSS = d["rssv"] * (np.array(KS) - 6)
+        F = ((RSS - RSS[:, :1]) / np.maximum(np.array(KS) - KS[0], 1)) / (RSS[:, :1] / (KS[0] - 6))
+        q = [np.inf] + [np.quantile(rng.chisquare(K - KS[0], 200000) / (K - KS[0]) /
+                                    (rng.chisquare(KS[0] - 6, 200000) / (KS[0] - 6)),
+                                    1 - ALPHA / (len(KS) - 1)) for K in KS[1:]]
+        g = np.maximum.accumulate(np.isfinite(F) & (F > np.array(q)), 1)
+        return choose(d, *criterion(d, gate=g))
+    if name.startswith("true_s2"):  # a diagnostic: the true noise variance times x
+        x = float(name.split("x")[1]) if "x" in name else 1.0
+        return choose(d, *criterion(d, s2=x * true_s2(dev, case)))
+    sys.exit("unknown variant %s" % name)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("devset")
+    ap.add_argument("--bootsurf", required=True, help="a build with -DBSURF_KSEL_TRACE")
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--sampling", default="vertices")
+    ap.add_argument("--cases", default="")
+    ap.add_argument("--variants", default="base")
+    a = ap.parse_args()
+    os.makedirs(a.out, exist_ok=True)
+    cases = a.cases.split(",") if a.cases else sorted(
+        c for c in os.listdir(a.devset) if os.path.isdir(os.path.join(a.devset, c)) and
+        any("_%s_" % s in c + "_" for s in a.sampling.split(",")))
+    names = a.variants.split(",")
+    ratios = {v: [] for v in names}
+    print("| case | best K | " + " | ".join(names) + " |")
+    print("|---|---|" + "---|" * len(names))
+    for c in cases:
+        d = run_case(a.bootsurf, a.devset, a.out, c)
+        t = d["truth"]
+        fe = {10: ang(d["k10"], t).mean()}
+        fe.update({K: ang(d["nrm"][:, i], t).mean() for i, K in enumerate(KS)})
+        bk = min(FIXED, key=lambda k: fe[k])
+        if not np.allclose(choose(d, *criterion(d)), d["cnorm"], atol=1e-6):
+            print("warning: %s: the replay differs from the C code's normals" % c, file=sys.stderr)
+        row = []
+        for v in names:
+            ratios[v].append(ang(variant(v, d, a.devset, c), t).mean() / fe[bk])
+            row.append("%.3f" % ratios[v][-1])
+        print("| %s | %d | %s |" % (c, bk, " | ".join(row)), flush=True)
+    print("\n| variant | cases | <= best fixed K | > 5% above | mean ratio | worst |")
+    print("|---|---|---|---|---|---|")
+    for v in names:
+        r = np.array(ratios[v])
+        print("| %s | %d | %d | %d | %.4f | %.3f (%s) |" % (v, len(r), np.sum(r <= 1), np.sum(r > 1.05), r.mean(),
+                                                          r.max(), cases[int(np.argmax(r))]))
+
+
+if __name__ == "__main__":
+    main()
