@@ -677,7 +677,7 @@ typedef struct bsurf_smooth_options {
    * thesis's is 1 |W|). */
   double a;                /* -1 (auto) */
   int iterations;          /* -1 (auto) */
-  int k_min;               /* 10 */
+  int k_min;               /* 10; at least 3 (a plane fit), at most error.k */
   double k_error;          /* 0 */
   double k_error_fraction; /* 0 (none) */
   /* every method: a neighbourhood whose fit is biased at its centre (two

@@ -514,7 +514,8 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
       iterations   multipass: passes; 'auto': until a pass's mean squared move
                    is below the fits' prediction variance (at most 300; the
                    thesis: 300)
-      k_min        multipass: the smallest neighbourhood (Eq. 6.3)
+      k_min        multipass: the smallest neighbourhood (Eq. 6.3), at least 3
+                   (the points of a plane fit)
       k_error      multipass: the error at which K_i reaches k_min (Eq. 6.4;
                    the thesis: '1W'); 'none': K_i = K
       guard        on (a fit biased at its centre by a second sheet or an

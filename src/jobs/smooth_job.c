@@ -351,8 +351,12 @@ static bsurf_status smooth_check(const bsurf_smooth_job_options *o, int tiled) {
                    "opts->smooth.error.k = %d is too small for degree %d: a fit needs at least %d "
                    "points",
                    eo->k, eo->degree, bsurf_poly_terms(eo->degree));
-  BSURF_REQUIRE_IN(SJ, so->method != BSURF_SMOOTH_MULTIPASS || so->k_min <= eo->k,
-                   "opts->smooth.k_min = %d must be in [1, error.k = %d]", so->k_min, eo->k);
+  /* K_i = k_min points carry a plane fit at least (bsurf_smooth) */
+  BSURF_REQUIRE_IN(SJ,
+                   so->method != BSURF_SMOOTH_MULTIPASS ||
+                       (so->k_min >= bsurf_poly_terms(1) && so->k_min <= eo->k),
+                   "opts->smooth.k_min = %d must be in [%d (a plane's points), error.k = %d]",
+                   so->k_min, bsurf_poly_terms(1), eo->k);
   BSURF_REQUIRE_IN(SJ, !isnan(so->threshold) || !o->threshold_in_h,
                    "opts->threshold_in_h with threshold NAN (auto): auto is no length");
   if (!tiled) return BSURF_OK;

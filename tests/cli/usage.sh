@@ -44,6 +44,9 @@ expect 0 "features --threshold 0.3 (variance)" -- "$BSURF" features "$IN/c.ply" 
 usage smooth "option -B needs a whole number (1 to 100000), not '0'" -- "$BSURF" smooth "$IN/c.ply" -B 0 -o "$OUT"
 usage smooth "--a must be a positive number or auto, not '0'" -- "$BSURF" smooth "$IN/c.ply" --a 0 -o "$OUT"
 usage smooth "--a must be a positive number or auto, not 'nan'" -- "$BSURF" smooth "$IN/c.ply" --a nan -o "$OUT"
+# K_i = k_min points carry a plane fit: 3 at least (the library refuses fewer too)
+usage smooth "option --k-min needs a whole number (3 to 65535), not '1'" -- "$BSURF" smooth "$IN/c.ply" --k-min 1 -o "$OUT"
+usage smooth "option --k-min needs a whole number (3 to 65535), not '2'" -- "$BSURF" smooth "$IN/c.ply" --k-min 2 -o "$OUT"
 
 # ---- an empty standard input is named, as an empty file is ----
 bad 1 "empty stdin, info" "-: standard input is empty" -- "$BSURF" info - </dev/null
