@@ -94,8 +94,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "most 300)",
        1, 0},
       {0, "k-min", ARG_INT, &so.k_min, "K",
-       "multipass: the smallest neighbourhood (Eq. 6.3), at least 3 (the points of a plane fit)",
-       3, 65535},
+       "multipass: the smallest neighbourhood (Eq. 6.3), at least 3 (the points of a plane fit)", 3,
+       65535},
       {0, "k-max", ARG_INT, &so.k_max, "K",
        "multipass with the guard: the largest K the noise may widen the neighbourhood to: where "
        "the guard's noise is heavy against the K-ball (which then holds only the points near "
