@@ -36,15 +36,17 @@ typedef struct cli_command {
   }
 #define CLI_OPT_SEED(var)                                                                          \
   { 0, "seed", ARG_U64, &(var), "S", "random seed", 1, 0 }
-#define CLI_OPTS_OUTPUT(out, ascii, force)                                                           \
-  {'o',    "output", ARG_STRING,                                                                     \
-   &(out), "FILE",   "output file (.ply .pcd .las .csv keep every field; - = standard output)",      \
-   1,      0},                                                                                       \
-      {0, "ascii", ARG_FLAG, &(ascii), "", "write ascii PLY or PCD (default: binary little-endian)", \
-       1, 0},                                                                                        \
-      {0,        "force", ARG_FLAG,                                                                  \
-       &(force), "",      "allow the output to be the input file, or a read-only file",              \
-       1,        0},                                                                                 \
+#define CLI_ASCII_HELP                                                                             \
+  "write ascii PLY or PCD (default: binary little-endian; .csv .xyz .off .obj are text anyway; "   \
+  ".las has no text form: refused)"
+#define CLI_OPTS_OUTPUT(out, ascii, force)                                                         \
+  {'o',    "output", ARG_STRING,                                                                   \
+   &(out), "FILE",   "output file (.ply .pcd .las .csv keep every field; - = standard output)",    \
+   1,      0},                                                                                     \
+      {0, "ascii", ARG_FLAG, &(ascii), "", CLI_ASCII_HELP, 1, 0},                                  \
+      {0,        "force", ARG_FLAG,                                                                \
+       &(force), "",      "allow the output to be the input file, or a read-only file",            \
+       1,        0},                                                                               \
       CLI_OPTS_FORMATS
 /* --format, --float32, --ply-names (cli/formats.c, docs/formats.md) */
 extern const char *cli_out_format;
@@ -77,6 +79,9 @@ int cli_output_is_stdout(int argc, char **argv);
 /* From now on standard output carries a cloud: what is printed for people
  * goes to standard error. */
 void cli_stdout_data_begin(void);
+/* --ascii with an output that has no text form (LAS): a usage error (2),
+ * else 0. */
+int cli_ascii_check(const cli_command *cmd, const char *output, int ascii);
 /* bsurf_write_options from the options (ascii, --format, ...); 0, or prints
  * and returns 1. */
 int cli_write_options(const char *path, int ascii, bsurf_write_options *wo);

@@ -24,6 +24,17 @@ usage noise "--format tiff: unknown format" -- "$BSURF" noise "$IN/c.ply" --form
 usage error "--ply-names gray: expected plain" -- "$BSURF" error "$IN/c.ply" -k 20 -d 2 -B 2 --ply-names gray -o "$OUT"
 usage smooth "--las-version 1.3: expected 1.2 or 1.4" -- "$BSURF" smooth "$IN/c.ply" --las-version 1.3 -o "$OUT"
 grep -q "error:" "$T/err" && fail "--las-version: an error-style line" || ok
+# --ascii: LAS has no text form (refused, naming the format, before any work);
+# CSV and XYZ are text anyway (accepted, the same bytes as without it)
+usage generate "--ascii: LAS is a binary format, it has no text form" -- "$BSURF" generate cube -n 100 --ascii -o "$T/a.las"
+[ ! -e "$T/a.las" ] && ok || fail "--ascii .las: a file was written"
+usage convert "--ascii: LAS is a binary format" -- "$BSURF" convert "$IN/c.ply" "$T/a.las" --ascii
+usage smooth "--ascii: LAS is a binary format" -- "$BSURF" smooth "$IN/c.ply" --ascii --format las -o -
+for e in csv xyz; do
+  expect 0 "--ascii .$e" -- "$BSURF" convert "$IN/c.ply" "$T/a.$e" --ascii -q
+  expect 0 "no --ascii .$e" -- "$BSURF" convert "$IN/c.ply" "$T/b.$e" -q
+  cmp -s "$T/a.$e" "$T/b.$e" && ok || fail "--ascii .$e: other bytes"
+done
 
 # ---- a missing output, in the same words for every command that needs one ----
 for c in normals smooth features noise sample; do
