@@ -234,6 +234,13 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
 /* --range-points (bsurf_job_io.range_points; 0: the library's choice) */
 extern size_t cli_range_points;
 
+/* --memory-limit as bytes (auto: 3/4 of the physical memory; none: 0);
+ * CLI_USAGE (printed) for a bad value, else 0. */
+int cli_memory_limit(const cli_command *cmd, const char *memory_limit, double *limit);
+/* The bytes a run in memory needs for n points of input: the file, its
+ * values, the k-neighbour rows, the tree, out_fields doubles and
+ * point_bytes a point. */
+double cli_memory_need(const char *input, uint64_t n, int k, int out_fields, double point_bytes);
 /* --tile-points / --memory-limit: *plan = the tile size, or 0 for the
  * in-memory run (always tiles under mpirun with several ranks). Checks that a
  * tiled run can write its output. 0, or prints and returns 1 (2: usage). */
@@ -249,6 +256,14 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
 int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *output, int ascii,
                          size_t tile_points, const char *memory_limit, int k, int out_fields,
                          double point_bytes, double cloud_bytes, size_t *plan);
+/* The same where a tiled run holds other arrays than the run in memory
+ * (smooth: multipass in memory, bilateral in tiles): out_fields and
+ * point_bytes for the whole cloud in memory, tile_fields and tile_bytes for
+ * a tile's points. */
+int cli_tiles_plan_split(const cli_command *cmd, const char *input, const char *output, int ascii,
+                         size_t tile_points, const char *memory_limit, int k, int out_fields,
+                         double point_bytes, int tile_fields, double tile_bytes, double cloud_bytes,
+                         size_t *plan);
 /* Before a tiled run: an empty input is refused by name. 0 or 1 (printed). */
 int cli_check_tiled_input(const char *input);
 /* A failed tiled run's message (rank 0): the file, the line or byte, the

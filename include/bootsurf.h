@@ -1645,6 +1645,35 @@ BSURF_API bsurf_status bsurf_smooth_job(const bsurf_job_io *io,
  * only (multipass, the sequential order). */
 BSURF_API size_t bsurf_smooth_job_point_values(const bsurf_smooth_job_options *opts);
 
+/* What bsurf_smooth_job runs in memory with these options and the memory it
+ * needs, for a front end's memory plan (whether to tile, how large the
+ * tiles, how wide the scale rule may widen K; docs/smoothing.md, "Memory"): */
+typedef struct bsurf_smooth_job_plan {
+  bsurf_smooth_method method; /* in memory (AUTO resolved: MULTIPASS; a tiled run
+                                 of AUTO runs BILATERAL) */
+  int k;                      /* the neighbourhood searched first: smooth.error.k */
+  int k_max;                  /* the largest neighbourhood the run may search: with
+                                 MULTIPASS and the guard the scale rule's cap
+                                 (smooth.k_max, 0: 8 k, at most 65535), else k */
+  int field_count;            /* the fields added: 3, or 5 for MULTIPASS */
+  double point_bytes;         /* bytes per point the job holds at once besides the
+                                 cloud (coordinates and fields) and the k-neighbour
+                                 rows (4 k) with their k-d tree: an upper bound
+                                 counting k_max (the scale rule's neighbour table,
+                                 reverse lists and active pairs at k_max) */
+  double k_max_bytes;         /* the part of point_bytes per unit of k_max (12 with
+                                 the scale rule, else 0): point_bytes at a smaller
+                                 cap K is point_bytes - (k_max - K) k_max_bytes */
+} bsurf_smooth_job_plan;
+
+/* The plan of bsurf_smooth_job(io with a cloud, opts, ...): opts NULL =
+ * defaults. The thread count (smooth.error.threads, resolved) counts when
+ * multipass runs a fixed number of passes. BSURF_ERR_INVALID_ARG (message:
+ * bsurf_last_message()) for the options the job refuses in memory, or plan
+ * NULL. */
+BSURF_API bsurf_status bsurf_smooth_job_memory(const bsurf_smooth_job_options *opts,
+                                               bsurf_smooth_job_plan *plan);
+
 /* ---- features (thesis chapter 7) ---- */
 
 /* What `bootsurf features` prints (text and --json). */
