@@ -361,7 +361,7 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv);
  * listing the available ones (NULL), --view or --azimuth/--elevation. */
 int render_parse_size(const cli_command *cmd, const char *text, int *w, int *h);
 int render_parse_range(const cli_command *cmd, const char *text, double *lo, double *hi);
-const bsurf_field *render_find_field(const bsurf_cloud *c, const char *path, const char *name);
+const bsurf_field *render_find_field(bsurf_cloud *c, const char *path, const char *name);
 /* What render and compare share: their view options' values (set the
  * defaults cmap "viridis", up "auto", az and el NAN first), the option rows
  * (RENDER_OPTS_VIEW) and render_args_apply after parsing: -o required,
@@ -374,8 +374,9 @@ typedef struct render_args {
 } render_args;
 #define RENDER_OPTS_VIEW(a, ro)                                                                    \
   CLI_OPT_IMAGE((a).output),                                                                       \
-      {0,          "field", ARG_STRING,                                                            \
-       &(a).field, "NAME",  "colour by this field (default: shade by normals)",                    \
+      {0,          "field",                                                                        \
+       ARG_STRING, &(a).field,                                                                     \
+       "NAME",     "colour by this field, or x, y, z, nx, ny, nz (default: shade by normals)",     \
        1,          0},                                                                             \
       CLI_OPT_COLORMAP((a).cmap),                                                                  \
       {0,         "view", ARG_STRING,                                                              \
