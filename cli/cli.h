@@ -372,26 +372,29 @@ typedef struct render_args {
   double az, el;
   int flat;
 } render_args;
-#define RENDER_OPTS_VIEW(a, ro)                                                                    \
-  CLI_OPT_IMAGE((a).output),                                                                       \
-      {0,          "field",                                                                        \
-       ARG_STRING, &(a).field,                                                                     \
-       "NAME",     "colour by this field, or x, y, z, nx, ny, nz (default: shade by normals)",     \
-       1,          0},                                                                             \
-      CLI_OPT_COLORMAP((a).cmap),                                                                  \
-      {0,         "view", ARG_STRING,                                                              \
-       &(a).view, "VIEW", "front, back, left, right, top, bottom or iso (default: iso)",           \
-       1,         0},                                                                              \
-      {0,       "azimuth", ARG_DOUBLE,                                                             \
-       &(a).az, "DEG",     "view azimuth about z (0 = front; default: that of --view)",            \
-       -360,    360},                                                                              \
-      {0,       "elevation", ARG_DOUBLE,                                                           \
-       &(a).el, "DEG",       "view elevation (90 = top; default: that of --view)",                 \
-       -90,     90},                                                                               \
-      {0, "point-size", ARG_DOUBLE, &(ro).point_size, "S", "splat diameter in units of h", 0.05,   \
-       50},                                                                                        \
-  {                                                                                                \
-    0, "flat", ARG_FLAG, &(a).flat, "", "field colours without shading", 1, 0                      \
+#define RENDER_OPTS_VIEW(a, ro)                                                                      \
+  CLI_OPT_IMAGE((a).output),                                                                         \
+      {0,          "field",                                                                          \
+       ARG_STRING, &(a).field,                                                                       \
+       "NAME",     "colour by this field, or x, y, z, nx, ny, nz (default: shade by normals)",       \
+       1,          0},                                                                               \
+      CLI_OPT_COLORMAP((a).cmap),                                                                    \
+      {0,         "view", ARG_STRING,                                                                \
+       &(a).view, "VIEW", "front, back, left, right, top, bottom or iso (default: iso)",             \
+       1,         0},                                                                                \
+      {0,       "azimuth", ARG_DOUBLE,                                                               \
+       &(a).az, "DEG",     "view azimuth about z, -360 to 360 (0 = front; default: that of --view)", \
+       1,       0},                                                                                  \
+      {0,          "elevation",                                                                      \
+       ARG_DOUBLE, &(a).el,                                                                          \
+       "DEG",      "view elevation, -90 to 90 (90 = top; default: that of --view)",                  \
+       1,          0},                                                                               \
+      {0,          "point-size",                                                                     \
+       ARG_DOUBLE, &(ro).point_size,                                                                 \
+       "S",        "splat diameter in units of h, 0.05 to 50",                                       \
+       1,          0},                                                                               \
+  {                                                                                                  \
+    0, "flat", ARG_FLAG, &(a).flat, "", "field colours without shading", 1, 0                        \
   }
 int render_args_apply(const cli_command *cmd, const render_args *a, bsurf_render_options *ro);
 /* --up auto: 2 (z) for a generated shape, else 1 (y). */

@@ -127,6 +127,15 @@ int render_args_apply(const cli_command *cmd, const render_args *a, bsurf_render
   if (render_view_option(cmd, a->view, a->az, a->el, &ro->azimuth, &ro->elevation))
     return CLI_USAGE;
   if (render_up_option(cmd, a->up, &ro->up_axis)) return CLI_USAGE;
+  if (bsurf_render_options_check(ro) != BSURF_OK) {
+    /* the library's words, its option named as the command line spells it
+     * ("point_size 100: ..." is --point-size) */
+    char m[256];
+    snprintf(m, sizeof m, "%s", bsurf_last_message());
+    for (char *p = m; *p && *p != ' '; p++)
+      if (*p == '_') *p = '-';
+    return cli_usage_error(cmd, "--%s", m);
+  }
   ro->shade = !a->flat;
   return 0;
 }

@@ -841,6 +841,12 @@ typedef struct bsurf_feature_options {
 } bsurf_feature_options;
 
 BSURF_API bsurf_feature_options bsurf_feature_options_default(void);
+/* bsurf_feature_options.threshold's range for a method, in the words every
+ * front end prints: distance a fraction of max(feature_dist) in [0, 1],
+ * variance a normal_var >= 0, NaN auto. BSURF_OK, or BSURF_ERR_INVALID_ARG
+ * with the message ("threshold 1.5: method distance takes a fraction of
+ * max(feature_dist), 0 to 1, or auto"; bsurf_last_message()). */
+BSURF_API bsurf_status bsurf_feature_threshold_check(bsurf_feature_method method, double threshold);
 
 typedef struct bsurf_feature_report {
   double threshold;            /* the absolute threshold applied to the score */
@@ -1013,6 +1019,12 @@ typedef struct bsurf_render_options {
 } bsurf_render_options;
 
 BSURF_API bsurf_render_options bsurf_render_options_default(void);
+/* The view's ranges, shared by every front end (bsurf_render checks them
+ * too): azimuth from -360 to 360 degrees, elevation from -90 to 90,
+ * point_size from 0.05 to 50. BSURF_OK, or BSURF_ERR_INVALID_ARG with a
+ * message naming the option and its value ("azimuth 1000: must be from
+ * -360 to 360 degrees"; bsurf_last_message()). */
+BSURF_API bsurf_status bsurf_render_options_check(const bsurf_render_options *opts);
 
 typedef struct bsurf_render_info {
   double range_lo, range_hi; /* the value range used (NaN without values) */

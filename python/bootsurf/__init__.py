@@ -895,11 +895,12 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
       range       (lo, hi) at the colormap's ends (default: 1st-99th
                   percentile)
       view        front, back, left, right, top, bottom or iso (default iso)
-      azimuth, elevation   the view direction in degrees instead
+      azimuth, elevation   the view direction in degrees instead (azimuth
+                  -360 to 360, elevation -90 to 90)
       up          x, y, z or auto (z for generated shapes, else y)
       views       1, or 4 for front, right, top and iso in a 2x2 grid
       size        (width, height) in pixels
-      point_size  splat diameter in units of h
+      point_size  splat diameter in units of h, 0.05 to 50
       title, flat (no shading of field colours), square (square splats)
     render.last_info holds the value range used, h and the covered pixels.
     """

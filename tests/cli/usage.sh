@@ -42,11 +42,11 @@ for c in normals smooth features noise sample; do
 done
 
 # ---- thresholds and other numbers outside their meaning ----
-usage features "--threshold -1: --method variance takes a normal_var value, at least 0" -- \
+usage features "--threshold -1: method variance takes a normal_var value, at least 0, or auto" -- \
   "$BSURF" features "$IN/c.ply" --threshold -1 -o "$OUT"
-usage features "--threshold 1.5: --method distance takes a fraction of max(feature_dist), 0 to 1" -- \
+usage features "--threshold 1.5: method distance takes a fraction of max(feature_dist), 0 to 1, or auto" -- \
   "$BSURF" features "$IN/c.ply" --method distance --threshold 1.5 -o "$OUT"
-usage features "--threshold -0.1: --method distance" -- \
+usage features "--threshold -0.1: method distance" -- \
   "$BSURF" features "$IN/c.ply" --method distance --threshold -0.1 -o "$OUT"
 usage features "--threshold must be a number or auto, not 'nan'" -- \
   "$BSURF" features "$IN/c.ply" --threshold nan -o "$OUT"
