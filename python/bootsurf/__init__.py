@@ -535,7 +535,11 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
                    where the noise is heavy against the K-ball, K grows to the
                    smallest size whose ball drops no more of the noise variance
                    than its fit's prediction variance holds (report['k'] is the
-                   K used); docs/smoothing.md, "The neighbourhood's scale"
+                   K used); docs/smoothing.md, "The neighbourhood's scale".
+                   Its neighbourhoods cost about 12 bytes a point per unit of
+                   k_max (5.5 kB a point at 400): the command line lowers the
+                   default to what --memory-limit holds, Python does not
+                   (docs/smoothing.md, "Memory")
 
     Returns (points, fields, summary): the moved points (N, 3) (the input is
     not modified), fields err_632, err_632plus, moved (and k_hat, d_local
