@@ -71,7 +71,8 @@ def _choice(value, names, option):
 # Ranges of the integer options as the command line checks them (cli/); the
 # library checks the rest (degree, K against the point count, ...).
 _INT_RANGES = {"neighbors": (2, 65535), "seed": (0, 2**64 - 1), "threads": (0, 4096),
-               "bootstrap": (0, None), "tile_points": (0, None)}
+               "bootstrap": (0, None), "tile_points": (0, None),
+               "k_min": (3, 65535)}  # smooth and features: a plane fit's points
 
 
 def _int(value, name):

@@ -568,6 +568,11 @@ def test_bad_input(cube):
         bootsurf.smooth(p, iterations=-1)
     with pytest.raises(ValueError, match=r"^bootstrap needs a whole number \(1 to 100000\), not 0$"):
         bootsurf.smooth(p, bootstrap=0)
+    # k_min: the command line's range (--k-min 3 to 65535), in its words
+    with pytest.raises(ValueError, match=r"^k_min needs a whole number \(3 to 65535\), not 1$"):
+        bootsurf.smooth(p, k_min=1)
+    with pytest.raises(ValueError, match=r"^k_min needs a whole number \(3 to 65535\), not 2$"):
+        bootsurf.features(p, method="distance", k_min=2)
     # render: PNG bytes only under a .png name (the command's words)
     with pytest.raises(ValueError, match=r"^output .*x.jpg: the output is a PNG image: name it .png$"):
         bootsurf.render(p, output=tmp("x.jpg"))
