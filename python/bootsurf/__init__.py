@@ -569,6 +569,11 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
         raise ValueError("a must be a positive number or 'auto', not %r" % (a,))
     if iterations != "auto" and not 0 <= _int(iterations, "iterations") <= 1000000:
         raise ValueError("iterations must be 0..1000000 or 'auto', not %r" % (iterations,))
+    # the command line's checks of K's bounds, in its words
+    if _int(k_min, "k_min") > _int(neighbors, "neighbors"):
+        raise ValueError("k_min %d is larger than K = %d" % (k_min, neighbors))
+    if _int(k_max, "k_max") and k_max < neighbors:
+        raise ValueError("k_max %d is smaller than K = %d" % (k_max, neighbors))
     if _int(bootstrap, "bootstrap") < 1:  # W_i is a bootstrap error
         raise ValueError("bootstrap needs a whole number (1 to 100000), not %d"
                          % _int(bootstrap, "bootstrap"))

@@ -573,6 +573,10 @@ def test_bad_input(cube):
         bootsurf.smooth(p, k_min=1)
     with pytest.raises(ValueError, match=r"^k_min needs a whole number \(3 to 65535\), not 2$"):
         bootsurf.features(p, method="distance", k_min=2)
+    with pytest.raises(ValueError, match=r"^k_min 60 is larger than K = 50$"):
+        bootsurf.smooth(p, k_min=60)
+    with pytest.raises(ValueError, match=r"^k_max 10 is smaller than K = 50$"):
+        bootsurf.smooth(p, k_max=10)
     # render: PNG bytes only under a .png name (the command's words)
     with pytest.raises(ValueError, match=r"^output .*x.jpg: the output is a PNG image: name it .png$"):
         bootsurf.render(p, output=tmp("x.jpg"))
