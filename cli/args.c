@@ -213,6 +213,15 @@ int cli_parse(const cli_command *cmd, const cli_option *opts, int nopts, int arg
   /* --format, --las-version and --ply-names are usage: refused before any
    * work is done, not after the computation when the file is written */
   if (cli_write_options_check(cmd)) return CLI_USAGE;
+  const char *output = NULL;
+  int ascii = 0;
+  for (int k = 0; k < nopts; k++) {
+    if (opts[k].kind == ARG_FLAG && strcmp(opts[k].long_name, "ascii") == 0)
+      ascii = *(int *)opts[k].target;
+    if (opts[k].kind == ARG_STRING && strcmp(opts[k].long_name, "output") == 0)
+      output = *(const char **)opts[k].target;
+  }
+  if (cli_ascii_check(cmd, output, ascii)) return CLI_USAGE;
   return CLI_PARSED;
 }
 

@@ -36,15 +36,17 @@ typedef struct cli_command {
   }
 #define CLI_OPT_SEED(var)                                                                          \
   { 0, "seed", ARG_U64, &(var), "S", "random seed", 1, 0 }
-#define CLI_OPTS_OUTPUT(out, ascii, force)                                                           \
-  {'o',    "output", ARG_STRING,                                                                     \
-   &(out), "FILE",   "output file (.ply .pcd .las .csv keep every field; - = standard output)",      \
-   1,      0},                                                                                       \
-      {0, "ascii", ARG_FLAG, &(ascii), "", "write ascii PLY or PCD (default: binary little-endian)", \
-       1, 0},                                                                                        \
-      {0,        "force", ARG_FLAG,                                                                  \
-       &(force), "",      "allow the output to be the input file, or a read-only file",              \
-       1,        0},                                                                                 \
+#define CLI_ASCII_HELP                                                                             \
+  "write ascii PLY or PCD (default: binary little-endian; .csv .xyz .off .obj are text anyway; "   \
+  ".las has no text form: refused)"
+#define CLI_OPTS_OUTPUT(out, ascii, force)                                                         \
+  {'o',    "output", ARG_STRING,                                                                   \
+   &(out), "FILE",   "output file (.ply .pcd .las .csv keep every field; - = standard output)",    \
+   1,      0},                                                                                     \
+      {0, "ascii", ARG_FLAG, &(ascii), "", CLI_ASCII_HELP, 1, 0},                                  \
+      {0,        "force", ARG_FLAG,                                                                \
+       &(force), "",      "allow the output to be the input file, or a read-only file",            \
+       1,        0},                                                                               \
       CLI_OPTS_FORMATS
 /* --format, --float32, --ply-names (cli/formats.c, docs/formats.md) */
 extern const char *cli_out_format;
@@ -77,6 +79,9 @@ int cli_output_is_stdout(int argc, char **argv);
 /* From now on standard output carries a cloud: what is printed for people
  * goes to standard error. */
 void cli_stdout_data_begin(void);
+/* --ascii with an output that has no text form (LAS): a usage error (2),
+ * else 0. */
+int cli_ascii_check(const cli_command *cmd, const char *output, int ascii);
 /* bsurf_write_options from the options (ascii, --format, ...); 0, or prints
  * and returns 1. */
 int cli_write_options(const char *path, int ascii, bsurf_write_options *wo);
@@ -229,6 +234,13 @@ int cli_write_cloud(const char *path, const bsurf_cloud *cloud, int ascii);
 /* --range-points (bsurf_job_io.range_points; 0: the library's choice) */
 extern size_t cli_range_points;
 
+/* --memory-limit as bytes (auto: 3/4 of the physical memory; none: 0);
+ * CLI_USAGE (printed) for a bad value, else 0. */
+int cli_memory_limit(const cli_command *cmd, const char *memory_limit, double *limit);
+/* The bytes a run in memory needs for n points of input: the file, its
+ * values, the k-neighbour rows, the tree, out_fields doubles and
+ * point_bytes a point. */
+double cli_memory_need(const char *input, uint64_t n, int k, int out_fields, double point_bytes);
 /* --tile-points / --memory-limit: *plan = the tile size, or 0 for the
  * in-memory run (always tiles under mpirun with several ranks). Checks that a
  * tiled run can write its output. 0, or prints and returns 1 (2: usage). */
@@ -244,6 +256,14 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
 int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *output, int ascii,
                          size_t tile_points, const char *memory_limit, int k, int out_fields,
                          double point_bytes, double cloud_bytes, size_t *plan);
+/* The same where a tiled run holds other arrays than the run in memory
+ * (smooth: multipass in memory, bilateral in tiles): out_fields and
+ * point_bytes for the whole cloud in memory, tile_fields and tile_bytes for
+ * a tile's points. */
+int cli_tiles_plan_split(const cli_command *cmd, const char *input, const char *output, int ascii,
+                         size_t tile_points, const char *memory_limit, int k, int out_fields,
+                         double point_bytes, int tile_fields, double tile_bytes, double cloud_bytes,
+                         size_t *plan);
 /* Before a tiled run: an empty input is refused by name. 0 or 1 (printed). */
 int cli_check_tiled_input(const char *input);
 /* A failed tiled run's message (rank 0): the file, the line or byte, the
@@ -341,7 +361,7 @@ int cmd_compare(const cli_command *cmd, int argc, char **argv);
  * listing the available ones (NULL), --view or --azimuth/--elevation. */
 int render_parse_size(const cli_command *cmd, const char *text, int *w, int *h);
 int render_parse_range(const cli_command *cmd, const char *text, double *lo, double *hi);
-const bsurf_field *render_find_field(const bsurf_cloud *c, const char *path, const char *name);
+const bsurf_field *render_find_field(bsurf_cloud *c, const char *path, const char *name);
 /* What render and compare share: their view options' values (set the
  * defaults cmap "viridis", up "auto", az and el NAN first), the option rows
  * (RENDER_OPTS_VIEW) and render_args_apply after parsing: -o required,
@@ -352,25 +372,29 @@ typedef struct render_args {
   double az, el;
   int flat;
 } render_args;
-#define RENDER_OPTS_VIEW(a, ro)                                                                    \
-  CLI_OPT_IMAGE((a).output),                                                                       \
-      {0,          "field", ARG_STRING,                                                            \
-       &(a).field, "NAME",  "colour by this field (default: shade by normals)",                    \
-       1,          0},                                                                             \
-      CLI_OPT_COLORMAP((a).cmap),                                                                  \
-      {0,         "view", ARG_STRING,                                                              \
-       &(a).view, "VIEW", "front, back, left, right, top, bottom or iso (default: iso)",           \
-       1,         0},                                                                              \
-      {0,       "azimuth", ARG_DOUBLE,                                                             \
-       &(a).az, "DEG",     "view azimuth about z (0 = front; default: that of --view)",            \
-       -360,    360},                                                                              \
-      {0,       "elevation", ARG_DOUBLE,                                                           \
-       &(a).el, "DEG",       "view elevation (90 = top; default: that of --view)",                 \
-       -90,     90},                                                                               \
-      {0, "point-size", ARG_DOUBLE, &(ro).point_size, "S", "splat diameter in units of h", 0.05,   \
-       50},                                                                                        \
-  {                                                                                                \
-    0, "flat", ARG_FLAG, &(a).flat, "", "field colours without shading", 1, 0                      \
+#define RENDER_OPTS_VIEW(a, ro)                                                                      \
+  CLI_OPT_IMAGE((a).output),                                                                         \
+      {0,          "field",                                                                          \
+       ARG_STRING, &(a).field,                                                                       \
+       "NAME",     "colour by this field, or x, y, z, nx, ny, nz (default: shade by normals)",       \
+       1,          0},                                                                               \
+      CLI_OPT_COLORMAP((a).cmap),                                                                    \
+      {0,         "view", ARG_STRING,                                                                \
+       &(a).view, "VIEW", "front, back, left, right, top, bottom or iso (default: iso)",             \
+       1,         0},                                                                                \
+      {0,       "azimuth", ARG_DOUBLE,                                                               \
+       &(a).az, "DEG",     "view azimuth about z, -360 to 360 (0 = front; default: that of --view)", \
+       1,       0},                                                                                  \
+      {0,          "elevation",                                                                      \
+       ARG_DOUBLE, &(a).el,                                                                          \
+       "DEG",      "view elevation, -90 to 90 (90 = top; default: that of --view)",                  \
+       1,          0},                                                                               \
+      {0,          "point-size",                                                                     \
+       ARG_DOUBLE, &(ro).point_size,                                                                 \
+       "S",        "splat diameter in units of h, 0.05 to 50",                                       \
+       1,          0},                                                                               \
+  {                                                                                                  \
+    0, "flat", ARG_FLAG, &(a).flat, "", "field colours without shading", 1, 0                        \
   }
 int render_args_apply(const cli_command *cmd, const render_args *a, bsurf_render_options *ro);
 /* --up auto: 2 (z) for a generated shape, else 1 (y). */

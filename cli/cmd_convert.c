@@ -9,8 +9,7 @@
 int cmd_convert(const cli_command *cmd, int argc, char **argv) {
   int ascii = 0, force = 0, json = 0, quiet = 0;
   cli_option opts[] = {
-      {0, "ascii", ARG_FLAG, &ascii, "", "write ascii PLY or PCD (default: binary little-endian)",
-       1, 0},
+      {0, "ascii", ARG_FLAG, &ascii, "", CLI_ASCII_HELP, 1, 0},
       {0, "force", ARG_FLAG, &force, "",
        "allow the output to be the input file, or a read-only file", 1, 0},
       CLI_OPTS_FORMATS,
@@ -24,6 +23,7 @@ int cmd_convert(const cli_command *cmd, int argc, char **argv) {
   if (npos != 2)
     return cli_usage_error(cmd, "expected INPUT and OUTPUT (- for standard input or output)");
   const char *input = pos[0], *output = pos[1];
+  if (cli_ascii_check(cmd, output, ascii)) return CLI_USAGE;
   bsurf_write_options wo;
   if (cli_write_options(output, ascii, &wo)) return CLI_USAGE;
   if (!strcmp(output, "-")) {

@@ -90,17 +90,9 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
     fo.threshold = strtod(threshold_s, &end);
     if (end == threshold_s || *end || !isfinite(fo.threshold))
       return cli_usage_error(cmd, "--threshold must be a number or auto, not '%s'", threshold_s);
-    /* distance: a fraction of max(feature_dist); variance: a normal_var,
-     * never negative (a threshold below 0 would flag every point) */
-    if (fo.method == BSURF_FEATURES_DISTANCE && !(fo.threshold >= 0 && fo.threshold <= 1))
-      return cli_usage_error(cmd,
-                             "--threshold %s: --method distance takes a fraction of "
-                             "max(feature_dist), 0 to 1, or auto",
-                             threshold_s);
-    if (fo.method == BSURF_FEATURES_VARIANCE && !(fo.threshold >= 0))
-      return cli_usage_error(
-          cmd, "--threshold %s: --method variance takes a normal_var value, at least 0, or auto",
-          threshold_s);
+    /* the library's range and words (the same in Python) */
+    if (bsurf_feature_threshold_check(fo.method, fo.threshold) != BSURF_OK)
+      return cli_usage_error(cmd, "--%s", bsurf_last_message());
   }
   if (fo.k_max < fo.k_min) return cli_usage_error(cmd, "--k-max must be at least --k-min");
   if (fo.filter_k > fo.k_max) return cli_usage_error(cmd, "--filter-k must not exceed --k-max");

@@ -11,7 +11,8 @@ int cmd_histogram(const cli_command *cmd, int argc, char **argv) {
   int json = 0, quiet = 0, force = 0;
   cli_option opts[] = {
       CLI_OPT_IMAGE(output),
-      {0, "field", ARG_STRING, &field, "NAME", "the field to count (required)", 1, 0},
+      {0, "field", ARG_STRING, &field, "NAME",
+       "the field to count, or x, y, z, nx, ny, nz (required)", 1, 0},
       {0, "bins", ARG_INT, &ho.bins, "N", "number of bins", 1, 10000},
       {0, "threshold", ARG_DOUBLE, &ho.threshold, "T",
        "draw a marker at T and count the values above (default: no marker)", 1, 0},

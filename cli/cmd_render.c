@@ -36,15 +36,34 @@ int render_parse_range(const cli_command *cmd, const char *text, double *lo, dou
   return 0;
 }
 
-const bsurf_field *render_find_field(const bsurf_cloud *c, const char *path, const char *name) {
+/* The coordinates and normals by their files' names (x y z, nx ny nz):
+ * every number a point carries can colour it, as its fields can. */
+static const char *const coordinate_names[6] = {"x", "y", "z", "nx", "ny", "nz"};
+
+const bsurf_field *render_find_field(bsurf_cloud *c, const char *path, const char *name) {
   const bsurf_field *f = bsurf_cloud_field(c, name);
   if (f) return f;
+  for (int k = 0; k < 6; k++) {
+    const double *src = k < 3 ? c->xyz : c->normals;
+    if (strcmp(name, coordinate_names[k]) != 0 || !src) continue;
+    /* a field of the cloud read for the picture (never written back) */
+    bsurf_field *g = bsurf_cloud_add_field(c, name, BSURF_FLOAT64);
+    if (!g) {
+      cli_error("out of memory");
+      return NULL;
+    }
+    for (size_t i = 0; i < c->point_count; i++)
+      g->values[i] = src[3 * i + (size_t)(k % 3)];
+    return g;
+  }
   char list[1024] = "";
   size_t len = 0;
-  for (size_t i = 0; i < c->field_count && len + 80 < sizeof list; i++)
+  for (int k = 0; k < (c->normals ? 6 : 3); k++)
     len +=
-        (size_t)snprintf(list + len, sizeof list - len, "%s%s", i ? ", " : "", c->fields[i].name);
-  cli_error("%s: no field '%s'; available fields: %s", path, name, c->field_count ? list : "none");
+        (size_t)snprintf(list + len, sizeof list - len, "%s%s", k ? ", " : "", coordinate_names[k]);
+  for (size_t i = 0; i < c->field_count && len + 80 < sizeof list; i++)
+    len += (size_t)snprintf(list + len, sizeof list - len, ", %s", c->fields[i].name);
+  cli_error("%s: no field '%s'; available fields: %s", path, name, list);
   return NULL;
 }
 
@@ -108,6 +127,15 @@ int render_args_apply(const cli_command *cmd, const render_args *a, bsurf_render
   if (render_view_option(cmd, a->view, a->az, a->el, &ro->azimuth, &ro->elevation))
     return CLI_USAGE;
   if (render_up_option(cmd, a->up, &ro->up_axis)) return CLI_USAGE;
+  if (bsurf_render_options_check(ro) != BSURF_OK) {
+    /* the library's words, its option named as the command line spells it
+     * ("point_size 100: ..." is --point-size) */
+    char m[256];
+    snprintf(m, sizeof m, "%s", bsurf_last_message());
+    for (char *p = m; *p && *p != ' '; p++)
+      if (*p == '_') *p = '-';
+    return cli_usage_error(cmd, "--%s", m);
+  }
   ro->shade = !a->flat;
   return 0;
 }

@@ -36,6 +36,44 @@ static int parse_length(const char *text, int allow_w, double *value, int *in_h,
   return -1;
 }
 
+/* The scale rule's cap under the memory limit (docs/smoothing.md,
+ * "Memory"): where the cloud fits in memory with neighbourhoods of K but
+ * not of the cap K_max, an explicit --k-max is refused (naming --k-max and
+ * --memory-limit), the default one (8 K) is lowered to the widest K that
+ * fits, with a warning; jo->smooth.k_max and *sp are then of that K. Tiled
+ * runs (--tile-points, several ranks, or too little memory for K itself)
+ * are left to cli_tiles_plan_bytes. 0, or the error printed (1, or 2). */
+static int smooth_scale_cap(const cli_command *cmd, const char *input, bsurf_smooth_job_options *jo,
+                            bsurf_smooth_job_plan *sp, int nfields, size_t tile_points,
+                            const char *memory_limit) {
+  if (sp->k_max <= sp->k || tile_points || cli_mpi_ranks() > 1) return 0;
+  double limit = 0;
+  uint64_t n = 0;
+  if (cli_memory_limit(cmd, memory_limit, &limit)) return CLI_USAGE;
+  if (!(limit > 0)) return 0;
+  if (cli_read_header(input, &n)) return 1;
+  const double need = cli_memory_need(input, n, sp->k, nfields, sp->point_bytes);
+  if (need <= limit || n == 0) return 0;
+  /* the widest K whose run fits: point_bytes falls by k_max_bytes a unit */
+  const double over = (need - limit) / ((double)n * sp->k_max_bytes);
+  const int fits = sp->k_max - (int)ceil(over);
+  const double at_k = need - (double)n * sp->k_max_bytes * (sp->k_max - sp->k);
+  if (fits < sp->k && at_k > limit) return 0; /* not even K: tiles */
+  if (jo->smooth.k_max > 0)
+    return cli_error("%s: smooth --k-max %d needs about %.3g GB in memory (the scale rule's "
+                     "neighbourhoods of up to %d points), more than --memory-limit %.3g GB: give "
+                     "--k-max %d or less, or a larger --memory-limit",
+                     input, jo->smooth.k_max, need / 1e9, sp->k_max, limit / 1e9,
+                     fits > sp->k ? fits : sp->k);
+  const int cap = fits > sp->k ? fits : sp->k;
+  cli_warn("%s: the scale rule's K is capped at %d by --memory-limit %.3g GB (its default cap, "
+           "8 K = %d, needs about %.3g GB; --k-max or --memory-limit change it)",
+           input, cap, limit / 1e9, sp->k_max, need / 1e9);
+  jo->smooth.k_max = cap;
+  if (bsurf_smooth_job_memory(jo, sp) != BSURF_OK) return cli_error("%s", bsurf_last_message());
+  return 0;
+}
+
 int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   bsurf_smooth_options so = bsurf_smooth_options_default();
   const char *method = "auto", *order = "parallel", *estimator = "auto", *gamma = "fit",
@@ -93,15 +131,16 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "p_i / K_i), sigma the guard's noise, kappa_i the share of it fit i's K-ball keeps; at "
        "most 300)",
        1, 0},
-      {0, "k-min", ARG_INT, &so.k_min, "K", "multipass: the smallest neighbourhood (Eq. 6.3)", 1,
+      {0, "k-min", ARG_INT, &so.k_min, "K",
+       "multipass: the smallest neighbourhood (Eq. 6.3), at least 3 (the points of a plane fit)", 3,
        65535},
       {0, "k-max", ARG_INT, &so.k_max, "K",
        "multipass with the guard: the largest K the noise may widen the neighbourhood to: where "
        "the guard's noise is heavy against the K-ball (which then holds only the points near "
        "its centre's height, and its fit keeps the centre's own noise), K grows to the smallest "
        "size whose ball drops no more of the noise variance (1 - kappa) than its fit's own "
-       "prediction variance holds (p / K), and multipass runs on those neighbourhoods (0 = 8 K; "
-       "K = K stays fixed)",
+       "prediction variance holds (p / K), and multipass runs on those neighbourhoods (0 = 8 K, "
+       "lowered to what --memory-limit holds; K = K stays fixed)",
        0, 65535},
       {0, "k-error", ARG_STRING, &kerr_text, "X",
        "multipass: the error at which K_i reaches --k-min (Eq. 6.4): a length, a multiple "
@@ -209,9 +248,22 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
   jo.smooth = so;
   size_t plan = 0;
   const size_t nv = bsurf_smooth_job_point_values(&jo);
-  /* in memory: the cloud, its fields, and per point the fits (bilateral) */
-  rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, so.error.k,
-                      (int)(6 + nv), &plan);
+  /* in memory: the cloud, its fields and the job's arrays, counting the
+   * widest neighbourhoods the scale rule may search (bsurf_smooth_job_memory);
+   * a tile: its fields and the first stage's values */
+  bsurf_smooth_job_plan sp;
+  if (bsurf_smooth_job_memory(&jo, &sp) != BSURF_OK) return cli_error("%s", bsurf_last_message());
+  const int nf = sp.field_count + (int)nv;
+  rc = smooth_scale_cap(cmd, pos[0], &jo, &sp, nf, tile_points, memory_limit);
+  if (rc) return rc;
+  /* a tiled run of auto runs bilateral: its stage values and arrays */
+  bsurf_smooth_job_options tj = jo;
+  if (tj.smooth.method == BSURF_SMOOTH_AUTO) tj.smooth.method = BSURF_SMOOTH_BILATERAL;
+  bsurf_smooth_job_plan tp;
+  if (bsurf_smooth_job_memory(&tj, &tp) != BSURF_OK) return cli_error("%s", bsurf_last_message());
+  rc = cli_tiles_plan_split(
+      cmd, pos[0], output, ascii, tile_points, memory_limit, so.error.k, nf, sp.point_bytes,
+      tp.field_count + (int)bsurf_smooth_job_point_values(&tj), tp.point_bytes, 0, &plan);
   if (rc) return rc;
   if (plan && so.method == BSURF_SMOOTH_MULTIPASS)
     return cli_error(
@@ -284,6 +336,7 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
       json_int(&j, "iterations", rep.iterations);
       json_int(&j, "k_used", rep.k);
       json_int(&j, "k_min", so.k_min);
+      json_int(&j, "k_max", sp.k_max); /* the scale rule's cap, as the memory plan left it */
       json_num(&j, "k_error", rep.k_error);
     }
     if (so.guard) {

@@ -60,6 +60,16 @@ int cli_write_options_check(const cli_command *cmd) {
   return write_options_problem(msg, sizeof msg) ? cli_usage_error(cmd, "%s", msg) : 0;
 }
 
+int cli_ascii_check(const cli_command *cmd, const char *output, int ascii) {
+  /* --ascii asks for a text file: PLY and PCD have one (the default is
+   * binary); CSV, XYZ, OFF and OBJ are text whatever it says, so it is met;
+   * LAS has no text form: the request cannot be met and is refused */
+  if (ascii && output && cli_output_format(output) == BSURF_FORMAT_LAS)
+    return cli_usage_error(cmd, "--ascii: LAS is a binary format, it has no text form (write .ply "
+                                "or .pcd for ascii with every field, .csv for a table)");
+  return 0;
+}
+
 int cli_write_options(const char *path, int ascii, bsurf_write_options *wo) {
   memset(wo, 0, sizeof *wo);
   wo->ascii = ascii;

@@ -52,29 +52,46 @@ int cli_tiles_plan(const cli_command *cmd, const char *input, const char *output
                               0, 0, plan);
 }
 
-int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *output, int ascii,
-                         size_t tile_points, const char *memory_limit, int k, int out_fields,
-                         double point_bytes, double cloud_bytes, size_t *plan) {
-  *plan = 0;
-  double limit;
+int cli_memory_limit(const cli_command *cmd, const char *memory_limit, double *limit) {
   if (strcmp(memory_limit, "auto") == 0) {
     long pages = sysconf(_SC_PHYS_PAGES), page = sysconf(_SC_PAGESIZE);
-    limit = pages > 0 && page > 0 ? 0.75 * (double)pages * (double)page : 0;
+    *limit = pages > 0 && page > 0 ? 0.75 * (double)pages * (double)page : 0;
   } else if (strcmp(memory_limit, "none") == 0) {
-    limit = 0;
-  } else if (!(limit = parse_bytes(memory_limit))) {
+    *limit = 0;
+  } else if (!(*limit = parse_bytes(memory_limit))) {
     return cli_usage_error(cmd, "--memory-limit needs a size like 8G, 512M, auto or none, not '%s'",
                            memory_limit);
   }
+  return 0;
+}
+
+double cli_memory_need(const char *input, uint64_t n, int k, int out_fields, double point_bytes) {
   /* the whole cloud in memory: the file, its values as doubles, the
    * neighbourhoods (4 K bytes), the k-d tree and the new fields */
+  struct stat sb;
+  double size = stat(input, &sb) == 0 ? (double)sb.st_size : 0;
+  return 3 * size + (double)n * (4.0 * k + 40 + 8.0 * out_fields + point_bytes);
+}
+
+int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *output, int ascii,
+                         size_t tile_points, const char *memory_limit, int k, int out_fields,
+                         double point_bytes, double cloud_bytes, size_t *plan) {
+  return cli_tiles_plan_split(cmd, input, output, ascii, tile_points, memory_limit, k, out_fields,
+                              point_bytes, out_fields, point_bytes, cloud_bytes, plan);
+}
+
+int cli_tiles_plan_split(const cli_command *cmd, const char *input, const char *output, int ascii,
+                         size_t tile_points, const char *memory_limit, int k, int out_fields,
+                         double point_bytes, int tile_fields, double tile_bytes, double cloud_bytes,
+                         size_t *plan) {
+  *plan = 0;
+  double limit;
+  if (cli_memory_limit(cmd, memory_limit, &limit)) return CLI_USAGE;
   /* the header first: counts a file cannot hold are its fault, named as
    * such, never the basis of an estimate */
   uint64_t n = 0;
   if (cli_read_header(input, &n)) return 1;
-  struct stat sb;
-  double size = stat(input, &sb) == 0 ? (double)sb.st_size : 0;
-  double need = 3 * size + (double)n * (4.0 * k + 40 + 8.0 * out_fields + point_bytes);
+  double need = cli_memory_need(input, n, k, out_fields, point_bytes);
   int distributed = cli_mpi_ranks() > 1;
   int automatic = !tile_points && !distributed && limit > 0 && need > limit;
   if (!tile_points && !automatic && !distributed) return 0;
@@ -100,7 +117,7 @@ int cli_tiles_plan_bytes(const cli_command *cmd, const char *input, const char *
     /* less what the run holds for the whole cloud beside a tile (beyond the
      * budget: the smallest tiles) */
     budget -= cloud_bytes * (double)n;
-    double per = 4.0 * (12.0 * k + 8.0 * out_fields + point_bytes + 200);
+    double per = 4.0 * (12.0 * k + 8.0 * tile_fields + tile_bytes + 200);
     tile_points = (size_t)fmin(budget / per, 2e8);
   }
   if (tile_points < 2 * (size_t)k) tile_points = 2 * (size_t)k;

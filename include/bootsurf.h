@@ -677,7 +677,7 @@ typedef struct bsurf_smooth_options {
    * thesis's is 1 |W|). */
   double a;                /* -1 (auto) */
   int iterations;          /* -1 (auto) */
-  int k_min;               /* 10 */
+  int k_min;               /* 10; at least 3 (a plane fit), at most error.k */
   double k_error;          /* 0 */
   double k_error_fraction; /* 0 (none) */
   /* every method: a neighbourhood whose fit is biased at its centre (two
@@ -841,6 +841,12 @@ typedef struct bsurf_feature_options {
 } bsurf_feature_options;
 
 BSURF_API bsurf_feature_options bsurf_feature_options_default(void);
+/* bsurf_feature_options.threshold's range for a method, in the words every
+ * front end prints: distance a fraction of max(feature_dist) in [0, 1],
+ * variance a normal_var >= 0, NaN auto. BSURF_OK, or BSURF_ERR_INVALID_ARG
+ * with the message ("threshold 1.5: method distance takes a fraction of
+ * max(feature_dist), 0 to 1, or auto"; bsurf_last_message()). */
+BSURF_API bsurf_status bsurf_feature_threshold_check(bsurf_feature_method method, double threshold);
 
 typedef struct bsurf_feature_report {
   double threshold;            /* the absolute threshold applied to the score */
@@ -1013,6 +1019,12 @@ typedef struct bsurf_render_options {
 } bsurf_render_options;
 
 BSURF_API bsurf_render_options bsurf_render_options_default(void);
+/* The view's ranges, shared by every front end (bsurf_render checks them
+ * too): azimuth from -360 to 360 degrees, elevation from -90 to 90,
+ * point_size from 0.05 to 50. BSURF_OK, or BSURF_ERR_INVALID_ARG with a
+ * message naming the option and its value ("azimuth 1000: must be from
+ * -360 to 360 degrees"; bsurf_last_message()). */
+BSURF_API bsurf_status bsurf_render_options_check(const bsurf_render_options *opts);
 
 typedef struct bsurf_render_info {
   double range_lo, range_hi; /* the value range used (NaN without values) */
@@ -1644,6 +1656,35 @@ BSURF_API bsurf_status bsurf_smooth_job(const bsurf_job_io *io,
  * choice between memory and tiles; 0: the method and order run in memory
  * only (multipass, the sequential order). */
 BSURF_API size_t bsurf_smooth_job_point_values(const bsurf_smooth_job_options *opts);
+
+/* What bsurf_smooth_job runs in memory with these options and the memory it
+ * needs, for a front end's memory plan (whether to tile, how large the
+ * tiles, how wide the scale rule may widen K; docs/smoothing.md, "Memory"): */
+typedef struct bsurf_smooth_job_plan {
+  bsurf_smooth_method method; /* in memory (AUTO resolved: MULTIPASS; a tiled run
+                                 of AUTO runs BILATERAL) */
+  int k;                      /* the neighbourhood searched first: smooth.error.k */
+  int k_max;                  /* the largest neighbourhood the run may search: with
+                                 MULTIPASS and the guard the scale rule's cap
+                                 (smooth.k_max, 0: 8 k, at most 65535), else k */
+  int field_count;            /* the fields added: 3, or 5 for MULTIPASS */
+  double point_bytes;         /* bytes per point the job holds at once besides the
+                                 cloud (coordinates and fields) and the k-neighbour
+                                 rows (4 k) with their k-d tree: an upper bound
+                                 counting k_max (the scale rule's neighbour table,
+                                 reverse lists and active pairs at k_max) */
+  double k_max_bytes;         /* the part of point_bytes per unit of k_max (12 with
+                                 the scale rule, else 0): point_bytes at a smaller
+                                 cap K is point_bytes - (k_max - K) k_max_bytes */
+} bsurf_smooth_job_plan;
+
+/* The plan of bsurf_smooth_job(io with a cloud, opts, ...): opts NULL =
+ * defaults. The thread count (smooth.error.threads, resolved) counts when
+ * multipass runs a fixed number of passes. BSURF_ERR_INVALID_ARG (message:
+ * bsurf_last_message()) for the options the job refuses in memory, or plan
+ * NULL. */
+BSURF_API bsurf_status bsurf_smooth_job_memory(const bsurf_smooth_job_options *opts,
+                                               bsurf_smooth_job_plan *plan);
 
 /* ---- features (thesis chapter 7) ---- */
 

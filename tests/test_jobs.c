@@ -364,6 +364,70 @@ static void test_bad_options(void **state) {
 /* bsurf_normals_job_memory: the rule resolved, K_max, the fields and the
  * bytes a point, exactly (the sums of the allocations its comment lists),
  * for known settings; bad options refused by name. */
+/* bsurf_smooth_job_memory: the bytes per point of smooth's arrays, counted
+ * from its allocations (smooth_stages.c, bsurf_smooth_stage1_bytes and
+ * bsurf_smooth_passes_bytes), with the scale rule's K_max */
+static void test_smooth_plan(void **state) {
+  (void)state;
+  bsurf_smooth_job_plan sp;
+  /* the defaults: multipass (AUTO in memory), K = 50, degree 3 (m = 10),
+   * the guard, the stop rule, the parallel order; the scale rule's cap 8 K:
+   * smoothed 24; stage 1 (guard 32, fits 8 x 27, degrees 4) at 50 held
+   * while the 400-neighbour table (1600 + 4) and multipass at 400 run
+   * (stage 1 252, passes 36 + 84 + 8 x 400) */
+  assert_int_equal(bsurf_smooth_job_memory(NULL, &sp), BSURF_OK);
+  assert_int_equal(sp.method, BSURF_SMOOTH_MULTIPASS);
+  assert_int_equal(sp.k, 50);
+  assert_int_equal(sp.k_max, 400);
+  assert_int_equal(sp.field_count, 5);
+  assert_true(sp.point_bytes == 24 + 252 + 1604 + 252 + 120 + 3200);
+  assert_true(sp.k_max_bytes == 12);
+  bsurf_smooth_job_options o = bsurf_smooth_job_options_default();
+  o.smooth.k_max = 100;
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
+  assert_int_equal(sp.k_max, 100);
+  assert_true(sp.point_bytes == 24 + 252 + 404 + 252 + 120 + 800);
+  /* K fixed (--k-max = K, or no guard): multipass at 50 only */
+  o.smooth.k_max = 50;
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
+  assert_int_equal(sp.k_max, 50);
+  assert_true(sp.point_bytes == 24 + 252 + 120 + 400 && sp.k_max_bytes == 0);
+  o = bsurf_smooth_job_options_default();
+  o.smooth.guard = 0;
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
+  assert_true(sp.k_max == 50 && sp.point_bytes == 24 + 220 + 120 + 400);
+  /* a fixed pass count: the time blocks' maps, 4 bytes a thread */
+  o = bsurf_smooth_job_options_default();
+  o.smooth.iterations = 10;
+  o.smooth.error.threads = 2;
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
+  assert_true(sp.point_bytes == 24 + 252 + 1604 + 252 + 128 + 3200);
+  /* the sequential sweep: no reverse lists; the stop rule's copy 24 */
+  o = bsurf_smooth_job_options_default();
+  o.smooth.order = BSURF_ORDER_SEQUENTIAL;
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
+  assert_true(sp.point_bytes == 24 + 252 + 1604 + 252 + 60 && sp.k_max_bytes == 4);
+  /* bilateral (fits 8 x 24 + 4, guard 32; e2, w2, reverse lists 8 + 4 K) and
+   * naive (the guard's records) */
+  o = bsurf_smooth_job_options_default();
+  o.smooth.method = BSURF_SMOOTH_BILATERAL;
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
+  assert_true(sp.method == BSURF_SMOOTH_BILATERAL && sp.k_max == 50 && sp.field_count == 3);
+  assert_true(sp.point_bytes == 24 + 228 + 224);
+  o.smooth.method = BSURF_SMOOTH_NAIVE;
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
+  assert_true(sp.point_bytes == 24 + 32);
+  /* refused as the job refuses them */
+  o = bsurf_smooth_job_options_default();
+  o.smooth.k_max = 20;
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_ERR_INVALID_ARG);
+  assert_non_null(strstr(bsurf_last_message(), "k_max = 20"));
+  o.smooth.k_max = 0;
+  o.smooth.k_min = 2;
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_ERR_INVALID_ARG);
+  assert_int_equal(bsurf_smooth_job_memory(NULL, NULL), BSURF_ERR_INVALID_ARG);
+}
+
 static void test_normals_plan(void **state) {
   (void)state;
   bsurf_normals_job_plan jp;
@@ -445,7 +509,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_normals_job),  cmocka_unit_test(test_smooth_job),
       cmocka_unit_test(test_features_job), cmocka_unit_test(test_bad_options),
-      cmocka_unit_test(test_normals_plan),
+      cmocka_unit_test(test_normals_plan), cmocka_unit_test(test_smooth_plan),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -812,6 +812,13 @@ static void test_arguments(void **state) {
   assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, NULL, NULL, NULL), BSURF_ERR_INVALID_ARG);
   o.k_min = 21;
   assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  /* K_i = k_min points must carry a plane fit: 3 at least */
+  o.k_min = 2;
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  assert_non_null(strstr(bsurf_last_message(), "k_min = 2: must be in [3"));
+  o.k_min = 3;
+  assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
+  o.k_min = 10;
   o = options(BSURF_SMOOTH_BILATERAL, 30, 2, 10); /* more than the neighbourhoods hold */
   assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, NULL), BSURF_ERR_INVALID_ARG);
   o = options(BSURF_SMOOTH_BILATERAL, 5, 2, 10); /* fewer points than terms */

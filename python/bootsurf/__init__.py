@@ -71,7 +71,8 @@ def _choice(value, names, option):
 # Ranges of the integer options as the command line checks them (cli/); the
 # library checks the rest (degree, K against the point count, ...).
 _INT_RANGES = {"neighbors": (2, 65535), "seed": (0, 2**64 - 1), "threads": (0, 4096),
-               "bootstrap": (0, None), "tile_points": (0, None)}
+               "bootstrap": (0, None), "tile_points": (0, None),
+               "k_min": (3, 65535)}  # smooth and features: a plane fit's points
 
 
 def _int(value, name):
@@ -514,7 +515,8 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
       iterations   multipass: passes; 'auto': until a pass's mean squared move
                    is below the fits' prediction variance (at most 300; the
                    thesis: 300)
-      k_min        multipass: the smallest neighbourhood (Eq. 6.3)
+      k_min        multipass: the smallest neighbourhood (Eq. 6.3), at least 3
+                   (the points of a plane fit)
       k_error      multipass: the error at which K_i reaches k_min (Eq. 6.4;
                    the thesis: '1W'); 'none': K_i = K
       guard        on (a fit biased at its centre by a second sheet or an
@@ -534,7 +536,11 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
                    where the noise is heavy against the K-ball, K grows to the
                    smallest size whose ball drops no more of the noise variance
                    than its fit's prediction variance holds (report['k'] is the
-                   K used); docs/smoothing.md, "The neighbourhood's scale"
+                   K used); docs/smoothing.md, "The neighbourhood's scale".
+                   Its neighbourhoods cost about 12 bytes a point per unit of
+                   k_max (5.5 kB a point at 400): the command line lowers the
+                   default to what --memory-limit holds, Python does not
+                   (docs/smoothing.md, "Memory")
 
     Returns (points, fields, summary): the moved points (N, 3) (the input is
     not modified), fields err_632, err_632plus, moved (and k_hat, d_local
@@ -563,6 +569,11 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
         raise ValueError("a must be a positive number or 'auto', not %r" % (a,))
     if iterations != "auto" and not 0 <= _int(iterations, "iterations") <= 1000000:
         raise ValueError("iterations must be 0..1000000 or 'auto', not %r" % (iterations,))
+    # the command line's checks of K's bounds, in its words
+    if _int(k_min, "k_min") > _int(neighbors, "neighbors"):
+        raise ValueError("k_min %d is larger than K = %d" % (k_min, neighbors))
+    if _int(k_max, "k_max") and k_max < neighbors:
+        raise ValueError("k_max %d is smaller than K = %d" % (k_max, neighbors))
     if _int(bootstrap, "bootstrap") < 1:  # W_i is a bootstrap error
         raise ValueError("bootstrap needs a whole number (1 to 100000), not %d"
                          % _int(bootstrap, "bootstrap"))
@@ -894,11 +905,12 @@ def render(points, *, output=None, normals=None, field=None, colormap="viridis",
       range       (lo, hi) at the colormap's ends (default: 1st-99th
                   percentile)
       view        front, back, left, right, top, bottom or iso (default iso)
-      azimuth, elevation   the view direction in degrees instead
+      azimuth, elevation   the view direction in degrees instead (azimuth
+                  -360 to 360, elevation -90 to 90)
       up          x, y, z or auto (z for generated shapes, else y)
       views       1, or 4 for front, right, top and iso in a 2x2 grid
       size        (width, height) in pixels
-      point_size  splat diameter in units of h
+      point_size  splat diameter in units of h, 0.05 to 50
       title, flat (no shading of field colours), square (square splats)
     render.last_info holds the value range used, h and the covered pixels.
     """

@@ -1046,6 +1046,9 @@ static PyObject *py_render(PyObject *self, PyObject *args) {
   ro.round_splats = !square;
   ro.title = title;
   ro.label = label;
+  /* the view's ranges, in the command line's words (the library's check) */
+  if (bsurf_render_options_check(&ro) != BSURF_OK)
+    return PyErr_Format(PyExc_ValueError, "%s", bsurf_last_message());
   PyArrayObject *a = as_f64(pts, "points", 3), *nr = NULL, *v = NULL;
   if (!a) return NULL;
   size_t n = (size_t)PyArray_DIM(a, 0);

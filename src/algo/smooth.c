@@ -417,8 +417,12 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
     BSURF_REQUIRE_IN("bsurf_smooth", isfinite(o.a), "a = %g: must be finite (< 0: auto)", o.a);
     BSURF_REQUIRE_IN("bsurf_smooth", o.iterations >= -1,
                      "iterations = %d: must be >= 0, or -1 (auto)", o.iterations);
-    BSURF_REQUIRE_IN("bsurf_smooth", o.k_min >= 1 && o.k_min <= o.error.k,
-                     "k_min = %d: must be in [1, error.k = %d]", o.k_min, o.error.k);
+    /* K_i = k_min points carry a fit of at least a plane (multipass_fit_task
+     * lowers the degree no further): its frame and its 3 coefficients need
+     * 3 points, bsurf_poly_terms(1); 1 or 2 points fit nothing */
+    BSURF_REQUIRE_IN("bsurf_smooth", o.k_min >= bsurf_poly_terms(1) && o.k_min <= o.error.k,
+                     "k_min = %d: must be in [%d (a plane's points), error.k = %d]", o.k_min,
+                     bsurf_poly_terms(1), o.error.k);
     BSURF_REQUIRE_IN("bsurf_smooth", o.k_max == 0 || (o.k_max >= o.error.k && o.k_max <= 65535),
                      "k_max = %d: must be 0 (auto) or in [error.k = %d, 65535]", o.k_max,
                      o.error.k);

@@ -28,6 +28,47 @@ size_t bsurf_smooth_stage_values(const bsurf_smooth_options *o) {
   return 2 + FIT_HEAD + (size_t)bsurf_poly_terms(o->error.degree) + BSURF_SMOOTH_SV;
 }
 
+double bsurf_smooth_stage1_bytes(const bsurf_smooth_options *o) {
+  /* smooth.c: the guard's records (svar, BSURF_SMOOTH_SV doubles); the fits
+   * of bilateral in parallel order and of multipass (FIT_HEAD + m doubles,
+   * multipass MP_EXTRA more) and their degrees (an int) */
+  const double m = bsurf_poly_terms(o->error.degree);
+  double b = o->guard ? 8.0 * BSURF_SMOOTH_SV : 0;
+  if (o->method == BSURF_SMOOTH_MULTIPASS)
+    b += 8.0 * (FIT_HEAD + m + MP_EXTRA) + 4;
+  else if (o->method == BSURF_SMOOTH_BILATERAL && o->order == BSURF_ORDER_PARALLEL)
+    b += 8.0 * (FIT_HEAD + m) + 4;
+  return b;
+}
+
+double bsurf_smooth_passes_bytes(const bsurf_smooth_options *o, int k, int T, double *per_k) {
+  const int seq = o->order == BSURF_ORDER_SEQUENTIAL;
+  double b = 0, pk = 0;
+  if (o->method == BSURF_SMOOTH_BILATERAL) {
+    /* smooth.c: e2 and w2; in parallel order the reverse lists (offsets
+     * 8, at most k entries of 4) */
+    b = 16;
+    if (!seq) b += 8, pk = 4;
+  } else if (o->method == BSURF_SMOOTH_MULTIPASS) {
+    /* smooth_multipass.c: K_i (int), d_L, e2, w2, 1 / h1^2 */
+    b = 4 + 8 + 8 + 8 + 8;
+    if (seq) {
+      b += o->iterations < 0 ? 24 : 0; /* the stop rule's positions before a pass */
+    } else {
+      /* the spatial order (perm, rank), the positions read and written
+       * (pos, buf), the reverse lists (offsets 8, at most K_i <= k entries
+       * of 4) and the active pairs (as many, their counts, offsets and
+       * reach); with a fixed pass count, the time blocks' local maps (an
+       * int per point per thread) */
+      b += 8 + 24 + 24 + 8 + 4 + 8 + 8;
+      pk = 4 + 4;
+      if (o->iterations > 1) b += 4.0 * T;
+    }
+  }
+  if (per_k) *per_k = pk;
+  return b + pk * k;
+}
+
 double bsurf_smooth_noise(const double *sv, size_t n, size_t stride, double *scratch) {
   return guard_noise(sv, n, stride, scratch);
 }

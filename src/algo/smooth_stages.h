@@ -50,4 +50,15 @@ double bsurf_smooth_noise(const double *sv, size_t n, size_t stride, double *scr
  * at that noise (it moves nothing). */
 int bsurf_smooth_misfit(const double *sv, double noise);
 
+/* Memory plan (bsurf_smooth_job_memory): the bytes per point bsurf_smooth
+ * holds at once, upper bounds counted from its allocations, besides xyz,
+ * out_xyz, the fields it is given, the neighbour rows and their k-d tree
+ * order. Stage 1's arrays, held to the end (and by the outer call while the
+ * scale rule runs the method again on wider neighbourhoods): */
+double bsurf_smooth_stage1_bytes(const bsurf_smooth_options *opts);
+/* The arrays of the stage after it (the passes) with neighbourhoods of k
+ * points, on T threads: *per_k (may be NULL) gets the part that grows with k,
+ * per unit of k. opts->method resolved (not AUTO). */
+double bsurf_smooth_passes_bytes(const bsurf_smooth_options *opts, int k, int T, double *per_k);
+
 #endif /* BSURF_SMOOTH_STAGES_H */

@@ -295,19 +295,26 @@ static bsurf_status features_check(const bsurf_feature_options *fo) {
                        "opts->variance_k_max = %d must be in [0, 65535]", fo->variance_k_max);
     }
   }
-  BSURF_REQUIRE_IN(FJ, isnan(fo->threshold) || isfinite(fo->threshold),
-                   "opts->threshold = %g must be finite, or NAN (auto)", fo->threshold);
+  /* in the words every front end prints (bsurf_feature_threshold_check) */
+  return bsurf_feature_threshold_check(fo->method, fo->threshold);
+}
+
+bsurf_status bsurf_feature_threshold_check(bsurf_feature_method method, double threshold) {
+  if (isnan(threshold)) return BSURF_OK; /* auto */
+  if (!isfinite(threshold))
+    return bsurf_set_message(BSURF_ERR_INVALID_ARG, "threshold %g: must be a number or auto",
+                             threshold);
   /* distance: a fraction of max(feature_dist); variance: a normal_var (a
    * negative threshold would flag every point) */
-  if (fo->method == BSURF_FEATURES_DISTANCE)
-    BSURF_REQUIRE_IN(FJ, isnan(fo->threshold) || (fo->threshold >= 0 && fo->threshold <= 1),
-                     "opts->threshold = %g must be in [0, 1] (a fraction of max(feature_dist)), "
-                     "or NAN (auto)",
-                     fo->threshold);
-  else
-    BSURF_REQUIRE_IN(FJ, isnan(fo->threshold) || fo->threshold >= 0,
-                     "opts->threshold = %g must be at least 0 (a normal_var), or NAN (auto)",
-                     fo->threshold);
+  if (method == BSURF_FEATURES_DISTANCE && !(threshold >= 0 && threshold <= 1))
+    return bsurf_set_message(
+        BSURF_ERR_INVALID_ARG,
+        "threshold %g: method distance takes a fraction of max(feature_dist), 0 to 1, or auto",
+        threshold);
+  if (method != BSURF_FEATURES_DISTANCE && !(threshold >= 0))
+    return bsurf_set_message(
+        BSURF_ERR_INVALID_ARG,
+        "threshold %g: method variance takes a normal_var value, at least 0, or auto", threshold);
   return BSURF_OK;
 }
 

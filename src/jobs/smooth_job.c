@@ -351,8 +351,17 @@ static bsurf_status smooth_check(const bsurf_smooth_job_options *o, int tiled) {
                    "opts->smooth.error.k = %d is too small for degree %d: a fit needs at least %d "
                    "points",
                    eo->k, eo->degree, bsurf_poly_terms(eo->degree));
-  BSURF_REQUIRE_IN(SJ, so->method != BSURF_SMOOTH_MULTIPASS || so->k_min <= eo->k,
-                   "opts->smooth.k_min = %d must be in [1, error.k = %d]", so->k_min, eo->k);
+  /* K_i = k_min points carry a plane fit at least (bsurf_smooth) */
+  BSURF_REQUIRE_IN(SJ,
+                   so->method != BSURF_SMOOTH_MULTIPASS ||
+                       (so->k_min >= bsurf_poly_terms(1) && so->k_min <= eo->k),
+                   "opts->smooth.k_min = %d must be in [%d (a plane's points), error.k = %d]",
+                   so->k_min, bsurf_poly_terms(1), eo->k);
+  BSURF_REQUIRE_IN(SJ,
+                   so->method != BSURF_SMOOTH_MULTIPASS || so->k_max == 0 ||
+                       (so->k_max >= eo->k && so->k_max <= 65535),
+                   "opts->smooth.k_max = %d must be 0 (8 error.k) or in [error.k = %d, 65535]",
+                   so->k_max, eo->k);
   BSURF_REQUIRE_IN(SJ, !isnan(so->threshold) || !o->threshold_in_h,
                    "opts->threshold_in_h with threshold NAN (auto): auto is no length");
   if (!tiled) return BSURF_OK;
@@ -362,6 +371,38 @@ static bsurf_status smooth_check(const bsurf_smooth_job_options *o, int tiled) {
   BSURF_REQUIRE_IN(SJ, so->order == BSURF_ORDER_PARALLEL,
                    "opts->smooth.order SEQUENTIAL chains every neighbourhood of the whole cloud: "
                    "in memory only");
+  return BSURF_OK;
+}
+
+bsurf_status bsurf_smooth_job_memory(const bsurf_smooth_job_options *opts,
+                                     bsurf_smooth_job_plan *plan) {
+  BSURF_REQUIRE_IN("bsurf_smooth_job_memory", plan, "plan must not be NULL");
+  memset(plan, 0, sizeof *plan);
+  bsurf_smooth_job_options o = opts ? *opts : bsurf_smooth_job_options_default();
+  if (o.smooth.method == BSURF_SMOOTH_AUTO) o.smooth.method = BSURF_SMOOTH_MULTIPASS;
+  bsurf_status st = smooth_check(&o, 0);
+  if (st != BSURF_OK) return st;
+  const bsurf_smooth_options *so = &o.smooth;
+  const int k = so->error.k, T = bsurf_threads_resolve(so->error.threads);
+  plan->method = so->method;
+  plan->k = plan->k_max = k;
+  plan->field_count = so->method == BSURF_SMOOTH_MULTIPASS ? 5 : 3;
+  /* the job's smoothed positions (24); bsurf_smooth's stage 1 and passes */
+  const double s1 = bsurf_smooth_stage1_bytes(so);
+  double b = 24 + s1 + bsurf_smooth_passes_bytes(so, k, T, NULL);
+  if (so->method == BSURF_SMOOTH_MULTIPASS && so->guard && so->k_max != k) {
+    /* the scale rule (smooth.c) at its cap K: stage 1 at k held while the
+     * neighbourhoods of K (4 K, and their order 4) and bsurf_smooth at K
+     * (stage 1 and the passes) run */
+    const long cap = so->k_max > 0 ? so->k_max : 8L * k;
+    const int K = cap > 65535 ? 65535 : (int)cap;
+    double per_k = 0;
+    const double atk = 24 + s1 + 4.0 * K + 4 + s1 + bsurf_smooth_passes_bytes(so, K, T, &per_k);
+    if (atk > b) b = atk;
+    plan->k_max = K;
+    plan->k_max_bytes = 4 + per_k;
+  }
+  plan->point_bytes = b;
   return BSURF_OK;
 }
 

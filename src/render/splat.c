@@ -394,6 +394,26 @@ static bsurf_status render_view(const render_job *job, canvas *img, int px, int 
   return BSURF_OK;
 }
 
+bsurf_status bsurf_render_options_check(const bsurf_render_options *o) {
+  /* the view's numbers, in the words both front ends print (the command
+   * line as --azimuth, --elevation, --point-size) */
+  if (!o) return bsurf_set_message(BSURF_ERR_INVALID_ARG, "options are NULL");
+  if (!(o->azimuth >= -360 && o->azimuth <= 360))
+    return bsurf_set_message(BSURF_ERR_INVALID_ARG, "azimuth %g: must be from -360 to 360 degrees",
+                             o->azimuth);
+  if (!(o->elevation >= -90 && o->elevation <= 90))
+    return bsurf_set_message(BSURF_ERR_INVALID_ARG,
+                             "elevation %g: must be from -90 to 90 degrees (90 looks down)",
+                             o->elevation);
+  /* below 0.05 h a splat covers no pixel of a cloud; above 50 h one point
+   * hides its neighbourhood's */
+  if (!(o->point_size >= 0.05 && o->point_size <= 50))
+    return bsurf_set_message(BSURF_ERR_INVALID_ARG,
+                             "point_size %g: must be from 0.05 to 50 (splat diameters in h)",
+                             o->point_size);
+  return BSURF_OK;
+}
+
 bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals,
                           size_t point_count, const double *values,
                           const bsurf_render_options *opt_in, bsurf_render_info *info) {
@@ -413,6 +433,11 @@ bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals
   BSURF_REQUIRE(opt.point_size > 0, "point_size = %g: must be > 0", opt.point_size);
   BSURF_REQUIRE(isfinite(opt.azimuth) && isfinite(opt.elevation),
                 "azimuth = %g, elevation = %g: must be finite", opt.azimuth, opt.elevation);
+  if (bsurf_render_options_check(&opt) != BSURF_OK) {
+    char m[256];
+    snprintf(m, sizeof m, "%s", bsurf_last_message());
+    return bsurf_invalid("bsurf_render", "%s", m);
+  }
   canvas img = {rgb, opt.width, opt.height};
   bsurf_draw_fill(&img, opt.background);
   uint8_t ink[3];

@@ -24,6 +24,17 @@ usage noise "--format tiff: unknown format" -- "$BSURF" noise "$IN/c.ply" --form
 usage error "--ply-names gray: expected plain" -- "$BSURF" error "$IN/c.ply" -k 20 -d 2 -B 2 --ply-names gray -o "$OUT"
 usage smooth "--las-version 1.3: expected 1.2 or 1.4" -- "$BSURF" smooth "$IN/c.ply" --las-version 1.3 -o "$OUT"
 grep -q "error:" "$T/err" && fail "--las-version: an error-style line" || ok
+# --ascii: LAS has no text form (refused, naming the format, before any work);
+# CSV and XYZ are text anyway (accepted, the same bytes as without it)
+usage generate "--ascii: LAS is a binary format, it has no text form" -- "$BSURF" generate cube -n 100 --ascii -o "$T/a.las"
+[ ! -e "$T/a.las" ] && ok || fail "--ascii .las: a file was written"
+usage convert "--ascii: LAS is a binary format" -- "$BSURF" convert "$IN/c.ply" "$T/a.las" --ascii
+usage smooth "--ascii: LAS is a binary format" -- "$BSURF" smooth "$IN/c.ply" --ascii --format las -o -
+for e in csv xyz; do
+  expect 0 "--ascii .$e" -- "$BSURF" convert "$IN/c.ply" "$T/a.$e" --ascii -q
+  expect 0 "no --ascii .$e" -- "$BSURF" convert "$IN/c.ply" "$T/b.$e" -q
+  cmp -s "$T/a.$e" "$T/b.$e" && ok || fail "--ascii .$e: other bytes"
+done
 
 # ---- a missing output, in the same words for every command that needs one ----
 for c in normals smooth features noise sample; do
@@ -31,11 +42,11 @@ for c in normals smooth features noise sample; do
 done
 
 # ---- thresholds and other numbers outside their meaning ----
-usage features "--threshold -1: --method variance takes a normal_var value, at least 0" -- \
+usage features "--threshold -1: method variance takes a normal_var value, at least 0, or auto" -- \
   "$BSURF" features "$IN/c.ply" --threshold -1 -o "$OUT"
-usage features "--threshold 1.5: --method distance takes a fraction of max(feature_dist), 0 to 1" -- \
+usage features "--threshold 1.5: method distance takes a fraction of max(feature_dist), 0 to 1, or auto" -- \
   "$BSURF" features "$IN/c.ply" --method distance --threshold 1.5 -o "$OUT"
-usage features "--threshold -0.1: --method distance" -- \
+usage features "--threshold -0.1: method distance" -- \
   "$BSURF" features "$IN/c.ply" --method distance --threshold -0.1 -o "$OUT"
 usage features "--threshold must be a number or auto, not 'nan'" -- \
   "$BSURF" features "$IN/c.ply" --threshold nan -o "$OUT"
@@ -44,6 +55,9 @@ expect 0 "features --threshold 0.3 (variance)" -- "$BSURF" features "$IN/c.ply" 
 usage smooth "option -B needs a whole number (1 to 100000), not '0'" -- "$BSURF" smooth "$IN/c.ply" -B 0 -o "$OUT"
 usage smooth "--a must be a positive number or auto, not '0'" -- "$BSURF" smooth "$IN/c.ply" --a 0 -o "$OUT"
 usage smooth "--a must be a positive number or auto, not 'nan'" -- "$BSURF" smooth "$IN/c.ply" --a nan -o "$OUT"
+# K_i = k_min points carry a plane fit: 3 at least (the library refuses fewer too)
+usage smooth "option --k-min needs a whole number (3 to 65535), not '1'" -- "$BSURF" smooth "$IN/c.ply" --k-min 1 -o "$OUT"
+usage smooth "option --k-min needs a whole number (3 to 65535), not '2'" -- "$BSURF" smooth "$IN/c.ply" --k-min 2 -o "$OUT"
 
 # ---- an empty standard input is named, as an empty file is ----
 bad 1 "empty stdin, info" "-: standard input is empty" -- "$BSURF" info - </dev/null

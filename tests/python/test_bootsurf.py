@@ -466,6 +466,35 @@ def test_progress_callable_and_its_exception(cube):
 # ------------------------------------------------------------ bad input
 
 
+def test_bad_numbers_in_the_cli_words(cube):
+    """Numbers outside their range: Python's ValueError is the command line's
+    usage error, the option spelled as each front end spells it (one copy of
+    the range and the words: the library's checks)."""
+    p = cube["points"]
+    src = tmp("bad_in.ply")
+    bootsurf.write(src, cube)
+    cases = [
+        (lambda: bootsurf.features(p, threshold=-1), ["features", src, "--threshold", "-1"]),
+        (lambda: bootsurf.features(p, method="distance", threshold=1.5),
+         ["features", src, "--method", "distance", "--threshold", "1.5"]),
+        (lambda: bootsurf.render(p, azimuth=1000), ["render", src, "--azimuth", "1000"]),
+        (lambda: bootsurf.render(p, azimuth=-361), ["render", src, "--azimuth", "-361"]),
+        (lambda: bootsurf.render(p, elevation=91), ["render", src, "--elevation", "91"]),
+        (lambda: bootsurf.render(p, point_size=100), ["render", src, "--point-size", "100"]),
+    ]
+    for call, args in cases:
+        with pytest.raises(ValueError) as e:
+            call()
+        r = subprocess.run([CLI] + args + ["-o", tmp("bad_out.png" if args[0] == "render" else "bad_out.ply")],
+                           capture_output=True, text=True)
+        assert r.returncode == 2, (args, r.stderr)
+        want = "bootsurf %s: --%s" % (args[0], str(e.value).replace("point_size", "point-size"))
+        assert r.stderr.splitlines()[0] == want, (r.stderr, want)
+    # in range: accepted by both
+    img = bootsurf.render(p, azimuth=-360, elevation=90, point_size=0.05, size=(64, 64))
+    assert img.shape == (64, 64, 3)
+
+
 def test_bad_input(cube):
     p = cube["points"]
     with pytest.raises(ValueError, match=r"shape \(N, 3\)"):
@@ -525,9 +554,9 @@ def test_bad_input(cube):
         bootsurf.generate("cube", points="many")
     # numbers outside their meaning, refused as the command line refuses them
     # (no value taken silently for 'auto': the library's NaN and -1)
-    with pytest.raises(ValueError, match=r"threshold = -1 must be at least 0"):
+    with pytest.raises(ValueError, match=r"^threshold -1: method variance takes a normal_var value, at least 0, or auto$"):
         bootsurf.features(p, threshold=-1)
-    with pytest.raises(ValueError, match=r"threshold = 1.5 must be in \[0, 1\]"):
+    with pytest.raises(ValueError, match=r"^threshold 1.5: method distance takes a fraction of max\(feature_dist\), 0 to 1, or auto$"):
         bootsurf.features(p, method="distance", threshold=1.5)
     with pytest.raises(ValueError, match=r"^threshold must be a number or 'auto', not nan$"):
         bootsurf.features(p, threshold=float("nan"))
@@ -539,6 +568,15 @@ def test_bad_input(cube):
         bootsurf.smooth(p, iterations=-1)
     with pytest.raises(ValueError, match=r"^bootstrap needs a whole number \(1 to 100000\), not 0$"):
         bootsurf.smooth(p, bootstrap=0)
+    # k_min: the command line's range (--k-min 3 to 65535), in its words
+    with pytest.raises(ValueError, match=r"^k_min needs a whole number \(3 to 65535\), not 1$"):
+        bootsurf.smooth(p, k_min=1)
+    with pytest.raises(ValueError, match=r"^k_min needs a whole number \(3 to 65535\), not 2$"):
+        bootsurf.features(p, method="distance", k_min=2)
+    with pytest.raises(ValueError, match=r"^k_min 60 is larger than K = 50$"):
+        bootsurf.smooth(p, k_min=60)
+    with pytest.raises(ValueError, match=r"^k_max 10 is smaller than K = 50$"):
+        bootsurf.smooth(p, k_max=10)
     # render: PNG bytes only under a .png name (the command's words)
     with pytest.raises(ValueError, match=r"^output .*x.jpg: the output is a PNG image: name it .png$"):
         bootsurf.render(p, output=tmp("x.jpg"))
