@@ -6,6 +6,9 @@ usage:
       [--out WORK_DIR] [--quick] [--only SUBSTR] [--noise LIST] [--sampling LIST]
       [--cases LIST] [--rules LIST] [--fresh] [--markdown FILE]
 
+Needs Debian's python3-numpy and, for the mse rule's two_sheet check (a k-d tree),
+python3-scipy (apt-get install python3-scipy).
+
 DEVSET_DIR is built by scripts/devset.py. For every case it runs, on the noisy
 points (x y z only):
   - `bootsurf normals -k K -B 0` (a single PCA fit) for every fixed K in KS;
@@ -114,6 +117,11 @@ def main():
     ap.add_argument("--markdown", default=None, help="also write the tables to this file")
     ap.add_argument("-j", "--threads", type=int, default=2)
     a = ap.parse_args()
+    if "mse" in a.rules.split(","):
+        try:
+            import scipy.spatial  # noqa: F401  (sheet_stats)
+        except ImportError:
+            sys.exit("bench_ksel: the mse rule's two_sheet check needs scipy: apt-get install python3-scipy")
     bs = a.bootsurf
     if os.path.isdir(bs):
         bs = os.path.join(bs, "bootsurf")
