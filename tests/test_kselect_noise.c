@@ -3,7 +3,8 @@
  * docs/normals.md, "Choosing K", *noise*): a cube whose edges make the
  * extrapolation degenerate at the points near them, and a sphere whose
  * density varies 10x across it with Gaussian noise about the sparse
- * part's spacing (fixed seeds). */
+ * part's spacing (fixed seeds); and bsurf_select_k against its passes,
+ * whose second pass 3 runs at the gated points only (kselect_run.c). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
