@@ -3,7 +3,8 @@
  * docs/normals.md, "Choosing K", *noise*): a cube whose edges make the
  * extrapolation degenerate at the points near them, and a sphere whose
  * density varies 10x across it with Gaussian noise about the sparse
- * part's spacing (fixed seeds). */
+ * part's spacing (fixed seeds); and bsurf_select_k against its passes,
+ * whose second pass 3 runs at the gated points only (kselect_run.c). */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -14,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "algo/algo.h"
 #include "bootsurf.h"
 
 static double angle_u(const double *a, const double *b) {
@@ -158,10 +160,112 @@ static void test_cube_noise(void **state) {
   bsurf_cloud_free(&c);
 }
 
+/* bsurf_select_k by its passes (algo.h): bsurf_ksel_first, then
+ * bsurf_ksel_choose with the first choices as the empirical bias's
+ * references. In memory bsurf_select_k runs pass 3 once for every point and
+ * once more only where the lack-of-fit gate fires (kselect_run.c,
+ * ksel_select_emp): the same bits, the same unassessed count. */
+static void passes(const double *xyz, const bsurf_neighbors *nb, const bsurf_kselect_options *o,
+                   bsurf_kselect_fields *f, bsurf_kselect_report *rep) {
+  const size_t n = nb->point_count;
+  bsurf_ksel_run *r;
+  assert_int_equal(bsurf_ksel_open(o, nb->k, f->two_sheet != NULL, &r), BSURF_OK);
+  assert_true(bsurf_ksel_empirical(r));
+  double *s2 = malloc(n * sizeof(double)), *noise = malloc(n * sizeof(double));
+  double *bref = malloc(3 * n * sizeof(double)), *bm = malloc(n * sizeof(double));
+  assert_int_equal(bsurf_ksel_noise(r, xyz, nb, s2), BSURF_OK);
+  assert_int_equal(bsurf_ksel_pool(r, xyz, nb, s2, noise), BSURF_OK);
+  assert_int_equal(bsurf_ksel_level(r, noise, n), BSURF_OK);
+  assert_int_equal(bsurf_ksel_first(r, xyz, nb, noise, NULL, NULL, bref, bm), BSURF_OK);
+  memset(rep, 0, sizeof *rep);
+  assert_int_equal(bsurf_ksel_choose(r, xyz, nb, noise, bref, bm, NULL, NULL, f, rep), BSURF_OK);
+  free(s2);
+  free(noise);
+  free(bref);
+  free(bm);
+  bsurf_ksel_close(r);
+}
+
+/* A cube of 4,000 random points with Gaussian noise of 0.3 h (fixed seeds):
+ * at its edges the quadric does not fit and the gate fires, so the second
+ * pass 3 has points to choose again. Every field bit for bit, at 1 and 2
+ * threads. */
+static void test_second_pass(void **state) {
+  (void)state;
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_CUBE, 4000, BSURF_SAMPLING_RANDOM, 5, 2),
+                   BSURF_OK);
+  const size_t n = c.point_count;
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, n, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_GAUSSIAN, 0.3, h, 9), BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 80, 2, NULL, NULL), BSURF_OK);
+  double *nrm[2], *err[2], *noise[2];
+  int *k[2], *sheet[2];
+  for (int v = 0; v < 2; v++) {
+    nrm[v] = malloc(3 * n * sizeof(double));
+    err[v] = malloc(n * sizeof(double));
+    noise[v] = malloc(n * sizeof(double));
+    k[v] = malloc(n * sizeof(int));
+    sheet[v] = malloc(n * sizeof(int));
+  }
+  size_t moved = 0; /* points whose K the empirical bias moved */
+  for (int threads = 1; threads <= 2; threads++) {
+    bsurf_kselect_options o = bsurf_kselect_options_default();
+    o.ks = KS;
+    o.nk = NKS;
+    o.threads = threads;
+    bsurf_kselect_fields f0 = {nrm[0], k[0], err[0], noise[0], sheet[0], NULL};
+    bsurf_kselect_fields f1 = {nrm[1], k[1], err[1], noise[1], sheet[1], NULL};
+    bsurf_kselect_report r0, r1;
+    assert_int_equal(bsurf_select_k(c.xyz, &nb, &o, &f0, &r0), BSURF_OK);
+    passes(c.xyz, &nb, &o, &f1, &r1);
+    assert_memory_equal(nrm[0], nrm[1], 3 * n * sizeof(double));
+    assert_memory_equal(err[0], err[1], n * sizeof(double));
+    assert_memory_equal(noise[0], noise[1], n * sizeof(double));
+    assert_memory_equal(k[0], k[1], n * sizeof(int));
+    assert_memory_equal(sheet[0], sheet[1], n * sizeof(int));
+    assert_int_equal(r0.unassessed, r1.unassessed);
+    if (threads == 1) { /* the bias moves some choices: the second pass is exercised */
+      bsurf_ksel_run *r;
+      assert_int_equal(bsurf_ksel_open(&o, nb.k, 0, &r), BSURF_OK);
+      double *s2 = malloc(n * sizeof(double)), *nz = malloc(n * sizeof(double));
+      double *fn = malloc(3 * n * sizeof(double));
+      int *k2 = malloc(n * sizeof(int));
+      assert_int_equal(bsurf_ksel_noise(r, c.xyz, &nb, s2), BSURF_OK);
+      assert_int_equal(bsurf_ksel_pool(r, c.xyz, &nb, s2, nz), BSURF_OK);
+      assert_int_equal(bsurf_ksel_level(r, nz, n), BSURF_OK);
+      bsurf_kselect_fields f2 = {fn, k2, NULL, NULL, NULL, NULL};
+      assert_int_equal(bsurf_ksel_choose(r, c.xyz, &nb, nz, NULL, NULL, NULL, NULL, &f2, NULL),
+                       BSURF_OK);
+      for (size_t i = 0; i < n; i++)
+        moved += k2[i] != k[0][i];
+      free(s2);
+      free(nz);
+      free(fn);
+      free(k2);
+      bsurf_ksel_close(r);
+    }
+  }
+  print_message("cube: the empirical bias moved the K of %zu of %zu points\n", moved, n);
+  assert_true(moved > 0);
+  for (int v = 0; v < 2; v++) {
+    free(nrm[v]);
+    free(err[v]);
+    free(noise[v]);
+    free(k[v]);
+    free(sheet[v]);
+  }
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+}
+
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_aniso_sphere),
       cmocka_unit_test(test_cube_noise),
+      cmocka_unit_test(test_second_pass),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

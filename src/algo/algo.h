@@ -233,9 +233,11 @@ bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_cou
  * table's own, when its rows are every point). bref, bmref: the
  * neighbours' first choices of a pass 3 without them, the references of the
  * empirical bias where the quadric does not fit (kselect_lof.c; NULL: none),
- * when bsurf_ksel_empirical: bsurf_select_k runs bsurf_ksel_first twice,
- * the second with the first's as bref. The same bits as bsurf_select_k for
- * the same rows. */
+ * when bsurf_ksel_empirical: bsurf_select_k makes the choices of
+ * bsurf_ksel_first followed by bsurf_ksel_choose with the first's as bref
+ * (in memory it runs pass 3 again only where the lack-of-fit gate fires:
+ * kselect_run.c, ksel_select_emp). The same bits as bsurf_select_k for the
+ * same rows. */
 typedef struct bsurf_ksel_run bsurf_ksel_run;
 bsurf_status bsurf_ksel_open(const bsurf_kselect_options *opts, int nb_k, int two_sheet,
                              bsurf_ksel_run **run);

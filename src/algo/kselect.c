@@ -253,6 +253,11 @@ static void tie_store(ksel_ctx *c, ksel_scratch *s, size_t i) {
   memcpy(&c->fnrm[3 * i], &s->tcand[3 * (size_t)c->first[i]], 3 * sizeof(double));
   c->fmse[i] = s->tcrit[c->first[i]];
   if (!c->tied) return; /* the first choices only (bsurf_ksel_first) */
+  /* chosen again with the empirical bias (kselect_run.c, ksel_select_emp) */
+  if (c->deferred && c->deferred[i]) {
+    c->tied[i] = NULL;
+    return;
+  }
   const size_t need = 1 + (size_t)TIE_W * nk;
   if (!s->tie_nblocks || s->tie_used + need > TIE_BLOCK) { /* a new block */
     if (s->tie_nblocks == s->tie_cap) {
@@ -486,7 +491,9 @@ void select_point(void *vctx, int thread, size_t i) {
       if (s->curve[a]) var[a] = INFINITY;
   /* where the quadric does not fit, the bias from the neighbours' first
    * choices (kselect_lof.c) */
-  const int emp = c->bref && ksel_lof_gate(s->rssv, o->ks, nk, s2, s->gate);
+  const int gated = (c->bref || c->deferred) && ksel_lof_gate(s->rssv, o->ks, nk, s2, s->gate);
+  const int emp = c->bref && gated;
+  if (c->deferred) c->deferred[i] = (unsigned char)gated; /* chosen again (kselect_run.c) */
   if (emp) ksel_emp_bias(c, idx, nrm, var, s->gate, nk, s->eb);
   /* the smallest V + Bias^2, each bias estimate the point's own */
   int best = -1;

@@ -94,6 +94,11 @@ typedef struct ksel_ctx {
   int *first; /* pass 3: the candidate of the smallest criterion */
   bsurf_kselect_fields *out;
   double *fmse; /* pass 3: n, the smallest criterion (the first choice's M; pass 4's weights) */
+  /* pass 3 without the empirical bias in memory (kselect_run.c,
+   * ksel_select_emp): per point 1 where the lack-of-fit gate fires, its
+   * tied record then not stored (the point is chosen again with the bias);
+   * NULL elsewhere */
+  unsigned char *deferred;
 } ksel_ctx;
 
 /* The noise passes (kselect_noise.c; the top of kselect.c): pass 1, each

@@ -4,6 +4,7 @@
  * (src/jobs/normals_mse_tiled.c). */
 #include "algo/kselect.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -106,6 +107,84 @@ bsurf_status bsurf_ksel_choose(bsurf_ksel_run *r, const double *xyz, const bsurf
   return ksel_select(r, xyz, nb, noise, bref, bmref, fref, fmref, NULL, NULL, out, report);
 }
 
+/* Pass 3 again, with the empirical bias, at the points deferred by the
+ * first (ksel_select_emp): the others' choices do not depend on the bias. */
+typedef struct ksel_redo {
+  ksel_ctx c; /* first: select_point takes a ksel_ctx */
+  const unsigned char *deferred;
+} ksel_redo;
+
+static void select_deferred(void *vctx, int thread, size_t i) {
+  if (((const ksel_redo *)vctx)->deferred[i]) select_point(vctx, thread, i);
+}
+
+/* Passes 3 and 4 with the empirical bias, in memory (bsurf_select_k): the
+ * same choices as bsurf_ksel_first, then bsurf_ksel_choose with its
+ * references, at the cost of about one pass 3. The bias enters a point's
+ * criterion only where the lack-of-fit gate fires (select_point: emp), and
+ * the gate reads the point's own quadrics and noise, not the references;
+ * so the first pass, without the bias, already makes every other point's
+ * final choice and stores its tied record, and defers the gated ones
+ * (c->deferred: their first choices kept as the references, no tied
+ * record); the second pass chooses the deferred points again, with the
+ * bias, against the references of the first. Each point's computation is
+ * the one bsurf_ksel_choose makes: the results are the same bits. */
+static bsurf_status ksel_select_emp(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
+                                    const double *noise, bsurf_kselect_fields *out,
+                                    bsurf_kselect_report *report) {
+  const size_t n = nb->point_count, m = n ? n : 1;
+  ksel_redo rd = {.c = ksel_ctx_of(r, xyz, nb)};
+  ksel_ctx *c = &rd.c;
+  c->noise = (double *)noise; /* read only, by row */
+  c->out = out;
+  int *first = bsurf_alloc_array(m, sizeof(int));
+  double *fnrm = bsurf_alloc_array(m, 3 * sizeof(double));
+  double *fmse = bsurf_alloc_array(m, sizeof(double));
+  double **tied = bsurf_alloc_array(m, sizeof(double *));
+  unsigned char *deferred = bsurf_alloc_array(m, 1);
+  /* the references of the bias: the first choices, by point */
+  double *bref = bsurf_alloc_array(m, 3 * sizeof(double));
+  double *bmref = bsurf_alloc_array(m, sizeof(double));
+  bsurf_status st =
+      first && fnrm && fmse && tied && deferred && bref && bmref ? BSURF_OK : BSURF_ERR_NOMEM;
+  c->first = first, c->fnrm = fnrm, c->fmse = fmse, c->tied = tied;
+  c->fref = fnrm, c->fmref = fmse; /* pass 4's references, by row */
+  c->deferred = deferred;
+  bsurf_i_ksel_reset(r);
+  /* progress is reported for the first pass 3 (the bulk of the work) */
+  if (st == BSURF_OK) st = ksel_pass(r, c, select_point, 1);
+  for (int t = 0; t < r->T && st == BSURF_OK; t++)
+    if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
+  size_t recount = 0; /* deferred points counted unassessed by the first pass */
+  for (size_t i = 0; st == BSURF_OK && i < n; i++) {
+    const size_t p = nb->idx[i * (size_t)nb->k];
+    memcpy(&bref[3 * p], &fnrm[3 * i], 3 * sizeof(double));
+    bmref[p] = fmse[i];
+    recount += deferred[i] && !isfinite(fmse[i]); /* ksel_ties: M infinite */
+  }
+  c->bref = bref, c->bmref = bmref;
+  c->deferred = NULL;
+  rd.deferred = deferred;
+  if (st == BSURF_OK) st = ksel_pass(r, c, select_deferred, 0);
+  for (int t = 0; t < r->T && st == BSURF_OK; t++)
+    if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) st = ksel_pass(r, c, tie_point, 0);
+  if (report && st == BSURF_OK) {
+    for (int t = 0; t < r->T; t++)
+      report->unassessed += r->scr[t].none;
+    report->unassessed -= recount;
+  }
+  bsurf_i_ksel_reset(r);
+  free(first);
+  free(fnrm);
+  free(fmse);
+  free(tied);
+  free(deferred);
+  free(bref);
+  free(bmref);
+  return st;
+}
+
 int bsurf_ksel_empirical(const bsurf_ksel_run *r) {
   return r->o.nd == 0; /* the PCA candidates' (kselect_lof.c) */
 }
@@ -132,19 +211,13 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK) st = bsurf_ksel_pool(r, xyz, nb, s2, noise);
   free(s2);
   if (st == BSURF_OK) st = bsurf_ksel_level(r, noise, n);
-  /* the first choices without the empirical bias, its references where
-   * the quadric does not fit (kselect_lof.c) */
-  double *bref = NULL, *bmref = NULL;
-  if (st == BSURF_OK && bsurf_ksel_empirical(r)) {
-    bref = bsurf_alloc_array(n, 3 * sizeof(double));
-    bmref = bsurf_alloc_array(n, sizeof(double));
-    st = bref && bmref ? BSURF_OK : BSURF_ERR_NOMEM;
-    if (st == BSURF_OK) st = bsurf_ksel_first(r, xyz, nb, noise, NULL, NULL, bref, bmref);
-  }
+  /* the selection and the tie-break: with the empirical bias where the
+   * quadric does not fit (kselect_lof.c), its references the first
+   * choices without it */
   if (st == BSURF_OK)
-    st = bsurf_ksel_choose(r, xyz, nb, noise, bref, bmref, NULL, NULL, out, report);
-  free(bref);
-  free(bmref);
+    st = bsurf_ksel_empirical(r)
+             ? ksel_select_emp(r, xyz, nb, noise, out, report)
+             : bsurf_ksel_choose(r, xyz, nb, noise, NULL, NULL, NULL, NULL, out, report);
   free(noise);
   bsurf_ksel_close(r);
   return st;
