@@ -211,13 +211,31 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK) st = bsurf_ksel_pool(r, xyz, nb, s2, noise);
   free(s2);
   if (st == BSURF_OK) st = bsurf_ksel_level(r, noise, n);
-  /* the selection and the tie-break: with the empirical bias where the
-   * quadric does not fit (kselect_lof.c), its references the first
-   * choices without it */
+    /* the selection and the tie-break: with the empirical bias where the
+     * quadric does not fit (kselect_lof.c), its references the first
+     * choices without it */
+#ifdef BSURF_KSEL_TRACE
+  /* the developer's trace (kselect.c, scripts/ksel_replay.py) records every
+   * point's last pass with its references: the two full passes, the same
+   * bits as ksel_select_emp */
+  (void)ksel_select_emp;
+  double *bref = NULL, *bmref = NULL;
+  if (st == BSURF_OK && bsurf_ksel_empirical(r)) {
+    bref = bsurf_alloc_array(n, 3 * sizeof(double));
+    bmref = bsurf_alloc_array(n, sizeof(double));
+    st = bref && bmref ? BSURF_OK : BSURF_ERR_NOMEM;
+    if (st == BSURF_OK) st = bsurf_ksel_first(r, xyz, nb, noise, NULL, NULL, bref, bmref);
+  }
+  if (st == BSURF_OK)
+    st = bsurf_ksel_choose(r, xyz, nb, noise, bref, bmref, NULL, NULL, out, report);
+  free(bref);
+  free(bmref);
+#else
   if (st == BSURF_OK)
     st = bsurf_ksel_empirical(r)
              ? ksel_select_emp(r, xyz, nb, noise, out, report)
              : bsurf_ksel_choose(r, xyz, nb, noise, NULL, NULL, NULL, NULL, out, report);
+#endif
   free(noise);
   bsurf_ksel_close(r);
   return st;
