@@ -164,7 +164,7 @@ static void test_cube_noise(void **state) {
  * bsurf_ksel_choose with the first choices as the empirical bias's
  * references. In memory bsurf_select_k runs pass 3 once for every point and
  * once more only where the lack-of-fit gate fires (kselect_run.c,
- * ksel_select_emp): the same bits, the same unassessed count. */
+ * ksel_select with defer): the same bits, the same unassessed count. */
 static void passes(const double *xyz, const bsurf_neighbors *nb, const bsurf_kselect_options *o,
                    bsurf_kselect_fields *f, bsurf_kselect_report *rep) {
   const size_t n = nb->point_count;

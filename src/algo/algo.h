@@ -236,7 +236,7 @@ bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_cou
  * when bsurf_ksel_empirical: bsurf_select_k makes the choices of
  * bsurf_ksel_first followed by bsurf_ksel_choose with the first's as bref
  * (in memory it runs pass 3 again only where the lack-of-fit gate fires:
- * kselect_run.c, ksel_select_emp). The same bits as bsurf_select_k for the
+ * kselect_run.c, ksel_select with defer). The same bits as bsurf_select_k for the
  * same rows. */
 typedef struct bsurf_ksel_run bsurf_ksel_run;
 bsurf_status bsurf_ksel_open(const bsurf_kselect_options *opts, int nb_k, int two_sheet,

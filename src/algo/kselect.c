@@ -253,7 +253,7 @@ static void tie_store(ksel_ctx *c, ksel_scratch *s, size_t i) {
   memcpy(&c->fnrm[3 * i], &s->tcand[3 * (size_t)c->first[i]], 3 * sizeof(double));
   c->fmse[i] = s->tcrit[c->first[i]];
   if (!c->tied) return; /* the first choices only (bsurf_ksel_first) */
-  /* chosen again with the empirical bias (kselect_run.c, ksel_select_emp) */
+  /* chosen again with the empirical bias (kselect_run.c, ksel_select: defer) */
   if (c->deferred && c->deferred[i]) {
     c->tied[i] = NULL;
     return;

@@ -95,7 +95,7 @@ typedef struct ksel_ctx {
   bsurf_kselect_fields *out;
   double *fmse; /* pass 3: n, the smallest criterion (the first choice's M; pass 4's weights) */
   /* pass 3 without the empirical bias in memory (kselect_run.c,
-   * ksel_select_emp): per point 1 where the lack-of-fit gate fires, its
+   * ksel_select with defer): per point 1 where the lack-of-fit gate fires, its
    * tied record then not stored (the point is chosen again with the bias);
    * NULL elsewhere */
   unsigned char *deferred;

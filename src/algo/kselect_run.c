@@ -46,69 +46,8 @@ bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n) 
   return r->o.noise_pool == BSURF_NOISE_POOL_GLOBAL ? pool_global(noise, n) : BSURF_OK;
 }
 
-/* Pass 3 (fnrm != NULL: only the first choices' normals, by row, no tied
- * record), or passes 3 and 4 into out (fref, fmref given: the rows' own
- * first choices are written into them, at the rows' points, before pass 4). */
-static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                                const double *noise, const double *bref, const double *bmref,
-                                double *fref, double *fmref, double *fnrm, double *fmse,
-                                bsurf_kselect_fields *out, bsurf_kselect_report *report) {
-  const size_t n = nb->point_count, m = n ? n : 1;
-  ksel_ctx c = ksel_ctx_of(r, xyz, nb);
-  c.noise = (double *)noise; /* read only, by row */
-  c.out = out;
-  int *first = bsurf_alloc_array(m, sizeof(int));
-  double *own = fnrm ? NULL : bsurf_alloc_array(m, 3 * sizeof(double));
-  double *own_m = fmse ? NULL : bsurf_alloc_array(m, sizeof(double));
-  double **tied = fnrm ? NULL : bsurf_alloc_array(m, sizeof(double *));
-  bsurf_status st =
-      first && (fmse || own_m) && (fnrm || (own && tied)) ? BSURF_OK : BSURF_ERR_NOMEM;
-  c.first = first;
-  c.fnrm = fnrm ? fnrm : own;
-  c.tied = tied;
-  c.fmse = fmse ? fmse : own_m;
-  c.fref = fref ? fref : c.fnrm;
-  c.fmref = fmref ? fmref : c.fmse;
-  c.bref = bref; /* the empirical bias's references (kselect_lof.c), or none */
-  c.bmref = bmref;
-  bsurf_i_ksel_reset(r);
-  /* progress is reported for pass 3 (the bulk of the work) */
-  if (st == BSURF_OK) st = ksel_pass(r, &c, r->o.nd > 0 ? poly_point : select_point, 1);
-  for (int t = 0; t < r->T && st == BSURF_OK; t++)
-    if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
-  for (size_t i = 0; fref && st == BSURF_OK && i < n; i++) { /* row i's point: idx[i k] */
-    const size_t p = nb->idx[i * (size_t)nb->k];
-    memcpy(&fref[3 * p], &c.fnrm[3 * i], 3 * sizeof(double));
-    fmref[p] = c.fmse[i];
-  }
-  if (st == BSURF_OK && !fnrm) st = ksel_pass(r, &c, tie_point, 0);
-  if (report && st == BSURF_OK && !fnrm)
-    for (int t = 0; t < r->T; t++)
-      report->unassessed += r->scr[t].none;
-  bsurf_i_ksel_reset(r);
-  free(first);
-  free(own);
-  free(own_m);
-  free(tied);
-  return st;
-}
-
-bsurf_status bsurf_ksel_first(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                              const double *noise, const double *bref, const double *bmref,
-                              double *fnrm, double *fmse) {
-  return ksel_select(r, xyz, nb, noise, bref, bmref, NULL, NULL, fnrm, fmse, NULL, NULL);
-}
-
-bsurf_status bsurf_ksel_choose(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                               const double *noise, const double *bref, const double *bmref,
-                               double *fref, double *fmref, bsurf_kselect_fields *out,
-                               bsurf_kselect_report *report) {
-  BSURF_REQUIRE(!out->two_sheet || r->crit, "the run was opened without the two-sheet test");
-  return ksel_select(r, xyz, nb, noise, bref, bmref, fref, fmref, NULL, NULL, out, report);
-}
-
-/* Pass 3 again, with the empirical bias, at the points deferred by the
- * first (ksel_select_emp): the others' choices do not depend on the bias. */
+/* The second pass 3 of a deferred selection (ksel_select, defer): the
+ * points the first deferred, the others' choices standing. */
 typedef struct ksel_redo {
   ksel_ctx c; /* first: select_point takes a ksel_ctx */
   const unsigned char *deferred;
@@ -118,71 +57,105 @@ static void select_deferred(void *vctx, int thread, size_t i) {
   if (((const ksel_redo *)vctx)->deferred[i]) select_point(vctx, thread, i);
 }
 
-/* Passes 3 and 4 with the empirical bias, in memory (bsurf_select_k): the
- * same choices as bsurf_ksel_first, then bsurf_ksel_choose with its
- * references, at the cost of about one pass 3. The bias enters a point's
- * criterion only where the lack-of-fit gate fires (select_point: emp), and
- * the gate reads the point's own quadrics and noise, not the references;
- * so the first pass, without the bias, already makes every other point's
- * final choice and stores its tied record, and defers the gated ones
- * (c->deferred: their first choices kept as the references, no tied
- * record); the second pass chooses the deferred points again, with the
+/* Pass 3 (fnrm != NULL: only the first choices' normals, by row, no tied
+ * record), or passes 3 and 4 into out (fref, fmref given: the rows' own
+ * first choices are written into them, at the rows' points, before pass 4).
+ *
+ * defer (in memory, bsurf_select_k, with the empirical bias; bref NULL):
+ * the choices of bsurf_ksel_first followed by bsurf_ksel_choose with its
+ * first choices as bref, at the cost of about one pass 3. The bias enters a
+ * point's criterion only where the lack-of-fit gate fires (select_point:
+ * emp), and the gate reads the point's own quadrics and noise, not the
+ * references; so the first pass, without the bias, already makes every
+ * other point's final choice and stores its tied record, and defers the
+ * gated ones (c->deferred: their first choices kept as the references, no
+ * tied record); a second pass chooses the deferred points again, with the
  * bias, against the references of the first. Each point's computation is
  * the one bsurf_ksel_choose makes: the results are the same bits. */
-static bsurf_status ksel_select_emp(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
-                                    const double *noise, bsurf_kselect_fields *out,
-                                    bsurf_kselect_report *report) {
+static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
+                                const double *noise, const double *bref, const double *bmref,
+                                double *fref, double *fmref, double *fnrm, double *fmse, int defer,
+                                bsurf_kselect_fields *out, bsurf_kselect_report *report) {
   const size_t n = nb->point_count, m = n ? n : 1;
   ksel_redo rd = {.c = ksel_ctx_of(r, xyz, nb)};
   ksel_ctx *c = &rd.c;
   c->noise = (double *)noise; /* read only, by row */
   c->out = out;
   int *first = bsurf_alloc_array(m, sizeof(int));
-  double *fnrm = bsurf_alloc_array(m, 3 * sizeof(double));
-  double *fmse = bsurf_alloc_array(m, sizeof(double));
-  double **tied = bsurf_alloc_array(m, sizeof(double *));
-  unsigned char *deferred = bsurf_alloc_array(m, 1);
-  /* the references of the bias: the first choices, by point */
-  double *bref = bsurf_alloc_array(m, 3 * sizeof(double));
-  double *bmref = bsurf_alloc_array(m, sizeof(double));
+  double *own = fnrm ? NULL : bsurf_alloc_array(m, 3 * sizeof(double));
+  double *own_m = fmse ? NULL : bsurf_alloc_array(m, sizeof(double));
+  double **tied = fnrm ? NULL : bsurf_alloc_array(m, sizeof(double *));
+  /* deferring: the gate's flags and the references of the bias, by point */
+  unsigned char *deferred = defer ? bsurf_alloc_array(m, 1) : NULL;
+  double *dref = defer ? bsurf_alloc_array(m, 3 * sizeof(double)) : NULL;
+  double *dmref = defer ? bsurf_alloc_array(m, sizeof(double)) : NULL;
   bsurf_status st =
-      first && fnrm && fmse && tied && deferred && bref && bmref ? BSURF_OK : BSURF_ERR_NOMEM;
-  c->first = first, c->fnrm = fnrm, c->fmse = fmse, c->tied = tied;
-  c->fref = fnrm, c->fmref = fmse; /* pass 4's references, by row */
+      first && (fmse || own_m) && (fnrm || (own && tied)) && (!defer || (deferred && dref && dmref))
+          ? BSURF_OK
+          : BSURF_ERR_NOMEM;
+  c->first = first;
+  c->fnrm = fnrm ? fnrm : own;
+  c->tied = tied;
+  c->fmse = fmse ? fmse : own_m;
+  c->fref = fref ? fref : c->fnrm;
+  c->fmref = fmref ? fmref : c->fmse;
+  c->bref = bref; /* the empirical bias's references (kselect_lof.c), or none */
+  c->bmref = bmref;
   c->deferred = deferred;
   bsurf_i_ksel_reset(r);
-  /* progress is reported for the first pass 3 (the bulk of the work) */
-  if (st == BSURF_OK) st = ksel_pass(r, c, select_point, 1);
+  /* progress is reported for pass 3 (the bulk of the work) */
+  if (st == BSURF_OK) st = ksel_pass(r, c, r->o.nd > 0 ? poly_point : select_point, 1);
   for (int t = 0; t < r->T && st == BSURF_OK; t++)
     if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
-  size_t recount = 0; /* deferred points counted unassessed by the first pass */
-  for (size_t i = 0; st == BSURF_OK && i < n; i++) {
+  for (size_t i = 0; fref && st == BSURF_OK && i < n; i++) { /* row i's point: idx[i k] */
     const size_t p = nb->idx[i * (size_t)nb->k];
-    memcpy(&bref[3 * p], &fnrm[3 * i], 3 * sizeof(double));
-    bmref[p] = fmse[i];
-    recount += deferred[i] && !isfinite(fmse[i]); /* ksel_ties: M infinite */
+    memcpy(&fref[3 * p], &c->fnrm[3 * i], 3 * sizeof(double));
+    fmref[p] = c->fmse[i];
   }
-  c->bref = bref, c->bmref = bmref;
-  c->deferred = NULL;
-  rd.deferred = deferred;
-  if (st == BSURF_OK) st = ksel_pass(r, c, select_deferred, 0);
-  for (int t = 0; t < r->T && st == BSURF_OK; t++)
-    if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = ksel_pass(r, c, tie_point, 0);
-  if (report && st == BSURF_OK) {
+  size_t recount = 0; /* deferred points counted unassessed by the first pass */
+  if (defer && st == BSURF_OK) {
+    for (size_t i = 0; i < n; i++) {
+      const size_t p = nb->idx[i * (size_t)nb->k];
+      memcpy(&dref[3 * p], &c->fnrm[3 * i], 3 * sizeof(double));
+      dmref[p] = c->fmse[i];
+      recount += deferred[i] && !isfinite(c->fmse[i]); /* ksel_ties: M infinite */
+    }
+    c->bref = dref, c->bmref = dmref;
+    c->deferred = NULL;
+    rd.deferred = deferred;
+    st = ksel_pass(r, c, select_deferred, 0);
+    for (int t = 0; t < r->T && st == BSURF_OK; t++)
+      if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
+  }
+  if (st == BSURF_OK && !fnrm) st = ksel_pass(r, c, tie_point, 0);
+  if (report && st == BSURF_OK && !fnrm) {
     for (int t = 0; t < r->T; t++)
       report->unassessed += r->scr[t].none;
     report->unassessed -= recount;
   }
   bsurf_i_ksel_reset(r);
   free(first);
-  free(fnrm);
-  free(fmse);
+  free(own);
+  free(own_m);
   free(tied);
   free(deferred);
-  free(bref);
-  free(bmref);
+  free(dref);
+  free(dmref);
   return st;
+}
+
+bsurf_status bsurf_ksel_first(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
+                              const double *noise, const double *bref, const double *bmref,
+                              double *fnrm, double *fmse) {
+  return ksel_select(r, xyz, nb, noise, bref, bmref, NULL, NULL, fnrm, fmse, 0, NULL, NULL);
+}
+
+bsurf_status bsurf_ksel_choose(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
+                               const double *noise, const double *bref, const double *bmref,
+                               double *fref, double *fmref, bsurf_kselect_fields *out,
+                               bsurf_kselect_report *report) {
+  BSURF_REQUIRE(!out->two_sheet || r->crit, "the run was opened without the two-sheet test");
+  return ksel_select(r, xyz, nb, noise, bref, bmref, fref, fmref, NULL, NULL, 0, out, report);
 }
 
 int bsurf_ksel_empirical(const bsurf_ksel_run *r) {
@@ -217,8 +190,7 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
 #ifdef BSURF_KSEL_TRACE
   /* the developer's trace (kselect.c, scripts/ksel_replay.py) records every
    * point's last pass with its references: the two full passes, the same
-   * bits as ksel_select_emp */
-  (void)ksel_select_emp;
+   * bits as the deferred selection */
   double *bref = NULL, *bmref = NULL;
   if (st == BSURF_OK && bsurf_ksel_empirical(r)) {
     bref = bsurf_alloc_array(n, 3 * sizeof(double));
@@ -231,10 +203,10 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   free(bref);
   free(bmref);
 #else
+  /* (the run was opened with the two-sheet test when out asks for it) */
   if (st == BSURF_OK)
-    st = bsurf_ksel_empirical(r)
-             ? ksel_select_emp(r, xyz, nb, noise, out, report)
-             : bsurf_ksel_choose(r, xyz, nb, noise, NULL, NULL, NULL, NULL, out, report);
+    st = ksel_select(r, xyz, nb, noise, NULL, NULL, NULL, NULL, NULL, NULL, bsurf_ksel_empirical(r),
+                     out, report);
 #endif
   free(noise);
   bsurf_ksel_close(r);
