@@ -371,8 +371,7 @@ void ctx_free(smooth_ctx *c, int T) {
  * neighbourhood's scale"): t0 = R / sigma, R the median radius of the
  * K-balls, sigma the guard's noise estimate; p the coefficients of the
  * asked degree; at most k_max (0: 8 K), 65535 and the points. */
-static bsurf_status scale_k(const smooth_ctx *c, const bsurf_smooth_options *o, int T, int *K) {
-  (void)T;
+static bsurf_status scale_k(const smooth_ctx *c, const bsurf_smooth_options *o, int *K) {
   double R = 0;
   bsurf_status st = bsurf_ball_radius(c->xyz, c->nb, c->k, &R);
   if (st != BSURF_OK) return st;
@@ -528,7 +527,7 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
     /* the scale rule (ball_scale.c): where the noise is heavy against the
      * K-ball, the method runs again on wider neighbourhoods */
     int K = c.k;
-    st = scale_k(&c, &o, T, &K);
+    st = scale_k(&c, &o, &K);
     if (st == BSURF_OK && K > c.k) {
       bsurf_smooth_options o2 = opts ? *opts : bsurf_smooth_options_default();
       o2.method = o.method;
