@@ -2,7 +2,7 @@
  * features_variance.c, "the null's scale"): the expected lambda0 of a
  * smooth patch E(g) = sigma^2 + c g, g = (lambda1 + lambda2)^2, fitted to the
  * cloud, and a featureless surface whose density varies 10x flagged at about
- * the tests' level. */
+ * the tests' level, at light and at heavy noise. */
 #include <setjmp.h>
 #include <stdarg.h>
 #include <stddef.h>
@@ -111,7 +111,7 @@ static void test_fit_exact(void **state) {
  * Measured (100,000 points thinned to about 39,000): the torus 24.3%
  * flagged with s^2 = the median lambda0 as the noise (23.1% by the variance
  * test), 2.2% with V(g) (0.9%); the sphere 1.4% (0.1%). */
-static double aniso_rate(bsurf_shape shape, double *alpha) {
+static double aniso_rate(bsurf_shape shape, bsurf_noise_model model, double level, double *alpha) {
   bsurf_cloud c;
   assert_int_equal(bsurf_generate(&c, shape, 100000, BSURF_SAMPLING_RANDOM, 7, 0), BSURF_OK);
   double lo = INFINITY, hi = -INFINITY;
@@ -131,10 +131,12 @@ static double aniso_rate(bsurf_shape shape, double *alpha) {
   }
   double h;
   assert_int_equal(bsurf_mean_spacing(c.xyz, m, 0, &h), BSURF_OK);
-  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, m, BSURF_NOISE_UNIFORM, 0.25, h, 3), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, m, model, level, h, 3), BSURF_OK);
   bsurf_neighbors nb;
   bsurf_feature_options o = bsurf_feature_options_default();
-  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, m, o.normals.k, 0, NULL, NULL), BSURF_OK);
+  /* the lists as the CLI builds them: up to the K rule's cap, so that K can grow */
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, m, bsurf_fvar_k_cap(&o, m), 0, NULL, NULL),
+                   BSURF_OK);
   uint8_t *feat = malloc(m);
   double *z = malloc(m * sizeof(double));
   bsurf_feature_report rep;
@@ -145,9 +147,10 @@ static double aniso_rate(bsurf_shape shape, double *alpha) {
   free(z);
   *alpha = o.false_positive_rate;
   const double rate = (double)rep.feature_points / (double)m;
-  printf("%s, density varying 10x (%zu points), uniform noise 0.25 h: K %d, %.4f flagged (%.4f "
+  printf("%s, density varying 10x (%zu points), %s noise %.2f h: K %d, %.4f flagged (%.4f "
          "by the variance test)\n",
-         bsurf_shape_name(shape), m, rep.k, rate, (double)byz / (double)m);
+         bsurf_shape_name(shape), m, model == BSURF_NOISE_UNIFORM ? "uniform" : "gaussian", level,
+         rep.k, rate, (double)byz / (double)m);
   free(feat);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
@@ -157,9 +160,25 @@ static double aniso_rate(bsurf_shape shape, double *alpha) {
 static void test_aniso_featureless(void **state) {
   (void)state;
   double alpha;
-  const double torus = aniso_rate(BSURF_SHAPE_TORUS, &alpha);
+  const double torus = aniso_rate(BSURF_SHAPE_TORUS, BSURF_NOISE_UNIFORM, 0.25, &alpha);
   assert_true(torus <= 2.5 * 2 * alpha);
-  const double sphere = aniso_rate(BSURF_SHAPE_SPHERE, &alpha);
+  const double sphere = aniso_rate(BSURF_SHAPE_SPHERE, BSURF_NOISE_UNIFORM, 0.25, &alpha);
+  assert_true(sphere <= 2.5 * 2 * alpha);
+}
+
+/* The same shapes at heavy noise, gaussian 2 h (K grows: the lists are
+ * built to the K rule's cap), the same bound. Measured: K 60, the torus
+ * 4.4% flagged (3.2% by the variance test), the sphere 3.2% (2.0%). The
+ * simulated patches with their neighbourhoods on the noisy points (tried,
+ * not kept: docs/features.md, "The null's patches on noisy points") read the
+ * noise right but take one null at the cloud's median eta, too lenient
+ * where the points are dense: 8.3% (6.6%) and 7.5% (5.9%), failing here. */
+static void test_aniso_featureless_heavy(void **state) {
+  (void)state;
+  double alpha;
+  const double torus = aniso_rate(BSURF_SHAPE_TORUS, BSURF_NOISE_GAUSSIAN, 2.0, &alpha);
+  const double sphere = aniso_rate(BSURF_SHAPE_SPHERE, BSURF_NOISE_GAUSSIAN, 2.0, &alpha);
+  assert_true(torus <= 2.5 * 2 * alpha);
   assert_true(sphere <= 2.5 * 2 * alpha);
 }
 
@@ -167,6 +186,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_fit_exact),
       cmocka_unit_test(test_aniso_featureless),
+      cmocka_unit_test(test_aniso_featureless_heavy),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }
