@@ -1,5 +1,6 @@
-/* The MSE rule's noise estimate where its misfit extrapolation degenerates
- * and at light noise on a sparse sampling (src/algo/kselect_noise.c;
+/* The MSE rule's noise estimate where its misfit extrapolation degenerates,
+ * at light noise on a sparse sampling and on a plane whose small balls
+ * truncate the noise (src/algo/kselect_noise.c;
  * docs/normals.md, "Choosing K", *noise*): a cube whose edges make the
  * extrapolation degenerate at the points near them, and a sphere whose
  * density varies 10x across it with Gaussian noise about the sparse
@@ -130,6 +131,46 @@ static void test_aniso_sphere(void **state) {
   free(xyz);
   free(tn);
   bsurf_neighbors_free(&nb);
+}
+
+/* The noise level alone (the pooled global estimate of the selection's
+ * noise field) on a plane of 20,000 random points with Gaussian noise of
+ * deviation sigma along the normal (fixed seeds), the candidates 15:80:5.
+ * At sigma = 0.25 h the 12-ball's radius is about 7 sigma, the truncation
+ * small; at sigma = h about 2 sigma, so the residuals of a small ball are a
+ * truncated sample, and the truncation rule's stop (kselect_noise.c) on the
+ * point's own draw leaves the estimate low. Measured (sigma / h 0.25, 0.5,
+ * 1.0, 1.5, 2.0): 1.014, 0.991, 0.892, 0.803, 0.843 of sigma; with the
+ * stop's and the extrapolation's residual variances read through the
+ * truncation model v = sigma^2 tau(R / sigma) (tried, not kept:
+ * docs/normals.md, "The ball's truncation modelled") 1.016, 1.002, 0.928,
+ * 0.843, 0.891. */
+static double plane_sigma(double sigma, uint64_t seed) {
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 20000, BSURF_SAMPLING_RANDOM, seed, 2),
+                   BSURF_OK);
+  const size_t n = c.point_count;
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, n, 2, &h), BSURF_OK);
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_GAUSSIAN, sigma, h, seed + 1),
+                   BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 80, 2, NULL, NULL), BSURF_OK);
+  double *tn = malloc(3 * n * sizeof(double));
+  memcpy(tn, c.normals, 3 * n * sizeof(double));
+  const sel_result r = select_on(c.xyz, tn, n, &nb);
+  free(tn);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+  return r.sigma / (sigma * h);
+}
+
+static void test_plane_noise(void **state) {
+  (void)state;
+  const double light = plane_sigma(0.25, 31), heavy = plane_sigma(1.0, 41);
+  print_message("plane: sigma estimated / true at 0.25 h %.3f, at 1.0 h %.3f\n", light, heavy);
+  assert_true(light > 0.9 && light < 1.1);
+  assert_true(heavy > 0.85 && heavy < 1.1);
 }
 
 /* A cube of 3,000 random points with Gaussian noise of 0.1 h along the
@@ -265,6 +306,7 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_aniso_sphere),
       cmocka_unit_test(test_cube_noise),
+      cmocka_unit_test(test_plane_noise),
       cmocka_unit_test(test_second_pass),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
