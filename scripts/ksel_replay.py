@@ -56,7 +56,8 @@ def run_case(bs, dev, out, case):
     src = os.path.join(dev, case, "noisy.ply")
     dump, res, r10 = (os.path.join(out, case + x) for x in (".trace", ".ply", ".k10.ply"))
     env = dict(os.environ, BSURF_KSEL_TRACE=dump)
-    subprocess.run([bs, "normals", src, "-o", res, "-q", "-j", "1", "--select-k", "%d:%d:%d" % (KS[0], KS[-1], KS[1] - KS[0]), "-B", "0",
+    ks = "%d:%d:%d" % (KS[0], KS[-1], KS[1] - KS[0])
+    subprocess.run([bs, "normals", src, "-o", res, "-q", "-j", "1", "--select-k", ks, "-B", "0",
                     "--select-rule", "mse"], env=env, check=True)
     subprocess.run([bs, "normals", src, "-o", r10, "-q", "-k", "10", "-B", "0"], check=True)
     P, C = [], []
