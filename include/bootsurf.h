@@ -563,8 +563,9 @@ typedef struct bsurf_kselect_fields {
 typedef struct bsurf_kselect_report {
   size_t unassessed; /* points where no candidate could be assessed (the
                         noise exceeds the tangent spread of every K, the
-                        quadrics are rank-deficient, or the K_max
-                        neighbours sample a curve): the largest K */
+                        quadrics are rank-deficient, the K_max
+                        neighbours sample a curve, or every candidate's
+                        plane is thinner than the noise): the largest K */
 } bsurf_kselect_report;
 
 /* K selection by BSURF_KSELECT_MSE for every point; nb->k must be at least

@@ -4,9 +4,11 @@
 usage:
   /usr/bin/python3 scripts/ksel_replay.py DEVSET_DIR --bootsurf TRACE_BUILD/bootsurf
       --out WORK_DIR [--sampling vertices] [--cases LIST] [--variants LIST]
+      [--select-k 15:80:5]
 
 TRACE_BUILD is a build configured with -DCMAKE_C_FLAGS=-DBSURF_KSEL_TRACE: its
-`normals --select-k 15:80:5 -B 0 --select-rule mse -j 1` writes, with
+`normals --select-k A:B:STEP -B 0 --select-rule mse -j 1` (the candidates of
+--select-k; one WORK_DIR per candidate set) writes, with
 BSURF_KSEL_TRACE=FILE in the environment, each point's terms of the rule's last
 selection pass (src/algo/kselect.c, trace_point). This script runs it once per
 case (cached in WORK_DIR as CASE.npz, with K = 10's normals for the best fixed K),
@@ -32,7 +34,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import devset  # noqa: E402
 
-KS = list(range(15, 81, 5))
+KS = list(range(15, 81, 5))  # --select-k (main() may replace it)
 FIXED = [10, 15, 20, 25, 30, 40, 50, 60, 70, 80]
 TIE_F = 0.5  # kselect.c
 ALPHA = 0.05  # kselect_lof.c
@@ -54,7 +56,8 @@ def run_case(bs, dev, out, case):
     src = os.path.join(dev, case, "noisy.ply")
     dump, res, r10 = (os.path.join(out, case + x) for x in (".trace", ".ply", ".k10.ply"))
     env = dict(os.environ, BSURF_KSEL_TRACE=dump)
-    subprocess.run([bs, "normals", src, "-o", res, "-q", "-j", "1", "--select-k", "15:80:5", "-B", "0",
+    ks = "%d:%d:%d" % (KS[0], KS[-1], KS[1] - KS[0])
+    subprocess.run([bs, "normals", src, "-o", res, "-q", "-j", "1", "--select-k", ks, "-B", "0",
                     "--select-rule", "mse"], env=env, check=True)
     subprocess.run([bs, "normals", src, "-o", r10, "-q", "-k", "10", "-B", "0"], check=True)
     P, C = [], []
@@ -67,7 +70,8 @@ def run_case(bs, dev, out, case):
     cn, f = normals_of(res)
     d = dict(s2=P[:, 1], bref=P[:, 2:5], bmref=P[:, 5], nb=P[:, 6:].astype(int), nrm=C[:, :, 0:3],
              var=C[:, :, 3], qb=C[:, :, 4], D=C[:, :, 5], gate=C[:, :, 6].astype(int), rssv=C[:, :, 7],
-             b2raw=C[:, :, 8], tr=C[:, :, 9], l1=C[:, :, 10], l2=C[:, :, 11], cnorm=cn,
+             b2raw=C[:, :, 8], tr=C[:, :, 9], l1=C[:, :, 10], l2=C[:, :, 11], l3=C[:, :, 12], rk2=C[:, :, 13],
+             cnorm=cn,
              k10=normals_of(r10)[0], truth=normals_of(os.path.join(dev, case, "truth.ply"))[0])
     np.savez(npz, **d)
     for p in (dump, res, r10):
@@ -99,9 +103,17 @@ def test_error(d):
     return T, R, ws > 0
 
 
-def drift(d, var, tol=None, hit=None, tri=None):
+def rejects(d):
+    """each candidate's own lack-of-fit test (kselect_lof.c, Bonferroni over the candidates)"""
+    z = NormalDist().inv_cdf(1 - ALPHA / len(KS))
+    q = np.array([wh(K - 6, z) for K in KS])
+    return np.isfinite(d["rssv"]) & (d["rssv"] > d["s2"][:, None] * q)
+
+
+def drift(d, var, tol=None, hit=None, tri=None, ref_ok=None):
     """max over smaller candidates of sin^2 - c (V(j) - V(K)), c = 3 + ln(a); tol
-    replaces c where hit; tri: the smaller candidate's own bias^2 taken off first."""
+    replaces c where hit; tri: the smaller candidate's own bias^2 taken off first;
+    ref_ok: which smaller candidates may serve as references."""
     n, nk = var.shape
     nrm = d["nrm"]
     out = np.full((n, nk), -np.inf)
@@ -115,20 +127,33 @@ def drift(d, var, tol=None, hit=None, tri=None):
                 x = s2 - c * (var[:, b] - var[:, a])
             if tri is not None:
                 x = np.maximum(0, np.sqrt(np.maximum(x, 0)) - np.sqrt(tri[:, b])) ** 2
-            out[:, a] = np.maximum(out[:, a], np.where(np.isfinite(var[:, b]), x, -np.inf))
+            use = np.isfinite(var[:, b]) if ref_ok is None else np.isfinite(var[:, b]) & ref_ok[:, b]
+            out[:, a] = np.maximum(out[:, a], np.where(use, x, -np.inf))
     return out
 
 
-def criterion(d, s2=None, gate=None, emp="R", drift_kw=None, no_drift=None):
+def thin_planes(d, s2):
+    """the candidates whose plane is thinner than the noise s2 allows (kselect_lof.c,
+    ksel_thin_plane): K l3 < (K - 3) s2 q, q the lower ALPHA / nk quantile of
+    chi^2_{K-3} / (K - 3), where the K-th neighbour is >= 5 deviations away"""
+    K = np.array(KS)
+    z = NormalDist().inv_cdf(ALPHA / len(KS))
+    q = np.array([wh(k - 3, z) for k in KS])
+    return (s2 > 0) & (d["rk2"] >= 25 * s2) & (K * d["l3"] < (K - 3) * s2 * q)
+
+
+def criterion(d, s2=None, gate=None, emp="R", drift_kw=None, no_drift=None, thin=True):
     """V + max(Q, D, the empirical bias where gated), recomputed; s2 replaces the
-    pooled noise (then V, Q, the gate and D follow it)."""
+    pooled noise (then V, Q, the thin-plane test (unless not thin), the gate and D
+    follow it)."""
     var, Q = d["var"], d["qb"]
     n, nk = var.shape
     if s2 is not None:
         s2 = np.broadcast_to(np.reshape(s2, (-1, 1)), var.shape)
         l1, l2 = d["l1"], d["l2"]
-        curve = ~np.isfinite(var) & (l1 > d["s2"][:, None]) & (l2 > 0)  # the curve test's
-        ok = (l1 > s2) & (l2 > 0) & ~curve
+        thin0 = thin_planes(d, d["s2"][:, None])
+        curve = ~np.isfinite(var) & (l1 > d["s2"][:, None]) & (l2 > 0) & ~thin0  # the curve test's
+        ok = (l1 > s2) & (l2 > 0) & ~curve & (~thin_planes(d, s2) if thin else True)
         with np.errstate(all="ignore"):
             var = np.where(ok, s2 / np.array(KS) * (l1 / (l1 - s2) ** 2 + l2 / (l2 - s2) ** 2), np.inf)
             Q = d["b2raw"] - s2 * d["tr"]
@@ -224,6 +249,10 @@ def variant(name, d, dev, case):
     if name == "drift_off_r0":
         r0 = r0_rows()
         return choose(d, *criterion(d, no_drift=np.repeat(r0[:, None], len(KS), 1)))
+    if name == "drift_sound":  # drifts only from the candidates whose quadric holds
+        return choose(d, *criterion(d, drift_kw=dict(ref_ok=~rejects(d))))
+    if name == "no_drift":
+        return choose(d, *criterion(d, no_drift=np.ones(d["var"].shape, bool)))
     if name == "drift_c1":  # the unbiased drift where the gate or K_1 rejects
         hit = (d["gate"] == 1) | r0_rows()[:, None]
         return choose(d, *criterion(d, drift_kw=dict(tol=1.0, hit=hit)))
@@ -243,6 +272,8 @@ def variant(name, d, dev, case):
                                     1 - ALPHA / (len(KS) - 1)) for K in KS[1:]]
         g = np.maximum.accumulate(np.isfinite(F) & (F > np.array(q)), 1)
         return choose(d, *criterion(d, gate=g))
+    if name == "no_thin":  # the rule without the thin-plane test
+        return choose(d, *criterion(d, s2=d["s2"], thin=False))
     if name.startswith("true_s2"):  # a diagnostic: the true noise variance times x
         x = float(name.split("x")[1]) if "x" in name else 1.0
         return choose(d, *criterion(d, s2=x * true_s2(dev, case)))
@@ -257,7 +288,10 @@ def main():
     ap.add_argument("--sampling", default="vertices")
     ap.add_argument("--cases", default="")
     ap.add_argument("--variants", default="base")
+    ap.add_argument("--select-k", default="15:80:5", help="the candidates A:B:STEP")
     a = ap.parse_args()
+    lo, hi, st = (int(x) for x in a.select_k.split(":"))
+    KS[:] = list(range(lo, hi + 1, st))
     os.makedirs(a.out, exist_ok=True)
     cases = a.cases.split(",") if a.cases else sorted(
         c for c in os.listdir(a.devset) if os.path.isdir(os.path.join(a.devset, c)) and
@@ -269,7 +303,7 @@ def main():
     for c in cases:
         d = run_case(a.bootsurf, a.devset, a.out, c)
         t = d["truth"]
-        fe = {10: ang(d["k10"], t).mean()}
+        fe = {10: ang(d["k10"], t).mean()}  # overwritten where 10 is a candidate
         fe.update({K: ang(d["nrm"][:, i], t).mean() for i, K in enumerate(KS)})
         bk = min(FIXED, key=lambda k: fe[k])
         if not np.allclose(choose(d, *criterion(d)), d["cnorm"], atol=1e-6):

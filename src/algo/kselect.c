@@ -129,6 +129,16 @@
  * 21 / 2 / 0.9745 (docs/normals.md). The point's output normal is the PCA normal of the K so
  * chosen, and sqrt(M(K)) its estimated RMS angle error.
  *
+ * Every term above presumes that the candidate's PCA plane is a surface's
+ * tangent plane. Two tests take the candidates where it is not out of the
+ * choice (not assessed: neither chosen nor a reference for the drift):
+ * the K_max neighbours sample a curve (the curve test below), or the K
+ * points lie closer to their plane than the noise allows a surface's, K l3
+ * below the lower Bonferroni quantile of s2 chi^2_{K-3} (kselect_lof.c,
+ * ksel_thin_plane: the noise lies in the plane, as on ring-sampled CAD
+ * vertices). A point left with no candidate is unassessed: K_max, and
+ * normal_err pi / 2.
+ *
  * Candidates' centroids and covariances come from one pass over the sorted
  * neighbours (the nested running sums of src/algo/nested.c, one weight
  * row); the quadrics' normal equations likewise from running sums of the
@@ -408,9 +418,12 @@ static void trace_point(const ksel_ctx *c, const ksel_scratch *s, const uint32_t
       const double d = 1.0 - dot * dot - drift_tol(a) * (var[b] - var[a]);
       if (d > D) D = d;
     }
-    fprintf(f, "C %d %.17g %.17g %.17g %.17g %.17g %.17g %d %.17g %.17g %.17g %.17g %.17g\n", a,
-            nrm[3 * a], nrm[3 * a + 1], nrm[3 * a + 2], var[a], s->qb[a], D, s->gate[a], s->rssv[a],
-            s->trace[a][0], s->trace[a][1], s->trace[a][2], s->trace[a][3]);
+    fprintf(
+        f,
+        "C %d %.17g %.17g %.17g %.17g %.17g %.17g %d %.17g %.17g %.17g %.17g %.17g %.17g %.17g\n",
+        a, nrm[3 * a], nrm[3 * a + 1], nrm[3 * a + 2], var[a], s->qb[a], D, s->gate[a], s->rssv[a],
+        s->trace[a][0], s->trace[a][1], s->trace[a][2], s->trace[a][3], s->trace[a][4],
+        s->trace[a][5]);
   }
   fflush(f);
 }
@@ -436,11 +449,15 @@ void select_point(void *vctx, int thread, size_t i) {
   quad_sums q;
   memset(&q, 0, sizeof q);
   double *nrm = s->nrm, *var = s->var, *qb = s->qb;
+  const double zl = ksel_level_z(nk), *p0 = &c->xyz[3 * (size_t)idx[0]];
   int j = 0;
   for (int a = 0; a < nk; a++) {
     const int K = o->ks[a];
     for (; j < K; j++)
       quad_add(&q, s->u[j], s->v[j], s->z[j]);
+    const double *pk = &c->xyz[3 * (size_t)idx[K - 1]]; /* the K-th neighbour */
+    const double rk2 = (pk[0] - p0[0]) * (pk[0] - p0[0]) + (pk[1] - p0[1]) * (pk[1] - p0[1]) +
+                       (pk[2] - p0[2]) * (pk[2] - p0[2]);
     const double *cv = &s->cov[6 * a], *mu = &s->mu[3 * a];
     double C[3][3] = {{cv[0], cv[1], cv[2]}, {cv[1], cv[3], cv[4]}, {cv[2], cv[4], cv[5]}};
     double ev[3], V[3][3];
@@ -453,12 +470,18 @@ void select_point(void *vctx, int thread, size_t i) {
             ? s2 / K *
                   (ev[1] / ((ev[1] - s2) * (ev[1] - s2)) + ev[2] / ((ev[2] - s2) * (ev[2] - s2)))
             : INFINITY;
+    /* a plane thinner than the noise is not the surface's tangent plane
+     * (kselect_lof.c, ksel_thin_plane): not assessed */
+    if (ksel_thin_plane(K, ev[0], rk2, s2, zl)) var[a] = INFINITY;
     /* bias: the quadric's Hessian times the centroid's tangential offset */
     double coef[QT], rss, gi[3][3];
     qb[a] = INFINITY;
     s->rssv[a] = NAN;
 #ifdef BSURF_KSEL_TRACE
-    if (a < 64) s->trace[a][0] = s->trace[a][1] = s->trace[a][2] = s->trace[a][3] = NAN;
+    if (a < 64) {
+      s->trace[a][0] = s->trace[a][1] = s->trace[a][2] = s->trace[a][3] = NAN;
+      s->trace[a][4] = ev[0], s->trace[a][5] = rk2;
+    }
 #endif
     if (quad_solve(&q, coef, &rss, gi) != 0) continue;
     s->rssv[a] = rss / (K - QT);
@@ -517,7 +540,8 @@ void select_point(void *vctx, int thread, size_t i) {
     if (mse[a] < best_mse) /* ties keep the smaller K */
       best_mse = mse[a], best = a;
   }
-  /* none assessed (noise above the tangent spread of every K): the largest
+  /* none assessed (noise above the tangent spread of every K, a curve, or
+   * every plane thinner than the noise): the largest
    * K, the most stable plane */
 #ifdef BSURF_KSEL_TRACE
   if (c->bref) trace_point(c, s, idx, i, s2);

@@ -69,8 +69,9 @@ typedef struct ksel_scratch {
   /* the polynomial candidates' (kselect_poly.c), or NULL */
   struct kpoly_scratch *poly;
 #ifdef BSURF_KSEL_TRACE
-  /* per candidate |H t|^2, its noise share's factor, l1, l2 (kselect.c, trace_point) */
-  double trace[64][4];
+  /* per candidate |H t|^2, its noise share's factor, l1, l2, l3, R_K^2
+   * (kselect.c, trace_point) */
+  double trace[64][6];
 #endif
 } ksel_scratch;
 
@@ -141,11 +142,20 @@ bsurf_status poly_alloc(ksel_scratch *s, const bsurf_kselect_options *o, int kma
 void poly_free(ksel_scratch *s);
 
 #define ksel_lof_gate bsurf_i_ksel_lof_gate
+#define ksel_level_z bsurf_i_ksel_level_z
+#define ksel_thin_plane bsurf_i_ksel_thin_plane
 #define ksel_emp_bias bsurf_i_ksel_emp_bias
 /* The lack-of-fit gate (kselect_lof.c): gate[a] = 1 for the candidates
  * from the first whose quadric residual variance rssv rejects the noise
  * s2 on, none where the smallest rejects; returns whether any is gated. */
 int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, int *gate);
+/* The standard normal's upper quantile at a Bonferroni share of 5% over nk
+ * candidates (kselect_lof.c). */
+double ksel_level_z(int nk);
+/* 1 where candidate K's plane is thinner than the noise s2 allows (smallest
+ * eigenvalue l3, squared distance rk2 to its K-th neighbour, z from
+ * ksel_level_z): not the surface's tangent plane (kselect_lof.c). */
+int ksel_thin_plane(int K, double l3, double rk2, double s2, double z);
 /* The empirical bias^2 eb[a] of each gated candidate (0 elsewhere) against
  * the neighbours' first choices c->bref (kselect_lof.c). */
 void ksel_emp_bias(const ksel_ctx *c, const uint32_t *idx, const double *nrm, const double *var,

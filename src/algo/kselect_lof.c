@@ -40,7 +40,10 @@
  *     bias^2_emp(K) = max(0, T(K) - R - V(K)),
  * and the candidate's bias^2 is the larger of it and the model's. At an
  * edge the neighbours on the point's own face confirm a small K and the
- * candidate that leans across the edge pays its lean. */
+ * candidate that leans across the edge pays its lean.
+ *
+ * The residuals' other tail, a plane thinner than the noise allows, is the
+ * thin-plane test (ksel_thin_plane, below). */
 #include "algo/kselect.h"
 
 #include <math.h>
@@ -63,8 +66,32 @@ static double normal_upper_quantile(double p) {
   return z;
 }
 
+double ksel_level_z(int nk) {
+  return normal_upper_quantile(LOF_ALPHA / (nk > 1 ? nk : 1));
+}
+
+/* The other tail (docs/normals.md, "Planes thinner than the noise"): a
+ * surface's K points with noise of variance s2 along its normal leave about
+ * the best plane a residual sum of squares K l3 (l3 the covariance's
+ * smallest eigenvalue) of at least s2 chi^2_{K-3} -- the true tangent plane's
+ * is s2 chi^2_K, the plane's three parameters take three degrees of freedom,
+ * and curvature only adds to it. A smaller value, K l3 < s2 (K - 3) q with q
+ * the lower LOF_ALPHA / nk quantile of chi^2_{K-3} / (K - 3) (Wilson-Hilferty;
+ * z = ksel_level_z(nk)), rejects that the PCA plane is the surface's tangent
+ * plane: the noise lies in the plane, as where the K points sample a plane
+ * curve whose plane holds the surface normal (ring-sampled CAD vertices).
+ * The test needs the noise resolved: a ball of radius R_K keeps only the
+ * heights within about R_K of the point, so it is made only where R_K is at
+ * least THIN_RES noise deviations (the noise estimate's own condition,
+ * kselect_noise.c). */
+#define THIN_RES 5.0
+int ksel_thin_plane(int K, double l3, double rk2, double s2, double z) {
+  if (!(s2 > 0) || K <= 3 || rk2 < THIN_RES * THIN_RES * s2) return 0;
+  return K * l3 < (K - 3) * s2 * bsurf_chi2_ratio_wh(K - 3, -z);
+}
+
 int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, int *gate) {
-  const double z = normal_upper_quantile(LOF_ALPHA / (nk > 1 ? nk : 1));
+  const double z = ksel_level_z(nk);
   int on = 0, any = 0;
   for (int a = 0; a < nk; a++) {
     const double nu = ks[a] - QT;
