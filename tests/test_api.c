@@ -464,8 +464,12 @@ static void test_render_bad_input(void **state) {
   ro.views = 1;
   ro.point_size = NAN;
   assert_invalid(bsurf_render(rgb, f->c.xyz, NULL, f->c.point_count, NULL, &ro, NULL),
-                 "bsurf_render", "point_size = nan");
+                 "bsurf_render", "point_size nan: must be from 0.05 to 50");
   ro.point_size = 2;
+  ro.azimuth = INFINITY; /* the view's check (bsurf_render_options_check) */
+  assert_invalid(bsurf_render(rgb, f->c.xyz, NULL, f->c.point_count, NULL, &ro, NULL),
+                 "bsurf_render", "azimuth inf: must be from -360 to 360");
+  ro.azimuth = bsurf_render_options_default().azimuth;
   ro.width = 8;
   assert_invalid(bsurf_render(rgb, f->c.xyz, NULL, f->c.point_count, NULL, &ro, NULL),
                  "bsurf_render", "width x height = 8 x 64");

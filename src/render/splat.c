@@ -430,9 +430,7 @@ bsurf_status bsurf_render(uint8_t *rgb, const double *xyz, const double *normals
                 opt.supersample);
   BSURF_REQUIRE(opt.up_axis >= 0 && opt.up_axis <= 2, "up_axis = %d: must be 0, 1 or 2",
                 opt.up_axis);
-  BSURF_REQUIRE(opt.point_size > 0, "point_size = %g: must be > 0", opt.point_size);
-  BSURF_REQUIRE(isfinite(opt.azimuth) && isfinite(opt.elevation),
-                "azimuth = %g, elevation = %g: must be finite", opt.azimuth, opt.elevation);
+  /* the view's numbers (NaN and infinities included) */
   if (bsurf_render_options_check(&opt) != BSURF_OK) {
     char m[256];
     snprintf(m, sizeof m, "%s", bsurf_last_message());
