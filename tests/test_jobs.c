@@ -361,9 +361,6 @@ static void test_bad_options(void **state) {
   bsurf_cloud_free(&p.c);
 }
 
-/* bsurf_normals_job_memory: the rule resolved, K_max, the fields and the
- * bytes a point, exactly (the sums of the allocations its comment lists),
- * for known settings; bad options refused by name. */
 /* bsurf_smooth_job_memory: the bytes per point of smooth's arrays, counted
  * from its allocations (smooth_stages.c, bsurf_smooth_stage1_bytes and
  * bsurf_smooth_passes_bytes), with the scale rule's K_max */
@@ -428,6 +425,9 @@ static void test_smooth_plan(void **state) {
   assert_int_equal(bsurf_smooth_job_memory(NULL, NULL), BSURF_ERR_INVALID_ARG);
 }
 
+/* bsurf_normals_job_memory: the rule resolved, K_max, the fields and the
+ * bytes a point, exactly (the sums of the allocations its comment lists),
+ * for known settings; bad options refused by name. */
 static void test_normals_plan(void **state) {
   (void)state;
   bsurf_normals_job_plan jp;
