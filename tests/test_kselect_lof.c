@@ -43,24 +43,24 @@ static void test_gate_exact(void **state) {
   int gate[NKS];
   for (int a = 0; a < NKS; a++)
     rssv[a] = s2;
-  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, gate), 0);
+  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, ksel_level_z(NKS), gate), 0);
   for (int a = 0; a < NKS; a++)
     assert_int_equal(gate[a], 0);
   /* candidate 3 (K = 30) just above its critical value, 4 just below */
   const double c3 = bsurf_chi2_ratio_wh(KS[3] - 6, Z9), c4 = bsurf_chi2_ratio_wh(KS[4] - 6, Z9);
   rssv[3] = s2 * c3 * (1 + 1e-5);
   rssv[4] = s2 * c4 * (1 - 1e-5);
-  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, gate), 1);
+  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, ksel_level_z(NKS), gate), 1);
   for (int a = 0; a < NKS; a++)
     assert_int_equal(gate[a], a >= 3);
   rssv[3] = s2 * c3 * (1 - 1e-5); /* below: nothing rejects */
-  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, gate), 0);
+  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, ksel_level_z(NKS), gate), 0);
   rssv[3] = NAN;
-  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, gate), 0);
+  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, ksel_level_z(NKS), gate), 0);
   /* the smallest rejects: the sampling does not resolve the surface, no gate */
   rssv[0] = 100 * s2;
   rssv[5] = 100 * s2;
-  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, gate), 0);
+  assert_int_equal(ksel_lof_gate(rssv, KS, NKS, s2, ksel_level_z(NKS), gate), 0);
   for (int a = 0; a < NKS; a++)
     assert_int_equal(gate[a], 0);
 }

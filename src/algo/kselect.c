@@ -449,7 +449,7 @@ void select_point(void *vctx, int thread, size_t i) {
   quad_sums q;
   memset(&q, 0, sizeof q);
   double *nrm = s->nrm, *var = s->var, *qb = s->qb;
-  const double zl = ksel_level_z(nk), *p0 = &c->xyz[3 * (size_t)idx[0]];
+  const double zl = c->lof_z, *p0 = &c->xyz[3 * (size_t)idx[0]];
   int j = 0;
   for (int a = 0; a < nk; a++) {
     const int K = o->ks[a];
@@ -514,7 +514,8 @@ void select_point(void *vctx, int thread, size_t i) {
       if (s->curve[a]) var[a] = INFINITY;
   /* where the quadric does not fit, the bias from the neighbours' first
    * choices (kselect_lof.c) */
-  const int gated = (c->bref || c->deferred) && ksel_lof_gate(s->rssv, o->ks, nk, s2, s->gate);
+  const int gated =
+      (c->bref || c->deferred) && ksel_lof_gate(s->rssv, o->ks, nk, s2, c->lof_z, s->gate);
   const int emp = c->bref && gated;
   if (c->deferred) c->deferred[i] = (unsigned char)gated; /* chosen again (kselect_run.c) */
   if (emp) ksel_emp_bias(c, idx, nrm, var, s->gate, nk, s->eb);

@@ -80,6 +80,7 @@ typedef struct ksel_ctx {
   const bsurf_neighbors *nb;
   const bsurf_kselect_options *o;
   int kmax;
+  double lof_z; /* ksel_level_z(o->nk): the lack-of-fit tests' level, once a run */
   ksel_scratch *scr;
   double *s2;          /* pass 1: the point's residual variance (NAN: no fit) */
   double *noise;       /* pass 2: the pooled noise variance */
@@ -147,8 +148,9 @@ void poly_free(ksel_scratch *s);
 #define ksel_emp_bias bsurf_i_ksel_emp_bias
 /* The lack-of-fit gate (kselect_lof.c): gate[a] = 1 for the candidates
  * from the first whose quadric residual variance rssv rejects the noise
- * s2 on, none where the smallest rejects; returns whether any is gated. */
-int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, int *gate);
+ * s2 on (at the level z = ksel_level_z(nk)), none where the smallest
+ * rejects; returns whether any is gated. */
+int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, double z, int *gate);
 /* The standard normal's upper quantile at a Bonferroni share of 5% over nk
  * candidates (kselect_lof.c). */
 double ksel_level_z(int nk);

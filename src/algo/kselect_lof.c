@@ -90,8 +90,7 @@ int ksel_thin_plane(int K, double l3, double rk2, double s2, double z) {
   return K * l3 < (K - 3) * s2 * bsurf_chi2_ratio_wh(K - 3, -z);
 }
 
-int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, int *gate) {
-  const double z = ksel_level_z(nk);
+int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, double z, int *gate) {
   int on = 0, any = 0;
   for (int a = 0; a < nk; a++) {
     const double nu = ks[a] - QT;

@@ -22,8 +22,13 @@ static bsurf_status ksel_pass(const bsurf_ksel_run *r, ksel_ctx *c, void (*fn)(v
 }
 
 static ksel_ctx ksel_ctx_of(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb) {
-  ksel_ctx c = {
-      .xyz = xyz, .nb = nb, .o = &r->o, .kmax = r->kmax, .scr = r->scr, .sheet_crit = r->crit};
+  ksel_ctx c = {.xyz = xyz,
+                .nb = nb,
+                .o = &r->o,
+                .kmax = r->kmax,
+                .lof_z = ksel_level_z(r->o.nk), /* once a run, not per point */
+                .scr = r->scr,
+                .sheet_crit = r->crit};
   return c;
 }
 
