@@ -797,6 +797,7 @@ bsurf_status bsurf_ksel_open(const bsurf_kselect_options *o, int nb_k, int two_s
     s->rssv = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->eb = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->gate = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(int));
+    s->scales = bsurf_blocks_array(&s->mem, (size_t)o->nk + 1, 4 * sizeof(double));
     st = bsurf_blocks_status(&s->mem);
     if (st == BSURF_OK && o->nd > 0) st = poly_alloc(s, o, kmax);
   }
