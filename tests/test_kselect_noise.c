@@ -4,7 +4,8 @@
  * docs/normals.md, "Choosing K", *noise*): a cube whose edges make the
  * extrapolation degenerate at the points near them, and a sphere whose
  * density varies 10x across it with Gaussian noise about the sparse
- * part's spacing (fixed seeds); and bsurf_select_k against its passes,
+ * part's spacing, a coarse wavy surface whose misfit must not be read as
+ * noise (fixed seeds); and bsurf_select_k against its passes,
  * whose second pass 3 runs at the gated points only (kselect_run.c). */
 #include <setjmp.h>
 #include <stdarg.h>
@@ -89,8 +90,11 @@ static double fixed_k(const double *xyz, const double *tn, size_t n, const bsurf
  * it read as bias. Measured: with the degenerate extrapolations clamped to
  * 0 and the quartile of chi^2 at the first fit's degrees of freedom, sigma
  * 0.835 of the true one, 0.99% of the points at K <= 30 (mean error 0.326
- * rad), 1.126x the best fixed K (80); now sigma 0.873, 0.59% (0.309 rad),
- * 1.061x. The bounds sit between the two. */
+ * rad), 1.126x the best fixed K (80); then sigma 0.873, 0.59% (0.309 rad),
+ * 1.061x (the truncation rule's stop at the first scale whose own, low-drawn
+ * estimate passed it); with the scale chosen by Lepski's method over the
+ * nested scales (kselect_noise.c) sigma 0.950, 0.25% (0.149 rad), 0.993x.
+ * The bounds sit between the last two. */
 static void test_aniso_sphere(void **state) {
   (void)state;
   bsurf_cloud dense;
@@ -126,8 +130,8 @@ static void test_aniso_sphere(void **state) {
                 "the points at K <= 30, mean error %.3f), best fixed K %d %.5f, ratio %.3f\n",
                 n, r.sigma / (SPHERE_SIGMA * h), r.err, r.small_share, r.small_err, kbest, best,
                 r.err / best);
-  assert_true(r.sigma > 0.85 * SPHERE_SIGMA * h && r.sigma < 1.1 * SPHERE_SIGMA * h);
-  assert_true(r.err < 1.09 * best);
+  assert_true(r.sigma > 0.91 * SPHERE_SIGMA * h && r.sigma < 1.1 * SPHERE_SIGMA * h);
+  assert_true(r.err < 1.03 * best);
   free(xyz);
   free(tn);
   bsurf_neighbors_free(&nb);
@@ -144,7 +148,10 @@ static void test_aniso_sphere(void **state) {
  * stop's and the extrapolation's residual variances read through the
  * truncation model v = sigma^2 tau(R / sigma) (tried, not kept:
  * docs/normals.md, "The ball's truncation modelled") 1.016, 1.002, 0.928,
- * 0.843, 0.891. */
+ * 0.843, 0.891. With the scale chosen per point by Lepski's method
+ * (kselect_noise.c), which moves on past the first untruncated scale while
+ * the estimate does not rise beyond its precision, 0.954 and 0.956 at 0.25
+ * and 1.0 h: the heavy level's bound is above the former 0.892. */
 static double plane_sigma(double sigma, uint64_t seed) {
   bsurf_cloud c;
   assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 20000, BSURF_SAMPLING_RANDOM, seed, 2),
@@ -170,7 +177,64 @@ static void test_plane_noise(void **state) {
   const double light = plane_sigma(0.25, 31), heavy = plane_sigma(1.0, 41);
   print_message("plane: sigma estimated / true at 0.25 h %.3f, at 1.0 h %.3f\n", light, heavy);
   assert_true(light > 0.9 && light < 1.1);
-  assert_true(heavy > 0.85 && heavy < 1.1);
+  assert_true(heavy > 0.92 && heavy < 1.1);
+}
+
+/* A coarse wavy surface: 3,000 random points of the square [-1, 1]^2
+ * lifted to z = A sin(2 pi x / L) sin(2 pi y / L), L = 8 h and A = h (h the
+ * mean spacing), Gaussian noise of 0.1 h along the true normals (fixed
+ * seeds). A quadric resolves a wave of eight spacings only over the
+ * smallest neighbourhoods: its residual variance holds the misfit, which
+ * grows with K far beyond the noise and is no polynomial the quadric's
+ * next degree would take up, as on the coarse vertex sets of the
+ * development set. The per-point scale (kselect_noise.c) must stop where
+ * the residual variance rises: a scale rule that follows the rise reads
+ * the misfit as noise. Measured (sigma estimated / true): the truncation
+ * rule's first untruncated scale 2.575, the per-point scale by Lepski's
+ * test on the log scale 2.894; the fit at noise_k = 40 5.107, and Lepski's
+ * test on the plain difference v_K - v_j against v_K sqrt(2 / nu_j - 2 /
+ * nu_K) (the larger, inflated estimate setting its own allowance) 4.956.
+ * The bound sits between. */
+static double wavy_sigma(int noise_k) {
+  bsurf_cloud c;
+  assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 3000, BSURF_SAMPLING_RANDOM, 13, 2),
+                   BSURF_OK);
+  const size_t n = c.point_count;
+  double h;
+  assert_int_equal(bsurf_mean_spacing(c.xyz, n, 2, &h), BSURF_OK);
+  const double L = 8 * h, A = h, w = 2 * 3.14159265358979323846 / L;
+  for (size_t i = 0; i < n; i++) {
+    const double x = c.xyz[3 * i], y = c.xyz[3 * i + 1];
+    c.xyz[3 * i + 2] = A * sin(w * x) * sin(w * y);
+    const double gx = A * w * cos(w * x) * sin(w * y), gy = A * w * sin(w * x) * cos(w * y);
+    const double nn = sqrt(1 + gx * gx + gy * gy);
+    c.normals[3 * i] = -gx / nn, c.normals[3 * i + 1] = -gy / nn, c.normals[3 * i + 2] = 1 / nn;
+  }
+  assert_int_equal(bsurf_add_noise(c.xyz, c.normals, n, BSURF_NOISE_GAUSSIAN, 0.1, h, 17),
+                   BSURF_OK);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 80, 2, NULL, NULL), BSURF_OK);
+  double *nrm = malloc(3 * n * sizeof(double)), *noise = malloc(n * sizeof(double));
+  bsurf_kselect_options o = bsurf_kselect_options_default();
+  o.ks = KS;
+  o.nk = NKS;
+  o.threads = 2;
+  o.noise_k = noise_k;
+  bsurf_kselect_fields f = {nrm, NULL, NULL, noise, NULL, NULL};
+  assert_int_equal(bsurf_select_k(c.xyz, &nb, &o, &f, NULL), BSURF_OK);
+  const double r = noise[0] / (0.1 * h);
+  free(nrm);
+  free(noise);
+  bsurf_neighbors_free(&nb);
+  bsurf_cloud_free(&c);
+  return r;
+}
+
+static void test_wavy_noise(void **state) {
+  (void)state;
+  const double r = wavy_sigma(12);
+  print_message("wavy: sigma estimated / true %.3f\n", r);
+  assert_true(r > 0.8 && r < 3.8);
 }
 
 /* A cube of 3,000 random points with Gaussian noise of 0.1 h along the
@@ -304,9 +368,8 @@ static void test_second_pass(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_aniso_sphere),
-      cmocka_unit_test(test_cube_noise),
-      cmocka_unit_test(test_plane_noise),
+      cmocka_unit_test(test_aniso_sphere), cmocka_unit_test(test_cube_noise),
+      cmocka_unit_test(test_plane_noise),  cmocka_unit_test(test_wavy_noise),
       cmocka_unit_test(test_second_pass),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);

@@ -62,9 +62,12 @@
  *    simulating that estimator on a noisy plane (K = 20, Gaussian heights)
  *    gives a variance within about 15% of sigma^2 while R >= 5 s and a
  *    third or more low below (the issue's "25-45% low when sigma >= 0.5
- *    h"). So the fit moves to the next larger candidate K until the K-th
- *    neighbour is at least TRUNC = 5 residual standard deviations away (or
- *    K_max is reached). Where the surface is not a quadric at that scale
+ *    h"). So a scale whose K-th neighbour lies within TRUNC = 5 residual
+ *    standard deviations gives no estimate, and the point keeps the
+ *    largest untruncated scale (noise_k, then the larger candidates) whose
+ *    residual variance does not rise beyond its precision over the smaller
+ *    ones' (Lepski's method; kselect_noise.c, pass 1). Where the surface
+ *    is not a quadric at that scale
  *    (coarse meshes), the residuals also hold the cubic misfit, whose
  *    variance grows as the sixth power of the radius (the leading term
  *    a quadric leaves out is cubic); a second fit on twice the points
@@ -797,6 +800,7 @@ bsurf_status bsurf_ksel_open(const bsurf_kselect_options *o, int nb_k, int two_s
     s->rssv = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->eb = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(double));
     s->gate = bsurf_blocks_array(&s->mem, (size_t)o->nk, sizeof(int));
+    s->scales = bsurf_blocks_array(&s->mem, (size_t)o->nk + 1, 4 * sizeof(double));
     st = bsurf_blocks_status(&s->mem);
     if (st == BSURF_OK && o->nd > 0) st = poly_alloc(s, o, kmax);
   }

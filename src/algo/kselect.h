@@ -60,6 +60,7 @@ typedef struct ksel_scratch {
   int *curve;             /* nk: the curve test's per-candidate verdicts */
   double *rssv, *eb;      /* nk, nk: the quadric's residual variance, the empirical bias^2 */
   int *gate;              /* nk: the lack-of-fit gate (kselect_lof.c) */
+  double *scales;         /* (nk + 1) x 4: the noise pass's accepted scales (kselect_noise.c) */
   bsurf_blocks mem;       /* the arrays above */
   size_t unfit, none;
   /* pass 3's tied candidates, in blocks that never move (tie_store) */

@@ -1,9 +1,10 @@
 /* The MSE rule's noise passes (docs/normals.md, "Choosing K"; the
  * derivation at the top of kselect.c, "Noise s2"): the residual variance
- * of a local quadric per point with the truncation rule and the Richardson
- * extrapolation of its misfit, pooled as the lower quartile over the
- * K_max neighbours, then (BSURF_NOISE_POOL_GLOBAL) as the median over the
- * cloud. */
+ * of a local quadric per point at a scale chosen per point (the truncation
+ * rule, then Lepski's method over the nested scales, below) and the
+ * Richardson extrapolation of its misfit, pooled as the lower quartile
+ * over the K_max neighbours, then (BSURF_NOISE_POOL_GLOBAL) as the median
+ * over the cloud. */
 #include "algo/kselect.h"
 
 #include <math.h>
@@ -22,18 +23,55 @@ static double chi2_quantile_ratio(int nu) {
 }
 
 /* Pass 1: the residual variance of a quadric on the point's K nearest
- * neighbours, in their own PCA frame, for K = noise_k and then the larger
- * candidates, until the K-th neighbour lies at least TRUNC residual standard
- * deviations away (see the top of the file). Stored divided by the lower
- * quartile of chi^2_nu / nu, for the quartile pooling of pass 2. */
+ * neighbours, in their own PCA frame, at a scale K chosen per point among
+ * the nested scales noise_k < K_1 < K_2 < ... (the candidates above
+ * noise_k). Stored divided by the lower quartile of chi^2_nu / nu, for the
+ * quartile pooling of pass 2.
+ *
+ * The scale. The residual variance v_K reads sigma^2 only where the
+ * quadric holds and the ball holds the noise: too small a ball truncates
+ * the heights (v_K low), too large a one holds the surface's misfit (v_K
+ * high, growing with K). So:
+ *  - Truncation. A scale whose K-th neighbour lies less than TRUNC
+ *    residual standard deviations away, R_K^2 < TRUNC^2 v_K, is truncated
+ *    (see the top of the file): no estimate of sigma^2.
+ *  - Lepski's method (Lepski, Mammen & Spokoiny 1997, Ann. Statist. 25;
+ *    the intersection of confidence intervals of Goldenshluger & Nemirovski
+ *    1997 and Katkovnik 1999): the scales are taken in increasing order,
+ *    and the point keeps the largest scale K whose estimate agrees with
+ *    every smaller untruncated scale j's; the first that does not holds
+ *    structure the smaller ones did not (misfit), and so does every larger
+ *    one (nested). Agreement is tested on the log scale, where chi^2_nu /
+ *    nu has the variance 2 / nu whatever sigma (the variance-stabilising
+ *    transform of a sample variance, Bartlett & Kendall 1946), and the
+ *    nested samples make Var(ln v_j - ln v_K) = 2 / nu_j - 2 / nu_K (the
+ *    larger sample's estimate is the efficient one: the Hausman identity
+ *    of kselect.c's drift): K is rejected when
+ *        ln(v_K / v_j) > z sqrt(2 / nu_j - 2 / nu_K),
+ *    z the lack-of-fit tests' level (kselect_lof.c, 5% over the
+ *    candidates, Bonferroni). A fall is not tested: misfit only adds
+ *    to the residual variance as K grows.
+ *  - A smaller scale j constrains K only where it could have read K's
+ *    level: its ball holds TRUNC deviations of it, R_j^2 >= TRUNC^2 v_K
+ *    (otherwise j is truncated at the level K reads, and its low reading is
+ *    the truncation's: the optional stopping of the truncation rule alone,
+ *    which stopped at the first scale whose own, low-drawn estimate passed
+ *    it, read the anisotropic sphere and torus at 0.87 and 0.86 of sigma),
+ *    and its PCA plane is not thinner than K's level allows a surface's
+ *    (ksel_thin_plane, kselect_lof.c: the neighbours lie in a plane that
+ *    holds the noise, ring-sampled CAD vertices, and read no noise).
+ * Where no scale is untruncated, the largest (the truncation rule's
+ * stop at K_max). */
 #define TRUNC 5.0
 /* the residual variance of a quadric on the first K neighbours in their own
- * PCA frame, and the mean sixth power of their tangential distances (the
- * scale of a cubic's misfit); -1 when rank-deficient */
+ * PCA frame, the mean sixth power of their tangential distances (the scale
+ * of a cubic's misfit) and the frame's smallest eigenvalue; -1 when
+ * rank-deficient */
 static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratch *s, double *var,
-                      double *m6) {
+                      double *m6, double *l3) {
   bsurf_frame f;
   const double sc = local_coords(xyz, idx, K, K, &f, s->u, s->v, s->z);
+  *l3 = f.eigenvalues[0];
   quad_sums q;
   memset(&q, 0, sizeof q);
   double r6 = 0;
@@ -49,6 +87,19 @@ static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratc
   return 0;
 }
 
+/* Whether scale K's estimate v rose beyond what the m accepted smaller
+ * scales allow (Lepski's test above); sc holds, per accepted scale, K, v,
+ * l3 and R^2. */
+static int rose(const double *sc, int m, int K, double v, double z) {
+  for (int t = 0; t < m; t++) {
+    const double *j = &sc[4 * t];
+    const int Kj = (int)j[0];
+    if (j[3] < TRUNC * TRUNC * v || ksel_thin_plane(Kj, j[2], j[3], v, z)) continue;
+    if (log(v / j[1]) > z * sqrt(2.0 * (1.0 / (Kj - QT) - 1.0 / (K - QT)))) return 1;
+  }
+  return 0;
+}
+
 void noise_point(void *vctx, int thread, size_t i) {
   ksel_ctx *c = vctx;
   ksel_scratch *s = &c->scr[thread];
@@ -56,27 +107,33 @@ void noise_point(void *vctx, int thread, size_t i) {
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const double *d = &c->xyz[3 * (size_t)idx[0]];
   c->s2[i] = NAN;
-  int ka = 0;
+  int ka = 0, m = 0; /* the kept scale; the untruncated scales accepted */
   double va = 0, m6a = 0;
   for (int a = -1; a < o->nk; a++) {
     const int K = a < 0 ? o->noise_k : o->ks[a];
     if (a >= 0 && K <= o->noise_k) continue;
-    double v, m6;
-    if (quad_resid(c->xyz, idx, K, s, &v, &m6) != 0) continue;
-    ka = K, va = v, m6a = m6;
-    c->s2[i] = v / chi2_quantile_ratio(K - QT);
+    double v, m6, l3;
+    if (quad_resid(c->xyz, idx, K, s, &v, &m6, &l3) != 0) continue;
     const double *p = &c->xyz[3 * (size_t)idx[K - 1]];
     const double R2 = (p[0] - d[0]) * (p[0] - d[0]) + (p[1] - d[1]) * (p[1] - d[1]) +
                       (p[2] - d[2]) * (p[2] - d[2]);
-    if (R2 >= TRUNC * TRUNC * v) break;
+    if (R2 < TRUNC * TRUNC * v) { /* truncated: kept only until a scale is not */
+      if (!m) ka = K, va = v, m6a = m6;
+      continue;
+    }
+    if (rose(s->scales, m, K, v, c->lof_z)) break; /* misfit from K on */
+    double *e = &s->scales[4 * m++];
+    e[0] = K, e[1] = v, e[2] = l3, e[3] = R2;
+    ka = K, va = v, m6a = m6;
   }
   if (!ka) return;
+  c->s2[i] = va / chi2_quantile_ratio(ka - QT);
   /* Richardson extrapolation of the quadric's misfit (see the top of the
    * file): a second fit on twice the points, the misfit's share removed */
   const int kb = 2 * ka < c->kmax ? 2 * ka : c->kmax;
   if (kb <= ka + QT) return;
-  double vb, m6b;
-  if (quad_resid(c->xyz, idx, kb, s, &vb, &m6b) != 0 || !(m6b > m6a)) return;
+  double vb, m6b, l3b;
+  if (quad_resid(c->xyz, idx, kb, s, &vb, &m6b, &l3b) != 0 || !(m6b > m6a)) return;
   const double e = (va * m6b - vb * m6a) / (m6b - m6a);
   /* degenerate: the residual variance grew from ka to kb points faster
    * than the misfit's sixth-power law allows with no noise at all (the
