@@ -93,8 +93,10 @@ static double fixed_k(const double *xyz, const double *tn, size_t n, const bsurf
  * rad), 1.126x the best fixed K (80); then sigma 0.873, 0.59% (0.309 rad),
  * 1.061x (the truncation rule's stop at the first scale whose own, low-drawn
  * estimate passed it); with the scale chosen by Lepski's method over the
- * nested scales (kselect_noise.c) sigma 0.950, 0.25% (0.149 rad), 0.993x.
- * The bounds sit between the last two. */
+ * nested scales (kselect_noise.c) sigma 0.918, 0.38% (0.212 rad), 1.016x
+ * (0.950, 0.993x while a smaller scale tested a larger one only where it
+ * resolved the larger's level, a condition since dropped). The bounds sit
+ * between the last two rules. */
 static void test_aniso_sphere(void **state) {
   (void)state;
   bsurf_cloud dense;
@@ -130,7 +132,7 @@ static void test_aniso_sphere(void **state) {
                 "the points at K <= 30, mean error %.3f), best fixed K %d %.5f, ratio %.3f\n",
                 n, r.sigma / (SPHERE_SIGMA * h), r.err, r.small_share, r.small_err, kbest, best,
                 r.err / best);
-  assert_true(r.sigma > 0.91 * SPHERE_SIGMA * h && r.sigma < 1.1 * SPHERE_SIGMA * h);
+  assert_true(r.sigma > 0.90 * SPHERE_SIGMA * h && r.sigma < 1.1 * SPHERE_SIGMA * h);
   assert_true(r.err < 1.03 * best);
   free(xyz);
   free(tn);
@@ -150,7 +152,7 @@ static void test_aniso_sphere(void **state) {
  * docs/normals.md, "The ball's truncation modelled") 1.016, 1.002, 0.928,
  * 0.843, 0.891. With the scale chosen per point by Lepski's method
  * (kselect_noise.c), which moves on past the first untruncated scale while
- * the estimate does not rise beyond its precision, 0.954 and 0.956 at 0.25
+ * the estimate does not rise beyond its precision, 0.954 and 0.935 at 0.25
  * and 1.0 h: the heavy level's bound is above the former 0.892. */
 static double plane_sigma(double sigma, uint64_t seed) {
   bsurf_cloud c;
@@ -177,7 +179,7 @@ static void test_plane_noise(void **state) {
   const double light = plane_sigma(0.25, 31), heavy = plane_sigma(1.0, 41);
   print_message("plane: sigma estimated / true at 0.25 h %.3f, at 1.0 h %.3f\n", light, heavy);
   assert_true(light > 0.9 && light < 1.1);
-  assert_true(heavy > 0.92 && heavy < 1.1);
+  assert_true(heavy > 0.91 && heavy < 1.1);
 }
 
 /* A coarse wavy surface: 3,000 random points of the square [-1, 1]^2
