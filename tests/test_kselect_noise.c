@@ -197,7 +197,8 @@ static void test_plane_noise(void **state) {
  * test on the plain difference v_K - v_j against v_K sqrt(2 / nu_j - 2 /
  * nu_K) (the larger, inflated estimate setting its own allowance) 4.956.
  * The bound sits between. */
-static double wavy_sigma(int noise_k) {
+static void test_wavy_noise(void **state) {
+  (void)state;
   bsurf_cloud c;
   assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 3000, BSURF_SAMPLING_RANDOM, 13, 2),
                    BSURF_OK);
@@ -216,27 +217,11 @@ static double wavy_sigma(int noise_k) {
                    BSURF_OK);
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c.xyz, n, 80, 2, NULL, NULL), BSURF_OK);
-  double *nrm = malloc(3 * n * sizeof(double)), *noise = malloc(n * sizeof(double));
-  bsurf_kselect_options o = bsurf_kselect_options_default();
-  o.ks = KS;
-  o.nk = NKS;
-  o.threads = 2;
-  o.noise_k = noise_k;
-  bsurf_kselect_fields f = {nrm, NULL, NULL, noise, NULL, NULL};
-  assert_int_equal(bsurf_select_k(c.xyz, &nb, &o, &f, NULL), BSURF_OK);
-  const double r = noise[0] / (0.1 * h);
-  free(nrm);
-  free(noise);
+  const sel_result r = select_on(c.xyz, c.normals, n, &nb);
+  print_message("wavy: sigma estimated / true %.3f, selection %.5f\n", r.sigma / (0.1 * h), r.err);
+  assert_true(r.sigma > 0.8 * 0.1 * h && r.sigma < 3.8 * 0.1 * h);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
-  return r;
-}
-
-static void test_wavy_noise(void **state) {
-  (void)state;
-  const double r = wavy_sigma(12);
-  print_message("wavy: sigma estimated / true %.3f\n", r);
-  assert_true(r > 0.8 && r < 3.8);
 }
 
 /* A cube of 3,000 random points with Gaussian noise of 0.1 h along the

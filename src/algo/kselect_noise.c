@@ -67,13 +67,13 @@ static double chi2_quantile_ratio(int nu) {
 #define TRUNC 5.0
 /* the residual variance of a quadric on the first K neighbours in their own
  * PCA frame, the mean sixth power of their tangential distances (the scale
- * of a cubic's misfit) and the frame's smallest eigenvalue; -1 when
- * rank-deficient */
+ * of a cubic's misfit) and (l3 non-NULL) the frame's smallest eigenvalue;
+ * -1 when rank-deficient */
 static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratch *s, double *var,
                       double *m6, double *l3) {
   bsurf_frame f;
   const double sc = local_coords(xyz, idx, K, K, &f, s->u, s->v, s->z);
-  *l3 = f.eigenvalues[0];
+  if (l3) *l3 = f.eigenvalues[0];
   quad_sums q;
   memset(&q, 0, sizeof q);
   double r6 = 0;
@@ -134,8 +134,8 @@ void noise_point(void *vctx, int thread, size_t i) {
    * file): a second fit on twice the points, the misfit's share removed */
   const int kb = 2 * ka < c->kmax ? 2 * ka : c->kmax;
   if (kb <= ka + QT) return;
-  double vb, m6b, l3b;
-  if (quad_resid(c->xyz, idx, kb, s, &vb, &m6b, &l3b) != 0 || !(m6b > m6a)) return;
+  double vb, m6b;
+  if (quad_resid(c->xyz, idx, kb, s, &vb, &m6b, NULL) != 0 || !(m6b > m6a)) return;
   const double e = (va * m6b - vb * m6a) / (m6b - m6a);
   /* degenerate: the residual variance grew from ka to kb points faster
    * than the misfit's sixth-power law allows with no noise at all (the
