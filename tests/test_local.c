@@ -195,6 +195,46 @@ static void test_ldl_factored(void **state) {
 
 /* Selection's k-th smallest is the sorted array's k-th value, for every k,
  * with and without repeated values. */
+/* The n x n Jacobi sweeps (the conic fit's 5 x 5 problem, kselect_noise.c):
+ * the second-difference matrix tridiag(-1, 2, -1) of order 5 has the
+ * eigenvalues 2 - 2 cos(j pi / 6), j = 1..5, and eigenvectors
+ * sin(i j pi / 6); and n = 3 gives bsurf_eigen_sym3's bits. */
+static void test_eigen_sym_n(void **state) {
+  (void)state;
+  const double pi = 3.14159265358979323846;
+  double T[25] = {0}, ev[5], V[25];
+  for (int i = 0; i < 5; i++) {
+    T[i * 5 + i] = 2;
+    if (i + 1 < 5) T[i * 5 + i + 1] = T[(i + 1) * 5 + i] = -1;
+  }
+  bsurf_eigen_sym(5, T, ev, V);
+  for (int j = 1; j <= 5; j++) {
+    assert_true(fabs(ev[j - 1] - (2 - 2 * cos(j * pi / 6))) < 1e-12);
+    double dot = 0, nn = 0;
+    for (int i = 1; i <= 5; i++)
+      dot += V[(j - 1) * 5 + i - 1] * sin(i * j * pi / 6),
+          nn += sin(i * j * pi / 6) * sin(i * j * pi / 6);
+    assert_true(fabs(fabs(dot) / sqrt(nn) - 1) < 1e-12);
+  }
+  double A[3][3] = {{4, 1, 0.5}, {1, 3, 0.25}, {0.5, 0.25, 1}}, e3[3], v3[3][3], en[3], vn[9];
+  bsurf_eigen_sym3(A, e3, v3);
+  bsurf_eigen_sym(3, &A[0][0], en, vn);
+  assert_memory_equal(e3, en, sizeof e3);
+  assert_memory_equal(&v3[0][0], vn, sizeof vn);
+}
+
+/* Paulson's F quantiles (bsurf_f_quantile_paulson) against the exact ones
+ * (scipy.stats.f.ppf): F(3, 7) at 95% 4.34683, F(9, 7) at 5% 0.303698,
+ * F(3, 15) at 95% 3.28738; within 1%. */
+static void test_f_quantile(void **state) {
+  (void)state;
+  const double z = 1.6448536269514722;
+  assert_true(fabs(bsurf_f_quantile_paulson(3, 7, z) / 4.346831399907815 - 1) < 0.01);
+  assert_true(fabs(bsurf_f_quantile_paulson(9, 7, -z) / 0.3036979010590348 - 1) < 0.01);
+  assert_true(fabs(bsurf_f_quantile_paulson(3, 15, z) / 3.2873821046365115 - 1) < 0.01);
+  assert_true(bsurf_f_quantile_paulson(3, 7, 0) > 0.8 && bsurf_f_quantile_paulson(3, 7, 0) < 1);
+}
+
 static void test_kth_smallest(void **state) {
   (void)state;
   srand(3);
@@ -607,6 +647,8 @@ int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_eigen_known),
       cmocka_unit_test(test_eigen_degenerate),
+      cmocka_unit_test(test_eigen_sym_n),
+      cmocka_unit_test(test_f_quantile),
       cmocka_unit_test(test_frame_tangent_plane_height_zero),
       cmocka_unit_test(test_poly_basis_order),
       cmocka_unit_test(test_poly_basis_bits),

@@ -91,6 +91,11 @@ double bsurf_kth_smallest(double *v, size_t n, size_t k);
  * cube-root approximation (within 1% for nu >= 5 at |z| <= 2.33); 0 where
  * the approximation's cube root falls at or below 0. */
 double bsurf_chi2_ratio_wh(double nu, double z);
+/* The quantile of F(nu1, nu2) at the standard normal quantile z, by
+ * Paulson's cube-root approximation (Wilson and Hilferty's, applied to the
+ * ratio; within about 1% of the exact quantile at nu2 >= 7, |z| <= 1.65);
+ * INFINITY (z > 0) or 0 where the approximation has no root. */
+double bsurf_f_quantile_paulson(double nu1, double nu2, double z);
 
 /* BSURF_ERR_INVALID_ARG with a message for bsurf_last_message(): "FUNC:
  * what is wrong" naming the parameter, its value and the allowed range.

@@ -72,3 +72,15 @@ double bsurf_chi2_ratio_wh(double nu, double z) {
   const double a = 2.0 / (9.0 * nu), b = 1.0 - a + z * sqrt(a);
   return b > 0 ? b * b * b : 0.0;
 }
+
+double bsurf_f_quantile_paulson(double nu1, double nu2, double z) {
+  /* Paulson (1942), Ann. Math. Statist. 13: with y = F^(1/3), a = 2 / (9
+   * nu1), b = 2 / (9 nu2), ((1 - b) y - (1 - a)) / sqrt(b y^2 + a) is about
+   * standard normal; solved for y, the root on z's side of the median */
+  const double a = 2.0 / (9.0 * nu1), b = 2.0 / (9.0 * nu2);
+  const double A = (1.0 - b) * (1.0 - b) - z * z * b, B = (1.0 - a) * (1.0 - b);
+  const double C = (1.0 - a) * (1.0 - a) - z * z * a, D = B * B - A * C;
+  if (!(A > 0) || D < 0) return z > 0 ? INFINITY : 0.0;
+  const double y = (B + (z > 0 ? 1.0 : -1.0) * sqrt(D)) / A;
+  return y > 0 ? y * y * y : 0.0;
+}

@@ -1,4 +1,6 @@
-/* Symmetric 3x3 eigen-decomposition for PCA (thesis 2.2, 3.3).
+/* Symmetric eigen-decompositions: 3x3 for PCA (thesis 2.2, 3.3), up to
+ * BSURF_EIGEN_MAX for the small generalised problems of implicit fits
+ * (the conic of kselect_noise.c).
  *
  * Cyclic Jacobi: a few sweeps of plane rotations, each annihilating one
  * off-diagonal entry. It is accurate for nearly equal eigenvalues (flat or
@@ -10,32 +12,43 @@
 #include <math.h>
 #include <string.h>
 
-void bsurf_eigen_sym3(double a_in[3][3], double evals[3], double evecs[3][3]) {
-  double a[3][3], v[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
-  memcpy(a, a_in, sizeof a);
+/* inlined into both entry points, so that n = 3 is unrolled as the 3 x 3
+ * sweeps always were (kselect.c calls it per candidate) */
+static inline __attribute__((always_inline)) void jacobi(int n, const double *a_in, double *evals,
+                                                         double *evecs) {
+  double a[BSURF_EIGEN_MAX][BSURF_EIGEN_MAX], v[BSURF_EIGEN_MAX][BSURF_EIGEN_MAX];
+  for (int p = 0; p < n; p++)
+    for (int q = 0; q < n; q++) {
+      a[p][q] = a_in[p * n + q];
+      v[p][q] = p == q;
+    }
   for (int sweep = 0; sweep < 50; sweep++) {
-    double off = fabs(a[0][1]) + fabs(a[0][2]) + fabs(a[1][2]);
-    double diag = fabs(a[0][0]) + fabs(a[1][1]) + fabs(a[2][2]);
+    double off = 0, diag = 0;
+    for (int p = 0; p < n; p++)
+      for (int q = p + 1; q < n; q++)
+        off += fabs(a[p][q]);
+    for (int p = 0; p < n; p++)
+      diag += fabs(a[p][p]);
     if (off == 0.0 || off <= 1e-300 || off < 1e-18 * diag) break;
-    for (int p = 0; p < 2; p++) {
-      for (int q = p + 1; q < 3; q++) {
+    for (int p = 0; p < n - 1; p++) {
+      for (int q = p + 1; q < n; q++) {
         double apq = a[p][q];
         if (apq == 0.0) continue;
         double theta = (a[q][q] - a[p][p]) / (2.0 * apq);
         double t = (theta >= 0 ? 1.0 : -1.0) / (fabs(theta) + sqrt(theta * theta + 1.0));
         if (!isfinite(t)) t = 0.0; /* theta overflowed: apq negligible */
         double c = 1.0 / sqrt(t * t + 1.0), s = t * c;
-        for (int k = 0; k < 3; k++) { /* A <- J^T A J */
+        for (int k = 0; k < n; k++) { /* A <- J^T A J */
           double akp = a[k][p], akq = a[k][q];
           a[k][p] = c * akp - s * akq;
           a[k][q] = s * akp + c * akq;
         }
-        for (int k = 0; k < 3; k++) {
+        for (int k = 0; k < n; k++) {
           double apk = a[p][k], aqk = a[q][k];
           a[p][k] = c * apk - s * aqk;
           a[q][k] = s * apk + c * aqk;
         }
-        for (int k = 0; k < 3; k++) { /* V <- V J, columns are eigenvectors */
+        for (int k = 0; k < n; k++) { /* V <- V J, columns are eigenvectors */
           double vkp = v[k][p], vkq = v[k][q];
           v[k][p] = c * vkp - s * vkq;
           v[k][q] = s * vkp + c * vkq;
@@ -43,19 +56,29 @@ void bsurf_eigen_sym3(double a_in[3][3], double evals[3], double evecs[3][3]) {
       }
     }
   }
-  int order[3] = {0, 1, 2};
-  double d[3] = {a[0][0], a[1][1], a[2][2]};
-  for (int i = 1; i < 3; i++) /* stable insertion sort, ascending */
+  int order[BSURF_EIGEN_MAX];
+  double d[BSURF_EIGEN_MAX];
+  for (int i = 0; i < n; i++)
+    order[i] = i, d[i] = a[i][i];
+  for (int i = 1; i < n; i++) /* stable insertion sort, ascending */
     for (int j = i; j > 0 && d[order[j]] < d[order[j - 1]]; j--) {
       int t = order[j];
       order[j] = order[j - 1];
       order[j - 1] = t;
     }
-  for (int i = 0; i < 3; i++) {
+  for (int i = 0; i < n; i++) {
     evals[i] = d[order[i]];
-    for (int k = 0; k < 3; k++)
-      evecs[i][k] = v[k][order[i]];
+    for (int k = 0; k < n; k++)
+      evecs[i * n + k] = v[k][order[i]];
   }
+}
+
+void bsurf_eigen_sym(int n, const double *a, double *evals, double *evecs) {
+  jacobi(n, a, evals, evecs);
+}
+
+void bsurf_eigen_sym3(double a_in[3][3], double evals[3], double evecs[3][3]) {
+  jacobi(3, &a_in[0][0], evals, &evecs[0][0]);
 }
 
 int bsurf_eigen_sym3_normal(const double c[6], double n[3]) {

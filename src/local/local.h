@@ -11,8 +11,12 @@
 #define BSURF_MOMENTS_MAX 45 /* bsurf_poly_terms(2 * BSURF_DEGREE_MAX) */
 #define BSURF_NCOLS_MAX 64   /* BSURF_MOMENTS_MAX + BSURF_TERMS_MAX, padded to 8 */
 
-/* Eigen-decomposition of a symmetric 3x3 matrix by cyclic Jacobi rotations (a is not modified).
- * evals ascending; evecs[i] is the unit eigenvector of evals[i]. */
+/* Eigen-decomposition of a symmetric n x n matrix (n <= BSURF_EIGEN_MAX, a
+ * row-major, not modified) by cyclic Jacobi rotations: evals ascending,
+ * evecs[i n .. i n + n - 1] the unit eigenvector of evals[i]. */
+#define BSURF_EIGEN_MAX 8
+void bsurf_eigen_sym(int n, const double *a, double *evals, double *evecs);
+/* The same for n = 3 (the same bits). */
 void bsurf_eigen_sym3(double a[3][3], double evals[3], double evecs[3][3]);
 /* The PCA normal of the packed symmetric matrix c = (xx, xy, xz, yy, yz, zz)
  * by the Jacobi sweeps: the unit eigenvector of the smallest eigenvalue;
