@@ -443,19 +443,19 @@ static void test_normals_plan(void **state) {
   o.select_k = ks;
   o.select_k_count = 4;
   o.normals.bootstrap = 0;
-  /* AUTO with candidates >= 7: MSE; 40 + 64 + 8 + 348 with 4 PCA
-   * candidates, the global median's 16 bytes a point of the cloud when
-   * tiled */
+  /* AUTO with candidates >= 7: MSE; 40 + 64 + 8 + 364 with 4 PCA
+   * candidates, the global median's 24 bytes a point of the cloud when
+   * tiled (two pooled values and the median's copy) */
   assert_int_equal(bsurf_normals_job_memory(&o, &jp), BSURF_OK);
   assert_int_equal(jp.select_rule, BSURF_KSELECT_MSE);
   assert_int_equal(jp.k_max, 40);
   assert_int_equal(jp.field_count, 3); /* normal_err, k_selected, two_sheet */
-  assert_true(jp.point_bytes == 460 && jp.cloud_bytes == 16);
+  assert_true(jp.point_bytes == 476 && jp.cloud_bytes == 24);
   o.noise_k = 50; /* beyond the candidates: K_max */
   o.noise_pool = BSURF_NOISE_POOL_LOCAL;
   assert_int_equal(bsurf_normals_job_memory(&o, &jp), BSURF_OK);
   assert_int_equal(jp.k_max, 50);
-  assert_true(jp.point_bytes == 460 && jp.cloud_bytes == 0);
+  assert_true(jp.point_bytes == 476 && jp.cloud_bytes == 0);
   /* POLY with two degrees: 8 candidates, 40 more bytes each, no empirical
    * bias (32 fewer) */
   o = bsurf_normals_job_options_default();
@@ -467,7 +467,7 @@ static void test_normals_plan(void **state) {
   assert_int_equal(bsurf_normals_job_memory(&o, &jp), BSURF_OK);
   assert_int_equal(jp.select_rule, BSURF_KSELECT_MSE);
   assert_int_equal(jp.field_count, 4); /* normal_var, normal_err, k and degree */
-  assert_true(jp.point_bytes == 588 && jp.cloud_bytes == 16);
+  assert_true(jp.point_bytes == 604 && jp.cloud_bytes == 24);
   /* AUTO with a candidate below 7: the test error; its reference normals
    * (24) and selection arrays (64 + 8) */
   const int small[2] = {6, 20};

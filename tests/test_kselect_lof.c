@@ -186,7 +186,7 @@ static void run_passes(const shape *s, int emp, int threads, double *normals, in
   bsurf_ksel_run *r;
   assert_int_equal(bsurf_ksel_open(&o, s->nb.k, 0, &r), BSURF_OK);
   assert_true(bsurf_ksel_empirical(r));
-  double *s2 = malloc(n * sizeof(double)), *noise = malloc(n * sizeof(double));
+  double *s2 = malloc(2 * n * sizeof(double)), *noise = malloc(2 * n * sizeof(double));
   double *bref = malloc(3 * n * sizeof(double)), *bm = malloc(n * sizeof(double));
   assert_int_equal(bsurf_ksel_noise(r, s->c.xyz, &s->nb, s2), BSURF_OK);
   assert_int_equal(bsurf_ksel_pool(r, s->c.xyz, &s->nb, s2, noise), BSURF_OK);

@@ -222,10 +222,14 @@ bsurf_status bsurf_estimate_normals_streamed(const double *xyz, size_t point_cou
  * indexed like nb->idx, its own values by row. A run holds the options, the
  * threads' scratch and (two_sheet) the two-sheet test's critical ratios, for
  * any number of tables, one at a time. bsurf_ksel_noise: pass 1, each row's
- * residual variance s2; bsurf_ksel_pool: pass 2, each row's pooled noise
- * variance from the neighbours' s2; bsurf_ksel_level: the pooled values of
- * every point of the cloud (n, in index order) made the noise the passes
- * below read (GLOBAL: their median); bsurf_ksel_first: pass 3's first
+ * residual variance and cross-section estimate (NAN: none), s2[2 r] and
+ * s2[2 r + 1] (kselect_noise.c); bsurf_ksel_pool: pass 2, each row's two
+ * pooled noise variances from the neighbours' s2 (the quadric's, and the
+ * cross-section's where the neighbourhood is section-sampled, else NAN:
+ * noise[2 r], noise[2 r + 1]); bsurf_ksel_level: the pooled values of every
+ * point of the cloud (2 n, in index order) made the noise the passes below
+ * read, noise[0 .. n) (GLOBAL: their median, of the cloud's majority
+ * population; LOCAL: bsurf_ksel_point_level); bsurf_ksel_first: pass 3's first
  * choices' normals (row x 3) and criteria M (row); bsurf_ksel_choose: passes
  * 3 and 4 into out (fref, fmref: the neighbours' first choices and their M,
  * indexed like nb->idx, given for the points that are not rows of nb; pass
@@ -247,6 +251,9 @@ bsurf_status bsurf_ksel_noise(bsurf_ksel_run *r, const double *xyz, const bsurf_
 bsurf_status bsurf_ksel_pool(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
                              const double *s2, double *noise);
 bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n);
+/* A point's LOCAL level from its two pooled values (kselect_noise.c): the
+ * cross-section's where there is one, else the quadric's. */
+double bsurf_ksel_point_level(const double pooled[2]);
 bsurf_status bsurf_ksel_first(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
                               const double *noise, const double *bref, const double *bmref,
                               double *fnrm, double *fmse);

@@ -4,7 +4,9 @@
  * rule, then Lepski's method over the nested scales, below) and the
  * Richardson extrapolation of its misfit, pooled as the lower quartile
  * over the K_max neighbours, then (BSURF_NOISE_POOL_GLOBAL) as the median
- * over the cloud. */
+ * over the cloud; where the K_max neighbours are section-sampled (a CAD
+ * mesh's vertices on rings, the noise within each ring's plane: below), the
+ * noise read by a conic within the cross-section's plane instead. */
 #include "algo/kselect.h"
 
 #include <math.h>
@@ -67,13 +69,14 @@ static double chi2_quantile_ratio(int nu) {
 #define TRUNC 5.0
 /* the residual variance of a quadric on the first K neighbours in their own
  * PCA frame, the mean sixth power of their tangential distances (the scale
- * of a cubic's misfit) and (l3 non-NULL) the frame's smallest eigenvalue;
- * -1 when rank-deficient */
+ * of a cubic's misfit) and (fo non-NULL) the frame, with (sco) the scale of
+ * the local coordinates left in s->u, s->v; -1 when rank-deficient */
 static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratch *s, double *var,
-                      double *m6, double *l3) {
+                      double *m6, bsurf_frame *fo, double *sco) {
   bsurf_frame f;
   const double sc = local_coords(xyz, idx, K, K, &f, s->u, s->v, s->z);
-  if (l3) *l3 = f.eigenvalues[0];
+  if (fo) *fo = f;
+  if (sco) *sco = sc;
   quad_sums q;
   memset(&q, 0, sizeof q);
   double r6 = 0;
@@ -87,6 +90,138 @@ static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratc
   *var = rss / (K - QT);
   *m6 = r6 / K * sc * sc * sc * sc * sc * sc;
   return 0;
+}
+
+/* The noise within a cross-section's plane (docs/normals.md, "The noise
+ * within a cross-section's plane"). A CAD mesh's vertices often lie on
+ * rings, cross-sections of the surface that hold its normal; displaced
+ * along the normal, the noise stays within each ring's plane, so a point's
+ * noise_k nearest (one ring's arc) lie in a plane with no noise across it:
+ * the quadric's heights read none at any scale below the ring spacing, and
+ * misfit above it. The noise is read instead by an implicit conic fitted
+ * to the points' coordinates in the plane of their first two PCA axes:
+ * Taubin's fit (Taubin 1991, IEEE PAMI 13(11), Eq. 3.6-3.9: the algebraic
+ * residuals' sum of squares over that of their gradients, the constant
+ * eliminated, a 5 x 5 generalised eigenproblem), whose geometric residuals
+ * f / |grad f| (Sampson's first-order distances) give
+ *     s2c = sum r^2 / (K - 5).
+ * A point is section-sampled where three tests hold, each at SECT_ALPHA:
+ *  - thin: its plane is thinner than the conic's noise allows, s3 =
+ *    K l3 / (K - 3) < s2c F_alpha(K - 3, K - 5) (the lower tail; the two
+ *    are independent residual variances of the same noise where the plane
+ *    is a surface patch's: docs/normals.md, "Planes thinner than the
+ *    noise");
+ *  - curve: the conic explains the in-plane spread better than a line,
+ *    the nested models' F test: ((K l2 - (K - 5) s2c) / 3) / s2c >
+ *    F_{1-alpha}(3, K - 5) (the line's residual sum of squares K l2, two
+ *    parameters against the conic's five);
+ *  - section: the plane holds the surface's normal: its normal is nearer
+ *    perpendicular to the PCA normal of the K_max neighbours (beyond the
+ *    rings) than parallel to it, |n . N| < 1 / sqrt(2) -- the nearer of the
+ *    two hypotheses (a patch of surface: n = N; a cross-section: n . N =
+ *    0), at equal angular distance. A patch of scattered points under light
+ *    noise passes the first two (a conic through them leaves misfit for
+ *    s2c) and fails this one.
+ * Pass 2 uses the conic's estimate where the neighbourhood is section-
+ * sampled (pool_point). */
+#define SECT_ALPHA 0.05
+#define Z_SECT 1.6448536269514722 /* the standard normal's upper SECT_ALPHA quantile */
+#define CT 5 /* the conic's terms u^2, uv, v^2, u, v (the constant eliminated) */
+
+/* Taubin's conic through the K points (u, v) (scaled coordinates): its
+ * geometric residual variance in the scaled units, sum r^2 / (K - 5);
+ * -1 where the fit is degenerate */
+static int conic_resid(const double *u, const double *v, int K, double *s2c) {
+  double M[CT + 1][CT + 1] = {{0}}, N[CT][CT] = {{0}};
+  for (int j = 0; j < K; j++) {
+    const double x = u[j], y = v[j];
+    const double z[CT + 1] = {x * x, x * y, y * y, x, y, 1.0};
+    const double gx[CT] = {2 * x, y, 0, 1, 0}, gy[CT] = {0, x, 2 * y, 0, 1};
+    for (int a = 0; a <= CT; a++)
+      for (int b = a; b <= CT; b++)
+        M[a][b] += z[a] * z[b];
+    for (int a = 0; a < CT; a++)
+      for (int b = a; b < CT; b++)
+        N[a][b] += gx[a] * gx[b] + gy[a] * gy[b];
+  }
+  /* the constant's optimum f0 = -m . a / M00 eliminated: Mr = M - m m^T / K */
+  double Mr[CT][CT], L[CT][CT] = {{0}};
+  for (int a = 0; a < CT; a++)
+    for (int b = a; b < CT; b++)
+      Mr[a][b] = Mr[b][a] = M[a][b] - M[a][CT] * M[b][CT] / M[CT][CT];
+  /* N = L L^T (Cholesky); Mr a = l N a becomes S y = l y, S = L^-1 Mr L^-T */
+  for (int a = 0; a < CT; a++)
+    for (int b = 0; b <= a; b++) {
+      double t = N[b][a];
+      for (int k = 0; k < b; k++)
+        t -= L[a][k] * L[b][k];
+      if (a == b) {
+        if (!(t > 1e-12 * N[0][0] + 1e-300)) return -1;
+        L[a][a] = sqrt(t);
+      } else {
+        L[a][b] = t / L[b][b];
+      }
+    }
+  double W[CT][CT], S[CT * CT], ev[CT], vec[CT * CT];
+  for (int c = 0; c < CT; c++) /* W = L^-1 Mr, column by column */
+    for (int a = 0; a < CT; a++) {
+      double t = Mr[a][c];
+      for (int k = 0; k < a; k++)
+        t -= L[a][k] * W[k][c];
+      W[a][c] = t / L[a][a];
+    }
+  for (int r = 0; r < CT; r++) /* S = L^-1 W^T (Mr symmetric), row r of W */
+    for (int a = 0; a < CT; a++) {
+      double t = W[r][a];
+      for (int k = 0; k < a; k++)
+        t -= L[a][k] * S[r * CT + k];
+      S[r * CT + a] = t / L[a][a];
+    }
+  for (int a = 0; a < CT; a++) /* symmetric up to rounding */
+    for (int b = a + 1; b < CT; b++)
+      S[a * CT + b] = S[b * CT + a] = 0.5 * (S[a * CT + b] + S[b * CT + a]);
+  bsurf_eigen_sym(CT, S, ev, vec);
+  double co[CT + 1]; /* a = L^-T y for the smallest eigenvalue */
+  for (int a = CT - 1; a >= 0; a--) {
+    double t = vec[a];
+    for (int k = a + 1; k < CT; k++)
+      t -= L[k][a] * co[k];
+    co[a] = t / L[a][a];
+  }
+  co[CT] = 0;
+  for (int a = 0; a < CT; a++)
+    co[CT] -= M[a][CT] * co[a] / M[CT][CT];
+  double rss = 0;
+  for (int j = 0; j < K; j++) {
+    const double x = u[j], y = v[j];
+    const double f = co[0] * x * x + co[1] * x * y + co[2] * y * y + co[3] * x + co[4] * y + co[5];
+    const double fx = 2 * co[0] * x + co[1] * y + co[3], fy = co[1] * x + 2 * co[2] * y + co[4];
+    const double g2 = fx * fx + fy * fy;
+    if (!(g2 > 0)) return -1;
+    rss += f * f / g2;
+  }
+  *s2c = rss / (K - CT);
+  return isfinite(*s2c) ? 0 : -1;
+}
+
+/* Point i's cross-section estimate (above), or NAN where it is not
+ * section-sampled: f the noise_k frame, sc its coordinates' scale (the
+ * points in s->u, s->v) */
+static double section_noise(const ksel_ctx *c, const uint32_t *idx, int K, const bsurf_frame *f,
+                            double sc, const ksel_scratch *s) {
+  double s2c;
+  if (K <= CT + 1 || conic_resid(s->u, s->v, K, &s2c) != 0) return NAN;
+  s2c *= sc * sc;
+  const double s3 = K * f->eigenvalues[0] / (K - 3), l2 = f->eigenvalues[1];
+  if (!(s2c > 0) || !(s3 < s2c * bsurf_f_quantile_paulson(K - 3, K - CT, -Z_SECT))) return NAN;
+  if (!((K * l2 - (K - CT) * s2c) / (3.0 * s2c) > bsurf_f_quantile_paulson(3, K - CT, Z_SECT)))
+    return NAN;
+  bsurf_frame F;
+  bsurf_local_frame(c->xyz, idx, c->kmax, BSURF_PCA_CENTROID, &F);
+  const double dot =
+      f->rot[2][0] * F.rot[2][0] + f->rot[2][1] * F.rot[2][1] + f->rot[2][2] * F.rot[2][2];
+  if (!(dot * dot < 0.5)) return NAN;
+  return s2c / bsurf_chi2_ratio_wh(K - CT, Z_Q);
 }
 
 /* Whether scale K's estimate v rose beyond what the m accepted smaller
@@ -108,14 +243,17 @@ void noise_point(void *vctx, int thread, size_t i) {
   const bsurf_kselect_options *o = c->o;
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const double *d = &c->xyz[3 * (size_t)idx[0]];
-  c->s2[i] = NAN;
+  double *out = &c->s2[2 * i];
+  out[0] = out[1] = NAN;
   int ka = 0, m = 0; /* the kept scale; the untruncated scales accepted */
   double va = 0, m6a = 0;
   for (int a = -1; a < o->nk; a++) {
     const int K = a < 0 ? o->noise_k : o->ks[a];
     if (a >= 0 && K <= o->noise_k) continue;
-    double v, m6, l3;
-    if (quad_resid(c->xyz, idx, K, s, &v, &m6, &l3) != 0) continue;
+    double v, m6, sc;
+    bsurf_frame f;
+    if (quad_resid(c->xyz, idx, K, s, &v, &m6, &f, &sc) != 0) continue;
+    if (a < 0) out[1] = section_noise(c, idx, K, &f, sc, s);
     const double *p = &c->xyz[3 * (size_t)idx[K - 1]];
     const double R2 = (p[0] - d[0]) * (p[0] - d[0]) + (p[1] - d[1]) * (p[1] - d[1]) +
                       (p[2] - d[2]) * (p[2] - d[2]);
@@ -125,17 +263,17 @@ void noise_point(void *vctx, int thread, size_t i) {
     }
     if (rose(s->scales, m, K, v, c->lof_z)) break; /* misfit from K on */
     double *e = &s->scales[4 * m++];
-    e[0] = K, e[1] = v, e[2] = l3, e[3] = R2;
+    e[0] = K, e[1] = v, e[2] = f.eigenvalues[0], e[3] = R2;
     ka = K, va = v, m6a = m6;
   }
   if (!ka) return;
-  c->s2[i] = va / chi2_quantile_ratio(ka - QT);
+  out[0] = va / chi2_quantile_ratio(ka - QT);
   /* Richardson extrapolation of the quadric's misfit (see the top of the
    * file): a second fit on twice the points, the misfit's share removed */
   const int kb = 2 * ka < c->kmax ? 2 * ka : c->kmax;
   if (kb <= ka + QT) return;
   double vb, m6b;
-  if (quad_resid(c->xyz, idx, kb, s, &vb, &m6b, NULL) != 0 || !(m6b > m6a)) return;
+  if (quad_resid(c->xyz, idx, kb, s, &vb, &m6b, NULL, NULL) != 0 || !(m6b > m6a)) return;
   const double e = (va * m6b - vb * m6a) / (m6b - m6a);
   /* degenerate: the residual variance grew from ka to kb points faster
    * than the misfit's sixth-power law allows with no noise at all (the
@@ -144,7 +282,7 @@ void noise_point(void *vctx, int thread, size_t i) {
    * rank-deficient fit (formerly clamped to 0, which the lower-quartile
    * pool then picked) */
   if (!(e > 0)) {
-    c->s2[i] = NAN;
+    out[0] = NAN;
     return;
   }
   /* the extrapolated estimate e = w va - (w - 1) vb, w = m6b / (m6b - m6a),
@@ -154,46 +292,91 @@ void noise_point(void *vctx, int thread, size_t i) {
    * effective degrees of freedom nu = 2 s2^2 / Var(e) */
   const double w = m6b / (m6b - m6a), na = ka - QT, nb = kb - QT;
   const double nu = 1.0 / (w * w / na + (1.0 - w * w) / nb);
-  c->s2[i] = (e < va ? e : va) / bsurf_chi2_ratio_wh(nu, Z_Q);
+  out[0] = (e < va ? e : va) / bsurf_chi2_ratio_wh(nu, Z_Q);
+}
+
+/* The lower quartile of m values (pool_point): the order statistic nearest
+ * the quartile, interpolated; the lo-th smallest by selection, the next the
+ * smallest above it (the values of a full sort). */
+static double lower_quartile(double *pool, int m) {
+  const double r = POOL_Q * (m - 1);
+  const int lo = (int)r;
+  const double vlo = bsurf_kth_smallest(pool, (size_t)m, (size_t)lo);
+  double vhi = vlo;
+  if (lo + 1 < m) {
+    vhi = pool[lo + 1];
+    for (int j = lo + 2; j < m; j++)
+      vhi = pool[j] < vhi ? pool[j] : vhi;
+  }
+  return lo + 1 < m ? vlo + (r - lo) * (vhi - vlo) : vlo;
+}
+
+/* The fewest section-sampled points among n neighbours that say the
+ * neighbourhood is section-sampled: more than the upper SECT_ALPHA
+ * quantile of Binomial(n, SECT_ALPHA), the count each point's test, at its
+ * level SECT_ALPHA, would give by chance on a surface (the exact tail) */
+static int section_count(int n) {
+  const double p = SECT_ALPHA;
+  double pmf = pow(1.0 - p, n), tail = 1.0 - pmf;
+  int c = 0;
+  while (tail > SECT_ALPHA && c < n) {
+    pmf *= (double)(n - c) / (c + 1) * p / (1.0 - p);
+    tail -= pmf;
+    c++;
+  }
+  return c + 1;
 }
 
 /* Pass 2: the lower quartile of the (quartile-corrected) residual
  * variances over the point's kmax neighbours (the largest candidate's
- * neighbourhood; see the top of the file). */
+ * neighbourhood; see the top of the file), noise[2 i]; and where more of
+ * them are section-sampled than chance allows (section_count), the lower
+ * quartile of those neighbours' cross-section estimates, noise[2 i + 1]
+ * (NAN elsewhere): the quadric reads no noise there, at the section-sampled
+ * points and at their neighbours on the same rings alike (docs/normals.md,
+ * "The noise within a cross-section's plane"). ksel_level chooses. */
 void pool_point(void *vctx, int thread, size_t i) {
   ksel_ctx *c = vctx;
   ksel_scratch *s = &c->scr[thread];
   const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   int m = 0;
   for (int j = 0; j < c->kmax; j++)
-    if (!isnan(c->s2[idx[j]])) s->pool[m++] = c->s2[idx[j]];
-  if (m == 0) {
-    c->noise[i] = 0;
-    return;
-  }
-  /* the order statistic nearest the quartile (interpolated): the lo-th
-   * smallest by selection, the next the smallest above it (the values of a
-   * full sort) */
-  const double r = POOL_Q * (m - 1);
-  const int lo = (int)r;
-  const double vlo = bsurf_kth_smallest(s->pool, (size_t)m, (size_t)lo);
-  double vhi = vlo;
-  if (lo + 1 < m) {
-    vhi = s->pool[lo + 1];
-    for (int j = lo + 2; j < m; j++)
-      vhi = s->pool[j] < vhi ? s->pool[j] : vhi;
-  }
-  c->noise[i] = lo + 1 < m ? vlo + (r - lo) * (vhi - vlo) : vlo;
+    if (!isnan(c->s2[2 * (size_t)idx[j] + 1])) s->pool[m++] = c->s2[2 * (size_t)idx[j] + 1];
+  c->noise[2 * i + 1] = m >= section_count(c->kmax) ? lower_quartile(s->pool, m) : NAN;
+  m = 0;
+  for (int j = 0; j < c->kmax; j++)
+    if (!isnan(c->s2[2 * (size_t)idx[j]])) s->pool[m++] = c->s2[2 * (size_t)idx[j]];
+  c->noise[2 * i] = m ? lower_quartile(s->pool, m) : 0;
+}
+
+double bsurf_ksel_point_level(const double pooled[2]) {
+  return isnan(pooled[1]) ? pooled[0] : pooled[1];
 }
 
 /* Pass 2b (BSURF_NOISE_POOL_GLOBAL): one noise level for the cloud, the
  * median of the points' pooled estimates (see the top of the file), of a
- * sorted copy: the same whatever the threads. */
+ * sorted copy: the same whatever the threads. The points whose
+ * neighbourhoods are section-sampled and the others read the noise through
+ * different models, each biased where the other holds (the quadric reads
+ * none in a cross-section's plane, the conic reads misfit where the points
+ * are no section). So the cloud is one or the other, by its majority (the
+ * population the median of all would lie in): section-sampled, the median
+ * of those points' cross-section estimates (the others' are the biased
+ * quadric's); else the median of every point's quadric estimate, the
+ * minority's section estimates not moving it. */
 bsurf_status pool_global(double *noise, size_t n) {
-  double *tmp = bsurf_alloc_array(n, sizeof(double));
+  double *tmp = bsurf_alloc_array(n ? n : 1, sizeof(double));
   if (!tmp) return BSURF_ERR_NOMEM;
-  memcpy(tmp, noise, n * sizeof(double));
-  const double med = bsurf_median(tmp, n);
+  size_t ns = 0, m = 0;
+  for (size_t i = 0; i < n; i++)
+    ns += !isnan(noise[2 * i + 1]);
+  const int sect = 2 * ns > n;
+  for (size_t i = 0; i < n; i++)
+    if (!sect)
+      tmp[m++] = noise[2 * i];
+    else if (!isnan(noise[2 * i + 1]))
+      tmp[m++] = noise[2 * i + 1];
+  const double med = m ? bsurf_median(tmp, m) : 0;
   for (size_t i = 0; i < n; i++)
     noise[i] = med;
   free(tmp);

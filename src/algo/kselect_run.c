@@ -48,7 +48,10 @@ bsurf_status bsurf_ksel_pool(bsurf_ksel_run *r, const double *xyz, const bsurf_n
 }
 
 bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n) {
-  return r->o.noise_pool == BSURF_NOISE_POOL_GLOBAL ? pool_global(noise, n) : BSURF_OK;
+  if (r->o.noise_pool == BSURF_NOISE_POOL_GLOBAL) return pool_global(noise, n);
+  for (size_t i = 0; i < n; i++) /* in place: i <= 2 i */
+    noise[i] = bsurf_ksel_point_level(&noise[2 * i]);
+  return BSURF_OK;
 }
 
 /* The second pass 3 of a deferred selection (ksel_select, defer): the
@@ -183,7 +186,8 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
     return BSURF_ERR_TOO_FEW_POINTS;
   }
   /* the noise passes, then the selection and the tie-break */
-  double *s2 = bsurf_alloc_array(n, sizeof(double)), *noise = bsurf_alloc_array(n, sizeof(double));
+  double *s2 = bsurf_alloc_array(n, 2 * sizeof(double));
+  double *noise = bsurf_alloc_array(n, 2 * sizeof(double));
   st = s2 && noise ? BSURF_OK : BSURF_ERR_NOMEM;
   if (st == BSURF_OK) st = bsurf_ksel_noise(r, xyz, nb, s2);
   if (st == BSURF_OK) st = bsurf_ksel_pool(r, xyz, nb, s2, noise);

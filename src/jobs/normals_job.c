@@ -696,8 +696,9 @@ bsurf_status bsurf_normals_job_memory(const bsurf_normals_job_options *opts,
   if (job->selecting) b += 64 + (mse ? 8 : 0);
   if (mse) {
     /* the MSE rule (kselect_run.c, normals_compute): the chosen K, degree
-     * and flag as ints 12; the noise passes' s2 and pooled noise, or the
-     * pooled noise and the median's copy 16; pass 3's first choice 4, its
+     * and flag as ints 12; the noise passes' s2 (the quadric's and the
+     * cross-section's estimates, kselect_noise.c) and their pools 32, or
+     * the pooled noise and the median's copy 16; pass 3's first choice 4, its
      * normal 24 and M 8, the tied record's pointer 8, the visit order 4;
      * the tied record, 8 + 40 per tied candidate, counted for every
      * candidate (the worst case: a sphere at noise 0.5 has about 2.6 of 15
@@ -705,11 +706,12 @@ bsurf_status bsurf_normals_job_memory(const bsurf_normals_job_options *opts,
      * by row 24 + 8 (normals_mse_tiled.c); with PCA candidates the
      * empirical bias's references, the first choices without it, 24 + 8
      * (kselect_lof.c) */
-    b += 12 + 16 + 4 + 24 + 8 + 8 + 4 + (8 + 40.0 * ncand) + 40 + 32;
+    b += 12 + 32 + 4 + 24 + 8 + 8 + 4 + (8 + 40.0 * ncand) + 40 + 32;
     if (o.normals.fit == BSURF_NORMAL_PCA) b += 32;
-    /* a tiled run with the GLOBAL pool: every point's pooled value and the
-     * median's copy, on every rank, between the stages (not with a tile) */
-    if (job->ksel.noise_pool == BSURF_NOISE_POOL_GLOBAL) plan->cloud_bytes = 16;
+    /* a tiled run with the GLOBAL pool: every point's two pooled values
+     * and the median's copy, on every rank, between the stages (not with a
+     * tile) */
+    if (job->ksel.noise_pool == BSURF_NOISE_POOL_GLOBAL) plan->cloud_bytes = 24;
   } else if (job->selecting) {
     /* the test-error selection: the chosen K and degree as ints 8, and
      * with the curve every candidate's error and variance (16), and

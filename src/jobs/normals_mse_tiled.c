@@ -57,12 +57,12 @@ static bsurf_status noise_run(void *user, const bsurf_tile *t, bsurf_cloud *core
   (void)sums;
   const mse_stages *m = user;
   const size_t nc = t->core_count, rows = nc + t->ring_count, nl = t->local_count;
-  double *s2row = bsurf_alloc_array(rows ? rows : 1, sizeof(double));
-  double *s2 = bsurf_alloc_array(nl ? nl : 1, sizeof(double));
+  double *s2row = bsurf_alloc_array(rows ? rows : 1, 2 * sizeof(double));
+  double *s2 = bsurf_alloc_array(nl ? nl : 1, 2 * sizeof(double));
   bsurf_status st = s2row && s2 ? BSURF_OK : BSURF_ERR_NOMEM;
   if (st == BSURF_OK) st = bsurf_ksel_noise(m->run, t->xyz, t->nb, s2row);
   if (st == BSURF_OK) {
-    by_point(t->nb, rows, s2row, 1, s2, nl);
+    by_point(t->nb, rows, s2row, 2, s2, nl);
     bsurf_neighbors cnb = *t->nb;
     cnb.point_count = nc;
     st = bsurf_ksel_pool(m->run, t->xyz, &cnb, s2, t->values_out);
@@ -80,7 +80,7 @@ bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_o
   bsurf_tile_ops ops;
   bsurf_jobs_tile_ops(&ops, io, k, threads, progress, progress_user, &m);
   ops.run = noise_run;
-  ops.nvalues = 1;
+  ops.nvalues = 2; /* the quadric's and the cross-section's pools (bsurf_ksel_pool) */
   ops.values_out = pooled;
   ops.ring_k = k;
   memset(tr, 0, sizeof *tr);
@@ -90,7 +90,7 @@ bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_o
    * a failure before the next collective run */
   *level = 0;
   if (st == BSURF_OK && ko->noise_pool == BSURF_NOISE_POOL_GLOBAL) {
-    double *all = bsurf_alloc_array(pooled->count ? pooled->count : 1, sizeof(double));
+    double *all = bsurf_alloc_array(pooled->count ? pooled->count : 1, 2 * sizeof(double));
     st = all ? bsurf_tile_values_read(pooled, 0, pooled->count, all) : BSURF_ERR_NOMEM;
     if (st == BSURF_OK) st = bsurf_ksel_level(run, all, pooled->count);
     if (st == BSURF_OK) *level = pooled->count ? all[0] : 0;
@@ -122,7 +122,7 @@ bsurf_status bsurf_jobs_mse_tile(bsurf_ksel_run *run, const bsurf_tile *t, int g
                         ? BSURF_OK
                         : BSURF_ERR_NOMEM;
   for (size_t r = 0; r < rows && st == BSURF_OK; r++) /* by row */
-    (*noise)[r] = global ? level : t->values[t->nb->idx[r * k]];
+    (*noise)[r] = global ? level : bsurf_ksel_point_level(&t->values[2 * t->nb->idx[r * k]]);
   if (st == BSURF_OK && emp) {
     /* the first choices without the bias at every row's point: the
      * references of the bias where the core and the first ring read them */
