@@ -18,7 +18,10 @@ precision-weighted tie-break -- checks that the replay gives the C code's normal
 and prints, for each variant of the rule, each case's mean angle error over the
 best fixed K's (K in 10, 15, ..., 30, 40, ..., 80, in hindsight) and the count at
 most the best / more than 5% above / mean / worst. The variants are diagnostics
-(docs/normals.md, "What the benchmark says", the vertex sets), not rules.
+(docs/normals.md, "What the benchmark says", the vertex sets), not rules;
+VARIANT@true runs VARIANT with the case's true noise variance in place of the
+pooled estimate (V, the quadric's noise share, the thin-plane and lack-of-fit
+tests and the drift all follow it).
 """
 import argparse
 import json
@@ -38,6 +41,7 @@ KS = list(range(15, 81, 5))  # --select-k (main() may replace it)
 FIXED = [10, 15, 20, 25, 30, 40, 50, 60, 70, 80]
 TIE_F = 0.5  # kselect.c
 ALPHA = 0.05  # kselect_lof.c
+S2 = None  # a variant's noise variance in place of the pooled one (VARIANT@true)
 
 
 def ang(n, t):
@@ -86,7 +90,7 @@ def wh(nu, z):  # the quantile of chi^2_nu / nu by Wilson-Hilferty
 
 def rej0(d):  # the smallest candidate rejects the quadric (kselect_lof.c)
     z = NormalDist().inv_cdf(1 - ALPHA / len(KS))
-    return d["rssv"][:, 0] > d["s2"] * wh(KS[0] - 6, z)
+    return d["rssv"][:, 0] > (d["s2"] if S2 is None else S2) * wh(KS[0] - 6, z)
 
 
 def test_error(d):
@@ -107,7 +111,8 @@ def rejects(d):
     """each candidate's own lack-of-fit test (kselect_lof.c, Bonferroni over the candidates)"""
     z = NormalDist().inv_cdf(1 - ALPHA / len(KS))
     q = np.array([wh(K - 6, z) for K in KS])
-    return np.isfinite(d["rssv"]) & (d["rssv"] > d["s2"][:, None] * q)
+    s2 = d["s2"][:, None] if S2 is None else S2
+    return np.isfinite(d["rssv"]) & (d["rssv"] > s2 * q)
 
 
 def drift(d, var, tol=None, hit=None, tri=None, ref_ok=None):
@@ -148,6 +153,8 @@ def criterion(d, s2=None, gate=None, emp="R", drift_kw=None, no_drift=None, thin
     follow it)."""
     var, Q = d["var"], d["qb"]
     n, nk = var.shape
+    if s2 is None:
+        s2 = S2
     if s2 is not None:
         s2 = np.broadcast_to(np.reshape(s2, (-1, 1)), var.shape)
         l1, l2 = d["l1"], d["l2"]
@@ -226,6 +233,14 @@ def true_s2(dev, case):
 
 
 def variant(name, d, dev, case):
+    global S2
+    if name.endswith("@true"):  # a diagnostic: VARIANT with the true noise variance
+        S2 = true_s2(dev, case)
+        try:
+            return variant(name[:-5], d, dev, case)
+        finally:
+            S2 = None
+
     def r0_rows():
         return rej0(d)
     if name == "base":
@@ -272,6 +287,10 @@ def variant(name, d, dev, case):
                                     1 - ALPHA / (len(KS) - 1)) for K in KS[1:]]
         g = np.maximum.accumulate(np.isfinite(F) & (F > np.array(q)), 1)
         return choose(d, *criterion(d, gate=g))
+    if name == "k_largest":  # the largest assessed candidate
+        var, mse = criterion(d)
+        a = len(KS) - 1 - np.argmax(np.isfinite(mse)[:, ::-1], 1)
+        return d["nrm"][np.arange(len(a)), a]
     if name == "no_thin":  # the rule without the thin-plane test
         return choose(d, *criterion(d, s2=d["s2"], thin=False))
     if name.startswith("true_s2"):  # a diagnostic: the true noise variance times x
