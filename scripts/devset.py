@@ -9,7 +9,8 @@ by the bootsurf command itself (`sample`, `generate`, `noise`, `eval`).
 
 usage:
   /usr/bin/python3 scripts/devset.py build --bootsurf BUILD/bootsurf \
-      [--meshes DIR] [--out DIR] [--quick] [--only SUBSTR] [--noise LIST] [--jobs N]
+      [--meshes DIR] [--out DIR] [--quick] [--only SUBSTR] [--noise LIST] [--models LIST]
+      [--jobs N]
   /usr/bin/python3 scripts/devset.py list [--out DIR]
 
 --meshes is the folder of Debian's CGAL meshes (data/meshes of
@@ -22,7 +23,9 @@ extracts it). Every case is a folder DIR/<case>/ with
   surface.off  the true surface for position errors (absent for generated shapes:
                `eval` then uses the exact shape named in truth.ply)
   case.json    name, model, sampling, noise, n, h (truth's mean spacing), diag
-A case is rebuilt only when one of its files is missing.
+A case is rebuilt only when one of its files is missing. --models M1,M2 builds only
+those meshes (both samplings) and no generated shape; with --noise, any level
+(u0.35, g0.4 ...): the held-out set of scripts/heldout.py.
 
 Cases (name = MODEL_SAMPLING_NOISE):
   models    fandisk_large bunny00 elephant dino couplingdown joint femur camel,
@@ -233,9 +236,15 @@ def noise_args(noise):
     raise ValueError("unknown noise %s" % noise)
 
 
-def shapes(meshes, quick):
-    """(model, sampling, how) for every clean shape of the set."""
+def shapes(meshes, quick, models=None):
+    """(model, sampling, how) for every clean shape of the set; with `models` (a list of
+    mesh names in `meshes`), those meshes' two samplings only (the held-out set)."""
     out = []
+    if models:
+        for m in models:
+            path = os.path.join(meshes, m + ".off")
+            out += [(m, "vertices", ("mesh", path, 0)), (m, "area50k", ("mesh", path, AREA_POINTS))]
+        return out
     for m in (QUICK_MODELS if quick else MODELS):
         path = os.path.join(meshes, m + ".off")
         out.append((m, "vertices", ("mesh", path, 0)))
@@ -331,7 +340,8 @@ def build(args):
     os.makedirs(os.path.join(out, ".shapes"), exist_ok=True)
     noises = args.noise.split(",") if args.noise else (QUICK_NOISES if args.quick else NOISES)
     jobs = []
-    for model, sampling, how in shapes(args.meshes, args.quick):
+    models = args.models.split(",") if args.models else None
+    for model, sampling, how in shapes(args.meshes, args.quick, models):
         if how[0] == "mesh" and not os.path.exists(how[1]):
             sys.exit("devset: %s is missing (scripts/get-data.sh --all %s)" % (how[1], args.meshes))
         ns = list(noises) + (["gh0.5"] if sampling == "regular" and not args.noise else [])
@@ -406,6 +416,8 @@ def main():
                    % (" ".join(QUICK_MODELS), " ".join(QUICK_NOISES)))
     b.add_argument("--only", help="only cases whose name contains this")
     b.add_argument("--noise", help="comma-separated noises instead of the default list")
+    b.add_argument("--models", help="comma-separated meshes of --meshes (vertices and area50k) "
+                   "instead of the set's models and generated shapes (scripts/heldout.py)")
     b.add_argument("--jobs", type=int, default=2, help="shapes built at once (default 2)")
     ls = sub.add_parser("list", help="list the built cases")
     ls.add_argument("--out", default="devset")
