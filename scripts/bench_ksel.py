@@ -197,7 +197,7 @@ def main():
         rows.append("CGAL jet K=30")
     rows += rules
     emit("%d cases (%s). Each metric is the mean over the cases; `/best` and `/Open3D` are the means of "
-         "the per-case ratios of the mean angle error.\n" % (len(names), "quick subset" if a.quick else "listed cases" if a.cases else "development set"))
+         "the per-case ratios of the mean angle error.\n" % (len(names), "quick subset" if a.quick else "listed cases" if a.cases else "the set in %s" % a.devset))
     emit("| row | mean (rad) | RMS (rad) | PGP5 | PGP10 | /best | /Open3D | time (s) |")
     emit("|---|---|---|---|---|---|---|---|")
     for r in rows:
