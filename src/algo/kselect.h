@@ -83,8 +83,10 @@ typedef struct ksel_ctx {
   int kmax;
   double lof_z; /* ksel_level_z(o->nk): the lack-of-fit tests' level, once a run */
   ksel_scratch *scr;
-  double *s2;          /* pass 1: the point's residual variance (NAN: no fit) */
-  double *noise;       /* pass 2: the pooled noise variance */
+  double *s2;          /* pass 1: 2 per point, the quadric's residual variance
+                          and the cross-section estimate (NAN: none) */
+  double *noise;       /* pass 2: 2 per point, the two pooled variances;
+                          passes 3, 4: 1 per row, the level */
   double *sheet_crit;  /* per candidate: the two-sheet test's critical ratio, or NULL */
   double **tied;       /* pass 3: per point its tied candidates (tie_store) */
   double *fnrm;        /* pass 3: n x 3, the normal of the smallest criterion */
@@ -105,8 +107,9 @@ typedef struct ksel_ctx {
 } ksel_ctx;
 
 /* The noise passes (kselect_noise.c; the top of kselect.c): pass 1, each
- * point's quadric residual variance (c->s2); pass 2, their lower quartile
- * over the K_max neighbours (c->noise); pass 2b, its median over the cloud. */
+ * point's quadric residual variance and cross-section estimate (c->s2, two
+ * per point); pass 2, their lower quartiles over the K_max neighbours
+ * (c->noise, two per point); pass 2b, the median over the cloud. */
 void noise_point(void *vctx, int thread, size_t i);
 void pool_point(void *vctx, int thread, size_t i);
 bsurf_status pool_global(double *noise, size_t n);

@@ -6,13 +6,14 @@
  * output byte is the in-memory run's.
  *
  *   stage 1 (K = K_max, ring_k = K_max): pass 1 (each point's quadric
- *     residual variance s2, from its own K_max neighbours) on the core's and
- *     the ring's rows, so that every s2 the core reads is at hand, then
- *     pass 2 (the pooled noise: a quantile of the K_max neighbours' s2) on
- *     the core's rows; the pooled values are kept;
- *   the level: with the GLOBAL pool, the median of every point's pooled
- *     value, read back in index order (8 + 8 bytes per point in memory, on
- *     every rank);
+ *     residual variance s2 and cross-section estimate, two values from its
+ *     own K_max neighbours) on the core's and the ring's rows, so that every
+ *     s2 the core reads is at hand, then pass 2 (the two pooled noises:
+ *     quantiles of the K_max neighbours' s2) on the core's rows; the pooled
+ *     values are kept (two per point);
+ *   the level: with the GLOBAL pool, the median of the points' pooled
+ *     values (pool_global: of the cloud's majority population), read back
+ *     in index order (16 + 8 bytes per point in memory, on every rank);
  *   stage 2 (normals_job.c's tiled run, K = K_max, ring_k = noise_k): pass 3
  *     on the ring's rows (the first choices that the tie-break reads at the
  *     core's noise_k nearest outside the tile), passes 3 and 4 on the core's
