@@ -122,8 +122,10 @@ static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratc
  *    0), at equal angular distance. A patch of scattered points under light
  *    noise passes the first two (a conic through them leaves misfit for
  *    s2c) and fails this one.
- * Pass 2 uses the conic's estimate where the neighbourhood is section-
- * sampled (pool_point). */
+ * The estimate stands only where the point's quadric estimate is
+ * significantly below it (noise_point). Pass 2 uses the conic's estimate
+ * where the neighbourhood is section-sampled and its quadric level again
+ * significantly below (pool_point). */
 #define SECT_ALPHA 0.05
 #define Z_SECT 1.6448536269514722 /* the standard normal's upper SECT_ALPHA quantile */
 #define CT 5 /* the conic's terms u^2, uv, v^2, u, v (the constant eliminated) */
@@ -204,9 +206,9 @@ static int conic_resid(const double *u, const double *v, int K, double *s2c) {
   return isfinite(*s2c) ? 0 : -1;
 }
 
-/* Point i's cross-section estimate (above), or NAN where it is not
- * section-sampled: f the noise_k frame, sc its coordinates' scale (the
- * points in s->u, s->v) */
+/* Point i's conic residual variance s2c (above, uncorrected), or NAN where
+ * the noise_k points are not section-sampled: f the noise_k frame, sc its
+ * coordinates' scale (the points in s->u, s->v) */
 static double section_noise(const ksel_ctx *c, const uint32_t *idx, int K, const bsurf_frame *f,
                             double sc, const ksel_scratch *s) {
   double s2c;
@@ -221,7 +223,7 @@ static double section_noise(const ksel_ctx *c, const uint32_t *idx, int K, const
   const double dot =
       f->rot[2][0] * F.rot[2][0] + f->rot[2][1] * F.rot[2][1] + f->rot[2][2] * F.rot[2][2];
   if (!(dot * dot < 0.5)) return NAN;
-  return s2c / bsurf_chi2_ratio_wh(K - CT, Z_Q);
+  return s2c;
 }
 
 /* Whether scale K's estimate v rose beyond what the m accepted smaller
@@ -237,14 +239,14 @@ static int rose(const double *sc, int m, int K, double v, double z) {
   return 0;
 }
 
-void noise_point(void *vctx, int thread, size_t i) {
-  ksel_ctx *c = vctx;
-  ksel_scratch *s = &c->scr[thread];
+/* Pass 1 at one point: out[0] the quadric's estimate (above; NAN: none),
+ * *s2c the noise_k points' cross-section residual variance (NAN: not
+ * section-sampled) */
+static void quad_estimate(ksel_ctx *c, ksel_scratch *s, const uint32_t *idx, double *out,
+                          double *s2c) {
   const bsurf_kselect_options *o = c->o;
-  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
   const double *d = &c->xyz[3 * (size_t)idx[0]];
-  double *out = &c->s2[2 * i];
-  out[0] = out[1] = NAN;
+  out[0] = *s2c = NAN;
   int ka = 0, m = 0; /* the kept scale; the untruncated scales accepted */
   double va = 0, m6a = 0;
   for (int a = -1; a < o->nk; a++) {
@@ -253,7 +255,7 @@ void noise_point(void *vctx, int thread, size_t i) {
     double v, m6, sc;
     bsurf_frame f;
     if (quad_resid(c->xyz, idx, K, s, &v, &m6, &f, &sc) != 0) continue;
-    if (a < 0) out[1] = section_noise(c, idx, K, &f, sc, s);
+    if (a < 0) *s2c = section_noise(c, idx, K, &f, sc, s);
     const double *p = &c->xyz[3 * (size_t)idx[K - 1]];
     const double R2 = (p[0] - d[0]) * (p[0] - d[0]) + (p[1] - d[1]) * (p[1] - d[1]) +
                       (p[2] - d[2]) * (p[2] - d[2]);
@@ -293,6 +295,28 @@ void noise_point(void *vctx, int thread, size_t i) {
   const double w = m6b / (m6b - m6a), na = ka - QT, nb = kb - QT;
   const double nu = 1.0 / (w * w / na + (1.0 - w * w) / nb);
   out[0] = (e < va ? e : va) / bsurf_chi2_ratio_wh(nu, Z_Q);
+}
+
+void noise_point(void *vctx, int thread, size_t i) {
+  ksel_ctx *c = vctx;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  double *out = &c->s2[2 * i], s2c;
+  quad_estimate(c, &c->scr[thread], idx, out, &s2c);
+  /* the cross-section estimate stands only where the quadric's reads
+   * significantly less noise than it, the variance ratio's lower 5% tail
+   * (two estimates of the same noise where both models hold, each
+   * corrected to its quartile), as where the quadric's heights lie within
+   * a section and read none, or its misfit's extrapolation takes all it
+   * read. Where the quadric reached across the sections (rows of a plane,
+   * dense rings of a cylinder) it read the noise, and the conic -- poorly
+   * determined on nearly straight rows, its curve test then passing more
+   * often than its level, and its s2c low among those that pass -- is not
+   * needed (docs/normals.md, Cross-sections) */
+  const int nc = c->o->noise_k - CT;
+  out[1] = NAN;
+  if (isnan(s2c)) return;
+  const double conic = s2c / bsurf_chi2_ratio_wh(nc, Z_Q);
+  if (isnan(out[0]) || out[0] < conic * bsurf_f_quantile_paulson(nc, nc, -Z_SECT)) out[1] = conic;
 }
 
 /* The lower quartile of m values (pool_point): the order statistic nearest
@@ -347,6 +371,11 @@ void pool_point(void *vctx, int thread, size_t i) {
   for (int j = 0; j < c->kmax; j++)
     if (!isnan(c->s2[2 * (size_t)idx[j]])) s->pool[m++] = c->s2[2 * (size_t)idx[j]];
   c->noise[2 * i] = m ? lower_quartile(s->pool, m) : 0;
+  /* and the neighbourhood's quadric level again reads significantly less
+   * than its cross-section level (noise_point's test, on the pools) */
+  const int nc = c->o->noise_k - CT;
+  if (!(c->noise[2 * i] < c->noise[2 * i + 1] * bsurf_f_quantile_paulson(nc, nc, -Z_SECT)))
+    c->noise[2 * i + 1] = NAN;
 }
 
 double bsurf_ksel_point_level(const double pooled[2]) {

@@ -145,7 +145,17 @@ same_keys() {
     grep -o "\"$key\":[^,]*" "$T/out" | cmp -s - <(grep -o "\"$key\":[^,]*" "$ref") && ok || fail "$what: $key differs"
   done
 }
+# a ring-sampled cylinder (20 rings of 60 points, 0.8 apart: a point's 12
+# nearest are one ring's arc), so that the noise level is the cross-section
+# estimate's (kselect_noise.c; the tiles carry two pooled values a point)
+awk 'BEGIN { print "ply\nformat ascii 1.0\nelement vertex 1200"
+  print "property double x\nproperty double y\nproperty double z"
+  print "property double nx\nproperty double ny\nproperty double nz\nend_header"
+  for (j = 0; j < 20; j++) for (i = 0; i < 60; i++) { t = 2 * 3.141592653589793 * i / 60
+    printf "%.17g %.17g %.17g %.17g %.17g 0\n", cos(t), sin(t), 0.8 * j, cos(t), sin(t) } }' >"$T/ring.ply"
+expect 0 "noise rings" -- "$BSURF" noise "$T/ring.ply" --level 0.1 -o "$T/r.ply" -q
 for case in "n|--select-k 10:40:10 -B 6" "c|--select-k 10:40:10 -B 6" "c|--select-k 7:30:4 -B 0 --noise-pool local" \
+  "r|--select-k 10:80:5 -B 0" "r|--select-k 10:80:5 -B 0 --noise-pool local" \
   "n|--select-k 10:25:5 --noise-k 30 -k 12 -B 3 --select-rule mse" \
   "c|--fit poly --select-k 10:30:10 --select-degree 1,2 -B 3"; do
   f=${case%%|*} args=${case#*|}
