@@ -342,6 +342,9 @@ static double lower_quartile(double *pool, int m) {
 static int section_count(int n) {
   const double p = SECT_ALPHA;
   double pmf = pow(1.0 - p, n), tail = 1.0 - pmf;
+  /* (1 - p)^n underflows beyond about 14,000 neighbours: there the normal
+   * approximation (n p (1 - p) > 600), with its continuity correction */
+  if (!(pmf > 1e-280)) return (int)floor(n * p + Z_SECT * sqrt(n * p * (1.0 - p)) + 0.5) + 1;
   int c = 0;
   while (tail > SECT_ALPHA && c < n) {
     pmf *= (double)(n - c) / (c + 1) * p / (1.0 - p);
