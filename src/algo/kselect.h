@@ -82,6 +82,13 @@ typedef struct ksel_ctx {
   const bsurf_kselect_options *o;
   int kmax;
   double lof_z; /* ksel_level_z(o->nk): the lack-of-fit tests' level, once a run */
+  /* the cross-section tests' critical values (kselect_noise.c,
+   * ksel_section_levels), once a run */
+  struct {
+    double thin, curve, below; /* F quantiles: (K-3, K-5) lower, (3, K-5) upper, (K-5, K-5) lower */
+    double q;                  /* the conic's quartile correction, chi^2_{K-5}/(K-5) */
+    int count;                 /* section-sampled points a neighbourhood needs */
+  } sect;
   ksel_scratch *scr;
   double *s2;          /* pass 1: 2 per point, the quadric's residual variance
                           and the cross-section estimate (NAN: none) */
@@ -111,6 +118,9 @@ typedef struct ksel_ctx {
  * per point); pass 2, their lower quartiles over the K_max neighbours
  * (c->noise, two per point); pass 2b, the median over the cloud. */
 void noise_point(void *vctx, int thread, size_t i);
+/* c->sect from c->o->noise_k and c->kmax. */
+#define ksel_section_levels bsurf_i_ksel_section_levels
+void ksel_section_levels(ksel_ctx *c);
 void pool_point(void *vctx, int thread, size_t i);
 bsurf_status pool_global(double *noise, size_t n);
 
@@ -158,6 +168,10 @@ int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, double z
 /* The standard normal's upper quantile at a Bonferroni share of 5% over nk
  * candidates (kselect_lof.c). */
 double ksel_level_z(int nk);
+/* The standard normal's upper quantile z(p), P(Z > z) = p, 0 < p < 0.5
+ * (kselect_lof.c). */
+#define ksel_normal_upper_quantile bsurf_i_ksel_normal_upper_quantile
+double ksel_normal_upper_quantile(double p);
 /* 1 where candidate K's plane is thinner than the noise s2 allows (smallest
  * eigenvalue l3, squared distance rk2 to its K-th neighbour, z from
  * ksel_level_z): not the surface's tangent plane (kselect_lof.c). */

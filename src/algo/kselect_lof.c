@@ -54,7 +54,7 @@
 /* The standard normal's upper quantile z(p), P(Z > z) = p, 0 < p < 0.5:
  * Newton's method on erfc from the logistic start (a few steps to the
  * double's precision; the same bits on every machine with the same libm). */
-static double normal_upper_quantile(double p) {
+double ksel_normal_upper_quantile(double p) {
   double z = sqrt(-2.0 * log(p)); /* above the quantile: the tail's bound */
   for (int it = 0; it < 50; it++) {
     const double f = 0.5 * erfc(z / sqrt(2.0)) - p;
@@ -67,7 +67,7 @@ static double normal_upper_quantile(double p) {
 }
 
 double ksel_level_z(int nk) {
-  return normal_upper_quantile(LOF_ALPHA / (nk > 1 ? nk : 1));
+  return ksel_normal_upper_quantile(LOF_ALPHA / (nk > 1 ? nk : 1));
 }
 
 /* The other tail (docs/normals.md, "Planes thinner than the noise"): a

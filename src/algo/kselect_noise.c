@@ -126,9 +126,8 @@ static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratc
  * significantly below it (noise_point). Pass 2 uses the conic's estimate
  * where the neighbourhood is section-sampled and its quadric level again
  * significantly below (pool_point). */
-#define SECT_ALPHA 0.05
-#define Z_SECT 1.6448536269514722 /* the standard normal's upper SECT_ALPHA quantile */
-#define CT 5 /* the conic's terms u^2, uv, v^2, u, v (the constant eliminated) */
+#define SECT_ALPHA 0.05 /* each test's level */
+#define CT 5            /* the conic's terms u^2, uv, v^2, u, v (the constant eliminated) */
 
 /* Taubin's conic through the K points (u, v) (scaled coordinates): its
  * geometric residual variance in the scaled units, sum r^2 / (K - 5);
@@ -147,48 +146,45 @@ static int conic_resid(const double *u, const double *v, int K, double *s2c) {
         N[a][b] += gx[a] * gx[b] + gy[a] * gy[b];
   }
   /* the constant's optimum f0 = -m . a / M00 eliminated: Mr = M - m m^T / K */
-  double Mr[CT][CT], L[CT][CT] = {{0}};
+  double Mr[CT][CT], Np[CT * (CT + 1) / 2];
   for (int a = 0; a < CT; a++)
-    for (int b = a; b < CT; b++)
+    for (int b = a; b < CT; b++) {
       Mr[a][b] = Mr[b][a] = M[a][b] - M[a][CT] * M[b][CT] / M[CT][CT];
-  /* N = L L^T (Cholesky); Mr a = l N a becomes S y = l y, S = L^-1 Mr L^-T */
-  for (int a = 0; a < CT; a++)
-    for (int b = 0; b <= a; b++) {
-      double t = N[b][a];
-      for (int k = 0; k < b; k++)
-        t -= L[a][k] * L[b][k];
-      if (a == b) {
-        if (!(t > 1e-12 * N[0][0] + 1e-300)) return -1;
-        L[a][a] = sqrt(t);
-      } else {
-        L[a][b] = t / L[b][b];
-      }
+      Np[bsurf_packed_index(a, b)] = N[a][b];
     }
-  double W[CT][CT], S[CT * CT], ev[CT], vec[CT * CT];
+  /* N = L D L^T (the fits' factorisation, local.h; rank-deficient: -1);
+   * Mr a = l N a becomes S y = l y, S = D^-1/2 L^-1 Mr L^-T D^-1/2, and
+   * a = L^-T D^-1/2 y */
+  bsurf_ldl f;
+  if (bsurf_ldl_factor_packed(CT, Np, BSURF_RANK_TOL, &f) != 0) return -1;
+  const double *L = f.L;
+  double W[CT][CT], S[CT * CT], ev[CT], vec[CT * CT], rd[CT];
+  for (int a = 0; a < CT; a++)
+    rd[a] = sqrt(f.inv[a]);
   for (int c = 0; c < CT; c++) /* W = L^-1 Mr, column by column */
     for (int a = 0; a < CT; a++) {
       double t = Mr[a][c];
       for (int k = 0; k < a; k++)
-        t -= L[a][k] * W[k][c];
-      W[a][c] = t / L[a][a];
+        t -= L[a * CT + k] * W[k][c];
+      W[a][c] = t;
     }
-  for (int r = 0; r < CT; r++) /* S = L^-1 W^T (Mr symmetric), row r of W */
+  for (int r = 0; r < CT; r++) /* L^-1 W^T (Mr symmetric), row r of W */
     for (int a = 0; a < CT; a++) {
       double t = W[r][a];
       for (int k = 0; k < a; k++)
-        t -= L[a][k] * S[r * CT + k];
-      S[r * CT + a] = t / L[a][a];
+        t -= L[a * CT + k] * S[r * CT + k];
+      S[r * CT + a] = t;
     }
-  for (int a = 0; a < CT; a++) /* symmetric up to rounding */
-    for (int b = a + 1; b < CT; b++)
-      S[a * CT + b] = S[b * CT + a] = 0.5 * (S[a * CT + b] + S[b * CT + a]);
+  for (int a = 0; a < CT; a++) /* D^-1/2 on both sides, symmetric up to rounding */
+    for (int b = a; b < CT; b++)
+      S[a * CT + b] = S[b * CT + a] = 0.5 * (S[a * CT + b] + S[b * CT + a]) * rd[a] * rd[b];
   bsurf_eigen_sym(CT, S, ev, vec);
-  double co[CT + 1]; /* a = L^-T y for the smallest eigenvalue */
+  double co[CT + 1]; /* a = L^-T D^-1/2 y for the smallest eigenvalue */
   for (int a = CT - 1; a >= 0; a--) {
-    double t = vec[a];
+    double t = vec[a] * rd[a];
     for (int k = a + 1; k < CT; k++)
-      t -= L[k][a] * co[k];
-    co[a] = t / L[a][a];
+      t -= L[k * CT + a] * co[k];
+    co[a] = t;
   }
   co[CT] = 0;
   for (int a = 0; a < CT; a++)
@@ -215,9 +211,8 @@ static double section_noise(const ksel_ctx *c, const uint32_t *idx, int K, const
   if (K <= CT + 1 || conic_resid(s->u, s->v, K, &s2c) != 0) return NAN;
   s2c *= sc * sc;
   const double s3 = K * f->eigenvalues[0] / (K - 3), l2 = f->eigenvalues[1];
-  if (!(s2c > 0) || !(s3 < s2c * bsurf_f_quantile_paulson(K - 3, K - CT, -Z_SECT))) return NAN;
-  if (!((K * l2 - (K - CT) * s2c) / (3.0 * s2c) > bsurf_f_quantile_paulson(3, K - CT, Z_SECT)))
-    return NAN;
+  if (!(s2c > 0) || !(s3 < s2c * c->sect.thin)) return NAN;
+  if (!((K * l2 - (K - CT) * s2c) / (3.0 * s2c) > c->sect.curve)) return NAN;
   bsurf_frame F;
   bsurf_local_frame(c->xyz, idx, c->kmax, BSURF_PCA_CENTROID, &F);
   const double dot =
@@ -312,11 +307,10 @@ void noise_point(void *vctx, int thread, size_t i) {
    * determined on nearly straight rows, its curve test then passing more
    * often than its level, and its s2c low among those that pass -- is not
    * needed (docs/normals.md, Cross-sections) */
-  const int nc = c->o->noise_k - CT;
   out[1] = NAN;
   if (isnan(s2c)) return;
-  const double conic = s2c / bsurf_chi2_ratio_wh(nc, Z_Q);
-  if (isnan(out[0]) || out[0] < conic * bsurf_f_quantile_paulson(nc, nc, -Z_SECT)) out[1] = conic;
+  const double conic = s2c / c->sect.q;
+  if (isnan(out[0]) || out[0] < conic * c->sect.below) out[1] = conic;
 }
 
 /* The lower quartile of m values (pool_point): the order statistic nearest
@@ -339,12 +333,12 @@ static double lower_quartile(double *pool, int m) {
  * neighbourhood is section-sampled: more than the upper SECT_ALPHA
  * quantile of Binomial(n, SECT_ALPHA), the count each point's test, at its
  * level SECT_ALPHA, would give by chance on a surface (the exact tail) */
-static int section_count(int n) {
+static int section_count(int n, double z) {
   const double p = SECT_ALPHA;
   double pmf = pow(1.0 - p, n), tail = 1.0 - pmf;
   /* (1 - p)^n underflows beyond about 14,000 neighbours: there the normal
    * approximation (n p (1 - p) > 600), with its continuity correction */
-  if (!(pmf > 1e-280)) return (int)floor(n * p + Z_SECT * sqrt(n * p * (1.0 - p)) + 0.5) + 1;
+  if (!(pmf > 1e-280)) return (int)floor(n * p + z * sqrt(n * p * (1.0 - p)) + 0.5) + 1;
   int c = 0;
   while (tail > SECT_ALPHA && c < n) {
     pmf *= (double)(n - c) / (c + 1) * p / (1.0 - p);
@@ -352,6 +346,16 @@ static int section_count(int n) {
     c++;
   }
   return c + 1;
+}
+
+void ksel_section_levels(ksel_ctx *c) {
+  const int K = c->o->noise_k, nc = K - CT;
+  const double z = ksel_normal_upper_quantile(SECT_ALPHA);
+  c->sect.thin = bsurf_f_quantile_paulson(K - 3, nc, -z);
+  c->sect.curve = bsurf_f_quantile_paulson(3, nc, z);
+  c->sect.below = bsurf_f_quantile_paulson(nc, nc, -z);
+  c->sect.count = section_count(c->kmax, z);
+  c->sect.q = bsurf_chi2_ratio_wh(nc, Z_Q);
 }
 
 /* Pass 2: the lower quartile of the (quartile-corrected) residual
@@ -369,16 +373,14 @@ void pool_point(void *vctx, int thread, size_t i) {
   int m = 0;
   for (int j = 0; j < c->kmax; j++)
     if (!isnan(c->s2[2 * (size_t)idx[j] + 1])) s->pool[m++] = c->s2[2 * (size_t)idx[j] + 1];
-  c->noise[2 * i + 1] = m >= section_count(c->kmax) ? lower_quartile(s->pool, m) : NAN;
+  c->noise[2 * i + 1] = m >= c->sect.count ? lower_quartile(s->pool, m) : NAN;
   m = 0;
   for (int j = 0; j < c->kmax; j++)
     if (!isnan(c->s2[2 * (size_t)idx[j]])) s->pool[m++] = c->s2[2 * (size_t)idx[j]];
   c->noise[2 * i] = m ? lower_quartile(s->pool, m) : 0;
   /* and the neighbourhood's quadric level again reads significantly less
    * than its cross-section level (noise_point's test, on the pools) */
-  const int nc = c->o->noise_k - CT;
-  if (!(c->noise[2 * i] < c->noise[2 * i + 1] * bsurf_f_quantile_paulson(nc, nc, -Z_SECT)))
-    c->noise[2 * i + 1] = NAN;
+  if (!(c->noise[2 * i] < c->noise[2 * i + 1] * c->sect.below)) c->noise[2 * i + 1] = NAN;
 }
 
 double bsurf_ksel_point_level(const double pooled[2]) {

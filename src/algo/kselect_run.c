@@ -29,6 +29,7 @@ static ksel_ctx ksel_ctx_of(bsurf_ksel_run *r, const double *xyz, const bsurf_ne
                 .lof_z = ksel_level_z(r->o.nk), /* once a run, not per point */
                 .scr = r->scr,
                 .sheet_crit = r->crit};
+  ksel_section_levels(&c); /* once a run, not per point */
   return c;
 }
 
