@@ -32,23 +32,25 @@ static double angle_u(const double *a, const double *b) {
 static const int KS[] = {15, 20, 25, 30, 35, 40, 45, 50, 55, 60, 65, 70, 75, 80};
 #define NKS ((int)(sizeof KS / sizeof KS[0]))
 
-/* the selection's mean angle error, the pooled noise deviation (global:
- * one value) and the share and mean error of the points at K <= 30 */
+/* the selection's mean angle error, the pooled noise deviation (its median
+ * over the points: global, the one value) and the share and mean error of
+ * the points at K <= 30 */
 typedef struct sel_result {
   double err, sigma, small_share, small_err;
 } sel_result;
 
-static sel_result select_on(const double *xyz, const double *tn, size_t n,
-                            const bsurf_neighbors *nb) {
+static sel_result select_pool(const double *xyz, const double *tn, size_t n,
+                              const bsurf_neighbors *nb, bsurf_noise_pool pool) {
   double *nrm = malloc(3 * n * sizeof(double)), *noise = malloc(n * sizeof(double));
   int *k = malloc(n * sizeof(int));
   bsurf_kselect_options o = bsurf_kselect_options_default();
   o.ks = KS;
   o.nk = NKS;
   o.threads = 2;
+  o.noise_pool = pool;
   bsurf_kselect_fields f = {nrm, k, NULL, noise, NULL, NULL};
   assert_int_equal(bsurf_select_k(xyz, nb, &o, &f, NULL), BSURF_OK);
-  sel_result r = {0, noise[0], 0, 0};
+  sel_result r = {0, 0, 0, 0};
   size_t nsmall = 0;
   for (size_t i = 0; i < n; i++) {
     const double e = angle_u(&nrm[3 * i], &tn[3 * i]);
@@ -56,12 +58,18 @@ static sel_result select_on(const double *xyz, const double *tn, size_t n,
     if (k[i] <= 30) r.small_err += e, nsmall++;
   }
   r.err /= n;
+  r.sigma = bsurf_median(noise, n);
   r.small_share = (double)nsmall / n;
   r.small_err = nsmall ? r.small_err / nsmall : 0;
   free(nrm);
   free(noise);
   free(k);
   return r;
+}
+
+static sel_result select_on(const double *xyz, const double *tn, size_t n,
+                            const bsurf_neighbors *nb) {
+  return select_pool(xyz, tn, n, nb, BSURF_NOISE_POOL_GLOBAL);
 }
 
 /* the mean angle error of the PCA normals at a fixed K */
@@ -257,18 +265,7 @@ static double cylinder_sigma(int rings, double *local_ratio) {
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 80, 2, NULL, NULL), BSURF_OK);
   const sel_result r = select_on(xyz, tn, n, &nb);
-  /* the LOCAL pool: the median of the points' own levels */
-  double *nrm = malloc(3 * n * sizeof(double)), *noise = malloc(n * sizeof(double));
-  bsurf_kselect_options o = bsurf_kselect_options_default();
-  o.ks = KS;
-  o.nk = NKS;
-  o.threads = 2;
-  o.noise_pool = BSURF_NOISE_POOL_LOCAL;
-  bsurf_kselect_fields f = {nrm, NULL, NULL, noise, NULL, NULL};
-  assert_int_equal(bsurf_select_k(xyz, &nb, &o, &f, NULL), BSURF_OK);
-  *local_ratio = bsurf_median(noise, n) / sigma;
-  free(nrm);
-  free(noise);
+  *local_ratio = select_pool(xyz, tn, n, &nb, BSURF_NOISE_POOL_LOCAL).sigma / sigma;
   free(xyz);
   free(tn);
   bsurf_neighbors_free(&nb);
