@@ -21,8 +21,8 @@ most the best / more than 5% above / mean / worst. The variants are diagnostics
 (docs/normals.md, "What the benchmark says", the vertex sets), not rules;
 VARIANT@true runs VARIANT with the case's true noise variance in place of the
 pooled estimate (V, the quadric's noise share, the thin-plane and lack-of-fit
-tests and the drift all follow it). Each variant's mean chosen K is printed
-beside its ratios.
+tests and the drift all follow it); s2xF the pooled estimate times F. Each
+variant's mean chosen K is printed beside its ratios.
 
   /usr/bin/python3 scripts/ksel_replay.py SET_DIR --noise-stages --cases LIST
       [--select-k 10:80:5] [--noise-k 12]
@@ -306,6 +306,8 @@ def variant(name, d, dev, case):
         return d["nrm"][np.arange(len(a)), a]
     if name == "no_thin":  # the rule without the thin-plane test
         return choose(d, *criterion(d, s2=d["s2"], thin=False))
+    if name.startswith("s2x"):  # a diagnostic: the pooled noise variance times x
+        return choose(d, *criterion(d, s2=float(name[3:]) * d["s2"]))
     if name.startswith("true_s2"):  # a diagnostic: the true noise variance times x
         x = float(name.split("x")[1]) if "x" in name else 1.0
         return choose(d, *criterion(d, s2=x * true_s2(dev, case)))
