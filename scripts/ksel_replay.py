@@ -21,7 +21,20 @@ most the best / more than 5% above / mean / worst. The variants are diagnostics
 (docs/normals.md, "What the benchmark says", the vertex sets), not rules;
 VARIANT@true runs VARIANT with the case's true noise variance in place of the
 pooled estimate (V, the quadric's noise share, the thin-plane and lack-of-fit
-tests and the drift all follow it).
+tests and the drift all follow it); s2xF the pooled estimate times F. Each
+variant's mean chosen K is printed beside its ratios.
+
+  /usr/bin/python3 scripts/ksel_replay.py SET_DIR --noise-stages --cases LIST
+      [--select-k 10:80:5] [--noise-k 12]
+
+needs no build: a numpy replica of the quadric noise estimate's pass 1
+(src/algo/kselect_noise.c, quad_estimate: truncation, Lepski's scales, the
+Richardson extrapolation, each estimate over the lower quartile of chi^2_nu / nu)
+and of its pools (the lower quartile over the K_max neighbours, the median over
+the cloud; no cross-section estimate), printing each stage's reading over the true
+sigma^2 (case.json), the misfit a fit leaves on the noise-free points (truth.ply,
+the same neighbours), and the same pool for a cubic and a quartic fit
+(docs/normals.md, "Light noise on fine detail").
 """
 import argparse
 import json
@@ -293,30 +306,125 @@ def variant(name, d, dev, case):
         return d["nrm"][np.arange(len(a)), a]
     if name == "no_thin":  # the rule without the thin-plane test
         return choose(d, *criterion(d, s2=d["s2"], thin=False))
+    if name.startswith("s2x"):  # a diagnostic: the pooled noise variance times x
+        return choose(d, *criterion(d, s2=float(name[3:]) * d["s2"]))
     if name.startswith("true_s2"):  # a diagnostic: the true noise variance times x
         x = float(name.split("x")[1]) if "x" in name else 1.0
         return choose(d, *criterion(d, s2=x * true_s2(dev, case)))
     sys.exit("unknown variant %s" % name)
 
 
+def lower_quartile(x):  # kselect_noise.c's, interpolated
+    x = np.sort(x[np.isfinite(x)])
+    if not len(x):
+        return 0.0
+    r = 0.25 * (len(x) - 1)
+    lo = int(r)
+    return x[lo] + (r - lo) * (x[lo + 1] - x[lo]) if lo + 1 < len(x) else x[lo]
+
+
+def height_fit(X, deg=2):
+    """a degree-deg height fit to each row of K points in their own PCA frame: the
+    residual variance RSS / (K - p), the mean sixth power of the (unscaled) tangential
+    distances and the smallest covariance eigenvalue"""
+    c = X.mean(1, keepdims=True)
+    w, V = np.linalg.eigh(np.einsum("nki,nkj->nij", X - c, X - c) / X.shape[1])
+    L = np.einsum("nkj,nji->nki", X - c, V)
+    z, u, v = L[..., 0], L[..., 1], L[..., 2]
+    s = np.sqrt(np.max(u ** 2 + v ** 2, 1))[:, None]
+    A = np.stack([(u / s) ** (d - j) * (v / s) ** j for d in range(deg + 1) for j in range(d + 1)], -1)
+    p = A.shape[-1]
+    coef = np.linalg.solve(np.einsum("nki,nkj->nij", A, A) + 1e-14 * np.eye(p),
+                           np.einsum("nki,nk->ni", A, z)[..., None])[..., 0]
+    r = z - np.einsum("nki,ni->nk", A, coef)
+    return (r ** 2).sum(1) / (X.shape[1] - p), ((u ** 2 + v ** 2) ** 3).mean(1), w[:, 0]
+
+
+def noise_stages(dev, case, noise_k):
+    """each stage of the quadric noise estimate over the true sigma^2 (see the top)"""
+    from scipy.spatial import cKDTree
+    f, _ = devset.read_ply(os.path.join(dev, case, "noisy.ply"))
+    P = np.stack([f["x"], f["y"], f["z"]], 1).astype(float)
+    t = normals_of(os.path.join(dev, case, "truth.ply"))[1]
+    T = np.stack([t["x"], t["y"], t["z"]], 1).astype(float)
+    s2, n, kmax = true_s2(dev, case), len(P), KS[-1]
+    idx = cKDTree(P).query(P, kmax)[1]
+    zl = NormalDist().inv_cdf(1 - ALPHA / len(KS))
+    zq = NormalDist().inv_cdf(0.25)
+    scales = [noise_k] + [K for K in KS if K > noise_k]
+    V, M6, L3, R2 = {}, {}, {}, {}
+    for K in sorted(set(scales) | {min(2 * K, kmax) for K in scales}):
+        V[K], M6[K], L3[K] = height_fit(P[idx[:, :K]])
+        R2[K] = ((P[idx[:, K - 1]] - P) ** 2).sum(1)
+    ka, va = np.zeros(n, int), np.zeros(n)
+    for i in range(n):  # the truncation rule and Lepski's method (quad_estimate, rose)
+        acc = []
+        for K in scales:
+            v = V[K][i]
+            if R2[K][i] < 25 * v:
+                if not acc:
+                    ka[i], va[i] = K, v
+                continue
+            if any(not (r2 >= 25 * v and kj * l3 < (kj - 3) * v * wh(kj - 3, -zl)) and
+                   math.log(v / vj) > zl * math.sqrt(2 * (1 / (kj - 6) - 1 / (K - 6)))
+                   for kj, vj, l3, r2 in acc):
+                break
+            acc.append((K, v, L3[K][i], R2[K][i]))
+            ka[i], va[i] = K, v
+    plain = va / np.array([wh(k - 6, zq) for k in ka])
+    out, e = plain.copy(), np.full(n, np.nan)
+    for k in set(ka.tolist()):  # the Richardson extrapolation of the misfit
+        sel, kb = ka == k, min(2 * k, kmax)
+        if kb <= k + 6:
+            continue
+        ma, mb = (height_fit(P[idx[sel][:, :K]])[1] for K in (k, kb))
+        ek = (va[sel] * mb - V[kb][sel] * ma) / (mb - ma)
+        w = mb / (mb - ma)
+        with np.errstate(all="ignore"):
+            nu = 1 / (w * w / (k - 6) + (1 - w * w) / (kb - 6))
+            q = np.array([wh(x, zq) if x > 0 else np.nan for x in nu])
+            o = np.where(ek > 0, np.minimum(ek, va[sel]) / q, np.nan)
+        out[sel], e[sel] = np.where(mb > ma, o, plain[sel]), ek
+    pool = lambda q: np.array([lower_quartile(q[idx[i]]) for i in range(n)])
+    r = lambda x: np.nanmedian(x) / s2
+    print("%s: sigma %.3f h" % (case, math.sqrt(s2) / json.load(open(os.path.join(dev, case, "case.json")))["h"]))
+    for deg, K in ((2, noise_k), (3, noise_k), (4, 20)):
+        p = (deg + 1) * (deg + 2) // 2
+        v = height_fit(P[idx[:, :K]], deg)[0]
+        print("  degree %d, K = %d: residual variance %.3f, misfit on the noise-free points %.3f, "
+              "pooled %.3f" % (deg, K, r(v), r(height_fit(T[idx[:, :K]], deg)[0]), r(pool(v / wh(K - p, zq)))))
+    print("  Lepski's scale: mean K %.1f, residual variance %.3f, pooled %.3f" % (ka.mean(), r(va), r(pool(plain))))
+    print("  Richardson: extrapolated %.3f (not positive at %.1f%%), pooled %.3f = the cloud's level" %
+          (r(e), 100 * np.mean(~(e > 0) & np.isfinite(e)), r(pool(out))))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("devset")
-    ap.add_argument("--bootsurf", required=True, help="a build with -DBSURF_KSEL_TRACE")
-    ap.add_argument("--out", required=True)
+    ap.add_argument("--bootsurf", help="a build with -DBSURF_KSEL_TRACE (required but with --noise-stages)")
+    ap.add_argument("--out", help="the work directory (required but with --noise-stages)")
     ap.add_argument("--sampling", default="vertices")
     ap.add_argument("--cases", default="")
     ap.add_argument("--variants", default="base")
     ap.add_argument("--select-k", default="15:80:5", help="the candidates A:B:STEP")
+    ap.add_argument("--noise-stages", action="store_true", help="the noise estimate's stages (no build)")
+    ap.add_argument("--noise-k", type=int, default=12)
     a = ap.parse_args()
     lo, hi, st = (int(x) for x in a.select_k.split(":"))
     KS[:] = list(range(lo, hi + 1, st))
+    if a.noise_stages:
+        for c in a.cases.split(","):
+            noise_stages(a.devset, c, a.noise_k)
+        return
+    if not a.bootsurf or not a.out:
+        ap.error("--bootsurf and --out are required (but with --noise-stages)")
     os.makedirs(a.out, exist_ok=True)
     cases = a.cases.split(",") if a.cases else sorted(
         c for c in os.listdir(a.devset) if os.path.isdir(os.path.join(a.devset, c)) and
         any("_%s_" % s in c + "_" for s in a.sampling.split(",")))
     names = a.variants.split(",")
     ratios = {v: [] for v in names}
+    kmean = {v: [] for v in names}
     print("| case | best K | " + " | ".join(names) + " |")
     print("|---|---|" + "---|" * len(names))
     for c in cases:
@@ -329,15 +437,20 @@ def main():
             print("warning: %s: the replay differs from the C code's normals" % c, file=sys.stderr)
         row = []
         for v in names:
-            ratios[v].append(ang(variant(v, d, a.devset, c), t).mean() / fe[bk])
-            row.append("%.3f" % ratios[v][-1])
+            nv = variant(v, d, a.devset, c)
+            ratios[v].append(ang(nv, t).mean() / fe[bk])
+            # the chosen candidate: the one whose normal the variant returned
+            ch = np.argmax(np.abs(np.einsum("nkc,nc->nk", d["nrm"], nv)) > 1 - 1e-12, 1)
+            kmean[v].append(np.mean(np.array(KS)[ch]))
+            row.append("%.3f (K %.1f)" % (ratios[v][-1], kmean[v][-1]))
         print("| %s | %d | %s |" % (c, bk, " | ".join(row)), flush=True)
-    print("\n| variant | cases | <= best fixed K | > 5% above | mean ratio | worst |")
-    print("|---|---|---|---|---|---|")
+    print("\n| variant | cases | <= best fixed K | > 5% above | mean ratio | worst | mean K |")
+    print("|---|---|---|---|---|---|---|")
     for v in names:
         r = np.array(ratios[v])
-        print("| %s | %d | %d | %d | %.4f | %.3f (%s) |" % (v, len(r), np.sum(r <= 1), np.sum(r > 1.05), r.mean(),
-                                                          r.max(), cases[int(np.argmax(r))]))
+        print("| %s | %d | %d | %d | %.4f | %.3f (%s) | %.1f |" % (
+            v, len(r), np.sum(r <= 1), np.sum(r > 1.05), r.mean(), r.max(), cases[int(np.argmax(r))],
+            np.mean(kmean[v])))
 
 
 if __name__ == "__main__":
