@@ -219,9 +219,14 @@ double guard_noise(const double *sv, size_t n, size_t stride, double *scratch) {
  * sigma^2 + b^2 (b^2 the mean squared misfit, which is also about the
  * squared bias of its predictions), and a full move helps when b^2 <
  * sigma^2: the test rejects "s^2 / (g kappa) <= 2 sigma^2" when it exceeds 2
- * sigma^2 times the upper 5% quantile of chi^2_nu / nu. noise NAN: no test. */
+ * sigma^2 times the upper 5% quantile of chi^2_nu / nu. noise NAN: no test.
+ * noise 0 (a tenth of the fits or more leave no residual: noise-free input)
+ * is a level like any other: no move helps where there is no noise to
+ * remove, and every fit that leaves a residual, however small, is rejected
+ * (a clean CAD part's fits across its edges moved points off them:
+ * docs/smoothing.md, "Noise-free input"). */
 int guard_misfit(const double *sv, double noise) {
-  if (!(noise > 0)) return 0;
+  if (!(noise >= 0)) return 0;
   if (!(sv[1] >= 1)) return 0; /* no variance: no fit (moves nothing anyway) */
   const double kap = guard_ball_share(sv[3] / sqrt(noise));
   return !(sv[0] <= 2.0 * noise * sv[2] * kap * bsurf_chi2_ratio_wh(sv[1], GUARD_MISFIT_Z));
