@@ -153,11 +153,19 @@ def drift(d, var, tol=None, hit=None, tri=None, ref_ok=None):
 def thin_planes(d, s2):
     """the candidates whose plane is thinner than the noise s2 allows (kselect_lof.c,
     ksel_thin_plane): K l3 < (K - 3) s2 q, q the lower ALPHA / nk quantile of
-    chi^2_{K-3} / (K - 3), where the K-th neighbour is >= 5 deviations away"""
+    chi^2_{K-3} / (K - 3), where the K-th neighbour is >= 5 deviations away, and
+    whose normal is nearer perpendicular to the K_max neighbours' (the last
+    candidate's) than parallel, or whose K_max neighbours are no surface patch
+    (kselect_lof.c, ksel_same_plane and ksel_disc: a plane that agrees with a
+    patch's plane is the surface's, with less noise than the cloud's level)"""
     K = np.array(KS)
     z = NormalDist().inv_cdf(ALPHA / len(KS))
     q = np.array([wh(k - 3, z) for k in KS])
-    return (s2 > 0) & (d["rk2"] >= 25 * s2) & (K * d["l3"] < (K - 3) * s2 * q)
+    same = np.einsum("nac,nc->na", d["nrm"], d["nrm"][:, -1]) ** 2 >= 0.5
+    la, lb = d["l1"][:, -1], d["l2"][:, -1]
+    disc = np.abs(lb - la) <= 2 * math.sqrt(-math.log(ALPHA) / (3 * KS[-1])) * (la + lb)
+    same &= disc[:, None]
+    return (s2 > 0) & (d["rk2"] >= 25 * s2) & (K * d["l3"] < (K - 3) * s2 * q) & ~same
 
 
 def criterion(d, s2=None, gate=None, emp="R", drift_kw=None, no_drift=None, thin=True):

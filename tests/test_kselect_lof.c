@@ -85,6 +85,23 @@ static void test_thin_exact(void **state) {
   }
 }
 
+/* Which of a thin plane's explanations holds (ksel_same_plane): a plane
+ * whose normal is nearer parallel to the K_max neighbours' is the surface's
+ * own (1), nearer perpendicular a cross-section's (0); the boundary is 45
+ * degrees, and the sign of either normal does not matter. */
+static void test_same_plane(void **state) {
+  (void)state;
+  const double N[3] = {0, 0, 1}, up[3] = {0, 0, -1}, side[3] = {1, 0, 0};
+  assert_int_equal(ksel_same_plane(N, N), 1);
+  assert_int_equal(ksel_same_plane(up, N), 1);
+  assert_int_equal(ksel_same_plane(side, N), 0);
+  const double t = 3.14159265358979323846 / 4;
+  const double in[3] = {sin(t - 1e-6), 0, cos(t - 1e-6)},
+               out[3] = {sin(t + 1e-6), 0, cos(t + 1e-6)};
+  assert_int_equal(ksel_same_plane(in, N), 1);
+  assert_int_equal(ksel_same_plane(out, N), 0);
+}
+
 static uint64_t rng_state = 88172645463325252ull;
 static double unif(void) { /* xorshift64*, (0, 1) */
   rng_state ^= rng_state >> 12, rng_state ^= rng_state << 25, rng_state ^= rng_state >> 27;
@@ -95,8 +112,9 @@ static double gauss(void) {
 }
 
 /* K points' covariance (about the centroid): its smallest eigenvalue */
-static double smallest_ev(const double (*p)[3], int K) {
-  double mu[3] = {0, 0, 0}, C[3][3] = {{0}}, ev[3], V[3][3];
+/* the K points' PCA eigenvalues, ascending */
+static void pca_eigen(const double (*p)[3], int K, double ev[3]) {
+  double mu[3] = {0, 0, 0}, C[3][3] = {{0}}, V[3][3];
   for (int j = 0; j < K; j++)
     for (int t = 0; t < 3; t++)
       mu[t] += p[j][t] / K;
@@ -105,7 +123,51 @@ static double smallest_ev(const double (*p)[3], int K) {
       for (int u = 0; u < 3; u++)
         C[t][u] += (p[j][t] - mu[t]) * (p[j][u] - mu[u]) / K;
   bsurf_eigen_sym3(C, ev, V);
+}
+
+static double smallest_ev(const double (*p)[3], int K) {
+  double ev[3];
+  pca_eigen(p, K, ev);
   return ev[0];
+}
+
+/* The disc test (ksel_disc), at a fixed seed: K points uniform on a disc
+ * (a surface patch: the test's null) are taken for a curve's run at about
+ * its level, 5% (asymptotic: a little above it at K = 10, where the normal
+ * approximation of the covariance's fourth moments is rough), and every run
+ * of K points along a ring's arc with noise of a tenth of its spacing
+ * across it is. */
+static void test_disc_level(void **state) {
+  (void)state;
+  const int Ks[] = {10, 30, 80}, trials = 20000;
+  double(*p)[3] = malloc(80 * sizeof *p);
+  for (int c = 0; c < 3; c++) {
+    const int K = Ks[c];
+    const double q = ksel_disc_level(K);
+    int rej = 0;
+    for (int t = 0; t < trials; t++) {
+      for (int j = 0; j < K; j++) {
+        const double r = sqrt(unif()), phi = 2 * 3.14159265358979323846 * unif();
+        p[j][0] = r * cos(phi), p[j][1] = r * sin(phi), p[j][2] = 0.01 * gauss();
+      }
+      double ev[3];
+      pca_eigen((const double(*)[3])p, K, ev);
+      rej += !ksel_disc(ev, q);
+    }
+    print_message("disc, K = %d: taken for a curve %.4f (level 0.05)\n", K, (double)rej / trials);
+    assert_true(rej > 0.03 * trials && rej < 0.08 * trials);
+    for (int i0 = 0; i0 < 300; i0 += 7) {
+      for (int j = 0; j < K; j++) {
+        const double phi = 2 * 3.14159265358979323846 * (i0 + j) / 300;
+        const double r = 1 + 0.1 * (2 * 3.14159265358979323846 / 300) * gauss();
+        p[j][0] = r * cos(phi), p[j][1] = r * sin(phi), p[j][2] = 0.001 * gauss();
+      }
+      double ev[3];
+      pca_eigen((const double(*)[3])p, K, ev);
+      assert_int_equal(ksel_disc(ev, q), 0);
+    }
+  }
+  free(p);
 }
 
 /* Its level, at a fixed seed: K points uniform on a disc of radius 10 with
@@ -278,6 +340,7 @@ static void test_cube_crease(void **state) {
 int main(void) {
   const struct CMUnitTest tests[] = {
       cmocka_unit_test(test_gate_exact),  cmocka_unit_test(test_thin_exact),
+      cmocka_unit_test(test_same_plane),  cmocka_unit_test(test_disc_level),
       cmocka_unit_test(test_thin_level),  cmocka_unit_test(test_plane_silent),
       cmocka_unit_test(test_cube_crease),
   };

@@ -139,8 +139,11 @@
  * points lie closer to their plane than the noise allows a surface's, K l3
  * below the lower Bonferroni quantile of s2 chi^2_{K-3} (kselect_lof.c,
  * ksel_thin_plane: the noise lies in the plane, as on ring-sampled CAD
- * vertices). A point left with no candidate is unassessed: K_max, and
- * normal_err pi / 2.
+ * vertices), unless the K_max neighbours are a surface patch (ksel_disc)
+ * and the thin plane agrees with theirs (ksel_same_plane): that plane is the
+ * surface's own, locally less noisy than the cloud's level (a clean patch
+ * in a cloud whose noise, or misfit read as noise, lies elsewhere). A point
+ * left with no candidate is unassessed: K_max, and normal_err pi / 2.
  *
  * Candidates' centroids and covariances come from one pass over the sorted
  * neighbours (the nested running sums of src/algo/nested.c, one weight
@@ -453,6 +456,7 @@ void select_point(void *vctx, int thread, size_t i) {
   memset(&q, 0, sizeof q);
   double *nrm = s->nrm, *var = s->var, *qb = s->qb;
   const double zl = c->lof_z, *p0 = &c->xyz[3 * (size_t)idx[0]];
+  const int disc = ksel_disc(f.eigenvalues, c->disc_q); /* K_max: a surface patch */
   int j = 0;
   for (int a = 0; a < nk; a++) {
     const int K = o->ks[a];
@@ -474,8 +478,12 @@ void select_point(void *vctx, int thread, size_t i) {
                   (ev[1] / ((ev[1] - s2) * (ev[1] - s2)) + ev[2] / ((ev[2] - s2) * (ev[2] - s2)))
             : INFINITY;
     /* a plane thinner than the noise is not the surface's tangent plane
-     * (kselect_lof.c, ksel_thin_plane): not assessed */
-    if (ksel_thin_plane(K, ev[0], rk2, s2, zl)) var[a] = INFINITY;
+     * (kselect_lof.c, ksel_thin_plane): not assessed -- unless the K_max
+     * neighbours are a surface patch (ksel_disc) whose plane it agrees
+     * with (ksel_same_plane): then it is the surface's own, with less noise
+     * there than the cloud's level (a clean patch) */
+    if (ksel_thin_plane(K, ev[0], rk2, s2, zl) && !(disc && ksel_same_plane(V[0], f.rot[2])))
+      var[a] = INFINITY;
     /* bias: the quadric's Hessian times the centroid's tangential offset */
     double coef[QT], rss, gi[3][3];
     qb[a] = INFINITY;

@@ -81,7 +81,8 @@ typedef struct ksel_ctx {
   const bsurf_neighbors *nb;
   const bsurf_kselect_options *o;
   int kmax;
-  double lof_z; /* ksel_level_z(o->nk): the lack-of-fit tests' level, once a run */
+  double lof_z;  /* ksel_level_z(o->nk): the lack-of-fit tests' level, once a run */
+  double disc_q; /* ksel_disc_level(kmax): the disc test's critical value, once a run */
   /* the cross-section tests' critical values (kselect_noise.c,
    * ksel_section_levels), once a run */
   struct {
@@ -159,6 +160,9 @@ void poly_free(ksel_scratch *s);
 #define ksel_lof_gate bsurf_i_ksel_lof_gate
 #define ksel_level_z bsurf_i_ksel_level_z
 #define ksel_thin_plane bsurf_i_ksel_thin_plane
+#define ksel_same_plane bsurf_i_ksel_same_plane
+#define ksel_disc bsurf_i_ksel_disc
+#define ksel_disc_level bsurf_i_ksel_disc_level
 #define ksel_emp_bias bsurf_i_ksel_emp_bias
 /* The lack-of-fit gate (kselect_lof.c): gate[a] = 1 for the candidates
  * from the first whose quadric residual variance rssv rejects the noise
@@ -176,6 +180,9 @@ double ksel_normal_upper_quantile(double p);
  * eigenvalue l3, squared distance rk2 to its K-th neighbour, z from
  * ksel_level_z): not the surface's tangent plane (kselect_lof.c). */
 int ksel_thin_plane(int K, double l3, double rk2, double s2, double z);
+int ksel_same_plane(const double n[3], const double N[3]);
+double ksel_disc_level(int K);
+int ksel_disc(const double ev[3], double q);
 /* The empirical bias^2 eb[a] of each gated candidate (0 elsewhere) against
  * the neighbours' first choices c->bref (kselect_lof.c). */
 void ksel_emp_bias(const ksel_ctx *c, const uint32_t *idx, const double *nrm, const double *var,

@@ -90,6 +90,47 @@ int ksel_thin_plane(int K, double l3, double rk2, double s2, double z) {
   return K * l3 < (K - 3) * s2 * bsurf_chi2_ratio_wh(K - 3, -z);
 }
 
+/* Whether K points are a surface patch rather than a curve's run: their two
+ * tangent eigenvalues l1 >= l2 (ev ascending, ev[2] and ev[1]) no more
+ * unequal than K points uniform on a disc give at the level LOF_ALPHA. On a
+ * disc of radius r (the K nearest of a surface point) the coordinates' second
+ * moments are r^2 / 4 and the fourth E x^4 = r^4 / 8, E x^2 y^2 = r^4 / 24, so
+ * the sample covariance's a - b and 2 c (a, b the variances, c the
+ * covariance) are asymptotically independent N(0, r^4 / (6 K)), and
+ * (l1 - l2)^2 = (a - b)^2 + 4 c^2 is r^4 / (6 K) times chi^2_2, whose upper
+ * tail is exp(-x / 2); with l1 + l2 -> r^2 / 2 the ratio q = (l1 - l2) /
+ * (l1 + l2) exceeds 2 sqrt(-ln(alpha) / (3 K)) with probability alpha. A run
+ * of a curve (a ring, a feature curve's vertices) has l2 of the order of
+ * the noise and q near 1. ksel_disc_level gives the critical value once a
+ * run. */
+double ksel_disc_level(int K) {
+  return 2.0 * sqrt(-log(LOF_ALPHA) / (3.0 * K));
+}
+
+int ksel_disc(const double ev[3], double q) {
+  return (ev[2] - ev[1]) <= q * (ev[2] + ev[1]);
+}
+
+/* Which of the thin plane's two explanations holds (docs/normals.md,
+ * "Planes thinner than the noise"). ksel_thin_plane rejects that the K
+ * points' plane is a surface's tangent plane *with the cloud's noise
+ * level*; it does not say which of the two alternatives holds: a plane
+ * curve whose plane holds the surface normal (a ring: the plane is a
+ * cross-section, its normal perpendicular to the surface's), or the surface
+ * itself with less noise there than the level (a clean patch of a cloud
+ * whose noise, or misfit read as noise, lies elsewhere: the plane is the
+ * tangent plane, its normal the surface's). The K_max neighbours' PCA
+ * normal N stands for the surface's (beyond the rings) where they are a
+ * surface patch (ksel_disc; a run of one ring is a curve, and its PCA
+ * normal the ring plane's: kselect.c asks both); n is the thin
+ * plane's. 1 where n is nearer parallel to N than perpendicular, (n . N)^2
+ * >= 1/2: the nearer of the two hypotheses at equal angular distance, as
+ * the cross-section noise's own test (kselect_noise.c, section_noise). */
+int ksel_same_plane(const double n[3], const double N[3]) {
+  const double d = n[0] * N[0] + n[1] * N[1] + n[2] * N[2];
+  return d * d >= 0.5;
+}
+
 int ksel_lof_gate(const double *rssv, const int *ks, int nk, double s2, double z, int *gate) {
   int on = 0, any = 0;
   for (int a = 0; a < nk; a++) {

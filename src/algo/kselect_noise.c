@@ -119,9 +119,9 @@ static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratc
  *    perpendicular to the PCA normal of the K_max neighbours (beyond the
  *    rings) than parallel to it, |n . N| < 1 / sqrt(2) -- the nearer of the
  *    two hypotheses (a patch of surface: n = N; a cross-section: n . N =
- *    0), at equal angular distance. A patch of scattered points under light
- *    noise passes the first two (a conic through them leaves misfit for
- *    s2c) and fails this one.
+ *    0), at equal angular distance (ksel_same_plane, kselect_lof.c). A
+ *    patch of scattered points under light noise passes the first two (a
+ *    conic through them leaves misfit for s2c) and fails this one.
  * The estimate stands only where the point's quadric estimate is
  * significantly below it (noise_point). Pass 2 uses the conic's estimate
  * where the neighbourhood is section-sampled and its quadric level again
@@ -215,9 +215,7 @@ static double section_noise(const ksel_ctx *c, const uint32_t *idx, int K, const
   if (!((K * l2 - (K - CT) * s2c) / (3.0 * s2c) > c->sect.curve)) return NAN;
   bsurf_frame F;
   bsurf_local_frame(c->xyz, idx, c->kmax, BSURF_PCA_CENTROID, &F);
-  const double dot =
-      f->rot[2][0] * F.rot[2][0] + f->rot[2][1] * F.rot[2][1] + f->rot[2][2] * F.rot[2][2];
-  if (!(dot * dot < 0.5)) return NAN;
+  if (ksel_same_plane(f->rot[2], F.rot[2])) return NAN;
   return s2c;
 }
 

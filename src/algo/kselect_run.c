@@ -27,6 +27,7 @@ static ksel_ctx ksel_ctx_of(bsurf_ksel_run *r, const double *xyz, const bsurf_ne
                 .o = &r->o,
                 .kmax = r->kmax,
                 .lof_z = ksel_level_z(r->o.nk), /* once a run, not per point */
+                .disc_q = ksel_disc_level(r->kmax),
                 .scr = r->scr,
                 .sheet_crit = r->crit};
   ksel_section_levels(&c); /* once a run, not per point */
