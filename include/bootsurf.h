@@ -565,7 +565,10 @@ typedef struct bsurf_kselect_report {
                         noise exceeds the tangent spread of every K, the
                         quadrics are rank-deficient, the K_max
                         neighbours sample a curve, or every candidate's
-                        plane is thinner than the noise): the largest K */
+                        plane is thinner than the noise and may be a
+                        cross-section's -- not a surface patch's own
+                        plane: docs/normals.md, "Planes thinner than the
+                        noise"): the largest K */
 } bsurf_kselect_report;
 
 /* K selection by BSURF_KSELECT_MSE for every point; nb->k must be at least
