@@ -163,7 +163,7 @@ def thin_planes(d, s2):
     q = np.array([wh(k - 3, z) for k in KS])
     same = np.einsum("nac,nc->na", d["nrm"], d["nrm"][:, -1]) ** 2 >= 0.5
     la, lb = d["l1"][:, -1], d["l2"][:, -1]
-    disc = np.abs(lb - la) <= 2 * math.sqrt(-math.log(ALPHA) / (3 * KS[-1])) * (la + lb)
+    disc = np.abs(lb - la) <= 2 * math.sqrt(-math.log(ALPHA) / (3 * (KS[-1] - 1))) * (la + lb)
     same &= disc[:, None]
     return (s2 > 0) & (d["rk2"] >= 25 * s2) & (K * d["l3"] < (K - 3) * s2 * q) & ~same
 
