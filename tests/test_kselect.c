@@ -61,8 +61,11 @@ typedef struct sel_out {
   int *k;
 } sel_out;
 
-static void select_run_pool(const noisy_shape *s, int threads, bsurf_noise_pool pool, sel_out *r) {
-  const size_t n = s->c.point_count;
+/* The selection over KS on n points with their neighbourhoods nb: every
+ * field of r allocated and filled, rep (may be NULL) the report. */
+static void select_nb(const double *xyz, const bsurf_neighbors *nb, int threads,
+                      bsurf_noise_pool pool, sel_out *r, bsurf_kselect_report *rep) {
+  const size_t n = nb->point_count;
   r->normals = malloc(3 * n * sizeof(double));
   r->rmse = malloc(n * sizeof(double));
   r->noise = malloc(n * sizeof(double));
@@ -73,7 +76,19 @@ static void select_run_pool(const noisy_shape *s, int threads, bsurf_noise_pool 
   o.threads = threads;
   o.noise_pool = pool;
   bsurf_kselect_fields f = {r->normals, r->k, r->rmse, r->noise, NULL, NULL};
-  assert_int_equal(bsurf_select_k(s->c.xyz, &s->nb, &o, &f, NULL), BSURF_OK);
+  assert_int_equal(bsurf_select_k(xyz, nb, &o, &f, rep), BSURF_OK);
+}
+
+static void select_run_pool(const noisy_shape *s, int threads, bsurf_noise_pool pool, sel_out *r) {
+  select_nb(s->c.xyz, &s->nb, threads, pool, r, NULL);
+}
+
+/* The same on bare points: their K_max neighbourhoods first; two threads. */
+static void select_xyz(const double *xyz, size_t n, sel_out *r, bsurf_kselect_report *rep) {
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 80, 2, NULL, NULL), BSURF_OK);
+  select_nb(xyz, &nb, 2, BSURF_NOISE_POOL_GLOBAL, r, rep);
+  bsurf_neighbors_free(&nb);
 }
 
 static void select_run(const noisy_shape *s, int threads, sel_out *r) {
@@ -529,29 +544,18 @@ static void test_two_sheets(void **state) {
  * noise 0.3 h (random sampling, a Poisson process): at the test's level,
  * 1e-5, of their points (none here). Fixed seeds. */
 static int unassessed_count(const double *xyz, size_t n, int *kmax_share, size_t *reported) {
-  bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 80, 2, NULL, NULL), BSURF_OK);
-  double *nrm = malloc(3 * n * sizeof(double)), *rmse = malloc(n * sizeof(double));
-  int *k = malloc(n * sizeof(int));
-  bsurf_kselect_options o = bsurf_kselect_options_default();
-  o.ks = KS;
-  o.nk = NKS;
-  o.threads = 2;
-  bsurf_kselect_fields f = {nrm, k, rmse, NULL, NULL, NULL};
+  sel_out r;
   bsurf_kselect_report rep;
-  assert_int_equal(bsurf_select_k(xyz, &nb, &o, &f, &rep), BSURF_OK);
+  select_xyz(xyz, n, &r, &rep);
   int m = 0, mk = 0;
   for (size_t i = 0; i < n; i++)
-    if (rmse[i] > 1.5707963) {
+    if (r.rmse[i] > 1.5707963) {
       m++;
-      mk += k[i] == KS[NKS - 1];
+      mk += r.k[i] == KS[NKS - 1];
     }
   *kmax_share = mk;
   *reported = rep.unassessed;
-  bsurf_neighbors_free(&nb);
-  free(nrm);
-  free(rmse);
-  free(k);
+  sel_free(&r);
   return m;
 }
 
@@ -622,37 +626,28 @@ static void test_clean_patch(void **state) {
     memcpy(&xyz[3 * (na + i)], &b.xyz[3 * i], 3 * sizeof(double));
     xyz[3 * (na + i) + 2] += 10.0;
   }
-  bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 80, 2, NULL, NULL), BSURF_OK);
-  double *nrm = malloc(3 * n * sizeof(double)), *rmse = malloc(n * sizeof(double));
-  double *noise = malloc(n * sizeof(double));
-  int *k = malloc(n * sizeof(int));
-  bsurf_kselect_options o = bsurf_kselect_options_default();
-  o.ks = KS;
-  o.nk = NKS;
-  o.threads = 2;
-  bsurf_kselect_fields f = {nrm, k, rmse, noise, NULL, NULL};
-  assert_int_equal(bsurf_select_k(xyz, &nb, &o, &f, NULL), BSURF_OK);
+  sel_out r;
+  select_xyz(xyz, n, &r, NULL);
   size_t unassessed = 0, inner = 0;
   double worst = 0;
   const double up[3] = {0, 0, 1};
   for (size_t i = 0; i < na; i++) {
     if (fabs(xyz[3 * i]) > 0.6 || fabs(xyz[3 * i + 1]) > 0.6) continue;
     inner++;
-    unassessed += !(rmse[i] < 1.5707963);
-    const double e = angle_u(&nrm[3 * i], up);
+    unassessed += !(r.rmse[i] < 1.5707963);
+    const double e = angle_u(&r.normals[3 * i], up);
     worst = e > worst ? e : worst;
   }
   print_message("clean patch: noise %.3g, %zu of %zu inner clean points unassessed, worst angle "
                 "%.3g\n",
-                noise[0], unassessed, inner, worst);
-  assert_true(noise[0] > 0);
+                r.noise[0], unassessed, inner, worst);
+  assert_true(r.noise[0] > 0);
   assert_true(unassessed <= 0.1 * inner);
   assert_true(worst < 1e-9);
-  bsurf_neighbors_free(&nb);
+  sel_free(&r);
   bsurf_cloud_free(&a);
   bsurf_cloud_free(&b);
-  free(xyz), free(nrm), free(rmse), free(noise), free(k);
+  free(xyz);
 }
 
 int main(void) {

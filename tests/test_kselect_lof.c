@@ -131,6 +131,23 @@ static double smallest_ev(const double (*p)[3], int K) {
   return ev[0];
 }
 
+/* K points uniform on a disc of radius r in z = 0, heights N(0, sz^2) */
+static void disc_points(double (*p)[3], int K, double r, double sz) {
+  for (int j = 0; j < K; j++) {
+    const double rho = r * sqrt(unif()), phi = 2 * 3.14159265358979323846 * unif();
+    p[j][0] = rho * cos(phi), p[j][1] = rho * sin(phi), p[j][2] = sz * gauss();
+  }
+}
+
+/* K consecutive points from i0 of a ring of 300 points of radius 1 in
+ * z = 0, radial noise N(0, sr^2) and heights N(0, sz^2) */
+static void ring_arc(double (*p)[3], int K, int i0, double sr, double sz) {
+  for (int j = 0; j < K; j++) {
+    const double phi = 2 * 3.14159265358979323846 * (i0 + j) / 300, r = 1 + sr * gauss();
+    p[j][0] = r * cos(phi), p[j][1] = r * sin(phi), p[j][2] = sz * gauss();
+  }
+}
+
 /* The disc test (ksel_disc), at a fixed seed: K points uniform on a disc
  * (a surface patch: the test's null) are taken for a curve's run at about
  * its level, 5% (measured: 4.4%, 4.9%, 5.1% at K = 10, 30, 80 with the
@@ -146,10 +163,7 @@ static void test_disc_level(void **state) {
     const double q = ksel_disc_level(K);
     int rej = 0;
     for (int t = 0; t < trials; t++) {
-      for (int j = 0; j < K; j++) {
-        const double r = sqrt(unif()), phi = 2 * 3.14159265358979323846 * unif();
-        p[j][0] = r * cos(phi), p[j][1] = r * sin(phi), p[j][2] = 0.01 * gauss();
-      }
+      disc_points(p, K, 1.0, 0.01);
       double ev[3];
       pca_eigen((const double(*)[3])p, K, ev);
       rej += !ksel_disc(ev, q);
@@ -157,11 +171,7 @@ static void test_disc_level(void **state) {
     print_message("disc, K = %d: taken for a curve %.4f (level 0.05)\n", K, (double)rej / trials);
     assert_true(rej > 0.03 * trials && rej < 0.08 * trials);
     for (int i0 = 0; i0 < 300; i0 += 7) {
-      for (int j = 0; j < K; j++) {
-        const double phi = 2 * 3.14159265358979323846 * (i0 + j) / 300;
-        const double r = 1 + 0.1 * (2 * 3.14159265358979323846 / 300) * gauss();
-        p[j][0] = r * cos(phi), p[j][1] = r * sin(phi), p[j][2] = 0.001 * gauss();
-      }
+      ring_arc(p, K, i0, 0.1 * (2 * 3.14159265358979323846 / 300), 0.001);
       double ev[3];
       pca_eigen((const double(*)[3])p, K, ev);
       assert_int_equal(ksel_disc(ev, q), 0);
@@ -184,10 +194,7 @@ static void test_thin_level(void **state) {
     const int K = Ks[c];
     int rej = 0;
     for (int t = 0; t < trials; t++) {
-      for (int j = 0; j < K; j++) {
-        const double r = 10 * sqrt(unif()), phi = 2 * 3.14159265358979323846 * unif();
-        p[j][0] = r * cos(phi), p[j][1] = r * sin(phi), p[j][2] = gauss();
-      }
+      disc_points(p, K, 10.0, 1.0);
       rej += ksel_thin_plane(K, smallest_ev((const double(*)[3])p, K), 100, 1.0, Z9);
     }
     print_message("plane, K = %d: rejected %.4f (level %.4f)\n", K, (double)rej / trials,
@@ -198,10 +205,7 @@ static void test_thin_level(void **state) {
   const double sd = 0.01;
   for (int i0 = 0; i0 < 300; i0 += 7) {
     const int K = 10 + i0 % 71;
-    for (int j = 0; j < K; j++) {
-      const double phi = 2 * 3.14159265358979323846 * (i0 + j) / 300, r = 1 + sd * gauss();
-      p[j][0] = r * cos(phi), p[j][1] = r * sin(phi), p[j][2] = 0.05 * sd * gauss();
-    }
+    ring_arc(p, K, i0, sd, 0.05 * sd);
     const double rk = 2 * sin(3.14159265358979323846 * (K - 1) / 300);
     assert_int_equal(
         ksel_thin_plane(K, smallest_ev((const double(*)[3])p, K), rk * rk, sd * sd, Z9), 1);
