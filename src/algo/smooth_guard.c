@@ -228,6 +228,10 @@ double guard_noise(const double *sv, size_t n, size_t stride, double *scratch) {
 int guard_misfit(const double *sv, double noise) {
   if (!(noise >= 0)) return 0;
   if (!(sv[1] >= 1)) return 0; /* no variance: no fit (moves nothing anyway) */
+  /* noise-free: any residual is misfit (the test below in the limit; said
+   * here rather than left to sv[3] / sqrt(0) = inf and guard_ball_share's
+   * value there) */
+  if (noise == 0) return !(sv[0] <= 0);
   const double kap = guard_ball_share(sv[3] / sqrt(noise));
   return !(sv[0] <= 2.0 * noise * sv[2] * kap * bsurf_chi2_ratio_wh(sv[1], GUARD_MISFIT_Z));
 }
