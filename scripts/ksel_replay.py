@@ -130,30 +130,38 @@ def rejects(d):
 
 def drift(d, var, tol=None, hit=None, tri=None, ref_ok=None):
     """the second largest over the smaller candidates of sin^2 - c (V(j) - V(K))
-    (kselect.c, drift_of: two witnesses; with one reference, its term),
-    c = (3 + ln(a (a - 1) / 2)) / 2 for a >= 2 smaller candidates, 3 for a = 1;
-    tol replaces c where hit; tri: the smaller candidate's own bias^2 taken off
-    first; ref_ok: which smaller candidates may serve as references."""
+    (kselect.c, drift_of: two witnesses), c = (3 + ln(a (a - 1) / 2)) / 2 for a >= 2
+    smaller candidates, 3 for a = 1; with one reference, its term at c = 3; tol
+    replaces c where hit; tri: the smaller candidate's own bias^2 taken off first;
+    ref_ok: which smaller candidates may serve as references."""
     n, nk = var.shape
     nrm = d["nrm"]
     out = np.full((n, nk), -np.inf)
     for a in range(1, nk):
         c = np.full(n, (3 + math.log(a * (a - 1) / 2)) / 2 if a >= 2 else 3.0)
+        c1 = np.full(n, 3.0)  # a lone reference's: one comparison
         if tol is not None:
             c = np.where(hit[:, a], tol, c)
+            c1 = np.where(hit[:, a], tol, c1)
         d1 = np.full(n, -np.inf)  # the largest two terms
         d2 = np.full(n, -np.inf)
+        lone = np.full(n, -np.inf)
+        m = np.zeros(n, int)
         for b in range(a):
             s2 = 1 - np.sum(nrm[:, a] * nrm[:, b], 1) ** 2
             with np.errstate(invalid="ignore"):
                 x = s2 - c * (var[:, b] - var[:, a])
+                x1 = s2 - c1 * (var[:, b] - var[:, a])
             if tri is not None:
                 x = np.maximum(0, np.sqrt(np.maximum(x, 0)) - np.sqrt(tri[:, b])) ** 2
+                x1 = np.maximum(0, np.sqrt(np.maximum(x1, 0)) - np.sqrt(tri[:, b])) ** 2
             use = np.isfinite(var[:, b]) if ref_ok is None else np.isfinite(var[:, b]) & ref_ok[:, b]
             x = np.where(use, x, -np.inf)
             d2 = np.where(x > d1, d1, np.maximum(d2, x))
             d1 = np.maximum(d1, x)
-        out[:, a] = np.where(np.isfinite(d2), d2, d1)
+            lone = np.where(use, x1, lone)
+            m += use
+        out[:, a] = np.where(m >= 2, d2, np.where(m == 1, lone, -np.inf))
     return out
 
 

@@ -102,6 +102,51 @@ static void test_same_plane(void **state) {
   assert_int_equal(ksel_same_plane(out, N), 0);
 }
 
+/* The drift's two witnesses (drift_of, kselect.c), exact: candidate a's
+ * normal is z and candidate j's tilted from it with sin^2 = s_j, so each
+ * term is s_j - c (V(j) - V(a)). With a = 3 smaller candidates the second
+ * largest at c2 = (3 + ln 3) / 2; one wrong small candidate (s = 0.75) no
+ * longer decides, as the maximum did. With one assessed smaller candidate
+ * its term at c = 3; with none, -inf; two equal largest terms give that
+ * value. */
+#define NEAR(x, y) (fabs((x) - (y)) < 1e-12)
+static void set_tilt(double *n, double s) {
+  n[0] = sqrt(s), n[1] = 0, n[2] = sqrt(1 - s);
+}
+static void test_drift_of(void **state) {
+  (void)state;
+  double nrm[12], var[4] = {0.02, 0.006, 0.004, 0.002};
+  const double s[3] = {0.75, 0.01, 0.004};
+  for (int j = 0; j < 3; j++)
+    set_tilt(&nrm[3 * j], s[j]);
+  set_tilt(&nrm[9], 0);
+  const double c2 = (3 + log(3.0)) / 2;
+  assert_true(NEAR(drift_of(nrm, var, 3), 0.01 - c2 * 0.004));
+  assert_true(NEAR(drift_of(nrm, var, 3), 0.0018027754226638));
+  /* the old maximum would have been the wrong candidate's term */
+  assert_true(0.75 - (3 + log(3.0)) * 0.018 > 0.6);
+  /* one assessed smaller candidate (the others unassessed): its term at 3 */
+  var[0] = var[1] = INFINITY;
+  assert_true(NEAR(drift_of(nrm, var, 3), 0.004 - 3 * 0.002));
+  /* none */
+  var[2] = INFINITY;
+  assert_true(isinf(drift_of(nrm, var, 3)) && drift_of(nrm, var, 3) < 0);
+  /* a = 1: the single comparison, c = 3 */
+  const double v1[2] = {0.02, 0.006};
+  double n1[6];
+  set_tilt(&n1[0], 0.75);
+  set_tilt(&n1[3], 0);
+  assert_true(NEAR(drift_of(n1, v1, 1), 0.75 - 3 * 0.014));
+  /* a = 0: nothing to compare with */
+  assert_true(isinf(drift_of(n1, v1, 0)));
+  /* two equal largest terms: that value */
+  double n2[9], v2[3] = {0.01, 0.01, 0.002};
+  set_tilt(&n2[0], 0.3);
+  set_tilt(&n2[3], 0.3);
+  set_tilt(&n2[6], 0);
+  assert_true(NEAR(drift_of(n2, v2, 2), 0.3 - (3 + log(1.0)) / 2 * 0.008));
+}
+
 static uint64_t rng_state = 88172645463325252ull;
 static double unif(void) { /* xorshift64*, (0, 1) */
   rng_state ^= rng_state >> 12, rng_state ^= rng_state << 25, rng_state ^= rng_state >> 27;
@@ -343,10 +388,10 @@ static void test_cube_crease(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_gate_exact),  cmocka_unit_test(test_thin_exact),
-      cmocka_unit_test(test_same_plane),  cmocka_unit_test(test_disc_level),
-      cmocka_unit_test(test_thin_level),  cmocka_unit_test(test_plane_silent),
-      cmocka_unit_test(test_cube_crease),
+      cmocka_unit_test(test_gate_exact),   cmocka_unit_test(test_thin_exact),
+      cmocka_unit_test(test_same_plane),   cmocka_unit_test(test_drift_of),
+      cmocka_unit_test(test_disc_level),   cmocka_unit_test(test_thin_level),
+      cmocka_unit_test(test_plane_silent), cmocka_unit_test(test_cube_crease),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -133,6 +133,7 @@ static inline int ksel_ndeg(const bsurf_kselect_options *o) {
 
 #define curve_sampled bsurf_i_ksel_curve_sampled
 #define drift_tol bsurf_i_ksel_drift_tol
+#define drift_of bsurf_i_ksel_drift_of
 #define ksel_ties bsurf_i_ksel_ties
 #define poly_point bsurf_i_ksel_poly_point
 #define poly_alloc bsurf_i_ksel_poly_alloc
@@ -144,8 +145,15 @@ static inline int ksel_ndeg(const bsurf_kselect_options *o) {
 int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, const int *ks, int nk,
                   int *curve);
 /* The drift's allowance for a candidate compared with `a` less biased ones
- * (kselect.c, the top of the file: a test at level exp(-3) for all a). */
+ * by their maximum, DRIFT_TOL + ln(a) (kselect.c, the top of the file: a
+ * test at level exp(-3) for all a); the rule itself uses drift_tol(1), a
+ * single comparison's, and drift_of's two witnesses. */
 double drift_tol(int a);
+/* The drift of candidate a (normals nrm[3 a..], variances var[a]) against
+ * the smaller candidates 0..a-1 with a finite variance: the second largest
+ * of sin^2 - c2 (V(j) - V(a)) over two or more, the single term at
+ * drift_tol(1) over one, -inf over none (kselect.c, "two witnesses"). */
+double drift_of(const double *nrm, const double *var, int a);
 /* After pass 3's criterion s->mse of the ncand candidates (s->var finite:
  * assessed; s->nrm their normals): best (the smallest, -1 for none: then
  * `fallback`, counted unassessed) and the candidates tied with it, stored

@@ -44,11 +44,13 @@
  *  - Bias beyond the polynomials (D: an edge, the far side of a thin
  *    part): the drift over K at one degree, by the same identity between
  *    nested samples (the larger sample's fit is efficient), as the PCA
- *    rule's drift: D(K, d) = max_{K' < K} sin^2(n_K', n_K) - c (V(K') -
- *    V(K)), with c = drift_tol(1) = 3, the level e^-3 of one comparison:
- *    the drifts of one point's nested neighbourhoods are strongly
- *    correlated, so Bonferroni's ln(a) (the PCA rule's) charged too little
- *    here (docs/normals.md, "Choosing K and the degree", gives both).
+ *    rule's drift was before its two witnesses (kselect.c, drift_of; this
+ *    rule keeps the maximum): D(K, d) = max_{K' < K} sin^2(n_K', n_K) - c
+ *    (V(K') - V(K)), with c = drift_tol(1) = 3, the level e^-3 of one
+ *    comparison: the drifts of one point's nested neighbourhoods are
+ *    strongly correlated, so Bonferroni's ln(a) (the PCA rule's maximum's)
+ *    charged too little here (docs/normals.md, "Choosing K and the degree",
+ *    gives both).
  *  - The criterion is M(K, d) = V + max(Q, D, 0); the candidates within
  *    the tie band of the smallest are told apart by the neighbours' first
  *    choices (kselect.c, ksel_ties, tie_point). Candidates whose K reads
