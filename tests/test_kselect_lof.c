@@ -121,12 +121,13 @@ static void test_drift_of(void **state) {
     set_tilt(&nrm[3 * j], s[j]);
   set_tilt(&nrm[9], 0);
   const double c2 = (3 + log(3.0)) / 2;
-  assert_true(NEAR(drift_of(nrm, var, 3), 0.01 - c2 * 0.004));
-  assert_true(NEAR(drift_of(nrm, var, 3), 0.0018027754226638));
-  /* the old maximum would have been the wrong candidate's term */
-  assert_true(0.75 - (3 + log(3.0)) * 0.018 > 0.6);
+  assert_true(NEAR(drift_of(nrm, var, 3), 0.01 - c2 * 0.004)); /* 0.0018027754226638 */
+  /* the wrong candidate unassessed: the second largest of the other two,
+   * still at c2 of a = 3 */
+  var[0] = INFINITY;
+  assert_true(NEAR(drift_of(nrm, var, 3), 0.004 - c2 * 0.002));
   /* one assessed smaller candidate (the others unassessed): its term at 3 */
-  var[0] = var[1] = INFINITY;
+  var[1] = INFINITY;
   assert_true(NEAR(drift_of(nrm, var, 3), 0.004 - 3 * 0.002));
   /* none */
   var[2] = INFINITY;

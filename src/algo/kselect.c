@@ -423,22 +423,19 @@ int curve_sampled(const double *xyz, const uint32_t *idx, size_t i, const int *k
  * DRIFT_TOL, a single comparison's level; with none, -inf (no drift). */
 double drift_of(const double *nrm, const double *var, int a) {
   double d1 = -INFINITY, d2 = -INFINITY, lone = -INFINITY; /* the largest two; m = 1's */
-  const double c2 = a >= 2 ? 0.5 * (DRIFT_TOL + log(0.5 * a * (a - 1))) : drift_tol(1);
+  const double c2 = a >= 2 ? 0.5 * (DRIFT_TOL + log(0.5 * a * (a - 1))) : DRIFT_TOL;
   int m = 0;
   for (int b = 0; b < a; b++) {
     if (!isfinite(var[b])) continue;
-    const double dot =
-        nrm[3 * a] * nrm[3 * b] + nrm[3 * a + 1] * nrm[3 * b + 1] + nrm[3 * a + 2] * nrm[3 * b + 2];
-    const double sn = 1.0 - dot * dot, dv = var[b] - var[a];
+    const double sn = ksel_sin2(&nrm[3 * a], &nrm[3 * b]), dv = var[b] - var[a];
     const double d = sn - c2 * dv;
     if (d > d1)
       d2 = d1, d1 = d;
     else if (d > d2)
       d2 = d;
-    lone = sn - drift_tol(1) * dv;
-    m++;
+    if (!m++) lone = sn - DRIFT_TOL * dv; /* drift_tol(1), used only where m = 1 */
   }
-  return m >= 2 ? d2 : m == 1 ? lone : -INFINITY;
+  return m >= 2 ? d2 : lone; /* lone is -inf where m = 0 */
 }
 
 #ifdef BSURF_KSEL_TRACE
@@ -646,8 +643,7 @@ void tie_point(void *vctx, int thread, size_t i) {
        * choice (0 where unassessed: M infinite) */
       const double w = 1.0 / c->fmref[r];
       const double *nr = &c->fref[3 * (size_t)r];
-      const double dot = na[0] * nr[0] + na[1] * nr[1] + na[2] * nr[2];
-      t += w * (1.0 - dot * dot);
+      t += w * ksel_sin2(na, nr);
       wsum += w;
     }
     if (!(wsum > 0)) break; /* no assessed reference: the first choice */

@@ -181,8 +181,7 @@ void ksel_emp_bias(const ksel_ctx *c, const uint32_t *idx, const double *nrm, co
       const double w = 1.0 / c->bmref[r];
       if (!(w > 0)) continue;
       const double *nr = &c->bref[3 * (size_t)r];
-      const double dot = na[0] * nr[0] + na[1] * nr[1] + na[2] * nr[2];
-      t += w * (1.0 - dot * dot);
+      t += w * ksel_sin2(na, nr);
     }
     const double b = t / wsum - R - var[a];
     eb[a] = b > 0 ? b : 0;

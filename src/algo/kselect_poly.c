@@ -115,12 +115,6 @@ static double poly_candidate(const bsurf_localfit *lf, const bsurf_frame *f, int
   return s2 * (gi[0] + gi[2]) * inv * inv;
 }
 
-/* sin^2 of the angle between two unit vectors */
-static double sin2(const double *a, const double *b) {
-  const double dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-  return 1.0 - dot * dot;
-}
-
 void poly_point(void *vctx, int thread, size_t i) {
   ksel_ctx *c = vctx;
   ksel_scratch *s = &c->scr[thread];
@@ -171,13 +165,13 @@ void poly_point(void *vctx, int thread, size_t i) {
     for (int e = 0; e < nd; e++)
       if (o->ds[e] > da && isfinite(var[ka * nd + e]) && (up < 0 || o->ds[e] < o->ds[up % nd]))
         up = ka * nd + e;
-    double b2 = up >= 0 ? sin2(na, &nrm[3 * up]) - (var[up] - var[a]) : 0;
+    double b2 = up >= 0 ? ksel_sin2(na, &nrm[3 * up]) - (var[up] - var[a]) : 0;
     /* D: the drifts from the smaller K at the same degree (Lepski), each
      * at the level of one comparison (the top of the file) */
     const double tol = drift_tol(1);
     for (int r = a % nd; r < a; r += nd) {
       if (!isfinite(var[r])) continue;
-      const double d = sin2(na, &nrm[3 * r]) - tol * (var[r] - var[a]);
+      const double d = ksel_sin2(na, &nrm[3 * r]) - tol * (var[r] - var[a]);
       if (d > b2) b2 = d;
     }
     mse[a] = var[a] + (b2 > 0 ? b2 : 0);
