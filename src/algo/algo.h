@@ -251,6 +251,19 @@ bsurf_status bsurf_ksel_noise(bsurf_ksel_run *r, const double *xyz, const bsurf_
 bsurf_status bsurf_ksel_pool(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
                              const double *s2, double *noise);
 bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n);
+/* The cloud's noise variance as the MSE rule reads it (passes 1, 2 and 2b
+ * on every row of nb, a whole cloud's table with nb->k >= the candidates'
+ * largest K; opts->noise_pool GLOBAL): *level (NAN on failure), and
+ * *sections, the points whose neighbourhoods pass 2 found section-sampled
+ * (bsurf_ksel_sections). The smoothing guard's second reading of the noise
+ * (smooth.c). */
+bsurf_status bsurf_ksel_cloud_noise(const double *xyz, const bsurf_neighbors *nb,
+                                    const bsurf_kselect_options *opts, double *level,
+                                    size_t *sections);
+/* Of n points' pooled values (bsurf_ksel_pool's, 2 n), those with a
+ * cross-section level: their K_max neighbours are section-sampled beyond
+ * chance (kselect_noise.c, pool_point). */
+size_t bsurf_ksel_sections(const double *pooled, size_t n);
 /* A point's LOCAL level from its two pooled values (kselect_noise.c): the
  * cross-section's where there is one, else the quadric's. */
 double bsurf_ksel_point_level(const double pooled[2]);

@@ -172,6 +172,47 @@ int bsurf_ksel_empirical(const bsurf_ksel_run *r) {
   return r->o.nd == 0; /* the PCA candidates' (kselect_lof.c) */
 }
 
+/* Passes 1, 2 and 2b on every point of the cloud (nb's rows): noise (2 n)
+ * holds the level of each point, noise[0 .. n) (bsurf_ksel_level). */
+static bsurf_status noise_passes(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
+                                 double *noise, size_t *sections) {
+  const size_t n = nb->point_count;
+  double *s2 = bsurf_alloc_array(n ? n : 1, 2 * sizeof(double));
+  bsurf_status st = s2 ? BSURF_OK : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) st = bsurf_ksel_noise(r, xyz, nb, s2);
+  if (st == BSURF_OK) st = bsurf_ksel_pool(r, xyz, nb, s2, noise);
+  free(s2);
+  if (st == BSURF_OK && sections) *sections = bsurf_ksel_sections(noise, n);
+  if (st == BSURF_OK) st = bsurf_ksel_level(r, noise, n);
+  return st;
+}
+
+size_t bsurf_ksel_sections(const double *pooled, size_t n) {
+  size_t ns = 0;
+  for (size_t i = 0; i < n; i++)
+    ns += !isnan(pooled[2 * i + 1]);
+  return ns;
+}
+
+bsurf_status bsurf_ksel_cloud_noise(const double *xyz, const bsurf_neighbors *nb,
+                                    const bsurf_kselect_options *opts, double *level,
+                                    size_t *sections) {
+  *level = NAN;
+  *sections = 0;
+  bsurf_ksel_run *r = NULL;
+  bsurf_status st = bsurf_ksel_open(opts, nb->k, 0, &r);
+  if (st != BSURF_OK) return st;
+  const size_t n = nb->point_count;
+  double *noise = (size_t)r->kmax <= n ? bsurf_alloc_array(n, 2 * sizeof(double)) : NULL;
+  st = (size_t)r->kmax > n ? BSURF_ERR_TOO_FEW_POINTS
+       : noise             ? noise_passes(r, xyz, nb, noise, sections)
+                           : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) *level = noise[0];
+  free(noise);
+  bsurf_ksel_close(r);
+  return st;
+}
+
 bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
                             const bsurf_kselect_options *opts, bsurf_kselect_fields *out,
                             bsurf_kselect_report *report) {
@@ -188,16 +229,11 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
     return BSURF_ERR_TOO_FEW_POINTS;
   }
   /* the noise passes, then the selection and the tie-break */
-  double *s2 = bsurf_alloc_array(n, 2 * sizeof(double));
   double *noise = bsurf_alloc_array(n, 2 * sizeof(double));
-  st = s2 && noise ? BSURF_OK : BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_ksel_noise(r, xyz, nb, s2);
-  if (st == BSURF_OK) st = bsurf_ksel_pool(r, xyz, nb, s2, noise);
-  free(s2);
-  if (st == BSURF_OK) st = bsurf_ksel_level(r, noise, n);
-    /* the selection and the tie-break: with the empirical bias where the
-     * quadric does not fit (kselect_lof.c), its references the first
-     * choices without it */
+  st = noise ? noise_passes(r, xyz, nb, noise, NULL) : BSURF_ERR_NOMEM;
+  /* the selection and the tie-break: with the empirical bias where the
+   * quadric does not fit (kselect_lof.c), its references the first
+   * choices without it */
 #ifdef BSURF_KSEL_TRACE
   /* the developer's trace (kselect.c, scripts/ksel_replay.py) records every
    * point's last pass with its references: the two full passes, the same

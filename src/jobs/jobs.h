@@ -35,12 +35,14 @@ struct bsurf_ksel_run; /* algo/algo.h */
 /* The MSE rule's first tiled stage (normals_mse_tiled.c, docs/scaling.md):
  * each point's pooled noise (pass 1 on the tiles' rings too, then pass 2),
  * kept in *pooled for the last stage, and with the GLOBAL pool the level,
- * their median read back; K = k (the job's K_max, the ring's too). tr: the
- * stage's report. */
+ * their median read back, and (sections non-NULL) the count of points
+ * whose neighbourhoods it found section-sampled (bsurf_ksel_sections);
+ * K = k (the job's K_max, the ring's too). tr: the stage's report. */
 bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_options *ko, int k,
                                    int threads, bsurf_progress_fn progress, void *progress_user,
                                    struct bsurf_ksel_run *run, bsurf_tile_values *pooled,
-                                   double *level, bsurf_tile_report *tr, bsurf_failure *err);
+                                   double *level, size_t *sections, bsurf_tile_report *tr,
+                                   bsurf_failure *err);
 /* The rings the last stage needs (its ring_k is the noise_k): 2 with the
  * empirical bias (bsurf_ksel_empirical: its references are the first
  * choices without it at the noise_k nearest of the points whose first

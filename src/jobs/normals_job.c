@@ -403,8 +403,9 @@ static bsurf_status normals_tiled(const bsurf_job_io *io, normals_job *job,
   if (job->ksel.rule == BSURF_KSELECT_MSE) { /* two stages (normals_mse_tiled.c) */
     st = bsurf_ksel_open(&job->ksel, job->kmax, 1, &job->mse_run);
     if (st == BSURF_OK)
-      st = bsurf_jobs_mse_stages(io, &job->ksel, job->kmax, job->no.threads, progress,
-                                 progress_user, job->mse_run, &refs, &job->mse_level, &tr, err);
+      st =
+          bsurf_jobs_mse_stages(io, &job->ksel, job->kmax, job->no.threads, progress, progress_user,
+                                job->mse_run, &refs, &job->mse_level, NULL, &tr, err);
   } else if (job->test_error) {
     bsurf_jobs_tile_ops(&ops, io, job->k_ref, job->no.threads, progress, progress_user, job);
     ops.run = normals_ref_run;

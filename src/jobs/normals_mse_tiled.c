@@ -76,7 +76,7 @@ static bsurf_status noise_run(void *user, const bsurf_tile *t, bsurf_cloud *core
 bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_options *ko, int k,
                                    int threads, bsurf_progress_fn progress, void *progress_user,
                                    bsurf_ksel_run *run, bsurf_tile_values *pooled, double *level,
-                                   bsurf_tile_report *tr, bsurf_failure *err) {
+                                   size_t *sections, bsurf_tile_report *tr, bsurf_failure *err) {
   mse_stages m = {run};
   bsurf_tile_ops ops;
   bsurf_jobs_tile_ops(&ops, io, k, threads, progress, progress_user, &m);
@@ -90,11 +90,15 @@ bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_o
    * their median, in-memory pass 2b on the same array); the ranks agree on
    * a failure before the next collective run */
   *level = 0;
-  if (st == BSURF_OK && ko->noise_pool == BSURF_NOISE_POOL_GLOBAL) {
+  if (sections) *sections = 0;
+  if (st == BSURF_OK && (ko->noise_pool == BSURF_NOISE_POOL_GLOBAL || sections)) {
     double *all = bsurf_alloc_array(pooled->count ? pooled->count : 1, 2 * sizeof(double));
     st = all ? bsurf_tile_values_read(pooled, 0, pooled->count, all) : BSURF_ERR_NOMEM;
-    if (st == BSURF_OK) st = bsurf_ksel_level(run, all, pooled->count);
-    if (st == BSURF_OK) *level = pooled->count ? all[0] : 0;
+    if (st == BSURF_OK && sections) *sections = bsurf_ksel_sections(all, pooled->count);
+    if (st == BSURF_OK && ko->noise_pool == BSURF_NOISE_POOL_GLOBAL) {
+      st = bsurf_ksel_level(run, all, pooled->count);
+      if (st == BSURF_OK) *level = pooled->count ? all[0] : 0;
+    }
     free(all);
     if (io->comm && io->comm->max(io->comm->user, st != BSURF_OK) && st == BSURF_OK)
       st = BSURF_ERR_IO;
