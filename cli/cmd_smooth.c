@@ -155,7 +155,10 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "points' residuals, is made again from fewer points, or moves nothing; a fit whose "
        "residual variance shows more misfit than noise -- above twice the cloud's noise "
        "variance, the lower decile over the fits (each scaled by the share of the noise its "
-       "interval and its K-ball keep), at the 5% level -- moves nothing) or off "
+       "interval and its K-ball keep), or the larger of that and the level normals --select-k "
+       "reads where the fits are blind to the noise (more than 5% of the points' 80 nearest "
+       "cross-sections of the surface, as a CAD mesh's vertices on rings, or a tenth of the "
+       "fits reading under a hundredth of that level), at the 5% level -- moves nothing) or off "
        "(the thesis's methods as written)",
        1, 0},
       {0, "degree-test", ARG_STRING, &dtest, "T",
@@ -342,6 +345,9 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
     if (so.guard) {
       json_num(&j, "noise", rep.noise);
       json_num(&j, "noise_h", rep.noise / hh);
+      json_num(&j, "noise_fits", rep.noise_fits);
+      json_num(&j, "noise_select", rep.noise_select);
+      json_num(&j, "section_share", rep.section_share);
       json_int(&j, "misfit_fits", (long long)rep.misfit_fits);
     }
     json_int(&j, "replicates_skipped", (long long)rep.error.replicates_skipped);
@@ -375,9 +381,18 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
              rep.iterations, rep.iterations == 1 ? "" : "es",
              strcmp(a_text, "auto") ? a_text : "(1.5 sqrt(pi / K_i))", rep.h2, rep.h2 / hh,
              so.k_min, rep.k > 0 ? rep.k : so.error.k);
-    if (so.guard)
-      printf("  guard: noise %.6g (%.4g h), %zu fits with more misfit than noise moved nothing\n",
-             rep.noise, rep.noise / hh, rep.misfit_fits);
+    if (so.guard) {
+      char sel[64];
+      if (isnan(rep.noise_select))
+        snprintf(sel, sizeof sel, "none (80 points or fewer)");
+      else
+        snprintf(sel, sizeof sel, "%.4g h", rep.noise_select / hh);
+      printf("  guard: noise %.6g (%.4g h; the fits read %.4g h, the K selection %s, %.1f%% of "
+             "the points on cross-sections), %zu fits with more misfit than noise moved "
+             "nothing\n",
+             rep.noise, rep.noise / hh, rep.noise_fits / hh, sel, 100 * rep.section_share,
+             rep.misfit_fits);
+    }
     printf("  moved %zu points: mean %.4g h, max %.4g h\n", rep.moved_points, rep.moved_mean / hh,
            rep.moved_max / hh);
     cli_print_footer(output);

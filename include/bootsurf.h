@@ -730,7 +730,19 @@ typedef struct bsurf_smooth_report {
   size_t moved_points;          /* points whose position changed */
   double moved_mean, moved_max; /* displacement over all points */
   int iterations;               /* multipass: passes run */
-  double noise;                 /* the guard's noise estimate sigma (NAN: guard off) */
+  double noise;                 /* the guard's noise estimate sigma (NAN: guard off):
+                                   noise_fits, or the larger of the two below where
+                                   the fits are blind to the noise (more than 5% of
+                                   the points' neighbourhoods cross-sections,
+                                   section_share, or a tenth of the fits reading under
+                                   a hundredth of noise_select^2); docs/smoothing.md,
+                                   "Two readings of the noise" */
+  double noise_fits;            /* sigma read by the sheet fits (their residual
+                                   variances' lower decile) */
+  double noise_select;          /* sigma read by the K selection's noise passes
+                                   (bsurf_select_k's level; NAN: 80 points or fewer) */
+  double section_share;         /* the share of points whose 80 nearest the selection
+                                   found section-sampled */
   size_t misfit_fits;           /* the guard's misfit test: fits of the first stage
                                    with more misfit than noise (they move nothing) */
   int k;                        /* the neighbourhood size used (error.k, or the scale

@@ -405,15 +405,21 @@ static void test_smooth_plan(void **state) {
   assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
   assert_true(sp.point_bytes == 24 + 252 + 1604 + 252 + 60 && sp.k_max_bytes == 4);
   /* bilateral (fits 8 x 24 + 4, guard 32; e2, w2, reverse lists 8 + 4 K) and
-   * naive (the guard's records) */
+   * naive (the guard's records): below the guard's second reading of the
+   * noise, the 80-neighbourhoods (4 x 80) and its passes' values (32) held
+   * with stage 1's records */
   o = bsurf_smooth_job_options_default();
   o.smooth.method = BSURF_SMOOTH_BILATERAL;
   assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
   assert_true(sp.method == BSURF_SMOOTH_BILATERAL && sp.k_max == 50 && sp.field_count == 3);
-  assert_true(sp.point_bytes == 24 + 228 + 224);
+  assert_true(sp.point_bytes == 24 + 228 + 320 + 32);
+  o.smooth.guard = 0; /* no second reading */
+  assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
+  assert_true(sp.point_bytes == 24 + 196 + 224);
+  o.smooth.guard = 1;
   o.smooth.method = BSURF_SMOOTH_NAIVE;
   assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
-  assert_true(sp.point_bytes == 24 + 32);
+  assert_true(sp.point_bytes == 24 + 32 + 320 + 32);
   /* refused as the job refuses them */
   o = bsurf_smooth_job_options_default();
   o.smooth.k_max = 20;

@@ -13,7 +13,8 @@
 #include <string.h>
 
 #include "bootsurf.h"
-#include "algo/algo.h" /* bsurf_smooth_tuned */
+#include "algo/algo.h"          /* bsurf_smooth_tuned */
+#include "algo/smooth_stages.h" /* bsurf_smooth_noise_level */
 
 static const bsurf_smooth_method methods[3] = {BSURF_SMOOTH_NAIVE, BSURF_SMOOTH_BILATERAL,
                                                BSURF_SMOOTH_MULTIPASS};
@@ -438,6 +439,106 @@ static void test_noise_estimate(void **state) {
 #define BOUND_DEFAULT 0.120
 #define BOUND_MULTIPASS 0.120
 #define BOUND_NO_TEST 0.155
+/* The guard's two readings of the noise (bsurf_smooth_noise_level,
+ * docs/smoothing.md, "Two readings"), exactly: the sheet fits' reading
+ * stands unless the selection's is larger and the fits are blind to the
+ * noise -- more than 5% of the points on cross-sections, or a tenth of the
+ * fits reading less than a hundredth of the selection's level (their
+ * variance, scaled by the share g of the noise their interval keeps; a
+ * ball a thousand sigma wide keeps all of it); exact data (the fits'
+ * reading 0) stay exact. */
+static void test_noise_readings(void **state) {
+  (void)state;
+  enum { N = 40 };
+  double sv[4 * N];
+  for (int i = 0; i < N; i++) { /* records s^2, nu, g, R about a noise of 1 */
+    sv[4 * i] = 1.0 + 0.01 * i, sv[4 * i + 1] = 20, sv[4 * i + 2] = 0.9, sv[4 * i + 3] = 1e3;
+  }
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 0.8);  /* no sign */
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.06) == 2.0); /* sections */
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.05) == 0.8); /* not above 5% */
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 0.5, 1.0) == 0.8);  /* the larger */
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.0, 2.0, 1.0) == 0.0);  /* exact data */
+  assert_true(isnan(bsurf_smooth_noise_level(sv, N, 4, NAN, 2.0, 1.0)));  /* no fits */
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, NAN, 1.0) == 0.8);  /* no selection */
+  /* blind fits: below 0.01 x 2.0 x g = 0.018; three of 40 are not a tenth, four are;
+   * 0.0181 is not below */
+  for (int i = 0; i < 3; i++)
+    sv[4 * i] = 0.0179;
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 0.8);
+  sv[4 * 3] = 0.0181;
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 0.8);
+  sv[4 * 3] = 0.0179;
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 2.0);
+  sv[4 * 4 + 1] = 0; /* a record without degrees of freedom is no fit: 4 of 39 */
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 2.0);
+}
+
+/* A cylinder sampled on rings, as a turned part's mesh vertices are: 60
+ * rings of 60 points at arc spacing s, 5 s apart, with gaussian noise of
+ * 0.3 s along the (radial) normal, which stays within each ring's plane. A
+ * point's 12 nearest are an arc of its ring whose plane holds the noise, and
+ * the sheet fits' reading of the noise collapses (measured 0.013 sigma), at
+ * which nearly every fit would show "more misfit than noise" and move
+ * nothing. A tenth of the fits read less than a hundredth of the
+ * selection's level (0.935 sigma), so the guard takes that, and the points
+ * move nearer the cylinder (0.237 s -> 0.153 s). Rings 4 s apart (the
+ * nearest reach the next ring) keep the fits' reading (0.80 sigma; 0.237 s
+ * -> 0.080 s). */
+#define RING_PI 3.14159265358979323846
+static void ring_cylinder(double gap, double *xyz, double *nrm, size_t *n) {
+  const int rings = 60, per = 60;
+  const double s = 2 * RING_PI / per;
+  size_t m = 0;
+  for (int r = 0; r < rings; r++)
+    for (int j = 0; j < per; j++, m++) {
+      const double t = (j + 0.5 * (r % 2)) * s;
+      xyz[3 * m] = cos(t), xyz[3 * m + 1] = sin(t), xyz[3 * m + 2] = r * gap * s;
+      nrm[3 * m] = cos(t), nrm[3 * m + 1] = sin(t), nrm[3 * m + 2] = 0;
+    }
+  assert_int_equal(bsurf_add_noise(xyz, nrm, m, BSURF_NOISE_GAUSSIAN, 0.3, s, 41), BSURF_OK);
+  *n = m;
+}
+static double ring_distance(const double *xyz, size_t n) {
+  double e = 0;
+  for (size_t i = 0; i < n; i++)
+    e += fabs(hypot(xyz[3 * i], xyz[3 * i + 1]) - 1.0);
+  return e / (double)n;
+}
+static void test_noise_rings(void **state) {
+  (void)state;
+  const size_t N = 3600;
+  const double s = 2 * RING_PI / 60, sigma = 0.3 * s;
+  double *xyz = malloc(N * 3 * sizeof(double)), *nrm = malloc(N * 3 * sizeof(double));
+  double *out = malloc(N * 3 * sizeof(double));
+  assert_non_null(xyz && nrm && out);
+  for (int gap = 5; gap >= 4; gap--) {
+    size_t n;
+    ring_cylinder(gap, xyz, nrm, &n);
+    assert_true(n == N);
+    bsurf_smooth_report rep;
+    smooth_default_k50(xyz, n, out, &rep);
+    const double e0 = ring_distance(xyz, n), e = ring_distance(out, n);
+    print_message("rings %d s apart: noise %.3f sigma (fits %.3f, selection %.3f, sections "
+                  "%.3f), %zu misfit fits; %.4f s -> %.4f s\n",
+                  gap, rep.noise / sigma, rep.noise_fits / sigma, rep.noise_select / sigma,
+                  rep.section_share, rep.misfit_fits, e0 / s, e / s);
+    assert_true(fabs(rep.noise_select - sigma) < 0.2 * sigma);
+    if (gap == 5) {
+      assert_true(rep.noise_fits < 0.05 * sigma);
+      assert_true(rep.noise == rep.noise_select);
+      assert_true(e < 0.75 * e0);
+    } else {
+      assert_true(rep.noise == rep.noise_fits);
+      assert_true(fabs(rep.noise_fits - sigma) < 0.25 * sigma);
+      assert_true(e < 0.5 * e0);
+    }
+  }
+  free(xyz);
+  free(nrm);
+  free(out);
+}
+
 static void test_cube_distance(void **state) {
   (void)state;
   bsurf_cloud c;
@@ -885,6 +986,8 @@ int main(void) {
       cmocka_unit_test(test_thin_sheets_heavy),
       cmocka_unit_test(test_thin_sheets_mixed),
       cmocka_unit_test(test_noise_estimate),
+      cmocka_unit_test(test_noise_readings),
+      cmocka_unit_test(test_noise_rings),
       cmocka_unit_test(test_cube_distance),
       cmocka_unit_test(test_clean_cube_stays),
       cmocka_unit_test(test_naive_threshold),

@@ -864,20 +864,22 @@ static PyObject *py_smooth(PyObject *self, PyObject *args) {
       points, fields,
       job_summary(
           s.points, s.h, s.duplicates, s.tile_points, s.tiles,
-          Py_BuildValue("{s:s,s:s,s:N,s:N}", "method",
-                        s.method == BSURF_SMOOTH_NAIVE       ? "naive"
-                        : s.method == BSURF_SMOOTH_BILATERAL ? "bilateral"
-                                                             : "multipass",
-                        "estimator", s.estimator ? s.estimator : "", "means",
-                        means_dict(s.field_names, s.means, s.field_count), "report",
-                        Py_BuildValue("{s:N,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:d,s:d,s:i,s:d,s:n,s:i}",
-                                      "error", report_error(&r->error), "mean_error", r->mean_error,
-                                      "threshold", r->threshold, "h1", r->h1, "h2", r->h2,
-                                      "k_error", r->k_error, "projected", (Py_ssize_t)r->projected,
-                                      "moved_points", (Py_ssize_t)r->moved_points, "moved_mean",
-                                      r->moved_mean, "moved_max", r->moved_max, "iterations",
-                                      r->iterations, "noise", r->noise, "misfit_fits",
-                                      (Py_ssize_t)r->misfit_fits, "k", r->k))));
+          Py_BuildValue(
+              "{s:s,s:s,s:N,s:N}", "method",
+              s.method == BSURF_SMOOTH_NAIVE       ? "naive"
+              : s.method == BSURF_SMOOTH_BILATERAL ? "bilateral"
+                                                   : "multipass",
+              "estimator", s.estimator ? s.estimator : "", "means",
+              means_dict(s.field_names, s.means, s.field_count), "report",
+              Py_BuildValue("{s:N,s:d,s:d,s:d,s:d,s:d,s:n,s:n,s:d,s:d,s:i,s:d,s:d,s:d,s:d,s:n,s:i}",
+                            "error", report_error(&r->error), "mean_error", r->mean_error,
+                            "threshold", r->threshold, "h1", r->h1, "h2", r->h2, "k_error",
+                            r->k_error, "projected", (Py_ssize_t)r->projected, "moved_points",
+                            (Py_ssize_t)r->moved_points, "moved_mean", r->moved_mean, "moved_max",
+                            r->moved_max, "iterations", r->iterations, "noise", r->noise,
+                            "noise_fits", r->noise_fits, "noise_select", r->noise_select,
+                            "section_share", r->section_share, "misfit_fits",
+                            (Py_ssize_t)r->misfit_fits, "k", r->k))));
 }
 
 static PyObject *py_features(PyObject *self, PyObject *args) {

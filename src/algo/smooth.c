@@ -329,7 +329,8 @@ void ctx_init(smooth_ctx *c, const double *xyz, const bsurf_neighbors *nb,
   c->m = bsurf_poly_terms(c->degree);
   c->stride = FIT_HEAD + c->m;
   c->tune = bsurf_smooth_tuning_defaults();
-  c->noise = NAN;
+  c->noise = c->noise_fits = c->noise_select[0] = NAN;
+  c->noise_select[1] = 0;
 }
 
 void ctx_free(smooth_ctx *c, int T) {
@@ -378,15 +379,54 @@ static bsurf_status scale_k(const smooth_ctx *c, const bsurf_smooth_options *o, 
   long cap = o->k_max > 0 ? o->k_max : 8L * c->k;
   if (cap > 65535) cap = 65535;
   if ((size_t)cap > c->n) cap = (long)c->n;
-  *K = bsurf_scale_k(R / sqrt(c->noise), c->k, c->m, (int)cap, NULL);
+  *K = bsurf_scale_k(R / sqrt(c->noise_fits), c->k, c->m, (int)cap, NULL);
   return BSURF_OK;
 }
+
+/* The selection's reading of the cloud's noise variance (docs/smoothing.md,
+ * "The noise estimate", *Two readings*): the level `normals --select-k
+ * 10:80:5` reads with its defaults (kselect_noise.c: a local quadric's
+ * residual variance at a scale chosen per point, its misfit extrapolated
+ * away, pooled over the 80 nearest and the cloud; where the neighbourhoods
+ * are cross-sections, Taubin's conic within their plane), on the cloud's
+ * 80-neighbourhoods: level[0], and level[1] the share of the points whose
+ * neighbourhoods it found section-sampled. NAN, 0 where the cloud has no
+ * more than 80 points. */
+static bsurf_status select_noise(const double *xyz, size_t n, int T, double level[2]) {
+  level[0] = NAN, level[1] = 0;
+  if (n <= BSURF_SMOOTH_SELECT_K) return BSURF_OK;
+  bsurf_kselect_options ko;
+  bsurf_smooth_select_options(T, &ko);
+  bsurf_neighbors nb;
+  bsurf_status st = bsurf_neighbors_build(&nb, xyz, n, BSURF_SMOOTH_SELECT_K, T, NULL, NULL);
+  if (st != BSURF_OK) return st;
+  size_t ns = 0;
+  st = bsurf_ksel_cloud_noise(xyz, &nb, &ko, &level[0], &ns);
+  level[1] = (double)ns / (double)n;
+  bsurf_neighbors_free(&nb);
+  return st;
+}
+
+/* bsurf_smooth_tuned, with the selection's noise reading given (sel_given:
+ * the scale rule's second run on wider neighbourhoods reads the same cloud)
+ * or NULL (read here) */
+static bsurf_status smooth_run(const double *xyz, const bsurf_neighbors *nb,
+                               const bsurf_smooth_options *opts, const bsurf_smooth_tuning *tune,
+                               const double *sel_given, double *out_xyz,
+                               bsurf_smooth_fields *fields, bsurf_smooth_report *report);
 
 /* (its messages name bsurf_smooth, the public function) */
 bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
                                 const bsurf_smooth_options *opts, const bsurf_smooth_tuning *tune,
                                 double *out_xyz, bsurf_smooth_fields *fields,
                                 bsurf_smooth_report *report) {
+  return smooth_run(xyz, nb, opts, tune, NULL, out_xyz, fields, report);
+}
+
+static bsurf_status smooth_run(const double *xyz, const bsurf_neighbors *nb,
+                               const bsurf_smooth_options *opts, const bsurf_smooth_tuning *tune,
+                               const double *sel_given, double *out_xyz,
+                               bsurf_smooth_fields *fields, bsurf_smooth_report *report) {
   bsurf_smooth_options o = opts ? *opts : bsurf_smooth_options_default();
   if (o.method == BSURF_SMOOTH_AUTO) o.method = BSURF_SMOOTH_MULTIPASS; /* in memory */
   if (report) memset(report, 0, sizeof *report);
@@ -514,8 +554,14 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
       st = BSURF_ERR_NOMEM;
       goto done;
     }
-    c.noise = guard_noise(c.svar, n, BSURF_SMOOTH_SV, scratch);
+    c.noise_fits = guard_noise(c.svar, n, BSURF_SMOOTH_SV, scratch);
     free(scratch);
+    if (sel_given)
+      c.noise_select[0] = sel_given[0], c.noise_select[1] = sel_given[1];
+    else if ((st = select_noise(xyz, n, T, c.noise_select)) != BSURF_OK)
+      goto done;
+    c.noise = bsurf_smooth_noise_level(c.svar, n, BSURF_SMOOTH_SV, c.noise_fits, c.noise_select[0],
+                                       c.noise_select[1]);
     for (size_t i = 0; i < n; i++)
       if (guard_misfit(&c.svar[BSURF_SMOOTH_SV * i], c.noise)) {
         misfit++;
@@ -523,7 +569,7 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
           memcpy(&out_xyz[3 * i], &xyz[3 * i], 3 * sizeof(double));
       }
   }
-  if (o.method == BSURF_SMOOTH_MULTIPASS && c.noise > 0 && o.k_max != c.k) {
+  if (o.method == BSURF_SMOOTH_MULTIPASS && c.noise_fits > 0 && o.k_max != c.k) {
     /* the scale rule (ball_scale.c): where the noise is heavy against the
      * K-ball, the method runs again on wider neighbourhoods */
     int K = c.k;
@@ -535,7 +581,7 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
       bsurf_neighbors nb2;
       st = bsurf_neighbors_build(&nb2, xyz, n, K, T, NULL, NULL);
       if (st == BSURF_OK) {
-        st = bsurf_smooth_tuned(xyz, &nb2, &o2, tune, out_xyz, fields, report);
+        st = smooth_run(xyz, &nb2, &o2, tune, c.noise_select, out_xyz, fields, report);
         bsurf_neighbors_free(&nb2);
       }
       goto done;
@@ -555,6 +601,9 @@ bsurf_status bsurf_smooth_tuned(const double *xyz, const bsurf_neighbors *nb,
     report->h = nb->h;
     report->mean_error = meanW;
     report->noise = c.svar ? sqrt(c.noise) : NAN;
+    report->noise_fits = c.svar ? sqrt(c.noise_fits) : NAN;
+    report->noise_select = c.svar ? sqrt(c.noise_select[0]) : NAN;
+    report->section_share = c.svar ? c.noise_select[1] : NAN;
     report->misfit_fits = misfit;
     report->k = c.k;
   }

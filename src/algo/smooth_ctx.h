@@ -167,7 +167,11 @@ typedef struct smooth_ctx {
   double *w2;       /* n: theta_2(W_i) itself (the weight at distance 0) */
   double *inv_h1sq; /* n: 1 / h1_i^2 (0 when h1_i = 0) */
   double h1, h2, k_error;
-  double noise; /* the guard's noise variance of the cloud (guard_noise; NAN: not tested) */
+  double noise;      /* the guard's noise variance of the cloud (bsurf_smooth_noise_level of the
+                        two below; NAN: not tested) */
+  double noise_fits; /* its reading from the sheet fits (guard_noise) */
+  double noise_select[2]; /* its reading by the K selection's noise passes (NAN: none)
+                             and the share of section-sampled points they found */
   double inv_h1sq_global; /* bilateral: 1 / h1^2 */
   /* reverse neighbourhoods: the i whose neighbourhood contains p */
   const size_t *rev_off; /* n + 1 */
@@ -277,6 +281,8 @@ void ctx_init(smooth_ctx *c, const double *xyz, const bsurf_neighbors *nb,
 void ctx_free(smooth_ctx *c, int T);
 /* smooth_guard.c */
 double guard_noise(const double *sv, size_t n, size_t stride, double *scratch);
+#define guard_blind_share bsurf_i_smooth_guard_blind_share
+double guard_blind_share(const double *sv, size_t n, size_t stride, double s2);
 int guard_misfit(const double *sv, double noise);
 int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
               const uint32_t *idx, int k, double *F, int *degree, double *svar);

@@ -73,6 +73,48 @@ double bsurf_smooth_noise(const double *sv, size_t n, size_t stride, double *scr
   return guard_noise(sv, n, stride, scratch);
 }
 
+void bsurf_smooth_select_options(int T, bsurf_kselect_options *ko) {
+  static const int ks[] = {10, 15, 20, 25, 30, 35, 40, 45, 50, 55, 60, 65, 70, 75, 80};
+  *ko = bsurf_kselect_options_default();
+  ko->ks = ks;
+  ko->nk = (int)(sizeof ks / sizeof ks[0]);
+  ko->noise_pool = BSURF_NOISE_POOL_GLOBAL;
+  ko->threads = T;
+}
+
+/* the selection's per-point level of the section test (kselect_noise.c,
+ * SECT_ALPHA) */
+#define SMOOTH_SECTION_SHARE 0.05
+
+double bsurf_smooth_noise_level(const double *sv, size_t n, size_t stride, double fits,
+                                double select, double sections) {
+  /* the sheet fits' reading, but where the fits are blind to the noise the
+   * larger of the two. A sheet fit is a height over the plane of its
+   * centre's nearest points; where those are a cross-section of the surface
+   * (a CAD mesh's vertices on rings, the plane holding the normal and with
+   * it the noise) its heights hold none of the noise, and where a tenth of
+   * the fits are such their lower decile reads none either (a turned
+   * part's vertices: 0.004 sigma; a joint's: 0.05 sigma). Two signs of it,
+   * either enough:
+   *  - the selection found the cloud's neighbourhoods section-sampled
+   *    (kselect_noise.c: thin, curved and holding the normal) at more
+   *    points than its per-point test flags by chance on a surface (at most
+   *    its level, SECT_ALPHA = 5%);
+   *  - a tenth of the fits read less than a hundredth of the selection's
+   *    level (guard_blind_share): no fit of noise at that level reads so
+   *    little (chi^2_nu / nu < 0.01 has probability 3e-5 at nu = 5), and
+   *    a tenth of them is what sets the lower decile.
+   * Elsewhere the fits' reading stands: where both read above the noise
+   * (light noise on a coarse mesh, misfit taken for noise) the larger is
+   * the worse, and the moves it admits end farther than the input
+   * (docs/smoothing.md, "Two readings"). Exact data (a tenth of the fits
+   * leave no residual at all) stay exact. */
+  if (!(fits > 0) || !(select > fits)) return fits;
+  if (sections > SMOOTH_SECTION_SHARE || guard_blind_share(sv, n, stride, select) >= 0.1)
+    return select;
+  return fits;
+}
+
 int bsurf_smooth_misfit(const double *sv, double noise) {
   return guard_misfit(sv, noise);
 }

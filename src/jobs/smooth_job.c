@@ -2,6 +2,7 @@
  * (thesis chapter 6, bsurf_smooth), in memory or tile by tile, through one
  * call. The command line parses its options and prints the summary;
  * everything between is here. */
+#include "algo/algo.h"
 #include "algo/smooth_stages.h"
 #include "jobs/jobs.h"
 
@@ -176,12 +177,36 @@ static bsurf_status values_sums(const bsurf_tile_values *v, double *sum, size_t 
   return BSURF_OK;
 }
 
+/* The guard's second reading of the noise, tile by tile (bsurf_smooth's
+ * select_noise: the K selection's noise passes on the 80-neighbourhoods,
+ * bsurf_jobs_mse_stages, the same bits): sel[0] the level, sel[1] the share
+ * of section-sampled points; NAN, 0 for a cloud of 80 points or fewer. */
+static bsurf_status select_noise_tiled(const bsurf_job_io *io, const bsurf_smooth_options *so,
+                                       size_t points, double sel[2], bsurf_failure *err) {
+  sel[0] = NAN, sel[1] = 0;
+  if (points <= BSURF_SMOOTH_SELECT_K) return BSURF_OK;
+  bsurf_kselect_options ko;
+  bsurf_smooth_select_options(so->error.threads, &ko);
+  struct bsurf_ksel_run *run = NULL;
+  bsurf_status st = bsurf_ksel_open(&ko, BSURF_SMOOTH_SELECT_K, 0, &run);
+  if (st != BSURF_OK) return st;
+  bsurf_tile_values pooled = {-1, 0, 0};
+  bsurf_tile_report tr;
+  size_t ns = 0;
+  st = bsurf_jobs_mse_stages(io, &ko, BSURF_SMOOTH_SELECT_K, so->error.threads, NULL, NULL, run,
+                             &pooled, &sel[0], &ns, &tr, err);
+  bsurf_tile_values_close(&pooled);
+  bsurf_ksel_close(run);
+  sel[1] = (double)ns / (double)points;
+  return st;
+}
+
 /* The guard's noise estimate from stage 1's misfit records (variance, degrees
  * of freedom, the interval's share, the ball's radius), the last BSURF_SMOOTH_SV columns of every
  * row, as bsurf_smooth makes it (the same values in index order), and the count of fits its misfit
  * test rejects. Holds BSURF_SMOOTH_SV + 1 doubles per point in memory. */
-static bsurf_status values_noise(const bsurf_tile_values *v, double *noise, size_t *misfit,
-                                 bsurf_failure *err) {
+static bsurf_status values_noise(const bsurf_tile_values *v, const double sel[2], double *noise,
+                                 bsurf_smooth_report *rep, bsurf_failure *err) {
   const size_t per = 1 << 16, nv = v->nvalues, n = v->count;
   double *buf = malloc(per * nv * sizeof(double));
   double *sv = bsurf_alloc_array(n ? n : 1, BSURF_SMOOTH_SV * sizeof(double));
@@ -198,10 +223,15 @@ static bsurf_status values_noise(const bsurf_tile_values *v, double *noise, size
              BSURF_SMOOTH_SV * sizeof(double));
   }
   if (st == BSURF_OK) {
-    *noise = bsurf_smooth_noise(sv, n, BSURF_SMOOTH_SV, scratch);
-    *misfit = 0;
+    const double fits = bsurf_smooth_noise(sv, n, BSURF_SMOOTH_SV, scratch);
+    *noise = bsurf_smooth_noise_level(sv, n, BSURF_SMOOTH_SV, fits, sel[0], sel[1]);
+    rep->noise = sqrt(*noise);
+    rep->noise_fits = sqrt(fits);
+    rep->noise_select = sqrt(sel[0]);
+    rep->section_share = sel[1];
+    rep->misfit_fits = 0;
     for (size_t i = 0; i < n; i++)
-      *misfit += bsurf_smooth_misfit(&sv[BSURF_SMOOTH_SV * i], *noise);
+      rep->misfit_fits += bsurf_smooth_misfit(&sv[BSURF_SMOOTH_SV * i], *noise);
   }
   free(buf);
   free(sv);
@@ -280,10 +310,11 @@ static bsurf_status smooth_tiled(const bsurf_job_io *io, const bsurf_smooth_job_
     s->means[1] = vs[1] / (double)s->points;
     rep->mean_error = vs[bsurf_smooth_w_column(&so)] / (double)s->points;
     t.noise = NAN;
-    rep->noise = NAN;
+    rep->noise = rep->noise_fits = rep->noise_select = rep->section_share = NAN;
     if (so.guard) {
-      st = values_noise(&vals, &t.noise, &rep->misfit_fits, err);
-      rep->noise = sqrt(t.noise);
+      double sel[2];
+      st = select_noise_tiled(io, &so, s->points, sel, err);
+      if (st == BSURF_OK) st = values_noise(&vals, sel, &t.noise, rep, err);
     }
     smooth_lengths(&t.so, o, s->h);
     bsurf_smooth_resolve(&t.so, s->h, rep->mean_error, t.noise);
@@ -390,6 +421,13 @@ bsurf_status bsurf_smooth_job_memory(const bsurf_smooth_job_options *opts,
   /* the job's smoothed positions (24); bsurf_smooth's stage 1 and passes */
   const double s1 = bsurf_smooth_stage1_bytes(so);
   double b = 24 + s1 + bsurf_smooth_passes_bytes(so, k, T, NULL);
+  if (so->guard) {
+    /* the guard's second reading of the noise (smooth.c, select_noise):
+     * the 80-neighbourhoods (4 x 80) and the noise passes' two values per
+     * point of two passes (32), while stage 1's records are held */
+    const double sel = 24 + s1 + 4.0 * BSURF_SMOOTH_SELECT_K + 32;
+    if (sel > b) b = sel;
+  }
   if (so->method == BSURF_SMOOTH_MULTIPASS && so->guard && so->k_max != k) {
     /* the scale rule (smooth.c) at its cap K: stage 1 at k held while the
      * neighbourhoods of K (4 K, and their order 4) and bsurf_smooth at K

@@ -134,6 +134,18 @@ def test_smooth_equals_cli(cube):
             same_bits(fields[name].astype(np.float32), ref[name])
 
 
+def test_smooth_noise_readings_equal_cli(cube):
+    # the guard's two readings of the noise and the level it takes
+    # (docs/smoothing.md, "Two readings"): the same numbers from both front ends
+    j = cli("smooth", tmp("noisy.ply"), "-k", 20, "-B", 8, "--json", "-o", tmp("sm.ply"), "-q")
+    pts, fields, s = bootsurf.smooth(cube, neighbors=20, bootstrap=8)
+    r = s["report"]
+    for key in ("noise", "noise_fits", "noise_select", "section_share", "misfit_fits"):
+        # the CLI's JSON prints 10 significant digits
+        assert abs(r[key] - j[key]) <= 1e-9 * abs(j[key]), (key, r[key], j[key])
+    assert r["noise_select"] > 0 and 0 <= r["section_share"] <= 1
+
+
 def test_features_equal_cli(cube):
     for method, rule, score in (("distance", "null", "feature_dist"),
                                 ("variance", "null", "variance_z"),
