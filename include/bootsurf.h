@@ -738,11 +738,13 @@ typedef struct bsurf_smooth_report {
                                    a hundredth of noise_select^2); docs/smoothing.md,
                                    "Two readings of the noise" */
   double noise_fits;            /* sigma read by the sheet fits (their residual
-                                   variances' lower decile) */
+                                   variances' lower decile; NAN: guard off) */
   double noise_select;          /* sigma read by the K selection's noise passes
-                                   (bsurf_select_k's level; NAN: 80 points or fewer) */
+                                   (bsurf_select_k's level; NAN: guard off, or 80
+                                   points or fewer) */
   double section_share;         /* the share of points whose 80 nearest the selection
-                                   found section-sampled */
+                                   found section-sampled (NAN: guard off; 0: 80
+                                   points or fewer) */
   size_t misfit_fits;           /* the guard's misfit test: fits of the first stage
                                    with more misfit than noise (they move nothing) */
   int k;                        /* the neighbourhood size used (error.k, or the scale

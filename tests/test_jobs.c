@@ -42,6 +42,44 @@ static const char *input_path(void) {
   return path;
 }
 
+/* A cylinder sampled on rings 5 spacings apart (60 rings of 60 points,
+ * gaussian noise of 0.3 spacings along the radial normal), as a turned
+ * part's mesh vertices are: the guard's sheet fits read none of the noise
+ * there and it takes the K selection's reading (test_smooth's
+ * test_noise_rings). */
+static const char *rings_path(void) {
+  static int made = 0;
+  const char *path = tmp_path("jobs_rings.ply");
+  if (!made) {
+    bsurf_cloud c;
+    bsurf_cloud_init(&c);
+    const int rings = 60, per = 60;
+    const double sp = 2 * 3.14159265358979323846 / per;
+    c.point_count = (size_t)rings * per;
+    c.xyz = malloc(c.point_count * 3 * sizeof(double));
+    c.normals = malloc(c.point_count * 3 * sizeof(double));
+    assert_non_null(c.xyz);
+    assert_non_null(c.normals);
+    for (size_t m = 0; m < c.point_count; m++) {
+      const int r = (int)(m / per), j = (int)(m % per);
+      const double t = (j + 0.5 * (r % 2)) * sp;
+      c.xyz[3 * m] = cos(t), c.xyz[3 * m + 1] = sin(t), c.xyz[3 * m + 2] = r * 5 * sp;
+      c.normals[3 * m] = cos(t), c.normals[3 * m + 1] = sin(t), c.normals[3 * m + 2] = 0;
+    }
+    assert_int_equal(
+        bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, sp, 41),
+        BSURF_OK);
+    bsurf_failure err;
+    assert_int_equal(bsurf_write(path, &c, NULL, &err), BSURF_OK);
+    bsurf_cloud_free(&c);
+    made = 1;
+  }
+  return path;
+}
+
+/* the input of the in-memory and tiled pairs (pair_open) */
+static const char *(*pair_input)(void) = input_path;
+
 static void read_file(const char *path, char **data, size_t *size) {
   FILE *f = fopen(path, "rb");
   assert_non_null(f);
@@ -77,7 +115,7 @@ typedef struct pair {
 static void pair_open(pair *p, const char *name) {
   bsurf_failure err;
   bsurf_cloud_init(&p->c);
-  assert_int_equal(bsurf_read(input_path(), &p->c, &err), BSURF_OK);
+  assert_int_equal(bsurf_read(pair_input(), &p->c, &err), BSURF_OK);
   char file[64];
   snprintf(file, sizeof file, "jobs_%s_mem.ply", name);
   snprintf(p->mem_path, sizeof p->mem_path, "%s", tmp_path(file));
@@ -86,7 +124,7 @@ static void pair_open(pair *p, const char *name) {
   memset(&p->mem, 0, sizeof p->mem);
   p->mem.cloud = &p->c;
   memset(&p->tiled, 0, sizeof p->tiled);
-  p->tiled.input = input_path();
+  p->tiled.input = pair_input();
   p->tiled.output = p->tiled_path;
   p->tiled.tile_points = 700;
 }
@@ -212,7 +250,35 @@ static void run_smooth(const bsurf_smooth_job_options *o, const bsurf_smooth_job
   assert_int_equal(a->moved_points, b->moved_points);
   assert_memory_equal(&a->moved_mean, &b->moved_mean, sizeof(double));
   assert_memory_equal(&a->moved_max, &b->moved_max, sizeof(double));
+  /* the guard's readings of the noise and the level it took */
+  assert_memory_equal(&a->noise, &b->noise, sizeof(double));
+  assert_memory_equal(&a->noise_fits, &b->noise_fits, sizeof(double));
+  assert_memory_equal(&a->noise_select, &b->noise_select, sizeof(double));
+  assert_memory_equal(&a->section_share, &b->section_share, sizeof(double));
+  assert_int_equal(a->misfit_fits, b->misfit_fits);
   pair_close(&p, st.tiles);
+}
+
+/* The guard's second reading of the noise tile by tile: on the ring-sampled
+ * cylinder the level taken is the selection's (the fits' reading is
+ * blind), the same bits as in memory for naive and bilateral. */
+static void test_smooth_job_rings(void **state) {
+  (void)state;
+  pair_input = rings_path;
+  bsurf_smooth_job_options o = bsurf_smooth_job_options_default();
+  o.smooth.error.bootstrap = 6;
+  for (int m = 0; m < 2; m++) {
+    o.smooth.method = m ? BSURF_SMOOTH_BILATERAL : BSURF_SMOOTH_NAIVE;
+    run_smooth(&o, NULL, m ? "rings_bilateral" : "rings_naive");
+    pair p;
+    pair_open(&p, "rings_check");
+    bsurf_smooth_job_summary s;
+    assert_int_equal(bsurf_smooth_job(&p.mem, &o, &s, NULL), BSURF_OK);
+    assert_true(s.report.noise == s.report.noise_select);
+    assert_true(s.report.noise_fits < 0.1 * s.report.noise_select);
+    bsurf_cloud_free(&p.c);
+  }
+  pair_input = input_path;
 }
 
 static void test_smooth_job(void **state) {
@@ -406,20 +472,20 @@ static void test_smooth_plan(void **state) {
   assert_true(sp.point_bytes == 24 + 252 + 1604 + 252 + 60 && sp.k_max_bytes == 4);
   /* bilateral (fits 8 x 24 + 4, guard 32; e2, w2, reverse lists 8 + 4 K) and
    * naive (the guard's records): below the guard's second reading of the
-   * noise, the 80-neighbourhoods (4 x 80) and its passes' values (32) held
-   * with stage 1's records */
+   * noise, the 80-neighbourhoods (4 x 80, their order 4) and its passes'
+   * values (32) held with stage 1's records */
   o = bsurf_smooth_job_options_default();
   o.smooth.method = BSURF_SMOOTH_BILATERAL;
   assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
   assert_true(sp.method == BSURF_SMOOTH_BILATERAL && sp.k_max == 50 && sp.field_count == 3);
-  assert_true(sp.point_bytes == 24 + 228 + 320 + 32);
+  assert_true(sp.point_bytes == 24 + 228 + 320 + 4 + 32);
   o.smooth.guard = 0; /* no second reading */
   assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
   assert_true(sp.point_bytes == 24 + 196 + 224);
   o.smooth.guard = 1;
   o.smooth.method = BSURF_SMOOTH_NAIVE;
   assert_int_equal(bsurf_smooth_job_memory(&o, &sp), BSURF_OK);
-  assert_true(sp.point_bytes == 24 + 32 + 320 + 32);
+  assert_true(sp.point_bytes == 24 + 32 + 320 + 4 + 32);
   /* refused as the job refuses them */
   o = bsurf_smooth_job_options_default();
   o.smooth.k_max = 20;
@@ -513,9 +579,10 @@ static void test_normals_plan(void **state) {
 int main(void) {
   tmp_dir_init();
   const struct CMUnitTest tests[] = {
-      cmocka_unit_test(test_normals_job),  cmocka_unit_test(test_smooth_job),
-      cmocka_unit_test(test_features_job), cmocka_unit_test(test_bad_options),
-      cmocka_unit_test(test_normals_plan), cmocka_unit_test(test_smooth_plan),
+      cmocka_unit_test(test_normals_job),      cmocka_unit_test(test_smooth_job),
+      cmocka_unit_test(test_smooth_job_rings), cmocka_unit_test(test_features_job),
+      cmocka_unit_test(test_bad_options),      cmocka_unit_test(test_normals_plan),
+      cmocka_unit_test(test_smooth_plan),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

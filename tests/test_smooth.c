@@ -472,6 +472,23 @@ static void test_noise_readings(void **state) {
   assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 2.0);
   sv[4 * 4 + 1] = 0; /* a record without degrees of freedom is no fit: 4 of 39 */
   assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 2.0);
+  /* a ball of radius t sigma keeps the share kappa(t) of the noise: the
+   * fourth blind record's line is 0.01 x 2.0 x g x kappa (t = 1.5) */
+  const double kap = bsurf_ball_share(1.5);
+  assert_true(kap > 0.05 && kap < 0.9);
+  sv[4 * 3 + 3] = 1.5 * sqrt(2.0);
+  sv[4 * 3] = 1.01 * 0.018 * kap;
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 0.8);
+  sv[4 * 3] = 0.99 * 0.018 * kap;
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 2.0);
+  /* exact data to rounding: at most 1e-12 of the selection's level */
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 2e-12, 2.0, 1.0) == 2e-12);
+  assert_true(bsurf_smooth_noise_level(sv, N, 4, 2.1e-12, 2.0, 1.0) == 2.0);
+  /* the selection's count of section-sampled points: those with a
+   * cross-section level (the second of each point's two pooled values) */
+  const double pooled[8] = {1, NAN, 1, 0.5, NAN, 0.7, 2, NAN};
+  assert_int_equal(bsurf_ksel_sections(pooled, 4), 2);
+  assert_int_equal(bsurf_ksel_sections(pooled, 1), 0);
 }
 
 /* A cylinder sampled on rings, as a turned part's mesh vertices are: 60
@@ -524,6 +541,9 @@ static void test_noise_rings(void **state) {
                   gap, rep.noise / sigma, rep.noise_fits / sigma, rep.noise_select / sigma,
                   rep.section_share, rep.misfit_fits, e0 / s, e / s);
     assert_true(fabs(rep.noise_select - sigma) < 0.2 * sigma);
+    /* the blind fits' sign, not the sections': the selection's quadric
+     * reaches the next rings and reads the noise, its conic is not needed */
+    assert_true(rep.section_share == 0);
     if (gap == 5) {
       assert_true(rep.noise_fits < 0.05 * sigma);
       assert_true(rep.noise == rep.noise_select);

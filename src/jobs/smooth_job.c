@@ -193,7 +193,11 @@ static bsurf_status select_noise_tiled(const bsurf_job_io *io, const bsurf_smoot
   bsurf_tile_values pooled = {-1, 0, 0};
   bsurf_tile_report tr;
   size_t ns = 0;
-  st = bsurf_jobs_mse_stages(io, &ko, BSURF_SMOOTH_SELECT_K, so->error.threads, NULL, NULL, run,
+  /* tiles of at least twice its K (the tile engine's least; the tiles'
+   * size changes no value, their halos are proven) */
+  bsurf_job_io sio = *io;
+  if (sio.tile_points < 2 * BSURF_SMOOTH_SELECT_K) sio.tile_points = 2 * BSURF_SMOOTH_SELECT_K;
+  st = bsurf_jobs_mse_stages(&sio, &ko, BSURF_SMOOTH_SELECT_K, so->error.threads, NULL, NULL, run,
                              &pooled, &sel[0], &ns, &tr, err);
   bsurf_tile_values_close(&pooled);
   bsurf_ksel_close(run);
@@ -423,9 +427,10 @@ bsurf_status bsurf_smooth_job_memory(const bsurf_smooth_job_options *opts,
   double b = 24 + s1 + bsurf_smooth_passes_bytes(so, k, T, NULL);
   if (so->guard) {
     /* the guard's second reading of the noise (smooth.c, select_noise):
-     * the 80-neighbourhoods (4 x 80) and the noise passes' two values per
-     * point of two passes (32), while stage 1's records are held */
-    const double sel = 24 + s1 + 4.0 * BSURF_SMOOTH_SELECT_K + 32;
+     * the 80-neighbourhoods (4 x 80, and their order 4) and the noise
+     * passes' two values per point of two passes (32), while stage 1's
+     * records are held */
+    const double sel = 24 + s1 + 4.0 * BSURF_SMOOTH_SELECT_K + 4 + 32;
     if (sel > b) b = sel;
   }
   if (so->method == BSURF_SMOOTH_MULTIPASS && so->guard && so->k_max != k) {
