@@ -157,8 +157,8 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
        "variance, the lower decile over the fits (each scaled by the share of the noise its "
        "interval and its K-ball keep), or the larger of that and the level normals --select-k "
        "reads where the fits are blind to the noise (more than 5% of the points' 80 nearest "
-       "cross-sections of the surface, as a CAD mesh's vertices on rings, or a tenth of the "
-       "fits reading under a hundredth of that level), at the 5% level -- moves nothing) or off "
+       "cross-sections of the surface, as a CAD mesh's vertices on rings), at the 5% level -- "
+       "moves nothing) or off "
        "(the thesis's methods as written)",
        1, 0},
       {0, "degree-test", ARG_STRING, &dtest, "T",

@@ -732,11 +732,10 @@ typedef struct bsurf_smooth_report {
   int iterations;               /* multipass: passes run */
   double noise;                 /* the guard's noise estimate sigma (NAN: guard off):
                                    noise_fits, or the larger of the two below where
-                                   the fits are blind to the noise (more than 5% of
-                                   the points' neighbourhoods cross-sections,
-                                   section_share, or a tenth of the fits reading under
-                                   a hundredth of noise_select^2); docs/smoothing.md,
-                                   "Two readings of the noise" */
+                                   the fits are blind to the noise, more than 5% of
+                                   the points' neighbourhoods cross-sections
+                                   (section_share); docs/smoothing.md, "Two readings
+                                   of the noise" */
   double noise_fits;            /* sigma read by the sheet fits (their residual
                                    variances' lower decile; NAN: guard off) */
   double noise_select;          /* sigma read by the K selection's noise passes

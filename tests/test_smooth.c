@@ -440,50 +440,21 @@ static void test_noise_estimate(void **state) {
 #define BOUND_MULTIPASS 0.120
 #define BOUND_NO_TEST 0.155
 /* The guard's two readings of the noise (bsurf_smooth_noise_level,
- * docs/smoothing.md, "Two readings"), exactly: the sheet fits' reading
- * stands unless the selection's is larger and the fits are blind to the
- * noise -- more than 5% of the points on cross-sections, or a tenth of the
- * fits reading less than a hundredth of the selection's level (their
- * variance, scaled by the share g of the noise their interval keeps; a
- * ball a thousand sigma wide keeps all of it); exact data (the fits'
- * reading 0) stay exact. */
+ * docs/smoothing.md, "Two readings of the noise"), exactly: the sheet fits'
+ * reading stands unless the selection's is larger and more than 5% of the
+ * points' neighbourhoods are cross-sections; exact data (the fits' reading
+ * at most 1e-12 of the selection's) stay exact. */
 static void test_noise_readings(void **state) {
   (void)state;
-  enum { N = 40 };
-  double sv[4 * N];
-  for (int i = 0; i < N; i++) { /* records s^2, nu, g, R about a noise of 1 */
-    sv[4 * i] = 1.0 + 0.01 * i, sv[4 * i + 1] = 20, sv[4 * i + 2] = 0.9, sv[4 * i + 3] = 1e3;
-  }
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 0.8);  /* no sign */
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.06) == 2.0); /* sections */
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.05) == 0.8); /* not above 5% */
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 0.5, 1.0) == 0.8);  /* the larger */
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.0, 2.0, 1.0) == 0.0);  /* exact data */
-  assert_true(isnan(bsurf_smooth_noise_level(sv, N, 4, NAN, 2.0, 1.0)));  /* no fits */
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, NAN, 1.0) == 0.8);  /* no selection */
-  /* blind fits: below 0.01 x 2.0 x g = 0.018; three of 40 are not a tenth, four are;
-   * 0.0181 is not below */
-  for (int i = 0; i < 3; i++)
-    sv[4 * i] = 0.0179;
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 0.8);
-  sv[4 * 3] = 0.0181;
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 0.8);
-  sv[4 * 3] = 0.0179;
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 2.0);
-  sv[4 * 4 + 1] = 0; /* a record without degrees of freedom is no fit: 4 of 39 */
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 2.0);
-  /* a ball of radius t sigma keeps the share kappa(t) of the noise: the
-   * fourth blind record's line is 0.01 x 2.0 x g x kappa (t = 1.5) */
-  const double kap = bsurf_ball_share(1.5);
-  assert_true(kap > 0.05 && kap < 0.9);
-  sv[4 * 3 + 3] = 1.5 * sqrt(2.0);
-  sv[4 * 3] = 1.01 * 0.018 * kap;
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 0.8);
-  sv[4 * 3] = 0.99 * 0.018 * kap;
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 0.8, 2.0, 0.0) == 2.0);
-  /* exact data to rounding: at most 1e-12 of the selection's level */
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 2e-12, 2.0, 1.0) == 2e-12);
-  assert_true(bsurf_smooth_noise_level(sv, N, 4, 2.1e-12, 2.0, 1.0) == 2.0);
+  assert_true(bsurf_smooth_noise_level(0.8, 2.0, 0.0) == 0.8);     /* no sections */
+  assert_true(bsurf_smooth_noise_level(0.8, 2.0, 0.06) == 2.0);    /* sections */
+  assert_true(bsurf_smooth_noise_level(0.8, 2.0, 0.05) == 0.8);    /* not above 5% */
+  assert_true(bsurf_smooth_noise_level(0.8, 0.5, 1.0) == 0.8);     /* the larger */
+  assert_true(bsurf_smooth_noise_level(0.0, 2.0, 1.0) == 0.0);     /* exact data */
+  assert_true(bsurf_smooth_noise_level(2e-12, 2.0, 1.0) == 2e-12); /* to rounding */
+  assert_true(bsurf_smooth_noise_level(2.1e-12, 2.0, 1.0) == 2.0);
+  assert_true(isnan(bsurf_smooth_noise_level(NAN, 2.0, 1.0))); /* no fits */
+  assert_true(bsurf_smooth_noise_level(0.8, NAN, 1.0) == 0.8); /* no selection */
   /* the selection's count of section-sampled points: those with a
    * cross-section level (the second of each point's two pooled values) */
   const double pooled[8] = {1, NAN, 1, 0.5, NAN, 0.7, 2, NAN};
@@ -492,26 +463,26 @@ static void test_noise_readings(void **state) {
 }
 
 /* A cylinder sampled on rings, as a turned part's mesh vertices are: 60
- * rings of 60 points at arc spacing s, 5 s apart, with gaussian noise of
- * 0.3 s along the (radial) normal, which stays within each ring's plane. A
- * point's 12 nearest are an arc of its ring whose plane holds the noise, and
- * the sheet fits' reading of the noise collapses (measured 0.013 sigma), at
- * which nearly every fit would show "more misfit than noise" and move
- * nothing. A tenth of the fits read less than a hundredth of the
- * selection's level (0.935 sigma), so the guard takes that, and the points
- * move nearer the cylinder (0.237 s -> 0.153 s). Rings 4 s apart (the
- * nearest reach the next ring) keep the fits' reading (0.80 sigma; 0.237 s
- * -> 0.080 s). */
+ * rings of 60 points at arc spacing s, `gap` s apart, with gaussian noise
+ * of 0.3 s along a normal tilted 0.1 out of the ring's plane (a mesh's
+ * vertex normals are not exactly radial), so the noise stays nearly within
+ * each ring's plane. Rings 8 s apart: a point's nearest are an arc of its
+ * ring, and the sheet fits' reading collapses (measured 0.0008 sigma); the
+ * selection finds 52% of the points section-sampled and reads 1.05 sigma,
+ * and the guard takes that. The fits there are the arcs themselves, so the
+ * points hardly move (0.2358 s -> 0.2347 s), but they do not move away.
+ * Rings 4 s apart (the nearest reach the next ring): the fits' reading
+ * stands (0.80 sigma; 0.2358 s -> 0.0795 s). */
 #define RING_PI 3.14159265358979323846
 static void ring_cylinder(double gap, double *xyz, double *nrm, size_t *n) {
   const int rings = 60, per = 60;
-  const double s = 2 * RING_PI / per;
+  const double s = 2 * RING_PI / per, tz = 0.1 / sqrt(1.01);
   size_t m = 0;
   for (int r = 0; r < rings; r++)
     for (int j = 0; j < per; j++, m++) {
       const double t = (j + 0.5 * (r % 2)) * s;
       xyz[3 * m] = cos(t), xyz[3 * m + 1] = sin(t), xyz[3 * m + 2] = r * gap * s;
-      nrm[3 * m] = cos(t), nrm[3 * m + 1] = sin(t), nrm[3 * m + 2] = 0;
+      nrm[3 * m] = cos(t) / sqrt(1.01), nrm[3 * m + 1] = sin(t) / sqrt(1.01), nrm[3 * m + 2] = tz;
     }
   assert_int_equal(bsurf_add_noise(xyz, nrm, m, BSURF_NOISE_GAUSSIAN, 0.3, s, 41), BSURF_OK);
   *n = m;
@@ -528,27 +499,28 @@ static void test_noise_rings(void **state) {
   const double s = 2 * RING_PI / 60, sigma = 0.3 * s;
   double *xyz = malloc(N * 3 * sizeof(double)), *nrm = malloc(N * 3 * sizeof(double));
   double *out = malloc(N * 3 * sizeof(double));
-  assert_non_null(xyz && nrm && out);
-  for (int gap = 5; gap >= 4; gap--) {
+  assert_non_null(xyz);
+  assert_non_null(nrm);
+  assert_non_null(out);
+  for (int gap = 8; gap >= 4; gap -= 4) {
     size_t n;
     ring_cylinder(gap, xyz, nrm, &n);
     assert_true(n == N);
     bsurf_smooth_report rep;
     smooth_default_k50(xyz, n, out, &rep);
     const double e0 = ring_distance(xyz, n), e = ring_distance(out, n);
-    print_message("rings %d s apart: noise %.3f sigma (fits %.3f, selection %.3f, sections "
+    print_message("rings %d s apart: noise %.3f sigma (fits %.4f, selection %.3f, sections "
                   "%.3f), %zu misfit fits; %.4f s -> %.4f s\n",
                   gap, rep.noise / sigma, rep.noise_fits / sigma, rep.noise_select / sigma,
                   rep.section_share, rep.misfit_fits, e0 / s, e / s);
-    assert_true(fabs(rep.noise_select - sigma) < 0.2 * sigma);
-    /* the blind fits' sign, not the sections': the selection's quadric
-     * reaches the next rings and reads the noise, its conic is not needed */
-    assert_true(rep.section_share == 0);
-    if (gap == 5) {
+    assert_true(fabs(rep.noise_select - sigma) < 0.25 * sigma);
+    if (gap == 8) {
+      assert_true(rep.section_share > 0.3);
       assert_true(rep.noise_fits < 0.05 * sigma);
       assert_true(rep.noise == rep.noise_select);
-      assert_true(e < 0.75 * e0);
+      assert_true(e <= e0);
     } else {
+      assert_true(rep.section_share < 0.05);
       assert_true(rep.noise == rep.noise_fits);
       assert_true(fabs(rep.noise_fits - sigma) < 0.25 * sigma);
       assert_true(e < 0.5 * e0);

@@ -527,9 +527,8 @@ def smooth(points, *, method="auto", neighbors=50, degree=3, bootstrap=50, gamma
                    interval keeps), or the larger of that and the level
                    normals(select_k=...) reads where the fits are blind to
                    the noise (more than 5% of the points' 80 nearest
-                   cross-sections of the surface, or a tenth of the fits
-                   reading under a hundredth of that level), at the 5%
-                   level -- moves nothing; the report's noise, noise_fits,
+                   cross-sections of the surface), at the 5% level -- moves
+                   nothing; the report's noise, noise_fits,
                    noise_select, section_share and misfit_fits) or off (the
                    thesis's methods as written)
       degree_test  the guard's sheet fits choose their degree, -d down to a

@@ -560,8 +560,7 @@ static bsurf_status smooth_run(const double *xyz, const bsurf_neighbors *nb,
       c.noise_select[0] = sel_given[0], c.noise_select[1] = sel_given[1];
     else if ((st = select_noise(xyz, n, T, c.noise_select)) != BSURF_OK)
       goto done;
-    c.noise = bsurf_smooth_noise_level(c.svar, n, BSURF_SMOOTH_SV, c.noise_fits, c.noise_select[0],
-                                       c.noise_select[1]);
+    c.noise = bsurf_smooth_noise_level(c.noise_fits, c.noise_select[0], c.noise_select[1]);
     for (size_t i = 0; i < n; i++)
       if (guard_misfit(&c.svar[BSURF_SMOOTH_SV * i], c.noise)) {
         misfit++;

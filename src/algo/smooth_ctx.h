@@ -281,8 +281,6 @@ void ctx_init(smooth_ctx *c, const double *xyz, const bsurf_neighbors *nb,
 void ctx_free(smooth_ctx *c, int T);
 /* smooth_guard.c */
 double guard_noise(const double *sv, size_t n, size_t stride, double *scratch);
-#define guard_blind_share bsurf_i_smooth_guard_blind_share
-double guard_blind_share(const double *sv, size_t n, size_t stride, double s2);
 int guard_misfit(const double *sv, double noise);
 int guard_fit(const smooth_ctx *c, bsurf_error_scratch *s, uint32_t *act, const double *xyz,
               const uint32_t *idx, int k, double *F, int *degree, double *svar);

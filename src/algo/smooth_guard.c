@@ -213,23 +213,6 @@ double guard_noise(const double *sv, size_t n, size_t stride, double *scratch) {
   return s2;
 }
 
-/* The share of the fits (records sv, as guard_noise reads them) whose
- * residual variance, scaled by the share of the noise its interval and its
- * ball keep at the noise variance s2, is below a hundredth of s2: fits
- * that read none of a noise of that level (bsurf_smooth_noise_level). 0
- * when no fit has a variance. */
-double guard_blind_share(const double *sv, size_t n, size_t stride, double s2) {
-  size_t m = 0, blind = 0;
-  const double inv = 1.0 / sqrt(s2);
-  for (size_t i = 0; i < n; i++) {
-    const double *v = &sv[i * stride];
-    if (!(v[0] >= 0 && v[1] >= 1)) continue;
-    m++;
-    blind += v[0] < 0.01 * s2 * v[2] * guard_ball_share(v[3] * inv);
-  }
-  return m ? (double)blind / (double)m : 0.0;
-}
-
 /* 1 when a sheet fit (sv: its record) has more misfit than noise: a point
  * moved onto it ends farther from the surface, on average, than it was. Its
  * residual variance over its interval and ball, s^2 / (g kappa), estimates

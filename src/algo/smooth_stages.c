@@ -86,40 +86,30 @@ void bsurf_smooth_select_options(int T, bsurf_kselect_options *ko) {
  * section-sampled points that says a cloud holds sections */
 #define SMOOTH_SECTION_SHARE 0.05
 
-double bsurf_smooth_noise_level(const double *sv, size_t n, size_t stride, double fits,
-                                double select, double sections) {
-  /* the sheet fits' reading, but where the fits are blind to the noise the
+double bsurf_smooth_noise_level(double fits, double select, double section_share) {
+  /* the sheet fits' reading, but where the cloud holds cross-sections the
    * larger of the two. A sheet fit is a height over the plane of its
    * centre's nearest points; where those are a cross-section of the surface
    * (a CAD mesh's vertices on rings, the plane holding the normal and with
    * it the noise) its heights hold none of the noise, and where a tenth of
    * the fits are such their lower decile reads none either (a turned
-   * part's vertices: 0.004 sigma; a joint's: 0.05 sigma). Two signs of it,
-   * either enough:
-   *  - the selection found more than 5% of the points' neighbourhoods
-   *    section-sampled (kselect_noise.c, pool_point: more of the 80 nearest
-   *    thin, curved within their plane and holding the normal than its
-   *    per-point test, at its level SECT_ALPHA = 5%, passes by chance, and
-   *    the quadric's level significantly below the conic's). Each flag
-   *    already corrects for chance, so on a surface far fewer than 5% are
-   *    flagged (none on the development set's organic and generated clouds,
-   *    at most 0.13% on camel's vertices): the 5% of its level is a
-   *    conservative line;
-   *  - a tenth of the fits read less than a hundredth of the selection's
-   *    level (guard_blind_share): no fit of noise at that level reads so
-   *    little (chi^2_nu / nu < 0.01 has probability 3e-5 at nu = 5), and
-   *    a tenth of them is what sets the lower decile.
+   * part's vertices: 0.004 sigma; a joint's: 0.05 sigma). The sign: the
+   * selection found more than 5% of the points' neighbourhoods
+   * section-sampled (kselect_noise.c, pool_point: more of the 80 nearest
+   * thin, curved within their plane and holding the normal than its
+   * per-point test, at its level SECT_ALPHA = 5%, passes by chance, and the
+   * quadric's level significantly below the conic's). Each flag already
+   * corrects for chance, so on a surface far fewer than 5% are flagged
+   * (none on the development set's organic and generated clouds, at most
+   * 0.13% on camel's vertices): the 5% of its level is a conservative line.
    * Elsewhere the fits' reading stands: where both read above the noise
    * (light noise on a coarse mesh, misfit taken for noise) the larger is
    * the worse, and the moves it admits end farther than the input
-   * (docs/smoothing.md, "Two readings"). Exact data (a tenth of the fits
-   * leave no residual, to rounding: at most 1e-12 of the selection's level,
-   * 1e-6 of its sigma; a noise-free ring-sampled cylinder's fits read 2e-15
-   * spacings) stay exact: the selection reads their misfit. */
+   * (docs/smoothing.md, "Two readings of the noise"). Exact data (a tenth
+   * of the fits leave no residual, to rounding: at most 1e-12 of the
+   * selection's level) stay exact: the selection reads their misfit. */
   if (!(fits > 1e-12 * select) || !(select > fits)) return fits;
-  if (sections > SMOOTH_SECTION_SHARE || guard_blind_share(sv, n, stride, select) >= 0.1)
-    return select;
-  return fits;
+  return section_share > SMOOTH_SECTION_SHARE ? select : fits;
 }
 
 int bsurf_smooth_misfit(const double *sv, double noise) {

@@ -46,13 +46,11 @@ bsurf_status bsurf_smooth_stage2(const double *xyz, size_t local_count, const do
  * 1's values: pass it to stage 2 (NAN: no test).
  * scratch: n doubles. */
 double bsurf_smooth_noise(const double *sv, size_t n, size_t stride, double *scratch);
-/* The guard's noise variance from its two readings (docs/smoothing.md, "The
- * noise estimate", *Two readings*): the sheet fits' (bsurf_smooth_noise of
- * the n records sv) and the K selection's (bsurf_ksel_cloud_noise; NAN:
- * none), with the share of the cloud's points whose neighbourhoods the
- * selection found section-sampled. */
-double bsurf_smooth_noise_level(const double *sv, size_t n, size_t stride, double fits,
-                                double select, double sections);
+/* The guard's noise variance from its two readings (docs/smoothing.md, "Two
+ * readings of the noise"): the sheet fits' (bsurf_smooth_noise) and the K
+ * selection's (bsurf_ksel_cloud_noise; NAN: none), with the share of the
+ * cloud's points whose neighbourhoods the selection found section-sampled. */
+double bsurf_smooth_noise_level(double fits, double select, double section_share);
 /* The K selection's options for the guard's second reading (the noise
  * passes of `normals --select-k 10:80:5`, GLOBAL pool; threads T), and the
  * neighbourhood size they read (80): a cloud of no more points has no

@@ -228,7 +228,7 @@ static bsurf_status values_noise(const bsurf_tile_values *v, const double sel[2]
   }
   if (st == BSURF_OK) {
     const double fits = bsurf_smooth_noise(sv, n, BSURF_SMOOTH_SV, scratch);
-    *noise = bsurf_smooth_noise_level(sv, n, BSURF_SMOOTH_SV, fits, sel[0], sel[1]);
+    *noise = bsurf_smooth_noise_level(fits, sel[0], sel[1]);
     rep->noise = sqrt(*noise);
     rep->noise_fits = sqrt(fits);
     rep->noise_select = sqrt(sel[0]);
