@@ -382,16 +382,19 @@ int cmd_smooth(const cli_command *cmd, int argc, char **argv) {
              strcmp(a_text, "auto") ? a_text : "(1.5 sqrt(pi / K_i))", rep.h2, rep.h2 / hh,
              so.k_min, rep.k > 0 ? rep.k : so.error.k);
     if (so.guard) {
-      char sel[64];
-      if (isnan(rep.noise_select))
-        snprintf(sel, sizeof sel, "none (80 points or fewer)");
+      char sel[128];
+      if (isnan(rep.noise_select) && npoints <= 80)
+        snprintf(sel, sizeof sel, "the K selection none (80 points or fewer)");
+      else if (isnan(rep.noise_select))
+        snprintf(sel, sizeof sel,
+                 "the K selection not needed: at most %.1f%% of the points on cross-sections",
+                 100 * rep.section_share);
       else
-        snprintf(sel, sizeof sel, "%.4g h", rep.noise_select / hh);
-      printf("  guard: noise %.6g (%.4g h; the fits read %.4g h, the K selection %s, %.1f%% of "
-             "the points on cross-sections), %zu fits with more misfit than noise moved "
-             "nothing\n",
-             rep.noise, rep.noise / hh, rep.noise_fits / hh, sel, 100 * rep.section_share,
-             rep.misfit_fits);
+        snprintf(sel, sizeof sel, "the K selection %.4g h, %.1f%% of the points on cross-sections",
+                 rep.noise_select / hh, 100 * rep.section_share);
+      printf("  guard: noise %.6g (%.4g h; the fits read %.4g h, %s), %zu fits with more misfit "
+             "than noise moved nothing\n",
+             rep.noise, rep.noise / hh, rep.noise_fits / hh, sel, rep.misfit_fits);
     }
     printf("  moved %zu points: mean %.4g h, max %.4g h\n", rep.moved_points, rep.moved_mean / hh,
            rep.moved_max / hh);

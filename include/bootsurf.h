@@ -739,11 +739,13 @@ typedef struct bsurf_smooth_report {
   double noise_fits;            /* sigma read by the sheet fits (their residual
                                    variances' lower decile; NAN: guard off) */
   double noise_select;          /* sigma read by the K selection's noise passes
-                                   (bsurf_select_k's level; NAN: guard off, or 80
-                                   points or fewer) */
+                                   (bsurf_select_k's level; NAN: guard off, 80
+                                   points or fewer, or not needed: section_share at
+                                   most 5% by the section test alone) */
   double section_share;         /* the share of points whose 80 nearest the selection
-                                   found section-sampled (NAN: guard off; 0: 80
-                                   points or fewer) */
+                                   found section-sampled; where noise_select is NAN
+                                   an upper bound from the section test alone (NAN:
+                                   guard off; 0: 80 points or fewer) */
   size_t misfit_fits;           /* the guard's misfit test: fits of the first stage
                                    with more misfit than noise (they move nothing) */
   int k;                        /* the neighbourhood size used (error.k, or the scale

@@ -260,6 +260,20 @@ bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n);
 bsurf_status bsurf_ksel_cloud_noise(const double *xyz, const bsurf_neighbors *nb,
                                     const bsurf_kselect_options *opts, double *level,
                                     size_t *sections);
+/* An upper bound on bsurf_ksel_sections at a fraction of the passes' cost
+ * (kselect_noise.c, section_point): bsurf_ksel_section_tests, each row's
+ * cross-section test alone (s2 as bsurf_ksel_noise's, 2 per row, only the
+ * second value set); bsurf_ksel_section_flags, the rows whose K_max
+ * neighbours (s2 read by neighbour) passed it as often as pass 2 asks of a
+ * section-sampled neighbourhood, counted in *flagged; bsurf_ksel_section_bound
+ * both on a whole cloud's table. Every point bsurf_ksel_sections counts is
+ * among them. */
+bsurf_status bsurf_ksel_section_tests(bsurf_ksel_run *r, const double *xyz,
+                                      const bsurf_neighbors *nb, double *s2);
+bsurf_status bsurf_ksel_section_flags(bsurf_ksel_run *r, const double *xyz,
+                                      const bsurf_neighbors *nb, const double *s2, size_t *flagged);
+bsurf_status bsurf_ksel_section_bound(const double *xyz, const bsurf_neighbors *nb,
+                                      const bsurf_kselect_options *opts, size_t *bound);
 /* Of n points' pooled values (bsurf_ksel_pool's, 2 n), those with a
  * cross-section level: their K_max neighbours are section-sampled beyond
  * chance (kselect_noise.c, pool_point). */

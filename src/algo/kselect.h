@@ -123,6 +123,16 @@ void noise_point(void *vctx, int thread, size_t i);
 #define ksel_section_levels bsurf_i_ksel_section_levels
 void ksel_section_levels(ksel_ctx *c);
 void pool_point(void *vctx, int thread, size_t i);
+/* The section test alone (kselect_noise.c, for bsurf_ksel_section_bound):
+ * section_point, c->s2[2 r + 1] by row, the noise_k points' cross-section
+ * residual variance where they pass the test (section_noise), whatever
+ * their quadric reads, else NAN; section_flag_point, c->noise[r] by row, 1
+ * where more of the K_max neighbours (c->s2 read by neighbour) passed than
+ * pass 2 asks of a section-sampled neighbourhood (c->sect.count), else 0. */
+#define section_point bsurf_i_ksel_section_point
+#define section_flag_point bsurf_i_ksel_section_flag_point
+void section_point(void *vctx, int thread, size_t i);
+void section_flag_point(void *vctx, int thread, size_t i);
 bsurf_status pool_global(double *noise, size_t n);
 
 /* The candidates of a point: nk K values, times nd degrees for the

@@ -311,6 +311,33 @@ void noise_point(void *vctx, int thread, size_t i) {
   if (isnan(out[0]) || out[0] < conic * c->sect.below) out[1] = conic;
 }
 
+/* The section test alone: a superset of the points whose pass 1 keeps a
+ * cross-section estimate (noise_point keeps section_noise's value only
+ * where the quadric's estimate is also significantly below it, and
+ * quad_estimate computes it from these same coordinates), and so, counted
+ * over the K_max neighbours as pool_point counts, a superset of the points
+ * pass 2 gives a cross-section level. */
+void section_point(void *vctx, int thread, size_t i) {
+  ksel_ctx *c = vctx;
+  ksel_scratch *s = &c->scr[thread];
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  const int K = c->o->noise_k;
+  bsurf_frame f;
+  const double sc = local_coords(c->xyz, idx, K, K, &f, s->u, s->v, s->z);
+  c->s2[2 * i] = NAN;
+  c->s2[2 * i + 1] = section_noise(c, idx, K, &f, sc, s);
+}
+
+void section_flag_point(void *vctx, int thread, size_t i) {
+  (void)thread;
+  ksel_ctx *c = vctx;
+  const uint32_t *idx = &c->nb->idx[i * (size_t)c->nb->k];
+  int m = 0;
+  for (int j = 0; j < c->kmax; j++)
+    m += !isnan(c->s2[2 * (size_t)idx[j] + 1]);
+  c->noise[i] = m >= c->sect.count;
+}
+
 /* The lower quartile of m values (pool_point): the order statistic nearest
  * the quartile, interpolated; the lo-th smallest by selection, the next the
  * smallest above it (the values of a full sort). */

@@ -49,6 +49,46 @@ bsurf_status bsurf_ksel_pool(bsurf_ksel_run *r, const double *xyz, const bsurf_n
   return ksel_pass(r, &c, pool_point, 0);
 }
 
+bsurf_status bsurf_ksel_section_tests(bsurf_ksel_run *r, const double *xyz,
+                                      const bsurf_neighbors *nb, double *s2) {
+  ksel_ctx c = ksel_ctx_of(r, xyz, nb);
+  c.s2 = s2; /* by row */
+  return ksel_pass(r, &c, section_point, 0);
+}
+
+bsurf_status bsurf_ksel_section_flags(bsurf_ksel_run *r, const double *xyz,
+                                      const bsurf_neighbors *nb, const double *s2,
+                                      size_t *flagged) {
+  const size_t n = nb->point_count;
+  double *flag = bsurf_alloc_array(n ? n : 1, sizeof(double));
+  if (!flag) return BSURF_ERR_NOMEM;
+  ksel_ctx c = ksel_ctx_of(r, xyz, nb);
+  c.s2 = (double *)s2; /* read only, by neighbour */
+  c.noise = flag;
+  bsurf_status st = ksel_pass(r, &c, section_flag_point, 0);
+  *flagged = 0;
+  for (size_t i = 0; i < n && st == BSURF_OK; i++)
+    *flagged += flag[i] > 0;
+  free(flag);
+  return st;
+}
+
+bsurf_status bsurf_ksel_section_bound(const double *xyz, const bsurf_neighbors *nb,
+                                      const bsurf_kselect_options *opts, size_t *bound) {
+  *bound = 0;
+  bsurf_ksel_run *r = NULL;
+  bsurf_status st = bsurf_ksel_open(opts, nb->k, 0, &r);
+  if (st != BSURF_OK) return st;
+  const size_t n = nb->point_count;
+  double *s2 = (size_t)r->kmax <= n ? bsurf_alloc_array(n, 2 * sizeof(double)) : NULL;
+  st = (size_t)r->kmax > n ? BSURF_ERR_TOO_FEW_POINTS : s2 ? BSURF_OK : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) st = bsurf_ksel_section_tests(r, xyz, nb, s2);
+  if (st == BSURF_OK) st = bsurf_ksel_section_flags(r, xyz, nb, s2, bound);
+  free(s2);
+  bsurf_ksel_close(r);
+  return st;
+}
+
 bsurf_status bsurf_ksel_level(const bsurf_ksel_run *r, double *noise, size_t n) {
   if (r->o.noise_pool == BSURF_NOISE_POOL_GLOBAL) return pool_global(noise, n);
   for (size_t i = 0; i < n; i++) /* in place: i <= 2 i */

@@ -391,7 +391,10 @@ static bsurf_status scale_k(const smooth_ctx *c, const bsurf_smooth_options *o, 
  * are cross-sections, Taubin's conic within their plane), on the cloud's
  * 80-neighbourhoods: level[0], and level[1] the share of the points whose
  * neighbourhoods it found section-sampled. NAN, 0 where the cloud has no
- * more than 80 points. */
+ * more than 80 points; NAN and an upper bound of the share, at most
+ * BSURF_SMOOTH_SECTION_SHARE, where the section test alone shows the rule
+ * needs no level (bsurf_ksel_section_bound: about a tenth of the passes'
+ * cost). */
 static bsurf_status select_noise(const double *xyz, size_t n, int T, double level[2]) {
   level[0] = NAN, level[1] = 0;
   if (n <= BSURF_SMOOTH_SELECT_K) return BSURF_OK;
@@ -400,9 +403,17 @@ static bsurf_status select_noise(const double *xyz, size_t n, int T, double leve
   bsurf_neighbors nb;
   bsurf_status st = bsurf_neighbors_build(&nb, xyz, n, BSURF_SMOOTH_SELECT_K, T, NULL, NULL);
   if (st != BSURF_OK) return st;
+  /* first the section test alone: where even its superset of the
+   * section-sampled points is at most the rule's share, the rule keeps the
+   * fits' reading whatever the selection's, which is then not read (NAN;
+   * level[1] the bound) */
   size_t ns = 0;
-  st = bsurf_ksel_cloud_noise(xyz, &nb, &ko, &level[0], &ns);
+  st = bsurf_ksel_section_bound(xyz, &nb, &ko, &ns);
   level[1] = (double)ns / (double)n;
+  if (st == BSURF_OK && level[1] > BSURF_SMOOTH_SECTION_SHARE) {
+    st = bsurf_ksel_cloud_noise(xyz, &nb, &ko, &level[0], &ns);
+    level[1] = (double)ns / (double)n;
+  }
   bsurf_neighbors_free(&nb);
   return st;
 }

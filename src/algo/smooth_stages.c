@@ -82,10 +82,6 @@ void bsurf_smooth_select_options(int T, bsurf_kselect_options *ko) {
   ko->threads = T;
 }
 
-/* the section test's level (kselect_noise.c, SECT_ALPHA) as the share of
- * section-sampled points that says a cloud holds sections */
-#define SMOOTH_SECTION_SHARE 0.05
-
 double bsurf_smooth_noise_level(double fits, double select, double section_share) {
   /* the sheet fits' reading, but where the cloud holds cross-sections the
    * larger of the two. A sheet fit is a height over the plane of its
@@ -109,7 +105,7 @@ double bsurf_smooth_noise_level(double fits, double select, double section_share
    * of the fits leave no residual, to rounding: at most 1e-12 of the
    * selection's level) stay exact: the selection reads their misfit. */
   if (!(fits > 1e-12 * select) || !(select > fits)) return fits;
-  return section_share > SMOOTH_SECTION_SHARE ? select : fits;
+  return section_share > BSURF_SMOOTH_SECTION_SHARE ? select : fits;
 }
 
 int bsurf_smooth_misfit(const double *sv, double noise) {

@@ -56,6 +56,9 @@ double bsurf_smooth_noise_level(double fits, double select, double section_share
  * neighbourhood size they read (80): a cloud of no more points has no
  * second reading. */
 #define BSURF_SMOOTH_SELECT_K 80
+/* the share of section-sampled points above which the guard takes the
+ * selection's reading (bsurf_smooth_noise_level; the section test's level) */
+#define BSURF_SMOOTH_SECTION_SHARE 0.05
 void bsurf_smooth_select_options(int T, bsurf_kselect_options *ko);
 /* 1 when the fit of record sv fails the misfit test
  * at that noise (it moves nothing). */

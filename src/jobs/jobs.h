@@ -43,6 +43,11 @@ bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_o
                                    struct bsurf_ksel_run *run, bsurf_tile_values *pooled,
                                    double *level, size_t *sections, bsurf_tile_report *tr,
                                    bsurf_failure *err);
+/* bsurf_ksel_section_bound tile by tile (the core's and the ring's rows,
+ * ring_k = k): *bound, the same count as in memory. */
+bsurf_status bsurf_jobs_section_bound(const bsurf_job_io *io, int k, int threads,
+                                      struct bsurf_ksel_run *run, size_t *bound,
+                                      bsurf_tile_report *tr, bsurf_failure *err);
 /* The rings the last stage needs (its ring_k is the noise_k): 2 with the
  * empirical bias (bsurf_ksel_empirical: its references are the first
  * choices without it at the noise_k nearest of the points whose first

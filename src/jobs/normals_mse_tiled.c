@@ -52,24 +52,68 @@ static void by_point(const bsurf_neighbors *nb, size_t rows, const double *row_v
            width * sizeof(double));
 }
 
+/* A tile's first pass on the core's and the ring's rows (pass1: 2 values a
+ * row, bsurf_ksel_noise or bsurf_ksel_section_tests), the values by local
+ * point in *s2 (the caller frees it) for a second pass on the core's rows,
+ * *core (nb with the core's rows only). */
+static bsurf_status rows_pass(const mse_stages *m, const bsurf_tile *t,
+                              bsurf_status (*pass1)(bsurf_ksel_run *, const double *,
+                                                    const bsurf_neighbors *, double *),
+                              double **s2, bsurf_neighbors *core) {
+  const size_t nc = t->core_count, rows = nc + t->ring_count, nl = t->local_count;
+  double *s2row = bsurf_alloc_array(rows ? rows : 1, 2 * sizeof(double));
+  *s2 = bsurf_alloc_array(nl ? nl : 1, 2 * sizeof(double));
+  bsurf_status st = s2row && *s2 ? BSURF_OK : BSURF_ERR_NOMEM;
+  if (st == BSURF_OK) st = pass1(m->run, t->xyz, t->nb, s2row);
+  if (st == BSURF_OK) by_point(t->nb, rows, s2row, 2, *s2, nl);
+  *core = *t->nb;
+  core->point_count = nc;
+  free(s2row);
+  return st;
+}
+
 /* stage 1: s2 of the core and the ring, the core's pooled noise */
 static bsurf_status noise_run(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
   (void)core;
   (void)sums;
   const mse_stages *m = user;
-  const size_t nc = t->core_count, rows = nc + t->ring_count, nl = t->local_count;
-  double *s2row = bsurf_alloc_array(rows ? rows : 1, 2 * sizeof(double));
-  double *s2 = bsurf_alloc_array(nl ? nl : 1, 2 * sizeof(double));
-  bsurf_status st = s2row && s2 ? BSURF_OK : BSURF_ERR_NOMEM;
-  if (st == BSURF_OK) st = bsurf_ksel_noise(m->run, t->xyz, t->nb, s2row);
-  if (st == BSURF_OK) {
-    by_point(t->nb, rows, s2row, 2, s2, nl);
-    bsurf_neighbors cnb = *t->nb;
-    cnb.point_count = nc;
-    st = bsurf_ksel_pool(m->run, t->xyz, &cnb, s2, t->values_out);
-  }
-  free(s2row);
+  double *s2 = NULL;
+  bsurf_neighbors cnb;
+  bsurf_status st = rows_pass(m, t, bsurf_ksel_noise, &s2, &cnb);
+  if (st == BSURF_OK) st = bsurf_ksel_pool(m->run, t->xyz, &cnb, s2, t->values_out);
   free(s2);
+  return st;
+}
+
+/* the section test alone (bsurf_jobs_section_bound): on the core's and the
+ * ring's rows, then the core's flags, counted in sums[0] */
+static bsurf_status section_run(void *user, const bsurf_tile *t, bsurf_cloud *core, double *sums) {
+  (void)core;
+  const mse_stages *m = user;
+  double *s2 = NULL;
+  bsurf_neighbors cnb;
+  size_t flagged = 0;
+  bsurf_status st = rows_pass(m, t, bsurf_ksel_section_tests, &s2, &cnb);
+  if (st == BSURF_OK) st = bsurf_ksel_section_flags(m->run, t->xyz, &cnb, s2, &flagged);
+  sums[0] += (double)flagged;
+  free(s2);
+  return st;
+}
+
+bsurf_status bsurf_jobs_section_bound(const bsurf_job_io *io, int k, int threads,
+                                      bsurf_ksel_run *run, size_t *bound, bsurf_tile_report *tr,
+                                      bsurf_failure *err) {
+  mse_stages m = {run};
+  bsurf_tile_ops ops;
+  bsurf_jobs_tile_ops(&ops, io, k, threads, NULL, NULL, &m);
+  ops.run = section_run;
+  ops.nsums = 1;
+  ops.ring_k = k;
+  double sum = 0;
+  memset(tr, 0, sizeof *tr);
+  tr->sums = &sum;
+  bsurf_status st = bsurf_tiles_run(io->input, io->output, &ops, tr, err);
+  *bound = st == BSURF_OK ? (size_t)sum : 0;
   return st;
 }
 

@@ -180,7 +180,8 @@ static bsurf_status values_sums(const bsurf_tile_values *v, double *sum, size_t 
 /* The guard's second reading of the noise, tile by tile (bsurf_smooth's
  * select_noise: the K selection's noise passes on the 80-neighbourhoods,
  * bsurf_jobs_mse_stages, the same bits): sel[0] the level, sel[1] the share
- * of section-sampled points; NAN, 0 for a cloud of 80 points or fewer. */
+ * of section-sampled points; NAN, 0 for a cloud of 80 points or fewer; NAN
+ * and the section test's bound where that needs no level. */
 static bsurf_status select_noise_tiled(const bsurf_job_io *io, const bsurf_smooth_options *so,
                                        size_t points, double sel[2], bsurf_failure *err) {
   sel[0] = NAN, sel[1] = 0;
@@ -197,11 +198,16 @@ static bsurf_status select_noise_tiled(const bsurf_job_io *io, const bsurf_smoot
    * size changes no value, their halos are proven) */
   bsurf_job_io sio = *io;
   if (sio.tile_points < 2 * BSURF_SMOOTH_SELECT_K) sio.tile_points = 2 * BSURF_SMOOTH_SELECT_K;
-  st = bsurf_jobs_mse_stages(&sio, &ko, BSURF_SMOOTH_SELECT_K, so->error.threads, NULL, NULL, run,
-                             &pooled, &sel[0], &ns, &tr, err);
+  /* the section test alone first, as in memory */
+  st = bsurf_jobs_section_bound(&sio, BSURF_SMOOTH_SELECT_K, so->error.threads, run, &ns, &tr, err);
+  sel[1] = (double)ns / (double)points;
+  if (st == BSURF_OK && sel[1] > BSURF_SMOOTH_SECTION_SHARE) {
+    st = bsurf_jobs_mse_stages(&sio, &ko, BSURF_SMOOTH_SELECT_K, so->error.threads, NULL, NULL, run,
+                               &pooled, &sel[0], &ns, &tr, err);
+    sel[1] = (double)ns / (double)points;
+  }
   bsurf_tile_values_close(&pooled);
   bsurf_ksel_close(run);
-  sel[1] = (double)ns / (double)points;
   return st;
 }
 
