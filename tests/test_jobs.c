@@ -24,6 +24,14 @@
 
 /* The input: a noisy cube (sharp edges; its feature and feature_dist
  * fields are the truth the features job keeps as *_in), binary PLY. */
+/* c written to path (the inputs below, made once), then freed: 1 */
+static int written(const char *path, bsurf_cloud *c) {
+  bsurf_failure err;
+  assert_int_equal(bsurf_write(path, c, NULL, &err), BSURF_OK);
+  bsurf_cloud_free(c);
+  return 1;
+}
+
 static const char *input_path(void) {
   static int made = 0;
   const char *path = tmp_path("jobs_cube.ply");
@@ -34,10 +42,7 @@ static const char *input_path(void) {
     assert_int_equal(bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3,
                                      sqrt(24.0 / (double)c.point_count), 3),
                      BSURF_OK);
-    bsurf_failure err;
-    assert_int_equal(bsurf_write(path, &c, NULL, &err), BSURF_OK);
-    bsurf_cloud_free(&c);
-    made = 1;
+    made = written(path, &c);
   }
   return path;
 }
@@ -71,10 +76,7 @@ static const char *rings_path(void) {
     assert_int_equal(
         bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, sp, 41),
         BSURF_OK);
-    bsurf_failure err;
-    assert_int_equal(bsurf_write(path, &c, NULL, &err), BSURF_OK);
-    bsurf_cloud_free(&c);
-    made = 1;
+    made = written(path, &c);
   }
   return path;
 }
