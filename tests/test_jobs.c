@@ -47,35 +47,22 @@ static const char *input_path(void) {
   return path;
 }
 
-/* A cylinder sampled on rings 8 spacings apart (60 rings of 60 points,
- * gaussian noise of 0.3 spacings along a normal tilted 0.1 out of the
- * rings' planes), as a turned part's mesh vertices are: the guard's sheet
- * fits read none of the noise there, most points are section-sampled, and it
- * takes the K selection's reading (test_smooth's test_noise_rings). */
+/* The cylinder sampled on rings 8 spacings apart of test_util.h
+ * (ring_cylinder): the guard's sheet fits read none of the noise there,
+ * most points are section-sampled, and it takes the K selection's reading
+ * (test_smooth's test_noise_rings). */
 static const char *rings_path(void) {
   static int made = 0;
   const char *path = tmp_path("jobs_rings.ply");
   if (!made) {
     bsurf_cloud c;
     bsurf_cloud_init(&c);
-    const int rings = 60, per = 60;
-    const double sp = 2 * 3.14159265358979323846 / per;
-    c.point_count = (size_t)rings * per;
-    c.xyz = malloc(c.point_count * 3 * sizeof(double));
-    c.normals = malloc(c.point_count * 3 * sizeof(double));
+    c.xyz = malloc(3600 * 3 * sizeof(double));
+    c.normals = malloc(3600 * 3 * sizeof(double));
     assert_non_null(c.xyz);
     assert_non_null(c.normals);
-    const double w = sqrt(1.01); /* normals tilted 0.1 out of the rings' planes */
-    for (size_t m = 0; m < c.point_count; m++) {
-      const int r = (int)(m / per), j = (int)(m % per);
-      const double t = (j + 0.5 * (r % 2)) * sp;
-      c.xyz[3 * m] = cos(t), c.xyz[3 * m + 1] = sin(t), c.xyz[3 * m + 2] = r * 8 * sp;
-      c.normals[3 * m] = cos(t) / w, c.normals[3 * m + 1] = sin(t) / w;
-      c.normals[3 * m + 2] = 0.1 / w;
-    }
-    assert_int_equal(
-        bsurf_add_noise(c.xyz, c.normals, c.point_count, BSURF_NOISE_GAUSSIAN, 0.3, sp, 41),
-        BSURF_OK);
+    c.point_count = ring_cylinder(8, c.xyz, c.normals);
+    assert_int_equal(c.point_count, 3600);
     made = written(path, &c);
   }
   return path;

@@ -15,6 +15,7 @@
 #include "bootsurf.h"
 #include "algo/algo.h"          /* bsurf_smooth_tuned */
 #include "algo/smooth_stages.h" /* bsurf_smooth_noise_level */
+#include "test_util.h"
 
 static const bsurf_smooth_method methods[3] = {BSURF_SMOOTH_NAIVE, BSURF_SMOOTH_BILATERAL,
                                                BSURF_SMOOTH_MULTIPASS};
@@ -462,31 +463,14 @@ static void test_noise_readings(void **state) {
   assert_int_equal(bsurf_ksel_sections(pooled, 1), 0);
 }
 
-/* A cylinder sampled on rings, as a turned part's mesh vertices are: 60
- * rings of 60 points at arc spacing s, `gap` s apart, with gaussian noise
- * of 0.3 s along a normal tilted 0.1 out of the ring's plane (a mesh's
- * vertex normals are not exactly radial), so the noise stays nearly within
- * each ring's plane. Rings 8 s apart: a point's nearest are an arc of its
- * ring, and the sheet fits' reading collapses (measured 0.0008 sigma); the
- * selection finds 52% of the points section-sampled and reads 1.05 sigma,
- * and the guard takes that. The fits there are the arcs themselves, so the
- * points hardly move (0.2358 s -> 0.2347 s), but they do not move away.
- * Rings 4 s apart (the nearest reach the next ring): the fits' reading
- * stands (0.80 sigma; 0.2358 s -> 0.0795 s). */
-#define RING_PI 3.14159265358979323846
-static void ring_cylinder(double gap, double *xyz, double *nrm, size_t *n) {
-  const int rings = 60, per = 60;
-  const double s = 2 * RING_PI / per, tz = 0.1 / sqrt(1.01);
-  size_t m = 0;
-  for (int r = 0; r < rings; r++)
-    for (int j = 0; j < per; j++, m++) {
-      const double t = (j + 0.5 * (r % 2)) * s;
-      xyz[3 * m] = cos(t), xyz[3 * m + 1] = sin(t), xyz[3 * m + 2] = r * gap * s;
-      nrm[3 * m] = cos(t) / sqrt(1.01), nrm[3 * m + 1] = sin(t) / sqrt(1.01), nrm[3 * m + 2] = tz;
-    }
-  assert_int_equal(bsurf_add_noise(xyz, nrm, m, BSURF_NOISE_GAUSSIAN, 0.3, s, 41), BSURF_OK);
-  *n = m;
-}
+/* The cylinder sampled on rings of test_util.h (ring_cylinder). Rings 8 s
+ * apart: a point's nearest are an arc of its ring, and the sheet fits'
+ * reading collapses (measured 0.0008 sigma); the selection finds 52% of the
+ * points section-sampled and reads 1.05 sigma, and the guard takes that.
+ * The fits there are the arcs themselves, so the points hardly move (0.2358
+ * s -> 0.2347 s), but they do not move away. Rings 4 s apart (the nearest
+ * reach the next ring): the fits' reading stands (0.80 sigma; 0.2358 s ->
+ * 0.0795 s). */
 static double ring_distance(const double *xyz, size_t n) {
   double e = 0;
   for (size_t i = 0; i < n; i++)
@@ -503,8 +487,7 @@ static void test_noise_rings(void **state) {
   assert_non_null(nrm);
   assert_non_null(out);
   for (int gap = 8; gap >= 4; gap -= 4) {
-    size_t n;
-    ring_cylinder(gap, xyz, nrm, &n);
+    const size_t n = ring_cylinder(gap, xyz, nrm);
     assert_true(n == N);
     bsurf_smooth_report rep;
     smooth_default_k50(xyz, n, out, &rep);
@@ -524,11 +507,8 @@ static void test_noise_rings(void **state) {
        * the passes where it is at most 5%) */
       bsurf_neighbors nb;
       assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 80, 2, NULL, NULL), BSURF_OK);
-      static const int ks[] = {10, 15, 20, 25, 30, 35, 40, 45, 50, 55, 60, 65, 70, 75, 80};
-      bsurf_kselect_options ko = bsurf_kselect_options_default();
-      ko.ks = ks;
-      ko.nk = 15;
-      ko.threads = 2;
+      bsurf_kselect_options ko;
+      bsurf_smooth_select_options(2, &ko); /* the guard's: 10:80:5, GLOBAL */
       size_t bound = 0, sections = 0;
       double level;
       assert_int_equal(bsurf_ksel_section_bound(xyz, &nb, &ko, &bound), BSURF_OK);

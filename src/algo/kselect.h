@@ -135,14 +135,15 @@ void section_point(void *vctx, int thread, size_t i);
 void section_flag_point(void *vctx, int thread, size_t i);
 bsurf_status pool_global(double *noise, size_t n);
 
-/* The candidates of a point: nk K values, times nd degrees for the
- * polynomial fits (candidate a K * nd + degree index), else one PCA plane. */
 /* sin^2 of the angle between two unit vectors, 1 - (a . b)^2: the drift's
  * and the test errors' disagreement between two normals */
 static inline double ksel_sin2(const double *a, const double *b) {
   const double dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
   return 1.0 - dot * dot;
 }
+
+/* The candidates of a point: nk K values, times nd degrees for the
+ * polynomial fits (candidate a K * nd + degree index), else one PCA plane. */
 
 static inline int ksel_ndeg(const bsurf_kselect_options *o) {
   return o->nd > 0 ? o->nd : 1;
