@@ -441,6 +441,61 @@ static void test_tie_store_exact(void **state) {
   shape_free(&s);
 }
 
+/* Progress and cancellation: the noise passes before the selection's pass
+ * report none done after every chunk, the passes after it all done, so a
+ * caller can cancel any of them (Python's KeyboardInterrupt) and its
+ * progress never goes back; the callback changes no result. */
+typedef struct progress_log {
+  size_t calls, held0, last, total;
+  int back, cancel_at;
+} progress_log;
+
+static int log_cb(void *u, size_t done, size_t total) {
+  progress_log *l = u;
+  if (done < l->last) l->back = 1;
+  l->held0 += done == 0 && l->last == 0;
+  l->last = done, l->total = total;
+  return ++l->calls == (size_t)l->cancel_at;
+}
+
+static void test_progress(void **state) {
+  (void)state;
+  noisy_shape s;
+  shape_make(&s, BSURF_SHAPE_SPHERE, 9000, BSURF_NOISE_GAUSSIAN, 0.3);
+  const size_t n = s.c.point_count;
+  sel_out a;
+  select_run(&s, 2, &a);
+  double *nrm = malloc(3 * n * sizeof(double));
+  int *k = malloc(n * sizeof(int));
+  bsurf_kselect_fields f = {nrm, k, NULL, NULL, NULL, NULL};
+  bsurf_kselect_options o = bsurf_kselect_options_default();
+  o.ks = KS;
+  o.nk = NKS;
+  o.threads = 2;
+  progress_log l = {0};
+  o.progress = log_cb;
+  o.progress_user = &l;
+  assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_OK);
+  print_message("progress: %zu calls, %zu at none done, last %zu of %zu\n", l.calls, l.held0,
+                l.last, l.total);
+  /* 9,000 rows: 3 chunks a pass; passes 1 and 2 held at 0 */
+  assert_true(l.held0 >= 6 && !l.back && l.last == n && l.total == n);
+  assert_memory_equal(nrm, a.normals, 3 * n * sizeof(double));
+  assert_memory_equal(k, a.k, n * sizeof(int));
+  /* cancelled within the noise passes, and at the last call */
+  const int at[] = {1, (int)l.calls};
+  for (int j = 0; j < 2; j++) {
+    progress_log c = {.cancel_at = at[j]};
+    o.progress_user = &c;
+    assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_ERR_CANCELLED);
+    assert_true(c.calls == (size_t)at[j]);
+  }
+  free(nrm);
+  free(k);
+  sel_free(&a);
+  shape_free(&s);
+}
+
 static void test_bad_options(void **state) {
   (void)state;
   noisy_shape s;
@@ -658,7 +713,7 @@ int main(void) {
       cmocka_unit_test(test_bad_options),        cmocka_unit_test(test_two_sheets),
       cmocka_unit_test(test_noise_pool),         cmocka_unit_test(test_tie_store_exact),
       cmocka_unit_test(test_curve_sampled),      cmocka_unit_test(test_tie_weights),
-      cmocka_unit_test(test_clean_patch),
+      cmocka_unit_test(test_clean_patch),        cmocka_unit_test(test_progress),
   };
   return cmocka_run_group_tests(tests, NULL, NULL);
 }

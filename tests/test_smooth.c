@@ -477,6 +477,49 @@ static double ring_distance(const double *xyz, size_t n) {
     e += fabs(hypot(xyz[3 * i], xyz[3 * i + 1]) - 1.0);
   return e / (double)n;
 }
+/* Progress through the guard's second reading: while the selection's table
+ * is built and its passes run, the progress stays where stage 1 ended
+ * (multipass: 1000 of 3000) and is reported after every chunk, so a caller
+ * can cancel them (Python's KeyboardInterrupt, docs/python.md); the
+ * callback changes no result. */
+typedef struct stage_log {
+  size_t calls, at_end, last;
+  int back, cancel_at;
+} stage_log;
+
+static int stage_cb(void *u, size_t done, size_t total) {
+  stage_log *l = u;
+  if (done < l->last) l->back = 1;
+  l->last = done;
+  l->at_end += done * 3 == total;
+  return l->at_end == (size_t)l->cancel_at;
+}
+
+static void rings_progress(const double *xyz, size_t n, const double *expect) {
+  double *out = malloc(n * 3 * sizeof(double));
+  assert_non_null(out);
+  bsurf_neighbors nb;
+  assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 50, 2, NULL, NULL), BSURF_OK);
+  bsurf_smooth_options o = bsurf_smooth_options_default();
+  o.error.bootstrap = 20;
+  o.error.threads = 2;
+  stage_log l = {0};
+  o.error.progress = stage_cb;
+  o.error.progress_user = &l;
+  assert_int_equal(bsurf_smooth(xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
+  print_message("progress at stage 1's end: %zu calls, back %d, last %zu\n", l.at_end, l.back,
+                l.last);
+  /* stage 1's last chunk, then the build and four passes at least */
+  assert_true(l.at_end >= 6 && !l.back && l.last == 3000);
+  assert_memory_equal(out, expect, n * 3 * sizeof(double));
+  stage_log c = {.cancel_at = 3}; /* within the passes */
+  o.error.progress_user = &c;
+  assert_int_equal(bsurf_smooth(xyz, &nb, &o, out, NULL, NULL), BSURF_ERR_CANCELLED);
+  assert_true(c.at_end == 3 && c.last * 3 == 3000);
+  bsurf_neighbors_free(&nb);
+  free(out);
+}
+
 static void test_noise_rings(void **state) {
   (void)state;
   const size_t N = 3600;
@@ -518,6 +561,7 @@ static void test_noise_rings(void **state) {
       assert_true((double)sections / (double)n == rep.section_share);
       assert_true(sqrt(level) == rep.noise_select);
       bsurf_neighbors_free(&nb);
+      rings_progress(xyz, n, out);
     } else {
       /* not read: the section test alone finds at most 5% */
       assert_true(isnan(rep.noise_select) && rep.section_share <= 0.05);

@@ -8,15 +8,27 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* Where a pass stands in the caller's progress: the selection's pass
+ * reports its rows done to r->o.progress; the passes before it (the noise
+ * passes: about 1.6 s per 50,000 points at two threads, docs/python.md)
+ * report none done, (0, rows), and the passes after it all done, after
+ * every chunk as well, so that a caller can cancel them too without its
+ * progress going back. */
+enum { KSEL_BEFORE, KSEL_REPORT, KSEL_AFTER };
+
 /* A pass over nb's rows in their visit order (no result depends on it). */
 static bsurf_status ksel_pass(const bsurf_ksel_run *r, ksel_ctx *c, void (*fn)(void *, int, size_t),
-                              int progress) {
+                              int where) {
   uint32_t *owned = NULL;
   const uint32_t *order = bsurf_visit_order(c->nb, c->xyz, &owned);
   if (!order) return BSURF_ERR_NOMEM;
-  bsurf_status st = bsurf_parallel_points_ordered(c->nb->point_count, order, r->T, fn, c,
-                                                  progress ? r->o.progress : NULL,
-                                                  progress ? r->o.progress_user : NULL);
+  const size_t rows = c->nb->point_count;
+  bsurf_progress_hold hold = {r->o.progress, r->o.progress_user, where == KSEL_AFTER ? rows : 0,
+                              rows};
+  const int held = where != KSEL_REPORT && r->o.progress;
+  bsurf_status st = bsurf_parallel_points_ordered(rows, order, r->T, fn, c,
+                                                  held ? bsurf_progress_hold_cb : r->o.progress,
+                                                  held ? (void *)&hold : r->o.progress_user);
   free(owned);
   return st;
 }
@@ -38,7 +50,7 @@ bsurf_status bsurf_ksel_noise(bsurf_ksel_run *r, const double *xyz, const bsurf_
                               double *s2) {
   ksel_ctx c = ksel_ctx_of(r, xyz, nb);
   c.s2 = s2; /* by row */
-  return ksel_pass(r, &c, noise_point, 0);
+  return ksel_pass(r, &c, noise_point, KSEL_BEFORE);
 }
 
 bsurf_status bsurf_ksel_pool(bsurf_ksel_run *r, const double *xyz, const bsurf_neighbors *nb,
@@ -46,14 +58,14 @@ bsurf_status bsurf_ksel_pool(bsurf_ksel_run *r, const double *xyz, const bsurf_n
   ksel_ctx c = ksel_ctx_of(r, xyz, nb);
   c.s2 = (double *)s2; /* read only, by neighbour */
   c.noise = noise;
-  return ksel_pass(r, &c, pool_point, 0);
+  return ksel_pass(r, &c, pool_point, KSEL_BEFORE);
 }
 
 bsurf_status bsurf_ksel_section_tests(bsurf_ksel_run *r, const double *xyz,
                                       const bsurf_neighbors *nb, double *s2) {
   ksel_ctx c = ksel_ctx_of(r, xyz, nb);
   c.s2 = s2; /* by row */
-  return ksel_pass(r, &c, section_point, 0);
+  return ksel_pass(r, &c, section_point, KSEL_BEFORE);
 }
 
 bsurf_status bsurf_ksel_section_flags(bsurf_ksel_run *r, const double *xyz,
@@ -65,7 +77,7 @@ bsurf_status bsurf_ksel_section_flags(bsurf_ksel_run *r, const double *xyz,
   ksel_ctx c = ksel_ctx_of(r, xyz, nb);
   c.s2 = (double *)s2; /* read only, by neighbour */
   c.noise = flag;
-  bsurf_status st = ksel_pass(r, &c, section_flag_point, 0);
+  bsurf_status st = ksel_pass(r, &c, section_flag_point, KSEL_BEFORE);
   *flagged = 0;
   for (size_t i = 0; i < n && st == BSURF_OK; i++)
     *flagged += flag[i] > 0;
@@ -154,7 +166,7 @@ static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsur
   c->deferred = deferred;
   bsurf_i_ksel_reset(r);
   /* progress is reported for pass 3 (the bulk of the work) */
-  if (st == BSURF_OK) st = ksel_pass(r, c, r->o.nd > 0 ? poly_point : select_point, 1);
+  if (st == BSURF_OK) st = ksel_pass(r, c, r->o.nd > 0 ? poly_point : select_point, KSEL_REPORT);
   for (int t = 0; t < r->T && st == BSURF_OK; t++)
     if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
   for (size_t i = 0; fref && st == BSURF_OK && i < n; i++) { /* row i's point: idx[i k] */
@@ -173,11 +185,11 @@ static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsur
     c->bref = dref, c->bmref = dmref;
     c->deferred = NULL;
     rd.deferred = deferred;
-    st = ksel_pass(r, c, select_deferred, 0);
+    st = ksel_pass(r, c, select_deferred, KSEL_AFTER);
     for (int t = 0; t < r->T && st == BSURF_OK; t++)
       if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;
   }
-  if (st == BSURF_OK && !fnrm) st = ksel_pass(r, c, tie_point, 0);
+  if (st == BSURF_OK && !fnrm) st = ksel_pass(r, c, tie_point, KSEL_AFTER);
   if (report && st == BSURF_OK && !fnrm) {
     for (int t = 0; t < r->T; t++)
       report->unassessed += r->scr[t].none;

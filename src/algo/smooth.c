@@ -395,13 +395,21 @@ static bsurf_status scale_k(const smooth_ctx *c, const bsurf_smooth_options *o, 
  * BSURF_SMOOTH_SECTION_SHARE, where the section test alone shows the rule
  * needs no level (bsurf_ksel_section_bound: about a tenth of the passes'
  * cost). */
-static bsurf_status select_noise(const double *xyz, size_t n, int T, double level[2]) {
+static bsurf_status select_noise(const double *xyz, size_t n, int T, staged_progress *sp,
+                                 double level[2]) {
   level[0] = NAN, level[1] = 0;
   if (n <= BSURF_SMOOTH_SELECT_K) return BSURF_OK;
+  /* the caller's progress stays where its stage ended, reported after
+   * every chunk of the table's build and the passes: Ctrl-C (Python's
+   * KeyboardInterrupt through the callback) stops them too */
+  bsurf_progress_hold hold = {sp->fn ? staged_cb : NULL, sp, 1, 1};
   bsurf_kselect_options ko;
   bsurf_smooth_select_options(T, &ko);
+  ko.progress = sp->fn ? bsurf_progress_hold_cb : NULL;
+  ko.progress_user = &hold;
   bsurf_neighbors nb;
-  bsurf_status st = bsurf_neighbors_build(&nb, xyz, n, BSURF_SMOOTH_SELECT_K, T, NULL, NULL);
+  bsurf_status st =
+      bsurf_neighbors_build(&nb, xyz, n, BSURF_SMOOTH_SELECT_K, T, ko.progress, ko.progress_user);
   if (st != BSURF_OK) return st;
   /* first the section test alone: where even its superset of the
    * section-sampled points is at most the rule's share, the rule keeps the
@@ -569,7 +577,7 @@ static bsurf_status smooth_run(const double *xyz, const bsurf_neighbors *nb,
     free(scratch);
     if (sel_given)
       c.noise_select[0] = sel_given[0], c.noise_select[1] = sel_given[1];
-    else if ((st = select_noise(xyz, n, T, c.noise_select)) != BSURF_OK)
+    else if ((st = select_noise(xyz, n, T, &sp, c.noise_select)) != BSURF_OK)
       goto done;
     c.noise = bsurf_smooth_noise_level(c.noise_fits, c.noise_select[0], c.noise_select[1]);
     for (size_t i = 0; i < n; i++)
@@ -589,7 +597,8 @@ static bsurf_status smooth_run(const double *xyz, const bsurf_neighbors *nb,
       o2.method = o.method;
       o2.error.k = o2.k_max = K;
       bsurf_neighbors nb2;
-      st = bsurf_neighbors_build(&nb2, xyz, n, K, T, NULL, NULL);
+      bsurf_progress_hold hold = {sp.fn ? staged_cb : NULL, &sp, 1, 1};
+      st = bsurf_neighbors_build(&nb2, xyz, n, K, T, sp.fn ? bsurf_progress_hold_cb : NULL, &hold);
       if (st == BSURF_OK) {
         st = smooth_run(xyz, &nb2, &o2, tune, c.noise_select, out_xyz, fields, report);
         bsurf_neighbors_free(&nb2);

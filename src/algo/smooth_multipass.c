@@ -373,6 +373,9 @@ bsurf_status smooth_multipass_run(smooth_ctx *c, const bsurf_smooth_options *o,
     if (st == BSURF_OK && sp->fn && staged_cb(sp, (size_t)it, (size_t)maxit))
       st = BSURF_ERR_CANCELLED;
   }
+  /* a run that stopped early (the stop rule) has done its stage: the
+   * caller's progress ends at its total */
+  if (st == BSURF_OK && it < maxit && sp->fn && staged_cb(sp, 1, 1)) st = BSURF_ERR_CANCELLED;
   if (st == BSURF_OK && !seq) {
     for (size_t r = 0; r < n; r++)
       memcpy(&c->out[3 * (size_t)perm[r]], &from[3 * r], 3 * sizeof(double));

@@ -202,6 +202,17 @@ bsurf_status bsurf_parallel_points_chunk(size_t n, size_t chunk, int threads, bs
                                          void *ctx, bsurf_progress_fn progress,
                                          void *progress_user);
 
+/* A progress callback for a step that does not advance its caller's
+ * progress but must stay cancellable (the K selection's noise passes): it
+ * reports the fixed position (done, total) to fn, whatever it is told, and
+ * returns fn's answer. user: a bsurf_progress_hold. */
+typedef struct bsurf_progress_hold {
+  bsurf_progress_fn fn;
+  void *user;
+  size_t done, total;
+} bsurf_progress_hold;
+int bsurf_progress_hold_cb(void *user, size_t done, size_t total);
+
 /* The same, visiting point order[r] at step r (order: a permutation of
  * 0..n-1, e.g. bsurf_spatial_order's; NULL = index order). Progress counts
  * steps. */

@@ -14,6 +14,12 @@ size_t bsurf_progress_chunk(double work) {
   return c < 16 ? 16 : (size_t)c;
 }
 
+int bsurf_progress_hold_cb(void *user, size_t done, size_t total) {
+  const bsurf_progress_hold *h = user;
+  (void)done, (void)total;
+  return h->fn ? h->fn(h->user, h->done, h->total) : 0;
+}
+
 bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, void *ctx,
                                    bsurf_progress_fn progress, void *progress_user) {
   return bsurf_parallel_points_chunk(n, BSURF_PROGRESS_CHUNK, threads, fn, ctx, progress,

@@ -44,8 +44,10 @@ bsurf_status bsurf_jobs_mse_stages(const bsurf_job_io *io, const bsurf_kselect_o
                                    double *level, size_t *sections, bsurf_tile_report *tr,
                                    bsurf_failure *err);
 /* bsurf_ksel_section_bound tile by tile (the core's and the ring's rows,
- * ring_k = k): *bound, the same count as in memory. */
+ * ring_k = k): *bound, the same count as in memory; progress: the tiles
+ * done. */
 bsurf_status bsurf_jobs_section_bound(const bsurf_job_io *io, int k, int threads,
+                                      bsurf_progress_fn progress, void *progress_user,
                                       struct bsurf_ksel_run *run, size_t *bound,
                                       bsurf_tile_report *tr, bsurf_failure *err);
 /* The rings the last stage needs (its ring_k is the noise_k): 2 with the

@@ -101,11 +101,12 @@ static bsurf_status section_run(void *user, const bsurf_tile *t, bsurf_cloud *co
 }
 
 bsurf_status bsurf_jobs_section_bound(const bsurf_job_io *io, int k, int threads,
+                                      bsurf_progress_fn progress, void *progress_user,
                                       bsurf_ksel_run *run, size_t *bound, bsurf_tile_report *tr,
                                       bsurf_failure *err) {
   mse_stages m = {run};
   bsurf_tile_ops ops;
-  bsurf_jobs_tile_ops(&ops, io, k, threads, NULL, NULL, &m);
+  bsurf_jobs_tile_ops(&ops, io, k, threads, progress, progress_user, &m);
   ops.run = section_run;
   ops.nsums = 1;
   ops.ring_k = k;

@@ -198,12 +198,15 @@ static bsurf_status select_noise_tiled(const bsurf_job_io *io, const bsurf_smoot
    * size changes no value, their halos are proven) */
   bsurf_job_io sio = *io;
   if (sio.tile_points < 2 * BSURF_SMOOTH_SELECT_K) sio.tile_points = 2 * BSURF_SMOOTH_SELECT_K;
-  /* the section test alone first, as in memory */
-  st = bsurf_jobs_section_bound(&sio, BSURF_SMOOTH_SELECT_K, so->error.threads, run, &ns, &tr, err);
+  /* the section test alone first, as in memory; the engine reports the
+   * tiles of each (so Ctrl-C stops them between tiles) */
+  st = bsurf_jobs_section_bound(&sio, BSURF_SMOOTH_SELECT_K, so->error.threads, so->error.progress,
+                                so->error.progress_user, run, &ns, &tr, err);
   sel[1] = (double)ns / (double)points;
   if (st == BSURF_OK && sel[1] > BSURF_SMOOTH_SECTION_SHARE) {
-    st = bsurf_jobs_mse_stages(&sio, &ko, BSURF_SMOOTH_SELECT_K, so->error.threads, NULL, NULL, run,
-                               &pooled, &sel[0], &ns, &tr, err);
+    st = bsurf_jobs_mse_stages(&sio, &ko, BSURF_SMOOTH_SELECT_K, so->error.threads,
+                               so->error.progress, so->error.progress_user, run, &pooled, &sel[0],
+                               &ns, &tr, err);
     sel[1] = (double)ns / (double)points;
   }
   bsurf_tile_values_close(&pooled);

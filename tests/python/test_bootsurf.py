@@ -465,6 +465,57 @@ def test_keyboard_interrupt_on_a_million_points():
     assert s["points"] == 2000 and np.isfinite(f["err_632"]).all()
 
 
+def ring_cylinder(gap):
+    """A cylinder sampled on rings `gap` spacings apart with gaussian noise of
+    0.3 spacings along its normals (tests/test_util.h's shape, another draw)."""
+    per, rings = 60, 60
+    s = 2 * math.pi / per
+    j, r = np.meshgrid(np.arange(per), np.arange(rings))
+    t = ((j + 0.5 * (r % 2)) * s).ravel()
+    nrm = np.stack([np.cos(t), np.sin(t), np.zeros_like(t)], axis=1)
+    pts = nrm + np.stack([0 * t, 0 * t, (r * gap * s).ravel()], axis=1)
+    return pts + nrm * np.random.default_rng(41).normal(0, 0.3 * s, len(t))[:, None]
+
+
+def test_progress_reaches_the_noise_passes():
+    """The K selection's noise passes call progress too, held where the step
+    before them ended, so an exception from progress (or Ctrl-C's
+    KeyboardInterrupt) stops them: smooth on a ring-sampled cloud, where the
+    guard's second reading runs, and normals with select_k."""
+    pts = ring_cylinder(8)
+    seen = []
+    _, _, s = bootsurf.smooth(pts, neighbors=50, bootstrap=10,
+                              progress=lambda d, t: seen.append((d, t)))
+    assert s["report"]["section_share"] > 0.05 and math.isfinite(s["report"]["noise_select"])
+    # the neighbour search, then multipass's three stages (1000 each): stage
+    # 1 ends, then the passes' table and four passes hold there
+    stages = [d for d, t in seen if t == 3000]
+    assert stages.count(1000) >= 6 and stages[-1] == 3000
+    assert all(a <= b for a, b in zip(stages, stages[1:]))
+
+    class Stop(Exception):
+        pass
+
+    def stop_at(n, in_stage):
+        calls = []
+
+        def progress(done, total):
+            calls.append((done, total))
+            if sum(in_stage(d, t) for d, t in calls) == n:
+                raise Stop()
+        return calls, progress
+
+    calls, progress = stop_at(3, lambda d, t: 3 * d == t)  # within the passes
+    with pytest.raises(Stop):
+        bootsurf.smooth(pts, neighbors=50, bootstrap=10, progress=progress)
+    assert 3 * calls[-1][0] == calls[-1][1]
+    # normals: passes 1 and 2 report none done
+    calls, progress = stop_at(2, lambda d, t: d == 0)
+    with pytest.raises(Stop):
+        bootsurf.normals(pts, select_k="10:80:5", progress=progress)
+    assert calls[-1][0] == 0
+
+
 def test_progress_callable_and_its_exception(cube):
     seen = []
     bootsurf.error(cube, neighbors=20, bootstrap=5, progress=lambda d, t: seen.append((d, t)))
