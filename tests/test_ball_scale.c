@@ -17,6 +17,27 @@
 
 #define PI 3.14159265358979323846
 
+/* The noise a ball keeps, inverted (bsurf_ball_noise, the K selection's
+ * reading where every scale is truncated): for sigma = 1 and balls of
+ * radius t = R / sigma from 1 to 12 (the table's range above t = 1), the
+ * variance the ball keeps, kappa(t), gives sigma^2 = 1 back; below t = 1
+ * the table reads kappa(1), so the answer is v / kappa(1); v or R not > 0
+ * give v. */
+static void test_ball_noise(void **state) {
+  (void)state;
+  for (double t = 1.0; t <= 12.0; t += 0.125) {
+    const double s2 = bsurf_ball_noise(bsurf_ball_share(t), t);
+    assert_true(fabs(s2 - 1.0) < 1e-9);
+    /* the same for sigma = 3: the answer scales as sigma^2 */
+    assert_true(fabs(bsurf_ball_noise(9.0 * bsurf_ball_share(t), 3.0 * t) - 9.0) < 1e-8);
+  }
+  /* v = 0.2 is more than a ball of R = 0.5 keeps of any sigma <= R (at most
+   * kappa(1) R^2 = 0.041): the answer lies below t = 1 */
+  assert_true(fabs(bsurf_ball_noise(0.2, 0.5) - 0.2 / bsurf_ball_share(1.0)) < 1e-12);
+  assert_true(bsurf_ball_noise(0.0, 2.0) == 0.0 && bsurf_ball_noise(0.5, 0.0) == 0.5);
+  assert_true(isnan(bsurf_ball_noise(NAN, 2.0)));
+}
+
 /* The rule: k0 where the ball is wide against the noise, more where it is
  * not, never fewer at heavier noise or for fewer coefficients, at most the
  * cap; where it stops, 1 - kappa <= p / K. */
@@ -142,6 +163,7 @@ static void test_scale_features_heavy(void **state) {
 
 int main(void) {
   const struct CMUnitTest tests[] = {
+      cmocka_unit_test(test_ball_noise),
       cmocka_unit_test(test_scale_rule),
       cmocka_unit_test(test_scale_smooth_levels),
       cmocka_unit_test(test_scale_features_heavy),

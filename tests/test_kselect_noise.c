@@ -167,7 +167,11 @@ static void test_aniso_sphere(void **state) {
  * 0.843, 0.891. With the scale chosen per point by Lepski's method
  * (kselect_noise.c), which moves on past the first untruncated scale while
  * the estimate does not rise beyond its precision, 0.954 and 0.935 at 0.25
- * and 1.0 h: the heavy level's bound is above the former 0.892. */
+ * and 1.0 h: the heavy level's bound is above the former 0.892. At 3.0 h
+ * every scale up to K_max = 80 is truncated at most points, and the
+ * largest's residual variance read as the share kappa(R / sigma) of the
+ * noise its ball keeps (bsurf_ball_noise, ball_scale.c) gives 1.005 of
+ * sigma (0.894 as the bare residual variance, before). */
 static double plane_sigma(double sigma, uint64_t seed) {
   bsurf_cloud c;
   assert_int_equal(bsurf_generate(&c, BSURF_SHAPE_PLANE, 20000, BSURF_SAMPLING_RANDOM, seed, 2),
@@ -191,9 +195,12 @@ static double plane_sigma(double sigma, uint64_t seed) {
 static void test_plane_noise(void **state) {
   (void)state;
   const double light = plane_sigma(0.25, 31), heavy = plane_sigma(1.0, 41);
-  print_message("plane: sigma estimated / true at 0.25 h %.3f, at 1.0 h %.3f\n", light, heavy);
+  const double unresolved = plane_sigma(3.0, 51);
+  print_message("plane: sigma estimated / true at 0.25 h %.3f, at 1.0 h %.3f, at 3.0 h %.3f\n",
+                light, heavy, unresolved);
   assert_true(light > 0.9 && light < 1.1);
   assert_true(heavy > 0.91 && heavy < 1.1);
+  assert_true(unresolved > 0.93 && unresolved < 1.1);
 }
 
 /* A coarse wavy surface: 3,000 random points of the square [-1, 1]^2

@@ -313,6 +313,13 @@ bsurf_status bsurf_select_normals_kd(const double *xyz, const bsurf_neighbors *n
  * fit; count: its points per sigma^2 of area at unit areal density. */
 double bsurf_ball_share(double t);
 double bsurf_ball_count(double t);
+/* The noise variance whose ball of radius R keeps the variance v, sigma^2
+ * with kappa(R / sigma) sigma^2 = v: the smallest such, reached from below
+ * (sigma^2 = v / kappa(R / sigma) from sigma^2 = v; each step at least the
+ * one before, bounded as kappa is at least its value at t = 1), stopping when
+ * it changes by less than 1e-12 of itself (at most 200 steps). v where v or
+ * R is not > 0. */
+double bsurf_ball_noise(double v, double R);
 /* The scale rule: the smallest K >= k0 (steps of 2^(1/4), at most k_cap)
  * whose ball drops no more of the noise than its fit's mean prediction
  * variance holds, 1 - kappa(t_K) <= p / K, from t0 = R_k0 / sigma measured at

@@ -89,6 +89,17 @@ static double ball_radius_of_count(double c) {
   return 0.5 * (lo + hi);
 }
 
+double bsurf_ball_noise(double v, double R) {
+  if (!(v > 0) || !(R > 0)) return v;
+  double s2 = v;
+  for (int step = 0; step < 200; step++) {
+    const double next = v / bsurf_ball_share(R / sqrt(s2));
+    if (!(fabs(next - s2) > 1e-12 * s2)) return next;
+    s2 = next;
+  }
+  return s2;
+}
+
 /* The scale rule. A fit of p coefficients to K points predicts with the
  * variance s^2 p / K on average over its points (the mean leverage is p /
  * K; multipass's stop level uses the same), a share p / K of the noise its

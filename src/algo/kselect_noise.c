@@ -65,7 +65,8 @@ static double chi2_quantile_ratio(int nu) {
  *    fixed K's mean angle error with it, 1.036 without; docs/normals.md,
  *    "The noise fit's scale per point").
  * Where no scale is untruncated, the largest (the truncation rule's
- * stop at K_max). */
+ * stop at K_max), its residual variance read as the share of the noise its
+ * ball keeps (quad_estimate, bsurf_ball_noise). */
 #define TRUNC 5.0
 /* the residual variance of a quadric on the first K neighbours in their own
  * PCA frame, the mean sixth power of their tangential distances (the scale
@@ -241,7 +242,7 @@ static void quad_estimate(ksel_ctx *c, ksel_scratch *s, const uint32_t *idx, dou
   const double *d = &c->xyz[3 * (size_t)idx[0]];
   out[0] = *s2c = NAN;
   int ka = 0, m = 0; /* the kept scale; the untruncated scales accepted */
-  double va = 0, m6a = 0;
+  double va = 0, m6a = 0, R2a = 0;
   for (int a = -1; a < o->nk; a++) {
     const int K = a < 0 ? o->noise_k : o->ks[a];
     if (a >= 0 && K <= o->noise_k) continue;
@@ -253,7 +254,7 @@ static void quad_estimate(ksel_ctx *c, ksel_scratch *s, const uint32_t *idx, dou
     const double R2 = (p[0] - d[0]) * (p[0] - d[0]) + (p[1] - d[1]) * (p[1] - d[1]) +
                       (p[2] - d[2]) * (p[2] - d[2]);
     if (R2 < TRUNC * TRUNC * v) { /* truncated: kept only until a scale is not */
-      if (!m) ka = K, va = v, m6a = m6;
+      if (!m) ka = K, va = v, m6a = m6, R2a = R2;
       continue;
     }
     if (rose(s->scales, m, K, v, c->lof_z)) break; /* misfit from K on */
@@ -262,6 +263,15 @@ static void quad_estimate(ksel_ctx *c, ksel_scratch *s, const uint32_t *idx, dou
     ka = K, va = v, m6a = m6;
   }
   if (!ka) return;
+  if (!m) {
+    /* every scale truncated (noise heavy against the K_max ball): the
+     * largest's residual variance is what its ball keeps of the noise, a
+     * share kappa(R / sigma) (ball_scale.c: the smoothing guard's model of
+     * the heights a K-ball holds), so the noise is the variance that keeps
+     * it; no misfit is extrapolated from a truncated scale */
+    out[0] = bsurf_ball_noise(va, sqrt(R2a)) / chi2_quantile_ratio(ka - QT);
+    return;
+  }
   out[0] = va / chi2_quantile_ratio(ka - QT);
   /* Richardson extrapolation of the quadric's misfit (see the top of the
    * file): a second fit on twice the points, the misfit's share removed */
