@@ -10,8 +10,9 @@
 
 /* Where a pass stands in the caller's progress: the selection's pass
  * reports its rows done to r->o.progress; the passes before it (the noise
- * passes: about 1.6 s per 50,000 points at two threads, docs/python.md)
- * report none done, (0, rows), and the passes after it all done, after
+ * passes and the section test's: about 1.6 s per 50,000 points at two
+ * threads, docs/python.md) report none done, (0, rows), and the passes
+ * after it (the deferred points', the tie-break's) all done, after
  * every chunk as well, so that a caller can cancel them too without its
  * progress going back. */
 enum { KSEL_BEFORE, KSEL_REPORT, KSEL_AFTER };
@@ -165,7 +166,8 @@ static bsurf_status ksel_select(bsurf_ksel_run *r, const double *xyz, const bsur
   c->bmref = bmref;
   c->deferred = deferred;
   bsurf_i_ksel_reset(r);
-  /* progress is reported for pass 3 (the bulk of the work) */
+  /* pass 3 (the bulk of the work) advances the progress; the others hold
+   * it (ksel_pass) */
   if (st == BSURF_OK) st = ksel_pass(r, c, r->o.nd > 0 ? poly_point : select_point, KSEL_REPORT);
   for (int t = 0; t < r->T && st == BSURF_OK; t++)
     if (r->scr[t].tie_nomem) st = BSURF_ERR_NOMEM;

@@ -597,6 +597,8 @@ static bsurf_status smooth_run(const double *xyz, const bsurf_neighbors *nb,
       o2.method = o.method;
       o2.error.k = o2.k_max = K;
       bsurf_neighbors nb2;
+      /* the wider table's build holds stage 1's end; the run on it then
+       * reports its own stages from 0 (a restart, as before) */
       bsurf_progress_hold hold = {sp.fn ? staged_cb : NULL, &sp, 1, 1};
       st = bsurf_neighbors_build(&nb2, xyz, n, K, T, sp.fn ? bsurf_progress_hold_cb : NULL, &hold);
       if (st == BSURF_OK) {

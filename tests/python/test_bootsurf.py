@@ -505,15 +505,17 @@ def test_progress_reaches_the_noise_passes():
                 raise Stop()
         return calls, progress
 
-    calls, progress = stop_at(3, lambda d, t: 3 * d == t)  # within the passes
+    # stage 1 makes one call at its end; a third call there comes from the
+    # passes' table or the passes, so Stop is raised within them or not at all
+    calls, progress = stop_at(3, lambda d, t: 3 * d == t)
     with pytest.raises(Stop):
         bootsurf.smooth(pts, neighbors=50, bootstrap=10, progress=progress)
-    assert 3 * calls[-1][0] == calls[-1][1]
-    # normals: passes 1 and 2 report none done
+    # normals: the neighbour search reports rows done (> 0) and so does the
+    # selection's pass; only the noise passes report none done
     calls, progress = stop_at(2, lambda d, t: d == 0)
     with pytest.raises(Stop):
         bootsurf.normals(pts, select_k="10:80:5", progress=progress)
-    assert calls[-1][0] == 0
+    assert all(d > 0 for d, t in calls[:-2])  # the search's calls came first
 
 
 def test_progress_callable_and_its_exception(cube):
