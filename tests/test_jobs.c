@@ -22,8 +22,6 @@
 #include "bootsurf.h"
 #include "test_util.h"
 
-/* The input: a noisy cube (sharp edges; its feature and feature_dist
- * fields are the truth the features job keeps as *_in), binary PLY. */
 /* c written to path (the inputs below, made once), then freed: 1 */
 static int written(const char *path, bsurf_cloud *c) {
   bsurf_failure err;
@@ -32,6 +30,8 @@ static int written(const char *path, bsurf_cloud *c) {
   return 1;
 }
 
+/* The input: a noisy cube (sharp edges; its feature and feature_dist
+ * fields are the truth the features job keeps as *_in), binary PLY. */
 static const char *input_path(void) {
   static int made = 0;
   const char *path = tmp_path("jobs_cube.ply");

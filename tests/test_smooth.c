@@ -350,14 +350,24 @@ static void test_thin_sheets_heavy(void **state) {
 
 /* The default smoothing (B = 20, two threads) of the n points xyz with K = 50
  * neighbourhoods: out (n x 3) and its report. */
-static void smooth_default_k50(const double *xyz, size_t n, double *out, bsurf_smooth_report *rep) {
+/* The default smoothing at K = 50, B = 20, two threads, with a progress
+ * callback (may be NULL): its status */
+static bsurf_status smooth_k50(const double *xyz, size_t n, double *out, bsurf_smooth_report *rep,
+                               bsurf_progress_fn progress, void *user) {
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 50, 2, NULL, NULL), BSURF_OK);
   bsurf_smooth_options o = bsurf_smooth_options_default();
   o.error.bootstrap = 20;
   o.error.threads = 2;
-  assert_int_equal(bsurf_smooth(xyz, &nb, &o, out, NULL, rep), BSURF_OK);
+  o.error.progress = progress;
+  o.error.progress_user = user;
+  const bsurf_status st = bsurf_smooth(xyz, &nb, &o, out, NULL, rep);
   bsurf_neighbors_free(&nb);
+  return st;
+}
+
+static void smooth_default_k50(const double *xyz, size_t n, double *out, bsurf_smooth_report *rep) {
+  assert_int_equal(smooth_k50(xyz, n, out, rep, NULL, NULL), BSURF_OK);
 }
 
 /* The guard's noise estimate (bsurf_smooth_report.noise, guard_noise): on a
@@ -498,25 +508,18 @@ static int stage_cb(void *u, size_t done, size_t total) {
 static void rings_progress(const double *xyz, size_t n, const double *expect) {
   double *out = malloc(n * 3 * sizeof(double));
   assert_non_null(out);
-  bsurf_neighbors nb;
-  assert_int_equal(bsurf_neighbors_build(&nb, xyz, n, 50, 2, NULL, NULL), BSURF_OK);
-  bsurf_smooth_options o = bsurf_smooth_options_default();
-  o.error.bootstrap = 20;
-  o.error.threads = 2;
   stage_log l = {0};
-  o.error.progress = stage_cb;
-  o.error.progress_user = &l;
-  assert_int_equal(bsurf_smooth(xyz, &nb, &o, out, NULL, NULL), BSURF_OK);
+  assert_int_equal(smooth_k50(xyz, n, out, NULL, stage_cb, &l), BSURF_OK);
   print_message("progress at stage 1's end: %zu calls, back %d, last %zu\n", l.at_end, l.back,
                 l.last);
   /* stage 1's last chunk, then the build and four passes at least */
   assert_true(l.at_end >= 6 && !l.back && l.last == 3000);
   assert_memory_equal(out, expect, n * 3 * sizeof(double));
-  stage_log c = {.cancel_at = 3}; /* within the passes */
-  o.error.progress_user = &c;
-  assert_int_equal(bsurf_smooth(xyz, &nb, &o, out, NULL, NULL), BSURF_ERR_CANCELLED);
+  /* cancelled within the passes: no call after it (at_end stays 3, last
+   * stays at stage 1's end) */
+  stage_log c = {.cancel_at = 3};
+  assert_int_equal(smooth_k50(xyz, n, out, NULL, stage_cb, &c), BSURF_ERR_CANCELLED);
   assert_true(c.at_end == 3 && c.last * 3 == 3000);
-  bsurf_neighbors_free(&nb);
   free(out);
 }
 

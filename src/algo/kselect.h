@@ -144,7 +144,6 @@ static inline double ksel_sin2(const double *a, const double *b) {
 
 /* The candidates of a point: nk K values, times nd degrees for the
  * polynomial fits (candidate a K * nd + degree index), else one PCA plane. */
-
 static inline int ksel_ndeg(const bsurf_kselect_options *o) {
   return o->nd > 0 ? o->nd : 1;
 }

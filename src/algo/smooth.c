@@ -395,17 +395,23 @@ static bsurf_status scale_k(const smooth_ctx *c, const bsurf_smooth_options *o, 
  * BSURF_SMOOTH_SECTION_SHARE, where the section test alone shows the rule
  * needs no level (bsurf_ksel_section_bound: about a tenth of the passes'
  * cost). */
+/* A progress callback for the steps between stage 1 and the next (the
+ * tables they build, the selection's passes): it reports stage 1's end
+ * after every chunk, so that Ctrl-C (Python's KeyboardInterrupt through the
+ * callback) stops them too; h filled, NULL where the caller gave none. */
+static bsurf_progress_fn stage_end_hold(staged_progress *sp, bsurf_progress_hold *h) {
+  *h = (bsurf_progress_hold){staged_cb, sp, 1, 1};
+  return sp->fn ? bsurf_progress_hold_cb : NULL;
+}
+
 static bsurf_status select_noise(const double *xyz, size_t n, int T, staged_progress *sp,
                                  double level[2]) {
   level[0] = NAN, level[1] = 0;
   if (n <= BSURF_SMOOTH_SELECT_K) return BSURF_OK;
-  /* the caller's progress stays where its stage ended, reported after
-   * every chunk of the table's build and the passes: Ctrl-C (Python's
-   * KeyboardInterrupt through the callback) stops them too */
-  bsurf_progress_hold hold = {sp->fn ? staged_cb : NULL, sp, 1, 1};
+  bsurf_progress_hold hold;
   bsurf_kselect_options ko;
   bsurf_smooth_select_options(T, &ko);
-  ko.progress = sp->fn ? bsurf_progress_hold_cb : NULL;
+  ko.progress = stage_end_hold(sp, &hold);
   ko.progress_user = &hold;
   bsurf_neighbors nb;
   bsurf_status st =
@@ -599,8 +605,8 @@ static bsurf_status smooth_run(const double *xyz, const bsurf_neighbors *nb,
       bsurf_neighbors nb2;
       /* the wider table's build holds stage 1's end; the run on it then
        * reports its own stages from 0 (a restart, as before) */
-      bsurf_progress_hold hold = {sp.fn ? staged_cb : NULL, &sp, 1, 1};
-      st = bsurf_neighbors_build(&nb2, xyz, n, K, T, sp.fn ? bsurf_progress_hold_cb : NULL, &hold);
+      bsurf_progress_hold hold;
+      st = bsurf_neighbors_build(&nb2, xyz, n, K, T, stage_end_hold(&sp, &hold), &hold);
       if (st == BSURF_OK) {
         st = smooth_run(xyz, &nb2, &o2, tune, c.noise_select, out_xyz, fields, report);
         bsurf_neighbors_free(&nb2);
