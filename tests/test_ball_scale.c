@@ -79,12 +79,30 @@ static double mean_distance(bsurf_shape shape, const double *xyz, size_t n) {
   return s / (double)n;
 }
 
+/* A progress callback's record: calls, steps back, the last position and
+ * total, and the furthest position. */
+typedef struct progress_log {
+  size_t calls, back, last, total, top;
+} progress_log;
+
+static int log_progress(void *u, size_t done, size_t total) {
+  progress_log *p = u;
+  if (p->calls && (done < p->last || total != p->total)) p->back++;
+  p->calls++;
+  p->last = done;
+  p->total = total;
+  if (done > p->top) p->top = done;
+  return 0;
+}
+
 /* Multipass (the default in memory) on a torus of 12,000 random points at
  * gaussian 0.5 h and 3 h (seed 9), K at most 200: K stays 50 at 0.5 h; at
  * 3 h it grows,
  * and the result ends nearer the surface than the same method at the fixed
  * K = 50 (k_max = K: what a fixed-K smoother of the usual size does) and
- * than the noisy input. */
+ * than the noisy input. Its progress never steps back and ends at its
+ * total, also where the run at the wider K reports within it (smooth.c,
+ * rest_cb; it restarted from 0 before). */
 static void test_scale_smooth_levels(void **state) {
   (void)state;
   const double levels[2] = {0.5, 3.0};
@@ -101,7 +119,17 @@ static void test_scale_smooth_levels(void **state) {
     o.k_max = 200; /* the cap: half the default 8 K, to keep the test short */
     double *out = malloc(n * 3 * sizeof(double)), *fixed = malloc(n * 3 * sizeof(double));
     bsurf_smooth_report rep, rf;
+    progress_log pl = {0};
+    o.error.progress = log_progress;
+    o.error.progress_user = &pl;
     assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, out, NULL, &rep), BSURF_OK);
+    o.error.progress = NULL;
+    o.error.progress_user = NULL;
+    print_message("  progress: %zu calls, %zu steps back, last %zu of %zu\n", pl.calls, pl.back,
+                  pl.last, pl.total);
+    assert_true(pl.calls > 3);
+    assert_int_equal(pl.back, 0);
+    assert_true(pl.last == pl.total && pl.top == pl.total);
     o.k_max = 50;
     assert_int_equal(bsurf_smooth(c.xyz, &nb, &o, fixed, NULL, &rf), BSURF_OK);
     const double e0 = mean_distance(BSURF_SHAPE_TORUS, c.xyz, n),

@@ -95,6 +95,16 @@ int staged_cb(void *u, size_t done, size_t total) {
   return s->fn(s->user, (size_t)s->stage * per + d, (size_t)s->stages * per);
 }
 
+/* The progress of the scale rule's run at the wider K (bsurf_smooth), as a
+ * share of what remains of this run's after its current stage: from the
+ * stage's end to the last stage's, in the same thousandths as staged_cb. */
+static int rest_cb(void *u, size_t done, size_t total) {
+  const staged_progress *s = u;
+  const size_t per = 1000, from = (size_t)(s->stage + 1) * per, to = (size_t)s->stages * per;
+  const size_t d = total ? (size_t)((double)done / (double)total * (double)(to - from)) : to - from;
+  return s->fn(s->user, from + d, to);
+}
+
 /* Stage 1: Algorithm 1 at every point (and the naive projection). */
 void boot_task(void *vc, int thread, size_t i) {
   smooth_ctx *c = vc;
@@ -602,9 +612,12 @@ static bsurf_status smooth_run(const double *xyz, const bsurf_neighbors *nb,
       bsurf_smooth_options o2 = opts ? *opts : bsurf_smooth_options_default();
       o2.method = o.method;
       o2.error.k = o2.k_max = K;
+      /* the wider table's build holds stage 1's end; the run on it reports
+       * within the rest of this run's range (rest_cb), so the caller's
+       * progress never steps back */
+      o2.error.progress = sp.fn ? rest_cb : NULL;
+      o2.error.progress_user = &sp;
       bsurf_neighbors nb2;
-      /* the wider table's build holds stage 1's end; the run on it then
-       * reports its own stages from 0 (a restart, as before) */
       bsurf_progress_hold hold;
       st = bsurf_neighbors_build(&nb2, xyz, n, K, T, stage_end_hold(&sp, &hold), &hold);
       if (st == BSURF_OK) {
