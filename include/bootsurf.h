@@ -524,7 +524,10 @@ typedef struct bsurf_kselect_options {
                                   largest candidate's */
   bsurf_noise_pool noise_pool; /* GLOBAL (default) or LOCAL */
   int threads;                 /* 0 = all cores */
-  bsurf_progress_fn progress;
+  bsurf_progress_fn progress;  /* bsurf_select_k: over twice the points, the
+                                  noise fits' pass in the first half and the
+                                  selection's in the second (the passes between
+                                  and after hold their position) */
   void *progress_user;
   /* With nd >= 1: the candidates are the pairs (K, degree) of polynomial
    * height fits of degrees ds[0..nd-1] (each in [1, 4]) instead of PCA

@@ -445,19 +445,23 @@ static void test_tie_store_exact(void **state) {
   shape_free(&s);
 }
 
-/* Progress and cancellation: the noise passes before the selection's pass
- * report none done after every chunk, the passes after it all done, so a
- * caller can cancel any of them (Python's KeyboardInterrupt) and its
- * progress never goes back; the callback changes no result. */
+/* Progress and cancellation: bsurf_select_k reports over twice the rows,
+ * the noise fits' pass in the first range and the selection's in the
+ * second; the pooling between them holds at the first range's end and the
+ * passes after the selection at the total, after every chunk, so a caller
+ * can cancel any of them (Python's KeyboardInterrupt) and its progress
+ * never goes back; the callback changes no result. */
 typedef struct progress_log {
-  size_t calls, held0, last, total;
+  size_t n, calls, first, held, second, last, total;
   int back, cancel_at;
 } progress_log;
 
 static int log_cb(void *u, size_t done, size_t total) {
   progress_log *l = u;
-  if (done < l->last) l->back = 1;
-  l->held0 += done == 0 && l->last == 0;
+  if (done < l->last || (l->calls && total != l->total)) l->back = 1;
+  l->first += done > 0 && done < l->n;
+  l->held += done == l->n && l->last == l->n;
+  l->second += done > l->n && done < 2 * l->n;
   l->last = done, l->total = total;
   return ++l->calls == (size_t)l->cancel_at;
 }
@@ -476,20 +480,22 @@ static void test_progress(void **state) {
   o.ks = KS;
   o.nk = NKS;
   o.threads = 2;
-  progress_log l = {0};
+  progress_log l = {.n = n};
   o.progress = log_cb;
   o.progress_user = &l;
   assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_OK);
-  print_message("progress: %zu calls, %zu at none done, last %zu of %zu\n", l.calls, l.held0,
-                l.last, l.total);
-  /* 9,000 rows: 3 chunks a pass; passes 1 and 2 held at 0 */
-  assert_true(l.held0 >= 6 && !l.back && l.last == n && l.total == n);
+  print_message("progress: %zu calls, %zu within the noise fits, %zu held between, %zu within "
+                "the selection, last %zu of %zu\n",
+                l.calls, l.first, l.held, l.second, l.last, l.total);
+  /* 9,000 rows: 3 chunks a pass (the last of each at its range's end) */
+  assert_true(l.first >= 2 && l.held >= 2 && l.second >= 2);
+  assert_true(!l.back && l.last == 2 * n && l.total == 2 * n);
   assert_memory_equal(nrm, a.normals, 3 * n * sizeof(double));
   assert_memory_equal(k, a.k, n * sizeof(int));
   /* cancelled within the noise passes, and at the last call */
   const int at[] = {1, (int)l.calls};
   for (int j = 0; j < 2; j++) {
-    progress_log c = {.cancel_at = at[j]};
+    progress_log c = {.n = n, .cancel_at = at[j]};
     o.progress_user = &c;
     assert_int_equal(bsurf_select_k(s.c.xyz, &s.nb, &o, &f, NULL), BSURF_ERR_CANCELLED);
     assert_true(c.calls == (size_t)at[j]);

@@ -236,6 +236,11 @@ struct bsurf_ksel_run {
   int kmax, T;
   ksel_scratch *scr;
   double *crit; /* nk critical ratios, then SHEET_DRAWS ratios per candidate; or NULL */
+  /* the caller's progress over several passes (kselect_run.c, ksel_pass):
+   * slots > 0 divides it into slots ranges of rows, the first passes
+   * before the selection's taking one each (slot: the next free) and the
+   * selection's pass the last; 0: the passes before it hold at none done */
+  int slot, slots;
 };
 void bsurf_i_ksel_reset(bsurf_ksel_run *r); /* the tied records freed, counts zeroed */
 /* The options against rows of nb_k neighbours; `who` names the caller. */

@@ -14,22 +14,59 @@
  * threads, docs/python.md) report none done, (0, rows), and the passes
  * after it (the deferred points', the tie-break's) all done, after
  * every chunk as well, so that a caller can cancel them too without its
- * progress going back. */
+ * progress going back. With r->slots > 0 (bsurf_select_k) the range is
+ * slots times the rows: each pass before the selection's reports its rows
+ * in a range of its own while there is one before the last (the noise
+ * fits' pass), the others hold where the last such pass ended, the
+ * selection's pass reports in the last range and the passes after it hold
+ * at the total. */
 enum { KSEL_BEFORE, KSEL_REPORT, KSEL_AFTER };
 
+/* A pass's own (done, rows) reported at base + done of total. */
+typedef struct ksel_range {
+  bsurf_progress_fn fn;
+  void *user;
+  size_t base, total;
+} ksel_range;
+
+static int ksel_range_cb(void *u, size_t done, size_t total) {
+  const ksel_range *g = u;
+  (void)total;
+  return g->fn(g->user, g->base + done, g->total);
+}
+
 /* A pass over nb's rows in their visit order (no result depends on it). */
-static bsurf_status ksel_pass(const bsurf_ksel_run *r, ksel_ctx *c, void (*fn)(void *, int, size_t),
+static bsurf_status ksel_pass(bsurf_ksel_run *r, ksel_ctx *c, void (*fn)(void *, int, size_t),
                               int where) {
   uint32_t *owned = NULL;
   const uint32_t *order = bsurf_visit_order(c->nb, c->xyz, &owned);
   if (!order) return BSURF_ERR_NOMEM;
   const size_t rows = c->nb->point_count;
-  bsurf_progress_hold hold = {r->o.progress, r->o.progress_user, where == KSEL_AFTER ? rows : 0,
-                              rows};
-  const int held = where != KSEL_REPORT && r->o.progress;
-  bsurf_status st = bsurf_parallel_points_ordered(rows, order, r->T, fn, c,
-                                                  held ? bsurf_progress_hold_cb : r->o.progress,
-                                                  held ? (void *)&hold : r->o.progress_user);
+  /* the pass's range [base, base + rows) of total, or held at base */
+  size_t base = where == KSEL_AFTER ? rows : 0, total = rows;
+  int reports = where == KSEL_REPORT;
+  if (r->slots > 0) {
+    total = rows * (size_t)r->slots;
+    if (where == KSEL_REPORT)
+      base = rows * (size_t)(r->slots - 1);
+    else if (where == KSEL_AFTER)
+      base = total;
+    else if (r->slot < r->slots - 1)
+      base = rows * (size_t)r->slot++, reports = 1;
+    else
+      base = rows * (size_t)r->slot;
+  }
+  bsurf_progress_hold hold = {r->o.progress, r->o.progress_user, base, total};
+  ksel_range range = {r->o.progress, r->o.progress_user, base, total};
+  bsurf_progress_fn cb = NULL;
+  void *user = NULL;
+  if (r->o.progress && !reports)
+    cb = bsurf_progress_hold_cb, user = &hold;
+  else if (r->o.progress && (base || total != rows))
+    cb = ksel_range_cb, user = &range;
+  else
+    cb = r->o.progress, user = r->o.progress_user;
+  bsurf_status st = bsurf_parallel_points_ordered(rows, order, r->T, fn, c, cb, user);
   free(owned);
   return st;
 }
@@ -282,6 +319,10 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
     bsurf_ksel_close(r);
     return BSURF_ERR_TOO_FEW_POINTS;
   }
+  /* the progress in two ranges of n: the noise fits' pass, then the
+   * selection's (the pooling between them, and the passes after the
+   * selection, hold; ksel_pass) */
+  r->slots = 2;
   /* the noise passes, then the selection and the tie-break */
   double *noise = bsurf_alloc_array(n, 2 * sizeof(double));
   st = noise ? noise_passes(r, xyz, nb, noise, NULL) : BSURF_ERR_NOMEM;

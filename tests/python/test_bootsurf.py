@@ -478,8 +478,9 @@ def ring_cylinder(gap):
 
 
 def test_progress_reaches_the_noise_passes():
-    """The K selection's noise passes call progress too, held where the step
-    before them ended, so an exception from progress (or Ctrl-C's
+    """The K selection's noise passes call progress too (in smooth held where
+    stage 1 ended; in normals with select_k in the first half of the
+    selection's range), so an exception from progress (or Ctrl-C's
     KeyboardInterrupt) stops them: smooth on a ring-sampled cloud, where the
     guard's second reading runs, and normals with select_k."""
     pts = ring_cylinder(8)
@@ -510,12 +511,15 @@ def test_progress_reaches_the_noise_passes():
     calls, progress = stop_at(3, lambda d, t: 3 * d == t)
     with pytest.raises(Stop):
         bootsurf.smooth(pts, neighbors=50, bootstrap=10, progress=progress)
-    # normals: the neighbour search reports rows done (> 0) and so does the
-    # selection's pass; only the noise passes report none done
-    calls, progress = stop_at(2, lambda d, t: d == 0)
+    # normals: the neighbour search reports over the rows, the selection over
+    # twice the rows, the noise fits' pass in the first half (the pooling
+    # after it holds there); the second call there stops it within them
+    n = len(pts)
+    calls, progress = stop_at(2, lambda d, t: t == 2 * n and d <= n)
     with pytest.raises(Stop):
         bootsurf.normals(pts, select_k="10:80:5", progress=progress)
-    assert all(d > 0 for d, t in calls[:-2])  # the search's calls came first
+    assert all(t == n for d, t in calls[:-2])  # the search's calls came first
+    assert calls[-2:] == [(n, 2 * n), (n, 2 * n)]
 
 
 def test_progress_callable_and_its_exception(cube):
