@@ -321,7 +321,9 @@ bsurf_status bsurf_select_k(const double *xyz, const bsurf_neighbors *nb,
   }
   /* the progress in two ranges of n: the noise fits' pass, then the
    * selection's (the pooling between them, and the passes after the
-   * selection, hold; ksel_pass) */
+   * selection, hold; ksel_pass). The trace build below runs the
+   * selection's pass twice, each in the last range: its progress steps
+   * back once (a developer's build only). */
   r->slots = 2;
   /* the noise passes, then the selection and the tie-break */
   double *noise = bsurf_alloc_array(n, 2 * sizeof(double));
