@@ -102,7 +102,7 @@ static int log_progress(void *u, size_t done, size_t total) {
  * K = 50 (k_max = K: what a fixed-K smoother of the usual size does) and
  * than the noisy input. Its progress never steps back and ends at its
  * total, also where the run at the wider K reports within it (smooth.c,
- * rest_cb; it restarted from 0 before). */
+ * bsurf_progress_hold over the rest; it restarted from 0 before). */
 static void test_scale_smooth_levels(void **state) {
   (void)state;
   const double levels[2] = {0.5, 3.0};

@@ -22,19 +22,6 @@
  * at the total. */
 enum { KSEL_BEFORE, KSEL_REPORT, KSEL_AFTER };
 
-/* A pass's own (done, rows) reported at base + done of total. */
-typedef struct ksel_range {
-  bsurf_progress_fn fn;
-  void *user;
-  size_t base, total;
-} ksel_range;
-
-static int ksel_range_cb(void *u, size_t done, size_t total) {
-  const ksel_range *g = u;
-  (void)total;
-  return g->fn(g->user, g->base + done, g->total);
-}
-
 /* A pass over nb's rows in their visit order (no result depends on it). */
 static bsurf_status ksel_pass(bsurf_ksel_run *r, ksel_ctx *c, void (*fn)(void *, int, size_t),
                               int where) {
@@ -56,17 +43,9 @@ static bsurf_status ksel_pass(bsurf_ksel_run *r, ksel_ctx *c, void (*fn)(void *,
     else
       base = rows * (size_t)r->slot;
   }
-  bsurf_progress_hold hold = {r->o.progress, r->o.progress_user, base, total};
-  ksel_range range = {r->o.progress, r->o.progress_user, base, total};
-  bsurf_progress_fn cb = NULL;
-  void *user = NULL;
-  if (r->o.progress && !reports)
-    cb = bsurf_progress_hold_cb, user = &hold;
-  else if (r->o.progress && (base || total != rows))
-    cb = ksel_range_cb, user = &range;
-  else
-    cb = r->o.progress, user = r->o.progress_user;
-  bsurf_status st = bsurf_parallel_points_ordered(rows, order, r->T, fn, c, cb, user);
+  bsurf_progress_hold range = {r->o.progress, r->o.progress_user, base, total, reports ? rows : 0};
+  bsurf_status st = bsurf_parallel_points_ordered(
+      rows, order, r->T, fn, c, r->o.progress ? bsurf_progress_hold_cb : NULL, &range);
   free(owned);
   return st;
 }

@@ -87,22 +87,13 @@ int solve_with_fallback(const bsurf_localfit *lf, int degree, int m, double *coe
   return d;
 }
 
+enum { STAGE_PER = 1000 }; /* a stage's share of the caller's progress */
+
 int staged_cb(void *u, size_t done, size_t total) {
   staged_progress *s = u;
   if (!s->fn) return 0;
-  size_t per = 1000;
-  size_t d = total ? (size_t)((double)done / (double)total * per) : per;
-  return s->fn(s->user, (size_t)s->stage * per + d, (size_t)s->stages * per);
-}
-
-/* The progress of the scale rule's run at the wider K (bsurf_smooth), as a
- * share of what remains of this run's after its current stage: from the
- * stage's end to the last stage's, in the same thousandths as staged_cb. */
-static int rest_cb(void *u, size_t done, size_t total) {
-  const staged_progress *s = u;
-  const size_t per = 1000, from = (size_t)(s->stage + 1) * per, to = (size_t)s->stages * per;
-  const size_t d = total ? (size_t)((double)done / (double)total * (double)(to - from)) : to - from;
-  return s->fn(s->user, from + d, to);
+  size_t d = total ? (size_t)((double)done / (double)total * STAGE_PER) : STAGE_PER;
+  return s->fn(s->user, (size_t)s->stage * STAGE_PER + d, (size_t)s->stages * STAGE_PER);
 }
 
 /* Stage 1: Algorithm 1 at every point (and the naive projection). */
@@ -410,7 +401,7 @@ static bsurf_status scale_k(const smooth_ctx *c, const bsurf_smooth_options *o, 
  * after every chunk, so that Ctrl-C (Python's KeyboardInterrupt through the
  * callback) stops them too; h filled, NULL where the caller gave none. */
 static bsurf_progress_fn stage_end_hold(staged_progress *sp, bsurf_progress_hold *h) {
-  *h = (bsurf_progress_hold){staged_cb, sp, 1, 1};
+  *h = (bsurf_progress_hold){staged_cb, sp, 1, 1, 0};
   return sp->fn ? bsurf_progress_hold_cb : NULL;
 }
 
@@ -613,10 +604,13 @@ static bsurf_status smooth_run(const double *xyz, const bsurf_neighbors *nb,
       o2.method = o.method;
       o2.error.k = o2.k_max = K;
       /* the wider table's build holds stage 1's end; the run on it reports
-       * within the rest of this run's range (rest_cb), so the caller's
-       * progress never steps back */
-      o2.error.progress = sp.fn ? rest_cb : NULL;
-      o2.error.progress_user = &sp;
+       * within the rest of this run's range, from there to the last stage's
+       * end, so the caller's progress never steps back */
+      bsurf_progress_hold rest = {sp.fn, sp.user, (size_t)(sp.stage + 1) * STAGE_PER,
+                                  (size_t)sp.stages * STAGE_PER,
+                                  (size_t)(sp.stages - sp.stage - 1) * STAGE_PER};
+      o2.error.progress = sp.fn ? bsurf_progress_hold_cb : NULL;
+      o2.error.progress_user = &rest;
       bsurf_neighbors nb2;
       bsurf_progress_hold hold;
       st = bsurf_neighbors_build(&nb2, xyz, n, K, T, stage_end_hold(&sp, &hold), &hold);

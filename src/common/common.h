@@ -202,14 +202,17 @@ bsurf_status bsurf_parallel_points_chunk(size_t n, size_t chunk, int threads, bs
                                          void *ctx, bsurf_progress_fn progress,
                                          void *progress_user);
 
-/* A progress callback for a step that does not advance its caller's
- * progress but must stay cancellable (the K selection's noise passes): it
- * reports the fixed position (done, total) to fn, whatever it is told, and
- * returns fn's answer. user: a bsurf_progress_hold. */
+/* A progress callback for a step reported within its caller's progress:
+ * its own (d, t) goes to fn as (done + d span / t, total), and fn's answer
+ * is returned. span 0 (a step that does not advance the caller's progress
+ * but must stay cancellable, as the K selection's noise passes) reports
+ * the fixed position (done, total) whatever it is told; span = t maps the
+ * step's count one to one. user: a bsurf_progress_hold. */
 typedef struct bsurf_progress_hold {
   bsurf_progress_fn fn;
   void *user;
   size_t done, total;
+  size_t span; /* 0: held at done */
 } bsurf_progress_hold;
 int bsurf_progress_hold_cb(void *user, size_t done, size_t total);
 

@@ -16,8 +16,13 @@ size_t bsurf_progress_chunk(double work) {
 
 int bsurf_progress_hold_cb(void *user, size_t done, size_t total) {
   const bsurf_progress_hold *h = user;
-  (void)done, (void)total;
-  return h->fn ? h->fn(h->user, h->done, h->total) : 0;
+  if (!h->fn) return 0;
+  size_t d = 0;
+  if (h->span)
+    d = !total || done >= total ? h->span
+        : h->span == total      ? done
+                                : (size_t)((double)done / (double)total * (double)h->span);
+  return h->fn(h->user, h->done + d, h->total);
 }
 
 bsurf_status bsurf_parallel_points(size_t n, int threads, bsurf_point_fn fn, void *ctx,
