@@ -71,6 +71,11 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       {0, "variance-k-max", ARG_INT, &fo.variance_k_max, "K",
        "variance, rule null: largest neighbourhood --feature-angle may choose (0 = 8 x -k)", 0,
        65535},
+      {0, "quadric-angle", ARG_DOUBLE, &fo.quadric_angle, "DEG",
+       "variance, rule null: a flagged point stays a feature only where a quadric of K_q "
+       "neighbours does not explain it at the measured noise (a smooth bend is cleared); K_q the "
+       "first of K, 2K, 4K keeping 9 in 10 points of a DEG degree crease (0 = off)",
+       0, 179.999},
       CLI_OPT_SEED(fo.normals.seed),
       CLI_OPT_THREADS(fo.threads),
       CLI_OPTS_JOB(output, ascii, force, tile_points, memory_limit, json, quiet),
@@ -99,11 +104,8 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
   if (!output) return cli_usage_error(cmd, "missing -o OUTPUT");
   if (cli_check_output(output, pos[0], force)) return 1;
   /* the largest neighbourhood the run may need: variance with --feature-angle
-   * may grow -k up to --variance-k-max */
-  int kmax = fo.method == BSURF_FEATURES_DISTANCE ? fo.k_max : fo.normals.k;
-  if (fo.method == BSURF_FEATURES_VARIANCE && isnan(fo.threshold) &&
-      fo.tail_rule == BSURF_TAIL_NULL && fo.feature_angle > 0)
-    kmax = fo.variance_k_max ? fo.variance_k_max : (8 * kmax < 65535 ? 8 * kmax : 65535);
+   * may grow -k up to --variance-k-max, the quadric check needs its K_q and 80 */
+  const int kmax = bsurf_features_job_neighbors(&fo);
   size_t plan = 0;
   rc = cli_tiles_plan(cmd, pos[0], output, ascii, tile_points, memory_limit, kmax, 2, &plan);
   if (rc) return rc;
@@ -166,6 +168,12 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
           json_int(&j, "variance_k_max", fo.variance_k_max);
           json_num(&j, "edge_power", rep.edge_power);
         }
+        json_num(&j, "quadric_angle", fo.quadric_angle);
+        json_int(&j, "quadric_k", rep.quadric_k);
+        json_num(&j, "quadric_threshold", rep.quadric_threshold);
+        json_num(&j, "quadric_power", rep.quadric_power);
+        json_num(&j, "quadric_noise", rep.quadric_noise);
+        json_int(&j, "quadric_cleared", (long long)rep.quadric_cleared);
       }
     }
     json_str(&j, "threshold_mode", isnan(fo.threshold) ? "auto" : "value");
@@ -200,6 +208,14 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       printf("  K %d (from %d: a %g degree edge at this noise passes the test at %.0f%% of its "
              "points)\n",
              rep.k, fo.normals.k, fo.feature_angle, 100 * rep.edge_power);
+    if (null_rule && rep.quadric_k > 0)
+      printf("  quadric check at K %d (noise %.6g): %zu flagged points a quadric explains "
+             "cleared\n",
+             rep.quadric_k, rep.quadric_noise, rep.quadric_cleared);
+    else if (null_rule && fo.quadric_angle > 0)
+      printf("  quadric check not run (a %g degree crease at this noise keeps %.0f%% of its "
+             "points at most)\n",
+             fo.quadric_angle, 100 * rep.quadric_power);
     if (fo.method == BSURF_FEATURES_DISTANCE)
       printf("  T_{a/c} %.4g at k_min, max radius %.6g, %zu points stopped at k_min (set to -max "
              "radius)\n",

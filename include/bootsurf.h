@@ -854,8 +854,23 @@ typedef struct bsurf_feature_options {
    * at small K (docs/features.md). 0 = normals.k always (the thesis). 90:
    * a right-angle edge, the commonest in machined parts; lower angles grow K
    * sooner (a wider detected band), higher ones later. */
-  double feature_angle;         /* degrees, in [0, 180) (90) */
-  int variance_k_max;           /* the largest K tried; 0 = 8 normals.k (0) */
+  double feature_angle; /* degrees, in [0, 180) (90) */
+  int variance_k_max;   /* the largest K tried; 0 = 8 normals.k (0) */
+  /* variance, tail_rule NULL: the quadric check. A point the variance test
+   * flags stays a feature only where a quadric does not explain its
+   * neighbourhood: the residual variance of the least-squares quadric of
+   * its K_q nearest, median-filtered like z, over the cloud's noise
+   * variance (the K selection's reading, bsurf_select_k's noise passes)
+   * exceeds the (1 - false_positive_rate) quantile of the same statistic
+   * on the flat null patch. K_q is the first of k, 2 k, 4 k ... (at most
+   * variance_k_max and nb->k) at which a simulated crease whose faces'
+   * normals differ by quadric_angle degrees, at the cloud's noise, keeps
+   * at least 9 in 10 of its points within a spacing of the crease; where
+   * none does (heavy noise) or nb->k < 80, no check. A smooth bend tighter
+   * than the cloud's curvature raises nu as an edge does, but a quadric
+   * fits it (docs/features.md). 0 = off (the test alone). The border
+   * test's flags are not checked. */
+  double quadric_angle;         /* degrees, in [0, 180) (45) */
   bsurf_normal_options normals; /* variance: the bootstrap normals (defaults) */
   int threads;                  /* 0 = all cores (also used for normals) */
   bsurf_progress_fn progress;
@@ -890,6 +905,15 @@ typedef struct bsurf_feature_report {
                                   threshold on the filtered border score zb
                                   (a point is also a feature when zb exceeds
                                   it); else NAN */
+  int quadric_k;               /* variance, rule NULL: the quadric check's
+                                  K_q; 0 when it did not run */
+  double quadric_threshold;    /* its threshold on the filtered residual
+                                  variance over quadric_noise^2; else NAN */
+  double quadric_power;        /* the simulated crease's share kept at K_q
+                                  (or the largest tried); else NAN */
+  double quadric_noise;        /* the cloud's noise sigma it reads; else NAN */
+  size_t quadric_cleared;      /* points the variance test flagged that the
+                                  check cleared */
 } bsurf_feature_report;
 
 /* Feature detection. nb: neighbourhoods with nb->k >= k_max (distance) or
@@ -1732,6 +1756,12 @@ typedef struct bsurf_features_job_summary {
  * io->cloud or written to io->output. Statuses as bsurf_normals_job. */
 BSURF_API bsurf_status bsurf_features_job(const bsurf_job_io *io, const bsurf_feature_options *opts,
                                           bsurf_features_job_summary *summary, bsurf_failure *err);
+/* The largest neighbourhood table bsurf_features_job may build in memory for
+ * these options (distance: k_max; variance: normals.k, or the K choice's cap
+ * with feature_angle > 0, and the quadric check's K_q and the noise passes'
+ * 80 under the null rule), for a memory estimate. opts: NULL = the
+ * defaults. */
+BSURF_API int bsurf_features_job_neighbors(const bsurf_feature_options *opts);
 
 /* ------------------------------------------------------------------------ */
 /* Random numbers                                                            */

@@ -562,6 +562,12 @@ static void test_bad_args(void **state) {
   o.variance_k_max = -3;
   assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
   assert_non_null(strstr(bsurf_last_message(), "variance_k_max = -3"));
+  o.variance_k_max = 0;
+  o.quadric_angle = 180;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  assert_non_null(strstr(bsurf_last_message(), "quadric_angle = 180"));
+  o.quadric_angle = NAN;
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
 }

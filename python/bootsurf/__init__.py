@@ -603,13 +603,13 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
              k_step=2, ratio_threshold=0.1, noise_factor=1.75, derivative=0.0, alpha=0.5,
              iterations=5, filter_k=0, sigma_range=0.05, threshold="auto", tail_rule="null",
              false_positive_rate=0.01, variance_filter_k=0, feature_angle=90.0, variance_k_max=0,
-             seed=1, threads=0, output=None, tile_points=None, progress=None):
+             quadric_angle=45.0, seed=1, threads=0, output=None, tile_points=None, progress=None):
     """features(points, *, method='variance', neighbors=30, bootstrap=50,
     k_min=15, k_max=60, k_step=2, ratio_threshold=0.1, noise_factor=1.75,
     derivative=0.0, alpha=0.5, iterations=5, filter_k=0, sigma_range=0.05,
     threshold='auto', tail_rule='null', false_positive_rate=0.01,
-    variance_filter_k=0, feature_angle=90.0, variance_k_max=0, seed=1,
-    threads=0, output=None,
+    variance_filter_k=0, feature_angle=90.0, variance_k_max=0,
+    quadric_angle=45.0, seed=1, threads=0, output=None,
     tile_points=None, progress=None)
     -> (fields, summary)
 
@@ -626,7 +626,10 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
     false_positive_rate, and splits by Otsu on log z above that; a point is
     also a feature where the border test (the centroid's offset in the
     tangent plane, median-filtered, against the same patch at the same rate)
-    says it lies on a border, e.g. a thin part's rim (docs/features.md); the
+    says it lies on a border, e.g. a thin part's rim (docs/features.md); a
+    point the variance test flags stays a feature only where a quadric does
+    not explain its neighbourhood at the measured noise (the quadric check:
+    a smooth bend is cleared, a crease is not); the
     score field is then 'variance_z'. 'otsu' and
     'mad' split log normal_var (the score field 'normal_var').
 
@@ -659,6 +662,11 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
                        noise is detected at half its points; 0 = neighbors
                        always, the thesis (90)
       variance_k_max   variance: the largest K tried (0 = 8 x neighbors)
+      quadric_angle    variance, rule null: the quadric check's crease
+                       (degrees): its K_q is the first of K, 2K, 4K at which
+                       a crease of this angle at the measured noise keeps 9
+                       in 10 of its points; none (heavy noise): no check;
+                       0 = off (45)
       seed, threads, progress
 
     Returns (fields, summary): fields 'feature' (uint8 0/1) and the score
@@ -666,7 +674,10 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
     points, h, duplicates and report (threshold, feature_points, max_radius,
     immediate, ratio_threshold_kmin, noise_level, k: the variance test's
     neighbourhood, edge_power: the simulated edge's detected share at k,
-    border_threshold: the border test's threshold).
+    border_threshold: the border test's threshold, quadric_k: the quadric
+    check's K_q or 0, quadric_threshold, quadric_power: the simulated
+    crease's share kept, quadric_noise: the noise sigma it reads,
+    quadric_cleared: flagged points it cleared).
     """
     thr = _math.nan
     if threshold != "auto":  # NaN is the library's auto: a number must be finite
@@ -680,7 +691,8 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
                           float(alpha), _int(iterations, "iterations"), _int(filter_k, "filter_k"), float(sigma_range), thr,
                           _choice(tail_rule, _TAIL_RULES, "tail_rule"),
                           float(false_positive_rate), _int(variance_filter_k, "variance_filter_k"),
-                          float(feature_angle), _int(variance_k_max, "variance_k_max"), _int(seed, "seed"), _int(threads, "threads"),
+                          float(feature_angle), float(quadric_angle), _int(variance_k_max, "variance_k_max"),
+                          _int(seed, "seed"), _int(threads, "threads"),
                           _progress(progress))
 
 

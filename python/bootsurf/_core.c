@@ -888,12 +888,12 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   bsurf_feature_options o = bsurf_feature_options_default();
   int method, rule;
   unsigned long long seed;
-  if (!PyArg_ParseTuple(args, "OOiiiiiiddddiiddididiKiO", &pts, &tiled, &method, &o.normals.k,
+  if (!PyArg_ParseTuple(args, "OOiiiiiiddddiiddididdiKiO", &pts, &tiled, &method, &o.normals.k,
                         &o.normals.bootstrap, &o.k_min, &o.k_max, &o.k_step, &o.ratio_threshold,
                         &o.noise_factor, &o.derivative, &o.alpha, &o.iterations, &o.filter_k,
                         &o.sigma_range, &o.threshold, &rule, &o.false_positive_rate,
-                        &o.variance_filter_k, &o.feature_angle, &o.variance_k_max, &seed,
-                        &o.threads, &progress))
+                        &o.variance_filter_k, &o.feature_angle, &o.quadric_angle, &o.variance_k_max,
+                        &seed, &o.threads, &progress))
     return NULL;
   o.method = (bsurf_feature_method)method;
   o.tail_rule = (bsurf_tail_rule)rule;
@@ -910,13 +910,16 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   const bsurf_feature_report *r = &s.report;
   return job_result(
       NULL, fields,
-      job_summary(s.points, s.h, s.duplicates, s.tile_points, s.tiles,
-                  Py_BuildValue("{s:{s:d,s:n,s:d,s:n,s:d,s:d,s:i,s:d,s:d}}", "report", "threshold",
-                                r->threshold, "feature_points", (Py_ssize_t)r->feature_points,
-                                "max_radius", r->max_radius, "immediate", (Py_ssize_t)r->immediate,
-                                "ratio_threshold_kmin", r->ratio_threshold_kmin, "noise_level",
-                                r->noise_level, "k", r->k, "edge_power", r->edge_power,
-                                "border_threshold", r->border_threshold)));
+      job_summary(
+          s.points, s.h, s.duplicates, s.tile_points, s.tiles,
+          Py_BuildValue("{s:{s:d,s:n,s:d,s:n,s:d,s:d,s:i,s:d,s:d,s:i,s:d,s:d,s:d,s:n}}", "report",
+                        "threshold", r->threshold, "feature_points", (Py_ssize_t)r->feature_points,
+                        "max_radius", r->max_radius, "immediate", (Py_ssize_t)r->immediate,
+                        "ratio_threshold_kmin", r->ratio_threshold_kmin, "noise_level",
+                        r->noise_level, "k", r->k, "edge_power", r->edge_power, "border_threshold",
+                        r->border_threshold, "quadric_k", r->quadric_k, "quadric_threshold",
+                        r->quadric_threshold, "quadric_power", r->quadric_power, "quadric_noise",
+                        r->quadric_noise, "quadric_cleared", (Py_ssize_t)r->quadric_cleared)));
 }
 
 /* ---- synthetic data ---- */

@@ -409,12 +409,17 @@ int bsurf_pca_l0_trace(const double *xyz, const uint32_t *idx, int k, double *l0
  * stages of bsurf_detect_features, also run tile by tile. Rows of nb as
  * above; nu and the outputs by row, u of bsurf_fvar_filter by point. ---- */
 typedef struct bsurf_fvar_result {
-  double threshold;        /* t = max(null_threshold, split) on the filtered z */
-  double null_threshold;   /* t_alpha: the null patch's (1 - alpha) quantile */
-  double split;            /* Otsu's split of log z (NAN without noise) */
-  double noise_level;      /* s = sqrt(median lambda0) */
-  double sigma0;           /* the null patch's noise (unit density); 0 if none */
-  double border_threshold; /* t_b: the null patch's (1 - alpha) quantile of zb */
+  double threshold;         /* t = max(null_threshold, split) on the filtered z */
+  double null_threshold;    /* t_alpha: the null patch's (1 - alpha) quantile */
+  double split;             /* Otsu's split of log z (NAN without noise) */
+  double noise_level;       /* s = sqrt(median lambda0) */
+  double sigma0;            /* the null patch's noise (unit density); 0 if none */
+  double border_threshold;  /* t_b: the null patch's (1 - alpha) quantile of zb */
+  int quadric_k;            /* the quadric check's K_q; 0: no check */
+  double quadric_threshold; /* t_q on q (NAN: no check) */
+  double quadric_power;     /* the simulated crease's share kept (NAN) */
+  double quadric_noise;     /* sqrt of the cloud's noise variance it reads (NAN) */
+  size_t quadric_cleared;   /* points with z > t and q <= t_q */
 } bsurf_fvar_result;
 /* The expected lambda0 of a smooth patch at a neighbourhood of tangential
  * spread g = (lambda1 + lambda2)^2: E(g) = sigma2 + c g (noise plus the plane
@@ -438,8 +443,34 @@ void bsurf_fvar_fit_solve(bsurf_fvar_fit *f, double *dst, double s2);
  * filter's Z = u / s2 becomes nu d / E(g) */
 void bsurf_fvar_fit_scale(const bsurf_fvar_fit *f, double s2, size_t n, const double *g, double *u,
                           double *w);
-/* A point is a feature: z > threshold or zb > border_threshold. */
-int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb);
+/* The residual variance RSS / (K - 6) of the least-squares quadric of the
+ * K points idx (xyz rows) in their PCA frame, as the K selection's noise fit
+ * reads it (kselect_noise.c); work: 3 K doubles. -1 when rank-deficient. */
+int bsurf_ksel_quad_variance(const double *xyz, const uint32_t *idx, int K, double *work,
+                             double *var);
+/* A point is a feature: z > threshold (unless the quadric check ran,
+ * quadric_k > 0, and q <= quadric_threshold) or zb > border_threshold. */
+int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb, double q);
+/* The quadric check's statistic before its filter: per row, the residual
+ * variance of the quadric of its first kq neighbours (rank-deficient:
+ * HUGE_VAL, no quadric explains it), into v by row. */
+bsurf_status bsurf_fvar_quadric_rss(const double *xyz, const bsurf_neighbors *nb, int kq,
+                                    int threads, double *v);
+/* The quadric check's neighbourhood and threshold (quadric_angle > 0, eta >
+ * 0): sigma_0 of the flat null patch whose median lambda0 / tr at
+ * normals.k is eta (as bsurf_fvar_null_threshold's), then for K_q =
+ * normals.k, 2 normals.k ... <= k_cap a patch folded by quadric_angle at
+ * sigma_0: its filtered residual variance over sigma_0^2, t_q the (1 -
+ * false_positive_rate) quantile over its flat parts, the power the share
+ * of its points within a spacing of the fold above t_q; the first K_q with
+ * power >= 0.9. *kq = 0 (and *tq NAN) when none reaches it or the check is
+ * off; *power the last tried's (NAN when none). */
+bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, int k_cap, int *kq,
+                                  double *tq, double *power);
+/* The smallest neighbourhood table the quadric check needs beside normals.k
+ * (the K selection's noise passes: 80; K_q at most 4 normals.k and k_cap);
+ * normals.k when the check is off or the rule is not NULL. */
+int bsurf_fvar_neighbors_k(const bsurf_feature_options *o, int k_cap);
 /* The filter's neighbours k_f (variance_filter_k, 0 = normals.k / 2). */
 int bsurf_fvar_filter_k(const bsurf_feature_options *o);
 /* Per row of the k-neighbourhoods: u = nu d (the design of

@@ -48,6 +48,7 @@ bsurf_feature_options bsurf_feature_options_default(void) {
       .tail_rule = BSURF_TAIL_NULL,
       .false_positive_rate = 0.01,
       .feature_angle = 90,
+      .quadric_angle = 45,
       .normals = bsurf_normal_options_default(),
   };
   return o;
@@ -149,6 +150,9 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
     report->noise_level = NAN;
     report->edge_power = NAN;
     report->border_threshold = NAN;
+    report->quadric_threshold = NAN;
+    report->quadric_power = NAN;
+    report->quadric_noise = NAN;
   }
   BSURF_REQUIRE(xyz, "xyz is NULL");
   BSURF_REQUIRE(feature, "feature is NULL");
@@ -164,6 +168,8 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
   BSURF_REQUIRE(o.feature_angle >= 0 && o.feature_angle < 180,
                 "feature_angle = %g: must be in [0, 180)", o.feature_angle);
   BSURF_REQUIRE(o.variance_k_max >= 0, "variance_k_max = %d: must be >= 0", o.variance_k_max);
+  BSURF_REQUIRE(o.quadric_angle >= 0 && o.quadric_angle < 180,
+                "quadric_angle = %g: must be in [0, 180)", o.quadric_angle);
   const size_t n = nb->point_count;
   double *sc = score ? score : bsurf_alloc_array(n, sizeof(double));
   double *tmp = NULL;
@@ -201,6 +207,11 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
       if (report) {
         report->noise_level = vr.noise_level;
         report->border_threshold = vr.border_threshold;
+        report->quadric_k = vr.quadric_k;
+        report->quadric_threshold = vr.quadric_threshold;
+        report->quadric_power = vr.quadric_power;
+        report->quadric_noise = vr.quadric_noise;
+        report->quadric_cleared = vr.quadric_cleared;
       }
     } else if (st == BSURF_OK) {
       if (isnan(o.threshold))

@@ -60,6 +60,20 @@
  *    normals.k until a folded patch (faces' normals feature_angle apart,
  *    noise sigma_0) is detected at >= half its points within a spacing of
  *    the fold, at t_alpha of its own flat parts.
+ * 7. The quadric check (quadric_angle > 0, bsurf_fvar_quadric_k): a smooth
+ *    bend tighter than the cloud's curvature model (one slope, step 1)
+ *    raises nu as an edge does; a quadric explains the bend but not a
+ *    crease. q_i = the median over the first k_f neighbours of the residual
+ *    variance of the quadric of each one's K_q nearest (kselect_noise.c's
+ *    fit), over the cloud's noise variance as the K selection reads it
+ *    (bsurf_ksel_cloud_noise: a reading of the noise that is not the flat
+ *    majority's lambda0, so it holds where most points are near a crease).
+ *    A point z flags stays a feature only where q_i > t_q, the (1 - alpha)
+ *    quantile of q on the flat patch at sigma_0 (over sigma_0^2). K_q is
+ *    the first of K, 2 K, 4 K (<= k_cap) at which a patch folded by
+ *    quadric_angle keeps >= 9 in 10 of its points within a spacing of the
+ *    fold: the check may cost a crease that steep a tenth of its band at
+ *    most. Where no K_q reaches that (heavy noise), no check.
  * Without noise (s^2 = 0: most neighbourhoods exactly flat) the null is
  * the point mass nu = 0: Z = nu d, and t = 1e-12 max z (rounding).
  *
@@ -70,6 +84,7 @@
  * the features' nu is inside the null's spread and few points pass: step 6
  * grows K then (docs/features.md). */
 #include "algo/algo.h"
+#include "algo/smooth_stages.h"
 #include "common/common.h"
 
 #include <math.h>
@@ -77,10 +92,11 @@
 #include <string.h>
 
 #define PI 3.14159265358979323846
+#define QT_TERMS 6 /* the quadric's terms (its residual variance needs more points) */
 
 enum {
   NULL_INTERIOR = 20000,   /* points of the patch whose statistics count */
-  FOLD_INTERIOR = 8000,    /* the same for the folded patch of the K choice:
+  FOLD_INTERIOR = 8000,    /* the same for the folded patches of the K choice and the quadric check:
                               about 200 points within a spacing of its edge,
                               the power to +-0.035 */
   NULL_STREAM = 0x6e756c6c /* "null": the patch's random streams */
@@ -448,6 +464,21 @@ static double patch_quantile(null_patch *p, const double *v, int where, double a
   return p->l0[r > 0 ? (r <= m ? r - 1 : m - 1) : 0];
 }
 
+/* A folded patch's power: the share of its points within a spacing of the
+ * fold whose score p->z exceeds t, the (1 - alpha) quantile of p->z over its
+ * flat parts (t out may be NULL) */
+static double patch_power(null_patch *p, double alpha, double *t_out) {
+  const double t = patch_quantile(p, p->z, 1, alpha);
+  size_t m = 0, hit = 0;
+  for (size_t i = 0; i < p->n; i++)
+    if (patch_in(p, i, 2)) {
+      m++;
+      hit += p->z[i] > t;
+    }
+  if (t_out) *t_out = t;
+  return m ? (double)hit / (double)m : 0;
+}
+
 /* sigma_0 of the flat patch p (built for k) whose median lambda0 / tr is
  * eta: lambda0 ~ sigma^2 and tr ~ K / (2 pi) on a unit-density disc, then
  * secant steps on eta(sigma) ~ sigma^2 */
@@ -511,14 +542,7 @@ bsurf_status bsurf_fvar_choose_k(const bsurf_feature_options *o, double eta, int
     if (st == BSURF_OK && kk == k0) st = patch_sigma(&p, k0, o->threads, eta, &sigma);
     if (st == BSURF_OK) st = patch_scores(&p, o, kk, kf, sigma, 0);
     if (st == BSURF_OK) {
-      const double t = patch_quantile(&p, p.z, 1, o->false_positive_rate);
-      size_t m = 0, hit = 0;
-      for (size_t i = 0; i < p.n; i++)
-        if (patch_in(&p, i, 2)) {
-          m++;
-          hit += p.z[i] > t;
-        }
-      const double pw = m ? (double)hit / (double)m : 0;
+      const double pw = patch_power(&p, o->false_positive_rate, NULL);
       if (pw > best) {
         best = pw;
         *k = kk;
@@ -527,6 +551,132 @@ bsurf_status bsurf_fvar_choose_k(const bsurf_feature_options *o, double eta, int
       done = pw >= 0.5;
     }
     patch_free(&p);
+  }
+  return st;
+}
+
+/* ---- the quadric check (step 7) ---- */
+
+/* the share of a quadric_angle crease's points within a spacing of it that
+ * the check must keep */
+#define QUAD_KEEP 0.9
+
+typedef struct qrss_ctx {
+  const double *xyz;
+  const bsurf_neighbors *nb;
+  int kq;
+  double *v;
+  double *work; /* threads x 3 kq */
+} qrss_ctx;
+
+static void qrss_row(void *vctx, int thread, size_t r) {
+  const qrss_ctx *c = vctx;
+  double var;
+  c->v[r] = bsurf_ksel_quad_variance(c->xyz, &c->nb->idx[r * (size_t)c->nb->k], c->kq,
+                                     &c->work[3 * (size_t)thread * (size_t)c->kq], &var) == 0
+                ? var
+                : HUGE_VAL;
+}
+
+static bsurf_status quadric_rss(const double *xyz, const bsurf_neighbors *nb, int kq, int threads,
+                                double *v, bsurf_progress_fn progress, void *progress_user) {
+  const int t = bsurf_threads_resolve(threads);
+  qrss_ctx c = {xyz, nb, kq, v, bsurf_alloc_array(3 * (size_t)t * (size_t)kq, sizeof(double))};
+  if (!c.work) return BSURF_ERR_NOMEM;
+  bsurf_status st =
+      bsurf_parallel_points(nb->point_count, t, qrss_row, &c, progress, progress_user);
+  free(c.work);
+  return st;
+}
+
+bsurf_status bsurf_fvar_quadric_rss(const double *xyz, const bsurf_neighbors *nb, int kq,
+                                    int threads, double *v) {
+  return quadric_rss(xyz, nb, kq, threads, v, NULL, NULL);
+}
+
+int bsurf_fvar_neighbors_k(const bsurf_feature_options *o, int k_cap) {
+  const int k = o->normals.k;
+  if (!(o->quadric_angle > 0) || o->method != BSURF_FEATURES_VARIANCE ||
+      o->tail_rule != BSURF_TAIL_NULL || !isnan(o->threshold))
+    return k;
+  int m = 4 * k < k_cap ? 4 * k : k_cap;
+  if (m < BSURF_SMOOTH_SELECT_K) m = BSURF_SMOOTH_SELECT_K;
+  return m > k ? m : k;
+}
+
+bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, int k_cap, int *kq,
+                                  double *tq, double *power) {
+  const int k0 = o->normals.k, kf = bsurf_fvar_filter_k(o);
+  *kq = 0;
+  *tq = NAN;
+  *power = NAN;
+  if (!(o->quadric_angle > 0) || !(eta > 0)) return BSURF_OK;
+  /* sigma_0 as the null threshold finds it (the same flat patch) */
+  null_patch p;
+  double sigma = 0;
+  bsurf_status st = patch_init(&p, o, k0, kf, 0);
+  if (st == BSURF_OK) st = patch_sigma(&p, k0, o->threads, eta, &sigma);
+  patch_free(&p);
+  if (st != BSURF_OK || !(sigma > 0)) return st;
+  const int top = 4 * k0 < k_cap ? 4 * k0 : k_cap;
+  for (int kk = k0; st == BSURF_OK && kk <= top && kk > QT_TERMS; kk *= 2) {
+    st = patch_init(&p, o, kk, kf, o->quadric_angle * PI / 180);
+    if (st == BSURF_OK) {
+      patch_place(&p, sigma);
+      st = quadric_rss(p.xyz, &p.nb, kk, o->threads, p.u, NULL, NULL);
+    }
+    if (st == BSURF_OK)
+      st = bsurf_fvar_filter(&p.nb, kf, o->threads, sigma * sigma, kk, p.u, NULL, p.z);
+    if (st == BSURF_OK) {
+      double t;
+      *power = patch_power(&p, o->false_positive_rate, &t);
+      if (*power >= QUAD_KEEP) {
+        *kq = kk;
+        *tq = t;
+        patch_free(&p);
+        break;
+      }
+    }
+    patch_free(&p);
+  }
+  return st;
+}
+
+/* The check on the cloud (in memory): res's quadric fields; q by point
+ * (filtered, over the noise variance) when it runs. rss: n doubles of
+ * scratch. eta: the cloud's at normals.k. */
+static bsurf_status quadric_check(const double *xyz, const bsurf_neighbors *nb,
+                                  const bsurf_feature_options *o, double eta, double s2,
+                                  double *rss, double *q, bsurf_fvar_result *res) {
+  const size_t n = nb->point_count;
+  if (!(o->quadric_angle > 0) || !(s2 > 0) || nb->k < BSURF_SMOOTH_SELECT_K ||
+      n <= BSURF_SMOOTH_SELECT_K)
+    return BSURF_OK;
+  int cap = bsurf_fvar_k_cap(o, n);
+  if (cap > nb->k) cap = nb->k;
+  int kq = 0;
+  double tq = NAN, pw = NAN;
+  bsurf_status st = bsurf_fvar_quadric_k(o, eta, cap, &kq, &tq, &pw);
+  res->quadric_power = pw;
+  if (st != BSURF_OK || !kq) return st;
+  /* the cloud's noise as the K selection reads it; the progress held at
+   * the normals' end (Ctrl-C still stops it) */
+  bsurf_progress_hold hold = {o->progress, o->progress_user, n, n, 0};
+  bsurf_kselect_options ko;
+  bsurf_smooth_select_options(o->threads, &ko);
+  ko.progress = o->progress ? bsurf_progress_hold_cb : NULL;
+  ko.progress_user = &hold;
+  double level = NAN;
+  size_t sections = 0;
+  st = bsurf_ksel_cloud_noise(xyz, nb, &ko, &level, &sections);
+  if (st != BSURF_OK || !(level > 0)) return st;
+  st = quadric_rss(xyz, nb, kq, o->threads, rss, ko.progress, ko.progress_user);
+  if (st == BSURF_OK)
+    st = bsurf_fvar_filter(nb, bsurf_fvar_filter_k(o), o->threads, level, kq, rss, NULL, q);
+  if (st == BSURF_OK) {
+    res->quadric_k = kq;
+    res->quadric_threshold = tq;
+    res->quadric_noise = sqrt(level);
   }
   return st;
 }
@@ -584,9 +734,15 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
   /* the border score zb into l0 (no longer needed) */
   if (st == BSURF_OK) st = bsurf_fvar_filter(nb, kf, o->threads, 0, o->normals.k, b, NULL, l0);
   if (st == BSURF_OK) st = bsurf_fvar_threshold(o, score, n, s2, eta, res);
+  /* the quadric check: q into ratio, w its scratch (neither needed now) */
+  if (st == BSURF_OK) st = quadric_check(xyz, nb, o, eta, s2, w, ratio, res);
   if (st == BSURF_OK)
-    for (size_t i = 0; i < n; i++)
-      feature[i] = (uint8_t)bsurf_fvar_feature(res, score[i], l0[i]);
+    for (size_t i = 0; i < n; i++) {
+      const double q = res->quadric_k ? ratio[i] : NAN;
+      feature[i] = (uint8_t)bsurf_fvar_feature(res, score[i], l0[i], q);
+      res->quadric_cleared +=
+          res->quadric_k && score[i] > res->threshold && q <= res->quadric_threshold;
+    }
   free(u);
   free(l0);
   free(ratio);
@@ -598,6 +754,9 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
 
 bsurf_status bsurf_fvar_threshold(const bsurf_feature_options *o, const double *z, size_t n,
                                   double s2, double eta, bsurf_fvar_result *res) {
+  res->quadric_k = 0;
+  res->quadric_threshold = res->quadric_power = res->quadric_noise = NAN;
+  res->quadric_cleared = 0;
   res->noise_level = sqrt(s2);
   res->sigma0 = 0;
   res->null_threshold = res->split = NAN;
@@ -625,6 +784,9 @@ bsurf_status bsurf_fvar_threshold(const bsurf_feature_options *o, const double *
   return BSURF_OK;
 }
 
-int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb) {
-  return z > res->threshold || zb > res->border_threshold;
+int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb, double q) {
+  /* cleared by the quadric check: a quadric explains the neighbourhood (a
+   * NAN q, none computed, clears nothing) */
+  const int cleared = res->quadric_k > 0 && q <= res->quadric_threshold;
+  return (z > res->threshold && !cleared) || zb > res->border_threshold;
 }

@@ -93,6 +93,17 @@ static int quad_resid(const double *xyz, const uint32_t *idx, int K, ksel_scratc
   return 0;
 }
 
+int bsurf_ksel_quad_variance(const double *xyz, const uint32_t *idx, int K, double *work,
+                             double *var) {
+  ksel_scratch s;
+  memset(&s, 0, sizeof s);
+  s.u = work;
+  s.v = work + K;
+  s.z = work + 2 * (size_t)K;
+  double m6;
+  return quad_resid(xyz, idx, K, &s, var, &m6, NULL, NULL);
+}
+
 /* The noise within a cross-section's plane (docs/normals.md, "The noise
  * within a cross-section's plane"). A CAD mesh's vertices often lie on
  * rings, cross-sections of the surface that hold its normal; displaced

@@ -15,6 +15,7 @@
  * the summary (kept, replaced). */
 #include "jobs/jobs.h"
 #include "algo/algo.h"
+#include "algo/smooth_stages.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -180,6 +181,41 @@ static bsurf_status eta_tiled(const bsurf_job_io *io, const bsurf_feature_option
   return st;
 }
 
+/* The quadric check's noise level, tile by tile: the K selection's noise
+ * passes on the 80-neighbourhoods (bsurf_jobs_mse_stages; in memory
+ * features_variance.c reads bsurf_ksel_cloud_noise, the same bits). NAN
+ * where the check cannot run (off, another rule, 80 points or fewer). Read
+ * before the stages, so also where the check then finds no K_q (heavy
+ * noise): its cost there is the noise passes'. */
+static bsurf_status quadric_noise_tiled(const bsurf_job_io *io, const bsurf_feature_options *fo,
+                                        double *level, bsurf_failure *err) {
+  *level = NAN;
+  if (!(fo->quadric_angle > 0) || fo->method != BSURF_FEATURES_VARIANCE ||
+      fo->tail_rule != BSURF_TAIL_NULL || !isnan(fo->threshold))
+    return BSURF_OK;
+  uint64_t points = 0;
+  bsurf_status st = bsurf_read_header(io->input, &points, err);
+  if (st != BSURF_OK || points <= BSURF_SMOOTH_SELECT_K) return st;
+  bsurf_kselect_options ko;
+  bsurf_smooth_select_options(fo->threads, &ko);
+  struct bsurf_ksel_run *run = NULL;
+  st = bsurf_ksel_open(&ko, BSURF_SMOOTH_SELECT_K, 0, &run);
+  if (st != BSURF_OK) return st;
+  bsurf_tile_values pooled = {-1, 0, 0};
+  bsurf_tile_report tr;
+  memset(&tr, 0, sizeof tr);
+  size_t ns = 0;
+  /* tiles of at least twice its K (the tile engine's least; the tiles'
+   * size changes no value, their halos are proven) */
+  bsurf_job_io sio = *io;
+  if (sio.tile_points < 2 * BSURF_SMOOTH_SELECT_K) sio.tile_points = 2 * BSURF_SMOOTH_SELECT_K;
+  st = bsurf_jobs_mse_stages(&sio, &ko, BSURF_SMOOTH_SELECT_K, fo->threads, NULL, NULL, run,
+                             &pooled, level, &ns, &tr, err);
+  bsurf_tile_values_close(&pooled);
+  bsurf_ksel_close(run);
+  return st;
+}
+
 /* distance, and variance under the null rule: the library's chains of tiled
  * stages (bsurf_features_distance_tiled, bsurf_features_variance_tiled) */
 static bsurf_status chain_tiled(const bsurf_job_io *io, const bsurf_feature_options *fo,
@@ -192,10 +228,13 @@ static bsurf_status chain_tiled(const bsurf_job_io *io, const bsurf_feature_opti
   ops.prepare = features_prepare;
   bsurf_tile_report tr;
   memset(&tr, 0, sizeof tr);
-  bsurf_status st =
-      distance
-          ? bsurf_features_distance_tiled(io->input, io->output, &ops, fo, &s->report, &tr, err)
-          : bsurf_features_variance_tiled(io->input, io->output, &ops, fo, &s->report, &tr, err);
+  double level = NAN;
+  bsurf_status st = distance ? BSURF_OK : quadric_noise_tiled(io, fo, &level, err);
+  if (st == BSURF_OK)
+    st = distance
+             ? bsurf_features_distance_tiled(io->input, io->output, &ops, fo, &s->report, &tr, err)
+             : bsurf_features_variance_tiled(io->input, io->output, &ops, fo, level, &s->report,
+                                             &tr, err);
   bsurf_jobs_tiled_numbers(&tr, &s->points, &s->h, &s->duplicates, &s->tiles, &s->bad_point);
   return st;
 }
@@ -235,9 +274,22 @@ static bsurf_status features_in_memory(const bsurf_job_io *io, const bsurf_featu
     }
     fk.normals.k = k;
     fk.feature_angle = 0;
+    /* the cap the choice used stays the quadric check's (not 8 times the chosen K) */
+    fk.variance_k_max = bsurf_fvar_k_cap(fo, n);
     if (st != BSURF_OK) {
       bsurf_neighbors_free(&nb);
       return st;
+    }
+  }
+  /* the quadric check's table: K_q and the noise passes' 80 */
+  if (fk.method == BSURF_FEATURES_VARIANCE) {
+    int need = bsurf_fvar_neighbors_k(&fk, bsurf_fvar_k_cap(&fk, n));
+    if ((size_t)need > n) need = (int)n; /* a small cloud: every point (as tiled) */
+    if (need > nb.k) {
+      bsurf_neighbors_free(&nb);
+      size_t dup = 0;
+      st = bsurf_jobs_neighbors(c, need, fo->threads, NULL, NULL, &nb, &dup);
+      if (st != BSURF_OK) return st;
     }
   }
   uint8_t *feat = malloc(n ? n : 1);
@@ -293,6 +345,8 @@ static bsurf_status features_check(const bsurf_feature_options *fo) {
                        "opts->feature_angle = %g must be in [0, 180)", fo->feature_angle);
       BSURF_REQUIRE_IN(FJ, fo->variance_k_max >= 0 && fo->variance_k_max <= 65535,
                        "opts->variance_k_max = %d must be in [0, 65535]", fo->variance_k_max);
+      BSURF_REQUIRE_IN(FJ, fo->quadric_angle >= 0 && fo->quadric_angle < 180,
+                       "opts->quadric_angle = %g must be in [0, 180)", fo->quadric_angle);
     }
   }
   /* in the words every front end prints (bsurf_feature_threshold_check) */
@@ -316,6 +370,21 @@ bsurf_status bsurf_feature_threshold_check(bsurf_feature_method method, double t
         BSURF_ERR_INVALID_ARG,
         "threshold %g: method variance takes a normal_var value, at least 0, or auto", threshold);
   return BSURF_OK;
+}
+
+int bsurf_features_job_neighbors(const bsurf_feature_options *opts) {
+  const bsurf_feature_options o = opts ? *opts : bsurf_feature_options_default();
+  if (o.method == BSURF_FEATURES_DISTANCE) return o.k_max;
+  /* the K choice's cap, as bsurf_fvar_k_cap before the cloud's size bounds it */
+  long cap = o.variance_k_max > 0 ? o.variance_k_max : 8L * o.normals.k;
+  if (cap > 65535) cap = 65535;
+  if (cap < o.normals.k) cap = o.normals.k;
+  int k = choose_k(&o) ? (int)cap : o.normals.k;
+  /* the quadric check's table at the largest K the choice may take */
+  bsurf_feature_options q = o;
+  q.normals.k = k;
+  const int need = bsurf_fvar_neighbors_k(&q, (int)cap);
+  return need > k ? need : k;
 }
 
 bsurf_status bsurf_features_job(const bsurf_job_io *io, const bsurf_feature_options *opts,
@@ -345,6 +414,7 @@ bsurf_status bsurf_features_job(const bsurf_job_io *io, const bsurf_feature_opti
     if (st == BSURF_OK)
       st = bsurf_fvar_choose_k(&fo, eta, bsurf_fvar_k_cap(&fo, summary->points), &k, &power);
     if (st != BSURF_OK) return st;
+    fo.variance_k_max = bsurf_fvar_k_cap(&fo, summary->points); /* as in memory */
     fo.normals.k = k;
     fo.feature_angle = 0;
   }

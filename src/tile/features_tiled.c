@@ -32,6 +32,7 @@
  * column, 24 bytes, two files at a time while a pass runs. */
 #include "algo/algo.h"
 #include "common/common.h"
+#include "algo/smooth_stages.h"
 #include "tile/tile_engine.h"
 
 #include "io/io.h"
@@ -354,17 +355,30 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
  *  (v3) K = k_f, reading (v1)'s values of the tile's points: u and w scaled
  *       by s^2 / E(g) (bsurf_fvar_fit_scale), z = the median of u over the
  *       first k_f neighbours / s^2, zb = that of b;
+ *  (vq) the quadric check (quadric_angle > 0, a noise level given): K_q
+ *       and t_q from eta (bsurf_fvar_quadric_k, the in-memory function);
+ *       K = K_q: (v1)'s values of the tile's points and the residual
+ *       variance of each one's quadric (bsurf_fvar_quadric_rss's);
+ *  (v3) K = k_f, reading (v1)'s (or (vq)'s) values of the tile's points: as
+ *       above, and q = the median of the quadric's residual variance over
+ *       the same neighbours / the noise level (NAN without the check);
  *  (v4) t from z (all of it in memory, for Otsu) and the null patch (t and
  *       the border's t_b: bsurf_fvar_threshold, the in-memory function); the
- *       feature count (z > t or zb > t_b);
+ *       feature count (bsurf_fvar_feature of z, zb and q);
  *       the output by a pointwise stage. */
 
-/* (v1)'s values per point: u, lambda0, lambda0 / tr, w, b, g */
+/* (v1)'s values per point: u, lambda0, lambda0 / tr, w, b, g; (vq) adds the
+ * quadric's residual variance */
 #define NV 6
+/* (v3)'s: z, zb, q */
+#define NZ 3
 
 typedef struct fv_run {
   fd_run fd; /* first: the stages get &fd as their user */
   double s2;
+  int kq;       /* the quadric check's K_q (0: none) */
+  double level; /* the noise variance q is read against */
+  size_t nv;    /* the values per point (v3) reads: NV, or NV + 1 after (vq) */
   bsurf_fvar_fit fit;
   int col; /* (v2)'s column */
   double *all;
@@ -402,30 +416,54 @@ static bsurf_status run_var_local(void *user, const bsurf_tile *t, bsurf_cloud *
   return st;
 }
 
+/* (vq) */
+static bsurf_status run_var_quadric(void *user, const bsurf_tile *t, bsurf_cloud *core,
+                                    double *sums) {
+  (void)core;
+  (void)sums;
+  const fv_run *v = user;
+  const size_t nc = t->core_count;
+  double *rss = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
+  if (!rss) return BSURF_ERR_NOMEM;
+  bsurf_status st = bsurf_fvar_quadric_rss(t->xyz, t->nb, v->kq, v->fd.o.threads, rss);
+  for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
+    /* each row's point first: its local index */
+    const size_t l = t->nb->idx[r * (size_t)t->nb->k];
+    memcpy(&t->values_out[(NV + 1) * r], &t->values[NV * l], NV * sizeof(double));
+    t->values_out[(NV + 1) * r + NV] = rss[r];
+  }
+  free(rss);
+  return st;
+}
+
 /* (v3) */
 static bsurf_status run_var_filter(void *user, const bsurf_tile *t, bsurf_cloud *core,
                                    double *sums) {
   (void)core;
   (void)sums;
   const fv_run *v = user;
-  const size_t nl = t->local_count;
+  const size_t nl = t->local_count, nv = v->nv;
   const size_t m = nl ? nl : 1, nc = t->core_count;
-  double *u = bsurf_alloc_array(6 * m, sizeof(double));
+  double *u = bsurf_alloc_array(8 * m, sizeof(double));
   if (!u) return BSURF_ERR_NOMEM;
-  double *w = u + m, *b = w + m, *z = b + m, *zb = z + m, *g = zb + m;
+  double *w = u + m, *b = w + m, *z = b + m, *zb = z + m, *g = zb + m, *rss = g + m, *q = rss + m;
   for (size_t l = 0; l < nl; l++) {
-    u[l] = t->values[NV * l];
-    w[l] = t->values[NV * l + 3];
-    b[l] = t->values[NV * l + 4];
-    g[l] = t->values[NV * l + 5];
+    u[l] = t->values[nv * l];
+    w[l] = t->values[nv * l + 3];
+    b[l] = t->values[nv * l + 4];
+    g[l] = t->values[nv * l + 5];
+    if (v->kq) rss[l] = t->values[nv * l + NV];
   }
   bsurf_fvar_fit_scale(&v->fit, v->s2, nl, g, u, w);
   const int kf = bsurf_fvar_filter_k(&v->fd.o), k = v->fd.o.normals.k;
   bsurf_status st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, v->s2, k, u, w, z);
   if (st == BSURF_OK) st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, 0, k, b, NULL, zb);
+  if (st == BSURF_OK && v->kq)
+    st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, v->level, v->kq, rss, NULL, q);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
-    t->values_out[2 * r] = z[r];
-    t->values_out[2 * r + 1] = zb[r];
+    t->values_out[NZ * r] = z[r];
+    t->values_out[NZ * r + 1] = zb[r];
+    t->values_out[NZ * r + 2] = v->kq ? q[r] : NAN;
   }
   free(u);
   return st;
@@ -445,17 +483,21 @@ static void scan_fit(void *vv, size_t count, const double *x) {
     bsurf_fvar_fit_put(&v->fit, v->all, x[NV * i + 5], x[NV * i + 1]);
 }
 
-/* (v4): z of the pairs (z, zb); then the features */
+/* (v4): z of the rows (z, zb, q); then the features */
 static void scan_z(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++)
-    v->all[v->nall++] = x[2 * i];
+    v->all[v->nall++] = x[NZ * i];
 }
 
 static void scan_features(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
-  for (size_t i = 0; i < count; i++)
-    v->features += (size_t)bsurf_fvar_feature(&v->res, x[2 * i], x[2 * i + 1]);
+  for (size_t i = 0; i < count; i++) {
+    const double *y = &x[NZ * i];
+    v->features += (size_t)bsurf_fvar_feature(&v->res, y[0], y[1], y[2]);
+    v->res.quadric_cleared +=
+        v->res.quadric_k && y[0] > v->res.threshold && y[2] <= v->res.quadric_threshold;
+  }
 }
 
 static bsurf_status map_var(void *user, size_t first, bsurf_cloud *c, const double *values) {
@@ -464,8 +506,9 @@ static bsurf_status map_var(void *user, size_t first, bsurf_cloud *c, const doub
   bsurf_field *score = bsurf_cloud_field(c, "variance_z"), *feat = bsurf_cloud_field(c, "feature");
   if (!score || !feat) return BSURF_ERR_INVALID_ARG;
   for (size_t i = 0; i < c->point_count; i++) {
-    score->values[i] = values[2 * i];
-    feat->values[i] = bsurf_fvar_feature(&v->res, values[2 * i], values[2 * i + 1]);
+    const double *y = &values[NZ * i];
+    score->values[i] = y[0];
+    feat->values[i] = bsurf_fvar_feature(&v->res, y[0], y[1], y[2]);
   }
   return BSURF_OK;
 }
@@ -477,11 +520,12 @@ static bsurf_status prepare_var(void *user, bsurf_cloud *c) {
 
 bsurf_status bsurf_features_variance_tiled(const char *input, const char *output,
                                            const bsurf_tile_ops *ops,
-                                           const bsurf_feature_options *opts,
+                                           const bsurf_feature_options *opts, double quadric_noise,
                                            bsurf_feature_report *report, bsurf_tile_report *tiles,
                                            bsurf_failure *err) {
   fv_run v;
   memset(&v, 0, sizeof v);
+  v.nv = NV;
   bsurf_status st0 = fd_begin(&v.fd, input, output, ops, opts, report, tiles, err);
   if (st0 != BSURF_OK) return st0;
   const bsurf_feature_options *o = &v.fd.o;
@@ -516,16 +560,41 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col);
   if (st == BSURF_OK) eta = bsurf_median(v.all, v.nall);
   st = agree_local(cm, st);
+  /* (vq): as in memory (features_variance.c, quadric_check), with the noise
+   * level the caller read (NAN: none) */
+  int kq = 0;
+  double tq = NAN, qpower = NAN;
+  bsurf_tile_values withq = {-1, 0, 0};
+  if (st == BSURF_OK && o->quadric_angle > 0 && v.s2 > 0 && quadric_noise > 0 &&
+      v.nall > BSURF_SMOOTH_SELECT_K) {
+    st = bsurf_fvar_quadric_k(o, eta, bsurf_fvar_k_cap(o, v.nall), &kq, &tq, &qpower);
+    if (st == BSURF_OK && kq) {
+      v.kq = kq;
+      v.level = quadric_noise;
+      st = stage(input, output, &v.fd, kq, NV + 1, run_var_quadric, &local, &withq, &rep, err);
+      v.nv = NV + 1;
+    }
+    st = agree_local(cm, st);
+  }
   /* (v3) */
   if (st == BSURF_OK)
-    st = stage(input, output, &v.fd, kf, 2, run_var_filter, &local, &z, &rep, err);
+    st = stage(input, output, &v.fd, kf, NZ, run_var_filter, v.kq ? &withq : &local, &z, &rep, err);
   bsurf_tile_values_close(&local);
+  bsurf_tile_values_close(&withq);
   /* (v4) */
   const bsurf_status passed = st;
   v.nall = 0;
-  if (st == BSURF_OK) st = values_scan_n(&v, &z, 2, scan_z);
+  if (st == BSURF_OK) st = values_scan_n(&v, &z, NZ, scan_z);
   if (st == BSURF_OK) st = bsurf_fvar_threshold(o, v.all, v.nall, v.s2, eta, &v.res);
-  if (st == BSURF_OK) st = values_scan_n(&v, &z, 2, scan_features);
+  if (st == BSURF_OK) {
+    v.res.quadric_power = qpower;
+    if (kq) {
+      v.res.quadric_k = kq;
+      v.res.quadric_threshold = tq;
+      v.res.quadric_noise = sqrt(quadric_noise);
+    }
+  }
+  if (st == BSURF_OK) st = values_scan_n(&v, &z, NZ, scan_features);
   free(v.all);
   v.all = NULL;
   if (passed == BSURF_OK) st = agree_local(cm, st);
@@ -542,6 +611,11 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
     report->noise_level = v.res.noise_level;
     report->border_threshold = v.res.border_threshold;
     report->ratio_threshold_kmin = NAN;
+    report->quadric_k = v.res.quadric_k;
+    report->quadric_threshold = v.res.quadric_threshold;
+    report->quadric_power = v.res.quadric_power;
+    report->quadric_noise = v.res.quadric_noise;
+    report->quadric_cleared = v.res.quadric_cleared;
   }
   free(v.all);
   bsurf_tile_values_close(&local);

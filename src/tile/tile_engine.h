@@ -182,10 +182,12 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
  * median filter of u (K = k_f); the threshold (null patch and Otsu over
  * every z in memory, 8 bytes per point); the output. ops as for
  * bsurf_features_distance_tiled, prepare adding "variance_z" and
- * "feature". tiles out: the first stage's run. */
+ * "feature". quadric_noise: the cloud's noise variance for the quadric check
+ * (bsurf_ksel_cloud_noise's, read by the caller; NAN: no check); its stage
+ * (K = K_q) runs before the filter's. tiles out: the first stage's run. */
 bsurf_status bsurf_features_variance_tiled(const char *input, const char *output,
                                            const bsurf_tile_ops *ops,
-                                           const bsurf_feature_options *opts,
+                                           const bsurf_feature_options *opts, double quadric_noise,
                                            bsurf_feature_report *report, bsurf_tile_report *tiles,
                                            bsurf_failure *err);
 

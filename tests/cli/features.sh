@@ -71,6 +71,12 @@ expect 2 "feature angle 180" -- "$BSURF" features "$T/n.ply" --feature-angle 180
 stderr_has "option --feature-angle needs a number (0 to 179.999), not '180'" "feature angle message"
 expect 2 "feature angle -5" -- "$BSURF" features "$T/n.ply" --feature-angle -5 -o "$T/x.ply"
 stderr_has "--feature-angle needs a number (0 to 179.999), not '-5'" "negative feature angle message"
+expect 2 "quadric angle 180" -- "$BSURF" features "$T/n.ply" --quadric-angle 180 -o "$T/x.ply"
+stderr_has "option --quadric-angle needs a number (0 to 179.999), not '180'" "quadric angle message"
+[ ! -e "$T/x.ply" ] && ok || fail "a refused --quadric-angle writes no output"
+expect 0 "quadric check off" -- "$BSURF" features "$T/n.ply" -B 10 --quadric-angle 0 -o "$T/v0.ply" --json
+grep -qF '"quadric_k":0,' "$T/out" && grep -qF '"quadric_angle":0,' "$T/out" && ok ||
+  fail "--quadric-angle 0: the check does not run"
 expect 2 "variance k max -1" -- "$BSURF" features "$T/n.ply" --variance-k-max -1 -o "$T/x.ply"
 stderr_has "option --variance-k-max needs a whole number (0 to 65535), not '-1'" "variance k max message"
 expect 2 "false-positive rate 1" -- "$BSURF" features "$T/n.ply" --method variance --false-positive-rate 1 -o "$T/x.ply"

@@ -83,6 +83,24 @@ for f in c n; do
     done
   done
 done
+# the quadric check (features_variance.c, step 7) runs on a torus at light
+# noise (K_q 60, points cleared): its noise passes and its stage at K_q, tiled,
+# give the in-memory bytes and numbers
+expect 0 "generate torus" -- "$BSURF" generate torus -n 12000 --sampling random -o "$T/t.ply" -q
+expect 0 "noise torus" -- "$BSURF" noise "$T/t.ply" --level 0.25 -o "$T/tn.ply" -q
+expect 0 "features quadric check" -- "$BSURF" features "$T/tn.ply" -k 15 -B 5 -o "$T/fq.ply" --json
+cp "$T/out" "$T/fq.json"
+grep -q '"quadric_k":60' "$T/fq.json" && ok || fail "features torus: the quadric check did not run at K_q 60"
+grep -q '"quadric_cleared":0,' "$T/fq.json" && fail "features torus: the quadric check cleared nothing" || ok
+for tp in 70 3000; do
+  expect 0 "features quadric check tiles $tp" -- "$BSURF" features "$T/tn.ply" -k 15 -B 5 -o "$T/ft.ply" \
+    --tile-points $tp --json
+  cmp -s "$T/fq.ply" "$T/ft.ply" && ok || fail "features quadric check --tile-points $tp: output differs"
+  for key in threshold feature_points quadric_k quadric_threshold quadric_power quadric_noise quadric_cleared; do
+    grep -o "\"$key\":[^,]*" "$T/out" | cmp -s - <(grep -o "\"$key\":[^,]*" "$T/fq.json") && ok ||
+      fail "features quadric check --tile-points $tp: $key differs"
+  done
+done
 # features --method distance (the default, 7.1) in stages: the sample's
 # medians of f(K), the raw map, max radius, --iterations passes of the
 # bilateral filter (Eq. 7.1) each reading the previous pass's values, T_h
@@ -281,6 +299,10 @@ else
     expect 0 "mpirun features" -- mpirun "${root[@]}" --oversubscribe -n 2 "$BSURF" features "$T/n.ply" \
       --method variance -k 12 -B 4 -j 1 -o "$T/fmpi.ply" -q
     cmp -s "$T/fser.ply" "$T/fmpi.ply" && ok || fail "mpirun features: output differs"
+    # the quadric check's noise passes and stage under MPI
+    expect 0 "mpirun features quadric check" -- mpirun "${root[@]}" --oversubscribe -n 2 "$BSURF" features \
+      "$T/tn.ply" -k 15 -B 5 -j 1 -o "$T/fmpi.ply" --tile-points 3000 -q
+    cmp -s "$T/fq.ply" "$T/fmpi.ply" && ok || fail "mpirun features quadric check: output differs"
     # features distance: the sample's medians summed over the ranks, the filter passes' values shared
     args="--iterations 2 --filter-k 9 --k-max 40"
     expect 0 "features distance serial" -- "$BSURF" features "$T/c.ply" --method distance $args -o "$T/fser.ply" -q

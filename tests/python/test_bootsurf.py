@@ -177,6 +177,27 @@ def test_features_defaults_equal_cli(cube):
     assert s["report"]["k"] == 30
 
 
+def test_features_quadric_check_equal_cli():
+    """The quadric check (docs/features.md) runs on a torus at light noise and
+    clears points; both front ends give the same bits and report."""
+    cli("generate", "torus", "-n", 12000, "--sampling", "random", "-o", tmp("qt.ply"), "-q")
+    cli("noise", tmp("qt.ply"), "--level", 0.25, "-o", tmp("qtn.ply"), "-q")
+    summ = cli("features", tmp("qtn.ply"), "-k", 15, "-B", 5, "-o", tmp("qf.ply"), "--json")
+    ref = bootsurf.read(tmp("qf.ply"))
+    pts = bootsurf.read(tmp("qtn.ply"))["points"]
+    fields, s = bootsurf.features(pts, neighbors=15, bootstrap=5)
+    same_bits(fields["feature"], ref["feature"])
+    r, p = s["report"], summ["parameters"]
+    assert r["quadric_k"] == p["quadric_k"] == 60
+    assert r["quadric_cleared"] == p["quadric_cleared"] > 0
+    assert float("%.10g" % r["quadric_noise"]) == p["quadric_noise"]
+    off, s0 = bootsurf.features(pts, neighbors=15, bootstrap=5, quadric_angle=0)
+    assert s0["report"]["quadric_k"] == 0 and s0["report"]["quadric_cleared"] == 0
+    assert 0 < int(off["feature"].sum()) - int(fields["feature"].sum()) <= r["quadric_cleared"]
+    with pytest.raises(ValueError, match="quadric_angle"):
+        bootsurf.features(pts, neighbors=15, bootstrap=5, quadric_angle=200)
+
+
 def test_render_equals_cli(cube):
     cli("render", tmp("noisy.ply"), "--size", "160x120", "-o", tmp("cli.png"), "-q")
     bootsurf.render(tmp("noisy.ply"), size=(160, 120), output=tmp("py.png"))
