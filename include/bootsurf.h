@@ -911,7 +911,8 @@ typedef struct bsurf_feature_report {
                                   variance over quadric_noise^2; else NAN */
   double quadric_power;        /* the simulated crease's share kept at K_q
                                   (or the largest tried); else NAN */
-  double quadric_noise;        /* the cloud's noise sigma it reads; else NAN */
+  double quadric_noise;        /* the cloud's noise sigma it reads (also
+                                  where it then finds no K_q); else NAN */
   size_t quadric_cleared;      /* points the variance test flagged that the
                                   check cleared */
 } bsurf_feature_report;

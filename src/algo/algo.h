@@ -458,15 +458,16 @@ bsurf_status bsurf_fvar_quadric_rss(const double *xyz, const bsurf_neighbors *nb
                                     int threads, double *v);
 /* The quadric check's neighbourhood and threshold (quadric_angle > 0, eta >
  * 0): sigma_0 of the flat null patch whose median lambda0 / tr at
- * normals.k is eta (as bsurf_fvar_null_threshold's), then for K_q =
+ * normals.k is eta (as bsurf_fvar_null_threshold's) times ratio (the noise
+ * the check reads over the median lambda0's, sqrt(level / s2)), then for K_q =
  * normals.k, 2 normals.k ... <= k_cap a patch folded by quadric_angle at
  * sigma_0: its filtered residual variance over sigma_0^2, t_q the (1 -
  * false_positive_rate) quantile over its flat parts, the power the share
  * of its points within a spacing of the fold above t_q; the first K_q with
  * power >= 0.9. *kq = 0 (and *tq NAN) when none reaches it or the check is
  * off; *power the last tried's (NAN when none). */
-bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, int k_cap, int *kq,
-                                  double *tq, double *power);
+bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, double ratio,
+                                  int k_cap, int *kq, double *tq, double *power);
 /* The smallest neighbourhood table the quadric check needs beside normals.k
  * (the K selection's noise passes: 80; K_q at most 4 normals.k and k_cap);
  * normals.k when the check is off or the rule is not NULL. */

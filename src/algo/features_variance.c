@@ -69,7 +69,9 @@
  *    (bsurf_ksel_cloud_noise: a reading of the noise that is not the flat
  *    majority's lambda0, so it holds where most points are near a crease).
  *    A point z flags stays a feature only where q_i > t_q, the (1 - alpha)
- *    quantile of q on the flat patch at sigma_0 (over sigma_0^2). K_q is
+ *    quantile of q on the flat patch (over its noise variance) whose noise is
+ *    sigma_0 times sigma^ / s (the noise the check reads, not the median
+ *    lambda0's, which a curved cloud's curvature lifts). K_q is
  *    the first of K, 2 K, 4 K (<= k_cap) at which a patch folded by
  *    quadric_angle keeps >= 9 in 10 of its points within a spacing of the
  *    fold: the check may cost a crease that steep a tenth of its band at
@@ -604,19 +606,21 @@ int bsurf_fvar_neighbors_k(const bsurf_feature_options *o, int k_cap) {
   return m > k ? m : k;
 }
 
-bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, int k_cap, int *kq,
-                                  double *tq, double *power) {
+bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, double ratio,
+                                  int k_cap, int *kq, double *tq, double *power) {
   const int k0 = o->normals.k, kf = bsurf_fvar_filter_k(o);
   *kq = 0;
   *tq = NAN;
   *power = NAN;
-  if (!(o->quadric_angle > 0) || !(eta > 0)) return BSURF_OK;
-  /* sigma_0 as the null threshold finds it (the same flat patch) */
+  if (!(o->quadric_angle > 0) || !(eta > 0) || !(ratio > 0)) return BSURF_OK;
+  /* sigma_0 as the null threshold finds it (the same flat patch), times the
+   * ratio of the noise the check reads to the one eta holds */
   null_patch p;
   double sigma = 0;
   bsurf_status st = patch_init(&p, o, k0, kf, 0);
   if (st == BSURF_OK) st = patch_sigma(&p, k0, o->threads, eta, &sigma);
   patch_free(&p);
+  sigma *= ratio;
   if (st != BSURF_OK || !(sigma > 0)) return st;
   const int top = 4 * k0 < k_cap ? 4 * k0 : k_cap;
   for (int kk = k0; st == BSURF_OK && kk <= top && kk > QT_TERMS; kk *= 2) {
@@ -654,11 +658,6 @@ static bsurf_status quadric_check(const double *xyz, const bsurf_neighbors *nb,
     return BSURF_OK;
   int cap = bsurf_fvar_k_cap(o, n);
   if (cap > nb->k) cap = nb->k;
-  int kq = 0;
-  double tq = NAN, pw = NAN;
-  bsurf_status st = bsurf_fvar_quadric_k(o, eta, cap, &kq, &tq, &pw);
-  res->quadric_power = pw;
-  if (st != BSURF_OK || !kq) return st;
   /* the cloud's noise as the K selection reads it; the progress held at
    * the normals' end (Ctrl-C still stops it) */
   bsurf_progress_hold hold = {o->progress, o->progress_user, n, n, 0};
@@ -668,15 +667,20 @@ static bsurf_status quadric_check(const double *xyz, const bsurf_neighbors *nb,
   ko.progress_user = &hold;
   double level = NAN;
   size_t sections = 0;
-  st = bsurf_ksel_cloud_noise(xyz, nb, &ko, &level, &sections);
+  bsurf_status st = bsurf_ksel_cloud_noise(xyz, nb, &ko, &level, &sections);
   if (st != BSURF_OK || !(level > 0)) return st;
+  res->quadric_noise = sqrt(level);
+  int kq = 0;
+  double tq = NAN, pw = NAN;
+  st = bsurf_fvar_quadric_k(o, eta, sqrt(level / s2), cap, &kq, &tq, &pw);
+  res->quadric_power = pw;
+  if (st != BSURF_OK || !kq) return st;
   st = quadric_rss(xyz, nb, kq, o->threads, rss, ko.progress, ko.progress_user);
   if (st == BSURF_OK)
     st = bsurf_fvar_filter(nb, bsurf_fvar_filter_k(o), o->threads, level, kq, rss, NULL, q);
   if (st == BSURF_OK) {
     res->quadric_k = kq;
     res->quadric_threshold = tq;
-    res->quadric_noise = sqrt(level);
   }
   return st;
 }

@@ -565,9 +565,11 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   int kq = 0;
   double tq = NAN, qpower = NAN;
   bsurf_tile_values withq = {-1, 0, 0};
-  if (st == BSURF_OK && o->quadric_angle > 0 && v.s2 > 0 && quadric_noise > 0 &&
-      v.nall > BSURF_SMOOTH_SELECT_K) {
-    st = bsurf_fvar_quadric_k(o, eta, bsurf_fvar_k_cap(o, v.nall), &kq, &tq, &qpower);
+  const int check = o->quadric_angle > 0 && v.s2 > 0 && quadric_noise > 0 &&
+                    v.nall > BSURF_SMOOTH_SELECT_K;
+  if (st == BSURF_OK && check) {
+    st = bsurf_fvar_quadric_k(o, eta, sqrt(quadric_noise / v.s2), bsurf_fvar_k_cap(o, v.nall), &kq,
+                              &tq, &qpower);
     if (st == BSURF_OK && kq) {
       v.kq = kq;
       v.level = quadric_noise;
@@ -588,10 +590,10 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   if (st == BSURF_OK) st = bsurf_fvar_threshold(o, v.all, v.nall, v.s2, eta, &v.res);
   if (st == BSURF_OK) {
     v.res.quadric_power = qpower;
+    if (check) v.res.quadric_noise = sqrt(quadric_noise);
     if (kq) {
       v.res.quadric_k = kq;
       v.res.quadric_threshold = tq;
-      v.res.quadric_noise = sqrt(quadric_noise);
     }
   }
   if (st == BSURF_OK) st = values_scan_n(&v, &z, NZ, scan_features);
