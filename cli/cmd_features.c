@@ -212,10 +212,12 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
       printf("  quadric check at K %d (noise %.6g): %zu flagged points a quadric explains "
              "cleared\n",
              rep.quadric_k, rep.quadric_noise, rep.quadric_cleared);
-    else if (null_rule && fo.quadric_angle > 0)
+    else if (null_rule && fo.quadric_angle > 0 && !isnan(rep.quadric_power))
       printf("  quadric check not run (a %g degree crease at this noise keeps %.0f%% of its "
-             "points at most)\n",
+             "points at the largest K_q tried)\n",
              fo.quadric_angle, 100 * rep.quadric_power);
+    else if (null_rule && fo.quadric_angle > 0)
+      printf("  quadric check not run (no noise measured, or 80 points or fewer)\n");
     if (fo.method == BSURF_FEATURES_DISTANCE)
       printf("  T_{a/c} %.4g at k_min, max radius %.6g, %zu points stopped at k_min (set to -max "
              "radius)\n",

@@ -862,11 +862,12 @@ typedef struct bsurf_feature_options {
    * its K_q nearest, median-filtered like z, over the cloud's noise
    * variance (the K selection's reading, bsurf_select_k's noise passes)
    * exceeds the (1 - false_positive_rate) quantile of the same statistic
-   * on the flat null patch. K_q is the first of k, 2 k, 4 k ... (at most
-   * variance_k_max and nb->k) at which a simulated crease whose faces'
+   * on the flat null patch. K_q is the first of k, 2 k, 4 k (at most the
+   * K choice's cap and nb->k) at which a simulated crease whose faces'
    * normals differ by quadric_angle degrees, at the cloud's noise, keeps
    * at least 9 in 10 of its points within a spacing of the crease; where
-   * none does (heavy noise) or nb->k < 80, no check. A smooth bend tighter
+   * none does (heavy noise), with no noise (s^2 = 0), 80 points or fewer or
+   * nb->k < 80, no check. A smooth bend tighter
    * than the cloud's curvature raises nu as an edge does, but a quadric
    * fits it (docs/features.md). 0 = off (the test alone). The border
    * test's flags are not checked. */
@@ -918,7 +919,9 @@ typedef struct bsurf_feature_report {
 } bsurf_feature_report;
 
 /* Feature detection. nb: neighbourhoods with nb->k >= k_max (distance) or
- * >= normals.k (variance). feature out: point_count, 0/1; score out:
+ * >= normals.k (variance; the quadric check needs nb->k >= 80 and reads K_q
+ * up to min(4 K, the K cap, nb->k): bsurf_features_job_neighbors gives the
+ * table the job builds). feature out: point_count, 0/1; score out:
  * point_count (feature_dist for DISTANCE, normal_var for VARIANCE with the
  * OTSU or MAD rule, the filtered score z for VARIANCE with the NULL rule),
  * may be NULL. Deterministic for any thread count. */

@@ -460,7 +460,7 @@ bsurf_status bsurf_fvar_quadric_rss(const double *xyz, const bsurf_neighbors *nb
  * 0): sigma_0 of the flat null patch whose median lambda0 / tr at
  * normals.k is eta (as bsurf_fvar_null_threshold's) times ratio (the noise
  * the check reads over the median lambda0's, sqrt(level / s2)), then for K_q =
- * normals.k, 2 normals.k ... <= k_cap a patch folded by quadric_angle at
+ * normals.k, 2 normals.k, 4 normals.k (<= k_cap) a patch folded by quadric_angle at
  * sigma_0: its filtered residual variance over sigma_0^2, t_q the (1 -
  * false_positive_rate) quantile over its flat parts, the power the share
  * of its points within a spacing of the fold above t_q; the first K_q with

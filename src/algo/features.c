@@ -188,6 +188,7 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
     st = bsurf_fvar_eta(xyz, nb, o.normals.k, o.threads, &eta);
     if (st == BSURF_OK) st = bsurf_fvar_choose_k(&o, eta, cap, &k, &pw);
     o.normals.k = k;
+    o.variance_k_max = cap; /* the choice's cap stays the quadric check's (as the job) */
     if (report) report->edge_power = pw;
   }
   if (report) report->k = o.normals.k;

@@ -623,7 +623,8 @@ bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, do
   sigma *= ratio;
   if (st != BSURF_OK || !(sigma > 0)) return st;
   const int top = 4 * k0 < k_cap ? 4 * k0 : k_cap;
-  for (int kk = k0; st == BSURF_OK && kk <= top && kk > QT_TERMS; kk *= 2) {
+  for (int kk = k0; st == BSURF_OK && kk <= top; kk *= 2) {
+    if (kk <= QT_TERMS) continue; /* too few points for a quadric's residual */
     st = patch_init(&p, o, kk, kf, o->quadric_angle * PI / 180);
     if (st == BSURF_OK) {
       patch_place(&p, sigma);
@@ -744,8 +745,8 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
     for (size_t i = 0; i < n; i++) {
       const double q = res->quadric_k ? ratio[i] : NAN;
       feature[i] = (uint8_t)bsurf_fvar_feature(res, score[i], l0[i], q);
-      res->quadric_cleared +=
-          res->quadric_k && score[i] > res->threshold && q <= res->quadric_threshold;
+      res->quadric_cleared += res->quadric_k && score[i] > res->threshold &&
+                              q <= res->quadric_threshold && !(l0[i] > res->border_threshold);
     }
   free(u);
   free(l0);

@@ -267,11 +267,6 @@ static bsurf_status features_in_memory(const bsurf_job_io *io, const bsurf_featu
     int k = fo->normals.k;
     st = bsurf_fvar_eta(c->xyz, &nb, fo->normals.k, fo->threads, &eta);
     if (st == BSURF_OK) st = bsurf_fvar_choose_k(fo, eta, bsurf_fvar_k_cap(fo, n), &k, &power);
-    if (st == BSURF_OK && k > nb.k) {
-      bsurf_neighbors_free(&nb);
-      size_t dup = 0;
-      st = bsurf_jobs_neighbors(c, k, fo->threads, NULL, NULL, &nb, &dup);
-    }
     fk.normals.k = k;
     fk.feature_angle = 0;
     /* the cap the choice used stays the quadric check's (not 8 times the chosen K) */
@@ -281,16 +276,18 @@ static bsurf_status features_in_memory(const bsurf_job_io *io, const bsurf_featu
       return st;
     }
   }
-  /* the quadric check's table: K_q and the noise passes' 80 */
-  if (fk.method == BSURF_FEATURES_VARIANCE) {
-    int need = bsurf_fvar_neighbors_k(&fk, bsurf_fvar_k_cap(&fk, n));
-    if ((size_t)need > n) need = (int)n; /* a small cloud: every point (as tiled) */
-    if (need > nb.k) {
-      bsurf_neighbors_free(&nb);
-      size_t dup = 0;
-      st = bsurf_jobs_neighbors(c, need, fo->threads, NULL, NULL, &nb, &dup);
-      if (st != BSURF_OK) return st;
-    }
+  /* the table once more where the chosen K or the quadric check (K_q and the
+   * noise passes' 80) needs more; a small cloud: every point (as tiled) */
+  int need = fk.method == BSURF_FEATURES_VARIANCE
+                 ? bsurf_fvar_neighbors_k(&fk, bsurf_fvar_k_cap(&fk, n))
+                 : nb.k;
+  if ((size_t)need > n) need = (int)n;
+  if (need < fk.normals.k) need = fk.normals.k;
+  if (need > nb.k) {
+    bsurf_neighbors_free(&nb);
+    size_t dup = 0;
+    st = bsurf_jobs_neighbors(c, need, fo->threads, NULL, NULL, &nb, &dup);
+    if (st != BSURF_OK) return st;
   }
   uint8_t *feat = malloc(n ? n : 1);
   double *score = malloc((n ? n : 1) * sizeof(double));

@@ -191,6 +191,10 @@ static bsurf_status stage(const char *input, const char *output, fd_run *f, int 
                           bsurf_tile_report *rep, bsurf_failure *err) {
   bsurf_tile_ops ops = *f->base;
   ops.k = k;
+  /* tiles of at least twice the stage's K (the tile engine's least: a stage
+   * at a larger K than the caller planned for, K_q or the chosen K; the
+   * tiles' size changes no value, their halos are proven) */
+  if (ops.tile_points < 2 * (size_t)k) ops.tile_points = 2 * (size_t)k;
   ops.user = f;
   ops.prepare = NULL; /* no output file: values only */
   ops.run = run;
@@ -495,8 +499,8 @@ static void scan_features(void *vv, size_t count, const double *x) {
   for (size_t i = 0; i < count; i++) {
     const double *y = &x[NZ * i];
     v->features += (size_t)bsurf_fvar_feature(&v->res, y[0], y[1], y[2]);
-    v->res.quadric_cleared +=
-        v->res.quadric_k && y[0] > v->res.threshold && y[2] <= v->res.quadric_threshold;
+    v->res.quadric_cleared += v->res.quadric_k && y[0] > v->res.threshold &&
+                              y[2] <= v->res.quadric_threshold && !(y[1] > v->res.border_threshold);
   }
 }
 
@@ -565,8 +569,8 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   int kq = 0;
   double tq = NAN, qpower = NAN;
   bsurf_tile_values withq = {-1, 0, 0};
-  const int check = o->quadric_angle > 0 && v.s2 > 0 && quadric_noise > 0 &&
-                    v.nall > BSURF_SMOOTH_SELECT_K;
+  const int check =
+      o->quadric_angle > 0 && v.s2 > 0 && quadric_noise > 0 && v.nall > BSURF_SMOOTH_SELECT_K;
   if (st == BSURF_OK && check) {
     st = bsurf_fvar_quadric_k(o, eta, sqrt(quadric_noise / v.s2), bsurf_fvar_k_cap(o, v.nall), &kq,
                               &tq, &qpower);

@@ -196,6 +196,13 @@ def test_features_quadric_check_equal_cli():
     assert 0 < int(off["feature"].sum()) - int(fields["feature"].sum()) <= r["quadric_cleared"]
     with pytest.raises(ValueError, match="quadric_angle"):
         bootsurf.features(pts, neighbors=15, bootstrap=5, quadric_angle=200)
+    # tiled with tiles smaller than twice K_q (the stage at K_q widens them): the same bytes
+    _, st = bootsurf.features(tmp("qtn.ply"), neighbors=15, bootstrap=5, output=tmp("qft.ply"),
+                              tile_points=100)
+    assert st["report"]["quadric_k"] == 60
+    assert st["report"]["quadric_cleared"] == r["quadric_cleared"]
+    with open(tmp("qf.ply"), "rb") as a, open(tmp("qft.ply"), "rb") as b:
+        assert a.read() == b.read()
 
 
 def test_render_equals_cli(cube):
