@@ -17,7 +17,7 @@ noisy.ply:
              neighbourhood chosen from the noise, docs/features.md)
   distance   bootsurf features --method distance (7.1; automatic T_h)
   var K30    bootsurf features --method variance --feature-angle 0 (the test at the
-             fixed K = 30, the previous default rule)
+             fixed K = 30, the previous default rule; the quadric check on, its default)
   PCL sv     surface variation lambda0 / (lambda0 + lambda1 + lambda2), K 30
              (bench/peers/features_pcl.cpp, PCL's NormalEstimationOMP); PCL has no
              threshold of its own: Otsu on log(score), the rule of scripts/validate_features.py
