@@ -451,11 +451,18 @@ int bsurf_ksel_quad_variance(const double *xyz, const uint32_t *idx, int K, doub
 /* A point is a feature: z > threshold (unless the quadric check ran,
  * quadric_k > 0, and q <= quadric_threshold) or zb > border_threshold. */
 int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb, double q);
+/* 1 where the quadric check cleared a point the variance test flagged (and
+ * the border test does not keep): what quadric_cleared counts. */
+int bsurf_fvar_cleared(const bsurf_fvar_result *res, double z, double zb, double q);
+/* The null rule's numbers into a report: threshold, noise_level,
+ * border_threshold and the quadric check's fields (in memory and tiled). */
+void bsurf_fvar_report(const bsurf_fvar_result *res, bsurf_feature_report *rep);
 /* The quadric check's statistic before its filter: per row, the residual
  * variance of the quadric of its first kq neighbours (rank-deficient:
- * HUGE_VAL, no quadric explains it), into v by row. */
+ * HUGE_VAL, no quadric explains it), into v by row; progress may be NULL. */
 bsurf_status bsurf_fvar_quadric_rss(const double *xyz, const bsurf_neighbors *nb, int kq,
-                                    int threads, double *v);
+                                    int threads, double *v, bsurf_progress_fn progress,
+                                    void *progress_user);
 /* The quadric check's neighbourhood and threshold (quadric_angle > 0, eta >
  * 0): sigma_0 of the flat null patch whose median lambda0 / tr at
  * normals.k is eta (as bsurf_fvar_null_threshold's) times ratio (the noise

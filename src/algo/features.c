@@ -205,15 +205,7 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
       bsurf_fvar_result vr;
       st = bsurf_fvar_detect(xyz, nb, &o, sc, feature, &vr);
       thr = vr.threshold;
-      if (report) {
-        report->noise_level = vr.noise_level;
-        report->border_threshold = vr.border_threshold;
-        report->quadric_k = vr.quadric_k;
-        report->quadric_threshold = vr.quadric_threshold;
-        report->quadric_power = vr.quadric_power;
-        report->quadric_noise = vr.quadric_noise;
-        report->quadric_cleared = vr.quadric_cleared;
-      }
+      if (report) bsurf_fvar_report(&vr, report);
     } else if (st == BSURF_OK) {
       if (isnan(o.threshold))
         st = bsurf_tail_threshold(sc, n, o.tail_rule, &thr);

@@ -580,8 +580,9 @@ static void qrss_row(void *vctx, int thread, size_t r) {
                 : HUGE_VAL;
 }
 
-static bsurf_status quadric_rss(const double *xyz, const bsurf_neighbors *nb, int kq, int threads,
-                                double *v, bsurf_progress_fn progress, void *progress_user) {
+bsurf_status bsurf_fvar_quadric_rss(const double *xyz, const bsurf_neighbors *nb, int kq,
+                                    int threads, double *v, bsurf_progress_fn progress,
+                                    void *progress_user) {
   const int t = bsurf_threads_resolve(threads);
   qrss_ctx c = {xyz, nb, kq, v, bsurf_alloc_array(3 * (size_t)t * (size_t)kq, sizeof(double))};
   if (!c.work) return BSURF_ERR_NOMEM;
@@ -589,11 +590,6 @@ static bsurf_status quadric_rss(const double *xyz, const bsurf_neighbors *nb, in
       bsurf_parallel_points(nb->point_count, t, qrss_row, &c, progress, progress_user);
   free(c.work);
   return st;
-}
-
-bsurf_status bsurf_fvar_quadric_rss(const double *xyz, const bsurf_neighbors *nb, int kq,
-                                    int threads, double *v) {
-  return quadric_rss(xyz, nb, kq, threads, v, NULL, NULL);
 }
 
 int bsurf_fvar_neighbors_k(const bsurf_feature_options *o, int k_cap) {
@@ -628,7 +624,7 @@ bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, do
     st = patch_init(&p, o, kk, kf, o->quadric_angle * PI / 180);
     if (st == BSURF_OK) {
       patch_place(&p, sigma);
-      st = quadric_rss(p.xyz, &p.nb, kk, o->threads, p.u, NULL, NULL);
+      st = bsurf_fvar_quadric_rss(p.xyz, &p.nb, kk, o->threads, p.u, NULL, NULL);
     }
     if (st == BSURF_OK)
       st = bsurf_fvar_filter(&p.nb, kf, o->threads, sigma * sigma, kk, p.u, NULL, p.z);
@@ -676,7 +672,7 @@ static bsurf_status quadric_check(const double *xyz, const bsurf_neighbors *nb,
   st = bsurf_fvar_quadric_k(o, eta, sqrt(level / s2), cap, &kq, &tq, &pw);
   res->quadric_power = pw;
   if (st != BSURF_OK || !kq) return st;
-  st = quadric_rss(xyz, nb, kq, o->threads, rss, ko.progress, ko.progress_user);
+  st = bsurf_fvar_quadric_rss(xyz, nb, kq, o->threads, rss, ko.progress, ko.progress_user);
   if (st == BSURF_OK)
     st = bsurf_fvar_filter(nb, bsurf_fvar_filter_k(o), o->threads, level, kq, rss, NULL, q);
   if (st == BSURF_OK) {
@@ -745,8 +741,7 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
     for (size_t i = 0; i < n; i++) {
       const double q = res->quadric_k ? ratio[i] : NAN;
       feature[i] = (uint8_t)bsurf_fvar_feature(res, score[i], l0[i], q);
-      res->quadric_cleared += res->quadric_k && score[i] > res->threshold &&
-                              q <= res->quadric_threshold && !(l0[i] > res->border_threshold);
+      res->quadric_cleared += (size_t)bsurf_fvar_cleared(res, score[i], l0[i], q);
     }
   free(u);
   free(l0);
@@ -789,9 +784,27 @@ bsurf_status bsurf_fvar_threshold(const bsurf_feature_options *o, const double *
   return BSURF_OK;
 }
 
+/* cleared by the quadric check: a quadric explains the neighbourhood (a
+ * NAN q, none computed, clears nothing) */
+static int quadric_explains(const bsurf_fvar_result *res, double q) {
+  return res->quadric_k > 0 && q <= res->quadric_threshold;
+}
+
 int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb, double q) {
-  /* cleared by the quadric check: a quadric explains the neighbourhood (a
-   * NAN q, none computed, clears nothing) */
-  const int cleared = res->quadric_k > 0 && q <= res->quadric_threshold;
-  return (z > res->threshold && !cleared) || zb > res->border_threshold;
+  return (z > res->threshold && !quadric_explains(res, q)) || zb > res->border_threshold;
+}
+
+int bsurf_fvar_cleared(const bsurf_fvar_result *res, double z, double zb, double q) {
+  return z > res->threshold && quadric_explains(res, q) && !(zb > res->border_threshold);
+}
+
+void bsurf_fvar_report(const bsurf_fvar_result *res, bsurf_feature_report *rep) {
+  rep->threshold = res->threshold;
+  rep->noise_level = res->noise_level;
+  rep->border_threshold = res->border_threshold;
+  rep->quadric_k = res->quadric_k;
+  rep->quadric_threshold = res->quadric_threshold;
+  rep->quadric_power = res->quadric_power;
+  rep->quadric_noise = res->quadric_noise;
+  rep->quadric_cleared = res->quadric_cleared;
 }

@@ -372,15 +372,13 @@ bsurf_status bsurf_feature_threshold_check(bsurf_feature_method method, double t
 int bsurf_features_job_neighbors(const bsurf_feature_options *opts) {
   const bsurf_feature_options o = opts ? *opts : bsurf_feature_options_default();
   if (o.method == BSURF_FEATURES_DISTANCE) return o.k_max;
-  /* the K choice's cap, as bsurf_fvar_k_cap before the cloud's size bounds it */
-  long cap = o.variance_k_max > 0 ? o.variance_k_max : 8L * o.normals.k;
-  if (cap > 65535) cap = 65535;
-  if (cap < o.normals.k) cap = o.normals.k;
-  int k = choose_k(&o) ? (int)cap : o.normals.k;
+  /* the K choice's cap before the cloud's size bounds it */
+  const int cap = bsurf_fvar_k_cap(&o, SIZE_MAX);
+  int k = choose_k(&o) ? cap : o.normals.k;
   /* the quadric check's table at the largest K the choice may take */
   bsurf_feature_options q = o;
   q.normals.k = k;
-  const int need = bsurf_fvar_neighbors_k(&q, (int)cap);
+  const int need = bsurf_fvar_neighbors_k(&q, cap);
   return need > k ? need : k;
 }
 

@@ -429,7 +429,7 @@ static bsurf_status run_var_quadric(void *user, const bsurf_tile *t, bsurf_cloud
   const size_t nc = t->core_count;
   double *rss = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
   if (!rss) return BSURF_ERR_NOMEM;
-  bsurf_status st = bsurf_fvar_quadric_rss(t->xyz, t->nb, v->kq, v->fd.o.threads, rss);
+  bsurf_status st = bsurf_fvar_quadric_rss(t->xyz, t->nb, v->kq, v->fd.o.threads, rss, NULL, NULL);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
     /* each row's point first: its local index */
     const size_t l = t->nb->idx[r * (size_t)t->nb->k];
@@ -499,8 +499,7 @@ static void scan_features(void *vv, size_t count, const double *x) {
   for (size_t i = 0; i < count; i++) {
     const double *y = &x[NZ * i];
     v->features += (size_t)bsurf_fvar_feature(&v->res, y[0], y[1], y[2]);
-    v->res.quadric_cleared += v->res.quadric_k && y[0] > v->res.threshold &&
-                              y[2] <= v->res.quadric_threshold && !(y[1] > v->res.border_threshold);
+    v->res.quadric_cleared += (size_t)bsurf_fvar_cleared(&v->res, y[0], y[1], y[2]);
   }
 }
 
@@ -612,16 +611,9 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   }
   if (st == BSURF_ERR_NOMEM && err && !err->message[0]) bsurf_fail(err, st, 0, -1, "out of memory");
   if (st == BSURF_OK && report) {
-    report->threshold = v.res.threshold;
+    bsurf_fvar_report(&v.res, report);
     report->feature_points = v.features;
-    report->noise_level = v.res.noise_level;
-    report->border_threshold = v.res.border_threshold;
     report->ratio_threshold_kmin = NAN;
-    report->quadric_k = v.res.quadric_k;
-    report->quadric_threshold = v.res.quadric_threshold;
-    report->quadric_power = v.res.quadric_power;
-    report->quadric_noise = v.res.quadric_noise;
-    report->quadric_cleared = v.res.quadric_cleared;
   }
   free(v.all);
   bsurf_tile_values_close(&local);
