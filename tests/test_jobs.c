@@ -331,6 +331,25 @@ static void run_features(const bsurf_feature_options *o, const char *name) {
     assert_memory_equal(&sm.report.max_radius, &st.report.max_radius, sizeof(double));
     assert_int_equal(sm.report.immediate, st.report.immediate);
   }
+  /* the null rule's numbers: equal, and NAN in both where the method or
+   * rule has none (bootsurf.h; a tiled run once left them 0) */
+  const double *fm[] = {&sm.report.noise_level,      &sm.report.edge_power,
+                        &sm.report.border_threshold, &sm.report.quadric_threshold,
+                        &sm.report.quadric_power,    &sm.report.quadric_noise},
+               *ft[] = {&st.report.noise_level,      &st.report.edge_power,
+                        &st.report.border_threshold, &st.report.quadric_threshold,
+                        &st.report.quadric_power,    &st.report.quadric_noise};
+  const int null_rule = o->method == BSURF_FEATURES_VARIANCE && isnan(o->threshold) &&
+                        o->tail_rule == BSURF_TAIL_NULL;
+  for (int f = 0; f < 6; f++) {
+    if (isnan(*fm[f]))
+      assert_true(isnan(*ft[f]));
+    else
+      assert_memory_equal(fm[f], ft[f], sizeof(double));
+    if (!null_rule) assert_true(isnan(*fm[f]));
+  }
+  assert_int_equal(sm.report.quadric_k, st.report.quadric_k);
+  assert_int_equal(sm.report.quadric_cleared, st.report.quadric_cleared);
   pair_close(&p, st.tiles);
 }
 
@@ -345,6 +364,8 @@ static void test_features_job(void **state) {
   o.normals.k = 15;
   o.normals.bootstrap = 6;
   run_features(&o, "variance");
+  o.tail_rule = BSURF_TAIL_OTSU;
+  run_features(&o, "variance_otsu");
 }
 
 static void test_bad_options(void **state) {

@@ -454,6 +454,11 @@ int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb, double
 /* 1 where the quadric check cleared a point the variance test flagged (and
  * the border test does not keep): what quadric_cleared counts. */
 int bsurf_fvar_cleared(const bsurf_fvar_result *res, double z, double zb, double q);
+/* A report before any method has run: zeros, and NAN in the fields that
+ * stay NAN where their method or rule does not apply (noise_level,
+ * edge_power, border_threshold, quadric_threshold, quadric_power,
+ * quadric_noise: bootsurf.h) -- in memory, tiled and in the jobs alike. */
+void bsurf_feature_report_clear(bsurf_feature_report *rep);
 /* The null rule's numbers into a report: threshold, noise_level,
  * border_threshold and the quadric check's fields (in memory and tiled). */
 void bsurf_fvar_report(const bsurf_fvar_result *res, bsurf_feature_report *rep);

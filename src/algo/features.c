@@ -141,19 +141,21 @@ bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail
 
 /* ---- the entry point ---- */
 
+void bsurf_feature_report_clear(bsurf_feature_report *rep) {
+  memset(rep, 0, sizeof *rep);
+  rep->noise_level = NAN;
+  rep->edge_power = NAN;
+  rep->border_threshold = NAN;
+  rep->quadric_threshold = NAN;
+  rep->quadric_power = NAN;
+  rep->quadric_noise = NAN;
+}
+
 bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
                                    const bsurf_feature_options *opts, uint8_t *feature,
                                    double *score, bsurf_feature_report *report) {
   bsurf_feature_options o = opts ? *opts : bsurf_feature_options_default();
-  if (report) {
-    memset(report, 0, sizeof *report);
-    report->noise_level = NAN;
-    report->edge_power = NAN;
-    report->border_threshold = NAN;
-    report->quadric_threshold = NAN;
-    report->quadric_power = NAN;
-    report->quadric_noise = NAN;
-  }
+  if (report) bsurf_feature_report_clear(report);
   BSURF_REQUIRE(xyz, "xyz is NULL");
   BSURF_REQUIRE(feature, "feature is NULL");
   BSURF_REQUIRE(nb && nb->idx, "nb is %s: build it with bsurf_neighbors_build",

@@ -388,6 +388,7 @@ bsurf_status bsurf_features_job(const bsurf_job_io *io, const bsurf_feature_opti
   bsurf_feature_options fo = opts ? *opts : bsurf_feature_options_default();
   if (st == BSURF_OK) st = features_check(&fo);
   if (st != BSURF_OK) return st;
+  bsurf_feature_report_clear(&summary->report);
   summary->field_names[0] = "feature";
   /* the null rule's score is the normalised, filtered variance z of
    * docs/features.md, not normal_var itself */

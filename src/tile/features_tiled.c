@@ -246,7 +246,7 @@ static bsurf_status fd_begin(fd_run *f, const char *input, const char *output,
                              bsurf_feature_report *report, bsurf_tile_report *tiles,
                              bsurf_failure *err) {
   if (err) err->line = 0, err->byte = -1, err->message[0] = 0;
-  if (report) memset(report, 0, sizeof *report);
+  if (report) bsurf_feature_report_clear(report);
   if (!input || !output || !ops || !ops->prepare || !tiles)
     return bsurf_fail(err, BSURF_ERR_INVALID_ARG, 0, -1, "invalid arguments");
   memset(f, 0, sizeof *f);
