@@ -162,6 +162,7 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
                  fo.variance_filter_k ? fo.variance_filter_k : (rep.k / 2 > 1 ? rep.k / 2 : 1));
         json_num(&j, "noise_level", rep.noise_level);
         json_num(&j, "border_threshold", rep.border_threshold);
+        json_int(&j, "border_points", (long long)rep.border_points);
         json_num(&j, "feature_angle", fo.feature_angle);
         if (fo.feature_angle > 0) {
           json_int(&j, "k_base", fo.normals.k);
@@ -202,8 +203,9 @@ int cmd_features(const cli_command *cmd, int argc, char **argv) {
            isnan(fo.threshold) ? "auto" : "given", rep.feature_points,
            n ? 100.0 * (double)rep.feature_points / (double)n : 0.0);
     if (null_rule)
-      printf("  or border score above %.6g (the border test at the same false-positive rate)\n",
-             rep.border_threshold);
+      printf("  or border score above %.6g (the border test at the same false-positive rate): "
+             "%zu feature points by it alone\n",
+             rep.border_threshold, rep.border_points);
     if (null_rule && fo.feature_angle > 0)
       printf("  K %d (from %d: a %g degree edge at this noise passes the test at %.0f%% of its "
              "points)\n",

@@ -916,6 +916,12 @@ typedef struct bsurf_feature_report {
                                   where it then finds no K_q); else NAN */
   size_t quadric_cleared;      /* points the variance test flagged that the
                                   check cleared */
+  size_t border_points;        /* variance, rule NULL: feature points that the
+                                  border test alone flags (zb above its
+                                  threshold, the variance test's flag not
+                                  standing): on an open scan its rims, on a
+                                  mesh's own vertices also the vertex density's
+                                  gradient (docs/features.md, step 6) */
 } bsurf_feature_report;
 
 /* Feature detection. nb: neighbourhoods with nb->k >= k_max (distance) or

@@ -20,16 +20,29 @@
  * legitimate drift (another neighbour tie order) */
 #define F1_CUBE_BOUND 0.70
 
+/* the last detect()'s report.border_points */
+static size_t last_border_points;
+
 static bsurf_feature_stats detect(const bsurf_cloud *c, const bsurf_feature_options *o, int k,
                                   uint8_t *feat, double *score) {
   bsurf_neighbors nb;
   assert_int_equal(bsurf_neighbors_build(&nb, c->xyz, c->point_count, k, 0, NULL, NULL), BSURF_OK);
   bsurf_feature_report rep;
   assert_int_equal(bsurf_detect_features(c->xyz, &nb, o, feat, score, &rep), BSURF_OK);
-  size_t count = 0;
-  for (size_t i = 0; i < c->point_count; i++)
+  size_t count = 0, alone = 0;
+  for (size_t i = 0; i < c->point_count; i++) {
     count += feat[i];
+    alone += feat[i] && !(score[i] > rep.threshold);
+  }
   assert_int_equal(count, rep.feature_points);
+  /* the border test's own share: without the quadric check, the flagged
+   * points whose z is not above t (the variance method's null rule only) */
+  const int null_rule = o->method == BSURF_FEATURES_VARIANCE && isnan(o->threshold) &&
+                        o->tail_rule == BSURF_TAIL_NULL;
+  if (!null_rule) assert_int_equal(rep.border_points, 0);
+  if (null_rule && rep.quadric_k == 0) assert_int_equal(rep.border_points, alone);
+  assert_true(rep.border_points <= rep.feature_points);
+  last_border_points = rep.border_points;
   bsurf_feature_stats s;
   memset(&s, 0, sizeof s);
   bsurf_field *truth = bsurf_cloud_field(c, "feature");
@@ -417,8 +430,12 @@ static void test_border_thin_plate(void **state) {
     if (d > 7) in++, in_flag += feat[i];
   }
   const double fr = (double)rim_flag / (double)rim, fi = (double)in_flag / (double)in;
-  printf("thin plate: %.3f of the rim band flagged, %.4f of the interior\n", fr, fi);
+  printf("thin plate: %.3f of the rim band flagged, %.4f of the interior; %zu by the border "
+         "test alone\n",
+         fr, fi, last_border_points);
   assert_true(fr > 0.5);
+  /* the rim is the border test's: the variance test sees nothing there */
+  assert_true(last_border_points >= rim_flag);
   assert_true(fi < 0.025);
   free(xyz);
   free(feat);

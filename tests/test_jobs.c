@@ -350,6 +350,8 @@ static void run_features(const bsurf_feature_options *o, const char *name) {
   }
   assert_int_equal(sm.report.quadric_k, st.report.quadric_k);
   assert_int_equal(sm.report.quadric_cleared, st.report.quadric_cleared);
+  assert_int_equal(sm.report.border_points, st.report.border_points);
+  if (!null_rule) assert_int_equal(sm.report.border_points, 0);
   pair_close(&p, st.tiles);
 }
 

@@ -677,7 +677,9 @@ def features(points, *, method="variance", neighbors=30, bootstrap=50, k_min=15,
     border_threshold: the border test's threshold, quadric_k: the quadric
     check's K_q or 0, quadric_threshold, quadric_power: the simulated
     crease's share kept, quadric_noise: the noise sigma it reads,
-    quadric_cleared: flagged points it cleared).
+    quadric_cleared: flagged points it cleared, border_points: feature points
+    the border test alone flags -- an open scan's rims, and on a mesh's own
+    vertices also the vertex density's gradient).
     """
     thr = _math.nan
     if threshold != "auto":  # NaN is the library's auto: a number must be finite

@@ -910,16 +910,17 @@ static PyObject *py_features(PyObject *self, PyObject *args) {
   const bsurf_feature_report *r = &s.report;
   return job_result(
       NULL, fields,
-      job_summary(
-          s.points, s.h, s.duplicates, s.tile_points, s.tiles,
-          Py_BuildValue("{s:{s:d,s:n,s:d,s:n,s:d,s:d,s:i,s:d,s:d,s:i,s:d,s:d,s:d,s:n}}", "report",
-                        "threshold", r->threshold, "feature_points", (Py_ssize_t)r->feature_points,
-                        "max_radius", r->max_radius, "immediate", (Py_ssize_t)r->immediate,
-                        "ratio_threshold_kmin", r->ratio_threshold_kmin, "noise_level",
-                        r->noise_level, "k", r->k, "edge_power", r->edge_power, "border_threshold",
-                        r->border_threshold, "quadric_k", r->quadric_k, "quadric_threshold",
-                        r->quadric_threshold, "quadric_power", r->quadric_power, "quadric_noise",
-                        r->quadric_noise, "quadric_cleared", (Py_ssize_t)r->quadric_cleared)));
+      job_summary(s.points, s.h, s.duplicates, s.tile_points, s.tiles,
+                  Py_BuildValue(
+                      "{s:{s:d,s:n,s:d,s:n,s:d,s:d,s:i,s:d,s:d,s:i,s:d,s:d,s:d,s:n,s:n}}", "report",
+                      "threshold", r->threshold, "feature_points", (Py_ssize_t)r->feature_points,
+                      "max_radius", r->max_radius, "immediate", (Py_ssize_t)r->immediate,
+                      "ratio_threshold_kmin", r->ratio_threshold_kmin, "noise_level",
+                      r->noise_level, "k", r->k, "edge_power", r->edge_power, "border_threshold",
+                      r->border_threshold, "quadric_k", r->quadric_k, "quadric_threshold",
+                      r->quadric_threshold, "quadric_power", r->quadric_power, "quadric_noise",
+                      r->quadric_noise, "quadric_cleared", (Py_ssize_t)r->quadric_cleared,
+                      "border_points", (Py_ssize_t)r->border_points)));
 }
 
 /* ---- synthetic data ---- */

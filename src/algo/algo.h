@@ -420,6 +420,7 @@ typedef struct bsurf_fvar_result {
   double quadric_power;     /* the simulated crease's share kept (NAN) */
   double quadric_noise;     /* sqrt of the cloud's noise variance it reads (NAN) */
   size_t quadric_cleared;   /* points with z > t and q <= t_q */
+  size_t border_points;     /* points the border test alone flags */
 } bsurf_fvar_result;
 /* The expected lambda0 of a smooth patch at a neighbourhood of tangential
  * spread g = (lambda1 + lambda2)^2: E(g) = sigma2 + c g (noise plus the plane
@@ -451,9 +452,6 @@ int bsurf_ksel_quad_variance(const double *xyz, const uint32_t *idx, int K, doub
 /* A point is a feature: z > threshold (unless the quadric check ran,
  * quadric_k > 0, and q <= quadric_threshold) or zb > border_threshold. */
 int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb, double q);
-/* 1 where the quadric check cleared a point the variance test flagged (and
- * the border test does not keep): what quadric_cleared counts. */
-int bsurf_fvar_cleared(const bsurf_fvar_result *res, double z, double zb, double q);
 /* A report before any method has run: zeros, and NAN in the fields that
  * stay NAN where their method or rule does not apply (noise_level,
  * edge_power, border_threshold, quadric_threshold, quadric_power,
@@ -462,6 +460,10 @@ void bsurf_feature_report_clear(bsurf_feature_report *rep);
 /* The null rule's numbers into a report: threshold, noise_level,
  * border_threshold and the quadric check's fields (in memory and tiled). */
 void bsurf_fvar_report(const bsurf_fvar_result *res, bsurf_feature_report *rep);
+/* Adds point (z, zb, q)'s flag (bsurf_fvar_feature) to *features and its
+ * share in res's counts (quadric_cleared, border_points): one copy for the
+ * in-memory run and the tiled one. Returns the flag. */
+int bsurf_fvar_count(bsurf_fvar_result *res, double z, double zb, double q, size_t *features);
 /* The quadric check's statistic before its filter: per row, the residual
  * variance of the quadric of its first kq neighbours (rank-deficient:
  * HUGE_VAL, no quadric explains it), into v by row; progress may be NULL. */

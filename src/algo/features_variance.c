@@ -737,12 +737,11 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
   if (st == BSURF_OK) st = bsurf_fvar_threshold(o, score, n, s2, eta, res);
   /* the quadric check: q into ratio, w its scratch (neither needed now) */
   if (st == BSURF_OK) st = quadric_check(xyz, nb, o, eta, s2, w, ratio, res);
+  size_t flagged = 0;
   if (st == BSURF_OK)
-    for (size_t i = 0; i < n; i++) {
-      const double q = res->quadric_k ? ratio[i] : NAN;
-      feature[i] = (uint8_t)bsurf_fvar_feature(res, score[i], l0[i], q);
-      res->quadric_cleared += (size_t)bsurf_fvar_cleared(res, score[i], l0[i], q);
-    }
+    for (size_t i = 0; i < n; i++)
+      feature[i] = (uint8_t)bsurf_fvar_count(res, score[i], l0[i], res->quadric_k ? ratio[i] : NAN,
+                                             &flagged);
   free(u);
   free(l0);
   free(ratio);
@@ -757,6 +756,7 @@ bsurf_status bsurf_fvar_threshold(const bsurf_feature_options *o, const double *
   res->quadric_k = 0;
   res->quadric_threshold = res->quadric_power = res->quadric_noise = NAN;
   res->quadric_cleared = 0;
+  res->border_points = 0;
   res->noise_level = sqrt(s2);
   res->sigma0 = 0;
   res->null_threshold = res->split = NAN;
@@ -794,8 +794,19 @@ int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb, double
   return (z > res->threshold && !quadric_explains(res, q)) || zb > res->border_threshold;
 }
 
-int bsurf_fvar_cleared(const bsurf_fvar_result *res, double z, double zb, double q) {
+/* 1 where the quadric check cleared a point the variance test flagged (and
+ * the border test does not keep): what quadric_cleared counts */
+static int fvar_cleared(const bsurf_fvar_result *res, double z, double zb, double q) {
   return z > res->threshold && quadric_explains(res, q) && !(zb > res->border_threshold);
+}
+
+int bsurf_fvar_count(bsurf_fvar_result *res, double z, double zb, double q, size_t *features) {
+  const int f = bsurf_fvar_feature(res, z, zb, q);
+  const int by_z = z > res->threshold && !quadric_explains(res, q);
+  *features += (size_t)f;
+  res->quadric_cleared += (size_t)fvar_cleared(res, z, zb, q);
+  res->border_points += (size_t)(f && !by_z);
+  return f;
 }
 
 void bsurf_fvar_report(const bsurf_fvar_result *res, bsurf_feature_report *rep) {
@@ -807,4 +818,5 @@ void bsurf_fvar_report(const bsurf_fvar_result *res, bsurf_feature_report *rep) 
   rep->quadric_power = res->quadric_power;
   rep->quadric_noise = res->quadric_noise;
   rep->quadric_cleared = res->quadric_cleared;
+  rep->border_points = res->border_points;
 }

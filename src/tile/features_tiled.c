@@ -368,7 +368,7 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
  *       the same neighbours / the noise level (NAN without the check);
  *  (v4) t from z (all of it in memory, for Otsu) and the null patch (t and
  *       the border's t_b: bsurf_fvar_threshold, the in-memory function); the
- *       feature count (bsurf_fvar_feature of z, zb and q);
+ *       feature count and its parts (bsurf_fvar_count of z, zb and q);
  *       the output by a pointwise stage. */
 
 /* (v1)'s values per point: u, lambda0, lambda0 / tr, w, b, g; (vq) adds the
@@ -498,8 +498,7 @@ static void scan_features(void *vv, size_t count, const double *x) {
   fv_run *v = vv;
   for (size_t i = 0; i < count; i++) {
     const double *y = &x[NZ * i];
-    v->features += (size_t)bsurf_fvar_feature(&v->res, y[0], y[1], y[2]);
-    v->res.quadric_cleared += (size_t)bsurf_fvar_cleared(&v->res, y[0], y[1], y[2]);
+    bsurf_fvar_count(&v->res, y[0], y[1], y[2], &v->features);
   }
 }
 

@@ -98,7 +98,7 @@ for tp in 70 3000; do
   expect 0 "features quadric check tiles $tp" -- "$BSURF" features "$T/tn.ply" -k 15 -B 5 -o "$T/ft.ply" \
     --tile-points $tp --json
   cmp -s "$T/fq.ply" "$T/ft.ply" && ok || fail "features quadric check --tile-points $tp: output differs"
-  same_keys "$T/fq.json" "features quadric check --tile-points $tp" threshold feature_points quadric_k quadric_threshold quadric_power quadric_noise quadric_cleared
+  same_keys "$T/fq.json" "features quadric check --tile-points $tp" threshold feature_points quadric_k quadric_threshold quadric_power quadric_noise quadric_cleared border_points
 done
 # features --method distance (the default, 7.1) in stages: the sample's
 # medians of f(K), the raw map, max radius, --iterations passes of the

@@ -190,6 +190,7 @@ def test_features_quadric_check_equal_cli():
     r, p = s["report"], summ["parameters"]
     assert r["quadric_k"] == p["quadric_k"] > 0
     assert r["quadric_cleared"] == p["quadric_cleared"] > 0
+    assert r["border_points"] == p["border_points"] <= r["feature_points"]
     assert float("%.10g" % r["quadric_noise"]) == p["quadric_noise"]
     off, s0 = bootsurf.features(pts, neighbors=15, bootstrap=5, quadric_angle=0)
     assert s0["report"]["quadric_k"] == 0 and s0["report"]["quadric_cleared"] == 0
@@ -201,6 +202,7 @@ def test_features_quadric_check_equal_cli():
                               tile_points=100)
     assert st["report"]["quadric_k"] == r["quadric_k"]
     assert st["report"]["quadric_cleared"] == r["quadric_cleared"]
+    assert st["report"]["border_points"] == r["border_points"]
     with open(tmp("qf.ply"), "rb") as a, open(tmp("qft.ply"), "rb") as b:
         assert a.read() == b.read()
 
