@@ -20,8 +20,9 @@
  * legitimate drift (another neighbour tie order) */
 #define F1_CUBE_BOUND 0.70
 
-/* the last detect()'s report.border_points */
+/* the last detect()'s report.border_points and threshold t */
 static size_t last_border_points;
+static double last_threshold;
 
 static bsurf_feature_stats detect(const bsurf_cloud *c, const bsurf_feature_options *o, int k,
                                   uint8_t *feat, double *score) {
@@ -43,6 +44,7 @@ static bsurf_feature_stats detect(const bsurf_cloud *c, const bsurf_feature_opti
   if (null_rule && rep.quadric_k == 0) assert_int_equal(rep.border_points, alone);
   assert_true(rep.border_points <= rep.feature_points);
   last_border_points = rep.border_points;
+  last_threshold = rep.threshold;
   bsurf_feature_stats s;
   memset(&s, 0, sizeof s);
   bsurf_field *truth = bsurf_cloud_field(c, "feature");
@@ -312,7 +314,8 @@ static double sheet_uniform(uint64_t *s) {
 }
 
 /* The default options' features of n points xyz (malloc'ed flags). */
-static uint8_t *detect_defaults(double *xyz, size_t n) {
+/* the defaults' flags; *z (if z) the score, z, to free */
+static uint8_t *detect_defaults_z(double *xyz, size_t n, double **z) {
   bsurf_cloud c;
   bsurf_cloud_init(&c);
   c.point_count = n;
@@ -321,8 +324,15 @@ static uint8_t *detect_defaults(double *xyz, size_t n) {
   double *score = malloc(n * sizeof(double));
   bsurf_feature_options o = bsurf_feature_options_default();
   detect(&c, &o, o.normals.k, feat, score);
-  free(score);
+  if (z)
+    *z = score;
+  else
+    free(score);
   return feat;
+}
+
+static uint8_t *detect_defaults(double *xyz, size_t n) {
+  return detect_defaults_z(xyz, n, NULL);
 }
 
 static void test_parallel_sheets(void **state) {
@@ -421,12 +431,13 @@ static void test_border_thin_plate(void **state) {
     xyz[3 * i + 1] = 60 * sheet_uniform(&r);
     xyz[3 * i + 2] = (i < per ? 0 : 0.6) + 0.25 * (2 * sheet_uniform(&r) - 1);
   }
-  uint8_t *feat = detect_defaults(xyz, n);
-  size_t rim = 0, rim_flag = 0, in = 0, in_flag = 0;
+  double *z;
+  uint8_t *feat = detect_defaults_z(xyz, n, &z);
+  size_t rim = 0, rim_flag = 0, rim_border = 0, in = 0, in_flag = 0;
   for (size_t i = 0; i < n; i++) {
     const double x = xyz[3 * i], y = xyz[3 * i + 1];
     const double d = fmin(fmin(x, 60 - x), fmin(y, 60 - y));
-    if (d < 2) rim++, rim_flag += feat[i];
+    if (d < 2) rim++, rim_flag += feat[i], rim_border += feat[i] && !(z[i] > last_threshold);
     if (d > 7) in++, in_flag += feat[i];
   }
   const double fr = (double)rim_flag / (double)rim, fi = (double)in_flag / (double)in;
@@ -435,8 +446,10 @@ static void test_border_thin_plate(void **state) {
          fr, fi, last_border_points);
   assert_true(fr > 0.5);
   /* the rim is the border test's: the variance test sees nothing there */
+  assert_int_equal(rim_border, rim_flag);
   assert_true(last_border_points >= rim_flag);
   assert_true(fi < 0.025);
+  free(z);
   free(xyz);
   free(feat);
 }
@@ -585,6 +598,22 @@ static void test_bad_args(void **state) {
   assert_non_null(strstr(bsurf_last_message(), "quadric_angle = 180"));
   o.quadric_angle = NAN;
   assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, NULL), BSURF_ERR_INVALID_ARG);
+  /* refused inside the null test (after the report was started): the
+   * report stays cleared, its NAN fields NAN (it once held the unset
+   * result's bytes) */
+  o.quadric_angle = 45;
+  o.feature_angle = 0;
+  o.false_positive_rate = 0;
+  bsurf_feature_report rep;
+  memset(&rep, 0x5a, sizeof rep);
+  assert_int_equal(bsurf_detect_features(c.xyz, &nb, &o, f, NULL, &rep), BSURF_ERR_INVALID_ARG);
+  assert_non_null(strstr(bsurf_last_message(), "false_positive_rate = 0"));
+  assert_true(isnan(rep.noise_level) && isnan(rep.border_threshold) &&
+              isnan(rep.quadric_threshold) && isnan(rep.quadric_power) &&
+              isnan(rep.quadric_noise) && isnan(rep.ratio_threshold_kmin));
+  assert_int_equal(rep.feature_points, 0);
+  assert_int_equal(rep.border_points, 0);
+  assert_int_equal(rep.quadric_cleared, 0);
   bsurf_neighbors_free(&nb);
   bsurf_cloud_free(&c);
 }

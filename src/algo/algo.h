@@ -453,9 +453,10 @@ int bsurf_ksel_quad_variance(const double *xyz, const uint32_t *idx, int K, doub
  * quadric_k > 0, and q <= quadric_threshold) or zb > border_threshold. */
 int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb, double q);
 /* A report before any method has run: zeros, and NAN in the fields that
- * stay NAN where their method or rule does not apply (noise_level,
- * edge_power, border_threshold, quadric_threshold, quadric_power,
- * quadric_noise: bootsurf.h) -- in memory, tiled and in the jobs alike. */
+ * stay NAN where their method or rule does not apply (ratio_threshold_kmin,
+ * noise_level, edge_power, border_threshold, quadric_threshold,
+ * quadric_power, quadric_noise: bootsurf.h) -- in memory, tiled and in the
+ * jobs alike, also when a call fails. */
 void bsurf_feature_report_clear(bsurf_feature_report *rep);
 /* The null rule's numbers into a report: threshold, noise_level,
  * border_threshold and the quadric check's fields (in memory and tiled). */

@@ -143,6 +143,7 @@ bsurf_status bsurf_tail_threshold(const double *values, size_t count, bsurf_tail
 
 void bsurf_feature_report_clear(bsurf_feature_report *rep) {
   memset(rep, 0, sizeof *rep);
+  rep->ratio_threshold_kmin = NAN;
   rep->noise_level = NAN;
   rep->edge_power = NAN;
   rep->border_threshold = NAN;
@@ -206,8 +207,10 @@ bsurf_status bsurf_detect_features(const double *xyz, const bsurf_neighbors *nb,
       /* the null test (features_variance.c): sc becomes the filtered z */
       bsurf_fvar_result vr;
       st = bsurf_fvar_detect(xyz, nb, &o, sc, feature, &vr);
-      thr = vr.threshold;
-      if (report) bsurf_fvar_report(&vr, report);
+      /* vr is set only where the detection ran (a refused option or no
+       * memory leave it unset: the report stays cleared) */
+      if (st == BSURF_OK) thr = vr.threshold;
+      if (st == BSURF_OK && report) bsurf_fvar_report(&vr, report);
     } else if (st == BSURF_OK) {
       if (isnan(o.threshold))
         st = bsurf_tail_threshold(sc, n, o.tail_rule, &thr);

@@ -385,10 +385,10 @@ int bsurf_features_job_neighbors(const bsurf_feature_options *opts) {
 bsurf_status bsurf_features_job(const bsurf_job_io *io, const bsurf_feature_options *opts,
                                 bsurf_features_job_summary *summary, bsurf_failure *err) {
   bsurf_status st = bsurf_jobs_begin(FJ, io, summary, sizeof *summary);
+  if (st == BSURF_OK) bsurf_feature_report_clear(&summary->report);
   bsurf_feature_options fo = opts ? *opts : bsurf_feature_options_default();
   if (st == BSURF_OK) st = features_check(&fo);
   if (st != BSURF_OK) return st;
-  bsurf_feature_report_clear(&summary->report);
   summary->field_names[0] = "feature";
   /* the null rule's score is the normalised, filtered variance z of
    * docs/features.md, not normal_var itself */
