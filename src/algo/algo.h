@@ -461,7 +461,7 @@ void bsurf_feature_report_clear(bsurf_feature_report *rep);
 /* The null rule's numbers into a report: threshold, noise_level,
  * border_threshold and the quadric check's fields (in memory and tiled). */
 void bsurf_fvar_report(const bsurf_fvar_result *res, bsurf_feature_report *rep);
-/* Adds point (z, zb, q)'s flag (bsurf_fvar_feature) to *features and its
+/* Adds point (z, zb, q)'s flag (bsurf_fvar_feature) to *features (may be NULL) and its
  * share in res's counts (quadric_cleared, border_points): one copy for the
  * in-memory run and the tiled one. Returns the flag. */
 int bsurf_fvar_count(bsurf_fvar_result *res, double z, double zb, double q, size_t *features);
@@ -471,18 +471,20 @@ int bsurf_fvar_count(bsurf_fvar_result *res, double z, double zb, double q, size
 bsurf_status bsurf_fvar_quadric_rss(const double *xyz, const bsurf_neighbors *nb, int kq,
                                     int threads, double *v, bsurf_progress_fn progress,
                                     void *progress_user);
-/* The quadric check's neighbourhood and threshold (quadric_angle > 0, eta >
- * 0): sigma_0 of the flat null patch whose median lambda0 / tr at
- * normals.k is eta (as bsurf_fvar_null_threshold's) times ratio (the noise
- * the check reads over the median lambda0's, sqrt(level / s2)), then for K_q =
+/* The quadric check's neighbourhood and threshold (quadric_angle > 0,
+ * sigma > 0, the patch's noise: bsurf_fvar_quadric_sigma): for K_q =
  * normals.k, 2 normals.k, 4 normals.k (<= k_cap) a patch folded by quadric_angle at
- * sigma_0: its filtered residual variance over sigma_0^2, t_q the (1 -
+ * sigma: its filtered residual variance over sigma^2, t_q the (1 -
  * false_positive_rate) quantile over its flat parts, the power the share
  * of its points within a spacing of the fold above t_q; the first K_q with
  * power >= 0.9. *kq = 0 (and *tq NAN) when none reaches it or the check is
  * off; *power the last tried's (NAN when none). */
-bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, double ratio,
-                                  int k_cap, int *kq, double *tq, double *power);
+bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double sigma, int k_cap, int *kq,
+                                  double *tq, double *power);
+/* The quadric check's patch noise: the null patch's sigma_0 (res, from
+ * bsurf_fvar_null) times the noise the check reads over the median
+ * lambda0's, sqrt(level / s2). */
+double bsurf_fvar_quadric_sigma(const bsurf_fvar_result *res, double level, double s2);
 /* The smallest neighbourhood table the quadric check needs beside normals.k
  * (the K selection's noise passes: 80; K_q at most 4 normals.k and k_cap);
  * normals.k when the check is off or the rule is not NULL. */
@@ -521,10 +523,14 @@ int bsurf_fvar_k_cap(const bsurf_feature_options *o, size_t n);
 /* eta = the median over the rows of lambda0 / tr of the first k neighbours. */
 bsurf_status bsurf_fvar_eta(const double *xyz, const bsurf_neighbors *nb, int k, int threads,
                             double *eta);
-/* The threshold from s2 = median lambda0 and eta = median lambda0 / tr of
- * the cloud (z: the filtered scores, for the noise-free case). */
-bsurf_status bsurf_fvar_threshold(const bsurf_feature_options *o, const double *z, size_t n,
-                                  double s2, double eta, bsurf_fvar_result *res);
+/* The null rule's null from s2 = median lambda0 and eta = median lambda0 /
+ * tr of the cloud: res's noise_level, t_alpha, t_b and sigma_0 (NAN and 0
+ * without noise), its counts and quadric fields reset. */
+bsurf_status bsurf_fvar_null(const bsurf_feature_options *o, double s2, double eta,
+                             bsurf_fvar_result *res);
+/* Then the threshold t over the filtered scores z: max(t_alpha, Otsu's
+ * split of log z); without noise 1e-12 max z. */
+bsurf_status bsurf_fvar_split(const double *z, size_t n, bsurf_fvar_result *res);
 /* In memory: score in nu, out z; feature out z > t. */
 bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
                                const bsurf_feature_options *o, double *score, uint8_t *feature,

@@ -602,22 +602,15 @@ int bsurf_fvar_neighbors_k(const bsurf_feature_options *o, int k_cap) {
   return m > k ? m : k;
 }
 
-bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, double ratio,
-                                  int k_cap, int *kq, double *tq, double *power) {
+bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double sigma, int k_cap, int *kq,
+                                  double *tq, double *power) {
   const int k0 = o->normals.k, kf = bsurf_fvar_filter_k(o);
   *kq = 0;
   *tq = NAN;
   *power = NAN;
-  if (!(o->quadric_angle > 0) || !(eta > 0) || !(ratio > 0)) return BSURF_OK;
-  /* sigma_0 as the null threshold finds it (the same flat patch), times the
-   * ratio of the noise the check reads to the one eta holds */
+  if (!(o->quadric_angle > 0) || !(sigma > 0)) return BSURF_OK;
   null_patch p;
-  double sigma = 0;
-  bsurf_status st = patch_init(&p, o, k0, kf, 0);
-  if (st == BSURF_OK) st = patch_sigma(&p, k0, o->threads, eta, &sigma);
-  patch_free(&p);
-  sigma *= ratio;
-  if (st != BSURF_OK || !(sigma > 0)) return st;
+  bsurf_status st = BSURF_OK;
   const int top = 4 * k0 < k_cap ? 4 * k0 : k_cap;
   for (int kk = k0; st == BSURF_OK && kk <= top; kk *= 2) {
     if (kk <= QT_TERMS) continue; /* too few points for a quadric's residual */
@@ -645,10 +638,10 @@ bsurf_status bsurf_fvar_quadric_k(const bsurf_feature_options *o, double eta, do
 
 /* The check on the cloud (in memory): res's quadric fields; q by point
  * (filtered, over the noise variance) when it runs. rss: n doubles of
- * scratch. eta: the cloud's at normals.k. */
+ * scratch. res: bsurf_fvar_null's (sigma0). */
 static bsurf_status quadric_check(const double *xyz, const bsurf_neighbors *nb,
-                                  const bsurf_feature_options *o, double eta, double s2,
-                                  double *rss, double *q, bsurf_fvar_result *res) {
+                                  const bsurf_feature_options *o, double s2, double *rss, double *q,
+                                  bsurf_fvar_result *res) {
   const size_t n = nb->point_count;
   if (!(o->quadric_angle > 0) || !(s2 > 0) || nb->k < BSURF_SMOOTH_SELECT_K ||
       n <= BSURF_SMOOTH_SELECT_K)
@@ -669,7 +662,7 @@ static bsurf_status quadric_check(const double *xyz, const bsurf_neighbors *nb,
   res->quadric_noise = sqrt(level);
   int kq = 0;
   double tq = NAN, pw = NAN;
-  st = bsurf_fvar_quadric_k(o, eta, sqrt(level / s2), cap, &kq, &tq, &pw);
+  st = bsurf_fvar_quadric_k(o, bsurf_fvar_quadric_sigma(res, level, s2), cap, &kq, &tq, &pw);
   res->quadric_power = pw;
   if (st != BSURF_OK || !kq) return st;
   st = bsurf_fvar_quadric_rss(xyz, nb, kq, o->threads, rss, ko.progress, ko.progress_user);
@@ -734,14 +727,14 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
   }
   /* the border score zb into l0 (no longer needed) */
   if (st == BSURF_OK) st = bsurf_fvar_filter(nb, kf, o->threads, 0, o->normals.k, b, NULL, l0);
-  if (st == BSURF_OK) st = bsurf_fvar_threshold(o, score, n, s2, eta, res);
+  if (st == BSURF_OK) st = bsurf_fvar_null(o, s2, eta, res);
+  if (st == BSURF_OK) st = bsurf_fvar_split(score, n, res);
   /* the quadric check: q into ratio, w its scratch (neither needed now) */
-  if (st == BSURF_OK) st = quadric_check(xyz, nb, o, eta, s2, w, ratio, res);
-  size_t flagged = 0;
+  if (st == BSURF_OK) st = quadric_check(xyz, nb, o, s2, w, ratio, res);
   if (st == BSURF_OK)
     for (size_t i = 0; i < n; i++)
-      feature[i] = (uint8_t)bsurf_fvar_count(res, score[i], l0[i], res->quadric_k ? ratio[i] : NAN,
-                                             &flagged);
+      feature[i] =
+          (uint8_t)bsurf_fvar_count(res, score[i], l0[i], res->quadric_k ? ratio[i] : NAN, NULL);
   free(u);
   free(l0);
   free(ratio);
@@ -751,32 +744,38 @@ bsurf_status bsurf_fvar_detect(const double *xyz, const bsurf_neighbors *nb,
   return st;
 }
 
-bsurf_status bsurf_fvar_threshold(const bsurf_feature_options *o, const double *z, size_t n,
-                                  double s2, double eta, bsurf_fvar_result *res) {
+bsurf_status bsurf_fvar_null(const bsurf_feature_options *o, double s2, double eta,
+                             bsurf_fvar_result *res) {
   res->quadric_k = 0;
   res->quadric_threshold = res->quadric_power = res->quadric_noise = NAN;
   res->quadric_cleared = 0;
   res->border_points = 0;
   res->noise_level = sqrt(s2);
   res->sigma0 = 0;
-  res->null_threshold = res->split = NAN;
+  res->threshold = res->null_threshold = res->split = NAN;
   /* the border score's null quantile: b does not depend on the noise's
    * size (a flat patch's centroid scatter), so also without noise */
   bsurf_status st = bsurf_fvar_null_threshold(o, s2 > 0 ? eta : 0, &res->null_threshold,
                                               &res->border_threshold, &res->sigma0);
-  if (st != BSURF_OK) return st;
-  if (s2 > 0) {
+  if (st == BSURF_OK && !(s2 > 0)) { /* noise-free: the null is nu = 0 (bsurf_fvar_split) */
+    res->null_threshold = NAN;
+    res->sigma0 = 0;
+  }
+  return st;
+}
+
+bsurf_status bsurf_fvar_split(const double *z, size_t n, bsurf_fvar_result *res) {
+  if (res->noise_level > 0) {
     /* t = max(t_null, Otsu's split of log z): the test bounds the flat
      * area's false positives; among what it lets through, the split keeps
      * the upper mode (the band nearest the edge) when z is bimodal */
+    bsurf_status st = BSURF_OK;
     if (n >= 2) st = bsurf_tail_threshold(z, n, BSURF_TAIL_OTSU, &res->split);
     if (st != BSURF_OK) return st;
     res->threshold = res->split > res->null_threshold ? res->split : res->null_threshold;
     return BSURF_OK;
   }
-  /* noise-free: the null is nu = 0; rounding-level values are flat */
-  res->null_threshold = NAN;
-  res->sigma0 = 0;
+  /* noise-free: rounding-level values are flat */
   double mx = 0;
   for (size_t i = 0; i < n; i++)
     if (z[i] > mx) mx = z[i];
@@ -794,19 +793,17 @@ int bsurf_fvar_feature(const bsurf_fvar_result *res, double z, double zb, double
   return (z > res->threshold && !quadric_explains(res, q)) || zb > res->border_threshold;
 }
 
-/* 1 where the quadric check cleared a point the variance test flagged (and
- * the border test does not keep): what quadric_cleared counts */
-static int fvar_cleared(const bsurf_fvar_result *res, double z, double zb, double q) {
-  return z > res->threshold && quadric_explains(res, q) && !(zb > res->border_threshold);
+int bsurf_fvar_count(bsurf_fvar_result *res, double z, double zb, double q, size_t *features) {
+  const int tested = z > res->threshold, cleared = tested && quadric_explains(res, q);
+  const int border = zb > res->border_threshold, f = (tested && !cleared) || border;
+  if (features) *features += (size_t)f;
+  res->quadric_cleared += (size_t)(cleared && !border);
+  res->border_points += (size_t)(border && !(tested && !cleared));
+  return f;
 }
 
-int bsurf_fvar_count(bsurf_fvar_result *res, double z, double zb, double q, size_t *features) {
-  const int f = bsurf_fvar_feature(res, z, zb, q);
-  const int by_z = z > res->threshold && !quadric_explains(res, q);
-  *features += (size_t)f;
-  res->quadric_cleared += (size_t)fvar_cleared(res, z, zb, q);
-  res->border_points += (size_t)(f && !by_z);
-  return f;
+double bsurf_fvar_quadric_sigma(const bsurf_fvar_result *res, double level, double s2) {
+  return res->sigma0 * sqrt(level / s2);
 }
 
 void bsurf_fvar_report(const bsurf_fvar_result *res, bsurf_feature_report *rep) {

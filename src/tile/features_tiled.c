@@ -355,19 +355,21 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
  *  (v2) s^2 = median lambda0, eta = median lambda0 / tr and the expected
  *       lambda0 E(g) (bsurf_fvar_fit: the sorted g, then lambda0 by g's
  *       bin) over the values read back in index order (8 bytes per point in
- *       memory at a time);
+ *       memory at a time); then the null patch's t_alpha, the border's t_b
+ *       and sigma_0 (bsurf_fvar_null, the in-memory function);
  *  (v3) K = k_f, reading (v1)'s values of the tile's points: u and w scaled
  *       by s^2 / E(g) (bsurf_fvar_fit_scale), z = the median of u over the
  *       first k_f neighbours / s^2, zb = that of b;
  *  (vq) the quadric check (quadric_angle > 0, a noise level given): K_q
- *       and t_q from eta (bsurf_fvar_quadric_k, the in-memory function);
+ *       and t_q at sigma_0 times the noise read over s (bsurf_fvar_quadric_k,
+ *       the in-memory function);
  *       K = K_q: (v1)'s values of the tile's points and the residual
  *       variance of each one's quadric (bsurf_fvar_quadric_rss's);
  *  (v3) K = k_f, reading (v1)'s (or (vq)'s) values of the tile's points: as
  *       above, and q = the median of the quadric's residual variance over
  *       the same neighbours / the noise level (NAN without the check);
- *  (v4) t from z (all of it in memory, for Otsu) and the null patch (t and
- *       the border's t_b: bsurf_fvar_threshold, the in-memory function); the
+ *  (v4) t = max(t_alpha, Otsu's split of z, all of it in memory:
+ *       bsurf_fvar_split, the in-memory function); the
  *       feature count and its parts (bsurf_fvar_count of z, zb and q);
  *       the output by a pointwise stage. */
 
@@ -380,7 +382,6 @@ bsurf_status bsurf_features_distance_tiled(const char *input, const char *output
 typedef struct fv_run {
   fd_run fd; /* first: the stages get &fd as their user */
   double s2;
-  int kq;       /* the quadric check's K_q (0: none) */
   double level; /* the noise variance q is read against */
   size_t nv;    /* the values per point (v3) reads: NV, or NV + 1 after (vq) */
   bsurf_fvar_fit fit;
@@ -429,7 +430,8 @@ static bsurf_status run_var_quadric(void *user, const bsurf_tile *t, bsurf_cloud
   const size_t nc = t->core_count;
   double *rss = bsurf_alloc_array(nc ? nc : 1, sizeof(double));
   if (!rss) return BSURF_ERR_NOMEM;
-  bsurf_status st = bsurf_fvar_quadric_rss(t->xyz, t->nb, v->kq, v->fd.o.threads, rss, NULL, NULL);
+  bsurf_status st =
+      bsurf_fvar_quadric_rss(t->xyz, t->nb, v->res.quadric_k, v->fd.o.threads, rss, NULL, NULL);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
     /* each row's point first: its local index */
     const size_t l = t->nb->idx[r * (size_t)t->nb->k];
@@ -456,18 +458,18 @@ static bsurf_status run_var_filter(void *user, const bsurf_tile *t, bsurf_cloud 
     w[l] = t->values[nv * l + 3];
     b[l] = t->values[nv * l + 4];
     g[l] = t->values[nv * l + 5];
-    if (v->kq) rss[l] = t->values[nv * l + NV];
+    if (v->res.quadric_k) rss[l] = t->values[nv * l + NV];
   }
   bsurf_fvar_fit_scale(&v->fit, v->s2, nl, g, u, w);
   const int kf = bsurf_fvar_filter_k(&v->fd.o), k = v->fd.o.normals.k;
   bsurf_status st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, v->s2, k, u, w, z);
   if (st == BSURF_OK) st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, 0, k, b, NULL, zb);
-  if (st == BSURF_OK && v->kq)
-    st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, v->level, v->kq, rss, NULL, q);
+  if (st == BSURF_OK && v->res.quadric_k)
+    st = bsurf_fvar_filter(t->nb, kf, v->fd.o.threads, v->level, v->res.quadric_k, rss, NULL, q);
   for (size_t r = 0; r < nc && st == BSURF_OK; r++) {
     t->values_out[NZ * r] = z[r];
     t->values_out[NZ * r + 1] = zb[r];
-    t->values_out[NZ * r + 2] = v->kq ? q[r] : NAN;
+    t->values_out[NZ * r + 2] = v->res.quadric_k ? q[r] : NAN;
   }
   free(u);
   return st;
@@ -562,18 +564,21 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   if (st == BSURF_OK) st = values_scan_n(&v, &local, NV, scan_col);
   if (st == BSURF_OK) eta = bsurf_median(v.all, v.nall);
   st = agree_local(cm, st);
+  /* the null (t_alpha, t_b, sigma_0: the in-memory function) */
+  if (st == BSURF_OK) st = bsurf_fvar_null(o, v.s2, eta, &v.res);
   /* (vq): as in memory (features_variance.c, quadric_check), with the noise
    * level the caller read (NAN: none) */
-  int kq = 0;
-  double tq = NAN, qpower = NAN;
   bsurf_tile_values withq = {-1, 0, 0};
   const int check =
       o->quadric_angle > 0 && v.s2 > 0 && quadric_noise > 0 && v.nall > BSURF_SMOOTH_SELECT_K;
   if (st == BSURF_OK && check) {
-    st = bsurf_fvar_quadric_k(o, eta, sqrt(quadric_noise / v.s2), bsurf_fvar_k_cap(o, v.nall), &kq,
-                              &tq, &qpower);
+    int kq = 0;
+    v.res.quadric_noise = sqrt(quadric_noise);
+    st = bsurf_fvar_quadric_k(o, bsurf_fvar_quadric_sigma(&v.res, quadric_noise, v.s2),
+                              bsurf_fvar_k_cap(o, v.nall), &kq, &v.res.quadric_threshold,
+                              &v.res.quadric_power);
     if (st == BSURF_OK && kq) {
-      v.kq = kq;
+      v.res.quadric_k = kq;
       v.level = quadric_noise;
       st = stage(input, output, &v.fd, kq, NV + 1, run_var_quadric, &local, &withq, &rep, err);
       v.nv = NV + 1;
@@ -582,22 +587,15 @@ bsurf_status bsurf_features_variance_tiled(const char *input, const char *output
   }
   /* (v3) */
   if (st == BSURF_OK)
-    st = stage(input, output, &v.fd, kf, NZ, run_var_filter, v.kq ? &withq : &local, &z, &rep, err);
+    st = stage(input, output, &v.fd, kf, NZ, run_var_filter, v.res.quadric_k ? &withq : &local, &z,
+               &rep, err);
   bsurf_tile_values_close(&local);
   bsurf_tile_values_close(&withq);
   /* (v4) */
   const bsurf_status passed = st;
   v.nall = 0;
   if (st == BSURF_OK) st = values_scan_n(&v, &z, NZ, scan_z);
-  if (st == BSURF_OK) st = bsurf_fvar_threshold(o, v.all, v.nall, v.s2, eta, &v.res);
-  if (st == BSURF_OK) {
-    v.res.quadric_power = qpower;
-    if (check) v.res.quadric_noise = sqrt(quadric_noise);
-    if (kq) {
-      v.res.quadric_k = kq;
-      v.res.quadric_threshold = tq;
-    }
-  }
+  if (st == BSURF_OK) st = bsurf_fvar_split(v.all, v.nall, &v.res);
   if (st == BSURF_OK) st = values_scan_n(&v, &z, NZ, scan_features);
   free(v.all);
   v.all = NULL;
